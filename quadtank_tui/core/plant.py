@@ -1,0 +1,400 @@
+"""The nonlinear quadruple-tank process (Johansson & Nunes; Nunes 1998, section 2).
+
+Levels h1..h4 in cm, tanks 1 and 2 below, 3 above 1, 4 above 2.  Pump i delivers
+k_i v_i cm^3/s for v_i volts; valve i sends gamma_i of it to the lower tank on its
+side and 1 - gamma_i to the upper tank on the other side::
+
+    dh1/dt = -a1/A1 sqrt(2 g h1) + a3/A1 sqrt(2 g h3) + gamma1 k1/A1 v1
+    dh2/dt = -a2/A2 sqrt(2 g h2) + a4/A2 sqrt(2 g h4) + gamma2 k2/A2 v2
+    dh3/dt = -a3/A3 sqrt(2 g h3) + (1 - gamma2) k2/A3 v2
+    dh4/dt = -a4/A4 sqrt(2 g h4) + (1 - gamma1) k1/A4 v1
+
+Everything here is a pure function of its arguments: no clock, no I/O.  The
+stepping function integrates the model accurately over one sampling period with
+the pump voltages held (zero-order hold), so a simulation does not depend on the
+sampling time beyond the hold itself (the original used forward Euler).
+
+Example
+-------
+>>> h = advance(P_MINUS.op.h, P_MINUS.op.v, 1.0, P_MINUS.params)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from typing import Sequence
+
+Levels = tuple[float, float, float, float]
+Voltages = tuple[float, float]
+
+#: Full scale of every analog signal: normalized 1.0 is 10 V (product.md, "Units").
+FULL_SCALE_V = 10.0
+
+
+class PlantError(ValueError):
+    """A parameter or a request the physics cannot honour; the message says which."""
+
+
+@dataclass(frozen=True)
+class PlantParams:
+    """Physical constants of the rig.  Defaults: the paper's table at P-.
+
+    Attributes
+    ----------
+    A1, A2, A3, A4 : tank cross-sections, cm^2
+    a1, a2, a3, a4 : outlet hole cross-sections, cm^2
+    k1, k2 : pump gains, cm^3/(V s)
+    gamma1, gamma2 : valve splits, fraction of pump i's flow to lower tank i, [0, 1]
+    kc : level sensor gain, V/cm
+    g : gravity, cm/s^2
+    hmax : tank height = sensor range, cm (20 cm is normalized 1.0 at kc = 0.5)
+    """
+
+    A1: float = 28.0
+    A2: float = 32.0
+    A3: float = 28.0
+    A4: float = 32.0
+    a1: float = 0.071
+    a2: float = 0.057
+    a3: float = 0.071
+    a4: float = 0.057
+    k1: float = 3.33
+    k2: float = 3.35
+    gamma1: float = 0.70
+    gamma2: float = 0.60
+    kc: float = 0.50
+    g: float = 981.0
+    hmax: float = 20.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise PlantError(f"{f.name} must be a finite number, got {value!r}")
+        for name in ("A1", "A2", "A3", "A4", "a1", "a2", "a3", "a4", "kc", "g", "hmax"):
+            if getattr(self, name) <= 0:
+                raise PlantError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("k1", "k2"):
+            if getattr(self, name) < 0:
+                raise PlantError(f"{name} must be >= 0, got {getattr(self, name)}")
+        for name in ("gamma1", "gamma2"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise PlantError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        for i in range(4):
+            if self.outlet(i) >= self.area(i):
+                raise PlantError(f"a{i + 1} must be smaller than A{i + 1}")
+
+    def area(self, i: int) -> float:
+        """Cross-section of tank i (0-based), cm^2."""
+        return (self.A1, self.A2, self.A3, self.A4)[i]
+
+    def outlet(self, i: int) -> float:
+        """Outlet area of tank i (0-based), cm^2."""
+        return (self.a1, self.a2, self.a3, self.a4)[i]
+
+    def with_valves(self, gamma1: float | None = None, gamma2: float | None = None) -> PlantParams:
+        """A valve change keeps every other constant (control.md, Setup relations)."""
+        return replace(
+            self,
+            gamma1=self.gamma1 if gamma1 is None else gamma1,
+            gamma2=self.gamma2 if gamma2 is None else gamma2,
+        )
+
+    def with_tank(self, tank: int, *, area: float | None = None, outlet: float | None = None) -> PlantParams:
+        """Change tank `tank`'s (1..4) cross-section and/or outlet, e.g. an object dropped in it."""
+        _check_tank(tank)
+        changes: dict[str, float] = {}
+        if area is not None:
+            changes[f"A{tank}"] = area
+        if outlet is not None:
+            changes[f"a{tank}"] = outlet
+        return replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class OperatingPoint:
+    """Levels h (cm, tanks 1..4) and pump voltages v (V) of a named setting."""
+
+    h: Levels
+    v: Voltages
+
+
+@dataclass(frozen=True)
+class Setting:
+    """A named physical setting: the rig's constants and where it is operated."""
+
+    name: str
+    title: str
+    params: PlantParams
+    op: OperatingPoint = field(compare=False)
+
+
+#: Minimum-phase setting P- (Johansson & Nunes, section 2; gamma1 + gamma2 = 1.30).
+P_MINUS = Setting(
+    "minphase",
+    "P- (minimum phase)",
+    PlantParams(k1=3.33, k2=3.35, gamma1=0.70, gamma2=0.60),
+    OperatingPoint(h=(12.4, 12.7, 1.8, 1.4), v=(3.00, 3.00)),
+)
+
+#: Nonminimum-phase setting P+ (gamma1 + gamma2 = 0.77 < 1: a RHP zero).
+P_PLUS = Setting(
+    "nonminphase",
+    "P+ (nonminimum phase)",
+    PlantParams(k1=3.14, k2=3.29, gamma1=0.43, gamma2=0.34),
+    OperatingPoint(h=(12.6, 13.0, 4.8, 4.9), v=(3.15, 3.15)),
+)
+
+SETTINGS: dict[str, Setting] = {s.name: s for s in (P_MINUS, P_PLUS)}
+
+
+# --- Setup-screen relations (control.md) -------------------------------------------
+
+def area_from_diameter(diameter_cm: float) -> float:
+    """Cross-section (cm^2) of a round tank of the given inner diameter (cm)."""
+    if diameter_cm <= 0:
+        raise PlantError(f"diameter must be > 0 cm, got {diameter_cm}")
+    return math.pi * diameter_cm**2 / 4.0
+
+
+def diameter_from_area(area_cm2: float) -> float:
+    """Inverse of :func:`area_from_diameter`."""
+    if area_cm2 <= 0:
+        raise PlantError(f"area must be > 0 cm^2, got {area_cm2}")
+    return math.sqrt(4.0 * area_cm2 / math.pi)
+
+
+def time_constant(area: float, outlet: float, level_cm: float, g: float = 981.0) -> float:
+    """Linearized time constant T = (A/a) sqrt(2 h0 / g), s."""
+    if level_cm <= 0:
+        raise PlantError(f"operating level must be > 0 cm, got {level_cm}")
+    return area / outlet * math.sqrt(2.0 * level_cm / g)
+
+
+def outlet_from_time_constant(area: float, tau_s: float, level_cm: float, g: float = 981.0) -> float:
+    """The outlet area that gives time constant `tau_s` at level `level_cm`: a = A sqrt(2 h0/g) / T."""
+    if tau_s <= 0:
+        raise PlantError(f"time constant must be > 0 s, got {tau_s}")
+    if level_cm <= 0:
+        raise PlantError(f"operating level must be > 0 cm, got {level_cm}")
+    return area * math.sqrt(2.0 * level_cm / g) / tau_s
+
+
+# --- Units ------------------------------------------------------------------------
+
+def levels_to_normalized(h: Sequence[float], p: PlantParams) -> tuple[float, ...]:
+    """Sensor reading in normalized units (fraction of 10 V): y = kc h / 10."""
+    return tuple(p.kc * hi / FULL_SCALE_V for hi in h)
+
+
+def normalized_to_levels(y: Sequence[float], p: PlantParams) -> tuple[float, ...]:
+    """Inverse of :func:`levels_to_normalized`, cm."""
+    return tuple(yi * FULL_SCALE_V / p.kc for yi in y)
+
+
+# --- The model ----------------------------------------------------------------------
+
+def rhs(h: Sequence[float], v: Sequence[float], p: PlantParams) -> Levels:
+    """dh/dt (cm/s) of the nonlinear model.
+
+    Physical limits: a pump does not run backwards (v < 0 acts as 0), an empty tank
+    has no outflow (sqrt of max(h, 0)), and a full tank spills what would raise it
+    above hmax (the spilled water leaves the process).
+    """
+    h1, h2, h3, h4 = h
+    v1 = v[0] if v[0] > 0.0 else 0.0
+    v2 = v[1] if v[1] > 0.0 else 0.0
+    s = math.sqrt(2.0 * p.g)
+    q1 = p.a1 * s * math.sqrt(h1) if h1 > 0.0 else 0.0
+    q2 = p.a2 * s * math.sqrt(h2) if h2 > 0.0 else 0.0
+    q3 = p.a3 * s * math.sqrt(h3) if h3 > 0.0 else 0.0
+    q4 = p.a4 * s * math.sqrt(h4) if h4 > 0.0 else 0.0
+    f1 = (-q1 + q3 + p.gamma1 * p.k1 * v1) / p.A1
+    f2 = (-q2 + q4 + p.gamma2 * p.k2 * v2) / p.A2
+    f3 = (-q3 + (1.0 - p.gamma2) * p.k2 * v2) / p.A3
+    f4 = (-q4 + (1.0 - p.gamma1) * p.k1 * v1) / p.A4
+    hmax = p.hmax
+    if h1 >= hmax and f1 > 0.0:
+        f1 = 0.0
+    if h2 >= hmax and f2 > 0.0:
+        f2 = 0.0
+    if h3 >= hmax and f3 > 0.0:
+        f3 = 0.0
+    if h4 >= hmax and f4 > 0.0:
+        f4 = 0.0
+    return (f1, f2, f3, f4)
+
+
+# Dormand-Prince 5(4) tableau (Hairer, Norsett & Wanner, Table 5.2).
+_C = (0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0)
+_A = (
+    (),
+    (1 / 5,),
+    (3 / 40, 9 / 40),
+    (44 / 45, -56 / 15, 32 / 9),
+    (19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729),
+    (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
+    (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84),
+)
+_B = (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84, 0.0)
+_E = (  # b - b_hat: the embedded error estimate
+    71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40,
+)
+
+#: Local error tolerances of :func:`advance`, cm.  Chosen so 600 s runs agree with a
+#: 1e-12 reference to far better than 1e-6 cm (see tests/core/test_plant_accuracy.py).
+RTOL = 1e-10
+ATOL = 1e-10
+
+
+def _clip(x: float, hmax: float) -> float:
+    return 0.0 if x < 0.0 else (hmax if x > hmax else x)
+
+
+def advance(
+    h: Sequence[float],
+    v: Sequence[float],
+    dt: float,
+    p: PlantParams,
+    *,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+) -> Levels:
+    """Levels after `dt` seconds with pump voltages `v` held constant (ZOH).
+
+    Adaptive Dormand-Prince 5(4) with the levels projected onto [0, hmax] after each
+    accepted sub-step (an overfull tank spills, an empty one stays empty).  The
+    right-hand side is not Lipschitz at an empty tank, so the step control does the
+    work there: it shrinks the sub-step until the local error meets `atol`.
+
+    >>> advance((10.0, 10.0, 0.0, 0.0), (0.0, 0.0), 0.0, PlantParams())
+    (10.0, 10.0, 0.0, 0.0)
+    """
+    if dt < 0 or not math.isfinite(dt):
+        raise PlantError(f"step length must be a finite number >= 0 s, got {dt}")
+    hmax = p.hmax
+    y = [_clip(float(x), hmax) for x in h]
+    if dt == 0.0:
+        return (y[0], y[1], y[2], y[3])
+    vv = (float(v[0]), float(v[1]))
+    t = 0.0
+    step = min(dt, 1.0)
+    k = [rhs(y, vv, p)] + [None] * 6  # FSAL: k[0] is f(t, y)
+    while t < dt:
+        if t + step >= dt:
+            step = dt - t
+            last = True
+        else:
+            last = False
+        stages = k
+        for s in range(1, 7):
+            a = _A[s]
+            ys = [
+                y[i] + step * sum(a[j] * stages[j][i] for j in range(s))
+                for i in range(4)
+            ]
+            stages[s] = rhs(ys, vv, p)
+        y_new = [y[i] + step * sum(_B[j] * stages[j][i] for j in range(7)) for i in range(4)]
+        err = 0.0
+        for i in range(4):
+            e = step * sum(_E[j] * stages[j][i] for j in range(7))
+            sc = atol + rtol * max(abs(y[i]), abs(y_new[i]))
+            err = max(err, abs(e) / sc)
+        if err <= 1.0:
+            t = dt if last else t + step
+            y = [_clip(x, hmax) for x in y_new]
+            k = [rhs(y, vv, p)] + [None] * 6
+            factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
+        else:
+            factor = max(0.1, 0.9 * err ** -0.2)
+            k = [stages[0]] + [None] * 6
+        step = step * factor
+        if step < 1e-12:
+            step = 1e-12  # degenerate corner: accept tiny steps rather than loop forever
+    return (y[0], y[1], y[2], y[3])
+
+
+# --- Steady states ------------------------------------------------------------------
+
+class SteadyStateError(PlantError):
+    """No (unique, physical) steady state exists for the request."""
+
+
+def _level_for_outflow(q: float, outlet: float, g: float) -> float:
+    """Level at which a tank's outflow a sqrt(2 g h) equals q (cm^3/s)."""
+    return (q / (outlet * math.sqrt(2.0 * g))) ** 2
+
+
+def steady_state_levels(v: Sequence[float], p: PlantParams) -> Levels:
+    """Levels (cm) the process settles at with constant pump voltages `v`.
+
+    A tank whose steady level would exceed hmax overflows: it stays at hmax and only
+    its outlet flow reaches the tank below.
+    """
+    v1, v2 = max(float(v[0]), 0.0), max(float(v[1]), 0.0)
+    s = math.sqrt(2.0 * p.g)
+    h3 = min(_level_for_outflow((1 - p.gamma2) * p.k2 * v2, p.a3, p.g), p.hmax)
+    h4 = min(_level_for_outflow((1 - p.gamma1) * p.k1 * v1, p.a4, p.g), p.hmax)
+    q3 = p.a3 * s * math.sqrt(h3)
+    q4 = p.a4 * s * math.sqrt(h4)
+    h1 = min(_level_for_outflow(p.gamma1 * p.k1 * v1 + q3, p.a1, p.g), p.hmax)
+    h2 = min(_level_for_outflow(p.gamma2 * p.k2 * v2 + q4, p.a2, p.g), p.hmax)
+    return (h1, h2, h3, h4)
+
+
+def steady_state_inputs(h1: float, h2: float, p: PlantParams) -> OperatingPoint:
+    """Pump voltages that hold the lower tanks at (h1, h2) cm, with the upper levels.
+
+    Solves M v = (a1 sqrt(2 g h1), a2 sqrt(2 g h2)) with
+    M = [[gamma1 k1, (1 - gamma2) k2], [(1 - gamma1) k1, gamma2 k2]] (Nunes, 2.2).
+    M is singular when gamma1 + gamma2 = 1 (the flows through tanks 1 and 2 are then
+    tied); a level pair that needs a negative voltage is not reachable either.
+    """
+    if h1 < 0 or h2 < 0:
+        raise SteadyStateError(f"levels must be >= 0 cm, got ({h1}, {h2})")
+    s = math.sqrt(2.0 * p.g)
+    m11, m12 = p.gamma1 * p.k1, (1 - p.gamma2) * p.k2
+    m21, m22 = (1 - p.gamma1) * p.k1, p.gamma2 * p.k2
+    det = m11 * m22 - m12 * m21  # = k1 k2 (gamma1 + gamma2 - 1)
+    scale = max(abs(m11 * m22), abs(m12 * m21), 1e-300)
+    if abs(det) <= 1e-12 * scale:
+        raise SteadyStateError(
+            "gamma1 + gamma2 = 1: the lower-tank flows are tied together, so the "
+            "levels cannot be set independently (no unique steady-state input)"
+        )
+    q1, q2 = p.a1 * s * math.sqrt(h1), p.a2 * s * math.sqrt(h2)
+    v1 = (m22 * q1 - m12 * q2) / det
+    v2 = (-m21 * q1 + m11 * q2) / det
+    if v1 < -1e-12 or v2 < -1e-12:
+        raise SteadyStateError(
+            f"levels ({h1:g}, {h2:g}) cm need pump voltages ({v1:.3g}, {v2:.3g}) V; "
+            "a pump cannot run backwards"
+        )
+    v1, v2 = max(v1, 0.0), max(v2, 0.0)
+    h = steady_state_levels((v1, v2), p)
+    if h[2] >= p.hmax or h[3] >= p.hmax:
+        raise SteadyStateError(f"levels ({h1:g}, {h2:g}) cm would overflow an upper tank")
+    return OperatingPoint(h=(h1, h2, h[2], h[3]), v=(v1, v2))
+
+
+# --- Disturbances (exposed by the simulator while it runs) ---------------------------
+
+def _check_tank(tank: int) -> None:
+    if tank not in (1, 2, 3, 4):
+        raise PlantError(f"tank must be 1..4, got {tank}")
+
+
+def add_water(h: Sequence[float], tank: int, amount_cm: float, p: PlantParams) -> Levels:
+    """Pour `amount_cm` of level into tank 1..4 (negative removes); overflow spills."""
+    _check_tank(tank)
+    if not math.isfinite(amount_cm):
+        raise PlantError(f"amount must be a finite number, got {amount_cm}")
+    out = [float(x) for x in h]
+    out[tank - 1] = _clip(out[tank - 1] + amount_cm, p.hmax)
+    return (out[0], out[1], out[2], out[3])
+
+
+def total_volume(h: Sequence[float], p: PlantParams) -> float:
+    """Water held in the four tanks, cm^3."""
+    return sum(p.area(i) * h[i] for i in range(4))
