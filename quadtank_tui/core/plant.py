@@ -35,6 +35,8 @@ FULL_SCALE_V = 10.0
 class PlantError(ValueError):
     """A parameter or a request the physics cannot honour; the message says which."""
 
+    field: str | None = None
+
 
 @dataclass(frozen=True)
 class PlantParams:
