@@ -1,0 +1,83 @@
+"""Property tests over random valid parameters (issue 2)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from quadtank_tui.core.analysis import analyze, linearize
+from quadtank_tui.core.plant import PlantParams, advance, rhs, steady_state_levels, total_volume
+
+areas = st.floats(15.0, 60.0)
+outlets = st.floats(0.03, 0.15)
+gains = st.floats(1.0, 6.0)
+valves = st.floats(0.05, 1.0)
+
+
+@st.composite
+def plants(draw) -> PlantParams:
+    return PlantParams(
+        A1=draw(areas), A2=draw(areas), A3=draw(areas), A4=draw(areas),
+        a1=draw(outlets), a2=draw(outlets), a3=draw(outlets), a4=draw(outlets),
+        k1=draw(gains), k2=draw(gains), gamma1=draw(valves), gamma2=draw(valves),
+    )
+
+
+levels = st.tuples(*[st.floats(0.5, 19.5)] * 4)
+volts = st.tuples(st.floats(0.5, 10.0), st.floats(0.5, 10.0))
+
+
+@settings(max_examples=150, deadline=None)
+@given(plants(), levels)
+def test_rhp_zero_iff_valves_sum_below_one(p: PlantParams, h0) -> None:
+    s = p.gamma1 + p.gamma2
+    assume(abs(s - 1.0) > 1e-3)
+    r = analyze(p, h0)
+    has_rhp = any(z.real > 0 for z in r.zeros)
+    assert has_rhp == (s < 1.0)
+    assert (r.phase == "minimum") == (s > 1.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(plants(), volts)
+def test_simulation_settles_at_analytic_steady_state(p: PlantParams, v) -> None:
+    target = steady_state_levels(v, p)
+    h = (5.0, 5.0, 5.0, 5.0)
+    for _ in range(200):
+        h = advance(h, v, 100.0, p)
+    assert np.allclose(h, target, rtol=1e-6, atol=1e-6)
+
+
+@settings(max_examples=40, deadline=None)
+@given(plants(), levels)
+def test_pumps_off_water_only_decreases(p: PlantParams, h0) -> None:
+    h = h0
+    vol = total_volume(h, p)
+    for _ in range(30):
+        h = advance(h, (0.0, 0.0), 20.0, p)
+        new = total_volume(h, p)
+        assert new <= vol + 1e-9
+        assert all(0.0 <= x <= p.hmax for x in h)
+        vol = new
+
+
+@settings(max_examples=60, deadline=None)
+@given(plants(), levels, volts)
+def test_linearization_matches_finite_differences(p: PlantParams, h0, v) -> None:
+    m = linearize(p, h0)
+    eps = 1e-6
+    J = np.empty((4, 4))
+    for j in range(4):
+        hp, hm = list(h0), list(h0)
+        hp[j] += eps
+        hm[j] -= eps
+        J[:, j] = (np.array(rhs(hp, v, p)) - np.array(rhs(hm, v, p))) / (2 * eps)
+    Bn = np.empty((4, 2))
+    for j in range(2):
+        vp, vm = list(v), list(v)
+        vp[j] += eps
+        vm[j] -= eps
+        Bn[:, j] = (np.array(rhs(h0, vp, p)) - np.array(rhs(h0, vm, p))) / (2 * eps)
+    assert np.allclose(m.A, J, rtol=1e-5, atol=1e-8)
+    assert np.allclose(m.B, Bn, rtol=1e-5, atol=1e-8)
