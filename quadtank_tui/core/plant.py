@@ -197,21 +197,48 @@ def normalized_to_levels(y: Sequence[float], p: PlantParams) -> tuple[float, ...
 
 # --- The model ----------------------------------------------------------------------
 
+#: Head (cm) below which the outflow leaves Torricelli's law for a smooth blend to
+#: zero.  sqrt(h) has infinite slope at h = 0, so a tank whose equilibrium is a film
+#: of water would have a time constant of microseconds and make the model stiff
+#: without bound.  Below 0.05 mm (under a 12-bit sensor's 20 cm / 4096) the blend
+#: q = a sqrt(2 g) (h / sqrt(d)) (3/2 - h / (2 d)) matches Torricelli's value and
+#: slope at h = d and is 0 at h = 0; above it the model is exactly the paper's.
+H_FILM = 0.005
+
+
+def outflow(h: float, a: float, g: float) -> float:
+    """Outlet flow (cm^3/s) of a tank at level h (cm) through area a (cm^2)."""
+    if h >= H_FILM:
+        return a * math.sqrt(2.0 * g * h)
+    if h <= 0.0:
+        return 0.0
+    return a * math.sqrt(2.0 * g) * (h / math.sqrt(H_FILM)) * (1.5 - 0.5 * h / H_FILM)
+
+
+def _level_for_outflow(q: float, outlet: float, g: float) -> float:
+    """Inverse of :func:`outflow`: the level (cm) at which the tank passes q cm^3/s."""
+    q_film = outlet * math.sqrt(2.0 * g * H_FILM)
+    if q >= q_film:
+        return (q / (outlet * math.sqrt(2.0 * g))) ** 2
+    r = max(q, 0.0) / q_film  # x (3 - x) / 2 = r with x = h / H_FILM in [0, 1]
+    return H_FILM * (3.0 - math.sqrt(9.0 - 8.0 * r)) / 2.0
+
+
 def rhs(h: Sequence[float], v: Sequence[float], p: PlantParams) -> Levels:
     """dh/dt (cm/s) of the nonlinear model.
 
     Physical limits: a pump does not run backwards (v < 0 acts as 0), an empty tank
-    has no outflow (sqrt of max(h, 0)), and a full tank spills what would raise it
-    above hmax (the spilled water leaves the process).
+    has no outflow (see :data:`H_FILM` for the last 0.05 mm), and a full tank spills
+    what would raise it above hmax (the spilled water leaves the process).
     """
     h1, h2, h3, h4 = h
     v1 = v[0] if v[0] > 0.0 else 0.0
     v2 = v[1] if v[1] > 0.0 else 0.0
-    s = math.sqrt(2.0 * p.g)
-    q1 = p.a1 * s * math.sqrt(h1) if h1 > 0.0 else 0.0
-    q2 = p.a2 * s * math.sqrt(h2) if h2 > 0.0 else 0.0
-    q3 = p.a3 * s * math.sqrt(h3) if h3 > 0.0 else 0.0
-    q4 = p.a4 * s * math.sqrt(h4) if h4 > 0.0 else 0.0
+    g = p.g
+    q1 = outflow(h1, p.a1, g)
+    q2 = outflow(h2, p.a2, g)
+    q3 = outflow(h3, p.a3, g)
+    q4 = outflow(h4, p.a4, g)
     f1 = (-q1 + q3 + p.gamma1 * p.k1 * v1) / p.A1
     f2 = (-q2 + q4 + p.gamma2 * p.k2 * v2) / p.A2
     f3 = (-q3 + (1.0 - p.gamma2) * p.k2 * v2) / p.A3
@@ -248,6 +275,9 @@ _E = (  # b - b_hat: the embedded error estimate
 #: 1e-12 reference to far better than 1e-6 cm (see tests/core/test_plant_accuracy.py).
 RTOL = 1e-10
 ATOL = 1e-10
+#: Smallest sub-step, s; a step this small is accepted whatever its error estimate,
+#: so no input can make :func:`advance` loop forever.
+_MIN_STEP = 1e-9
 
 
 def _clip(x: float, hmax: float) -> float:
@@ -267,8 +297,10 @@ def advance(
 
     Adaptive Dormand-Prince 5(4) with the levels projected onto [0, hmax] after each
     accepted sub-step (an overfull tank spills, an empty one stays empty).  The
-    right-hand side is not Lipschitz at an empty tank, so the step control does the
-    work there: it shrinks the sub-step until the local error meets `atol`.
+    step control shrinks the sub-step where the flow law bends (a tank running dry,
+    a tank reaching the brim) until the local error meets `atol`; :data:`H_FILM`
+    bounds the stiffness of a nearly empty tank, so a step never needs to be
+    much shorter than a tenth of a second away from those events.
 
     >>> advance((10.0, 10.0, 0.0, 0.0), (0.0, 0.0), 0.0, PlantParams())
     (10.0, 10.0, 0.0, 0.0)
@@ -303,7 +335,7 @@ def advance(
             e = step * sum(_E[j] * stages[j][i] for j in range(7))
             sc = atol + rtol * max(abs(y[i]), abs(y_new[i]))
             err = max(err, abs(e) / sc)
-        if err <= 1.0:
+        if err <= 1.0 or step <= _MIN_STEP:
             t = dt if last else t + step
             y = [_clip(x, hmax) for x in y_new]
             k = [rhs(y, vv, p)] + [None] * 6
@@ -311,9 +343,7 @@ def advance(
         else:
             factor = max(0.1, 0.9 * err ** -0.2)
             k = [stages[0]] + [None] * 6
-        step = step * factor
-        if step < 1e-12:
-            step = 1e-12  # degenerate corner: accept tiny steps rather than loop forever
+        step = max(step * factor, _MIN_STEP)
     return (y[0], y[1], y[2], y[3])
 
 
@@ -323,11 +353,6 @@ class SteadyStateError(PlantError):
     """No (unique, physical) steady state exists for the request."""
 
 
-def _level_for_outflow(q: float, outlet: float, g: float) -> float:
-    """Level at which a tank's outflow a sqrt(2 g h) equals q (cm^3/s)."""
-    return (q / (outlet * math.sqrt(2.0 * g))) ** 2
-
-
 def steady_state_levels(v: Sequence[float], p: PlantParams) -> Levels:
     """Levels (cm) the process settles at with constant pump voltages `v`.
 
@@ -335,11 +360,10 @@ def steady_state_levels(v: Sequence[float], p: PlantParams) -> Levels:
     its outlet flow reaches the tank below.
     """
     v1, v2 = max(float(v[0]), 0.0), max(float(v[1]), 0.0)
-    s = math.sqrt(2.0 * p.g)
     h3 = min(_level_for_outflow((1 - p.gamma2) * p.k2 * v2, p.a3, p.g), p.hmax)
     h4 = min(_level_for_outflow((1 - p.gamma1) * p.k1 * v1, p.a4, p.g), p.hmax)
-    q3 = p.a3 * s * math.sqrt(h3)
-    q4 = p.a4 * s * math.sqrt(h4)
+    q3 = outflow(h3, p.a3, p.g)
+    q4 = outflow(h4, p.a4, p.g)
     h1 = min(_level_for_outflow(p.gamma1 * p.k1 * v1 + q3, p.a1, p.g), p.hmax)
     h2 = min(_level_for_outflow(p.gamma2 * p.k2 * v2 + q4, p.a2, p.g), p.hmax)
     return (h1, h2, h3, h4)
@@ -355,7 +379,6 @@ def steady_state_inputs(h1: float, h2: float, p: PlantParams) -> OperatingPoint:
     """
     if h1 < 0 or h2 < 0:
         raise SteadyStateError(f"levels must be >= 0 cm, got ({h1}, {h2})")
-    s = math.sqrt(2.0 * p.g)
     m11, m12 = p.gamma1 * p.k1, (1 - p.gamma2) * p.k2
     m21, m22 = (1 - p.gamma1) * p.k1, p.gamma2 * p.k2
     det = m11 * m22 - m12 * m21  # = k1 k2 (gamma1 + gamma2 - 1)
@@ -365,7 +388,7 @@ def steady_state_inputs(h1: float, h2: float, p: PlantParams) -> OperatingPoint:
             "gamma1 + gamma2 = 1: the lower-tank flows are tied together, so the "
             "levels cannot be set independently (no unique steady-state input)"
         )
-    q1, q2 = p.a1 * s * math.sqrt(h1), p.a2 * s * math.sqrt(h2)
+    q1, q2 = outflow(h1, p.a1, p.g), outflow(h2, p.a2, p.g)
     v1 = (m22 * q1 - m12 * q2) / det
     v2 = (-m21 * q1 + m11 * q2) / det
     if v1 < -1e-12 or v2 < -1e-12:

@@ -7,6 +7,9 @@ import math
 import pytest
 
 from quadtank_tui.core.plant import (
+    H_FILM,
+    _level_for_outflow,
+    outflow,
     P_MINUS,
     P_PLUS,
     PlantError,
@@ -148,3 +151,18 @@ def test_step_rejects_bad_dt() -> None:
         advance((1, 1, 1, 1), (1, 1), -1.0, PlantParams())
     with pytest.raises(PlantError):
         advance((1, 1, 1, 1), (1, 1), math.inf, PlantParams())
+
+
+def test_film_outflow_is_c1_continuous_and_invertible() -> None:
+    """Below H_FILM the outflow blends to 0 with Torricelli's value and slope at H_FILM."""
+    a, g, d = 0.071, 981.0, H_FILM
+    eps = 1e-9
+    torricelli = lambda h: a * math.sqrt(2 * g * h)  # noqa: E731
+    assert outflow(d - eps, a, g) == pytest.approx(torricelli(d), rel=1e-6)
+    slope_below = (outflow(d - eps, a, g) - outflow(d - 2 * eps, a, g)) / eps
+    slope_above = (torricelli(d + 2 * eps) - torricelli(d + eps)) / eps
+    assert slope_below == pytest.approx(slope_above, rel=1e-3)
+    assert outflow(0.0, a, g) == 0.0 and outflow(-1.0, a, g) == 0.0
+    assert outflow(12.4, a, g) == torricelli(12.4)  # the paper's law above the film
+    for h in (0.0, 1e-4, 0.002, 0.0049, 0.005, 0.3, 12.4):
+        assert _level_for_outflow(outflow(h, a, g), a, g) == pytest.approx(h, abs=1e-12)

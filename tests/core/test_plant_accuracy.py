@@ -70,6 +70,6 @@ def test_advance_matches_reference(name: str, dt: float) -> None:
 def test_scenarios_reach_their_limits() -> None:
     """The corner cases really happen: tanks run dry and tanks hit the brim."""
     _, empty = simulate(*SCENARIOS["tanks empty"], dt=1.0)
-    assert np.all(empty[-1] == 0.0)
+    assert np.all(empty[-1] < 1e-9)  # the last film drains exponentially (plant.H_FILM)
     _, brim = simulate(*SCENARIOS["fill to brim"], dt=1.0)
     assert np.any(brim == P_MINUS.params.hmax)
