@@ -151,12 +151,17 @@ def read_par(path: Path | str, *, base: Parameters = PRESET) -> ParRead:
 def _text_lines(data: bytes | str, name: str) -> list[str]:
     """Lines without their ends (LF or CRLF), refusing binary data by line."""
     if isinstance(data, bytes):
-        if b"\x00" in data:
-            raise ParFileError(name, "binary data (NUL byte): not a parameter file", data[: data.index(b"\x00")].count(b"\n") + 1)
+        nul = data.find(b"\x00")
         try:
-            data = data.decode("utf-8")
+            text = data.decode("utf-8")
+            bad = None
         except UnicodeDecodeError as exc:
-            raise ParFileError(name, "not a text file (undecodable byte)", data[: exc.start].count(b"\n") + 1) from None
+            bad = exc.start
+        if nul >= 0 and (bad is None or nul < bad):
+            raise ParFileError(name, "binary data (NUL byte): not a parameter file", data[:nul].count(b"\n") + 1)
+        if bad is not None:
+            raise ParFileError(name, "not a text file (undecodable byte)", data[:bad].count(b"\n") + 1)
+        data = text
     return [ln[:-1] if ln.endswith("\r") else ln for ln in data.split("\n")]
 
 
