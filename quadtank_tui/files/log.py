@@ -44,7 +44,7 @@ SUFFIX = ".log"
 PARTIAL_SUFFIX = ".partial"
 COLUMN_SEPARATOR = "  "
 
-_VARIABLES_LINE = re.compile(r"%\s*Logged variables:\s*(?P<names>.*?)(?:\s+TSamp:\s*(?P<tsamp>\S*?)\s*s?)?\s*$")
+_VARIABLES_LINE = re.compile(r"%\s*Logged variables:(?P<rest>.*)")
 _CREATED_LINE = re.compile(r"%\s*Created on:\s*(?P<stamp>.*?)\s*$")
 
 
@@ -80,7 +80,14 @@ def format_header(variables: Sequence[str], tsamp: float, created: datetime) -> 
 
 def format_row(values: Sequence[float]) -> str:
     """One sample: `%f` values separated by two spaces."""
-    return COLUMN_SEPARATOR.join("%f" % v for v in values) + "\n"
+    return COLUMN_SEPARATOR.join(_f(v) for v in values) + "\n"
+
+
+def _f(value: float) -> str:
+    """`%f`, except that a value that rounds to zero is written "0.000000", never
+    "-0.000000" (a tiny negative input or -0.0 would otherwise show a sign)."""
+    text = "%f" % value
+    return "0.000000" if text == "-0.000000" else text
 
 
 def log_path(folder: Path | str, name: str) -> Path:
@@ -312,7 +319,9 @@ def parse_log(data: bytes | str, *, name: str = "<log>") -> LogData:
 
 
 def _parse_variables(m: re.Match[str], name: str, no: int, warnings: list[str]) -> tuple[tuple[str, ...], float | None]:
-    names = tuple(m.group("names").split())
+    """`y1 y2 u1 u2   TSamp: 1s` -> the names and the sampling time in seconds."""
+    names_text, has_tsamp, tsamp_text = m.group("rest").partition("TSamp:")
+    names = tuple(names_text.split())
     if not names:
         raise LogFileError(name, "no variable names on the 'Logged variables:' line", no)
     if len(set(names)) != len(names):
@@ -320,8 +329,8 @@ def _parse_variables(m: re.Match[str], name: str, no: int, warnings: list[str]) 
     unknown = [n for n in names if n not in LOG_VARIABLES]
     if unknown:
         warnings.append(f"{name}, line {no}: unusual variable names {' '.join(unknown)} (kept)")
-    text = m.group("tsamp")
-    if text is None:
+    text = tsamp_text.strip().removesuffix("s").strip()
+    if not has_tsamp:
         warnings.append(f"{name}, line {no}: no TSamp on the 'Logged variables:' line")
         return names, None
     try:
