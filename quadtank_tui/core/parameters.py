@@ -31,7 +31,7 @@ import dataclasses
 import re
 from dataclasses import dataclass
 from enum import Enum
-from typing import Any, Iterator, Mapping, Sequence
+from typing import Any, Iterable, Iterator, Mapping, Sequence
 
 from quadtank_tui.core.general import GeneralParams
 from quadtank_tui.core.pid import PIDParams
@@ -90,7 +90,7 @@ PLOT_TYPES = ("u1", "u2", "u1 u2", "y1 ref1", "y2 ref2", "y1 y2 ref1 ref2", "y1 
 #: coefficients): beyond it a value is a typo or junk, not a controller.
 MAX_ABS = 1e9
 
-_LOG_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]{0,99}")
+_FILE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]{0,99}")
 
 
 # --- validation helpers ----------------------------------------------------------------
@@ -116,7 +116,7 @@ def check_file_name(name: Any, key: str = "LogFile") -> str:
     """A file name (log or parameter file) is a name, not a path: letters, digits,
     `_`, `-`, `.`; it may not start with a dot or contain `..`, so it cannot leave
     its folder (`logs/`, `params/`) whatever the user types."""
-    if not isinstance(name, str) or not _LOG_NAME.fullmatch(name) or ".." in name:
+    if not isinstance(name, str) or not _FILE_NAME.fullmatch(name) or ".." in name:
         raise ParameterError(
             key, f"must be a plain file name (letters, digits, _ - .; no folders), got {name!r}"
         )
@@ -299,8 +299,10 @@ class Parameters:
 
     def __post_init__(self) -> None:
         check_range(TSAMP, self.tsamp_ms, TSAMP_MIN_MS, TSAMP_MAX_MS)
-        if len(self.references) != 2 or len(self.controllers) != 4:
-            raise ParameterError("CONTROLLER ONE.K", "two references and four controller elements are needed")
+        if len(self.references) != 2:
+            raise ParameterError("REFERENCE ONE", f"two references are needed, got {len(self.references)}")
+        if len(self.controllers) != 4:
+            raise ParameterError("CONTROLLER ONE", f"four controller elements are needed, got {len(self.controllers)}")
         for section, ref in zip(REFERENCE_SECTIONS, self.references):
             _check_period(section, ref, self.tsamp_ms)
 
@@ -334,6 +336,12 @@ class Parameters:
             k = spec(key)
             _set_leaf(tree, k.path, k.coerce(value))
         return _from_tree(self, tree, ())
+
+    def with_defaults(self, keys: Iterable[str], default: Parameters | None = None) -> Parameters:
+        """A copy with `keys` back at their default values (a window's Default
+        button: e.g. ``p.with_defaults(k.name for k in keys_of("CONTROLLER ONE"))``)."""
+        base = PRESET if default is None else default
+        return self.with_values({key: base.get(key) for key in keys})
 
     def modified_keys(self, default: Parameters | None = None) -> frozenset[str]:
         """Keys whose value differs from `default` (the built-in preset if None)."""
@@ -402,7 +410,10 @@ def _coerce_number(k: KeySpec, value: Any) -> float:
 
 
 def _coerce_integer(k: KeySpec, value: Any) -> int:
-    return _integer(k.key, value, -(2**31), 2**31)
+    x = check_number(k.key, value)
+    if x != int(x):
+        raise ParameterError(k.key, f"must be a whole number, got {x:g}")
+    return int(x)
 
 
 def _coerce_flag(k: KeySpec, value: Any) -> bool:

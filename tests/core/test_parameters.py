@@ -16,6 +16,7 @@ from quadtank_tui.core.parameters import (
     Parameters,
     Structure,
     iter_keys,
+    keys_of,
     spec,
 )
 from quadtank_tui.core.plant import P_MINUS, P_PLUS
@@ -90,6 +91,14 @@ def test_with_value_returns_a_new_model_and_keeps_the_old() -> None:
     assert PRESET.modified_keys() == frozenset()
 
 
+def test_with_defaults_resets_a_window() -> None:
+    p = PRESET.with_values({"CONTROLLER ONE.K": 1.0, "CONTROLLER ONE.Ti": 10, "CONTROLLER FOUR.K": 2.0})
+    back = p.with_defaults(k.name for k in keys_of("CONTROLLER ONE"))
+    assert back.modified_keys() == {"CONTROLLER FOUR.K"}
+    other = NAMED_SETTINGS["nonminphase"]
+    assert PRESET.with_defaults(["SIMULATION.Valve1"], other).get("SIMULATION.Valve1") == 0.43
+
+
 def test_modified_against_another_default() -> None:
     p = NAMED_SETTINGS["nonminphase"]
     changed = p.modified_keys(PRESET)
@@ -136,6 +145,7 @@ def test_coercion_from_typed_and_loose_values() -> None:
         ("SIMULATION.Pump2", 0, "must be > 0, got 0"),
         ("LOGGING.Points", 0, "must be >= 1, got 0"),
         ("LOGGING.Points", 100_001, "must be <= 100000, got 100001"),
+        ("LOGGING.Points", 1e20, "must be <= 100000, got 1e+20"),
         ("LOGGING.Variables", "y1 y1", "must be distinct names from t y1 y2 y3 y4 u1 u2 r1 r2 (a name is repeated)"),
         ("LOGGING.Variables", "", "must be distinct names from t y1 y2 y3 y4 u1 u2 r1 r2 (none given)"),
         ("LOGGING.LogFile", "../etc/passwd", "must be a plain file name (letters, digits, _ - .; no folders), got '../etc/passwd'"),
