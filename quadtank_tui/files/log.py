@@ -104,7 +104,8 @@ class LogWriter:
     :meth:`append` once per sample (the values by variable name; extra names are
     ignored).  Logging stops by itself after `points` rows, or at :meth:`stop`
     (LogOff).  :meth:`save` renames the partial file to the final `.log`;
-    :meth:`discard` removes it.
+    :meth:`discard` removes it.  A partial file already there at LogOn (a run
+    that died before Save) is kept as `<name>-recovered.log`, see `recovered`.
 
     Rows are handed to the OS every `flush_rows` rows (default: every row, a
     few dozen bytes per sample) and fsynced at most every `fsync_interval` s of
@@ -142,6 +143,8 @@ class LogWriter:
         self._fsync_interval = fsync_interval
         self._clock = clock
         self._pending: list[str] = []
+        #: Where an earlier run's unsaved partial file was moved, if there was one.
+        self.recovered = _keep_earlier_partial(self.partial_path, self.path)
         self._file = open(self.partial_path, "wb", buffering=0)
         self._file.write(header.encode("ascii"))
         os.fsync(self._file.fileno())
@@ -219,6 +222,21 @@ class LogWriter:
         """Stop and delete the partial file (the user chose not to keep the log)."""
         self.stop()
         self.partial_path.unlink(missing_ok=True)
+
+
+def _keep_earlier_partial(partial: Path, final: Path) -> Path | None:
+    """A partial file at LogOn is the unsaved log of a run that died: rather than
+    truncate it, move it to `<name>-recovered[-N].log` (it loads as it is)."""
+    if not partial.exists():
+        return None
+    stem = final.name[: -len(SUFFIX)] if final.name.endswith(SUFFIX) else final.name
+    n = 1
+    while True:
+        kept = final.with_name(f"{stem}-recovered{'' if n == 1 else f'-{n}'}{SUFFIX}")
+        if not kept.exists():
+            os.replace(partial, kept)
+            return kept
+        n += 1
 
 
 # --- reading ------------------------------------------------------------------------------

@@ -137,6 +137,20 @@ def test_logoff_before_the_limit_then_save_elsewhere(tmp_path: Path) -> None:
     assert sorted(os.listdir(tmp_path)) == ["b.log"]
 
 
+def test_logon_keeps_a_partial_left_by_an_earlier_run(tmp_path: Path) -> None:
+    first = LogWriter(tmp_path / "data.log", ("y1",), 1.0, 10, created=THESIS_STAMP)
+    first.append({"y1": 0.25})  # ... and the program dies here
+    second = LogWriter(tmp_path / "data.log", ("y1",), 1.0, 10, created=THESIS_STAMP)
+    assert second.recovered == tmp_path / "data-recovered.log"
+    assert read_log(second.recovered).data.tolist() == [[0.25]]
+    third = LogWriter(tmp_path / "data.log", ("y1",), 1.0, 10)
+    assert third.recovered == tmp_path / "data-recovered-2.log"
+    assert first.recovered is None
+    first.stop()
+    third.save()
+    assert sorted(os.listdir(tmp_path)) == ["data-recovered-2.log", "data-recovered.log", "data.log"]
+
+
 def test_discard(tmp_path: Path) -> None:
     w = LogWriter(tmp_path / "a.log", ("u1",), 1.0, 100)
     w.append({"u1": 0.5})
