@@ -191,3 +191,14 @@ def test_the_model_is_frozen() -> None:
     assert isinstance(PRESET, Parameters)
     assert spec("CONTROLLER ONE.K").path == ("controllers", 0, "pid", "K")
     assert all(k.name == f"{k.section}.{k.key}" for k in KEYS)
+
+
+def test_thesis_tank_window_values_and_the_setup_relations() -> None:
+    """Figures 33 and 39 show tank 1 at Op. Point 0.62, Diameter 5.93, Time Const.
+    62.16: through A = pi d^2/4 and a = A sqrt(2 h0/g)/T that is an outlet of
+    0.0706 cm^2 (the paper's table says 0.071, which would give T = 61.8 s)."""
+    p = PRESET.with_values({"SIMULATION.Diameter1": 5.93, "SIMULATION.OpPoint1": 0.62, "SIMULATION.TimeConst1": 62.16})
+    plant = p.plant()
+    assert plant.A1 == pytest.approx(27.6184, abs=1e-4)
+    assert plant.a1 == pytest.approx(0.070645, abs=1e-6)
+    assert p.operating_levels()[0] == pytest.approx(12.4)
