@@ -51,7 +51,7 @@ MAX_BYTES = 1_000_000
 _SECTION_LINE = re.compile(r"[A-Z][A-Z ]*[A-Z]")
 _ENTRY_LINE = re.compile(r"(\S+)\s+(\S.*)")
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
-_SPEC = {(k.section, k.key): k for k in KEYS}
+_SPEC = {(k.section, k.key.lower()): k for k in KEYS}
 
 
 class ParFileError(ValueError):
@@ -112,10 +112,12 @@ def parse_par(data: bytes | str, *, name: str = "<par>", base: Parameters = PRES
         key, text = m.group(1), m.group(2)
         if section is None:
             raise ParFileError(name, "entry outside any section (a section name in capitals must come first)", no, key)
+        spec = _SPEC.get((section, key.lower()))
+        if spec is not None:
+            key = spec.key  # keys match whatever their case ("tsamp"): no two differ only by it
         if (section, key) in seen:
             raise ParFileError(name, f"duplicate key (first set on line {seen[section, key]})", no, f"{section}.{key}")
         seen[section, key] = no
-        spec = _SPEC.get((section, key))
         if spec is None:
             extra.append((section, key, text))
             if section in SECTIONS:

@@ -151,6 +151,14 @@ def test_any_order_crlf_tabs_and_blank_lines() -> None:
     assert p.tsamp_ms == 200.0
 
 
+def test_keys_match_whatever_their_case() -> None:
+    p = parse_par("SAMPLING TIME\ntsamp 250\n\nCONTROLLER ONE\nk 2.0\nTI 20\n").params
+    assert (p.tsamp_ms, p.controllers[0].pid.K, p.controllers[0].pid.Ti) == (250.0, 2.0, 20.0)
+    with pytest.raises(ParFileError, match="line 3: CONTROLLER ONE.K: duplicate key \\(first set on line 2\\)"):
+        parse_par("CONTROLLER ONE\nK 2.0\nk 3.0\n")
+    assert len({(k.section, k.key.lower()) for k in KEYS}) == len(KEYS)
+
+
 def test_numbers_in_percent_f_form_for_whole_and_flag_values() -> None:
     p = parse_par("LOGGING\nPoints 600.000000\n\nCONTROLLER ONE\nI 0.000000\nD 1.000000\nDegree 2.000000\n").params
     assert p.logging.points == 600
