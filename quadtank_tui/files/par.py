@@ -44,7 +44,12 @@ from quadtank_tui.files.stamp import format_stamp
 
 HEADER = "% TANK PAR-file"
 SUFFIX = ".par"
-RESERVED = ("default", "preset")
+#: Names the normal save refuses, and why.
+RESERVED = {
+    "default": "'default' is reserved: it holds everyone's defaults and is not overwritten by a normal "
+    "save (copy a saved file to default.par to change them)",
+    "preset": "'preset' is reserved: it names the built-in values, which no file replaces",
+}
 #: A parameter file is a few kB; anything much larger is not one.
 MAX_BYTES = 1_000_000
 
@@ -283,11 +288,8 @@ class ParStore:
     def save(self, name: str, params: Parameters, *, created: datetime | None = None) -> Path:
         """Write `params` under `name` (atomically); the reserved names are refused."""
         stem = _stem(name)
-        if stem.lower() == "default":
-            raise ParFileError(stem, "'default' is reserved: it holds everyone's defaults and is not "
-                               "overwritten by a normal save (copy a saved file to default.par to change them)")
-        if stem.lower() == "preset":
-            raise ParFileError(stem, "'preset' is reserved: it names the built-in values, which no file replaces")
+        if stem.lower() in RESERVED:
+            raise ParFileError(stem, RESERVED[stem.lower()])
         path = self.path_of(stem)
         self.folder.mkdir(parents=True, exist_ok=True)
         return write_par(path, params, created=created)
