@@ -1,5 +1,5 @@
-"""The `quadtank` command: subcommands for analysis (and, as they land, the TUI,
-headless runs, logs and the virtual rig).
+"""The `quadtank` command: subcommands for analysis and logs (and, as they land,
+the TUI, headless runs and the virtual rig).
 
 Every subcommand turns bad input into one clear line on stderr and exit status 2;
 a traceback never reaches the user.
@@ -10,10 +10,14 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Callable, Sequence
 
 from quadtank_tui.core.analysis import analyze, format_report
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
+from quadtank_tui.files.export import FORMATS, export_log
+from quadtank_tui.files.log import format_tsamp, read_log
+from quadtank_tui.files.par import read_par
 
 
 class UsageError(Exception):
@@ -30,9 +34,14 @@ def _add_analyze(sub: argparse._SubParsersAction) -> None:
         description="Linearize the quadruple-tank process at an operating point and "
         "print its time constants, transfer matrix, transmission zeros, phase and RGA.",
     )
-    p.add_argument(
+    source = p.add_mutually_exclusive_group()
+    source.add_argument(
         "--preset", choices=sorted(SETTINGS), default="minphase",
         help="named physical setting (default: minphase, the paper's P-)",
+    )
+    source.add_argument(
+        "--par", metavar="FILE",
+        help="a .par file: its SIMULATION section gives the plant and operating levels",
     )
     p.add_argument(
         "--at", choices=("levels", "steady"), default="levels",
@@ -44,6 +53,8 @@ def _add_analyze(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
+    if args.par is not None:
+        return _analyze_par(args)
     setting = SETTINGS[args.preset]
     params, h0 = setting.params, setting.op.h
     where = "operating levels"
@@ -59,6 +70,62 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     return 0
 
 
+def _analyze_par(args: argparse.Namespace) -> int:
+    if args.at == "steady":
+        raise UsageError("--at steady needs pump voltages; a .par file gives operating levels only")
+    read = read_par(args.par)
+    _warn(read.warnings)
+    result = analyze(read.params.plant(), read.params.operating_levels())
+    if args.json:
+        print(json.dumps({"par": args.par, "linearized_at": "levels", **result.to_dict()}, indent=2))
+    else:
+        print(format_report(f"{args.par}, linearized at its operating levels", result))
+    return 0
+
+
+def _add_log(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("log", help="inspect or export a .log data file",
+                       description="Inspect a .log data file or export it to .mat / .csv.")
+    logsub = p.add_subparsers(dest="log_command", metavar="ACTION", required=True)
+    info = logsub.add_parser("info", help="variables, TSamp, rows and duration of a log")
+    info.add_argument("file", metavar="FILE")
+    info.set_defaults(handler=_cmd_log_info)
+    exp = logsub.add_parser("export", help="write a log as .mat (one variable per column + TSamp) or .csv")
+    exp.add_argument("file", metavar="FILE")
+    exp.add_argument("--to", choices=FORMATS, required=True, help="output format")
+    exp.add_argument("--out", metavar="PATH", help="output file (default: FILE with the format's suffix)")
+    exp.set_defaults(handler=_cmd_log_export)
+
+
+def _cmd_log_info(args: argparse.Namespace) -> int:
+    log = read_log(args.file)
+    _warn(log.warnings)
+    tsamp = "unknown" if log.tsamp is None else f"{format_tsamp(log.tsamp)} s"
+    duration = "unknown" if log.duration is None else f"{log.duration:g} s"
+    print(f"file       {args.file}")
+    print(f"created    {log.created_text or 'unknown'}")
+    print(f"variables  {' '.join(log.variables)}")
+    print(f"TSamp      {tsamp}")
+    print(f"rows       {log.rows}")
+    print(f"duration   {duration}")
+    return 0
+
+
+def _cmd_log_export(args: argparse.Namespace) -> int:
+    log = read_log(args.file)
+    _warn(log.warnings)
+    out = args.out or str(Path(args.file).with_suffix("." + args.to))
+    if Path(out).resolve() == Path(args.file).resolve():
+        raise UsageError(f"{out}: the export would overwrite the log itself; give --out")
+    print(export_log(log, out, args.to))
+    return 0
+
+
+def _warn(warnings: Sequence[str]) -> None:
+    for w in warnings:
+        print(f"quadtank: warning: {w}", file=sys.stderr)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="quadtank",
@@ -66,6 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_analyze(sub)
+    _add_log(sub)
     return parser
 
 

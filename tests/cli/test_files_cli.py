@@ -1,0 +1,98 @@
+"""`quadtank analyze --par`, `quadtank log info`, `quadtank log export`: output on
+stdout, one clear line and exit 2 on bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import scipy.io
+
+from quadtank_tui.cli import main
+
+ROOT = Path(__file__).parents[2]
+THESIS_LOG = ROOT / "tests" / "files" / "golden" / "thesis.log"
+
+
+def test_analyze_par_uses_the_simulation_section(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["analyze", "--par", str(ROOT / "params" / "nonminphase.par"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["linearized_at"] == "levels"
+    assert out["phase"] == "nonminimum"
+    assert [round(t, 2) for t in out["time_constants"]] == [63.21, 91.4, 39.01, 56.11]
+
+
+def test_analyze_par_table(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["analyze", "--par", str(ROOT / "params" / "default.par")]) == 0
+    out = capsys.readouterr().out
+    assert "default.par, linearized at its operating levels" in out
+    assert "T1=62.70  T2=90.34  T3=23.89  T4=29.99" in out
+
+
+def test_analyze_par_warns_about_unknown_keys(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    f = tmp_path / "old.par"
+    f.write_text("SIMULATION\nValve1 0.4\nValve2 0.3\nColour blue\n")
+    assert main(["analyze", "--par", str(f)]) == 0
+    captured = capsys.readouterr()
+    assert "Phase:                  nonminimum" in captured.out
+    assert captured.err == f"quadtank: warning: {f}, line 4: unknown key 'Colour' in SIMULATION (kept, not used)\n"
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["analyze", "--par", "missing.par"], "quadtank: error: missing.par: no such file\n"),
+        (["analyze", "--par", "PARAMS/default.par", "--at", "steady"],
+         "quadtank: error: --at steady needs pump voltages; a .par file gives operating levels only\n"),
+        (["log", "info", "missing.log"], "quadtank: error: missing.log: no such file\n"),
+        (["log", "info", "PARAMS/default.par"],
+         "quadtank: error: PARAMS/default.par, line 1: this is a .par parameter file, not a .log\n"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(argv: list[str], message: str, capsys: pytest.CaptureFixture[str],
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(ROOT)
+    argv = [a.replace("PARAMS", "params") for a in argv]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == message.replace("PARAMS", "params")
+
+
+def test_broken_par_names_line_and_key(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    f = tmp_path / "b.par"
+    f.write_text("SIMULATION\nValve1 0.4\nValve2 x\n")
+    assert main(["analyze", "--par", str(f)]) == 2
+    assert capsys.readouterr().err == f"quadtank: error: {f}, line 3: SIMULATION.Valve2: not a number: 'x'\n"
+
+
+def test_log_info(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["log", "info", str(THESIS_LOG)]) == 0
+    assert capsys.readouterr().out == (
+        f"file       {THESIS_LOG}\ncreated    Jun 20 00:30:50 1997\nvariables  y1 y2 u1 u2\n"
+        "TSamp      1 s\nrows       16\nduration   16 s\n"
+    )
+
+
+def test_log_export_default_and_explicit_paths(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = tmp_path / "data.log"
+    src.write_bytes(THESIS_LOG.read_bytes())
+    assert main(["log", "export", str(src), "--to", "mat"]) == 0
+    assert capsys.readouterr().out == f"{tmp_path / 'data.mat'}\n"
+    assert scipy.io.loadmat(tmp_path / "data.mat")["y1"].shape == (16, 1)
+    assert main(["log", "export", str(src), "--to", "csv", "--out", str(tmp_path / "x.csv")]) == 0
+    assert (tmp_path / "x.csv").read_text().startswith("y1,y2,u1,u2\n0.62207,")
+
+
+def test_log_export_refuses_to_overwrite_its_source(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = tmp_path / "data.log"
+    src.write_bytes(THESIS_LOG.read_bytes())
+    assert main(["log", "export", str(src), "--to", "csv", "--out", str(src)]) == 2
+    assert "the export would overwrite the log itself" in capsys.readouterr().err
+    assert src.read_bytes() == THESIS_LOG.read_bytes()
+
+
+def test_log_export_needs_a_format(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["log", "export", str(THESIS_LOG)])
+    assert info.value.code == 2
+    assert "the following arguments are required: --to" in capsys.readouterr().err
