@@ -1,0 +1,54 @@
+"""The one small interface every process backend implements (style.md habit 4).
+
+Four levels in, two pump inputs out, all in normalized units (a fraction of 10 V).
+The in-process simulator and the DAQ drivers (Modbus TCP, ...) sit behind it; the
+engine never knows which one it talks to beyond `kind`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+Levels4 = tuple[float, float, float, float]
+Pair = tuple[float, float]
+
+
+class BackendError(Exception):
+    """An I/O fault of the process link; the message is shown to the user as the
+    reason the engine paused (e.g. "read of AIN0 timed out after 2 tries")."""
+
+
+class ProcessBackend(ABC):
+    """A process the loop reads and drives.
+
+    Contract for implementers:
+    - `read_levels` and `write_pumps` raise only BackendError (anything else is a bug
+      and the engine treats it the same way: pumps to 0, Pause, reason shown).
+    - `safe_state` commands the pumps to 0 and never raises: it is called on Pause,
+      Reset, Exit, Ctrl-C and after any fault, possibly on a dead link.
+    - `elapse(dt)` lets dt seconds of process time pass.  The simulator integrates
+      its model; a real process ignores it (its time passes by itself).
+    """
+
+    #: "Simul" for the simulator, "Active" for a real (or virtual-rig) process.
+    kind: str = "Simul"
+    #: One line for the status bar, e.g. "simulator" or "modbus 127.0.0.1:5020".
+    description: str = ""
+
+    @abstractmethod
+    def read_levels(self) -> Levels4:
+        """y1..y4, normalized."""
+
+    @abstractmethod
+    def write_pumps(self, u: Pair) -> None:
+        """Apply u1, u2 (normalized, already saturated to [0, 1])."""
+
+    @abstractmethod
+    def safe_state(self) -> None:
+        """Pumps to 0; must not raise."""
+
+    def elapse(self, dt: float) -> None:
+        """Let `dt` s of process time pass (only the simulator acts on it)."""
+
+    def close(self) -> None:
+        """Release the link; the pumps must already be safe."""

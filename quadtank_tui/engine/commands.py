@@ -1,0 +1,144 @@
+"""Commands: the only way anything changes the running loop.
+
+The UI, the CLI's scripted experiments and the tests build these immutable values
+and hand them to the engine's one thread-safe entry point; the loop applies them
+between samples.  A refused command changes nothing and comes back with a message
+that says why (the UI shows it next to the field or as a notification).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal, Mapping, Union
+
+Operation = Literal["Simul", "Active"]
+State = Literal["Run", "Pause", "Reset"]
+ControlModeName = Literal["Manual", "Automatic"]
+
+
+@dataclass(frozen=True)
+class SetParams:
+    """Set parameters by their `.par` names ("CONTROLLER ONE.K": 3.0, ...), all or none.
+
+    This is how every parameter window's Set acts; a single value is a one-item map.
+    """
+
+    values: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
+class SetDefaults:
+    """A window's Default action: restore these keys to the defaults (`default.par`)."""
+
+    keys: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class SetOperation:
+    """Simul / Active (Active only when a DAQ backend is configured)."""
+
+    operation: Operation
+
+
+@dataclass(frozen=True)
+class SetState:
+    """Run / Pause / Reset (Reset clears every state, returns the simulation to its
+    operating point, then pauses)."""
+
+    state: State
+
+
+@dataclass(frozen=True)
+class SetControlMode:
+    """Manual / Automatic; bumpless: the generator means are adjusted on the switch."""
+
+    mode: ControlModeName
+
+
+@dataclass(frozen=True)
+class NudgeMean:
+    """Move channel 1 or 2's mean progressively by `delta` (normalized)."""
+
+    channel: int
+    delta: float
+
+
+@dataclass(frozen=True)
+class AddWater:
+    """Simul only: pour `amount` (normalized level, may be negative) into tank 1..4."""
+
+    tank: int
+    amount: float
+
+
+@dataclass(frozen=True)
+class ResetControllers:
+    """Reset all controller states, or one element (i, j) with i, j in 1..2."""
+
+    element: tuple[int, int] | None = None
+
+
+@dataclass(frozen=True)
+class LogOn:
+    """Start logging with the LOGGING parameters in force."""
+
+
+@dataclass(frozen=True)
+class LogOff:
+    """Stop logging; the rows so far are kept (in the partial file) until Save."""
+
+
+@dataclass(frozen=True)
+class LogSave:
+    """Save the log as `logs/<name>.log`; refused if it exists unless `overwrite`."""
+
+    name: str | None = None
+    overwrite: bool = False
+
+
+@dataclass(frozen=True)
+class LogDiscard:
+    """Throw the unsaved log away (asked for by Exit after a confirmation)."""
+
+
+@dataclass(frozen=True)
+class LoadPar:
+    """Load all parameters from `params/<name>.par` (`default`, `preset` reserved)."""
+
+    name: str
+
+
+@dataclass(frozen=True)
+class SavePar:
+    """Save all parameters as `params/<name>.par`; refused for reserved names, and if
+    the file exists unless `overwrite`."""
+
+    name: str
+    overwrite: bool = False
+
+
+@dataclass(frozen=True)
+class SetSpeed:
+    """Simul with a virtual clock: process seconds per wall second, 1..1000."""
+
+    factor: float
+
+
+Command = Union[
+    SetParams, SetDefaults, SetOperation, SetState, SetControlMode, NudgeMean, AddWater,
+    ResetControllers, LogOn, LogOff, LogSave, LogDiscard, LoadPar, SavePar, SetSpeed,
+]
+
+
+@dataclass(frozen=True)
+class CommandResult:
+    """What became of a command: `ok`, and a message for the user (why it was
+    refused, or a warning such as unknown keys in a loaded file)."""
+
+    ok: bool
+    message: str = ""
+    warnings: tuple[str, ...] = field(default=())
+
+    @classmethod
+    def refused(cls, message: str) -> CommandResult:
+        return cls(False, message)
