@@ -142,7 +142,8 @@ def _check_period(section: str, ref: WaveParams, tsamp_ms: float) -> None:
             raise ParameterError(key, f"a PRBS period is a whole number of samples >= 1, got {ref.period:g}")
     elif ref.period < 2 * tsamp_ms / 1000.0:
         raise ParameterError(
-            key, f"{ref.period:g} s is shorter than twice the sampling time ({tsamp_ms / 1000.0:g} s)"
+            key, f"{ref.period:g} s is shorter than twice the sampling time ({tsamp_ms / 1000.0:g} s): "
+            f"the shortest allowed is {2 * tsamp_ms / 1000.0:g} s"
         )
 
 

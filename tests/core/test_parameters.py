@@ -151,7 +151,7 @@ def test_coercion_from_typed_and_loose_values() -> None:
         ("LOGGING.LogFile", "../etc/passwd", "must be a plain file name (letters, digits, _ - .; no folders), got '../etc/passwd'"),
         ("LOGGING.LogFile", "a/b", "must be a plain file name (letters, digits, _ - .; no folders), got 'a/b'"),
         ("PLOTS.Lower", "y3", "must be one of u1, u2, u1 u2, y1 ref1, y2 ref2, y1 y2 ref1 ref2, y1 y2 y3 y4; got 'y3'"),
-        ("REFERENCE ONE.Period", 0.1, "0.1 s is shorter than twice the sampling time (0.1 s)"),
+        ("REFERENCE ONE.Period", 0.1, "0.1 s is shorter than twice the sampling time (0.1 s): the shortest allowed is 0.2 s"),
     ],
 )
 def test_refused_values_name_the_key(key: str, value: object, reason: str) -> None:

@@ -214,7 +214,7 @@ BROKEN: list[tuple[str, bytes, int | None, str | None, str]] = [
     ("sampling time under 50 ms", b"SAMPLING TIME\nTSamp 20.0000\n", 2, "SAMPLING TIME.TSamp",
      "must be >= 50, got 20"),
     ("period too short for TSamp", b"SAMPLING TIME\nTSamp 5000.0000\n\nREFERENCE ONE\nPeriod 6.000000\n", 5,
-     "REFERENCE ONE.Period", "6 s is shorter than twice the sampling time (5 s)"),
+     "REFERENCE ONE.Period", "6 s is shorter than twice the sampling time (5 s): the shortest allowed is 10 s"),
     ("binary junk, NUL after a bad byte", b"SIMULATION\n\x89PNG\r\n\x1a\n\x00\x00", 2, None,
      "not a text file (undecodable byte)"),
     ("duplicate key", b"CONTROLLER ONE\nK 3.0\nTi 30\nK 2.0\n", 4, "CONTROLLER ONE.K",
@@ -261,7 +261,7 @@ def test_a_sampling_time_too_long_for_the_period_points_at_tsamp() -> None:
     with pytest.raises(ParFileError) as info:
         parse_par(text, name="t.par", base=base)
     assert (info.value.line, info.value.key) == (5, "REFERENCE ONE.Period")
-    assert str(info.value) == "t.par, line 5: REFERENCE ONE.Period: 6 s is shorter than twice the sampling time (5 s)"
+    assert str(info.value) == "t.par, line 5: REFERENCE ONE.Period: 6 s is shorter than twice the sampling time (5 s): the shortest allowed is 10 s"
 
 
 def test_missing_and_oversized_files(tmp_path: Path) -> None:
