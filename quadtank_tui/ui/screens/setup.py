@@ -1,0 +1,242 @@
+"""The Setup screen (thesis 5.4; S1-S7): the settings a user changes rarely.
+
+Sampling time, the reference waves, the controller elements with the PID extras,
+the simulated process with the consequence of its setting (time constants, zeros,
+phase), parameter files, and the Default actions.  Opening it changes nothing:
+the engine keeps running in its own thread, and every Set here is a command
+exactly like one sent from Main, applied at the next sample.
+
+Like Main, this screen is the only part of its UI that talks to the engine: it
+hands snapshots down to its widgets on a timer and sends the windows' commands.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import Future
+from typing import Callable
+
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import Footer, Static
+
+from quadtank_tui.core.parameters import keys_of
+from quadtank_tui.core.setup_relations import TANKS
+from quadtank_tui.engine.commands import Command, CommandResult, LoadPar, SavePar, SetDefaults
+from quadtank_tui.engine.handle import EngineHandle
+from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.ui.messages import ActionRequested
+from quadtank_tui.ui.values import fmt
+from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel
+from quadtank_tui.ui.widgets.setup_tables import ControllerTable, ParamTable, ProcessTable, ReferenceTable
+from quadtank_tui.ui.windows.base import Commands, ConfirmWindow
+from quadtank_tui.ui.windows.par_files import ParFileWindow
+from quadtank_tui.ui.windows.pid_extras import PIDExtrasWindow
+from quadtank_tui.ui.windows.sampling import SamplingTimeWindow
+from quadtank_tui.ui.windows.tank_setup import TankSetupWindow
+from quadtank_tui.ui.windows.wave import WaveWindow
+
+#: Below this width or height the layout packs tighter (80x24 terminals).
+COMPACT_WIDTH, COMPACT_HEIGHT = 110, 34
+SIMULATION_KEYS = tuple(k.name for k in keys_of("SIMULATION"))
+
+
+class SetupScreen(Screen[None]):
+    """Configure the process, the references, the controllers; load and save."""
+
+    CSS_PATH = "../styles/setup.tcss"
+    AUTO_FOCUS = ""
+
+    BINDINGS = [
+        Binding("escape", "main", "Main"),
+        Binding("s", "sampling", "Sampling"),
+        Binding("i", "reference(1)", "Ref 1"),
+        Binding("I", "reference(2)", "Ref 2", show=False),
+        Binding("1", "element(0)", "Element 11", show=False),
+        Binding("2", "element(1)", "Element 12", show=False),
+        Binding("3", "element(2)", "Element 21", show=False),
+        Binding("4", "element(3)", "Element 22", show=False),
+        Binding("h", "tanks", "Tanks"),
+        Binding("d", "process_default", "Process default"),
+        Binding("f", "par_files", "Par files"),
+        Binding("D", "default_all", "Default all"),
+    ]
+
+    def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.25,
+                 on_main: Callable[[], None] | None = None) -> None:
+        super().__init__()
+        self.engine = engine
+        self.refresh_interval = refresh_interval
+        self.on_main = on_main
+        self.defaults = engine.defaults()
+        self.snap: Snapshot = engine.snapshot()
+        #: The name last used in the Parameters window (offered again next time).
+        self.par_name = ""
+
+    def compose(self) -> ComposeResult:
+        yield Static(id="setup-status")
+        with Horizontal(id="setup-body"):
+            with Vertical(id="setup-left"):
+                yield Static(id="sampling")
+                yield ReferenceTable(self.defaults, id="references")
+                yield ControllerTable(self.defaults, id="controllers")
+            with Vertical(id="setup-right"):
+                yield ProcessTable(self.defaults, id="process")
+                yield AnalysisPanel(id="analysis")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one("#references").border_title = "Reference configuration  i I"
+        self.query_one("#process").border_title = "Process configuration  h d"
+        self.query_one("#analysis").border_title = "At the operating point"
+        self.refresh_view(force=True)
+        self.set_interval(self.refresh_interval, self.refresh_view)
+
+    def on_resize(self) -> None:
+        self.set_class(self.size.width < COMPACT_WIDTH or self.size.height < COMPACT_HEIGHT, "-compact")
+
+    # --- attributes down ----------------------------------------------------------------
+
+    def refresh_view(self, force: bool = False) -> None:
+        """Show the latest snapshot; the tables only when the parameters changed."""
+        snap = self.engine.snapshot()
+        previous, self.snap = self.snap, snap
+        self.query_one("#setup-status", Static).update(self.status_text(snap))
+        p = snap.params
+        self.query_one("#sampling", Static).update(
+            f"[b]Sampling time[/] {fmt(p.tsamp_ms)} ms   [dim]s[/]"
+            if not p.is_modified("SAMPLING TIME.TSamp", self.defaults)
+            else f"[b]Sampling time[/] [i dim]{fmt(p.tsamp_ms)}[/] ms   [dim]s[/]"
+        )
+        if force or p != previous.params:
+            for table in self.query(ParamTable):
+                table.params = p
+            self.query_one(AnalysisPanel).params = p
+            c = p.control
+            self.query_one("#controllers").border_title = (
+                f"Controller: {c.family.value}, {c.structure.value}  1-4"
+            )
+
+    @staticmethod
+    def status_text(snap: Snapshot) -> str:
+        return (
+            f"[b reverse] SETUP [/]  {snap.operation} · {snap.state} · {snap.control}"
+            f"   t = {snap.t:.1f} s  [dim]process keeps running · Esc: Main[/]"
+        )
+
+    # --- commands to the engine -------------------------------------------------------------
+
+    def send(self, command: Command, on_refused: Callable[[str], None] | None = None) -> None:
+        """Submit a command; a refusal comes back to `on_refused` or as a notification."""
+        future = self.engine.submit(command)
+
+        def deliver(f: Future[CommandResult]) -> None:
+            try:
+                self.app.call_from_thread(self._result, command, f, on_refused)
+            except RuntimeError:  # completed on the UI thread itself
+                self._result(command, f, on_refused)
+
+        if future.done():
+            self._result(command, future, on_refused)
+        else:
+            future.add_done_callback(deliver)
+
+    def _result(self, command: Command, future: Future[CommandResult],
+                on_refused: Callable[[str], None] | None) -> None:
+        try:
+            result = future.result()
+        except Exception as exc:  # the engine failed to apply it: say so, go on
+            result = CommandResult.refused(f"{type(exc).__name__}: {exc}")
+        if not result.ok:
+            if on_refused is not None:
+                on_refused(result.message)
+            else:
+                self.notify(result.message, title=type(command).__name__, severity="error", timeout=8)
+        for warning in result.warnings:
+            self.notify(warning, severity="warning", timeout=8)
+        if result.ok and result.message:
+            self.notify(result.message, timeout=3)
+        self.refresh_view()
+
+    def send_all(self, commands: Commands | None) -> None:
+        """A window's result: its commands in order (none if cancelled)."""
+        for command in commands or ():
+            self.send(command)
+
+    # --- messages up ---------------------------------------------------------------------
+
+    async def on_action_requested(self, message: ActionRequested) -> None:
+        message.stop()
+        await self.run_action(message.action)
+
+    # --- windows -----------------------------------------------------------------------------
+
+    def action_sampling(self) -> None:
+        self.app.push_screen(SamplingTimeWindow(self.snap.params, self.defaults, opener="s"), self.send_all)
+
+    def action_reference(self, channel: int) -> None:
+        opener = "i" if channel == 1 else "I"
+        self.app.push_screen(WaveWindow(channel, self.snap.params, self.defaults, opener=opener), self.send_all)
+
+    def action_element(self, index: int) -> None:
+        self.app.push_screen(
+            PIDExtrasWindow(index, self.snap.params, self.defaults, opener=str(index + 1)), self.send_all
+        )
+
+    def action_tank(self, tank: int) -> None:
+        if tank in TANKS:
+            self.app.push_screen(TankSetupWindow(tank, self.snap.params, self.defaults), self.send_all)
+
+    def action_tanks(self) -> None:
+        """Choose a tank in the process table (arrows, Enter opens it)."""
+        self.query_one(ProcessTable).focus()
+
+    def action_par_files(self, error: str = "") -> None:
+        window = ParFileWindow(self.engine.par_names(), name=self.par_name, error=error, opener="f")
+        self.app.push_screen(window, self._par_chosen)
+
+    def _par_chosen(self, commands: Commands | None) -> None:
+        for command in commands or ():
+            if isinstance(command, (LoadPar, SavePar)):
+                self.par_name = command.name
+                verb = "Not loaded" if isinstance(command, LoadPar) else "Not saved"
+                self.send(command, on_refused=lambda why, verb=verb: self._par_refused(verb, why))
+            else:
+                self.send(command)
+
+    def _par_refused(self, verb: str, why: str) -> None:
+        """A refused file: the window again, saying why; the parameters in use are
+        unchanged (the engine applies a file all or nothing)."""
+        self.action_par_files(f"{verb}: {why}\nThe parameters in use are unchanged.")
+
+    # --- defaults (S6) ------------------------------------------------------------------------
+
+    def action_process_default(self) -> None:
+        """The process image's Default: every tank and valve back to the defaults."""
+        self.send(SetDefaults(SIMULATION_KEYS))
+
+    def action_default_all(self) -> None:
+        """Reread `default.par` for every parameter (asks first: it throws away the
+        whole setting in use)."""
+
+        def answered(yes: bool | None) -> None:
+            if yes:
+                self.send(LoadPar("default"))
+
+        self.app.push_screen(
+            ConfirmWindow("Default all", "Reload every parameter from default.par? The setting in use is lost "
+                          "unless it was saved.", yes="Reload"),
+            answered,
+        )
+
+    # --- back to Main ---------------------------------------------------------------------------
+
+    def action_main(self) -> None:
+        if self.on_main is not None:
+            self.on_main()
+        else:
+            self.dismiss(None)
+
+
+__all__ = ["SetupScreen"]
