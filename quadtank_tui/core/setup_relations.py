@@ -36,9 +36,6 @@ from quadtank_tui.core.validation import ParameterError, check_number
 TANKS = (1, 2, 3, 4)
 #: The lower tanks carry the valves: tank i's valve is gamma_i (i = 1, 2).
 VALVE_TANKS = (1, 2)
-#: Decimals the `.par` format writes with %f; recomputed values are rounded to them
-#: so a value shown, saved and reloaded is the value in force.
-DECIMALS = 6
 
 
 @dataclass(frozen=True)
@@ -123,8 +120,10 @@ def edit_tank(
     """Change some of a tank's values, keeping the others consistent.
 
     The outlet stays fixed unless `time_constant` is given: then the time constant is
-    taken as typed and the outlet follows.  Recomputed time constants are rounded to
-    :data:`DECIMALS`.  Out-of-range values raise ParameterError naming the full key
+    taken as typed and the outlet follows.  A recomputed time constant is not
+    rounded: rounding at every keystroke would let the "fixed" outlet drift with the
+    typing path; the `.par` writer keeps any value exactly, and the screen shows six
+    digits.  Out-of-range values raise ParameterError naming the full key
     ("SIMULATION.Diameter1"), and nothing is changed.
     """
     _check_tank(tank)
@@ -138,7 +137,7 @@ def edit_tank(
         tau = old.time_constant
     else:
         _check_positive(tank, op, d)
-        tau = round(old.time_constant * (d / old.diameter) ** 2 * math.sqrt(op / old.op_point), DECIMALS)
+        tau = old.time_constant * (d / old.diameter) ** 2 * math.sqrt(op / old.op_point)
     valves = sim.valves
     if valve is not None:
         if tank not in VALVE_TANKS:
@@ -215,6 +214,6 @@ def _check_tank(tank: int) -> None:
 
 
 __all__ = [
-    "DECIMALS", "TANKS", "VALVE_TANKS", "TankEdit", "TankSetup", "apply_changes", "diff", "edit_by_key",
+    "TANKS", "VALVE_TANKS", "TankEdit", "TankSetup", "apply_changes", "diff", "edit_by_key",
     "edit_tank", "outlet", "tank_keys", "tank_setup",
 ]

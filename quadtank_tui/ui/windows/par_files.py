@@ -132,8 +132,9 @@ class ParFileWindow(Window[Commands]):
             self.action_load()
 
     @on(Input.Changed, "#name")
-    def _typed(self) -> None:
-        self.say("")
+    def _typed(self, event: Input.Changed) -> None:
+        if event.value != self.initial_name:  # not the name the message is about
+            self.say("")
 
     @on(Input.Submitted, "#name")
     @on(Button.Pressed, "#load")
