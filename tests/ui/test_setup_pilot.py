@@ -9,6 +9,7 @@ import pytest
 from textual.widgets import Input, Static
 
 from quadtank_tui.core.parameters import PRESET
+from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.ui.screens.setup import SetupScreen
 from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel, analysis_of
 from quadtank_tui.ui.windows.par_files import ParFileWindow
@@ -178,12 +179,15 @@ async def test_pid_extras_are_set_from_setup(app) -> None:  # type: ignore[no-un
 
 # --- parameter files (S5) -----------------------------------------------------------------
 
+def _change(app, values: dict[str, float]) -> None:  # type: ignore[no-untyped-def]
+    """Values changed elsewhere (Main, another window): the tank windows are tested above."""
+    assert app.engine.submit(SetParams(values)).result().ok
+
 async def _par(pilot, name: str, action: str) -> None:  # type: ignore[no-untyped-def]
     await pilot.press("f")
     window = pilot.app.screen
     assert isinstance(window, ParFileWindow)
-    window.query_one("#name", Input).value = name
-    await pilot.pause()
+    await pilot.press(*name)  # typed, as a user does
     await pilot.press(action)
     await pilot.pause()
 
@@ -195,15 +199,14 @@ async def test_save_change_load_restores(app) -> None:  # type: ignore[no-untype
         saved = app.engine.params
         await _par(pilot, "mysetting", "ctrl+s")
         assert Path("params/mysetting.par").exists()
-        await _set_tank(pilot, 1, "Valve", "0.9")
-        await _set_tank(pilot, 3, "Diameter", "7")
+        _change(app, {"SIMULATION.Valve1": 0.9, "SIMULATION.Diameter3": 7.0, "SAMPLING TIME.TSamp": 200.0})
         assert app.engine.params != saved
         await _par(pilot, "mysetting", "ctrl+l")
         assert isinstance(app.screen, SetupScreen)
         assert app.engine.params == saved
         # Saving again under the same name asks first; "n" keeps the file.
         before = Path("params/mysetting.par").read_text()
-        await _set_tank(pilot, 1, "Valve", "0.5")
+        _change(app, {"SIMULATION.Valve1": 0.5})
         await _par(pilot, "mysetting", "ctrl+s")
         assert app.screen.__class__.__name__ == "ConfirmWindow"
         await pilot.press("n")
@@ -216,7 +219,7 @@ async def test_saving_as_default_is_refused(app) -> None:  # type: ignore[no-unt
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.pause()
         before = Path("params/default.par").read_bytes()
-        await _set_tank(pilot, 2, "Valve", "0.34")
+        _change(app, {"SIMULATION.Valve2": 0.34})
         for name in ("default", "preset", "Default.par"):
             await _par(pilot, name, "ctrl+s")
             window = app.screen
@@ -234,9 +237,9 @@ async def test_loading_a_broken_file_names_file_line_key_and_changes_nothing(app
     )
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.pause()
-        await _set_tank(pilot, 1, "Valve", "0.43")
+        _change(app, {"SIMULATION.Valve1": 0.43})
         before = app.engine.params
-        await _par(pilot, "broken", "ctrl+l")
+        await _par(pilot, "broken", "enter")
         window = app.screen
         assert isinstance(window, ParFileWindow)  # opened again, saying why
         text = str(window.query_one("#par-error", Static).render())
@@ -248,7 +251,7 @@ async def test_loading_a_broken_file_names_file_line_key_and_changes_nothing(app
 async def test_default_all_reloads_default_par_after_asking(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.pause()
-        await _set_tank(pilot, 2, "Valve", "0.34")
+        _change(app, {"SIMULATION.Valve2": 0.34})
         await pilot.press("D")
         await pilot.press("n")
         await pilot.pause()
@@ -256,7 +259,7 @@ async def test_default_all_reloads_default_par_after_asking(app) -> None:  # typ
         await pilot.press("D", "y")
         await pilot.pause()
         assert app.engine.params == app.engine.defaults()
-        await _set_tank(pilot, 3, "Diameter", "8")
+        _change(app, {"SIMULATION.Diameter3": 8.0})
         await pilot.press("d")  # process default: the SIMULATION section only
         await pilot.pause()
         assert app.engine.params.simulation == app.engine.defaults().simulation

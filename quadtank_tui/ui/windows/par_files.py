@@ -122,7 +122,8 @@ class ParFileWindow(Window[Commands]):
 
     @on(OptionList.OptionHighlighted, "#files")
     def _highlighted(self, event: OptionList.OptionHighlighted) -> None:
-        if event.option.id is not None:
+        # Only the user's browsing fills the name, not the list's own first highlight.
+        if event.option.id is not None and event.option_list.has_focus:
             self.query_one("#name", Input).value = event.option.id
 
     @on(OptionList.OptionSelected, "#files")

@@ -32,7 +32,7 @@ ROWS = {
     "OpPoint": ("Op. Point", "0..1 of 20 cm"),
     "Diameter": ("Diameter", "cm"),
     "TimeConst": ("Time Const.", "s"),
-    "Valve": ("Valve Pos.", "gamma, 0..1"),
+    "Valve": ("Valve Pos.", "γ, 0..1 to the lower tank"),
 }
 
 
