@@ -36,7 +36,7 @@ async def _set_tank(pilot, tank: int, field: str, value: str) -> None:  # type: 
 
 
 def _zeros(app) -> list[float]:  # type: ignore[no-untyped-def]
-    a = analysis_of(app.engine.params.simulation)
+    a = analysis_of(app.engine.snapshot().params.simulation)
     return [round(z.real, 4) for z in a.zeros]
 
 
@@ -52,7 +52,7 @@ async def test_moving_the_valves_across_one_moves_a_zero_into_the_rhp(app) -> No
         # gamma1 + gamma2 from 1.30 to 0.77 (P+'s valves), typed in the tank windows.
         await _set_tank(pilot, 1, "Valve", "0.43")
         await _set_tank(pilot, 2, "Valve", "0.34")
-        assert app.engine.params.simulation.valves == (0.43, 0.34)
+        assert app.engine.snapshot().params.simulation.valves == (0.43, 0.34)
         # At P-'s levels the zeros are -0.0977 and +0.0225: one crossed into the RHP.
         assert _zeros(app) == [-0.0977, 0.0225]
         text = _panel_text(app)
@@ -80,12 +80,12 @@ async def test_tank_window_links_the_values_and_sets_them_together(app) -> None:
         t_expected = PRESET.simulation.time_constants[0] * (6.5 / PRESET.simulation.diameters[0]) ** 2
         assert float(window.query_one("#f-TimeConst", Input).value) == pytest.approx(t_expected, abs=1e-4)  # shown to 6 digits
         assert "held fixed" in str(window.query_one("#outlet").render())
-        assert app.engine.params == PRESET
+        assert app.engine.snapshot().params == PRESET
         await pilot.press("enter")
         await pilot.pause()
-        sim = app.engine.params.simulation
+        sim = app.engine.snapshot().params.simulation
         assert sim.diameters[0] == 6.5 and sim.time_constants[0] == pytest.approx(t_expected, rel=1e-12)
-        assert app.engine.params.plant().a1 == pytest.approx(PRESET.plant().a1, rel=1e-7)
+        assert app.engine.snapshot().params.plant().a1 == pytest.approx(PRESET.plant().a1, rel=1e-7)
 
 
 async def test_tank_window_refuses_a_bad_value_and_default_restores(app) -> None:  # type: ignore[no-untyped-def]
@@ -110,7 +110,7 @@ async def test_tank_window_refuses_a_bad_value_and_default_restores(app) -> None
         assert not window.query_one("#row-TimeConst").has_class("-modified")
         await pilot.press("escape")
         await pilot.pause()
-        assert app.engine.params == PRESET
+        assert app.engine.snapshot().params == PRESET
 
 
 async def test_wave_window_refuses_a_too_short_period_with_the_shortest_allowed(app) -> None:  # type: ignore[no-untyped-def]
@@ -133,9 +133,9 @@ async def test_wave_window_refuses_a_too_short_period_with_the_shortest_allowed(
         await pilot.pause()
         await window.run_action("set")
         await pilot.pause()
-        ref = app.engine.params.references[0]
+        ref = app.engine.snapshot().params.references[0]
         assert (ref.wave.value, ref.period, ref.seed) == ("PRBS", 3.0, 7)
-        assert app.engine.params.references[1] == PRESET.references[1]
+        assert app.engine.snapshot().params.references[1] == PRESET.references[1]
 
 
 async def test_sampling_time_is_validated(app) -> None:  # type: ignore[no-untyped-def]
@@ -151,7 +151,7 @@ async def test_sampling_time_is_validated(app) -> None:  # type: ignore[no-untyp
         await pilot.press("enter")
         await pilot.pause()
         assert isinstance(app.screen, SetupScreen)
-        assert app.engine.params.tsamp_ms == 250.0
+        assert app.engine.snapshot().params.tsamp_ms == 250.0
 
 
 async def test_pid_extras_are_set_from_setup(app) -> None:  # type: ignore[no-untyped-def]
@@ -166,7 +166,7 @@ async def test_pid_extras_are_set_from_setup(app) -> None:  # type: ignore[no-un
         assert window.query_one("#row-8").has_class("-modified")
         await window.run_action("set")
         await pilot.pause()
-        pid = app.engine.params.controllers[0].pid
+        pid = app.engine.snapshot().params.controllers[0].pid
         assert (pid.b, pid.N, pid.K) == (0.5, 20.0, 3.0)
         await pilot.press("1")
         await pilot.pause()
@@ -196,14 +196,14 @@ async def test_save_change_load_restores(app) -> None:  # type: ignore[no-untype
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.pause()
         await _set_tank(pilot, 1, "Valve", "0.43")
-        saved = app.engine.params
+        saved = app.engine.snapshot().params
         await _par(pilot, "mysetting", "ctrl+s")
         assert Path("params/mysetting.par").exists()
         _change(app, {"SIMULATION.Valve1": 0.9, "SIMULATION.Diameter3": 7.0, "SAMPLING TIME.TSamp": 200.0})
-        assert app.engine.params != saved
+        assert app.engine.snapshot().params != saved
         await _par(pilot, "mysetting", "ctrl+l")
         assert isinstance(app.screen, SetupScreen)
-        assert app.engine.params == saved
+        assert app.engine.snapshot().params == saved
         # Saving again under the same name asks first; "n" keeps the file.
         before = Path("params/mysetting.par").read_text()
         _change(app, {"SIMULATION.Valve1": 0.5})
@@ -238,14 +238,14 @@ async def test_loading_a_broken_file_names_file_line_key_and_changes_nothing(app
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.pause()
         _change(app, {"SIMULATION.Valve1": 0.43})
-        before = app.engine.params
+        before = app.engine.snapshot().params
         await _par(pilot, "broken", "enter")
         window = app.screen
         assert isinstance(window, ParFileWindow)  # opened again, saying why
         text = str(window.query_one("#par-error", Static).render())
         assert "params/broken.par, line 8: SIMULATION.Valve2: must be <= 1, got 1.7" in text
         assert "unchanged" in text
-        assert app.engine.params == before
+        assert app.engine.snapshot().params == before
 
 
 async def test_default_all_reloads_default_par_after_asking(app) -> None:  # type: ignore[no-untyped-def]
@@ -255,11 +255,11 @@ async def test_default_all_reloads_default_par_after_asking(app) -> None:  # typ
         await pilot.press("D")
         await pilot.press("n")
         await pilot.pause()
-        assert app.engine.params.simulation.valves == (0.7, 0.34)
+        assert app.engine.snapshot().params.simulation.valves == (0.7, 0.34)
         await pilot.press("D", "y")
         await pilot.pause()
-        assert app.engine.params == app.engine.defaults()
+        assert app.engine.snapshot().params == app.engine.defaults()
         _change(app, {"SIMULATION.Diameter3": 8.0})
         await pilot.press("d")  # process default: the SIMULATION section only
         await pilot.pause()
-        assert app.engine.params.simulation == app.engine.defaults().simulation
+        assert app.engine.snapshot().params.simulation == app.engine.defaults().simulation
