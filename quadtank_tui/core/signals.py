@@ -29,7 +29,7 @@ class WaveParams:
 
     period : seconds for Square/Sine; samples between possible changes for PRBS.
     on : False gives a constant at the mean.
-    seed : PRBS register seed (any non-zero 31-bit value; 0 is mapped to 1).
+    seed : PRBS seed, any value in [0, 2^31); mixed into the register start (mixed_seed).
     """
 
     wave: Wave = Wave.SQUARE
@@ -60,28 +60,31 @@ class WaveParams:
 #: a loop (a step is what :meth:`Generator.set_mean` is for).
 DEFAULT_RAMP_RATE = 0.05
 
-#: The shortest wave, in samples, that can be told apart from a constant.
+#: The shortest Square/Sine period, in samples, that can be told apart from a constant.
 MIN_SAMPLES_PER_PERIOD = 2
 
 MEAN_MIN, MEAN_MAX = -1.0, 2.0  # the range WaveParams accepts for Mean
 
 
 def check_period(params: WaveParams, h: float) -> None:
-    """Refuse a period shorter than two samples at sampling time ``h`` (s).
+    """Refuse a period the sampling time ``h`` (s) cannot render.
 
-    One rule for every wave: a period must span at least two samples, or the sampled
-    wave cannot alternate (the original silently produced a constant; we refuse).
-    Square and Sine: period (s) >= 2 h.  PRBS: the period counts samples, so it must
-    be >= 2 whatever h is; the hold is ``round(period)`` samples.  The message names
-    the shortest period allowed so the user can correct it in one go.
+    The rule, for every wave: one period must span at least two samples, or the
+    sampled wave cannot alternate (the original silently produced a constant; we
+    refuse, and the message names the shortest period allowed).
+    Square and Sine: period (s) >= 2 h.  PRBS: `period` counts the samples each level
+    is held, so the shortest PRBS cycle (one level, then the other) spans 2 x period
+    samples; any whole number of samples >= 1 passes whatever h is (the same rule
+    the `.par` reader applies).  Refused with the wave off too, so switching it on
+    can never reveal a bad period.
     """
     check_range("TSamp", h, 0.0, None, lo_open=True)
     if params.wave is Wave.PRBS:
-        if round(params.period) < MIN_SAMPLES_PER_PERIOD:
+        if params.period < 1 or params.period != int(params.period):
             raise ParameterError(
                 "Period",
-                f"a PRBS period counts samples; the shortest allowed is "
-                f"{MIN_SAMPLES_PER_PERIOD} samples, got {params.period:g}",
+                f"a PRBS period is a whole number of samples; the shortest allowed is 1 sample, "
+                f"got {params.period:g}",
             )
         return
     shortest = MIN_SAMPLES_PER_PERIOD * h
@@ -116,6 +119,21 @@ class LFSR:
         return bit
 
 
+def mixed_seed(seed: int, bits: int = 31) -> int:
+    """A well-mixed, non-zero register start for a user seed (SplitMix64 finalizer).
+
+    Seeding the register with the raw number would start small seeds such as the
+    default 1 on a long run of zeros (the single set bit needs 28 clocks to reach the
+    feedback tap, and the register stays sparse long after): a PRBS held 10 samples
+    would sit at -1 for minutes.  Mixing keeps "same seed, same sequence".
+    """
+    z = (int(seed) + 0x9E3779B97F4A7C15) & 0xFFFFFFFFFFFFFFFF
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & 0xFFFFFFFFFFFFFFFF
+    z ^= z >> 31
+    return (z & ((1 << bits) - 1)) or 1
+
+
 class Generator:
     """One wave channel, sampled: :meth:`value` reads this sample, :meth:`advance`
     moves to the next (two calls rather than one ``step()`` so the engine and the UI
@@ -129,8 +147,8 @@ class Generator:
       alternates +-1 instead of being sampled at its zero crossings (which would make
       a 2h Sine a silent constant).  Square is +1 in the first half of each period and
       -1 in the second: the sign of the sine, with sign(0) = +1.
-    * PRBS holds each level ``round(period)`` samples; after each hold the LFSR is
-      clocked and its bit picks +1 or -1, so the level changes with probability 1/2
+    * PRBS holds each level ``period`` samples; after each hold the LFSR (started
+      from :func:`mixed_seed`) is clocked and its bit picks +1 or -1, so the level changes with probability 1/2
       at each possible change: runs last period, 2 period, ... samples with
       probabilities 1/2, 1/4, ... (mean run 2 period samples).
     * The phase is kept as seconds into the period (Square/Sine) or samples into the
@@ -147,7 +165,7 @@ class Generator:
         self._target = params.mean
         self._t = 0.0  # seconds into the current period (Square/Sine)
         self._n = 0  # samples into the current hold (PRBS)
-        self._lfsr = LFSR(params.seed)
+        self._lfsr = LFSR(mixed_seed(params.seed))
         self._level = self._prbs_level()
 
     # --- reading ----------------------------------------------------------------------
@@ -196,7 +214,7 @@ class Generator:
         p = self._p
         if p.wave is Wave.PRBS:
             self._n += 1
-            if self._n >= round(p.period):
+            if self._n >= int(p.period):
                 self._n = 0
                 self._level = self._prbs_level()
         else:
@@ -218,7 +236,7 @@ class Generator:
         self._p = params
         self._mean = self._target = params.mean
         if params.seed != old.seed:
-            self._lfsr = LFSR(params.seed)
+            self._lfsr = LFSR(mixed_seed(params.seed))
             self._level = self._prbs_level()
         if params.wave is not old.wave or (params.on and not old.on):
             self._t = 0.0
@@ -250,6 +268,6 @@ class Generator:
         target (a reset ends a ramp), so the same settings give the same samples."""
         self._t = 0.0
         self._n = 0
-        self._lfsr = LFSR(self._p.seed)
+        self._lfsr = LFSR(mixed_seed(self._p.seed))
         self._level = self._prbs_level()
         self._mean = self._target

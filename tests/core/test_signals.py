@@ -49,11 +49,19 @@ def test_period_under_two_samples_is_refused_with_the_shortest_allowed() -> None
         check_period(WaveParams(Wave.SQUARE, period=0.15, on=True), 0.1)
     assert err.value.field == "Period"
     assert "shortest period allowed at sampling time 0.1 s is 0.2 s" in str(err.value)
-    with pytest.raises(ParameterError) as err:
-        Generator(WaveParams(Wave.PRBS, period=1, on=True), 1.0)
-    assert "2 samples" in str(err.value)
     check_period(WaveParams(Wave.SINE, period=0.2), 0.1)  # exactly two samples is fine
-    check_period(WaveParams(Wave.PRBS, period=2), 5.0)  # PRBS counts samples, not seconds
+
+
+def test_prbs_period_is_a_whole_number_of_samples() -> None:
+    for bad in (0.5, 2.5):
+        with pytest.raises(ParameterError) as err:
+            Generator(WaveParams(Wave.PRBS, period=bad, on=True), 1.0)
+        assert err.value.field == "Period" and "shortest allowed is 1 sample" in str(err.value)
+    check_period(WaveParams(Wave.PRBS, period=1), 5.0)  # counts samples, whatever h is
+    x = samples(Generator(WaveParams(Wave.PRBS, mean=0.0, amplitude=1.0, period=1, on=True), 5.0), 64)
+    # A change is possible every sample, and the default seed 1 does not start on the
+    # raw register's long run of zeros (mixed_seed).
+    assert 20 < sum(a != b for a, b in zip(x, x[1:])) < 44
 
 
 def test_sampling_time_change_that_shortens_the_period_too_much_is_refused() -> None:
@@ -150,14 +158,14 @@ def test_long_prbs_statistics_match_the_definition() -> None:
     wave=st.sampled_from(list(Wave)),
     mean=st.floats(-1.0, 2.0),
     amplitude=st.floats(0.0, 1.0),
-    samples_per_period=st.floats(2.0, 50.0),
+    samples_per_period=st.floats(1.0, 50.0),
     h=st.floats(0.05, 5.0),
     seed=st.integers(0, 2**31 - 1),
 )
 def test_value_stays_within_mean_plus_minus_amplitude(
     wave: Wave, mean: float, amplitude: float, samples_per_period: float, h: float, seed: int
 ) -> None:
-    period = round(samples_per_period) if wave is Wave.PRBS else samples_per_period * h
+    period = round(samples_per_period) if wave is Wave.PRBS else (1 + samples_per_period) * h
     g = Generator(WaveParams(wave, mean, amplitude, period, True, seed), h)
     for v in samples(g, 40):
         assert mean - amplitude - 1e-12 <= v <= mean + amplitude + 1e-12
