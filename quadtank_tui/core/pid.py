@@ -1,6 +1,13 @@
 """PID element (Astrom & Hagglund; Nunes 1998, 5.5).
 
     U = K [ b R - Y + 1/(s Ti) (R - Y) + s Td / (1 + s Td / N) (a R - Y) ]
+
+The thesis's sentence on discretization reads "forward and backward differences to
+approximate the derivative and the integral parts, respectively" and cites Astrom &
+Hagglund, whose algorithm does the opposite: forward differences for the integral
+(the integral state for the next sample is known after this one, which is what makes
+the two-phase compute/update and anti-windup possible) and backward differences for
+the derivative (stable for every Td/N and h).  We follow the cited algorithm.
 """
 
 from __future__ import annotations
