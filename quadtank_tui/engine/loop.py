@@ -95,6 +95,9 @@ class ControlLoop:
                       Generator(params.references[1], params.tsamp))
         self._matrix = _matrix_for(params)
         self.running = False
+        #: Process time at which Automatic began (None in Manual): the window the
+        #: headless summary measures the loops over.
+        self.automatic_since: float | None = None
         self.k = 0
         self.t = 0.0
         self.fault: str | None = None
@@ -311,6 +314,7 @@ class ControlLoop:
             self.params = self.params.with_values({MEAN_KEYS[0]: self._gens[0].mean,
                                                    MEAN_KEYS[1]: self._gens[1].mean})
         self.params = self.params.with_value(MODE_KEY, mode.value)
+        self.automatic_since = self.t if mode is ControlMode.AUTOMATIC else None
 
     def _set_control_mode(self, cmd: SetControlMode) -> CommandResult:
         return self._set_params(SetParams({MODE_KEY: cmd.mode}))
@@ -346,6 +350,8 @@ class ControlLoop:
             self._logger.stop()
         self.history.clear()
         self.k, self.t, self._fixed_h = 0, 0.0, True
+        if self.automatic_since is not None:
+            self.automatic_since = 0.0
         self.fault = None
         self._y = self.backend.read_levels() if self.backend is self.sim else self._y
         self._u = (0.0, 0.0)
