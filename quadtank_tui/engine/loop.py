@@ -434,7 +434,6 @@ class ControlLoop:
         saved = self._logger.save(target)
         self._log_saved = str(saved)
         self._log_unsaved = False
-        self._logger = None
         return CommandResult(True, f"saved {saved}")
 
     def _log_discard(self, cmd: LogDiscard) -> CommandResult:
