@@ -542,6 +542,8 @@ def _from_tree(template: Any, tree: Any, path: tuple[str | int, ...]) -> Any:
                 raise
             raise ParameterError(f"{_SECTION_OF_PATH[path]}.{exc.field}", exc.reason) from None
     if isinstance(template, tuple):
+        if isinstance(tree, tuple):  # a leaf just set (LOGGING.Variables): any length
+            return tree
         return tuple(_from_tree(t, x, (*path, i)) for i, (t, x) in enumerate(zip(template, tree)))
     return tree
 
