@@ -29,7 +29,7 @@ import numpy as np
 
 from quadtank_tui.core.parameters import Parameters, REFERENCE_SECTIONS
 from quadtank_tui.engine.backend import ProcessBackend
-from quadtank_tui.engine.clock import Clock, RealTimeClock, VirtualClock
+from quadtank_tui.engine.clock import Clock, ManualClock, RealTimeClock, VirtualClock
 from quadtank_tui.engine.commands import Command, CommandResult, SetSpeed
 from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.loop import ControlLoop
@@ -317,8 +317,8 @@ def build_engine(
     threaded: bool | None = None,
     history_capacity: int = DEFAULT_CAPACITY,
     epoch: datetime | None = None,
-    now: Callable[[], float] = time.monotonic,
-    sleep: Callable[[float], None] = time.sleep,
+    now: Callable[[], float] | None = None,
+    sleep: Callable[[float], None] | None = None,
 ) -> Engine:
     """An engine in the start-up state (Simul, Pause, Manual), not yet started.
 
@@ -327,8 +327,15 @@ def build_engine(
     threaded : whether :meth:`Engine.start` is expected (default: not for "manual")
     epoch : with a virtual or manual clock the logs are stamped epoch + process
         time (default: now), so a fixed epoch makes the `.log` reproducible
-    now, sleep : the monotonic time source and the wait (a ManualClock in tests)
+    now, sleep : the monotonic time source and the wait (default: time.monotonic and
+        time.sleep; for "manual", a fresh ManualClock, so even a SetSpeed-paced
+        manual engine never really waits and its snapshots are reproducible)
     """
+    if clock == "manual" and now is None and sleep is None:
+        fake = ManualClock()
+        now, sleep = fake.now, fake.sleep
+    now = now or time.monotonic
+    sleep = sleep or time.sleep
     store = ParStore(params_dir)
     params, warnings = load_parameters(par, store)
     if seed is not None:
