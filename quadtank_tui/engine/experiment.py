@@ -16,7 +16,7 @@ from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
 from quadtank_tui.engine.commands import (
     AddWater, Command, LogOff, LogOn, SetControlMode, SetParams, SetState,
 )
-from quadtank_tui.engine.runner import Engine
+from quadtank_tui.engine.runner import Engine, LoopTime
 from quadtank_tui.files.script import Event, Script
 
 
@@ -61,16 +61,16 @@ def run_experiment(engine: Engine, script: Script | None, duration: float) -> in
         raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
     events = list(script.events) if script else []
     name = script.file if script else ""
-    i, samples, elapsed = 0, 0, 0.0
-    while elapsed < duration - 1e-9:
-        while i < len(events) and events[i].at <= elapsed + 1e-9:
+    i = 0
+    elapsed = LoopTime(engine.loop.h)
+    while not elapsed.reached(duration):
+        while i < len(events) and elapsed.reached(events[i].at):
             _apply(engine, events[i], name)
             i += 1
         h = engine.loop.h
         engine.step()
-        elapsed += h
-        samples += 1
-    return samples
+        elapsed.add(h)
+    return elapsed.samples
 
 
 def _apply(engine: Engine, event: Event, name: str) -> None:

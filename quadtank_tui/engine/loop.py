@@ -225,13 +225,13 @@ class ControlLoop:
         return self._snapshot
 
     def record_timing(self, jitter: float, missed: int, wall: float) -> None:
-        """The runner's measurement of the sample just done (LoopStats)."""
+        """The runner's measurement of the sample about to be done (LoopStats); the
+        sample's snapshot carries it."""
         s = self.stats
         self.stats = LoopStats(
             samples=s.samples + 1, overruns=s.overruns + missed, jitter_last=jitter,
             jitter_max=max(s.jitter_max, abs(jitter)), last_sample_wall=wall,
         )
-        self._snapshot = replace(self._snapshot, stats=self.stats)
 
     def set_clock_info(self, realtime: bool, speed: float) -> None:
         self.realtime, self.speed = realtime, speed

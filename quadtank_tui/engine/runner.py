@@ -44,6 +44,29 @@ ClockKind = Literal["realtime", "virtual", "manual"]
 _FINE_WAIT = 0.002
 
 
+class LoopTime:
+    """Seconds of loop time as whole samples per sampling time (base + n h), so that
+    8 h of 50 ms samples is exactly 576000 of them, not one more from summed rounding."""
+
+    def __init__(self, h: float) -> None:
+        self._base, self._n, self._h = 0.0, 0, h
+        self.samples = 0
+
+    @property
+    def seconds(self) -> float:
+        return self._base + self._n * self._h
+
+    def add(self, h: float) -> None:
+        """One sample of `h` s went by."""
+        if h != self._h:
+            self._base, self._n, self._h = self.seconds, 0, h
+        self._n += 1
+        self.samples += 1
+
+    def reached(self, t: float) -> bool:
+        return t - self.seconds <= 1e-6 * self._h
+
+
 class Engine:
     """Implements :class:`quadtank_tui.engine.handle.EngineHandle`."""
 
@@ -146,8 +169,8 @@ class Engine:
 
     def _sample(self) -> None:
         timing = self.clock.tick()
-        self.loop.step()
         self.loop.record_timing(timing.jitter, timing.missed, timing.actual)
+        self.loop.step()
 
     # --- no-thread mode ------------------------------------------------------------------
 
@@ -168,13 +191,12 @@ class Engine:
     def run_for(self, seconds: float) -> int:
         """Sample for `seconds` of loop time (sum of the sampling periods, paused or
         not); returns the number of samples."""
-        done, elapsed = 0, 0.0
-        while elapsed < seconds - 1e-9:
+        elapsed = LoopTime(self.loop.h)
+        while not elapsed.reached(seconds):
             h = self.loop.h
             self.step()
-            elapsed += h
-            done += 1
-        return done
+            elapsed.add(h)
+        return elapsed.samples
 
     # --- the thread --------------------------------------------------------------------------
 
