@@ -61,6 +61,8 @@ def run_headless(
                           epoch=virtual_epoch())
     warnings = engine.warnings
     try:
+        # The partial file of an interrupted run sits next to OUT, named after it.
+        _must(engine.submit(SetParams({"LOGGING.LogFile": name[: -len(".log")]})).result())
         if params.control.mode is ControlMode.AUTOMATIC:
             engine.loop.set_initial_mode(ControlMode.AUTOMATIC)
         if script is None or not any(e.action == "log" for e in script.events):
