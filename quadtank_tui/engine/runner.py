@@ -18,6 +18,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import os
+import sys
 import threading
 import time
 from concurrent.futures import Future
@@ -38,6 +39,11 @@ from quadtank_tui.files.log import log_path
 from quadtank_tui.files.par import ParStore, read_par
 
 ClockKind = Literal["realtime", "virtual", "manual"]
+
+#: GIL switch interval while a real-time loop runs, s.  A thread waking for its
+#: deadline must wait for the GIL until the running thread is asked to drop it:
+#: Python's default 5 ms would be the jitter floor whenever the UI thread computes.
+REALTIME_SWITCH_INTERVAL = 0.0005
 
 #: Below this, the last part of a wait is a plain sleep rather than the event loop's
 #: timer (whose epoll timeout rounds up to whole milliseconds).
@@ -205,6 +211,8 @@ class Engine:
         if self.running or self._stopped:
             return
         self.threaded = True
+        if self.clock.realtime and sys.getswitchinterval() > REALTIME_SWITCH_INTERVAL:
+            sys.setswitchinterval(REALTIME_SWITCH_INTERVAL)
         ready = threading.Event()
         self._thread = threading.Thread(target=self._thread_main, args=(ready,),
                                         name="quadtank-loop", daemon=True)
