@@ -284,12 +284,16 @@ class ControlLoop:
         # --- nothing below refuses ---
         if h != old.tsamp:
             self._matrix.set_sampling_time(h)
-            for g in self._gens:
-                g.set_sampling_time(h)
             self._fixed_h = False
-        for i, g in enumerate(self._gens):
-            if new.references[i] != old.references[i]:
-                g.set_params(new.references[i])
+        for g, a, b in zip(self._gens, old.references, new.references):
+            # Each step must be valid on its own: the period is checked against the
+            # sampling time in force, so a longer h takes the new period first.
+            if h >= old.tsamp and a != b:
+                g.set_params(b)
+            if h != old.tsamp:
+                g.set_sampling_time(h)
+            if h < old.tsamp and a != b:
+                g.set_params(b)
         if (new.control.family, new.control.structure) != (old.control.family, old.control.structure):
             self._matrix.set_type(new.control.family, new.control.structure)
         for e, (a, b) in zip(ELEMENTS, zip(old.controllers, new.controllers)):

@@ -293,3 +293,19 @@ def test_the_loop_alone_is_deterministic() -> None:
         for _ in range(500):
             loop.step()
     assert a.snapshot() == b.snapshot()
+
+
+@pytest.mark.parametrize("values", [
+    {"SAMPLING TIME.TSamp": 2000, "REFERENCE ONE.Wave": "Sine", "REFERENCE ONE.Period": 10},
+    {"SAMPLING TIME.TSamp": 50, "REFERENCE ONE.Wave": "Sine", "REFERENCE ONE.Period": 0.15},
+])
+def test_sampling_time_and_period_change_together(make_engine: MakeEngine, values: dict) -> None:
+    e = make_engine()
+    ok(e, SetParams({"REFERENCE ONE.Wave": "Sine", "REFERENCE ONE.Period": 3.0, "REFERENCE ONE.On": 1}))
+    ok(e, SetState("Run"))
+    e.step(5)
+    ok(e, SetParams(values))  # valid together; the old period at the new TSamp (or the new
+    # period at the old TSamp) is not, so the generator must take them in the right order
+    assert e.loop.h == values["SAMPLING TIME.TSamp"] / 1000 and e.clock.period == e.loop.h
+    e.step(5)
+    assert e.snapshot().fault is None
