@@ -29,7 +29,7 @@ from typing import Any, Callable, Mapping
 
 from quadtank_tui.core.general import tustin
 from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, saturate
-from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters, check_file_name
+from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
 from quadtank_tui.core.plant import PlantError
 from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
@@ -40,9 +40,10 @@ from quadtank_tui.engine.commands import (
     SetState,
 )
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, History
+from quadtank_tui.engine.logsession import LogRefused, LogSession
 from quadtank_tui.engine.sim import SimBackend
-from quadtank_tui.engine.snapshot import LogStatus, LoopStats, Snapshot
-from quadtank_tui.files.log import LogFileError, LogWriter, log_path
+from quadtank_tui.engine.snapshot import LoopStats, Snapshot
+from quadtank_tui.files.log import LogFileError
 from quadtank_tui.files.par import ParFileError, ParStore
 
 MODE_KEY = "CONTROL.Mode"
@@ -90,7 +91,6 @@ class ControlLoop:
         self.daq = daq
         self.backend: ProcessBackend = self.sim
         self.history = History(history_capacity)
-        self._now = now
         self._gens = (Generator(params.references[0], params.tsamp),
                       Generator(params.references[1], params.tsamp))
         self._matrix = _matrix_for(params)
@@ -105,10 +105,7 @@ class ControlLoop:
         self._u = (0.0, 0.0)
         self._w = (self._gens[0].value(), self._gens[1].value())
         self._r = (self._y[0], self._y[1])
-        self._logger: LogWriter | None = None
-        self._log_t0 = 0.0
-        self._log_saved = ""
-        self._log_unsaved = False
+        self.log = LogSession(self.logs_dir, now)
         # Timing, filled in by the runner (the loop itself has no clock).
         self.realtime = False
         self.speed = math.inf
@@ -168,8 +165,8 @@ class ControlLoop:
             self.backend.write_pumps(u)
             m.track(r, y12, u)
         self._u, self._w, self._r = u, w, r
-        if self._logger is not None and self._logger.running:
-            self._log_row()
+        if self.log.running:
+            self.log.row(self.t, y, u, r)
         self.history.append((self.t, y[0], y[1], y[2], y[3], u[0], u[1], r[0], r[1]))
         self.backend.elapse(self.h)
         self._gens[0].advance()
@@ -178,15 +175,6 @@ class ControlLoop:
         self.t = self.k * self.h if self._fixed_h else self.t + self.h
 
     _fixed_h = True  # t = k h until the sampling time changes (no float drift in t)
-
-    def _log_row(self) -> None:
-        assert self._logger is not None
-        y, u, r = self._y, self._u, self._r
-        self._logger.append({
-            "t": self.t - self._log_t0, "y1": y[0], "y2": y[1], "y3": y[2], "y4": y[3],
-            "u1": u[0], "u2": u[1], "r1": r[0], "r2": r[1],
-        })
-        self._log_unsaved = True
 
     def _fail(self, exc: BaseException) -> None:
         reason = str(exc) if isinstance(exc, BackendError) else f"{type(exc).__name__}: {exc}"
@@ -202,19 +190,13 @@ class ControlLoop:
             pass
 
     def _make_snapshot(self) -> Snapshot:
-        lg = self._logger
         return Snapshot(
             t=self.t, k=self.k, y=self._y, u=self._u, w=self._w, r=self._r,
             operation=self.backend.kind, state=self.state, control=self.control.value,
             params=self.params, speed=self.speed, realtime=self.realtime,
             active_available=self.daq is not None,
             backend=self.backend.description or self.backend.kind,
-            log=LogStatus(
-                active=lg is not None and lg.running, rows=0 if lg is None else lg.rows,
-                points=self.params.logging.points if lg is None else lg.points,
-                unsaved=self._log_unsaved, file=self.params.logging.log_file,
-                saved_path=self._log_saved,
-            ),
+            log=self.log.status(self.params.logging),
             stats=self.stats, fault=self.fault,
             alarms=tuple(getattr(self.backend, "alarms", ()) or ()),
         )
@@ -246,7 +228,7 @@ class ControlLoop:
             return CommandResult.refused(f"unknown command {type(command).__name__}")
         try:
             result = handler(self, command)
-        except (ParameterError, KeyError, PlantError, ParFileError, LogFileError, ValueError) as exc:
+        except (ParameterError, KeyError, PlantError, ParFileError, LogFileError, LogRefused, ValueError) as exc:
             message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
             return CommandResult.refused(str(message))
         except OSError as exc:
@@ -275,7 +257,7 @@ class ControlLoop:
         old = self.params
         new = new.with_value(MODE_KEY, old.control.mode.value)
         h = new.tsamp
-        if h != old.tsamp and self._logger is not None and self._logger.running:
+        if h != old.tsamp and self.log.running:
             raise ParameterError(TSAMP, "stop logging (LogOff) before changing the sampling time: "
                                  "the log's TSamp would no longer be true")
         for e in new.controllers:
@@ -350,8 +332,7 @@ class ControlLoop:
         for g in self._gens:
             g.reset()
         self.sim.reset()
-        if self._logger is not None:
-            self._logger.stop()
+        self.log.stop()
         self.history.clear()
         self.k, self.t, self._fixed_h = 0, 0.0, True
         if self.automatic_since is not None:
@@ -408,49 +389,24 @@ class ControlLoop:
     # --- logging --------------------------------------------------------------------------
 
     def _log_on(self, cmd: LogOn) -> CommandResult:
-        lg = self.params.logging
-        self.logs_dir.mkdir(parents=True, exist_ok=True)
-        if self._logger is not None:
-            self._logger.stop()
-        self._logger = LogWriter(log_path(self.logs_dir, lg.log_file), lg.variables, self.h,
-                                 lg.points, created=self._now())
-        self._log_t0 = self.t
-        self._log_unsaved = False
-        warnings = ()
-        if self._logger.recovered is not None:
-            warnings = (f"an unsaved earlier log was kept as {self._logger.recovered}",)
+        warnings = self.log.on(self.params.logging, self.h, self.t)
         return CommandResult(True, warnings=warnings)
 
     def _log_off(self, cmd: LogOff) -> CommandResult:
-        if self._logger is None or not self._logger.running:
-            return CommandResult.refused("logging is not on")
-        self._logger.stop()
+        self.log.off()
         return CommandResult(True)
 
     def _log_save(self, cmd: LogSave) -> CommandResult:
-        if self._logger is None or not self._log_unsaved:
-            return CommandResult.refused("nothing to save: no rows logged since the last Save")
-        name = cmd.name or self.params.logging.log_file
-        check_file_name(name.removesuffix(".log"), "LogFile")
-        target = log_path(self.logs_dir, name)
-        if target.exists() and not cmd.overwrite:
-            return CommandResult.refused(f"{target} exists (save again to overwrite)")
-        saved = self._logger.save(target)
-        self._log_saved = str(saved)
-        self._log_unsaved = False
+        saved = self.log.save(cmd.name or self.params.logging.log_file, cmd.overwrite)
         return CommandResult(True, f"saved {saved}")
 
     def _log_discard(self, cmd: LogDiscard) -> CommandResult:
-        if self._logger is not None:
-            self._logger.discard()
-        self._logger = None
-        self._log_unsaved = False
+        self.log.discard()
         return CommandResult(True)
 
     def close_log(self) -> None:
         """Exit: stop logging; an unsaved log stays on disk as the partial file."""
-        if self._logger is not None:
-            self._logger.stop()
+        self.log.stop()
 
     # --- parameter files --------------------------------------------------------------------
 
