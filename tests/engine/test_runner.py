@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import threading
+from pathlib import Path
 from typing import Callable
 
 import pytest
@@ -127,3 +128,53 @@ def test_manual_mode_is_reproducible_even_when_paced(make_engine: MakeEngine) ->
         e.submit(SetState("Run"))
         assert e.run_for(60.0) == 600
     assert a.snapshot() == b.snapshot() and a.snapshot().speed == 100
+
+
+def test_build_engine_reads_a_par_by_path_or_name_and_seeds_the_prbs(make_engine: MakeEngine,
+                                                                   tmp_path: Path) -> None:
+    from quadtank_tui.core.parameters import PRESET
+    from quadtank_tui.files.par import write_par
+
+    (tmp_path / "params").mkdir()
+    write_par(tmp_path / "params" / "mine.par", PRESET.with_value("CONTROLLER ONE.K", 1.25))
+    by_name = make_engine(par="mine", seed=9)
+    by_path = make_engine(par=str(tmp_path / "params" / "mine.par"))
+    assert by_name.snapshot().params.get("CONTROLLER ONE.K") == 1.25
+    assert by_path.snapshot().params.get("CONTROLLER ONE.K") == 1.25
+    p = by_name.snapshot().params
+    assert (p.get("REFERENCE ONE.Seed"), p.get("REFERENCE TWO.Seed")) == (9, 10)
+    assert any("default.par" in w for w in by_name.warnings)  # no default.par in that folder
+    with pytest.raises(ValueError, match="nope.par"):
+        make_engine(par="nope.par")
+    with pytest.raises(ValueError, match="clock"):
+        make_engine(clock="sundial")
+
+
+def test_a_fault_on_the_loop_thread_pauses_and_the_thread_lives_on(make_engine: MakeEngine) -> None:
+    from quadtank_tui.engine.backend import BackendError
+    from quadtank_tui.engine.commands import SetOperation
+
+    class Dead:
+        kind, description, alarms = "Active", "dead rig", ()
+
+        def read_levels(self):  # type: ignore[no-untyped-def]
+            raise BackendError("no reply from 127.0.0.1:5020")
+
+        def write_pumps(self, u):  # type: ignore[no-untyped-def]
+            raise AssertionError("never reached")
+
+        def safe_state(self) -> None:
+            raise OSError("still dead")  # safe_state must not raise; the loop copes anyway
+
+        def close(self) -> None:
+            pass
+
+    e = make_engine(clock="virtual", speed=None, daq=Dead())
+    e.start()
+    assert e.submit(SetOperation("Active")).result(TIMEOUT).ok
+    assert e.submit(SetState("Run")).result(TIMEOUT).ok
+    wait_samples(e, 20)
+    s = e.snapshot()
+    assert e.running and s.state == "Pause" and s.fault == "dead rig: no reply from 127.0.0.1:5020"
+    e.stop()
+    assert e.crash is None
