@@ -174,11 +174,3 @@ class VirtualClock(Clock):
     def _wall_period(self) -> float:
         return self.period / self.speed
 
-
-def make_clock(kind: str, period: float, *, speed: float | None = None, now: Now = time.monotonic) -> Clock:
-    """"realtime" or "virtual" (speed None: as fast as possible)."""
-    if kind == "realtime":
-        return RealTimeClock(period, now)
-    if kind == "virtual":
-        return VirtualClock(period, speed, now)
-    raise ValueError(f"clock must be realtime or virtual, got {kind!r}")

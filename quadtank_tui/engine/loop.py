@@ -100,6 +100,7 @@ class ControlLoop:
         self.automatic_since: float | None = None
         self.k = 0
         self.t = 0.0
+        self._fixed_h = True  # t = k h until the sampling time changes (no drift in t)
         self.fault: str | None = None
         self._y = self.sim.read_levels()
         self._u = (0.0, 0.0)
@@ -173,8 +174,6 @@ class ControlLoop:
         self._gens[1].advance()
         self.k += 1
         self.t = self.k * self.h if self._fixed_h else self.t + self.h
-
-    _fixed_h = True  # t = k h until the sampling time changes (no float drift in t)
 
     def _fail(self, exc: BaseException) -> None:
         reason = str(exc) if isinstance(exc, BackendError) else f"{type(exc).__name__}: {exc}"
