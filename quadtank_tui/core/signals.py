@@ -223,6 +223,30 @@ class Generator:
         gap = self._target - self._mean
         self._mean = self._target if abs(gap) <= step else self._mean + math.copysign(step, gap)
 
+    def take(self, n: int) -> list[float]:
+        """The next `n` samples, as `n` rounds of :meth:`value` then :meth:`advance`.
+
+        A PRBS at a steady mean is filled a hold at a time (its state is whole
+        numbers, so this is exactly the sample-by-sample result); the batch studies
+        generate millions of reference samples this way."""
+        p = self._p
+        if p.wave is not Wave.PRBS or self._mean != self._target:
+            out = []
+            for _ in range(n):
+                out.append(self.value())
+                self.advance()
+            return out
+        period = int(p.period)
+        out: list[float] = []
+        while len(out) < n:
+            chunk = min(period - self._n, n - len(out))
+            out.extend([self.value()] * chunk)
+            self._n += chunk
+            if self._n >= period:
+                self._n = 0
+                self._level = self._prbs_level()
+        return out
+
     def _prbs_level(self) -> float:
         return 1.0 if self._lfsr.next_bit() else -1.0
 

@@ -169,3 +169,22 @@ def test_value_stays_within_mean_plus_minus_amplitude(
     g = Generator(WaveParams(wave, mean, amplitude, period, True, seed), h)
     for v in samples(g, 40):
         assert mean - amplitude - 1e-12 <= v <= mean + amplitude + 1e-12
+
+
+@pytest.mark.parametrize("wave, period", [(Wave.PRBS, 7), (Wave.PRBS, 1), (Wave.SQUARE, 3.0), (Wave.SINE, 2.5)])
+def test_take_is_value_then_advance_n_times(wave: Wave, period: float) -> None:
+    params = WaveParams(wave=wave, mean=0.4, amplitude=0.1, period=period, on=True, seed=11)
+    one, many = Generator(params, 0.5), Generator(params, 0.5)
+    expected = []
+    for _ in range(1000):
+        expected.append(one.value())
+        one.advance()
+    assert many.take(3) + many.take(997) == expected
+    assert many.value() == one.value()
+    one.nudge(0.2)
+    many.nudge(0.2)
+    ramped = []
+    for _ in range(50):  # a ramping mean takes the sample-by-sample path
+        ramped.append(one.value())
+        one.advance()
+    assert many.take(50) == ramped
