@@ -12,6 +12,7 @@ hands snapshots down to its widgets on a timer and sends the windows' commands.
 
 from __future__ import annotations
 
+import dataclasses
 from concurrent.futures import Future
 from typing import Callable
 
@@ -22,6 +23,7 @@ from textual.screen import Screen
 from textual.widgets import Footer, Static
 
 from quadtank_tui.core.parameters import keys_of
+from quadtank_tui.core.plant import FULL_SCALE_V, PlantError, steady_state_inputs
 from quadtank_tui.core.setup_relations import TANKS
 from quadtank_tui.engine.commands import Command, CommandResult, LoadPar, SavePar, SetDefaults
 from quadtank_tui.engine.handle import EngineHandle
@@ -29,6 +31,7 @@ from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fmt
 from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel
+from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.setup_tables import ControllerTable, ParamTable, ProcessTable, ReferenceTable
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow
 from quadtank_tui.ui.windows.par_files import ParFileWindow
@@ -40,6 +43,28 @@ from quadtank_tui.ui.windows.wave import WaveWindow
 #: Below this width or height the layout packs tighter (80x24 terminals).
 COMPACT_WIDTH, COMPACT_HEIGHT = 110, 34
 SIMULATION_KEYS = tuple(k.name for k in keys_of("SIMULATION"))
+
+LEGEND = (
+    "[i]Dim italic[/i]: the value differs from its default (default.par).\n"
+    "Tab: next table · arrows: choose a row · Enter or click: open it.\n"
+    "d: process defaults · D: reread default.par · f: .par files.\n"
+    "Every Set acts on the running process at once."
+)
+
+
+def operating_point_view(snap: Snapshot) -> Snapshot:
+    """What Setup's process image draws (thesis 5.4): the water at the configured
+    operating point, the pumps at the inputs that hold it (the live inputs if no
+    input can, e.g. at gamma1 + gamma2 = 1), the tubes as paths, not flows."""
+    p = snap.params
+    y = p.simulation.op_points
+    try:
+        h = p.operating_levels()
+        v = steady_state_inputs(h[0], h[1], p.plant()).v
+        u = (v[0] / FULL_SCALE_V, v[1] / FULL_SCALE_V)
+    except PlantError:
+        u = snap.u
+    return dataclasses.replace(snap, y=y, u=u, state="Pause", operation="Simul")
 
 
 class SetupScreen(Screen[None]):
@@ -81,7 +106,9 @@ class SetupScreen(Screen[None]):
                 yield Static(id="sampling")
                 yield ReferenceTable(self.defaults, id="references")
                 yield ControllerTable(self.defaults, id="controllers")
+                yield Static(LEGEND, id="legend", classes="hint")
             with Vertical(id="setup-right"):
+                yield ProcessImage(id="setup-image")
                 yield ProcessTable(self.defaults, id="process")
                 yield AnalysisPanel(id="analysis")
         yield Footer()
@@ -89,6 +116,7 @@ class SetupScreen(Screen[None]):
     def on_mount(self) -> None:
         self.query_one("#references").border_title = "Reference configuration  i I"
         self.query_one("#process").border_title = "Process configuration  h d"
+        self.query_one("#setup-image").border_title = "Operating point"
         self.query_one("#analysis").border_title = "At the operating point"
         self.refresh_view(force=True)
         self.set_interval(self.refresh_interval, self.refresh_view)
@@ -110,6 +138,7 @@ class SetupScreen(Screen[None]):
             else f"[b]Sampling time[/] [i dim]{fmt(p.tsamp_ms)}[/] ms   [dim]s[/]"
         )
         if force or p != previous.params:
+            self.query_one(ProcessImage).snapshot = operating_point_view(snap)
             for table in self.query(ParamTable):
                 table.params = p
             self.query_one(AnalysisPanel).params = p
@@ -187,6 +216,10 @@ class SetupScreen(Screen[None]):
     def action_tank(self, tank: int) -> None:
         if tank in TANKS:
             self.app.push_screen(TankSetupWindow(tank, self.snap.params, self.defaults), self.send_all)
+
+    def action_pump(self, pump: int) -> None:
+        """A click on a pump of the operating-point image: its input is Main's."""
+        self.notify(f"Pump {pump}'s input is set on Main (input signal {pump}).", timeout=3)
 
     def action_tanks(self) -> None:
         """Choose a tank in the process table (arrows, Enter opens it)."""

@@ -26,6 +26,7 @@ from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import Command, SetParams
 from quadtank_tui.ui.values import fmt, parse_number
+from quadtank_tui.ui.widgets.check import Check
 
 T = TypeVar("T")
 
@@ -60,6 +61,14 @@ class Window(ModalScreen[T], Generic[T]):
     def compose_body(self) -> ComposeResult:
         """The window's own content."""
         yield from ()
+
+    @on(events.Mount)
+    def _steady_cursor_when_headless(self) -> None:
+        # Without a terminal (tests, screenshots) a blinking cursor only makes
+        # pictures differ by the time they were taken.
+        if self.app.is_headless:
+            for field in self.query(Input):
+                field.cursor_blink = False
 
     def compose_buttons(self) -> ComposeResult:
         yield Button("Cancel", id="cancel")
@@ -102,7 +111,7 @@ class ParamWindow(Window[Commands]):
     """Fields for some parameters with Default / Set / Cancel; Set returns a
     SetParams of the changed values, validated together first."""
 
-    BINDINGS = [Binding("enter", "set", "Set"), Binding("ctrl+d", "default", "Default")]
+    BINDINGS = [Binding("enter", "set", "Set"), Binding("ctrl+r", "default", "Default")]
 
     def __init__(self, title: str, params: Parameters, defaults: Parameters,
                  fields: Iterable[Field], *, opener: str | None = None) -> None:
@@ -123,7 +132,7 @@ class ParamWindow(Window[Commands]):
                 yield Label(f.label, classes="label")
                 value = self.params.get(f.key)
                 if f.flag:
-                    yield Checkbox("", value=bool(value), id=f"f-{i}", compact=True)
+                    yield Check("on", value=bool(value), id=f"f-{i}", compact=True)
                 else:
                     yield Input(fmt(value), id=f"f-{i}", compact=True, select_on_focus=True)
                 yield Label(f.unit, classes="unit")

@@ -16,11 +16,12 @@ from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
-from textual.widgets import Input, Label, RadioButton, RadioSet
+from textual.widgets import Input, Label, RadioSet
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS, Parameters
 from quadtank_tui.core.signals import Wave
 from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.ui.widgets.check import Radio
 from quadtank_tui.ui.windows.base import Field, ParamWindow
 
 WAVES = tuple(w.value for w in Wave)
@@ -56,7 +57,7 @@ class WaveWindow(ParamWindow):
             yield Label("Wave type", classes="label")
             with RadioSet(id="wave"):
                 for w in WAVES:
-                    yield RadioButton(w, value=w == self.wave, id=f"wave-{w}")
+                    yield Radio(w, value=w == self.wave, id=f"wave-{w}")
         yield from super().compose_body()
         yield Label("Period: seconds (Square, Sine) or samples between changes (PRBS).", classes="hint")
 
@@ -82,7 +83,7 @@ class WaveWindow(ParamWindow):
 
     def action_next_wave(self) -> None:
         nxt = WAVES[(WAVES.index(self.wave) + 1) % len(WAVES)]
-        self.query_one(f"#wave-{nxt}", RadioButton).value = True
+        self.query_one(f"#wave-{nxt}", Radio).value = True
 
     # --- values ---------------------------------------------------------------------------
 
@@ -112,4 +113,4 @@ class WaveWindow(ParamWindow):
 
     def action_default(self) -> None:
         super().action_default()
-        self.query_one(f"#wave-{self.defaults.get(self.wave_key).value}", RadioButton).value = True
+        self.query_one(f"#wave-{self.defaults.get(self.wave_key).value}", Radio).value = True
