@@ -263,3 +263,18 @@ async def test_default_all_reloads_default_par_after_asking(app) -> None:  # typ
         await pilot.press("d")  # process default: the SIMULATION section only
         await pilot.pause()
         assert app.engine.snapshot().params.simulation == app.engine.defaults().simulation
+
+
+async def test_a_click_on_a_tank_of_the_image_opens_its_window(app) -> None:  # type: ignore[no-untyped-def]
+    from quadtank_tui.ui.widgets.process_image import ProcessImage
+
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        image = app.screen.query_one(ProcessImage)
+        box = next(b for b in image._boxes if b.action == "tank(3)")
+        # The image has a one-cell border: content cell (x, y) is at (x + 1, y + 1).
+        await pilot.click(ProcessImage, offset=(box.x0 + 2, box.y0 + 2))
+        await pilot.pause()
+        window = app.screen
+        assert isinstance(window, TankSetupWindow) and window.tank == 3
+        assert [k.split(".")[1] for k in window.keys] == ["OpPoint3", "Diameter3", "TimeConst3"]  # no valve
