@@ -278,3 +278,13 @@ async def test_a_click_on_a_tank_of_the_image_opens_its_window(app) -> None:  # 
         window = app.screen
         assert isinstance(window, TankSetupWindow) and window.tank == 3
         assert [k.split(".")[1] for k in window.keys] == ["OpPoint3", "Diameter3", "TimeConst3"]  # no valve
+
+
+async def test_a_click_on_the_sampling_time_opens_its_window(app) -> None:  # type: ignore[no-untyped-def]
+    from quadtank_tui.ui.windows.sampling import SamplingTimeWindow
+
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.pause()
+        await pilot.click("#sampling")
+        await pilot.pause()
+        assert isinstance(app.screen, SamplingTimeWindow)

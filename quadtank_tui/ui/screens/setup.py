@@ -16,13 +16,14 @@ import dataclasses
 from concurrent.futures import Future
 from typing import Callable
 
+from textual import events
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Footer, Static
 
-from quadtank_tui.core.parameters import keys_of
+from quadtank_tui.core.parameters import TSAMP, Parameters, keys_of
 from quadtank_tui.core.plant import FULL_SCALE_V, PlantError, steady_state_inputs
 from quadtank_tui.core.setup_relations import TANKS
 from quadtank_tui.engine.commands import Command, CommandResult, LoadPar, SavePar, SetDefaults
@@ -67,6 +68,21 @@ def operating_point_view(snap: Snapshot) -> Snapshot:
     return dataclasses.replace(snap, y=y, u=u, state="Pause", operation="Simul")
 
 
+class SamplingLine(Static):
+    """The sampling time as a line of text (the original's top-left text box); a
+    click opens its window, like the `s` key."""
+
+    def show(self, p: Parameters, defaults: Parameters) -> None:
+        value = fmt(p.tsamp_ms)
+        if p.is_modified(TSAMP, defaults):
+            value = f"[i dim]{value}[/]"
+        self.update(f"[b]Sampling time[/] {value} ms   [dim]s[/]")
+
+    def on_click(self, event: events.Click) -> None:
+        event.stop()
+        self.post_message(ActionRequested("sampling"))
+
+
 class SetupScreen(Screen[None]):
     """Configure the process, the references, the controllers; load and save."""
 
@@ -103,7 +119,7 @@ class SetupScreen(Screen[None]):
         yield Static(id="setup-status")
         with Horizontal(id="setup-body"):
             with Vertical(id="setup-left"):
-                yield Static(id="sampling")
+                yield SamplingLine(id="sampling")
                 yield ReferenceTable(self.defaults, id="references")
                 yield ControllerTable(self.defaults, id="controllers")
                 yield Static(LEGEND, id="legend", classes="hint")
@@ -132,11 +148,7 @@ class SetupScreen(Screen[None]):
         previous, self.snap = self.snap, snap
         self.query_one("#setup-status", Static).update(self.status_text(snap))
         p = snap.params
-        self.query_one("#sampling", Static).update(
-            f"[b]Sampling time[/] {fmt(p.tsamp_ms)} ms   [dim]s[/]"
-            if not p.is_modified("SAMPLING TIME.TSamp", self.defaults)
-            else f"[b]Sampling time[/] [i dim]{fmt(p.tsamp_ms)}[/] ms   [dim]s[/]"
-        )
+        self.query_one(SamplingLine).show(p, self.defaults)
         if force or p != previous.params:
             self.query_one(ProcessImage).snapshot = operating_point_view(snap)
             for table in self.query(ParamTable):
