@@ -119,15 +119,16 @@ async def test_wave_window_refuses_a_too_short_period_with_the_shortest_allowed(
         await pilot.press("i")
         window = app.screen
         assert isinstance(window, WaveWindow)
+        window.query_one("#f-2", Input).focus()
         window.query_one("#f-2", Input).value = "0.1"  # Period
-        await pilot.press("ctrl+w")  # Square -> Sine
+        await pilot.press("ctrl+t")  # Square -> Sine, from inside a field
         await pilot.pause()
         await window.run_action("set")
         await pilot.pause()
         assert app.screen is window
         assert "the shortest allowed is 0.2 s" in str(window.query_one("#e-2", Static).render())
         # PRBS: the period is in samples; 3 samples and a seed are fine.
-        await pilot.press("ctrl+w")
+        await pilot.press("ctrl+t")
         window.query_one("#f-2", Input).value = "3"
         window.query_one("#f-3", Input).value = "7"
         await pilot.pause()

@@ -18,7 +18,7 @@ def test_setup_80x24(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
 
 def test_wave_window_prbs(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
     # Reference 1, wave type switched to PRBS by key: period in samples, seed enabled.
-    assert snap_compare(app, terminal_size=(80, 24), press=["i", "ctrl+w", "ctrl+w"])
+    assert snap_compare(app, terminal_size=(80, 24), press=["i", "ctrl+t", "ctrl+t"])
 
 
 def test_pid_window_with_extras(app, snap_compare) -> None:  # type: ignore[no-untyped-def]

@@ -94,13 +94,13 @@ class SetupScreen(Screen[None]):
         Binding("s", "sampling", "Sampling"),
         Binding("i", "reference(1)", "Ref 1"),
         Binding("I", "reference(2)", "Ref 2", show=False),
+        Binding("h", "tanks", "Tanks"),
+        Binding("f", "par_files", "Files"),
         Binding("1", "element(0)", "Element 11", show=False),
         Binding("2", "element(1)", "Element 12", show=False),
         Binding("3", "element(2)", "Element 21", show=False),
         Binding("4", "element(3)", "Element 22", show=False),
-        Binding("h", "tanks", "Tanks"),
         Binding("d", "process_default", "Process default"),
-        Binding("f", "par_files", "Par files"),
         Binding("D", "default_all", "Default all"),
     ]
 

@@ -44,7 +44,7 @@ def _name(key: str) -> str:
 class TankSetupWindow(Window[Commands]):
     """Edit one tank of the simulated process with its linked values."""
 
-    BINDINGS = [Binding("enter", "set", "Set"), Binding("ctrl+d", "default", "Default")]
+    BINDINGS = [Binding("enter", "set", "Set"), Binding("ctrl+r", "default", "Default")]
 
     def __init__(self, tank: int, params: Parameters, defaults: Parameters, *,
                  opener: str | None = None) -> None:

@@ -34,7 +34,7 @@ def period_unit(wave: str) -> str:
 class WaveWindow(ParamWindow):
     """Wave type and mean, amplitude, period, seed, on/off of channel 1 or 2."""
 
-    BINDINGS = [Binding("ctrl+w", "next_wave", "Wave type")]
+    BINDINGS = [Binding("ctrl+t", "next_wave", "Wave type")]
 
     def __init__(self, channel: int, params: Parameters, defaults: Parameters, *,
                  opener: str | None = None) -> None:
