@@ -289,3 +289,17 @@ async def test_a_click_on_the_sampling_time_opens_its_window(app) -> None:  # ty
         await pilot.click("#sampling")
         await pilot.pause()
         assert isinstance(app.screen, SamplingTimeWindow)
+
+
+async def test_the_controller_table_follows_the_family(app) -> None:  # type: ignore[no-untyped-def]
+    from quadtank_tui.ui.widgets.setup_tables import ControllerTable
+
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        table = app.screen.query_one(ControllerTable)
+        headers = lambda: [str(c.label) for c in table.columns.values()][1:]  # noqa: E731
+        assert headers()[:3] == ["K", "Ti", "Td"] and "N" in headers() and "b" in headers()
+        _change(app, {"CONTROL.Type": "General"})
+        await pilot.pause(0.3)  # the screen's refresh timer
+        assert headers() == ["Degree", "s0", "s1", "s2", "s3", "s4", "r1", "r2", "r3", "r4"]
+        assert "General" in str(table.border_title)

@@ -155,9 +155,10 @@ class SetupScreen(Screen[None]):
                 table.params = p
             self.query_one(AnalysisPanel).params = p
             c = p.control
-            self.query_one("#controllers").border_title = (
-                f"Controller: {c.family.value}, {c.structure.value}  1-4"
-            )
+            kind = f"{c.family.value}, {c.structure.value}"
+            if p.is_modified("CONTROL.Type", self.defaults) or p.is_modified("CONTROL.Structure", self.defaults):
+                kind = f"[i]{kind}[/i]"
+            self.query_one("#controllers").border_title = f"Controller: {kind}  1-4"
 
     @staticmethod
     def status_text(snap: Snapshot) -> str:

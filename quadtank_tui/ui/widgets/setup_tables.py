@@ -50,12 +50,21 @@ class ParamTable(DataTable[Text]):
         self.defaults = defaults
 
     def on_mount(self) -> None:
+        self.watch_params(self.params)
+
+    def columns_for(self, params: Parameters) -> tuple[Column, ...]:
+        """The columns for these parameters (the controller's follow its family)."""
+        return self.COLUMNS
+
+    def _build(self, columns: tuple[Column, ...]) -> None:
+        row = self.cursor_row
+        self.clear(columns=True)
         self.add_column("", key="row")
-        for c in self.COLUMNS:
+        for c in columns:
             self.add_column(c.header, key=c.header)
         for n, label in enumerate(self.ROWS):
-            self.add_row(Text(label, style="bold"), *(Text("") for _ in self.COLUMNS), key=str(n))
-        self.watch_params(self.params)
+            self.add_row(Text(label, style="bold"), *(Text("") for _ in columns), key=str(n))
+        self.move_cursor(row=row)
 
     def cell(self, params: Parameters, row: int, column: Column) -> Text:
         key = column.key(row)
@@ -65,10 +74,13 @@ class ParamTable(DataTable[Text]):
         return Text(text, style=MODIFIED if params.is_modified(key, self.defaults) else "")
 
     def watch_params(self, params: Parameters | None) -> None:
-        if params is None or not self.is_mounted or not self.row_count:
+        if params is None or not self.is_mounted:
             return
+        columns = self.columns_for(params)
+        if [c.header for c in columns] != [str(c.label) for c in list(self.columns.values())[1:]]:
+            self._build(columns)
         for n in range(len(self.ROWS)):
-            for c in self.COLUMNS:
+            for c in columns:
                 self.update_cell(str(n), c.header, self.cell(params, n, c), update_width=True)
             self.update_cell(str(n), "row", self.row_label(params, n), update_width=True)
 
@@ -117,12 +129,17 @@ def _pid(name: str) -> Callable[[int], str]:
 
 
 class ControllerTable(ParamTable):
-    """The four elements with every PID parameter, extras included; the elements a
-    decentralized structure does not use are dimmed."""
+    """The four elements with the parameters of the family in force: every PID
+    parameter, extras included, or the General transfer functions' coefficients.
+    The elements a decentralized structure does not use are dimmed."""
 
     ROWS = ("11", "12", "21", "22")
     ACTION = "element({n})"
     COLUMNS = tuple(Column(name, _pid(name)) for name in ("K", "Ti", "Td", "I", "D", "N", "Tr", "a", "b"))
+    GENERAL = tuple(Column(name, _pid(name)) for name in ("Degree", "s0", "s1", "s2", "s3", "s4", "r1", "r2", "r3", "r4"))
+
+    def columns_for(self, params: Parameters) -> tuple[Column, ...]:
+        return self.COLUMNS if params.control.family.value == "PID" else self.GENERAL
 
     def row_label(self, params: Parameters, row: int) -> Text:
         used = params.control.structure.value == "FullMatrix" or row in (0, 3)
