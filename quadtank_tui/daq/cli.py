@@ -1,0 +1,88 @@
+"""`quadtank rig`: the argument parser and the command, kept out of cli.py's way.
+
+cli.py adds the subcommand with `add_rig_parser`; everything about the rig's
+options lives here next to the rig.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import ipaddress
+import sys
+
+from quadtank_tui.core.parameters import PRESET
+from quadtank_tui.daq.config import PRESETS, load_daq_config
+from quadtank_tui.daq.rig import SensorModel, VirtualRig, serve_rig
+
+
+def add_rig_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "rig",
+        help="serve the simulated process over Modbus TCP (a virtual rig for Active mode)",
+        description="A Modbus TCP server whose input registers are the simulated level-sensor "
+        "voltages and whose output registers drive the simulated pumps, in real time times "
+        "--speed.  Point `quadtank --daq params/virtual-rig.yaml` at it.",
+    )
+    p.add_argument("--par", metavar="FILE", help="a .par file: its SIMULATION section gives the "
+                   "plant and the starting levels (default: the built-in preset, P-)")
+    p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1, loopback only)")
+    p.add_argument("--port", type=int, default=5020, help="TCP port (default 5020; 0 picks a free one)")
+    p.add_argument("--map", default="labjack", metavar="NAME|FILE",
+                   help=f"register map and wiring: a preset ({', '.join(PRESETS)}) or a DAQ "
+                   "configuration file (default labjack)")
+    p.add_argument("--speed", type=float, default=1.0, help="process seconds per wall second (default 1)")
+    p.add_argument("--noise", type=float, default=0.0, metavar="SIGMA",
+                   help="sensor noise, standard deviation in volts (default 0)")
+    p.add_argument("--offset", type=float, default=0.0, metavar="V", help="sensor zero offset, volts")
+    p.add_argument("--lsb", type=float, default=0.0, metavar="V",
+                   help="sensor quantization step, volts (default 0: none)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
+    p.add_argument("--watchdog", type=float, default=5.0, metavar="S",
+                   help="pumps to 0 when no write comes for S wall seconds (default 5; 0: off)")
+    p.add_argument("--reply-delay", type=float, default=0.0, metavar="S",
+                   help="answer every request S seconds late (to try a slow link)")
+    p.add_argument("--status", type=float, default=0.0, metavar="S",
+                   help="print the levels and pumps every S seconds (default 0: never)")
+    p.set_defaults(handler=cmd_rig)
+
+
+def cmd_rig(args: argparse.Namespace) -> int:
+    from quadtank_tui.files.par import read_par  # files layer, only when a .par is given
+
+    if args.par is not None:
+        read = read_par(args.par)
+        for w in read.warnings:
+            print(f"quadtank: warning: {w}", file=sys.stderr)
+        params = read.params
+    else:
+        params = PRESET
+    config = load_daq_config(args.map)
+    for name in ("speed",):
+        if not getattr(args, name) > 0:
+            raise ValueError(f"--{name} must be > 0, got {getattr(args, name)}")
+    for name in ("noise", "lsb", "watchdog", "reply_delay", "status"):
+        if getattr(args, name) < 0:
+            raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
+    if not 0 <= args.port <= 65535:
+        raise ValueError(f"--port must be in 0..65535, got {args.port}")
+    if not _is_loopback(args.host):
+        print(f"quadtank rig: warning: binding {args.host}: the rig is reachable from the network",
+              file=sys.stderr)
+    rig = VirtualRig(
+        config, params.plant(), params.operating_levels(),
+        speed=args.speed, watchdog=args.watchdog,
+        sensors=SensorModel(noise=args.noise, offset=args.offset, lsb=args.lsb, seed=args.seed),
+        report=lambda text: print(f"quadtank rig: {text}", flush=True),
+    )
+    asyncio.run(serve_rig(rig, args.host, args.port, reply_delay=args.reply_delay, status_every=args.status))
+    return 0
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
