@@ -141,7 +141,8 @@ def parse_daq_config(text: str, *, name: str = "<daq config>") -> DaqConfig:
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = None if mark is None else mark.line + 1
-        problem = getattr(exc, "problem", None) or str(exc)
+        problem = getattr(exc, "problem", None) or getattr(exc, "reason", None) or str(exc)
+        problem = " ".join(str(problem).split())
         raise DaqConfigError(name, f"not valid YAML: {problem}", line=line) from None
     lines = _key_lines(node)
     v = _Validator(name, lines)

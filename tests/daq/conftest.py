@@ -1,0 +1,112 @@
+"""A virtual rig in a subprocess on loopback, for the tests that need a real link.
+
+The rig binds port 0 (a free port, chosen by the OS, no race) unless a port is
+given, and prints the address it serves on its first line; the helper waits for
+that line (with a timeout) instead of sleeping.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import queue
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Callable, Iterator
+
+import pytest
+
+from quadtank_tui.daq.config import DaqConfig, load_daq_config
+
+ROOT = Path(__file__).parents[2]
+VIRTUAL_RIG = ROOT / "params" / "virtual-rig.yaml"
+
+
+class RigProcess:
+    """`quadtank rig ...` running; `lines` collects its stdout."""
+
+    def __init__(self, *args: str, port: int = 0) -> None:
+        cmd = [sys.executable, "-m", "quadtank_tui", "rig", "--port", str(port),
+               "--map", str(VIRTUAL_RIG), *args]
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.lines: queue.Queue[str] = queue.Queue()
+        self.seen: list[str] = []
+        threading.Thread(target=self._pump, daemon=True).start()
+        first = self.wait_for("serving on", timeout=20.0)
+        self.port = int(first.split("serving on ")[1].split()[0].rsplit(":", 1)[1])
+
+    def _pump(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self.lines.put(line.rstrip("\n"))
+
+    def wait_for(self, text: str, timeout: float) -> str:
+        """The first line (seen or coming) containing `text`."""
+        for line in self.seen:
+            if text in line:
+                return line
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                line = self.lines.get(timeout=0.1)
+            except queue.Empty:
+                if self.proc.poll() is not None and self.lines.empty():
+                    err = self.proc.stderr.read() if self.proc.stderr else ""
+                    raise AssertionError(f"rig exited ({self.proc.returncode}): {err}")
+                continue
+            self.seen.append(line)
+            if text in line:
+                return line
+        raise AssertionError(f"rig did not print {text!r} within {timeout} s; got {self.seen}")
+
+    def config(self, **changes: object) -> DaqConfig:
+        """The virtual-rig configuration pointed at this rig."""
+        return dataclasses.replace(load_daq_config(VIRTUAL_RIG), host="127.0.0.1", port=self.port,
+                                   **changes)  # type: ignore[arg-type]
+
+    def kill(self) -> None:
+        """SIGKILL: the rig vanishes as a crashed or unplugged device would."""
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait(timeout=10)
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(timeout=10)
+
+
+@pytest.fixture
+def rig() -> Iterator[Callable[..., RigProcess]]:
+    """Start rigs with `rig(*args, port=0)`; all are stopped after the test."""
+    started: list[RigProcess] = []
+
+    def start(*args: str, port: int = 0) -> RigProcess:
+        r = RigProcess(*args, port=port)
+        started.append(r)
+        return r
+
+    yield start
+    for r in started:
+        r.stop()
+
+
+def poll(condition: Callable[[], bool], timeout: float, every: float = 0.05) -> bool:
+    """True as soon as `condition()` holds; False after `timeout` s of trying."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(every)
+    return condition()
+
+
+@pytest.fixture(name="poll")
+def poll_fixture() -> Callable[..., bool]:
+    return poll
