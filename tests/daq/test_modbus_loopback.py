@@ -1,0 +1,155 @@
+"""The Modbus TCP backend against a real virtual rig in a subprocess on loopback:
+no mock of the protocol anywhere (pymodbus's client, our server, a TCP socket).
+
+Timing assertions are generous bounds and conditions polled with a timeout; the
+rig runs at a speed factor so minutes of process time take seconds.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import pytest
+from pymodbus.client import ModbusTcpClient
+
+from quadtank_tui.core.parameters import PRESET
+from quadtank_tui.core.plant import FULL_SCALE_V, steady_state_levels
+from quadtank_tui.daq.modbus import ModbusBackend
+from quadtank_tui.daq.registers import Register, decode
+from quadtank_tui.engine.backend import BackendError
+
+PLANT = PRESET.plant()
+H0 = PRESET.operating_levels()
+DAC = Register("holding", 1000, "float32", "big")
+
+
+def normalized(h: tuple[float, ...]) -> list[float]:
+    return [PLANT.kc * x / FULL_SCALE_V for x in h]
+
+
+def dac_volts(port: int) -> tuple[float, float]:
+    """The pump registers as the rig holds them, read by a separate client."""
+    client = ModbusTcpClient("127.0.0.1", port=port, timeout=1.0)
+    try:
+        rr = client.read_holding_registers(1000, count=4, device_id=1)
+        assert not rr.isError(), rr
+        return decode(DAC, rr.registers[:2]), decode(DAC, rr.registers[2:])
+    finally:
+        client.close()
+
+
+def test_levels_follow_the_model_to_its_steady_state(rig: Callable, poll: Callable) -> None:
+    r = rig("--speed", "100", "--watchdog", "0")
+    backend = ModbusBackend(r.config())
+    try:
+        first = backend.read_levels()
+        assert first == pytest.approx(normalized(H0), abs=0.03)  # the rig starts at the op. point
+        v = (4.0, 2.5)
+        target = normalized(steady_state_levels(v, PLANT))
+
+        def settled() -> bool:
+            backend.write_pumps((v[0] / FULL_SCALE_V, v[1] / FULL_SCALE_V))
+            return backend.read_levels() == pytest.approx(target, abs=0.004)
+
+        # ~10 slowest time constants of process time: under 10 s of wall time at x100.
+        assert poll(settled, timeout=30.0), (backend.read_levels(), target)
+        assert dac_volts(r.port) == pytest.approx(v)
+    finally:
+        backend.safe_state()
+        backend.close()
+
+
+def test_pump_writes_move_the_levels(rig: Callable, poll: Callable) -> None:
+    r = rig("--speed", "10")
+    backend = ModbusBackend(r.config())
+    try:
+        y0 = backend.read_levels()
+        backend.write_pumps((0.8, 0.0))  # pump 1 feeds tanks 1 and 4; pump 2 off
+        assert poll(lambda: (y := backend.read_levels())[0] > y0[0] + 0.02 and y[3] > y0[3] + 0.01
+                    and y[1] < y0[1] and y[2] < y0[2], timeout=15.0)
+        assert backend.applied == (0.8, 0.0) and backend.alarms == ()
+    finally:
+        backend.safe_state()
+        backend.close()
+
+
+def test_rig_killed_mid_run_then_back(rig: Callable) -> None:
+    r = rig()
+    backend = ModbusBackend(r.config())
+    backend.read_levels()
+    backend.write_pumps((0.3, 0.3))
+    r.kill()
+    t0 = time.monotonic()
+    with pytest.raises(BackendError) as err:
+        backend.read_levels()
+    assert time.monotonic() - t0 < 5.0
+    text = str(err.value)
+    assert text.startswith(f"read of AIN0..AIN3 (input registers 0-7) at 127.0.0.1:{r.port} failed twice: ")
+    assert "connection lost" in text or "cannot connect" in text
+    with pytest.raises(BackendError, match="write of DAC0..DAC1"):
+        backend.write_pumps((0.3, 0.3))
+    backend.safe_state()  # must not raise on a dead link
+    assert "cannot connect" in backend.safe_state_error
+
+    back = rig(port=r.port)  # the link returns (a restarted device on the same address)
+    y = backend.read_levels()
+    assert y == pytest.approx(normalized(H0), abs=0.03)
+    backend.safe_state()
+    assert backend.safe_state_error == ""
+    assert dac_volts(back.port) == (0.0, 0.0)
+    backend.close()
+
+
+def test_a_rig_slower_than_the_timeout(rig: Callable) -> None:
+    r = rig("--reply-delay", "0.6")
+    backend = ModbusBackend(r.config(timeout=0.15))
+    t0 = time.monotonic()
+    with pytest.raises(BackendError, match=r"failed twice: no answer within 0.15 s"):
+        backend.read_levels()
+    assert time.monotonic() - t0 < 3.0  # 2 tries x 0.15 s, with room for a slow machine
+    backend.safe_state()
+    assert "no answer" in backend.safe_state_error
+    patient = ModbusBackend(r.config(timeout=2.0))  # the same rig, a timeout it can meet
+    assert len(patient.read_levels()) == 4
+    patient.close()
+    backend.close()
+
+
+def test_rig_watchdog_stops_pumps_when_writes_stop(rig: Callable, poll: Callable) -> None:
+    r = rig("--watchdog", "0.4")
+    backend = ModbusBackend(r.config())
+    backend.write_pumps((0.5, 0.4))
+    assert dac_volts(r.port) == pytest.approx((5.0, 4.0))
+    assert "no write for 0.4 s, pumps set to 0" in r.wait_for("watchdog:", timeout=10.0)
+    assert poll(lambda: dac_volts(r.port) == (0.0, 0.0), timeout=5.0)
+    backend.close()
+
+
+def test_interlock_trips_on_an_overfull_tank(rig: Callable, poll: Callable) -> None:
+    r = rig("--speed", "20", "--watchdog", "0")
+    backend = ModbusBackend(r.config())
+    try:
+        def overfull() -> bool:
+            backend.read_levels()
+            backend.write_pumps((0.95, 0.3))  # a controller insisting on filling tank 1
+            return bool(backend.alarms)
+
+        assert poll(overfull, timeout=20.0)
+        assert backend.alarms[0] == "interlock: tank 1 above 95 % of its height, pump 1 cut"
+        assert backend.applied == (0.0, 0.3)
+        assert dac_volts(r.port) == pytest.approx((0.0, 3.0))
+        y = backend.read_levels()
+        assert y[0] >= 0.95 * 1.0 - 0.01 and y[0] <= 1.0
+
+        # Once tank 1 is back below the release level, pump 1 runs again.
+        def released() -> bool:
+            backend.read_levels()
+            backend.write_pumps((0.95, 0.3))
+            return backend.alarms == ()
+
+        assert poll(released, timeout=20.0)
+        assert dac_volts(r.port)[0] == pytest.approx(9.5)
+    finally:
+        backend.safe_state()
+        backend.close()
