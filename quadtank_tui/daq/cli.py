@@ -86,3 +86,20 @@ def _is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return False
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`python -m quadtank_tui.daq rig ...`: the rig alone, without loading the
+    analysis stack the full `quadtank` command imports (a second or more at start-up,
+    which matters on a small lab computer and in the tests that start many rigs)."""
+    parser = argparse.ArgumentParser(prog="python -m quadtank_tui.daq")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    add_rig_parser(sub)
+    args = parser.parse_args(argv)
+    try:
+        return int(args.handler(args))
+    except (OSError, ValueError) as exc:
+        print(f"quadtank: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130

@@ -90,15 +90,19 @@ class ModbusBackend(ProcessBackend):
         self.applied = applied
 
     def safe_state(self) -> None:
-        """Both outputs to the value that stops the pumps; tried twice, never raises."""
-        try:
-            self._write_volts([self._output_volts(i, 0.0) for i in (0, 1)])
+        """Each output to the value that stops its pump, separately (one bad output
+        must not keep the other pump running); each tried twice; never raises."""
+        errors: list[str] = []
+        for i in (0, 1):
+            try:
+                self._write_one(i, self._output_volts(i, 0.0))
+            except BackendError as exc:
+                errors.append(str(exc))
+            except Exception as exc:  # noqa: BLE001 - the contract: safe_state never raises
+                errors.append(f"{type(exc).__name__}: {exc}")
+        if not errors:
             self.applied = (0.0, 0.0)
-            self.safe_state_error = ""
-        except BackendError as exc:
-            self.safe_state_error = str(exc)
-        except Exception as exc:  # noqa: BLE001 - the contract: safe_state never raises
-            self.safe_state_error = f"{type(exc).__name__}: {exc}"
+        self.safe_state_error = "; ".join(errors)
 
     def close(self) -> None:
         try:
@@ -148,17 +152,20 @@ class ModbusBackend(ProcessBackend):
 
     def _write_volts(self, volts: list[float]) -> None:
         regs = [o.register for o in self._pumps]
-        names = [self.config.channels["pump1"], self.config.channels["pump2"]]
-        adjacent = regs[0].address + regs[0].count == regs[1].address
-        if adjacent:
+        if regs[0].address + regs[0].count == regs[1].address:  # one request for both
+            names = [self.config.channels["pump1"], self.config.channels["pump2"]]
             values = encode(regs[0], volts[0]) + encode(regs[1], volts[1])
             label = _label(names, "holding", regs[0].address, len(values))
             self._request(f"write of {label}", lambda: self._write(regs[0].address, values))
             return
-        for name, reg, v in zip(names, regs, volts):
-            values = encode(reg, v)
-            label = _label([name], "holding", reg.address, len(values))
-            self._request(f"write of {label}", lambda: self._write(reg.address, values))
+        for i in (0, 1):
+            self._write_one(i, volts[i])
+
+    def _write_one(self, pump: int, volts: float) -> None:
+        reg = self._pumps[pump].register
+        values = encode(reg, volts)
+        label = _label([self.config.channels[f"pump{pump + 1}"]], "holding", reg.address, len(values))
+        self._request(f"write of {label}", lambda: self._write(reg.address, values))
 
     def _write(self, address: int, values: list[int]) -> list[int]:
         rr = self._client.write_registers(address, values, device_id=self.config.device_id)

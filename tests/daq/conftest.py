@@ -17,18 +17,24 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 import pytest
+from pymodbus.client import ModbusTcpClient
 
 from quadtank_tui.daq.config import DaqConfig, load_daq_config
+from quadtank_tui.daq.registers import Register, decode
 
 ROOT = Path(__file__).parents[2]
 VIRTUAL_RIG = ROOT / "params" / "virtual-rig.yaml"
+DAC = Register("holding", 1000, "float32", "big")  # the LabJack map virtual-rig.yaml uses
 
 
 class RigProcess:
     """`quadtank rig ...` running; `lines` collects its stdout."""
 
-    def __init__(self, *args: str, port: int = 0) -> None:
-        cmd = [sys.executable, "-m", "quadtank_tui", "rig", "--port", str(port),
+    def __init__(self, *args: str, port: int = 0, full_cli: bool = False) -> None:
+        # `python -m quadtank_tui.daq rig` is the same command without the analysis
+        # stack's import time; one test starts the full `quadtank rig`.
+        entry = "quadtank_tui" if full_cli else "quadtank_tui.daq"
+        cmd = [sys.executable, "-m", entry, "rig", "--port", str(port),
                "--map", str(VIRTUAL_RIG), *args]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         self.lines: queue.Queue[str] = queue.Queue()
@@ -66,6 +72,16 @@ class RigProcess:
         return dataclasses.replace(load_daq_config(VIRTUAL_RIG), host="127.0.0.1", port=self.port,
                                    **changes)  # type: ignore[arg-type]
 
+    def dacs(self) -> tuple[float, float]:
+        """The two pump registers as the rig holds them, read by a client of its own."""
+        client = ModbusTcpClient("127.0.0.1", port=self.port, timeout=2.0)
+        try:
+            rr = client.read_holding_registers(1000, count=4, device_id=1)
+            assert not rr.isError(), rr
+            return decode(DAC, rr.registers[:2]), decode(DAC, rr.registers[2:])
+        finally:
+            client.close()
+
     def kill(self) -> None:
         """SIGKILL: the rig vanishes as a crashed or unplugged device would."""
         if self.proc.poll() is None:
@@ -84,11 +100,11 @@ class RigProcess:
 
 @pytest.fixture
 def rig() -> Iterator[Callable[..., RigProcess]]:
-    """Start rigs with `rig(*args, port=0)`; all are stopped after the test."""
+    """Start rigs with `rig(*args, port=0, full_cli=False)`; all stopped after the test."""
     started: list[RigProcess] = []
 
-    def start(*args: str, port: int = 0) -> RigProcess:
-        r = RigProcess(*args, port=port)
+    def start(*args: str, port: int = 0, full_cli: bool = False) -> RigProcess:
+        r = RigProcess(*args, port=port, full_cli=full_cli)
         started.append(r)
         return r
 

@@ -11,32 +11,18 @@ import time
 from typing import Callable
 
 import pytest
-from pymodbus.client import ModbusTcpClient
 
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.core.plant import FULL_SCALE_V, steady_state_levels
 from quadtank_tui.daq.modbus import ModbusBackend
-from quadtank_tui.daq.registers import Register, decode
 from quadtank_tui.engine.backend import BackendError
 
 PLANT = PRESET.plant()
 H0 = PRESET.operating_levels()
-DAC = Register("holding", 1000, "float32", "big")
 
 
 def normalized(h: tuple[float, ...]) -> list[float]:
     return [PLANT.kc * x / FULL_SCALE_V for x in h]
-
-
-def dac_volts(port: int) -> tuple[float, float]:
-    """The pump registers as the rig holds them, read by a separate client."""
-    client = ModbusTcpClient("127.0.0.1", port=port, timeout=1.0)
-    try:
-        rr = client.read_holding_registers(1000, count=4, device_id=1)
-        assert not rr.isError(), rr
-        return decode(DAC, rr.registers[:2]), decode(DAC, rr.registers[2:])
-    finally:
-        client.close()
 
 
 def test_levels_follow_the_model_to_its_steady_state(rig: Callable, poll: Callable) -> None:
@@ -54,7 +40,7 @@ def test_levels_follow_the_model_to_its_steady_state(rig: Callable, poll: Callab
 
         # ~10 slowest time constants of process time: under 10 s of wall time at x100.
         assert poll(settled, timeout=30.0), (backend.read_levels(), target)
-        assert dac_volts(r.port) == pytest.approx(v)
+        assert r.dacs() == pytest.approx(v)
     finally:
         backend.safe_state()
         backend.close()
@@ -97,7 +83,7 @@ def test_rig_killed_mid_run_then_back(rig: Callable) -> None:
     assert y == pytest.approx(normalized(H0), abs=0.03)
     backend.safe_state()
     assert backend.safe_state_error == ""
-    assert dac_volts(back.port) == (0.0, 0.0)
+    assert back.dacs() == (0.0, 0.0)
     backend.close()
 
 
@@ -117,12 +103,12 @@ def test_a_rig_slower_than_the_timeout(rig: Callable) -> None:
 
 
 def test_rig_watchdog_stops_pumps_when_writes_stop(rig: Callable, poll: Callable) -> None:
-    r = rig("--watchdog", "0.4")
+    r = rig("--watchdog", "0.4", full_cli=True)  # the `quadtank rig` command itself
     backend = ModbusBackend(r.config())
     backend.write_pumps((0.5, 0.4))
-    assert dac_volts(r.port) == pytest.approx((5.0, 4.0))
+    assert r.dacs() == pytest.approx((5.0, 4.0))
     assert "no write for 0.4 s, pumps set to 0" in r.wait_for("watchdog:", timeout=10.0)
-    assert poll(lambda: dac_volts(r.port) == (0.0, 0.0), timeout=5.0)
+    assert poll(lambda: r.dacs() == (0.0, 0.0), timeout=5.0)
     backend.close()
 
 
@@ -138,7 +124,7 @@ def test_interlock_trips_on_an_overfull_tank(rig: Callable, poll: Callable) -> N
         assert poll(overfull, timeout=20.0)
         assert backend.alarms[0] == "interlock: tank 1 above 95 % of its height, pump 1 cut"
         assert backend.applied == (0.0, 0.3)
-        assert dac_volts(r.port) == pytest.approx((0.0, 3.0))
+        assert r.dacs() == pytest.approx((0.0, 3.0))
         y = backend.read_levels()
         assert y[0] >= 0.95 * 1.0 - 0.01 and y[0] <= 1.0
 
@@ -149,7 +135,7 @@ def test_interlock_trips_on_an_overfull_tank(rig: Callable, poll: Callable) -> N
             return backend.alarms == ()
 
         assert poll(released, timeout=20.0)
-        assert dac_volts(r.port)[0] == pytest.approx(9.5)
+        assert r.dacs()[0] == pytest.approx(9.5)
     finally:
         backend.safe_state()
         backend.close()
