@@ -51,12 +51,12 @@ class ModbusBackend(ProcessBackend):
 
     kind = "Active"
 
-    def __init__(self, config: DaqConfig, *, connect_timeout: float | None = None) -> None:
+    def __init__(self, config: DaqConfig) -> None:
         self.config = config
         self.description = f"modbus {config.host}:{config.port}"
-        self._client = ModbusTcpClient(
-            config.host, port=config.port, timeout=connect_timeout or config.timeout, retries=0,
-        )
+        # `timeout` bounds the connect and each answer; the client's own retries are
+        # off: this class retries once itself, so the worst case is known.
+        self._client = ModbusTcpClient(config.host, port=config.port, timeout=config.timeout, retries=0)
         self._tanks = [config.tank_register(i) for i in range(1, 5)]
         self._pumps: list[Output] = [config.pump_output(i) for i in (1, 2)]
         #: normalized level of a full tank (the interlock's scale)
