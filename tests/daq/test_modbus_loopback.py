@@ -8,6 +8,7 @@ rig runs at a speed factor so minutes of process time take seconds.
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import Callable
 
 import pytest
@@ -16,6 +17,9 @@ from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.core.plant import FULL_SCALE_V, steady_state_levels
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.engine.backend import BackendError
+from quadtank_tui.files.par import read_par
+
+ROOT = Path(__file__).parents[2]
 
 PLANT = PRESET.plant()
 H0 = PRESET.operating_levels()
@@ -136,6 +140,24 @@ def test_interlock_trips_on_an_overfull_tank(rig: Callable, poll: Callable) -> N
 
         assert poll(released, timeout=20.0)
         assert r.dacs()[0] == pytest.approx(9.5)
+    finally:
+        backend.safe_state()
+        backend.close()
+
+
+def test_one_lost_connection_is_absorbed_by_the_retry(rig: Callable) -> None:
+    """The device restarts between two samples: the first try finds the old
+    connection dead, the second connects afresh, and the sample succeeds."""
+    r = rig("--par", str(ROOT / "params" / "nonminphase.par"))
+    backend = ModbusBackend(r.config())
+    try:
+        nonmin = read_par(ROOT / "params" / "nonminphase.par").params
+        y = backend.read_levels()   # the rig serves the .par's plant, from its levels
+        assert y == pytest.approx(normalized(nonmin.operating_levels()), abs=0.03)
+        r.kill()
+        rig("--par", str(ROOT / "params" / "nonminphase.par"), port=r.port)
+        assert backend.read_levels() == pytest.approx(y, abs=0.03)
+        backend.write_pumps((0.3, 0.3))
     finally:
         backend.safe_state()
         backend.close()
