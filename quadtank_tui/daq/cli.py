@@ -38,8 +38,9 @@ def add_rig_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lsb", type=float, default=0.0, metavar="V",
                    help="sensor quantization step, volts (default 0: none)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
-    p.add_argument("--watchdog", type=float, default=5.0, metavar="S",
-                   help="pumps to 0 when no write comes for S wall seconds (default 5; 0: off)")
+    p.add_argument("--watchdog", type=float, default=15.0, metavar="S",
+                   help="pumps to 0 when no write comes for S wall seconds; keep it longer than "
+                   "the sampling time (default 15, above the longest TSamp of 10 s; 0: off)")
     p.add_argument("--reply-delay", type=float, default=0.0, metavar="S",
                    help="answer every request S seconds late (to try a slow link)")
     p.add_argument("--status", type=float, default=0.0, metavar="S",

@@ -58,7 +58,7 @@ class VirtualRig:
         levels_cm: Sequence[float],
         *,
         speed: float = 1.0,
-        watchdog: float = 5.0,
+        watchdog: float = 15.0,
         sensors: SensorModel = SensorModel(),
         clock: Callable[[], float] = time.monotonic,
         report: Callable[[str], None] = lambda text: None,
