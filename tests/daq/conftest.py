@@ -69,8 +69,8 @@ class RigProcess:
 
     def config(self, **changes: object) -> DaqConfig:
         """The virtual-rig configuration pointed at this rig."""
-        return dataclasses.replace(load_daq_config(VIRTUAL_RIG), host="127.0.0.1", port=self.port,
-                                   **changes)  # type: ignore[arg-type]
+        options: dict[str, object] = {"host": "127.0.0.1", "port": self.port, **changes}
+        return dataclasses.replace(load_daq_config(VIRTUAL_RIG), **options)  # type: ignore[arg-type]
 
     def dacs(self) -> tuple[float, float]:
         """The two pump registers as the rig holds them, read by a client of its own."""
@@ -126,3 +126,71 @@ def poll(condition: Callable[[], bool], timeout: float, every: float = 0.05) -> 
 @pytest.fixture(name="poll")
 def poll_fixture() -> Callable[..., bool]:
     return poll
+
+
+class LinkProxy:
+    """A TCP relay between the program and a rig whose cable can be "cut": while
+    cut, it accepts and holds connections but forwards nothing (a switch that died,
+    a cable pulled out: no reset, just silence).  Threads, loopback only."""
+
+    def __init__(self, target_port: int) -> None:
+        import socket
+
+        self.target = ("127.0.0.1", target_port)
+        self.cut = threading.Event()
+        self._listener = socket.create_server(("127.0.0.1", 0))
+        self.port = self._listener.getsockname()[1]
+        self._closing = False
+        self._socks: list[socket.socket] = []
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self) -> None:
+        import socket
+
+        while not self._closing:
+            try:
+                client, _ = self._listener.accept()
+            except OSError:
+                return
+            self._socks.append(client)
+            try:
+                upstream = socket.create_connection(self.target, timeout=2.0)
+            except OSError:
+                client.close()
+                continue
+            self._socks.append(upstream)
+            for a, b in ((client, upstream), (upstream, client)):
+                threading.Thread(target=self._relay, args=(a, b), daemon=True).start()
+
+    def _relay(self, src, dst) -> None:  # type: ignore[no-untyped-def]
+        try:
+            while True:
+                data = src.recv(4096)
+                if not data:
+                    break
+                if not self.cut.is_set():
+                    dst.sendall(data)
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        self._closing = True
+        for s in [self._listener, *self._socks]:
+            try:
+                s.close()
+            except OSError:
+                pass
+
+
+@pytest.fixture
+def link_proxy() -> Iterator[Callable[[int], LinkProxy]]:
+    made: list[LinkProxy] = []
+
+    def make(port: int) -> LinkProxy:
+        p = LinkProxy(port)
+        made.append(p)
+        return p
+
+    yield make
+    for p in made:
+        p.close()

@@ -161,3 +161,30 @@ def test_one_lost_connection_is_absorbed_by_the_retry(rig: Callable) -> None:
     finally:
         backend.safe_state()
         backend.close()
+
+
+def test_cable_cut_times_out_and_the_rig_watchdog_stops_the_pumps(
+    rig: Callable, link_proxy: Callable, poll: Callable
+) -> None:
+    """The link goes silent (no reset): each try waits out the timeout, the sample
+    fails with the reason, safe_state cannot reach the rig either, and the rig's own
+    watchdog is what stops its pumps.  Reconnected, the next sample works."""
+    r = rig("--watchdog", "0.5")
+    proxy = link_proxy(r.port)
+    backend = ModbusBackend(r.config(timeout=0.2, port=proxy.port))
+    try:
+        backend.read_levels()
+        backend.write_pumps((0.4, 0.4))
+        assert r.dacs() == pytest.approx((4.0, 4.0))
+        proxy.cut.set()
+        t0 = time.monotonic()
+        with pytest.raises(BackendError, match=r"read of AIN0..AIN3 .* failed twice: no answer within 0.2 s"):
+            backend.read_levels()
+        assert 0.35 < time.monotonic() - t0 < 3.0       # two tries of 0.2 s each
+        backend.safe_state()
+        assert "no answer within 0.2 s" in backend.safe_state_error
+        assert poll(lambda: r.dacs() == (0.0, 0.0), timeout=5.0)  # the rig's firmware
+        proxy.cut.clear()
+        assert len(backend.read_levels()) == 4
+    finally:
+        backend.close()
