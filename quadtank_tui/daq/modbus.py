@@ -125,14 +125,15 @@ class ModbusBackend(ProcessBackend):
     def _read_volts(self, regs: list[Register], names: list[str]) -> list[float]:
         span = block(regs)
         chunks = [(regs, span)] if span else [([r], (r.address, r.count)) for r in regs]
-        words: dict[int, int] = {}
+        words: dict[tuple[str, int], int] = {}
         for group, (first, count) in chunks:
-            label = _label([names[regs.index(r)] for r in group], group[0].table, first, count)
-            got = self._request(f"read of {label}", lambda: self._read(group[0].table, first, count))
-            words.update(zip(range(first, first + count), got))
+            table = group[0].table
+            label = _label([names[regs.index(r)] for r in group], table, first, count)
+            got = self._request(f"read of {label}", lambda: self._read(table, first, count))
+            words.update(((table, a), w) for a, w in zip(range(first, first + count), got))
         volts = []
         for name, reg in zip(names, regs):
-            v = decode(reg, [words[a] for a in reg.span])
+            v = decode(reg, [words[reg.table, a] for a in reg.span])
             if not math.isfinite(v):
                 raise BackendError(f"{name} ({reg.describe()}) at {self._where()} returned {v}, not a voltage")
             volts.append(v)

@@ -85,10 +85,14 @@ def encode(reg: Register, volts: float) -> list[int]:
 
 
 def block(regs: Sequence[Register]) -> tuple[int, int] | None:
-    """(first address, register count) of one read covering all `regs`, or None
-    when they sit in different tables or too far apart for one request (125)."""
+    """(first address, register count) of one read covering exactly `regs`, or None
+    when they sit in different tables, leave gaps (a device need not have the
+    registers between them) or exceed one request (125 registers)."""
     if not regs or len({r.table for r in regs}) != 1:
         return None
     first = min(r.address for r in regs)
     end = max(r.address + r.count for r in regs)
-    return (first, end - first) if end - first <= 125 else None
+    covered = {a for r in regs for a in r.span}
+    if len(covered) != end - first or end - first > 125:
+        return None
+    return first, end - first

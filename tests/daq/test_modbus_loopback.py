@@ -7,6 +7,7 @@ rig runs at a speed factor so minutes of process time take seconds.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 from typing import Callable
@@ -15,6 +16,7 @@ import pytest
 
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.core.plant import FULL_SCALE_V, steady_state_levels
+from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.engine.backend import BackendError
 from quadtank_tui.files.par import read_par
@@ -187,4 +189,42 @@ def test_cable_cut_times_out_and_the_rig_watchdog_stops_the_pumps(
         proxy.cut.clear()
         assert len(backend.read_levels()) == 4
     finally:
+        backend.close()
+
+
+PLC_MAP = """
+preset: none
+host: 127.0.0.1
+port: 502
+inputs:            # gaps between the level registers: one request per channel
+  LT1: {table: holding, address: 100, type: int16, scale: 0.001}
+  LT2: {table: holding, address: 102, type: int16, scale: 0.001}
+  LT3: {table: holding, address: 104, type: int16, scale: 0.001}
+  LT4: {table: holding, address: 106, type: int16, scale: 0.001}
+outputs:
+  P1: {address: 200, type: uint16, scale: 0.001, limits: [0, 10]}
+  P2: {address: 210, type: uint16, scale: 0.001, limits: [0, 10]}
+channels: {tank1: LT1, tank2: LT2, tank3: LT3, tank4: LT4, pump1: P1, pump2: P2}
+"""
+
+
+def test_a_plc_map_of_scaled_integers(rig: Callable, tmp_path: Path) -> None:
+    from pymodbus.client import ModbusTcpClient
+
+    path = tmp_path / "plc.yaml"
+    path.write_text(PLC_MAP)
+    r = rig("--map", str(path))  # the last --map wins: the rig serves the PLC's map
+    backend = ModbusBackend(dataclasses.replace(load_daq_config(path), port=r.port))
+    try:
+        assert backend.read_levels() == pytest.approx(normalized(H0), abs=0.03)
+        backend.write_pumps((0.5, 0.25))
+        client = ModbusTcpClient("127.0.0.1", port=r.port, timeout=2.0)
+        try:
+            assert client.read_holding_registers(200, count=1, device_id=1).registers == [5000]
+            assert client.read_holding_registers(210, count=1, device_id=1).registers == [2500]
+        finally:
+            client.close()
+    finally:
+        backend.safe_state()
+        assert backend.safe_state_error == ""
         backend.close()

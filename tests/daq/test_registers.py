@@ -46,3 +46,5 @@ def test_one_request_covers_neighbouring_channels_only() -> None:
     assert block(ains) == (0, 8)
     assert block([Register("input", 0), Register("holding", 2)]) is None
     assert block([Register("input", 0), Register("input", 200)]) is None
+    assert block([Register("input", 0), Register("input", 4)]) is None  # a gap: 2-3 may not exist
+    assert block([Register("holding", 7, "int16"), Register("holding", 6, "int16")]) == (6, 2)
