@@ -15,7 +15,7 @@ from typing import Callable, Sequence
 
 from quadtank_tui.core.analysis import analyze, format_report
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
-from quadtank_tui.daq.cli import add_rig_parser
+from quadtank_tui.daq.cli import add_daq_parser, add_rig_parser
 from quadtank_tui.files.export import FORMATS, export_log
 from quadtank_tui.files.log import format_tsamp, read_log
 from quadtank_tui.files.par import read_par
@@ -136,6 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_analyze(sub)
     _add_log(sub)
     add_rig_parser(sub)
+    add_daq_parser(sub)
     return parser
 
 

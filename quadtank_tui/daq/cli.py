@@ -1,7 +1,8 @@
-"""`quadtank rig`: the argument parser and the command, kept out of cli.py's way.
+"""`quadtank rig`, `quadtank daq` and `--daq`: parsers and commands kept out of
+cli.py's way.
 
-cli.py adds the subcommand with `add_rig_parser`; everything about the rig's
-options lives here next to the rig.
+cli.py adds the subcommands with `add_rig_parser` / `add_daq_parser` and the
+option with `add_daq_option`; everything about them lives here next to the DAQ.
 """
 
 from __future__ import annotations
@@ -11,9 +12,11 @@ import asyncio
 import ipaddress
 import sys
 
+from quadtank_tui.core.calibration import fit_sensor
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.daq.config import PRESETS, load_daq_config
 from quadtank_tui.daq.rig import SensorModel, VirtualRig, serve_rig
+from quadtank_tui.engine.backend import BackendError
 
 
 def add_rig_parser(sub: argparse._SubParsersAction) -> None:
@@ -87,6 +90,66 @@ def _is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return False
+
+
+# --- quadtank daq check | fit: bringing up a real rig ------------------------------------
+
+def add_daq_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("daq", help="check a DAQ link, fit a sensor calibration",
+                       description="Bring up a rig: read its sensors once through a DAQ "
+                       "configuration (nothing is written), or fit a level sensor's gain and "
+                       "offset from steady-state pairs (Desautel 2.3).")
+    daqsub = p.add_subparsers(dest="daq_command", metavar="ACTION", required=True)
+    check = daqsub.add_parser("check", help="read the four sensors once; writes nothing")
+    check.add_argument("config", metavar="CONFIG", help="a DAQ configuration file or preset name")
+    check.set_defaults(handler=cmd_daq_check)
+    fit = daqsub.add_parser("fit", help="least-squares gain and offset from VOLTS:CM pairs")
+    fit.add_argument("pairs", metavar="VOLTS:CM", nargs="+",
+                     help="a steady-state sensor voltage and the level read off the scale, e.g. 1.34:7.5")
+    fit.add_argument("--tank", type=int, choices=(1, 2, 3, 4), default=1,
+                     help="the tank, for the configuration line printed (default 1)")
+    fit.set_defaults(handler=cmd_daq_fit)
+
+
+def cmd_daq_check(args: argparse.Namespace) -> int:
+    """Read-only on purpose: checking a link must never move a pump."""
+    from quadtank_tui.daq.modbus import ModbusBackend
+
+    config = load_daq_config(args.config)
+    backend = ModbusBackend(config)
+    try:
+        volts = backend.read_raw_volts()
+        y = backend.read_levels()
+    except BackendError as exc:
+        print(f"quadtank: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        backend.close()
+    print(f"{backend.description}  (device id {config.device_id}, timeout {config.timeout:g} s)")
+    for i in range(4):
+        ch = config.channels[f"tank{i + 1}"]
+        level = config.sensors[i].level(volts[i])
+        print(f"tank {i + 1}  {ch:>6}  {volts[i]:8.4f} V  {level:7.2f} cm  y = {y[i]:.4f}")
+    for alarm in backend.alarms:
+        print(alarm)
+    return 0
+
+
+def cmd_daq_fit(args: argparse.Namespace) -> int:
+    volts, levels = [], []
+    for pair in args.pairs:
+        v, sep, h = pair.partition(":")
+        try:
+            volts.append(float(v))
+            levels.append(float(h))
+        except ValueError:
+            raise ValueError(f"{pair!r}: expected VOLTS:CM, e.g. 1.34:7.5") from None
+        if not sep:
+            raise ValueError(f"{pair!r}: expected VOLTS:CM, e.g. 1.34:7.5")
+    cal = fit_sensor(volts, levels)
+    print(f"gain {cal.gain:.4f} cm/V  offset {cal.offset:.4f} cm  rms residual {cal.rms:.3f} cm")
+    print(f"  tank{args.tank}: {{gain: {cal.gain:.4f}, offset: {cal.offset:.4f}}}")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
