@@ -15,7 +15,7 @@ from typing import Callable, Sequence
 
 from quadtank_tui.core.analysis import analyze, format_report
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
-from quadtank_tui.daq.cli import add_daq_parser, add_rig_parser
+from quadtank_tui.daq.cli import add_daq_option, add_daq_parser, add_rig_parser, open_daq
 from quadtank_tui.files.export import FORMATS, export_log
 from quadtank_tui.files.log import format_tsamp, read_log
 from quadtank_tui.files.par import read_par
@@ -139,6 +139,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--realtime", action="store_true", help="keep the sampling time in wall time")
     pace.add_argument("--speed", metavar="X", type=float, help="virtual time at X times real time (1..1000)")
+    add_daq_option(p)
     p.set_defaults(handler=_cmd_run)
 
 
@@ -153,12 +154,22 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.seed is not None and args.seed < 0:
         raise UsageError(f"--seed must be >= 0, got {args.seed}")
     script = read_script(args.script) if args.script else None
-    clock = "realtime" if args.realtime else ("virtual" if args.speed is not None else "manual")
+    clock, daq = _run_clock(args)
     result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
-                          seed=args.seed, clock=clock, speed=args.speed)
+                          seed=args.seed, clock=clock, speed=args.speed, daq=daq)
     _warn(result.warnings)
     print(result.text)
     return result.status
+
+
+def _run_clock(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    """The clock and the DAQ backend of `quadtank [--daq C] run [--daq C]`: a real
+    process is never run unpaced, so Active is real time unless --speed gives the
+    virtual rig's speed factor."""
+    daq = open_daq(args.daq or getattr(args, "daq_global", None))
+    if args.realtime or (daq is not None and args.speed is None):
+        return "realtime", daq
+    return ("virtual" if args.speed is not None else "manual"), daq
 
 
 def _warn(warnings: Sequence[str]) -> None:
@@ -171,6 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="quadtank",
         description="Run and analyse the quadruple-tank laboratory process.",
     )
+    add_daq_option(parser, dest="daq_global")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_analyze(sub)
     _add_log(sub)

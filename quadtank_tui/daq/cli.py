@@ -167,3 +167,24 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
+
+
+# --- --daq for `quadtank` and `quadtank run` ------------------------------------------------
+
+DAQ_HELP = ("Active mode through a DAQ: a DAQ configuration file (params/daq-labjack.yaml, "
+            "params/virtual-rig.yaml) or a preset name (labjack)")
+
+
+def add_daq_option(parser: argparse.ArgumentParser, *, dest: str = "daq") -> None:
+    parser.add_argument("--daq", metavar="CONFIG", dest=dest, help=DAQ_HELP)
+
+
+def open_daq(config: str | None):  # type: ignore[no-untyped-def]
+    """The Modbus backend a `--daq CONFIG` asks for (None without one).  The file is
+    read and checked now, so a bad one stops the program before anything runs; the
+    link is opened on the first sample."""
+    if config is None:
+        return None
+    from quadtank_tui.daq.modbus import ModbusBackend  # pymodbus only when asked for
+
+    return ModbusBackend(load_daq_config(config))
