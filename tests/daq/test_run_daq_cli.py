@@ -55,3 +55,33 @@ def test_run_daq_with_a_bad_config_is_one_line(tmp_path: Path, capsys: pytest.Ca
     bad.write_text("host: 127.0.0.1\ntimeout: soon\n")
     assert main(["run", "--daq", str(bad), "--duration", "1", "--log", str(tmp_path / "x.log")]) == 2
     assert capsys.readouterr().err.strip() == f"quadtank: error: {bad}:2: timeout: must be a number, got 'soon'"
+
+
+def test_ctrl_c_commands_the_pumps_to_zero_and_keeps_the_log(rig: Callable, poll: Callable,
+                                                             tmp_path: Path) -> None:
+    """SIGINT to a running `quadtank run --daq`: the program (not the rig's watchdog,
+    which is off here) puts the pumps at 0, exits 130 without a traceback, and the
+    rows logged so far are in the partial log."""
+    import signal
+    import subprocess
+    import sys
+
+    r = rig("--speed", "20", "--watchdog", "0")
+    out = tmp_path / "interrupted.log"
+    run = subprocess.Popen(
+        [sys.executable, "-m", "quadtank_tui", "run", "--daq", str(config_for(tmp_path, r.port)),
+         "--speed", "20", "--duration", "3000", "--log", str(out), "--par", str(ROOT / "params" / "default.par")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        assert poll(lambda: r.dacs() != (0.0, 0.0), timeout=30.0)
+        run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=30)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 130
+    assert "Traceback" not in err and "interrupted" in err
+    assert r.dacs() == (0.0, 0.0)
+    (partial,) = tmp_path.glob("*.log.partial")  # named by LOGGING.LogFile until Save
+    assert read_log(partial).rows > 0
