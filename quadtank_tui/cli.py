@@ -15,7 +15,7 @@ from typing import Callable, Sequence
 
 from quadtank_tui.core.analysis import analyze, format_report
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
-from quadtank_tui.daq.cli import add_daq_option, add_daq_parser, add_rig_parser, open_daq
+from quadtank_tui.daq.cli import add_daq_option, add_daq_parser, add_rig_parser, run_clock
 from quadtank_tui.files.export import FORMATS, export_log
 from quadtank_tui.files.log import format_tsamp, read_log
 from quadtank_tui.files.par import read_par
@@ -154,22 +154,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.seed is not None and args.seed < 0:
         raise UsageError(f"--seed must be >= 0, got {args.seed}")
     script = read_script(args.script) if args.script else None
-    clock, daq = _run_clock(args)
+    clock, daq = run_clock(realtime=args.realtime, speed=args.speed,
+                           config=args.daq or getattr(args, "daq_global", None))
     result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
                           seed=args.seed, clock=clock, speed=args.speed, daq=daq)
     _warn(result.warnings)
     print(result.text)
     return result.status
-
-
-def _run_clock(args: argparse.Namespace):  # type: ignore[no-untyped-def]
-    """The clock and the DAQ backend of `quadtank [--daq C] run [--daq C]`: a real
-    process is never run unpaced, so Active is real time unless --speed gives the
-    virtual rig's speed factor."""
-    daq = open_daq(args.daq or getattr(args, "daq_global", None))
-    if args.realtime or (daq is not None and args.speed is None):
-        return "realtime", daq
-    return ("virtual" if args.speed is not None else "manual"), daq
 
 
 def _warn(warnings: Sequence[str]) -> None:

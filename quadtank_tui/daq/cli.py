@@ -11,12 +11,16 @@ import argparse
 import asyncio
 import ipaddress
 import sys
+from typing import TYPE_CHECKING, Literal
 
 from quadtank_tui.core.calibration import fit_sensor
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.daq.config import PRESETS, load_daq_config
 from quadtank_tui.daq.rig import SensorModel, VirtualRig, serve_rig
 from quadtank_tui.engine.backend import BackendError
+
+if TYPE_CHECKING:  # pymodbus is imported only when a DAQ is used
+    from quadtank_tui.daq.modbus import ModbusBackend
 
 
 def add_rig_parser(sub: argparse._SubParsersAction) -> None:
@@ -179,7 +183,7 @@ def add_daq_option(parser: argparse.ArgumentParser, *, dest: str = "daq") -> Non
     parser.add_argument("--daq", metavar="CONFIG", dest=dest, help=DAQ_HELP)
 
 
-def open_daq(config: str | None):  # type: ignore[no-untyped-def]
+def open_daq(config: str | None) -> ModbusBackend | None:
     """The Modbus backend a `--daq CONFIG` asks for (None without one).  The file is
     read and checked now, so a bad one stops the program before anything runs; the
     link is opened on the first sample."""
@@ -188,3 +192,14 @@ def open_daq(config: str | None):  # type: ignore[no-untyped-def]
     from quadtank_tui.daq.modbus import ModbusBackend  # pymodbus only when asked for
 
     return ModbusBackend(load_daq_config(config))
+
+
+def run_clock(*, realtime: bool, speed: float | None,
+              config: str | None) -> tuple[Literal["realtime", "virtual", "manual"], ModbusBackend | None]:
+    """The clock and the DAQ backend of `quadtank [--daq C] run [--daq C]`.  A real
+    process is never run unpaced: with a DAQ the run is real time, unless --speed
+    gives the virtual rig's speed factor."""
+    daq = open_daq(config)
+    if realtime or (daq is not None and speed is None):
+        return "realtime", daq
+    return ("virtual" if speed is not None else "manual"), daq
