@@ -82,11 +82,16 @@ def test_active_on_the_rig_matches_simul(rig: Callable, tmp_path: Path) -> None:
 
     s = read_log(tmp_path / "simul.log").columns()
     assert len(a["y1"]) == len(s["y1"]) == int(DURATION / 0.1)
+    # Measured (seed 3, x20): max |diff| 3.3-5.7 sigma, RMS 1.05-1.15 sigma, 2-s mean
+    # 0.9-2.6 sigma (tank 3, whose start is aligned on one noisy reading).  The
+    # bounds leave room for a busy machine's timing, not for a different process.
     sigma = NOISE_V / FULL_SCALE_V
     for name in ("y1", "y2", "y3", "y4"):
         diff = a[name] - s[name]
-        assert np.max(np.abs(diff)) < 6 * sigma, name
-        assert np.sqrt(np.mean(diff**2)) < 2 * sigma, name
+        assert np.max(np.abs(diff)) < 8 * sigma, name
+        assert np.sqrt(np.mean(diff**2)) < 1.5 * sigma, name
+        smooth = np.convolve(diff, np.ones(20) / 20, mode="valid")  # 2 s: the noise averaged out
+        assert np.max(np.abs(smooth)) < 4 * sigma, name
     # The references really moved the levels (not a comparison of two flat lines).
     assert np.ptp(s["y1"]) > 0.05 and np.ptp(s["y2"]) > 0.05
     for name in ("u1", "u2"):  # PI on noisy measurements: K = 3 times the noise, filtered
