@@ -15,7 +15,7 @@ from typing import Callable, Sequence
 
 from quadtank_tui.core.analysis import analyze, format_report
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
-from quadtank_tui.daq.cli import add_daq_option, add_daq_parser, add_rig_parser, run_clock
+from quadtank_tui.daq.cli import add_daq_option, add_daq_parser, add_rig_parser, cmd_daq_without_tui, run_clock
 from quadtank_tui.files.export import FORMATS, export_log
 from quadtank_tui.files.log import format_tsamp, read_log
 from quadtank_tui.files.par import read_par
@@ -187,7 +187,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     handler: Handler | None = getattr(args, "handler", None)
-    if handler is None:
+    if handler is None and args.daq_global is not None:
+        handler = cmd_daq_without_tui  # until the TUI's launcher passes open_daq(...) on
+    elif handler is None:
         # No TUI yet: show the analysis of the default setting.
         handler = _cmd_analyze
         args = parser.parse_args(["analyze", *(argv or [])[:0]])

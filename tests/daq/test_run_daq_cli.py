@@ -85,3 +85,14 @@ def test_ctrl_c_commands_the_pumps_to_zero_and_keeps_the_log(rig: Callable, poll
     assert r.dacs() == (0.0, 0.0)
     (partial,) = tmp_path.glob("*.log.partial")  # named by LOGGING.LogFile until Save
     assert read_log(partial).rows > 0
+
+
+def test_top_level_daq_without_a_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`quadtank --daq CONFIG`: the file is checked; this build has no TUI to start,
+    so it says how to run Active mode instead of silently doing something else."""
+    assert main(["--daq", str(ROOT / "params" / "virtual-rig.yaml")]) == 2
+    assert "quadtank run --daq" in capsys.readouterr().err
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("port: 0\n")
+    assert main(["--daq", str(bad)]) == 2
+    assert capsys.readouterr().err.strip() == f"quadtank: error: {bad}:1: port: must be in 1..65535, got 0"
