@@ -51,24 +51,11 @@ def test_shipped_examples_load() -> None:
 
 
 def test_a_plc_map_of_its_own_with_scaled_integers() -> None:
-    text = """
-preset: none
-host: plc.lab
-port: 502
-inputs:
-  LT1: {table: holding, address: 100, type: int16, scale: 0.001}
-  LT2: {table: holding, address: 101, type: int16, scale: 0.001}
-  LT3: {table: holding, address: 102, type: int16, scale: 0.001}
-  LT4: {table: holding, address: 103, type: int16, scale: 0.001}
-outputs:
-  P1: {address: 200, type: uint16, scale: 0.01, limits: [0, 10]}
-  P2: {address: 201, type: uint16, scale: 0.01, limits: [0, 10]}
-channels: {tank1: LT1, tank2: LT2, tank3: LT3, tank4: LT4, pump1: P1, pump2: P2}
-"""
-    c = parse_daq_config(text, name="plc.yaml")
-    assert c.tank_register(3) == Register("holding", 102, "int16", "big", 0.001)
-    assert c.pump_output(2).register.type == "uint16"
-    assert c.sensors[0].gain == 2.0  # 1 / sensor_gain when not calibrated
+    c = load_daq_config(ROOT / "params" / "daq-plc-example.yaml")
+    assert c.tank_register(3) == Register("holding", 104, "int16", "big", 0.001)
+    assert c.pump_output(2).register == Register("holding", 210, "uint16", "big", 0.001)
+    assert c.pump_output(2).limits == (0.0, 10.0)
+    assert c.sensors[0].gain == 2.0
 
 
 def test_a_file_overrides_one_key_of_the_preset() -> None:
