@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-import pytest
 
 from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.daq.modbus import ModbusBackend
