@@ -15,7 +15,9 @@ from typing import Callable, Sequence
 
 from quadtank_tui.core.analysis import analyze, format_report
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
-from quadtank_tui.daq.cli import add_daq_option, add_daq_parser, add_rig_parser, cmd_daq_without_tui, run_clock
+from quadtank_tui.daq.cli import (
+    add_daq_option, add_daq_parser, add_rig_parser, cmd_daq_without_tui, run_clock,
+)
 from quadtank_tui.files.export import FORMATS, export_log
 from quadtank_tui.files.log import format_tsamp, read_log
 from quadtank_tui.files.par import read_par
