@@ -73,8 +73,17 @@ def test_ctrl_c_commands_the_pumps_to_zero_and_keeps_the_log(rig: Callable, poll
          "--speed", "20", "--duration", "3000", "--log", str(out), "--par", str(ROOT / "params" / "default.par")],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
+    partial = tmp_path / "interrupted.log.partial"  # LOGGING.LogFile follows --log
+
+    def logged(rows: int) -> bool:
+        try:
+            return read_log(partial).rows >= rows
+        except (OSError, ValueError):  # not there yet, or its header half-written
+            return False
+
     try:
-        assert poll(lambda: r.dacs() != (0.0, 0.0), timeout=30.0)
+        assert poll(lambda: logged(3) and r.dacs() != (0.0, 0.0), timeout=30.0)
+        rows_before = read_log(partial).rows
         run.send_signal(signal.SIGINT)
         _, err = run.communicate(timeout=30)
     finally:
@@ -83,8 +92,7 @@ def test_ctrl_c_commands_the_pumps_to_zero_and_keeps_the_log(rig: Callable, poll
     assert run.returncode == 130
     assert "Traceback" not in err and "interrupted" in err
     assert r.dacs() == (0.0, 0.0)
-    (partial,) = tmp_path.glob("*.log.partial")  # named by LOGGING.LogFile until Save
-    assert read_log(partial).rows > 0
+    assert read_log(partial).rows >= rows_before
 
 
 def test_top_level_daq_without_a_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
