@@ -15,6 +15,9 @@ from typing import Callable, Sequence
 
 from quadtank_tui.core.analysis import analyze, format_report
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
+from quadtank_tui.daq.cli import (
+    add_daq_option, add_daq_parser, add_rig_parser, cmd_daq_without_tui, run_clock,
+)
 from quadtank_tui.files.export import FORMATS, export_log
 from quadtank_tui.files.log import format_tsamp, read_log
 from quadtank_tui.files.par import read_par
@@ -138,6 +141,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--realtime", action="store_true", help="keep the sampling time in wall time")
     pace.add_argument("--speed", metavar="X", type=float, help="virtual time at X times real time (1..1000)")
+    add_daq_option(p)
     p.set_defaults(handler=_cmd_run)
 
 
@@ -152,9 +156,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.seed is not None and args.seed < 0:
         raise UsageError(f"--seed must be >= 0, got {args.seed}")
     script = read_script(args.script) if args.script else None
-    clock = "realtime" if args.realtime else ("virtual" if args.speed is not None else "manual")
+    clock, daq = run_clock(realtime=args.realtime, speed=args.speed,
+                           config=args.daq or getattr(args, "daq_global", None))
     result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
-                          seed=args.seed, clock=clock, speed=args.speed)
+                          seed=args.seed, clock=clock, speed=args.speed, daq=daq)
     _warn(result.warnings)
     print(result.text)
     return result.status
@@ -170,10 +175,13 @@ def build_parser() -> argparse.ArgumentParser:
         prog="quadtank",
         description="Run and analyse the quadruple-tank laboratory process.",
     )
+    add_daq_option(parser, dest="daq_global")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_analyze(sub)
     _add_log(sub)
     _add_run(sub)
+    add_rig_parser(sub)
+    add_daq_parser(sub)
     return parser
 
 
@@ -181,7 +189,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     handler: Handler | None = getattr(args, "handler", None)
-    if handler is None:
+    if handler is None and args.daq_global is not None:
+        handler = cmd_daq_without_tui  # until the TUI's launcher passes open_daq(...) on
+    elif handler is None:
         # No TUI yet: show the analysis of the default setting.
         handler = _cmd_analyze
         args = parser.parse_args(["analyze", *(argv or [])[:0]])
