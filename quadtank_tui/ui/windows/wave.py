@@ -16,15 +16,23 @@ from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
-from textual.widgets import Input, Label, RadioSet
+from textual.widgets import Input, Label, RadioButton, RadioSet
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS, Parameters
 from quadtank_tui.core.signals import Wave
 from quadtank_tui.core.validation import ParameterError
-from quadtank_tui.ui.widgets.check import Radio
 from quadtank_tui.ui.windows.base import Field, ParamWindow
 
 WAVES = tuple(w.value for w in Wave)
+
+
+class Radio(RadioButton):
+    """A radio button that shows its dot only when chosen: Textual tells the
+    states apart by colour alone, which an SSH terminal's scheme may hide."""
+
+    @property
+    def BUTTON_INNER(self) -> str:  # type: ignore[override]
+        return "●" if self.value else " "
 
 
 def period_unit(wave: str) -> str:
