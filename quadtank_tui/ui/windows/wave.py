@@ -67,7 +67,7 @@ class WaveWindow(ParamWindow):
                 for w in WAVES:
                     yield Radio(w, value=w == self.wave, id=f"wave-{w}")
         yield from super().compose_body()
-        yield Label("Period: seconds (Square, Sine) or samples between changes (PRBS).", classes="hint")
+        yield Label("Period: s for Square and Sine; samples between changes for PRBS.", classes="hint")
 
     def on_mount(self) -> None:
         super().on_mount()
