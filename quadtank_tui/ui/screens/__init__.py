@@ -1,0 +1,1 @@
+"""Full screens (Main; Setup comes with its own issue)."""

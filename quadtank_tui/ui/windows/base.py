@@ -1,0 +1,269 @@
+"""What every window shares (thesis 5.2; product S6-S7).
+
+* Esc, selecting its opener again (its key, or a click outside the window, where
+  the opener is) or clicking its title cancels; Set (Enter) confirms.
+* Default puts the default values back into the fields; nothing reaches the
+  engine before Set.
+* A value that differs from its default is marked (`-modified`: dim italic, as the
+  original drew it gray).
+* A bad value is named next to its field; the window stays open and the value in
+  force is kept.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Generic, Iterable, TypeVar
+
+from textual import events, on
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import ModalScreen
+from textual.widgets import Button, Checkbox, Footer, Input, Label, Static
+
+from quadtank_tui.core.parameters import Parameters
+from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.engine.commands import Command, SetParams
+from quadtank_tui.ui.values import fmt, parse_number
+
+T = TypeVar("T")
+
+#: What a parameter window hands back: the commands its Set asks for (possibly
+#: none), or None when it was cancelled.
+Commands = tuple[Command, ...]
+
+
+class Window(ModalScreen[T], Generic[T]):
+    """A titled modal window with a row of buttons and the closing conventions."""
+
+    DEFAULT_CLASSES = "window"
+    BINDINGS = [Binding("escape", "cancel", "Cancel")]
+
+    def __init__(self, title: str, *, opener: str | None = None) -> None:
+        super().__init__()
+        self.window_title = title
+        if opener:
+            # The key that opened the window closes it again (when the focus is not
+            # in a text field, which takes the key as text).
+            self._bindings.bind(opener, "cancel", "Close", show=False)
+
+    def compose(self) -> ComposeResult:
+        with Vertical(id="dialog"):
+            yield Label(self.window_title, id="title")
+            yield from self.compose_body()
+            yield Static("", id="message", classes="error")
+            with Horizontal(id="buttons"):
+                yield from self.compose_buttons()
+        yield Footer(compact=True)
+
+    def compose_body(self) -> ComposeResult:
+        """The window's own content."""
+        yield from ()
+
+    def compose_buttons(self) -> ComposeResult:
+        yield Button("Cancel", id="cancel")
+
+    def cancelled(self) -> T | None:
+        """What Cancel returns."""
+        return None
+
+    def action_cancel(self) -> None:
+        self.dismiss(self.cancelled())
+
+    def show_message(self, text: str) -> None:
+        """A message for the whole window (a refused value without a field)."""
+        message = self.query_one("#message", Static)
+        message.update(text)
+        message.display = bool(text)
+
+    @on(Button.Pressed, "#cancel")
+    def _cancel_pressed(self) -> None:
+        self.action_cancel()
+
+    def on_click(self, event: events.Click) -> None:
+        # A click on the dimmed background is a click where the opener is; a click
+        # on the title closes the window too (thesis 5.2).
+        if event.widget is self or (event.widget is not None and event.widget.id == "title"):
+            self.action_cancel()
+
+
+@dataclass(frozen=True)
+class Field:
+    """One editable parameter: its `.par` key, its label, its unit."""
+
+    key: str
+    label: str
+    unit: str = ""
+    flag: bool = False
+
+
+class ParamWindow(Window[Commands]):
+    """Fields for some parameters with Default / Set / Cancel; Set returns a
+    SetParams of the changed values, validated together first."""
+
+    BINDINGS = [Binding("enter", "set", "Set"), Binding("ctrl+d", "default", "Default")]
+
+    def __init__(self, title: str, params: Parameters, defaults: Parameters,
+                 fields: Iterable[Field], *, opener: str | None = None) -> None:
+        super().__init__(title, opener=opener)
+        self.params = params
+        self.defaults = defaults
+        self.fields = tuple(fields)
+
+    # --- layout -------------------------------------------------------------------
+
+    def compose_body(self) -> ComposeResult:
+        yield from self.compose_fields(self.fields)
+
+    def compose_fields(self, fields: Iterable[Field]) -> ComposeResult:
+        for f in fields:
+            i = self.fields.index(f)
+            with Horizontal(classes="field", id=f"row-{i}"):
+                yield Label(f.label, classes="label")
+                value = self.params.get(f.key)
+                if f.flag:
+                    yield Checkbox("", value=bool(value), id=f"f-{i}", compact=True)
+                else:
+                    yield Input(fmt(value), id=f"f-{i}", compact=True, select_on_focus=True)
+                yield Label(f.unit, classes="unit")
+                yield Static("", classes="error", id=f"e-{i}")
+
+    def compose_buttons(self) -> ComposeResult:
+        yield Button("Set", id="set", variant="primary")
+        yield Button("Default", id="default")
+        yield Button("Cancel", id="cancel")
+
+    def on_mount(self) -> None:
+        for i in range(len(self.fields)):
+            self._mark(i)
+
+    # --- values -------------------------------------------------------------------
+
+    def field_widget(self, key: str) -> Input | Checkbox:
+        i = [f.key for f in self.fields].index(key)
+        return self.query_one(f"#f-{i}")  # type: ignore[return-value]
+
+    def _read(self, i: int) -> Any:
+        f = self.fields[i]
+        w = self.query_one(f"#f-{i}")
+        if isinstance(w, Checkbox):
+            return w.value
+        assert isinstance(w, Input)
+        return parse_number(f.key, w.value)
+
+    def _mark(self, i: int) -> None:
+        """Mark the field modified (dim italic) unless it holds its default."""
+        try:
+            same = self._read(i) == self.defaults.get(self.fields[i].key)
+        except ParameterError:
+            same = False
+        self.query_one(f"#row-{i}").set_class(not same, "-modified")
+
+    @on(Input.Changed)
+    @on(Checkbox.Changed)
+    def _changed(self, event: Input.Changed | Checkbox.Changed) -> None:
+        wid = event.control.id or ""
+        if wid.startswith("f-"):
+            i = int(wid[2:])
+            self._mark(i)
+            self.query_one(f"#e-{i}", Static).update("")
+            self.on_field_changed(self.fields[i].key)
+
+    def on_field_changed(self, key: str) -> None:
+        """Hook: a field was edited (the General window enables coefficients)."""
+
+    def values(self) -> dict[str, Any] | None:
+        """The fields' values by key, or None after showing what is wrong."""
+        out: dict[str, Any] = {}
+        bad = False
+        for i, f in enumerate(self.fields):
+            try:
+                out[f.key] = self._read(i)
+            except ParameterError as exc:
+                self._error(f.key, exc.reason)
+                bad = True
+        if bad:
+            return None
+        try:
+            self.params.with_values(out)
+        except ParameterError as exc:
+            self._error(exc.field, exc.reason)
+            return None
+        return out
+
+    def _error(self, key: str, reason: str) -> None:
+        keys = [f.key for f in self.fields]
+        if key in keys:
+            self.query_one(f"#e-{keys.index(key)}", Static).update(reason)
+        else:
+            self.show_message(f"{key}: {reason}")
+
+    def changes(self) -> dict[str, Any] | None:
+        """Only the values that differ from those in force (None if invalid)."""
+        values = self.values()
+        if values is None:
+            return None
+        return {k: v for k, v in values.items() if v != self.params.get(k)}
+
+    def commands(self, changes: dict[str, Any]) -> Commands:
+        """What Set sends for these changes."""
+        return (SetParams(changes),) if changes else ()
+
+    # --- actions --------------------------------------------------------------------
+
+    def action_set(self) -> None:
+        changes = self.changes()
+        if changes is not None:
+            self.dismiss(self.commands(changes))
+
+    def action_default(self) -> None:
+        for i, f in enumerate(self.fields):
+            w = self.query_one(f"#f-{i}")
+            value = self.defaults.get(f.key)
+            if isinstance(w, Checkbox):
+                w.value = bool(value)
+            else:
+                assert isinstance(w, Input)
+                w.value = fmt(value)
+
+    @on(Input.Submitted)
+    def _submitted(self) -> None:
+        self.action_set()
+
+    @on(Button.Pressed, "#set")
+    def _set_pressed(self) -> None:
+        self.action_set()
+
+    @on(Button.Pressed, "#default")
+    def _default_pressed(self) -> None:
+        self.action_default()
+
+
+class ConfirmWindow(Window[bool]):
+    """A yes/no question (Exit, overwriting a file); Esc answers no."""
+
+    BINDINGS = [Binding("y", "answer(True)", "Yes", show=False),
+                Binding("n", "answer(False)", "No", show=False)]
+
+    def __init__(self, title: str, question: str, yes: str = "Yes", no: str = "Cancel") -> None:
+        super().__init__(title)
+        self.question = question
+        self.yes, self.no = yes, no
+
+    def compose_body(self) -> ComposeResult:
+        yield Static(self.question, id="question")
+
+    def compose_buttons(self) -> ComposeResult:
+        yield Button(self.yes, id="yes", variant="error")
+        yield Button(self.no, id="cancel")
+
+    def cancelled(self) -> bool:
+        return False
+
+    def action_answer(self, yes: bool) -> None:
+        self.dismiss(yes)
+
+    @on(Button.Pressed, "#yes")
+    def _yes(self) -> None:
+        self.dismiss(True)
