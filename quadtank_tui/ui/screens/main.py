@@ -91,7 +91,6 @@ class MainScreen(Screen[None]):
         self.wall_clock = wall_clock
         self.defaults = engine.defaults()
         self.snap: Snapshot = engine.snapshot()
-        self._drawn_k = -1
         self._drawn_view: tuple[object, ...] = ()
         self.window_index = 1  # 5 min
         self.autoscale = True
@@ -118,13 +117,23 @@ class MainScreen(Screen[None]):
 
     # --- attributes down ------------------------------------------------------------
 
+    def current(self) -> Snapshot:
+        """Bring the view up to date and return the snapshot a window opens on, so a
+        window never shows values older than the screen behind it."""
+        self.refresh_view()
+        return self.snap
+
     def refresh_view(self) -> None:
-        """Show the latest snapshot; redraw the trends only for a new sample or a
-        changed view (plot type, window, autoscale)."""
+        """Show the latest snapshot; redraw the trends only when something new came
+        (a sample, added water, a setting) or the view changed (plot type, window,
+        autoscale, size): a paused process costs nothing over SSH."""
         snap = self.engine.snapshot()
         status = self.query_one(StatusLine)
         status.age = max(0.0, self.wall_clock() - snap.stats.last_sample_wall)
-        if snap != self.snap or status.snapshot is None:
+        window = WINDOWS[self.window_index]
+        view = (window, self.autoscale, self.size)
+        changed = snap != self.snap or status.snapshot is None
+        if changed:
             previous, self.snap = self.snap, snap
             status.snapshot = snap
             self.query_one(ControllerBox).params = snap.params
@@ -133,10 +142,8 @@ class MainScreen(Screen[None]):
                 panel.snapshot = snap
             if snap.params.control != previous.params.control:
                 self.refresh_bindings()
-        window = WINDOWS[self.window_index]
-        view = (snap.params.plots, window, self.autoscale, self.size)
-        if snap.k != self._drawn_k or view != self._drawn_view:
-            self._drawn_k, self._drawn_view = snap.k, view
+        if changed or view != self._drawn_view:
+            self._drawn_view = view
             history = self.engine.history(window)
             for trend, plot_type in ((self.query_one("#upper", Trend), snap.params.plots.upper),
                                      (self.query_one("#lower", Trend), snap.params.plots.lower)):
@@ -225,10 +232,12 @@ class MainScreen(Screen[None]):
     # --- controller box (M5) ------------------------------------------------------------
 
     def action_controller_type(self) -> None:
-        self.app.push_screen(ControllerTypeWindow(self.snap.params, self.defaults, opener="t"), self.send_all)
+        snap = self.current()
+        self.app.push_screen(ControllerTypeWindow(snap.params, self.defaults, opener="t"), self.send_all)
 
     def action_element(self, index: int) -> None:
-        p = self.snap.params
+        snap = self.current()
+        p = snap.params
         if not element_used(p, index):
             return
         window = PIDWindow if p.control.family.value == "PID" else GeneralWindow
@@ -240,13 +249,15 @@ class MainScreen(Screen[None]):
     # --- input signals (M4) -------------------------------------------------------------
 
     def action_input(self, channel: int) -> None:
-        window = InputSignalWindow(channel, self.snap.control, self.snap.params, self.defaults,
+        snap = self.current()
+        window = InputSignalWindow(channel, snap.control, snap.params, self.defaults,
                                    opener="i" if channel == 1 else "I")
         self.app.push_screen(window, self.send_all)
 
     def action_toggle_wave(self, channel: int) -> None:
+        snap = self.current()
         key = f"{REFERENCE_SECTIONS[channel - 1]}.On"
-        self.send(SetParams({key: not self.snap.params.get(key)}))
+        self.send(SetParams({key: not snap.params.get(key)}))
 
     def action_nudge(self, channel: int, delta: float) -> None:
         self.send(NudgeMean(channel, delta))
@@ -254,15 +265,18 @@ class MainScreen(Screen[None]):
     # --- process image (M6) ---------------------------------------------------------------
 
     def action_tank(self, tank: int = 1) -> None:
-        self.app.push_screen(TankWindow(self.snap, self.defaults, tank, opener="h"), self.send_all)
+        snap = self.current()
+        self.app.push_screen(TankWindow(snap, self.defaults, tank, opener="h"), self.send_all)
 
     def action_pump(self, pump: int = 1) -> None:
-        self.app.push_screen(PumpWindow(self.snap, self.defaults, pump, opener="v"), self.send_all)
+        snap = self.current()
+        self.app.push_screen(PumpWindow(snap, self.defaults, pump, opener="v"), self.send_all)
 
     # --- trends (M7) ------------------------------------------------------------------
 
     def action_plot_type(self, which: str) -> None:
-        window = PlotTypeWindow(which, self.snap.params, self.defaults, opener="g" if which == "upper" else "G")
+        snap = self.current()
+        window = PlotTypeWindow(which, snap.params, self.defaults, opener="g" if which == "upper" else "G")
         self.app.push_screen(window, self.send_all)
 
     def action_time_window(self) -> None:
@@ -276,12 +290,14 @@ class MainScreen(Screen[None]):
     # --- logging (M8) and exit (M9) ---------------------------------------------------
 
     def action_logging(self) -> None:
-        window = LoggingWindow(self.snap, self.defaults, submit=self.send,
+        snap = self.current()
+        window = LoggingWindow(snap, self.defaults, submit=self.send,
                                log_exists=self.engine.log_exists, opener="l")
         self.app.push_screen(window, self.send_all)
 
     def action_exit(self) -> None:
-        log = self.snap.log
+        snap = self.current()
+        log = snap.log
         if log.unsaved:
             question = (f"The log ({log.rows} rows) has not been saved; exiting throws it away.\n"
                         "Exit anyway?")

@@ -61,6 +61,14 @@ class Window(ModalScreen[T], Generic[T]):
         """The window's own content."""
         yield from ()
 
+    @on(events.Mount)
+    def _steady_cursor_when_headless(self) -> None:
+        # Without a terminal (tests, screenshots) a blinking cursor only makes
+        # pictures differ by the time they were taken.
+        if self.app.is_headless:
+            for field in self.query(Input):
+                field.cursor_blink = False
+
     def compose_buttons(self) -> ComposeResult:
         yield Button("Cancel", id="cancel")
 
@@ -102,7 +110,7 @@ class ParamWindow(Window[Commands]):
     """Fields for some parameters with Default / Set / Cancel; Set returns a
     SetParams of the changed values, validated together first."""
 
-    BINDINGS = [Binding("enter", "set", "Set"), Binding("ctrl+d", "default", "Default")]
+    BINDINGS = [Binding("enter", "set", "Set"), Binding("ctrl+r", "default", "Default")]
 
     def __init__(self, title: str, params: Parameters, defaults: Parameters,
                  fields: Iterable[Field], *, opener: str | None = None) -> None:

@@ -46,7 +46,7 @@ class LoggingWindow(Window[Commands]):
         Binding("ctrl+o", "log_on", "LogOn"),
         Binding("ctrl+b", "log_off", "LogOff"),
         Binding("ctrl+s", "save", "Save"),
-        Binding("ctrl+d", "default", "Default"),
+        Binding("ctrl+r", "default", "Default"),
     ]
 
     snapshot: reactive[Snapshot | None] = reactive(None, always_update=True)
@@ -98,7 +98,7 @@ class LoggingWindow(Window[Commands]):
     # --- the live part ------------------------------------------------------------
 
     def watch_snapshot(self, snapshot: Snapshot | None) -> None:
-        if snapshot is None or not self.is_mounted:
+        if snapshot is None or not self.is_mounted or not self.is_attached:
             return
         log = snapshot.log
         self.query_one(ProgressBar).update(progress=round(100 * log.progress, 1))

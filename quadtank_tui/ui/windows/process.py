@@ -54,7 +54,7 @@ class _LiveWindow(Window[Commands]):
         self.action_select((self.selected - 1 + step) % self.count + 1)
 
     def watch_snapshot(self, snapshot: Snapshot | None) -> None:
-        if snapshot is not None and self.is_mounted:
+        if snapshot is not None and self.is_mounted and self.is_attached:
             self.query_one("#table", Static).update(self.table(snapshot))
 
     def table(self, snapshot: Snapshot) -> str:

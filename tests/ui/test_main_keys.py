@@ -1,0 +1,204 @@
+"""The Main screen driven by keys and clicks (App.run_test), on the test engine.
+
+What is checked is what reached the engine (the commands) and what the screen
+shows afterwards.
+"""
+
+from __future__ import annotations
+
+from conftest import make_app
+from fake_engine import FakeEngine
+
+from quadtank_tui.engine import commands as c
+from quadtank_tui.ui.widgets.controller_box import ElementCell
+from quadtank_tui.ui.widgets.process_image import ProcessImage
+from quadtank_tui.ui.widgets.trends import Trend
+from quadtank_tui.ui.windows.base import ConfirmWindow
+from quadtank_tui.ui.windows.controller import PIDWindow
+from quadtank_tui.ui.windows.process import TankWindow
+
+
+def sent(fake: FakeEngine, kind: type) -> list:
+    return [cmd for cmd in fake.commands if isinstance(cmd, kind)]
+
+
+async def test_mode_keys_send_mode_commands(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("r", "a", "m", "p", "R")
+        await pilot.pause()
+    assert fake.commands == [c.SetState("Run"), c.SetControlMode("Automatic"),
+                             c.SetControlMode("Manual"), c.SetState("Pause"), c.SetState("Reset")]
+
+
+async def test_window_cancel_keeps_and_set_applies(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("1")
+        assert isinstance(app.screen, PIDWindow)
+        await pilot.press("ctrl+a", "ctrl+k", *"5.5", "escape")          # Cancel
+        assert fake.params.get("CONTROLLER ONE.K") == 3.0
+        assert sent(fake, c.SetParams) == []
+        await pilot.press("1")
+        await pilot.press("ctrl+a", "ctrl+k", *"5.5", "enter")           # Set
+        await pilot.pause()
+        assert fake.params.get("CONTROLLER ONE.K") == 5.5
+        assert sent(fake, c.SetParams) == [c.SetParams({"CONTROLLER ONE.K": 5.5})]
+        cell = app.screen.query_one("#element-0", ElementCell)
+        assert "K 5.5" in str(cell.render())
+
+
+async def test_opener_key_closes_its_window(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("g")
+        await pilot.press("g")
+        assert app.screen is app.main
+        await pilot.press("t", "t")
+        assert app.screen is app.main
+    assert fake.commands == []
+
+
+async def test_refused_value_keeps_the_old_one(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("1")
+        window = app.screen
+        await pilot.press("tab", "ctrl+a", "ctrl+k", "minus", "3", "enter")  # Ti = -3
+        await pilot.pause()
+        assert app.screen is window, "the window stays open on a bad value"
+        assert "Ti" in str(window.query_one("#e-1").render()) or "must be" in str(window.query_one("#e-1").render())
+        await pilot.press("ctrl+a", "ctrl+k", *"abc", "enter")             # not a number
+        assert "not a number" in str(window.query_one("#e-1").render())
+        await pilot.press("escape")
+        assert fake.params.get("CONTROLLER ONE.Ti") == 30.0
+        assert sent(fake, c.SetParams) == []
+        # A refusal by the engine itself comes back as a notification.
+        app.main.send(c.SetParams({"REFERENCE ONE.Mean": 5.0}))
+        await pilot.pause()
+        assert any("REFERENCE ONE.Mean" in n.message for n in app._notifications)
+        assert fake.params.get("REFERENCE ONE.Mean") == 0.3
+
+
+async def test_active_unavailable_without_daq(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("A")
+        await pilot.pause()
+        assert app.main.check_action("active", ()) is None
+        assert "DAQ" in app.main.active_bindings["A"].binding.tooltip
+        assert fake.operation == "Simul"
+    assert sent(fake, c.SetOperation) == []
+
+
+async def test_active_offered_with_a_daq() -> None:
+    fake = FakeEngine(active_available=True)
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("A")
+        await pilot.pause()
+    assert fake.operation == "Active"
+
+
+async def test_add_water_shows_in_level_and_trend(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("r")
+        fake.run_for(10.0)
+        await pilot.press("h")
+        assert isinstance(app.screen, TankWindow)
+        await pilot.press(*"0.2", "enter")
+        await pilot.pause()
+        assert sent(fake, c.AddWater) == [c.AddWater(1, 0.2)]
+        app.main.refresh_view()
+        image = app.main.query_one(ProcessImage)
+        level = fake.y[0]
+        assert level > 0.8
+        assert f"1:{level:.2f}" in str(image.render())
+        lower = app.main.query_one("#lower", Trend)
+        assert lower._history is not None and abs(lower._history["y1"][-1] - level) < 1e-12
+
+
+async def test_click_on_tank_and_element_opens_their_windows(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        image = app.main.query_one(ProcessImage)
+        box = next(b for b in image._boxes if b.action == "tank(3)")
+        await pilot.click(ProcessImage, offset=(box.x0 + 2, box.y0 + 1))
+        assert isinstance(app.screen, TankWindow) and app.screen.selected == 3
+        await pilot.press("escape")
+        await pilot.click("#element-3")
+        assert isinstance(app.screen, PIDWindow) and app.screen.index == 3
+
+
+async def test_unused_elements_do_not_open(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("2")
+        assert app.screen is app.main
+        await pilot.click("#element-1")
+        assert app.screen is app.main
+
+
+async def test_input_keys_nudge_step_and_toggle(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("right_square_bracket", "left_curly_bracket", "o")
+        await pilot.press("i", "ctrl+a", "ctrl+k", *"0.35", "enter")
+        await pilot.pause()
+    assert fake.commands == [c.NudgeMean(1, 0.01), c.NudgeMean(2, -0.01),
+                             c.SetParams({"REFERENCE ONE.On": True}),
+                             c.SetParams({"REFERENCE ONE.Mean": 0.35})]
+
+
+async def test_plot_type_window_sets_the_trend(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("g", "6")  # y1 y2 ref1 ref2: the other trend's, not offered
+        assert app.screen is not app.main
+        await pilot.press("7")
+        await pilot.pause()
+        app.main.refresh_view()
+        assert app.main.query_one("#upper", Trend).plot_type == "y1 y2 y3 y4"
+
+
+async def test_logging_window_logon_and_save_asks_before_overwriting(fake: FakeEngine) -> None:
+    fake.saved.add("data")
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("r", "l")
+        await pilot.press("ctrl+a", "ctrl+k", *"600", "ctrl+o")
+        await pilot.pause()
+        assert fake.params.logging.points == 600 and fake.log.active
+        fake.run_for(60.0)
+        await pilot.press("ctrl+b", "ctrl+s")
+        await pilot.pause()
+        assert isinstance(app.screen, ConfirmWindow)
+        await pilot.press("y")
+        await pilot.pause()
+    assert sent(fake, c.LogSave) == [c.LogSave("data", overwrite=True)]
+    assert not fake.log.unsaved
+
+
+async def test_exit_asks_and_discards_an_unsaved_log(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        for command in (c.SetState("Run"), c.LogOn()):
+            fake.submit(command)
+        fake.run_for(5.0)
+        await pilot.press("q")
+        assert isinstance(app.screen, ConfirmWindow)
+        await pilot.press("escape")
+        assert app.screen is app.main and not sent(fake, c.LogDiscard)
+        await pilot.press("ctrl+q", "y")
+        await pilot.pause()
+    assert sent(fake, c.LogDiscard) == [c.LogDiscard()]
+    assert app.return_code == 0
+
+
+async def test_command_palette_lists_the_screen_actions(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)):
+        titles = {cmd.title for cmd in app.get_system_commands(app.main)}
+    assert {"Run", "Pause", "Manual", "Auto", "Log", "Exit", "Element 11", "Tanks"} <= titles
+    assert "Active" not in titles and "Element 12" not in titles
