@@ -202,3 +202,11 @@ async def test_command_palette_lists_the_screen_actions(fake: FakeEngine) -> Non
         titles = {cmd.title for cmd in app.get_system_commands(app.main)}
     assert {"Run", "Pause", "Manual", "Auto", "Log", "Exit", "Element 11", "Tanks"} <= titles
     assert "Active" not in titles and "Element 12" not in titles
+
+
+async def test_speed_keys_double_and_halve_in_virtual_simul(fake: FakeEngine) -> None:
+    app = make_app(fake)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("plus", "minus")
+        await pilot.pause()
+    assert sent(fake, c.SetSpeed) == [c.SetSpeed(2.0), c.SetSpeed(1.0)]

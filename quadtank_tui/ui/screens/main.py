@@ -23,7 +23,7 @@ from textual.widgets import Footer
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS
 from quadtank_tui.engine.commands import (
     Command, CommandResult, LogDiscard, NudgeMean, ResetControllers, SetControlMode,
-    SetOperation, SetParams, SetState,
+    SetOperation, SetParams, SetSpeed, SetState,
 )
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
@@ -79,6 +79,8 @@ class MainScreen(Screen[None]):
         Binding("G", "plot_type('lower')", "Lower plot", show=False),
         Binding("z", "time_window", "Time window", show=False),
         Binding("Z", "autoscale", "Autoscale", show=False),
+        Binding("plus", "speed(2.0)", "Faster", show=False, tooltip="Simul with a virtual clock only"),
+        Binding("minus", "speed(0.5)", "Slower", show=False, tooltip="Simul with a virtual clock only"),
         Binding("l", "logging", "Log"),
         Binding("q", "exit", "Exit"),
     ]
@@ -199,6 +201,8 @@ class MainScreen(Screen[None]):
         snap = self.snap
         if action == "active" and not snap.active_available:
             return None
+        if action == "speed" and (snap.operation != "Simul" or snap.realtime):
+            return None
         if action == "element" and parameters and not element_used(snap.params, int(parameters[0])):  # type: ignore[call-overload]
             return None
         return True
@@ -228,6 +232,11 @@ class MainScreen(Screen[None]):
 
     def action_automatic(self) -> None:
         self.send(SetControlMode("Automatic"))
+
+    def action_speed(self, factor: float) -> None:
+        """Simul with a virtual clock: process seconds per wall second, 1..1000."""
+        speed = min(1000.0, max(1.0, self.current().speed * factor))
+        self.send(SetSpeed(speed))
 
     # --- controller box (M5) ------------------------------------------------------------
 

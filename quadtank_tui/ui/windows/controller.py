@@ -6,12 +6,13 @@ from __future__ import annotations
 from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.widgets import Button, Input, Label, RadioButton, RadioSet
+from textual.widgets import Button, Input, Label, RadioSet
 
 from quadtank_tui.core.general import MAX_DEGREE
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Family, Parameters, Structure
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import ResetControllers, SetParams
+from quadtank_tui.ui.widgets.check import Radio
 from quadtank_tui.ui.windows.base import Commands, Field, ParamWindow, Window
 
 #: Element index 0..3 -> its name in the matrix (row = input i, column = error j).
@@ -53,7 +54,7 @@ class ControllerTypeWindow(Window[Commands]):
         default = self._current(self.defaults)
         with RadioSet(id="types"):
             for n, (_, _, label) in enumerate(TYPES):
-                button = RadioButton(f"{n + 1}  {label}", value=n == current, id=f"type-{n}")
+                button = Radio(f"{n + 1}  {label}", value=n == current, id=f"type-{n}")
                 button.set_class(n != default, "-modified")
                 yield button
         yield Label("States are kept only between the two structures of one family.",
@@ -68,7 +69,7 @@ class ControllerTypeWindow(Window[Commands]):
         return self.query_one(RadioSet).pressed_index
 
     def action_choose(self, n: int) -> None:
-        self.query_one(f"#type-{n}", RadioButton).value = True
+        self.query_one(f"#type-{n}", Radio).value = True
 
     def action_set(self) -> None:
         family, structure, _ = TYPES[self.chosen()]

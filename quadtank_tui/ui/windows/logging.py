@@ -23,6 +23,7 @@ from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import Command, LogOff, LogOn, LogSave, SetParams
 from quadtank_tui.engine.snapshot import LogStatus, Snapshot
 from quadtank_tui.ui.values import fmt, parse_number
+from quadtank_tui.ui.widgets.check import Check
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow, Window
 
 _POINTS, _FILE, _VARS = "LOGGING.Points", "LOGGING.LogFile", "LOGGING.Variables"
@@ -73,11 +74,13 @@ class LoggingWindow(Window[Commands]):
             yield Input(p.get(_FILE), id="file", compact=True, select_on_focus=True)
             yield Label(".log", classes="unit")
             yield Static("", classes="error", id="file-error")
-        with Horizontal(classes="field", id="row-vars"):
-            yield Label("Variables", classes="label")
-            chosen = p.get(_VARS)
-            for name in LOG_VARIABLES:
-                yield Checkbox(name, value=name in chosen, id=f"var-{name}", compact=True)
+        chosen = p.get(_VARS)
+        half = (len(LOG_VARIABLES) + 1) // 2
+        for row, names in enumerate((LOG_VARIABLES[:half], LOG_VARIABLES[half:])):
+            with Horizontal(classes="field vars", id=f"row-vars-{row}"):
+                yield Label("Variables" if row == 0 else "", classes="label")
+                for name in names:
+                    yield Check(name, value=name in chosen, id=f"var-{name}", compact=True)
         yield Static("", classes="error", id="vars-error")
         with Horizontal(id="progress-row"):
             yield ProgressBar(total=100, show_eta=False, id="progress")
@@ -144,7 +147,8 @@ class LoggingWindow(Window[Commands]):
         self.query_one("#row-points").set_class(not points_same, "-modified")
         self.query_one("#row-file").set_class(
             self.query_one("#file", Input).value.strip() != d.get(_FILE), "-modified")
-        self.query_one("#row-vars").set_class(self._variables() != d.get(_VARS), "-modified")
+        for row in self.query(".vars"):
+            row.set_class(self._variables() != d.get(_VARS), "-modified")
 
     @on(Input.Changed)
     @on(Checkbox.Changed)
