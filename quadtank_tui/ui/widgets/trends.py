@@ -48,7 +48,7 @@ class Trend(PlotextPlot):
         key = "g" if self.which == "upper" else "G"
         scale = "auto" if self.autoscale else "0..1"
         self.border_title = f"{self.plot_type}"
-        self.border_subtitle = f"{key} type · z {self.window / 60:g} min · Z {scale}"
+        self.border_subtitle = f"t [s] · {key} type · z {self.window / 60:g} min · Z {scale}"
 
     def watch_plot_type(self) -> None:
         self._title()
@@ -81,7 +81,6 @@ class Trend(PlotextPlot):
             plt.ylim(lo - pad, hi + pad)
         else:
             plt.ylim(0.0, 1.0)
-        plt.xlabel("t [s]")
         self.refresh()
 
     def on_click(self, event: events.Click) -> None:
