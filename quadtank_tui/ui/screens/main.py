@@ -17,6 +17,7 @@ from typing import Callable
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.css.query import NoMatches
 from textual.screen import Screen
 from textual.widgets import Footer
 
@@ -153,7 +154,10 @@ class MainScreen(Screen[None]):
                 trend.show(history)
         live = self.app.screen
         if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)):
-            live.snapshot = snap
+            try:
+                live.snapshot = snap
+            except NoMatches:  # the window is being taken down
+                pass
 
     # --- commands to the engine ------------------------------------------------------
 

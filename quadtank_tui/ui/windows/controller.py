@@ -78,12 +78,7 @@ class ControllerTypeWindow(Window[Commands]):
             return
         self.dismiss((SetParams({"CONTROL.Type": family.value, "CONTROL.Structure": structure.value}),))
 
-    @on(Button.Pressed, "#set")
-    def _set(self) -> None:
-        self.action_set()
-
-    @on(Button.Pressed, "#default")
-    def _default(self) -> None:
+    def action_default(self) -> None:
         self.action_choose(self._current(self.defaults))
 
     def on_mount(self) -> None:
@@ -112,10 +107,10 @@ class PIDWindow(ParamWindow):
 
     def compose_buttons(self) -> ComposeResult:
         yield from super().compose_buttons()
-        yield Button("Reset", id="reset-element")
+        yield Button("Reset", id="reset_element")
 
-    @on(Button.Pressed, "#reset-element")
-    def _reset(self) -> None:
+    def action_reset_element(self) -> None:
+        """Reset this element's states now (the window closes, nothing else changes)."""
         self.dismiss((ResetControllers(element_ij(self.index)),))
 
 

@@ -87,8 +87,8 @@ class LoggingWindow(Window[Commands]):
             yield Label("", id="log-state")
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("LogOn", id="logon", variant="success")
-        yield Button("LogOff", id="logoff", variant="warning")
+        yield Button("LogOn", id="log_on", variant="success")
+        yield Button("LogOff", id="log_off", variant="warning")
         yield Button("Save", id="save")
         yield Button("Set", id="set", variant="primary")
         yield Button("Default", id="default")
@@ -106,8 +106,8 @@ class LoggingWindow(Window[Commands]):
         log = snapshot.log
         self.query_one(ProgressBar).update(progress=round(100 * log.progress, 1))
         self.query_one("#log-state", Label).update(log_state(log))
-        self.query_one("#logon", Button).disabled = log.active
-        self.query_one("#logoff", Button).disabled = not log.active
+        self.query_one("#log_on", Button).disabled = log.active
+        self.query_one("#log_off", Button).disabled = not log.active
         self.query_one("#save", Button).disabled = not log.unsaved
 
     # --- the settings -------------------------------------------------------------
@@ -198,22 +198,5 @@ class LoggingWindow(Window[Commands]):
         self.submit(LogSave(name, overwrite=overwrite))
 
     @on(Input.Submitted)
-    @on(Button.Pressed, "#set")
-    def _set(self) -> None:
+    def _submitted(self) -> None:
         self.action_set()
-
-    @on(Button.Pressed, "#default")
-    def _default(self) -> None:
-        self.action_default()
-
-    @on(Button.Pressed, "#logon")
-    def _logon(self) -> None:
-        self.action_log_on()
-
-    @on(Button.Pressed, "#logoff")
-    def _logoff(self) -> None:
-        self.action_log_off()
-
-    @on(Button.Pressed, "#save")
-    def _save(self) -> None:
-        self.action_save()

@@ -132,8 +132,7 @@ class TankWindow(_LiveWindow):
         self.dismiss((AddWater(self.selected, amount),) if amount else ())
 
     @on(Input.Submitted)
-    @on(Button.Pressed, "#set")
-    def _set(self) -> None:
+    def _submitted(self) -> None:
         self.action_set()
 
 
