@@ -18,6 +18,7 @@ from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
 from quadtank_tui.files.export import FORMATS, export_log
 from quadtank_tui.files.log import format_tsamp, read_log
 from quadtank_tui.files.par import read_par
+from quadtank_tui.files.script import read_script
 
 
 class UsageError(Exception):
@@ -121,6 +122,44 @@ def _cmd_log_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_run(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "run", help="run a (scripted) experiment without the UI and write a .log",
+        description="Run the control loop headless on the simulator: apply a YAML "
+        "script's timed events, log, and print per-loop figures. Virtual time, as "
+        "fast as possible, unless --realtime or --speed is given.",
+    )
+    p.add_argument("--par", metavar="FILE", help="parameters: a .par file or a name in params/ "
+                   "(default: params/default.par, else the built-in values)")
+    p.add_argument("--script", metavar="EXP.yaml", help="timed events (see README, Headless experiments)")
+    p.add_argument("--duration", metavar="SECONDS", type=float, required=True, help="length of the run, s")
+    p.add_argument("--log", metavar="OUT.log", required=True, help="where the .log is written")
+    p.add_argument("--seed", metavar="N", type=int, help="seed both PRBS generators (N and N + 1)")
+    pace = p.add_mutually_exclusive_group()
+    pace.add_argument("--realtime", action="store_true", help="keep the sampling time in wall time")
+    pace.add_argument("--speed", metavar="X", type=float, help="virtual time at X times real time (1..1000)")
+    p.set_defaults(handler=_cmd_run)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    # Imported here: the engine is not needed by the other subcommands.
+    from quadtank_tui.engine.headless import run_headless
+
+    if not args.duration > 0 or args.duration != args.duration:
+        raise UsageError(f"--duration must be a positive number of seconds, got {args.duration:g}")
+    if args.speed is not None and not 1.0 <= args.speed <= 1000.0:
+        raise UsageError(f"--speed must be 1..1000, got {args.speed:g}")
+    if args.seed is not None and args.seed < 0:
+        raise UsageError(f"--seed must be >= 0, got {args.seed}")
+    script = read_script(args.script) if args.script else None
+    clock = "realtime" if args.realtime else ("virtual" if args.speed is not None else "manual")
+    result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
+                          seed=args.seed, clock=clock, speed=args.speed)
+    _warn(result.warnings)
+    print(result.text)
+    return result.status
+
+
 def _warn(warnings: Sequence[str]) -> None:
     for w in warnings:
         print(f"quadtank: warning: {w}", file=sys.stderr)
@@ -134,6 +173,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_analyze(sub)
     _add_log(sub)
+    _add_run(sub)
     return parser
 
 

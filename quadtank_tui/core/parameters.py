@@ -34,6 +34,7 @@ from enum import Enum
 from typing import Any, Iterable, Iterator, Mapping, Sequence
 
 from quadtank_tui.core.general import GeneralParams
+from quadtank_tui.core.matrix import Family, Structure
 from quadtank_tui.core.pid import PIDParams
 from quadtank_tui.core.plant import (
     FULL_SCALE_V,
@@ -56,22 +57,6 @@ class ControlMode(str, Enum):
 
     MANUAL = "Manual"
     AUTOMATIC = "Automatic"
-
-
-# Same spellings as core/matrix.py's enums; at merge these two classes become
-# `from quadtank_tui.core.matrix import Family, Structure`.
-class Family(str, Enum):
-    """Controller family of the 2x2 matrix (`.par` CONTROL.Type)."""
-
-    PID = "PID"
-    GENERAL = "General"
-
-
-class Structure(str, Enum):
-    """Decentralized (elements 11, 22) or full matrix (all four)."""
-
-    DECENTRALIZED = "Decentralized"
-    FULL_MATRIX = "FullMatrix"
 
 
 #: Sampling time range, ms (thesis 5.4: "50 ms ... a few seconds").
@@ -557,6 +542,8 @@ def _from_tree(template: Any, tree: Any, path: tuple[str | int, ...]) -> Any:
                 raise
             raise ParameterError(f"{_SECTION_OF_PATH[path]}.{exc.field}", exc.reason) from None
     if isinstance(template, tuple):
+        if isinstance(tree, tuple):  # a leaf just set (LOGGING.Variables): any length
+            return tree
         return tuple(_from_tree(t, x, (*path, i)) for i, (t, x) in enumerate(zip(template, tree)))
     return tree
 

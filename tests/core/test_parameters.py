@@ -202,3 +202,11 @@ def test_thesis_tank_window_values_and_the_setup_relations() -> None:
     assert plant.A1 == pytest.approx(27.6184, abs=1e-4)
     assert plant.a1 == pytest.approx(0.070645, abs=1e-6)
     assert p.operating_levels()[0] == pytest.approx(12.4)
+
+
+def test_log_variables_can_grow_and_shrink_through_with_values() -> None:
+    # Regression: the tuple was rebuilt element-wise against the old one and cut to
+    # its length (four names), so "t y1 y2 u1 u2 r1 r2" became "t y1 y2 u1".
+    p = PRESET.with_values({"LOGGING.Variables": "t y1 y2 u1 u2 r1 r2"})
+    assert p.logging.variables == ("t", "y1", "y2", "u1", "u2", "r1", "r2")
+    assert p.with_value("LOGGING.Variables", "y1").logging.variables == ("y1",)

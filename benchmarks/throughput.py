@@ -1,0 +1,150 @@
+"""Throughput: our engine against python-control on the same closed loop.
+
+    .venv/bin/python benchmarks/throughput.py [--batch 1000] [--pc-batch 3]
+
+The experiment (benchmarks/experiment.py): P-, decentralized PI (3.0, 30) and
+(2.7, 40), PRBS references, 3600 samples at 1 s.
+
+python-control side: the nonlinear plant is a continuous `control.nlsys` and the PI
+pair a discrete-time `control.nlsys` (dt = 1).  python-control cannot interconnect
+systems of different timebases ("Systems have incompatible timebases"), so the
+sampled-data loop is closed the way its documentation leaves it to the user: each
+sample, the discrete controller's `output`/`dynamics` give u and the next state, and
+`input_output_response` integrates the plant over the sample with u held (solve_ivp,
+rtol 1e-8, atol 1e-10: accurate enough to compare against to 1e-3).
+
+Batch: ours runs all experiments at once on the vectorized path (core/batch.py);
+python-control runs `--pc-batch` of them one after the other, and its time for the
+whole batch is that, scaled (running 1000 would take hours).  Figures are printed,
+not asserted; this is not a test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import control  # noqa: E402
+
+from benchmarks.experiment import H0, PI, PLANT, U0, references, run_engine  # noqa: E402
+from quadtank_tui.core.batch import pi_batch  # noqa: E402
+from quadtank_tui.core.plant import FULL_SCALE_V, rhs  # noqa: E402
+
+SAMPLES = 3600
+H = 1.0
+
+
+def python_control_systems() -> tuple[control.NonlinearIOSystem, control.NonlinearIOSystem]:
+    p = PLANT
+
+    def plant_update(t, x, u, params):  # type: ignore[no-untyped-def]
+        return np.array(rhs(x, u, p))
+
+    def plant_output(t, x, u, params):  # type: ignore[no-untyped-def]
+        return p.kc * np.asarray(x) / FULL_SCALE_V
+
+    plant = control.nlsys(plant_update, plant_output, states=4, inputs=2, outputs=4, name="plant")
+    K = np.array([PI[0].K, PI[1].K])
+    gi = np.array([PI[0].K * H / PI[0].Ti, PI[1].K * H / PI[1].Ti])
+    tr = np.array([H / PI[0].Tr, H / PI[1].Tr])
+
+    def ctrl_v(x, u):  # type: ignore[no-untyped-def]
+        return K * (u[:2] - u[2:]) + x   # u = (r1, r2, y1, y2), b = 1
+
+    def ctrl_update(t, x, u, params):  # type: ignore[no-untyped-def]
+        v = ctrl_v(x, u)
+        return x + gi * (u[:2] - u[2:]) + tr * (np.clip(v, 0.0, 1.0) - v)
+
+    def ctrl_output(t, x, u, params):  # type: ignore[no-untyped-def]
+        return np.clip(ctrl_v(x, u), 0.0, 1.0)
+
+    pi = control.nlsys(ctrl_update, ctrl_output, states=2, inputs=4, outputs=2, dt=H, name="pi")
+    return plant, pi
+
+
+def run_python_control(refs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(K, 4) y and (K, 2) u of the sampled loop in python-control."""
+    plant, pi = python_control_systems()
+    x = np.array(H0, dtype=float)
+    xc = np.array(U0, dtype=float)        # integrators holding u0 at r = y (tracking)
+    ys, us = np.empty((len(refs), 4)), np.empty((len(refs), 2))
+    for k, r in enumerate(refs):
+        y = plant.output(0.0, x, np.zeros(2))
+        cu = np.concatenate([r, y[:2]])
+        u = pi.output(k * H, xc, cu)
+        xc = pi.dynamics(k * H, xc, cu)
+        ys[k], us[k] = y, u
+        resp = control.input_output_response(
+            plant, [0.0, H], np.tile(FULL_SCALE_V * u, (2, 1)).T, x,
+            solve_ivp_kwargs={"rtol": 1e-8, "atol": 1e-10},
+        )
+        x = resp.states[:, -1]
+    return ys, us
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--batch", type=int, default=1000, help="experiments in the batch (default 1000)")
+    ap.add_argument("--pc-batch", type=int, default=3, help="python-control runs timed for the batch estimate")
+    args = ap.parse_args()
+
+    print(f"experiment: P-, decentralized PI (3.0, 30) (2.7, 40), PRBS references, {SAMPLES} samples at {H:g} s")
+    t0 = time.perf_counter()
+    hist = run_engine(seed=1, samples=SAMPLES)
+    t_ours = time.perf_counter() - t0
+    refs = references(hist)
+    y_ours = np.stack([hist[f"y{j}"] for j in (1, 2, 3, 4)], axis=1)
+    u_ours = np.stack([hist["u1"], hist["u2"]], axis=1)
+
+    t0 = time.perf_counter()
+    y_pc, u_pc = run_python_control(refs)
+    t_pc = time.perf_counter() - t0
+    dy = float(np.max(np.abs(y_ours - y_pc)))
+    du = float(np.max(np.abs(u_ours - u_pc)))
+    print(f"single   engine         {t_ours:8.3f} s")
+    print(f"single   python-control {t_pc:8.3f} s")
+    print(f"single   ratio          {t_pc / t_ours:8.1f} x  (target >= 10 x)")
+    print(f"single   max |y diff|   {dy:.2e}   max |u diff| {du:.2e}  (normalized; must be < 1e-3)")
+
+    # The batch: different seeds give different PRBS references.
+    seeds = range(1, args.batch + 1)
+    t0 = time.perf_counter()
+    all_refs = np.stack([_prbs_refs(s) for s in seeds])
+    t_refs = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    run = pi_batch(PLANT, H0, U0, all_refs, PI, H)
+    t_batch = time.perf_counter() - t0
+    dyb = float(np.max(np.abs(run.y[0] - y_ours)))
+
+    t0 = time.perf_counter()
+    for s in list(seeds)[: args.pc_batch]:
+        run_python_control(all_refs[s - 1])
+    t_pc_each = (time.perf_counter() - t0) / args.pc_batch
+    t_pc_batch = t_pc_each * args.batch
+    ours_total = t_batch + t_refs
+    print(f"batch    {args.batch} experiments, vectorized numpy path (core/batch.py)")
+    print(f"batch    ours           {ours_total:8.3f} s  ({t_refs:.3f} s PRBS references + {t_batch:.3f} s loops)")
+    print(f"batch    python-control {t_pc_batch:8.1f} s  (estimated: {args.pc_batch} runs timed, "
+          f"{t_pc_each:.3f} s each, x {args.batch})")
+    print(f"batch    ratio          {t_pc_batch / ours_total:8.1f} x  (target >= 100 x)")
+    print(f"batch    max |y diff| of experiment 1 against the engine: {dyb:.2e}")
+
+
+def _prbs_refs(seed: int) -> np.ndarray:
+    """The engine's references for `seed`, from its own generators (no plant run)."""
+    from quadtank_tui.core.signals import Generator, Wave, WaveParams
+    from benchmarks.experiment import AMPLITUDE, PERIOD, Y0
+
+    gens = [Generator(WaveParams(wave=Wave.PRBS, mean=Y0[i], amplitude=AMPLITUDE, period=PERIOD,
+                                 on=True, seed=(seed + i) % 2**31), H) for i in range(2)]
+    return np.stack([np.array(g.take(SAMPLES)) for g in gens], axis=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,176 @@
+"""When samples are due: real time, virtual time, and a hand-driven time source.
+
+A clock only *schedules*; it never sleeps.  The driver (the engine thread's asyncio
+loop, or the synchronous headless driver) asks :meth:`Clock.deadline` for the
+monotonic wall time at which the next sample is due, waits however suits it, and
+calls :meth:`Clock.tick` with the time the sample really started.  Time is injected
+(style.md habit 2): every clock takes a ``now`` function, so tests drive a
+:class:`ManualClock` instead of sleeping.
+
+Jitter is the actual minus the scheduled start of a sample.  An overrun is a
+deadline that passed without its sample: the loop was so late that the next
+sample's slot had already begun.  The schedule then skips to the next deadline still
+in the future instead of running the missed samples in a burst, and each skipped
+deadline is counted.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Callable
+
+Now = Callable[[], float]
+
+#: The speed factors a virtual clock accepts (SetSpeed, --speed).
+SPEED_MIN, SPEED_MAX = 1.0, 1000.0
+
+
+@dataclass(frozen=True)
+class Timing:
+    """What :meth:`Clock.tick` measured for one sample (seconds)."""
+
+    scheduled: float
+    actual: float
+    missed: int = 0
+
+    @property
+    def jitter(self) -> float:
+        return self.actual - self.scheduled
+
+
+class ManualClock:
+    """A monotonic time source moved by hand: ``now()`` and ``sleep(dt)``.
+
+    Stands in for ``time.monotonic``/``time.sleep`` in tests and in headless runs that
+    must not wait: sleeping just moves the time on.
+    """
+
+    def __init__(self, start: float = 0.0) -> None:
+        self.t = float(start)
+
+    def now(self) -> float:
+        return self.t
+
+    def advance(self, dt: float) -> None:
+        if dt < 0:
+            raise ValueError(f"time does not run backwards (dt = {dt})")
+        self.t += dt
+
+    def sleep(self, dt: float) -> None:
+        self.advance(max(0.0, dt))
+
+
+class Clock(ABC):
+    """The schedule of samples of period ``period`` seconds of process time."""
+
+    realtime: bool = False
+
+    def __init__(self, period: float, now: Now = time.monotonic) -> None:
+        self._check_period(period)
+        self.period = float(period)
+        self.now = now
+        self.overruns = 0
+        self._next: float | None = None
+
+    @staticmethod
+    def _check_period(period: float) -> None:
+        if not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
+            raise ValueError(f"sampling period must be a positive number of seconds, got {period!r}")
+
+    @property
+    def speed(self) -> float:
+        """Process seconds per wall second (inf: as fast as possible)."""
+        return 1.0
+
+    def start(self) -> None:
+        """The first sample is due now."""
+        self._next = self.now()
+
+    def deadline(self) -> float | None:
+        """Monotonic time the next sample is due; None: due now (no waiting)."""
+        if self._next is None:
+            self.start()
+        return self._next
+
+    def tick(self) -> Timing:
+        """A sample starts now: measure it and schedule the next one."""
+        actual = self.now()
+        scheduled = self.deadline()
+        if scheduled is None:
+            return Timing(actual, actual)
+        step = self._wall_period()
+        nxt = scheduled + step
+        missed = 0
+        if actual >= nxt:  # whole slots went by: skip them, no burst
+            missed = int((actual - scheduled) // step)
+            nxt = scheduled + (missed + 1) * step
+            if nxt <= actual:
+                missed += 1
+                nxt += step
+        self.overruns += missed
+        self._next = nxt
+        return Timing(scheduled, actual, missed)
+
+    def set_period(self, period: float) -> None:
+        """A new sampling time: the next sample stays where it is, later ones follow
+        the new period."""
+        self._check_period(period)
+        self.period = float(period)
+
+    @abstractmethod
+    def _wall_period(self) -> float:
+        """Wall seconds between samples."""
+
+
+class RealTimeClock(Clock):
+    """Absolute deadlines start + k * period on a monotonic clock: sleeping late for
+    one sample never delays the following ones (no drift)."""
+
+    realtime = True
+
+    def _wall_period(self) -> float:
+        return self.period
+
+
+class VirtualClock(Clock):
+    """Process time at `speed` x wall time (1..1000), or as fast as possible (None).
+
+    Paced runs keep absolute deadlines in wall time like the real-time clock, so a
+    slow sample is made up by the next ones' waits; a run that cannot keep up at all
+    skips its deadlines (counted as overruns) rather than piling up.
+    """
+
+    realtime = False
+
+    def __init__(self, period: float, speed: float | None = None, now: Now = time.monotonic) -> None:
+        super().__init__(period, now)
+        self._speed: float | None = None
+        self.set_speed(speed)
+
+    @property
+    def speed(self) -> float:
+        return math.inf if self._speed is None else self._speed
+
+    def set_speed(self, speed: float | None) -> None:
+        """New speed factor (None: unpaced); the next sample is due one new wall
+        period after now."""
+        if speed is not None:
+            if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not (
+                SPEED_MIN <= speed <= SPEED_MAX
+            ):
+                raise ValueError(f"speed must be a factor {SPEED_MIN:g}..{SPEED_MAX:g}, got {speed!r}")
+            speed = float(speed)
+        self._speed = speed
+        self._next = None if speed is None else self.now() + self.period / speed
+
+    def deadline(self) -> float | None:
+        if self._speed is None:
+            return None
+        return super().deadline()
+
+    def _wall_period(self) -> float:
+        return self.period / self.speed
+

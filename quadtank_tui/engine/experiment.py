@@ -1,0 +1,124 @@
+"""Headless experiments: a script's events applied at their times, then a summary.
+
+The same engine as the TUI, stepped without a thread: events whose time has come
+are submitted before the sample, in file order for equal times, and the run lasts
+`duration` seconds of loop time (the sum of the sampling periods, paused or not, so
+a script that pauses still ends).  A refused event stops the run with an error that
+names the script, the event and its line; the log so far is kept.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
+from quadtank_tui.engine.commands import (
+    AddWater, Command, LogOff, LogOn, SetControlMode, SetParams, SetState,
+)
+from quadtank_tui.engine.runner import Engine, LoopTime
+from quadtank_tui.files.script import Event, Script
+
+
+@dataclass(frozen=True)
+class Summary:
+    """What `quadtank run` prints: per loop figures over the Automatic window."""
+
+    duration: float
+    samples: int
+    overruns: int
+    jitter_max: float
+    control: str
+    window: float | None              # seconds of Automatic measured (None: Manual)
+    loops: tuple[LoopMetrics, ...]     # empty in Manual
+    final_y: tuple[float, float]
+    final_u: tuple[float, float]
+    fault: str | None
+
+
+def event_commands(event: Event, engine: Engine) -> list[Command]:
+    """The commands one event stands for, given the parameters in force now."""
+    a, v = event.action, event.value
+    if a == "mode":
+        return [SetControlMode(v)]
+    if a == "state":
+        return [SetState(v)]
+    if a == "set":
+        return [SetParams(dict(v))]
+    if a == "step":
+        params = engine.snapshot().params
+        return [SetParams({k: params.get(k) + d for k, d in v.items()})]
+    if a == "add_water":
+        return [AddWater(*v)]
+    if a == "log":
+        return [LogOn() if v == "on" else LogOff()]
+    raise ValueError(f"unknown action {a!r}")
+
+
+def run_experiment(engine: Engine, script: Script | None, duration: float) -> int:
+    """Run `duration` s of loop time applying the script's events; returns samples."""
+    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
+    events = list(script.events) if script else []
+    name = script.file if script else ""
+    i = 0
+    elapsed = LoopTime(engine.loop.h)
+    while not elapsed.reached(duration):
+        while i < len(events) and elapsed.reached(events[i].at):
+            _apply(engine, events[i], name)
+            i += 1
+        h = engine.loop.h
+        engine.step()
+        elapsed.add(h)
+    return elapsed.samples
+
+
+def _apply(engine: Engine, event: Event, name: str) -> None:
+    for command in event_commands(event, engine):
+        result = engine.submit(command).result()
+        if not result.ok:
+            raise event.where(name, result.message)
+
+
+def summarize(engine: Engine, duration: float) -> Summary:
+    """Final error, overshoot, settling time and IAE of both loops since Automatic
+    began (within what the ring buffers hold), and the loop's timing."""
+    loop = engine.loop
+    snap = engine.snapshot()
+    loops: tuple[LoopMetrics, ...] = ()
+    window = None
+    if loop.automatic_since is not None:
+        hist = engine.history()
+        keep = hist["t"] >= loop.automatic_since - 1e-9
+        t = hist["t"][keep]
+        if t.size:
+            window = float(t[-1] - t[0] + loop.h)
+            loops = tuple(loop_metrics(t, hist[f"y{i}"][keep], hist[f"ref{i}"][keep]) for i in (1, 2))
+    return Summary(duration, snap.stats.samples, snap.stats.overruns, snap.stats.jitter_max,
+                   snap.control, window, loops, (snap.y[0], snap.y[1]), snap.u, snap.fault)
+
+
+def format_summary(s: Summary) -> str:
+    """One screen of text."""
+    lines = [
+        f"ran {s.duration:g} s: {s.samples} samples, {s.overruns} overruns, "
+        f"max |jitter| {s.jitter_max * 1000:.2f} ms",
+        f"final      y1 {s.final_y[0]:.4f}  y2 {s.final_y[1]:.4f}   u1 {s.final_u[0]:.4f}  u2 {s.final_u[1]:.4f}",
+    ]
+    if s.fault:
+        lines.append(f"FAULT      {s.fault}")
+    if not s.loops:
+        lines.append(f"control    {s.control}: no loop to measure (the figures need Automatic)")
+        return "\n".join(lines)
+    lines.append(f"loops      measured over the last {s.window:g} s in Automatic (2 % band)")
+    lines.append("loop  final error   overshoot   settling      IAE      last step")
+    for i, m in enumerate(s.loops, start=1):
+        over = "-" if m.overshoot is None else f"{m.overshoot:.1f} %"
+        if m.step is None:
+            settle, step = "-", "none"
+        else:
+            settle = "not settled" if m.settling_time is None else f"{m.settling_time:.0f} s"
+            step = f"{m.step:+.3f} at {m.step_time:g} s"
+        lines.append(f"{i:>4}  {m.final_error:+11.5f}  {over:>10}  {settle:>11}  {m.iae:8.3f}  {step}")
+    return "\n".join(lines)
+

@@ -1,0 +1,446 @@
+"""The sampled control loop and its mode state machine (Nunes 1998, 5.3 and 5.5).
+
+:class:`ControlLoop` is pure and synchronous: it owns the generators, the controller
+matrix, the process backends and the logger, and does exactly one sample per
+:meth:`ControlLoop.step`.  It knows nothing of threads or wall time; the runner
+(engine/runner.py) calls it on its own thread at the times a clock gives, and the
+tests call it directly.  Everything the outside may change goes through
+:meth:`ControlLoop.apply`, which validates first and changes nothing if it refuses.
+
+One sample (Run)::
+
+    y  = read levels                         (backend)
+    w  = generator values                    (w1, w2)
+    Automatic: r = w,  u = sat(C(r, y)),  C.update(r, y, u)
+    Manual:    u = sat(w), r = y,         C.track(r, y, u)    (bumpless later)
+    write u; log a row; history; snapshot; let h seconds of process time pass
+
+Pause: a simulation freezes (no time passes, nothing is logged); a real process gets
+its pumps at 0.  Any exception in a sample puts the pumps at 0, pauses and shows why.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from datetime import datetime
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+from quadtank_tui.core.general import tustin
+from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, saturate
+from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
+from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.signals import Generator
+from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.engine.backend import BackendError, ProcessBackend
+from quadtank_tui.engine.commands import (
+    AddWater, Command, CommandResult, LoadPar, LogDiscard, LogOff, LogOn, LogSave, NudgeMean,
+    ResetControllers, SavePar, SetControlMode, SetDefaults, SetOperation, SetParams, SetSpeed,
+    SetState,
+)
+from quadtank_tui.engine.history import DEFAULT_CAPACITY, History
+from quadtank_tui.engine.logsession import LogRefused, LogSession
+from quadtank_tui.engine.sim import SimBackend
+from quadtank_tui.engine.snapshot import LoopStats, Snapshot
+from quadtank_tui.files.log import LogFileError
+from quadtank_tui.files.par import ParFileError, ParStore
+
+MODE_KEY = "CONTROL.Mode"
+MEAN_KEYS = ("REFERENCE ONE.Mean", "REFERENCE TWO.Mean")
+_FAMILY_KEYS = ("CONTROL.Type", "CONTROL.Structure")
+
+
+def _matrix_for(p: Parameters) -> ControllerMatrix:
+    return ControllerMatrix(
+        p.tsamp, p.control.family, p.control.structure,
+        pid={e: c.pid for e, c in zip(ELEMENTS, p.controllers)},
+        general={e: c.general for e, c in zip(ELEMENTS, p.controllers)},
+    )
+
+
+class ControlLoop:
+    """One sampled loop over a simulator and, optionally, a DAQ backend.
+
+    params : the parameters to start with (the control mode starts Manual, M2)
+    defaults : what counts as default (S6) and what SetDefaults restores
+    store : the parameter folder (LoadPar / SavePar)
+    logs_dir : where LogSave writes `<name>.log` (and the partial file lives)
+    daq : a real process (Active), if one is configured
+    now : wall-clock stamp for the logs' "Created on:" (injected: virtual runs pass
+        a deterministic one)
+    """
+
+    def __init__(
+        self,
+        params: Parameters,
+        *,
+        defaults: Parameters | None = None,
+        store: ParStore | None = None,
+        logs_dir: Path | str = Path("logs"),
+        daq: ProcessBackend | None = None,
+        history_capacity: int = DEFAULT_CAPACITY,
+        now: Callable[[], datetime] = datetime.now,
+    ) -> None:
+        params = params.with_value(MODE_KEY, ControlMode.MANUAL.value)
+        self.params = params
+        self.defaults = defaults if defaults is not None else params
+        self.store = store if store is not None else ParStore(Path("params"))
+        self.logs_dir = Path(logs_dir)
+        self.sim = SimBackend(params.plant(), params.operating_levels())
+        self.daq = daq
+        self.backend: ProcessBackend = self.sim
+        self.history = History(history_capacity)
+        self._gens = (Generator(params.references[0], params.tsamp),
+                      Generator(params.references[1], params.tsamp))
+        self._matrix = _matrix_for(params)
+        self.running = False
+        #: Process time at which Automatic began (None in Manual): the window the
+        #: headless summary measures the loops over.
+        self.automatic_since: float | None = None
+        self.k = 0
+        self.t = 0.0
+        self._fixed_h = True  # t = k h until the sampling time changes (no drift in t)
+        self.fault: str | None = None
+        self._y = self.sim.read_levels()
+        self._u = (0.0, 0.0)
+        self._w = (self._gens[0].value(), self._gens[1].value())
+        self._r = (self._y[0], self._y[1])
+        self.log = LogSession(self.logs_dir, now)
+        # Timing, filled in by the runner (the loop itself has no clock).
+        self.realtime = False
+        self.speed = math.inf
+        self.stats = LoopStats()
+        self._snapshot = self._make_snapshot()
+
+    # --- reading -----------------------------------------------------------------------
+
+    @property
+    def h(self) -> float:
+        """Sampling time, s."""
+        return self.params.tsamp
+
+    @property
+    def control(self) -> ControlMode:
+        return self.params.control.mode
+
+    @property
+    def state(self) -> str:
+        return "Run" if self.running else "Pause"
+
+    @property
+    def matrix(self) -> ControllerMatrix:
+        return self._matrix
+
+    def snapshot(self) -> Snapshot:
+        return self._snapshot
+
+    # --- one sample ---------------------------------------------------------------------
+
+    def step(self) -> Snapshot:
+        """Do one sample (Run) or one idle tick (Pause); never raises."""
+        try:
+            if self.running:
+                self._sample()
+            else:
+                self._y = self.backend.read_levels()  # a paused rig still shows its levels
+        except Exception as exc:  # noqa: BLE001 - any fault: pumps safe, Pause, say why
+            self._fail(exc)
+        self._snapshot = self._make_snapshot()
+        return self._snapshot
+
+    def _sample(self) -> None:
+        y = self.backend.read_levels()
+        self._y = y
+        y12 = (y[0], y[1])
+        w = (self._gens[0].value(), self._gens[1].value())
+        m = self._matrix
+        if self.params.control.mode is ControlMode.AUTOMATIC:
+            r = w
+            u = saturate(m.compute(r, y12))
+            self.backend.write_pumps(u)
+            m.update(r, y12, u)
+        else:
+            r = y12
+            u = saturate(w)
+            self.backend.write_pumps(u)
+            m.track(r, y12, u)
+        self._u, self._w, self._r = u, w, r
+        if self.log.running:
+            self.log.row(self.t, y, u, r)
+        self.history.append((self.t, y[0], y[1], y[2], y[3], u[0], u[1], r[0], r[1]))
+        self.backend.elapse(self.h)
+        self._gens[0].advance()
+        self._gens[1].advance()
+        self.k += 1
+        self.t = self.k * self.h if self._fixed_h else self.t + self.h
+
+    def _fail(self, exc: BaseException) -> None:
+        reason = str(exc) if isinstance(exc, BackendError) else f"{type(exc).__name__}: {exc}"
+        self.fault = f"{self.backend.description or self.backend.kind}: {reason}"
+        self.running = False
+        self._safe(self.backend)
+
+    @staticmethod
+    def _safe(backend: ProcessBackend) -> None:
+        try:
+            backend.safe_state()
+        except Exception:  # noqa: BLE001 - safe_state must not raise; if it does, go on
+            pass
+
+    def _make_snapshot(self) -> Snapshot:
+        return Snapshot(
+            t=self.t, k=self.k, y=self._y, u=self._u, w=self._w, r=self._r,
+            operation=self.backend.kind, state=self.state, control=self.control.value,
+            params=self.params, speed=self.speed, realtime=self.realtime,
+            active_available=self.daq is not None,
+            backend=self.backend.description or self.backend.kind,
+            log=self.log.status(self.params.logging),
+            stats=self.stats, fault=self.fault,
+            alarms=tuple(getattr(self.backend, "alarms", ()) or ()),
+        )
+
+    def publish(self) -> Snapshot:
+        """Publish a fresh snapshot of the current state (after a stop, say)."""
+        self._snapshot = self._make_snapshot()
+        return self._snapshot
+
+    def record_timing(self, jitter: float, missed: int, wall: float) -> None:
+        """The runner's measurement of the sample about to be done (LoopStats); the
+        sample's snapshot carries it."""
+        s = self.stats
+        self.stats = LoopStats(
+            samples=s.samples + 1, overruns=s.overruns + missed, jitter_last=jitter,
+            jitter_max=max(s.jitter_max, abs(jitter)), last_sample_wall=wall,
+        )
+
+    def set_clock_info(self, realtime: bool, speed: float) -> None:
+        self.realtime, self.speed = realtime, speed
+        self._snapshot = replace(self._snapshot, realtime=realtime, speed=speed)
+
+    # --- commands -----------------------------------------------------------------------
+
+    def apply(self, command: Command) -> CommandResult:
+        """Apply one command between samples; a refusal changes nothing."""
+        handler = _HANDLERS.get(type(command))
+        if handler is None:
+            return CommandResult.refused(f"unknown command {type(command).__name__}")
+        try:
+            result = handler(self, command)
+        except (ParameterError, KeyError, PlantError, ParFileError, LogFileError, LogRefused, ValueError) as exc:
+            message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+            return CommandResult.refused(str(message))
+        except OSError as exc:
+            return CommandResult.refused(f"{getattr(exc, 'filename', '') or ''} {exc.strerror or exc}".strip())
+        self._snapshot = self._make_snapshot()
+        return result
+
+    def _set_params(self, cmd: SetParams) -> CommandResult:
+        values = dict(cmd.values)
+        mode = values.pop(MODE_KEY, None)
+        new = self.params.with_values(values)
+        if mode is not None:
+            target = self.params.with_value(MODE_KEY, mode).control.mode  # validates
+        self._install(new)
+        if mode is not None:
+            self._switch_mode(target, adjust_means=not any(k in values for k in MEAN_KEYS))
+        return CommandResult(True)
+
+    def _install(self, new: Parameters) -> None:
+        """Make `new` the parameters in force, all or nothing.
+
+        Everything that can still refuse (a General pole at 2/h, a plant the
+        physics rejects, a sampling time change while logging) is checked before
+        anything moves.
+        """
+        old = self.params
+        new = new.with_value(MODE_KEY, old.control.mode.value)
+        h = new.tsamp
+        if h != old.tsamp and self.log.running:
+            raise ParameterError(TSAMP, "stop logging (LogOff) before changing the sampling time: "
+                                 "the log's TSamp would no longer be true")
+        for e in new.controllers:
+            tustin(e.general.numerator, e.general.denominator, h)
+        plant = new.plant() if new.simulation != old.simulation else None
+        # --- nothing below refuses ---
+        if h != old.tsamp:
+            self._matrix.set_sampling_time(h)
+            self._fixed_h = False
+        for g, a, b in zip(self._gens, old.references, new.references):
+            # Each step must be valid on its own: the period is checked against the
+            # sampling time in force, so a longer h takes the new period first.
+            if h >= old.tsamp and a != b:
+                g.set_params(b)
+            if h != old.tsamp:
+                g.set_sampling_time(h)
+            if h < old.tsamp and a != b:
+                g.set_params(b)
+        if (new.control.family, new.control.structure) != (old.control.family, old.control.structure):
+            self._matrix.set_type(new.control.family, new.control.structure)
+        for e, (a, b) in zip(ELEMENTS, zip(old.controllers, new.controllers)):
+            if a.pid != b.pid:
+                self._matrix.set_element_params(*e, b.pid)
+            if a.general != b.general:
+                self._matrix.set_element_params(*e, b.general)
+        if plant is not None:
+            self.sim.set_params(plant, new.operating_levels())
+        self.params = new
+
+    def _switch_mode(self, mode: ControlMode, *, adjust_means: bool = True) -> None:
+        """Manual <-> Automatic, bumpless (M3): Manual -> Automatic sets the reference
+        means to the measured y1, y2; Automatic -> Manual sets the input means to the
+        applied u1, u2.  The controllers have tracked u in Manual, so nothing jumps."""
+        if mode is self.control:
+            return
+        if adjust_means:
+            src = (self._y[0], self._y[1]) if mode is ControlMode.AUTOMATIC else self._u
+            for g, m in zip(self._gens, src):
+                g.set_mean(m)
+            self.params = self.params.with_values({MEAN_KEYS[0]: self._gens[0].mean,
+                                                   MEAN_KEYS[1]: self._gens[1].mean})
+        self.params = self.params.with_value(MODE_KEY, mode.value)
+        self.automatic_since = self.t if mode is ControlMode.AUTOMATIC else None
+
+    def _set_control_mode(self, cmd: SetControlMode) -> CommandResult:
+        return self._set_params(SetParams({MODE_KEY: cmd.mode}))
+
+    def _set_defaults(self, cmd: SetDefaults) -> CommandResult:
+        keys = tuple(k for k in cmd.keys if k != MODE_KEY)
+        return self._set_params(SetParams({k: self.defaults.get(k) for k in keys}))
+
+    def _set_state(self, cmd: SetState) -> CommandResult:
+        if cmd.state == "Run":
+            self.running = True
+            self.fault = None
+        elif cmd.state == "Pause":
+            self.running = False
+            if self.backend is not self.sim:
+                self._safe(self.backend)  # a real process: pumps to 0
+        elif cmd.state == "Reset":
+            self.reset()
+        else:
+            return CommandResult.refused(f"state must be Run, Pause or Reset, got {cmd.state!r}")
+        return CommandResult(True)
+
+    def reset(self) -> None:
+        """Reset (M2): every state cleared, the simulation at its operating point,
+        then Pause.  A log being taken stops (its rows are kept until Save)."""
+        self.running = False
+        self._safe(self.backend)
+        self._matrix.reset()
+        for g in self._gens:
+            g.reset()
+        self.sim.reset()
+        self.log.stop()
+        self.history.clear()
+        self.k, self.t, self._fixed_h = 0, 0.0, True
+        if self.automatic_since is not None:
+            self.automatic_since = 0.0
+        self.fault = None
+        self._y = self.backend.read_levels() if self.backend is self.sim else self._y
+        self._u = (0.0, 0.0)
+        self._w = (self._gens[0].value(), self._gens[1].value())
+        self._r = (self._y[0], self._y[1])
+
+    def _set_operation(self, cmd: SetOperation) -> CommandResult:
+        if cmd.operation == "Simul":
+            target: ProcessBackend = self.sim
+        elif cmd.operation == "Active":
+            if self.daq is None:
+                return CommandResult.refused("Active needs a DAQ backend; none is configured")
+            target = self.daq
+        else:
+            return CommandResult.refused(f"operation must be Simul or Active, got {cmd.operation!r}")
+        if target is not self.backend:
+            self._safe(self.backend)
+            self.running = False
+            self.backend = target
+            self.fault = None
+        return CommandResult(True)
+
+    def _nudge(self, cmd: NudgeMean) -> CommandResult:
+        if cmd.channel not in (1, 2):
+            return CommandResult.refused(f"channel must be 1 or 2, got {cmd.channel!r}")
+        g = self._gens[cmd.channel - 1]
+        g.nudge(cmd.delta)
+        self.params = self.params.with_value(MEAN_KEYS[cmd.channel - 1], g.target)
+        return CommandResult(True)
+
+    def _add_water(self, cmd: AddWater) -> CommandResult:
+        if self.backend is not self.sim:
+            return CommandResult.refused("water can be added to the simulation only (Simul)")
+        if cmd.tank not in (1, 2, 3, 4):
+            return CommandResult.refused(f"tank must be 1..4, got {cmd.tank!r}")
+        if not isinstance(cmd.amount, (int, float)) or not math.isfinite(cmd.amount):
+            return CommandResult.refused(f"amount must be a number, got {cmd.amount!r}")
+        self.sim.add_water(cmd.tank, float(cmd.amount))
+        if not self.running:
+            self._y = self.sim.read_levels()
+        return CommandResult(True)
+
+    def _reset_controllers(self, cmd: ResetControllers) -> CommandResult:
+        if cmd.element is None:
+            self._matrix.reset()
+        else:
+            self._matrix.reset_element(*cmd.element)
+        return CommandResult(True)
+
+    # --- logging --------------------------------------------------------------------------
+
+    def _log_on(self, cmd: LogOn) -> CommandResult:
+        warnings = self.log.on(self.params.logging, self.h, self.t)
+        return CommandResult(True, warnings=warnings)
+
+    def _log_off(self, cmd: LogOff) -> CommandResult:
+        self.log.off()
+        return CommandResult(True)
+
+    def _log_save(self, cmd: LogSave) -> CommandResult:
+        saved = self.log.save(cmd.name or self.params.logging.log_file, cmd.overwrite)
+        return CommandResult(True, f"saved {saved}")
+
+    def _log_discard(self, cmd: LogDiscard) -> CommandResult:
+        self.log.discard()
+        return CommandResult(True)
+
+    def close_log(self) -> None:
+        """Exit: stop logging; an unsaved log stays on disk as the partial file."""
+        self.log.stop()
+
+    # --- parameter files --------------------------------------------------------------------
+
+    def _load_par(self, cmd: LoadPar) -> CommandResult:
+        read = self.store.load(cmd.name)
+        self._install(read.params)
+        return CommandResult(True, f"loaded {cmd.name}", warnings=tuple(read.warnings))
+
+    def _save_par(self, cmd: SavePar) -> CommandResult:
+        if self.store.exists(cmd.name) and not cmd.overwrite and cmd.name.lower() not in ("default", "preset"):
+            return CommandResult.refused(f"{self.store.path_of(cmd.name)} exists (save again to overwrite)")
+        path = self.store.save(cmd.name, self.params)
+        return CommandResult(True, f"saved {path}")
+
+    def _set_speed(self, cmd: SetSpeed) -> CommandResult:
+        return CommandResult.refused("the speed belongs to the engine's clock, not the loop")
+
+    def set_initial_mode(self, mode: ControlMode) -> None:
+        """Start in `mode` with the references as the parameters give them (a headless
+        run of a `.par` saved in Automatic), not the bumpless adjustment."""
+        self._switch_mode(mode, adjust_means=False)
+
+    def place_at_steady_state(self, levels_cm: Any) -> None:
+        """Put the simulated water at `levels_cm` (a steady state to start from)."""
+        self.sim.set_levels(levels_cm)
+        self._y = self.sim.read_levels()
+        self._r = (self._y[0], self._y[1])
+
+
+_HANDLERS: Mapping[type, Callable[[ControlLoop, Any], CommandResult]] = {
+    SetParams: ControlLoop._set_params, SetDefaults: ControlLoop._set_defaults,
+    SetOperation: ControlLoop._set_operation, SetState: ControlLoop._set_state,
+    SetControlMode: ControlLoop._set_control_mode, NudgeMean: ControlLoop._nudge,
+    AddWater: ControlLoop._add_water, ResetControllers: ControlLoop._reset_controllers,
+    LogOn: ControlLoop._log_on, LogOff: ControlLoop._log_off, LogSave: ControlLoop._log_save,
+    LogDiscard: ControlLoop._log_discard, LoadPar: ControlLoop._load_par,
+    SavePar: ControlLoop._save_par, SetSpeed: ControlLoop._set_speed,
+}

@@ -1,0 +1,386 @@
+"""The engine: a ControlLoop driven by a clock, on its own thread and event loop.
+
+The UI must never delay a sample, so the loop does not share the UI's event loop
+(architecture.md, "Timing"): :meth:`Engine.start` runs it on a private asyncio loop
+in a daemon thread.  Commands come in through :meth:`Engine.submit` (any thread):
+they are queued, the loop thread is woken, and it applies them between samples,
+resolving the returned Future with the CommandResult.  Snapshots and ring buffers
+go out as immutable values and copies.
+
+Without a thread (``threaded=False``: tests and headless runs) the same engine is
+stepped by hand: :meth:`Engine.step` / :meth:`Engine.run_for` wait for each deadline
+with the injected ``sleep`` (instant with a ManualClock or an unpaced virtual
+clock), and :meth:`Engine.submit` applies the command at once.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import os
+import sys
+import threading
+import time
+from concurrent.futures import Future
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+from typing import Callable, Literal, Mapping
+
+import numpy as np
+
+from quadtank_tui.core.parameters import Parameters, REFERENCE_SECTIONS
+from quadtank_tui.engine.backend import ProcessBackend
+from quadtank_tui.engine.clock import Clock, ManualClock, RealTimeClock, VirtualClock
+from quadtank_tui.engine.commands import Command, CommandResult, SetSpeed
+from quadtank_tui.engine.history import DEFAULT_CAPACITY
+from quadtank_tui.engine.loop import ControlLoop
+from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.files.log import log_path
+from quadtank_tui.files.par import ParStore, read_par
+
+ClockKind = Literal["realtime", "virtual", "manual"]
+
+#: GIL switch interval while a real-time loop runs, s.  A thread waking for its
+#: deadline must wait for the GIL until the running thread is asked to drop it:
+#: Python's default 5 ms would be the jitter floor whenever the UI thread computes.
+REALTIME_SWITCH_INTERVAL = 0.0005
+
+#: Below this, the last part of a wait is a plain sleep rather than the event loop's
+#: timer (whose epoll timeout rounds up to whole milliseconds).
+_FINE_WAIT = 0.002
+
+
+class LoopTime:
+    """Seconds of loop time as whole samples per sampling time (base + n h), so that
+    8 h of 50 ms samples is exactly 576000 of them, not one more from summed rounding."""
+
+    def __init__(self, h: float) -> None:
+        self._base, self._n, self._h = 0.0, 0, h
+        self.samples = 0
+
+    @property
+    def seconds(self) -> float:
+        return self._base + self._n * self._h
+
+    def add(self, h: float) -> None:
+        """One sample of `h` s went by."""
+        if h != self._h:
+            self._base, self._n, self._h = self.seconds, 0, h
+        self._n += 1
+        self.samples += 1
+
+    def reached(self, t: float) -> bool:
+        return t - self.seconds <= 1e-6 * self._h
+
+
+class Engine:
+    """Implements :class:`quadtank_tui.engine.handle.EngineHandle`."""
+
+    def __init__(
+        self,
+        loop: ControlLoop,
+        clock: Clock,
+        *,
+        threaded: bool = True,
+        sleep: Callable[[float], None] = time.sleep,
+        warnings: tuple[str, ...] = (),
+    ) -> None:
+        self.loop = loop
+        self.clock = clock
+        self.threaded = threaded
+        self.warnings = warnings
+        self._sleep = sleep
+        self._pending: collections.deque[tuple[Command, Future[CommandResult]]] = collections.deque()
+        self._lock = threading.Lock()  # guards the loop in no-thread mode
+        self._thread: threading.Thread | None = None
+        self._aloop: asyncio.AbstractEventLoop | None = None
+        self._wake: asyncio.Event | None = None
+        self._stopping = False
+        self._stopped = False
+        self.crash: str | None = None
+        loop.set_clock_info(clock.realtime, clock.speed)
+
+    # --- the EngineHandle read side -------------------------------------------------------
+
+    def snapshot(self) -> Snapshot:
+        return self.loop.snapshot()
+
+    def history(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
+        return self.loop.history.last(seconds)
+
+    def defaults(self) -> Parameters:
+        return self.loop.defaults
+
+    def par_names(self) -> list[str]:
+        return self.loop.store.names()
+
+    def log_exists(self, name: str) -> bool:
+        return log_path(self.loop.logs_dir, name).exists()
+
+    @property
+    def running(self) -> bool:
+        """The loop thread is alive."""
+        return self._thread is not None and self._thread.is_alive()
+
+    # --- the one write door ------------------------------------------------------------
+
+    def submit(self, command: Command) -> Future[CommandResult]:
+        """Queue `command` (threaded) or apply it now (no thread); thread-safe."""
+        fut: Future[CommandResult] = Future()
+        if self._stopped:
+            fut.set_result(CommandResult.refused("the engine has stopped"))
+            return fut
+        if not self.threaded or not self.running:
+            with self._lock:
+                fut.set_result(self._apply(command))
+            return fut
+        self._pending.append((command, fut))
+        aloop, wake = self._aloop, self._wake
+        if aloop is not None and wake is not None:
+            try:
+                aloop.call_soon_threadsafe(wake.set)
+            except RuntimeError:  # the loop closed in between: stop() drains below
+                pass
+        return fut
+
+    def _apply(self, command: Command) -> CommandResult:
+        if isinstance(command, SetSpeed):
+            return self._set_speed(command.factor)
+        result = self.loop.apply(command)
+        if self.loop.h != self.clock.period:
+            self.clock.set_period(self.loop.h)
+        return result
+
+    def _set_speed(self, factor: float) -> CommandResult:
+        if not isinstance(self.clock, VirtualClock):
+            return CommandResult.refused("the speed can be changed only with a virtual clock (Simul)")
+        try:
+            self.clock.set_speed(factor)
+        except ValueError as exc:
+            return CommandResult.refused(str(exc))
+        self.loop.set_clock_info(self.clock.realtime, self.clock.speed)
+        return CommandResult(True)
+
+    def _drain(self) -> None:
+        while self._pending:
+            command, fut = self._pending.popleft()
+            try:
+                result = self._apply(command)
+            except Exception as exc:  # noqa: BLE001 - a bug must not kill the loop
+                result = CommandResult.refused(f"{type(command).__name__} failed: {type(exc).__name__}: {exc}")
+            if not fut.cancelled():
+                fut.set_result(result)
+
+    # --- one sample ------------------------------------------------------------------------
+
+    def _sample(self) -> None:
+        timing = self.clock.tick()
+        self.loop.record_timing(timing.jitter, timing.missed, timing.actual)
+        self.loop.step()
+
+    # --- no-thread mode ------------------------------------------------------------------
+
+    def step(self, n: int = 1) -> Snapshot:
+        """Do `n` samples now, each at its deadline (no-thread mode)."""
+        if self.running:
+            raise RuntimeError("the engine runs on its own thread; use submit()")
+        with self._lock:
+            for _ in range(n):
+                deadline = self.clock.deadline()
+                if deadline is not None:
+                    delay = deadline - self.clock.now()
+                    if delay > 0:
+                        self._sleep(delay)
+                self._sample()
+        return self.loop.snapshot()
+
+    def run_for(self, seconds: float) -> int:
+        """Sample for `seconds` of loop time (sum of the sampling periods, paused or
+        not); returns the number of samples."""
+        elapsed = LoopTime(self.loop.h)
+        while not elapsed.reached(seconds):
+            h = self.loop.h
+            self.step()
+            elapsed.add(h)
+        return elapsed.samples
+
+    # --- the thread --------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Run the loop on its own thread and event loop (idempotent)."""
+        if self.running or self._stopped:
+            return
+        self.threaded = True
+        if self.clock.realtime and sys.getswitchinterval() > REALTIME_SWITCH_INTERVAL:
+            sys.setswitchinterval(REALTIME_SWITCH_INTERVAL)
+        ready = threading.Event()
+        self._thread = threading.Thread(target=self._thread_main, args=(ready,),
+                                        name="quadtank-loop", daemon=True)
+        self._thread.start()
+        ready.wait()
+
+    def _thread_main(self, ready: threading.Event) -> None:
+        aloop = asyncio.new_event_loop()
+        self._aloop = aloop
+        try:
+            aloop.run_until_complete(self._main(ready))
+        except Exception as exc:  # noqa: BLE001 - last line of defence: pumps safe, say why
+            self.crash = f"{type(exc).__name__}: {exc}"
+            self.loop.fault = f"engine stopped: {self.crash}"
+            ControlLoop._safe(self.loop.backend)
+        finally:
+            ready.set()
+            self._aloop = None
+            aloop.close()
+
+    async def _main(self, ready: threading.Event) -> None:
+        self._wake = asyncio.Event()
+        ready.set()
+        self.clock.start()
+        while not self._stopping:
+            self._drain()
+            deadline = self.clock.deadline()
+            if deadline is not None:
+                delay = deadline - self.clock.now()
+                if delay > _FINE_WAIT:
+                    try:
+                        async with asyncio.timeout(delay - _FINE_WAIT):
+                            await self._wake.wait()
+                    except TimeoutError:
+                        pass
+                    self._wake.clear()
+                    continue  # commands may have come in; look at the deadline again
+                if delay > 0:
+                    self._sleep(delay)
+            else:
+                await asyncio.sleep(0)  # unpaced: still let commands in
+            self._sample()
+        self._drain()
+
+    def stop(self) -> None:
+        """Stop the loop, pumps to 0, logging stopped (rows kept), backends closed.
+        Idempotent; safe to call from any thread but the loop's own."""
+        if self._stopped:
+            return
+        self._stopping = True
+        aloop, wake = self._aloop, self._wake
+        if aloop is not None and wake is not None:
+            try:
+                aloop.call_soon_threadsafe(wake.set)
+            except RuntimeError:
+                pass
+        if self._thread is not None:
+            self._thread.join(timeout=10.0)
+        self._stopped = True
+        with self._lock:
+            while self._pending:
+                _, fut = self._pending.popleft()
+                if not fut.done():
+                    fut.set_result(CommandResult.refused("the engine has stopped"))
+            loop = self.loop
+            loop.running = False
+            for backend in (loop.sim, loop.daq):
+                if backend is not None:
+                    ControlLoop._safe(backend)
+            loop.close_log()
+            loop.publish()
+            for backend in (loop.sim, loop.daq):
+                if backend is not None:
+                    try:
+                        backend.close()
+                    except Exception:  # noqa: BLE001 - closing a dead link must not hide the stop
+                        pass
+
+    def __enter__(self) -> Engine:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+# --- the factory the CLI, the TUI and the tests use -----------------------------------------
+
+#: "Created on:" origin of virtual-clock headless runs, so a run's `.log` is the same
+#: bytes every time; SOURCE_DATE_EPOCH (reproducible-builds convention) overrides it.
+VIRTUAL_EPOCH = datetime(2000, 1, 1, 0, 0, 0)
+
+
+def virtual_epoch() -> datetime:
+    value = os.environ.get("SOURCE_DATE_EPOCH")
+    if value and value.isdigit():
+        return datetime.fromtimestamp(int(value), tz=timezone.utc).replace(tzinfo=None)
+    return VIRTUAL_EPOCH
+
+
+def load_parameters(par: str | Path | None, store: ParStore) -> tuple[Parameters, tuple[str, ...]]:
+    """The defaults file, or `par`: a path to a `.par` file, else a name in the store.
+
+    Missing values of a file take the defaults.  Errors are ParFileError naming file,
+    line and key."""
+    defaults = store.defaults()
+    if par is None:
+        return defaults.params, tuple(defaults.warnings)
+    path = Path(par)
+    if path.suffix.lower() == ".par" or path.exists() or len(path.parts) > 1:
+        read = read_par(path, base=defaults.params)
+    else:
+        read = store.load(str(par))
+    return read.params, tuple(defaults.warnings) + tuple(read.warnings)
+
+
+def with_seed(params: Parameters, seed: int) -> Parameters:
+    """Both PRBS generators seeded from one number (channel 2 gets seed + 1)."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed must be a whole number >= 0, got {seed!r}")
+    return params.with_values({f"{sec}.Seed": (seed + i) % 2**31 for i, sec in enumerate(REFERENCE_SECTIONS)})
+
+
+def build_engine(
+    par: str | Path | None = None,
+    *,
+    daq: ProcessBackend | None = None,
+    clock: ClockKind = "realtime",
+    speed: float | None = 1.0,
+    seed: int | None = None,
+    params_dir: Path | str = Path("params"),
+    logs_dir: Path | str = Path("logs"),
+    threaded: bool | None = None,
+    history_capacity: int = DEFAULT_CAPACITY,
+    epoch: datetime | None = None,
+    now: Callable[[], float] | None = None,
+    sleep: Callable[[float], None] | None = None,
+) -> Engine:
+    """An engine in the start-up state (Simul, Pause, Manual), not yet started.
+
+    clock : "realtime" (absolute deadlines), "virtual" (`speed` 1..1000, None = as
+        fast as possible) or "manual" (no thread, unpaced: step it by hand)
+    threaded : whether :meth:`Engine.start` is expected (default: not for "manual")
+    epoch : with a virtual or manual clock the logs are stamped epoch + process
+        time (default: now), so a fixed epoch makes the `.log` reproducible
+    now, sleep : the monotonic time source and the wait (default: time.monotonic and
+        time.sleep; for "manual", a fresh ManualClock, so even a SetSpeed-paced
+        manual engine never really waits and its snapshots are reproducible)
+    """
+    if clock == "manual" and now is None and sleep is None:
+        fake = ManualClock()
+        now, sleep = fake.now, fake.sleep
+    now = now or time.monotonic
+    sleep = sleep or time.sleep
+    store = ParStore(params_dir)
+    params, warnings = load_parameters(par, store)
+    if seed is not None:
+        params = with_seed(params, seed)
+    h = params.tsamp
+    if clock == "realtime":
+        clk: Clock = RealTimeClock(h, now)
+        stamp: Callable[[], datetime] = datetime.now
+    elif clock in ("virtual", "manual"):
+        clk = VirtualClock(h, None if clock == "manual" else speed, now)
+        origin = epoch or datetime.now().replace(microsecond=0)
+        stamp = lambda: origin + timedelta(seconds=round(control.t, 6))  # noqa: E731
+    else:
+        raise ValueError(f"clock must be realtime, virtual or manual, got {clock!r}")
+    control = ControlLoop(params, defaults=store.defaults().params, store=store, logs_dir=logs_dir,
+                          daq=daq, history_capacity=history_capacity, now=lambda: stamp())
+    return Engine(control, clk, threaded=(clock != "manual") if threaded is None else threaded,
+                  sleep=sleep, warnings=warnings)

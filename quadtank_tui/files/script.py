@@ -1,0 +1,170 @@
+"""Scripted experiments: a YAML list of timed events (B8, `quadtank run --script`).
+
+Each event is a mapping with ``at`` (seconds since the start of the run) and exactly
+one action::
+
+    - at: 0
+      set: {"CONTROLLER ONE.K": 3.0, "SAMPLING TIME.TSamp": 1000}
+    - at: 0
+      state: Run                  # Run | Pause | Reset
+    - at: 600
+      mode: Automatic             # Manual | Automatic (bumpless, as in the UI)
+    - at: 600
+      log: on                     # on | off
+    - at: 610
+      step: {"REFERENCE ONE.Mean": 0.1}   # add to a number's current value
+    - at: 900
+      add_water: {tank: 1, amount: 0.05}  # normalized level, Simul only
+
+Keys are the `.par` "SECTION.Key" names.  Everything that can be checked without
+running is checked here: unknown keys, values of the wrong kind, times, actions; a
+problem is a :class:`ScriptError` naming the file, the event (1-based) and its line.
+Ranges that depend on the state at the time (a period against a sampling time set
+later) are checked when the event is applied, with the same naming.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import yaml
+
+from quadtank_tui.core.parameters import Kind, spec
+from quadtank_tui.core.validation import ParameterError
+
+ACTIONS = ("mode", "state", "set", "step", "add_water", "log")
+MODES = ("Manual", "Automatic")
+STATES = ("Run", "Pause", "Reset")
+
+
+class ScriptError(ValueError):
+    """A refused script or event; the message names file, event, line and key."""
+
+    def __init__(self, file: str, reason: str, event: int | None = None, line: int | None = None) -> None:
+        where = file
+        if event is not None:
+            where += f", event {event}"
+        if line is not None:
+            where += f" (line {line})"
+        super().__init__(f"{where}: {reason}")
+        self.file, self.event, self.line, self.reason = file, event, line, reason
+
+
+@dataclass(frozen=True)
+class Event:
+    """One timed action.  `value` by action: mode/state: the name; set/step: a
+    {key: value} map; add_water: (tank, amount); log: "on" | "off"."""
+
+    at: float
+    action: str
+    value: Any
+    index: int  # 1-based position in the file
+    line: int
+
+    def where(self, file: str, reason: str) -> ScriptError:
+        return ScriptError(file, reason, self.index, self.line)
+
+
+@dataclass(frozen=True)
+class Script:
+    file: str
+    events: tuple[Event, ...]  # in time order (stable: same time keeps file order)
+
+
+def read_script(path: Path | str) -> Script:
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ScriptError(str(path), "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScriptError(str(path), f"cannot read: {exc}") from None
+    return parse_script(text, name=str(path))
+
+
+def parse_script(text: str, *, name: str = "<script>") -> Script:
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        raise ScriptError(name, f"not valid YAML: {getattr(exc, 'problem', exc)}",
+                          line=None if mark is None else mark.line + 1) from None
+    if data is None:
+        return Script(name, ())
+    if not isinstance(data, list) or not isinstance(node, yaml.SequenceNode):
+        raise ScriptError(name, "a script is a list of events (- at: SECONDS, then one action)")
+    events = [_event(name, item, i + 1, n.start_mark.line + 1)
+              for i, (item, n) in enumerate(zip(data, node.value))]
+    return Script(name, tuple(sorted(events, key=lambda e: e.at)))
+
+
+def _event(file: str, item: Any, index: int, line: int) -> Event:
+    def fail(reason: str) -> ScriptError:
+        return ScriptError(file, reason, index, line)
+
+    if not isinstance(item, dict):
+        raise fail("an event is a mapping: at: SECONDS and one action")
+    if "at" not in item:
+        raise fail("no 'at' (seconds since the start)")
+    at = item["at"]
+    if isinstance(at, bool) or not isinstance(at, (int, float)) or not math.isfinite(at) or at < 0:
+        raise fail(f"'at' must be a number of seconds >= 0, got {at!r}")
+    actions = [k for k in item if k != "at"]
+    unknown = [k for k in actions if k not in ACTIONS]
+    if unknown:
+        raise fail(f"unknown action {unknown[0]!r} (one of {', '.join(ACTIONS)})")
+    if len(actions) != 1:
+        raise fail(f"one action per event, got {len(actions)} ({', '.join(map(str, actions)) or 'none'})")
+    action = actions[0]
+    value = _check_value(action, item[action], fail)
+    return Event(float(at), action, value, index, line)
+
+
+def _check_value(action: str, value: Any, fail: Any) -> Any:
+    if action == "mode":
+        return _choice(value, MODES, "mode", fail)
+    if action == "state":
+        return _choice(value, STATES, "state", fail)
+    if action == "log":
+        # YAML reads a bare on/off as a boolean.
+        text = {True: "on", False: "off"}.get(value, value) if isinstance(value, bool) else value
+        return _choice(text, ("on", "off"), "log", fail)
+    if action == "add_water":
+        if not isinstance(value, dict) or set(value) != {"tank", "amount"}:
+            raise fail("add_water needs {tank: 1..4, amount: <normalized level>}")
+        tank, amount = value["tank"], value["amount"]
+        if isinstance(tank, bool) or tank not in (1, 2, 3, 4):
+            raise fail(f"add_water.tank must be 1..4, got {tank!r}")
+        if isinstance(amount, bool) or not isinstance(amount, (int, float)) or not math.isfinite(amount):
+            raise fail(f"add_water.amount must be a number, got {amount!r}")
+        return (int(tank), float(amount))
+    return _params(action, value, fail)
+
+
+def _choice(value: Any, choices: tuple[str, ...], what: str, fail: Any) -> str:
+    for c in choices:
+        if isinstance(value, str) and value.strip().lower() == c.lower():
+            return c
+    raise fail(f"{what} must be one of {', '.join(choices)}, got {value!r}")
+
+
+def _params(action: str, value: Any, fail: Any) -> Mapping[str, Any]:
+    if not isinstance(value, dict) or not value:
+        raise fail(f"{action} needs a map of \"SECTION.Key\": value")
+    out = {}
+    for key, v in value.items():
+        try:
+            k = spec(str(key))
+        except KeyError:
+            raise fail(f"unknown parameter {key!r}") from None
+        if action == "step" and k.kind is not Kind.NUMBER:
+            raise fail(f"{key}: step adds to a number; this parameter is a {k.kind.value}")
+        try:
+            out[k.name] = k.coerce(v)
+        except ParameterError as exc:
+            raise fail(str(exc)) from None
+    return out

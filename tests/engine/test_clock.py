@@ -1,0 +1,78 @@
+"""Clocks schedule on an injected time source: no sleeps, exact numbers."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from quadtank_tui.engine.clock import ManualClock, RealTimeClock, VirtualClock
+
+
+def test_realtime_deadlines_are_absolute_and_never_drift() -> None:
+    src = ManualClock(100.0)
+    clock = RealTimeClock(0.05, src.now)
+    clock.start()
+    jitters = []
+    for k in range(1000):
+        src.sleep(clock.deadline() - src.now())
+        src.advance(0.0003 if k % 3 else 0.0011)  # wakes a little late, by varying amounts
+        jitters.append(clock.tick().jitter)
+    # The 1000th deadline is exactly start + 1000 periods: lateness never accumulates.
+    assert clock.deadline() == pytest.approx(100.0 + 1000 * 0.05, abs=1e-9)
+    assert max(jitters) == pytest.approx(0.0011) and min(jitters) == pytest.approx(0.0003)
+    assert clock.overruns == 0
+
+
+def test_a_late_sample_is_an_overrun_and_the_schedule_skips_without_a_burst() -> None:
+    src = ManualClock(0.0)
+    clock = RealTimeClock(0.1, src.now)
+    clock.start()
+    clock.tick()                      # sample 0 at 0.0; next due 0.1
+    src.advance(0.35)                 # stalled: 0.1, 0.2, 0.3 went by
+    timing = clock.tick()
+    assert timing.jitter == pytest.approx(0.25) and timing.missed == 2
+    assert clock.overruns == 2
+    assert clock.deadline() == pytest.approx(0.4)   # the next future deadline, on the grid
+    src.sleep(clock.deadline() - src.now())
+    assert clock.tick().missed == 0 and clock.overruns == 2
+
+
+def test_period_change_keeps_the_next_deadline() -> None:
+    src = ManualClock(0.0)
+    clock = RealTimeClock(1.0, src.now)
+    clock.start()
+    clock.tick()
+    clock.set_period(0.25)
+    assert clock.deadline() == 1.0
+    src.sleep(1.0)
+    clock.tick()
+    assert clock.deadline() == 1.25
+    with pytest.raises(ValueError):
+        clock.set_period(0.0)
+
+
+def test_virtual_clock_unpaced_and_paced() -> None:
+    src = ManualClock(0.0)
+    fast = VirtualClock(0.1, None, src.now)
+    assert fast.deadline() is None and fast.speed == math.inf
+    assert fast.tick().jitter == 0.0
+    paced = VirtualClock(1.0, 10.0, src.now)
+    assert paced.deadline() == pytest.approx(0.1)   # 1 s of process time = 0.1 s wall
+    src.sleep(0.1)
+    paced.tick()
+    assert paced.deadline() == pytest.approx(0.2)
+    paced.set_speed(1000)
+    assert paced.deadline() == pytest.approx(0.101)
+    for bad in (0.5, 1001, True, "fast"):
+        with pytest.raises(ValueError):
+            paced.set_speed(bad)  # type: ignore[arg-type]
+    assert paced.speed == 1000
+
+
+def test_manual_clock_does_not_run_backwards() -> None:
+    src = ManualClock()
+    src.sleep(-1.0)
+    assert src.now() == 0.0
+    with pytest.raises(ValueError):
+        src.advance(-0.1)
