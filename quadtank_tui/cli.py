@@ -1,5 +1,6 @@
-"""The `quadtank` command: subcommands for analysis and logs (and, as they land,
-the TUI, headless runs and the virtual rig).
+"""The `quadtank` command: without a subcommand the TUI (the Main screen) on the
+simulator or, with --daq, on the rig; subcommands for analysis, logs and headless
+runs.
 
 Every subcommand turns bad input into one clear line on stderr and exit status 2;
 a traceback never reaches the user.
@@ -165,11 +166,58 @@ def _warn(warnings: Sequence[str]) -> None:
         print(f"quadtank: warning: {w}", file=sys.stderr)
 
 
+def _add_tui_options(parser: argparse.ArgumentParser) -> None:
+    """Options of the TUI, which starts when no subcommand is given."""
+    tui = parser.add_argument_group("the TUI (no COMMAND)")
+    tui.add_argument("--par", metavar="FILE", help="parameters: a .par file or a name in params/ "
+                     "(default: params/default.par, else the built-in values)")
+    tui.add_argument("--daq", metavar="CONFIG", help="a DAQ configuration: offers Active mode on the rig")
+    tui.add_argument("--speed", metavar="X", type=float, default=1.0,
+                     help="simulated seconds per wall second at start (1..1000; keys + and - change it)")
+    tui.add_argument("--refresh", metavar="SECONDS", type=float, default=0.05,
+                     help="screen refresh interval (default 0.05; raise it on a slow link)")
+
+
+def _daq_backend(config: str) -> object:
+    """The DAQ backend a configuration describes (the Modbus TCP backend)."""
+    try:
+        from quadtank_tui.daq.config import load_daq_config
+        from quadtank_tui.daq.modbus import ModbusBackend
+    except ImportError:
+        raise UsageError("--daq: this installation has no DAQ backend") from None
+    return ModbusBackend(load_daq_config(config))
+
+
+def _cmd_tui(args: argparse.Namespace) -> int:
+    # Imported here: the other subcommands need neither Textual nor the engine.
+    from quadtank_tui.engine.runner import build_engine
+    from quadtank_tui.ui.app import build_app
+
+    if not 1.0 <= args.speed <= 1000.0:
+        raise UsageError(f"--speed must be 1..1000, got {args.speed:g}")
+    if not 0.01 <= args.refresh <= 5.0:
+        raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
+    daq = _daq_backend(args.daq) if args.daq else None
+    # The rig keeps wall time; the simulator runs on a virtual clock so a student
+    # can speed it up.
+    clock = "realtime" if daq is not None else "virtual"
+    engine = build_engine(args.par, daq=daq, clock=clock, speed=args.speed)  # type: ignore[arg-type]
+    _warn(engine.warnings)
+    engine.start()
+    try:
+        build_app(engine, refresh_interval=args.refresh).run()
+    finally:
+        engine.stop()  # stops the loop, pumps to 0
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="quadtank",
-        description="Run and analyse the quadruple-tank laboratory process.",
+        description="Run and analyse the quadruple-tank laboratory process. "
+        "Without a COMMAND: the interactive screen on the simulator.",
     )
+    _add_tui_options(parser)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_analyze(sub)
     _add_log(sub)
@@ -182,9 +230,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     handler: Handler | None = getattr(args, "handler", None)
     if handler is None:
-        # No TUI yet: show the analysis of the default setting.
-        handler = _cmd_analyze
-        args = parser.parse_args(["analyze", *(argv or [])[:0]])
+        handler = _cmd_tui
     try:
         return handler(args)
     except (UsageError, PlantError, OSError, ValueError) as exc:

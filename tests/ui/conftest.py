@@ -1,25 +1,75 @@
-"""Shared pieces of the UI tests: a deterministic app on a test engine."""
+"""Shared pieces of the UI tests: the app on the real engine with a manual clock.
+
+The engine only moves when a test calls `run_for`, commands apply at once, and
+the wall clock the status line uses is fixed, so screens are reproducible.
+"""
 
 from __future__ import annotations
 
 import sys
+from datetime import datetime
 from pathlib import Path
+from typing import Any, Callable
 
 import pytest
 
+# The tests import Recording and make_app from here (pytest's importlib mode
+# does not put the test folder on sys.path).
 sys.path.insert(0, str(Path(__file__).parent))
 
-from fake_engine import FakeEngine  # noqa: E402
+from quadtank_tui.core.parameters import PRESET, Parameters
+from quadtank_tui.engine.commands import Command
+from quadtank_tui.engine.runner import Engine, build_engine
+from quadtank_tui.files.par import format_par
+from quadtank_tui.ui.app import QuadTankApp, build_app
 
-from quadtank_tui.ui.app import QuadTankApp, build_app  # noqa: E402
+EPOCH = datetime(2026, 1, 5, 9, 0, 0)
 
 
-def make_app(engine: object) -> QuadTankApp:
-    """The app as the CLI builds it, with a fixed wall clock (the status line's
-    "last sample ... ago" must not depend on when the test runs)."""
-    return build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)  # type: ignore[arg-type]
+class Recording:
+    """The engine, remembering every command the UI sent it (what a test checks
+    is what reached the engine)."""
+
+    def __init__(self, engine: Engine) -> None:
+        self.engine = engine
+        self.commands: list[Command] = []
+
+    def submit(self, command: Command) -> Any:
+        self.commands.append(command)
+        return self.engine.submit(command)
+
+    def sent(self, kind: type) -> list[Any]:
+        return [cmd for cmd in self.commands if isinstance(cmd, kind)]
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.engine, name)
+
+
+def write_params(folder: Path, params: Parameters) -> Path:
+    """A params/ folder whose default.par holds `params`."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "default.par").write_text(format_par(params, EPOCH), encoding="ascii")
+    return folder
 
 
 @pytest.fixture
-def fake() -> FakeEngine:
-    return FakeEngine()
+def make_engine(tmp_path: Path) -> Callable[..., Recording]:
+    def make(params: Parameters = PRESET, **kwargs: Any) -> Recording:
+        options: dict[str, Any] = dict(clock="manual", seed=1, epoch=EPOCH,
+                                       params_dir=write_params(tmp_path / "params", params),
+                                       logs_dir=tmp_path / "logs")
+        options.update(kwargs)
+        (tmp_path / "logs").mkdir(exist_ok=True)
+        return Recording(build_engine(**options))
+    return make
+
+
+@pytest.fixture
+def engine(make_engine: Callable[..., Recording]) -> Recording:
+    return make_engine()
+
+
+def make_app(engine: Any) -> QuadTankApp:
+    """The app as the CLI builds it, with a fixed wall clock (the status line's
+    "last sample ... ago" must not depend on when the test runs)."""
+    return build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)

@@ -1,6 +1,7 @@
 """The Main screen and every window, as pictures (pytest-textual-snapshot).
 
-Deterministic: the test engine moves only when told to, the wall clock is fixed.
+Deterministic: the engine's clock is manual (it moves only when told to), the
+PRBS seed and the wall clock are fixed.
 Update the golden SVGs with `pytest tests/ui --snapshot-update` after checking the
 report's pictures by eye.
 """
@@ -8,19 +9,18 @@ report's pictures by eye.
 from __future__ import annotations
 
 import pytest
-from conftest import make_app
-from fake_engine import FakeEngine
+from conftest import Recording, make_app
 from textual.pilot import Pilot
 
 from quadtank_tui.engine.commands import LogOn, SetParams, SetState
 
 
-def test_main_at_startup_120x40(snap_compare, fake: FakeEngine) -> None:
-    assert snap_compare(make_app(fake), terminal_size=(120, 40))
+def test_main_at_startup_120x40(snap_compare, engine: Recording) -> None:
+    assert snap_compare(make_app(engine), terminal_size=(120, 40))
 
 
-def test_main_at_startup_80x24(snap_compare, fake: FakeEngine) -> None:
-    assert snap_compare(make_app(fake), terminal_size=(80, 24))
+def test_main_at_startup_80x24(snap_compare, engine: Recording) -> None:
+    assert snap_compare(make_app(engine), terminal_size=(80, 24))
 
 
 @pytest.mark.parametrize(
@@ -35,26 +35,26 @@ def test_main_at_startup_80x24(snap_compare, fake: FakeEngine) -> None:
         pytest.param(["G"], id="plot_type"),
     ],
 )
-def test_window(snap_compare, fake: FakeEngine, keys: list[str]) -> None:
-    assert snap_compare(make_app(fake), terminal_size=(80, 24), press=keys)
+def test_window(snap_compare, engine: Recording, keys: list[str]) -> None:
+    assert snap_compare(make_app(engine), terminal_size=(80, 24), press=keys)
 
 
-def _logging_at_45_percent(fake: FakeEngine):
+def _logging_at_45_percent(engine: Recording):
     async def before(pilot: Pilot) -> None:
         for command in (SetParams({"LOGGING.Points": 600, "LOGGING.LogFile": "step1"}),
                         SetState("Run"), LogOn()):
-            fake.submit(command)
-        fake.run_for(270.0)
+            engine.submit(command)
+        engine.run_for(270.0)
         pilot.app.main.refresh_view()
         await pilot.pause()
     return before
 
 
-def test_logging_window_with_progress(snap_compare, fake: FakeEngine) -> None:
-    assert snap_compare(make_app(fake), terminal_size=(80, 24), press=["l"],
-                        run_before=_logging_at_45_percent(fake))
+def test_logging_window_with_progress(snap_compare, engine: Recording) -> None:
+    assert snap_compare(make_app(engine), terminal_size=(80, 24), press=["l"],
+                        run_before=_logging_at_45_percent(engine))
 
 
-def test_exit_confirmation_with_unsaved_log(snap_compare, fake: FakeEngine) -> None:
-    assert snap_compare(make_app(fake), terminal_size=(80, 24), press=["q"],
-                        run_before=_logging_at_45_percent(fake))
+def test_exit_confirmation_with_unsaved_log(snap_compare, engine: Recording) -> None:
+    assert snap_compare(make_app(engine), terminal_size=(80, 24), press=["q"],
+                        run_before=_logging_at_45_percent(engine))

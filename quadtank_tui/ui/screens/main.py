@@ -205,7 +205,7 @@ class MainScreen(Screen[None]):
         snap = self.snap
         if action == "active" and not snap.active_available:
             return None
-        if action == "speed" and (snap.operation != "Simul" or snap.realtime):
+        if action == "speed" and (snap.operation != "Simul" or snap.realtime or snap.speed == float("inf")):
             return None
         if action == "element" and parameters and not element_used(snap.params, int(parameters[0])):  # type: ignore[call-overload]
             return None

@@ -58,7 +58,7 @@ class StatusLine(Widget):
     def numbers(self, s: Snapshot) -> str:
         parts = [f"t {s.t:7.1f} s", f"Ts {s.params.tsamp:g} s"]
         if s.operation == "Simul" and not s.realtime:
-            parts.append(f"speed x{s.speed:g}")
+            parts.append("speed max" if s.speed == float("inf") else f"speed x{s.speed:g}")
         parts.append(f"overruns {s.stats.overruns}")
         if s.state == "Run" and self.age > max(1.0, 3 * s.params.tsamp):
             parts.append(f"last sample {self.age:.1f} s ago")

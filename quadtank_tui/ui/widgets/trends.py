@@ -47,8 +47,10 @@ class Trend(PlotextPlot):
     def _title(self) -> None:
         key = "g" if self.which == "upper" else "G"
         scale = "auto" if self.autoscale else "0..1"
-        self.border_title = f"{self.plot_type}"
-        self.border_subtitle = f"t [s] · {key} type · z {self.window / 60:g} min · Z {scale}"
+        # The legend is the title, in the curves' colours: plotext's own legend
+        # sits on the left of the plot, where a strip chart's data starts.
+        self.border_title = " ".join(f"[{COLORS[n]}]{n}[/]" for n in self.plot_type.split())
+        self.border_subtitle = f"t in s · {key} type · z {self.window / 60:g} min · Z {scale}"
 
     def watch_plot_type(self) -> None:
         self._title()
@@ -72,7 +74,7 @@ class Trend(PlotextPlot):
         if len(t):
             pick = decimate(len(t), max(1, self.size.width))
             for name in names:
-                plt.plot(t[pick].tolist(), history[name][pick].tolist(), label=name,
+                plt.plot(t[pick].tolist(), history[name][pick].tolist(),
                          color=COLORS[name], marker="braille")
         if self.autoscale and len(t):
             values = np.concatenate([history[n] for n in names])
