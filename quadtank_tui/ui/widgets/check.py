@@ -18,6 +18,16 @@ class Check(Checkbox):
         return "X" if self.value else " "
 
 
+class Switch(Check):
+    """A checkbox for an on/off parameter, its label saying which it is."""
+
+    def __init__(self, value: bool = False, **kwargs: object) -> None:
+        super().__init__("on" if value else "off", value, **kwargs)  # type: ignore[arg-type]
+
+    def on_checkbox_changed(self, event: Checkbox.Changed) -> None:
+        self.label = "on" if event.value else "off"
+
+
 class Radio(RadioButton):
     """A radio button: a dot when chosen, blank otherwise."""
 

@@ -68,7 +68,7 @@ class Trend(PlotextPlot):
         plt.clear_data()
         t = history["t"]
         t_end = float(t[-1]) if len(t) else 0.0
-        lo_t = max(0.0, t_end - self.window)
+        lo_t = float(max(0, math.floor(t_end - self.window)))  # whole seconds: round ticks
         plt.xlim(lo_t, max(lo_t + self.window, t_end))
         names = self.plot_type.split()
         if len(t):

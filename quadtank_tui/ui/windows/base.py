@@ -26,7 +26,7 @@ from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import Command, SetParams
 from quadtank_tui.ui.values import fmt, parse_number
-from quadtank_tui.ui.widgets.check import Check
+from quadtank_tui.ui.widgets.check import Switch
 
 T = TypeVar("T")
 
@@ -135,7 +135,7 @@ class ParamWindow(Window[Commands]):
                 yield Label(f.label, classes="label")
                 value = self.params.get(f.key)
                 if f.flag:
-                    yield Check("on", value=bool(value), id=f"f-{i}", compact=True)
+                    yield Switch(bool(value), id=f"f-{i}", compact=True)
                 else:
                     yield Input(fmt(value), id=f"f-{i}", compact=True, select_on_focus=True)
                 yield Label(f.unit, classes="unit")
