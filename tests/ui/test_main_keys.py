@@ -45,6 +45,19 @@ async def test_window_cancel_keeps_and_set_applies(engine: Recording) -> None:
         assert "K 5.5" in str(cell.render())
 
 
+async def test_enter_sets_from_a_switch_and_type_keys_choose(engine: Recording) -> None:
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("1", "tab", "tab", "tab", "space", "enter")   # Integral off, Set
+        await pilot.pause()
+        assert app.screen is app.main
+        await pilot.press("t", "down", "down", "enter")                 # General decentralized
+        await pilot.pause()
+    assert engine.sent(c.SetParams) == [
+        c.SetParams({"CONTROLLER ONE.I": False}),
+        c.SetParams({"CONTROL.Type": "General", "CONTROL.Structure": "Decentralized"})]
+
+
 async def test_opener_key_closes_its_window(engine: Recording) -> None:
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:

@@ -45,7 +45,7 @@ async def test_sample_session_a4_by_keys(make_engine: Any) -> None:
         # 1. Manual control mode (Simul: no rig here).
         await pilot.press("m")
         # 2. Decentralized PID; PI (3.0, 30) upper left, (2.7, 40) lower right.
-        await pilot.press("t", "1", "enter")
+        await pilot.press("t", "1")
         await pilot.press("1", *typed("3.0"), "tab", *typed("30"), "enter")
         await pilot.press("4", *typed("2.7"), "tab", *typed("40"), "enter")
         # 3. Both inputs constant at 0.30, Run, wait for the steady state.

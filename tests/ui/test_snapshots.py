@@ -28,7 +28,7 @@ def test_main_at_startup_80x24(snap_compare, engine: Recording) -> None:
     [
         pytest.param(["t"], id="controller_type"),
         pytest.param(["1"], id="pid_element"),
-        pytest.param(["t", "3", "enter", "_", "4"], id="general_element"),
+        pytest.param(["t", "3", "_", "4"], id="general_element"),
         pytest.param(["i"], id="input_signal"),
         pytest.param(["h", "down", "0", "full_stop", "1"], id="tank_simul"),
         pytest.param(["v"], id="pump"),

@@ -6,13 +6,13 @@ from __future__ import annotations
 from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.widgets import Button, Input, Label, RadioSet
+from textual.widgets import Button, Input, Label, OptionList
+from textual.widgets.option_list import Option
 
 from quadtank_tui.core.general import MAX_DEGREE
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Family, Parameters, Structure
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import ResetControllers, SetParams
-from quadtank_tui.ui.widgets.check import Radio
 from quadtank_tui.ui.windows.base import Commands, Field, ParamWindow, Window
 
 #: Element index 0..3 -> its name in the matrix (row = input i, column = error j).
@@ -33,7 +33,8 @@ def element_ij(index: int) -> tuple[int, int]:
 
 
 class ControllerTypeWindow(Window[Commands]):
-    """Choose one of the four structures; Set sends CONTROL.Type and .Structure.
+    """Choose one of the four structures (up/down or 1-4, Enter); Set sends
+    CONTROL.Type and CONTROL.Structure.
 
     The engine keeps the controllers' states only between the two structures of
     one family (M5); the window says so, since the choice resets them otherwise.
@@ -43,20 +44,21 @@ class ControllerTypeWindow(Window[Commands]):
 
     def __init__(self, params: Parameters, defaults: Parameters, *, opener: str | None = None) -> None:
         super().__init__("Controller type", opener=opener)
-        self.params, self.defaults = params, defaults
+        self.current = self._index(params)
+        self.default = self._index(defaults)
 
-    def _current(self, p: Parameters) -> int:
+    @staticmethod
+    def _index(p: Parameters) -> int:
         return next(n for n, (f, s, _) in enumerate(TYPES)
                     if f is p.control.family and s is p.control.structure)
 
     def compose_body(self) -> ComposeResult:
-        current = self._current(self.params)
-        default = self._current(self.defaults)
-        with RadioSet(id="types"):
-            for n, (_, _, label) in enumerate(TYPES):
-                button = Radio(f"{n + 1}  {label}", value=n == current, id=f"type-{n}")
-                button.set_class(n != default, "-modified")
-                yield button
+        options = []
+        for n, (_, _, label) in enumerate(TYPES):
+            note = "  (in force)" if n == self.current else ""
+            note += "  (default)" if n == self.default else ""
+            options.append(Option(f"{n + 1}  {label}{note}", id=f"type-{n}"))
+        yield OptionList(*options, id="types")
         yield Label("States are kept only between the two structures of one family.",
                     classes="hint")
 
@@ -65,27 +67,26 @@ class ControllerTypeWindow(Window[Commands]):
         yield Button("Default", id="default")
         yield Button("Cancel", id="cancel")
 
-    def chosen(self) -> int:
-        return self.query_one(RadioSet).pressed_index
+    def on_mount(self) -> None:
+        types = self.query_one(OptionList)
+        types.highlighted = self.current
+        types.focus()
 
     def action_choose(self, n: int) -> None:
-        self.query_one(f"#type-{n}", Radio).value = True
+        family, structure, _ = TYPES[n]
+        self.dismiss(() if n == self.current else (
+            SetParams({"CONTROL.Type": family.value, "CONTROL.Structure": structure.value}),))
 
     def action_set(self) -> None:
-        family, structure, _ = TYPES[self.chosen()]
-        if family is self.params.control.family and structure is self.params.control.structure:
-            self.dismiss(())
-            return
-        self.dismiss((SetParams({"CONTROL.Type": family.value, "CONTROL.Structure": structure.value}),))
+        highlighted = self.query_one(OptionList).highlighted
+        self.action_choose(self.current if highlighted is None else highlighted)
 
     def action_default(self) -> None:
-        self.action_choose(self._current(self.defaults))
+        self.query_one(OptionList).highlighted = self.default
 
-    def on_mount(self) -> None:
-        self.query_one(RadioSet).focus()
-
-    def key_enter(self) -> None:
-        self.action_set()
+    @on(OptionList.OptionSelected)
+    def _selected(self, event: OptionList.OptionSelected) -> None:
+        self.action_choose(event.option_index)
 
 
 class PIDWindow(ParamWindow):
