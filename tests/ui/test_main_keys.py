@@ -231,3 +231,21 @@ async def test_speed_keys_double_and_halve_in_virtual_simul(make_engine, engine:
         await pilot.press("plus", "minus")
         await pilot.pause()
     assert engine.sent(c.SetSpeed) == [c.SetSpeed(2.0), c.SetSpeed(1.0)]
+
+
+async def test_modified_values_are_marked_and_default_restores(engine: Recording) -> None:
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("1", "ctrl+a", "ctrl+k", *"5.5", "enter")
+        await pilot.pause()
+        await pilot.press("1")
+        window = app.screen
+        assert isinstance(window, PIDWindow)
+        assert window.query_one("#row-0").has_class("-modified")       # K
+        assert not window.query_one("#row-1").has_class("-modified")   # Ti
+        await pilot.press("ctrl+r")
+        assert window.field_widget("CONTROLLER ONE.K").value == "3"
+        assert not window.query_one("#row-0").has_class("-modified")
+        await pilot.press("enter")
+        await pilot.pause()
+    assert engine.snapshot().params.get("CONTROLLER ONE.K") == 3.0
