@@ -42,6 +42,8 @@ from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
 
 #: Below this width or height the layout packs tighter (80x24 terminals).
 COMPACT_WIDTH, COMPACT_HEIGHT = 110, 34
+#: Least wall time between two trend drawings on the timer, s (see _trends_due).
+TREND_MIN_INTERVAL = 0.2
 NO_DAQ = "Active needs a DAQ backend: start with quadtank --daq ..."
 
 
@@ -95,6 +97,7 @@ class MainScreen(Screen[None]):
         self.defaults = engine.defaults()
         self.snap: Snapshot = engine.snapshot()
         self._drawn_view: tuple[object, ...] = ()
+        self._drawn_t, self._drawn_k, self._drawn_at = 0.0, -1, 0.0
         self.window_index = 1  # 5 min
         self.autoscale = True
 
@@ -113,7 +116,7 @@ class MainScreen(Screen[None]):
 
     def on_mount(self) -> None:
         self.refresh_view()
-        self.set_interval(self.refresh_interval, self.refresh_view)
+        self.set_interval(self.refresh_interval, self._tick)
 
     def on_resize(self) -> None:
         self.set_class(self.size.width < COMPACT_WIDTH or self.size.height < COMPACT_HEIGHT, "-compact")
@@ -126,15 +129,16 @@ class MainScreen(Screen[None]):
         self.refresh_view()
         return self.snap
 
-    def refresh_view(self) -> None:
-        """Show the latest snapshot; redraw the trends only when something new came
-        (a sample, added water, a setting) or the view changed (plot type, window,
-        autoscale, size): a paused process costs nothing over SSH."""
+    def _tick(self) -> None:
+        self.refresh_view(timer=True)
+
+    def refresh_view(self, *, timer: bool = False) -> None:
+        """Show the latest snapshot (status, controller box, image, inputs), and the
+        trends when that shows something (see `_trends_due`)."""
         snap = self.engine.snapshot()
         status = self.query_one(StatusLine)
         status.age = max(0.0, self.wall_clock() - snap.stats.last_sample_wall)
         window = WINDOWS[self.window_index]
-        view = (window, self.autoscale, self.size)
         changed = snap != self.snap or status.snapshot is None
         if changed:
             previous, self.snap = self.snap, snap
@@ -145,8 +149,10 @@ class MainScreen(Screen[None]):
                 panel.snapshot = snap
             if snap.params.control != previous.params.control:
                 self.refresh_bindings()
-        if changed or view != self._drawn_view:
-            self._drawn_view = view
+        view = (window, self.autoscale, self.size, snap.params.plots, snap.state, snap.control)
+        if self._trends_due(snap, view, timer):
+            self._drawn_view, self._drawn_t, self._drawn_k = view, snap.t, snap.k
+            self._drawn_at = time.monotonic()
             history = self.engine.history(window)
             for trend, plot_type in ((self.query_one("#upper", Trend), snap.params.plots.upper),
                                      (self.query_one("#lower", Trend), snap.params.plots.lower)):
@@ -158,6 +164,26 @@ class MainScreen(Screen[None]):
                 live.snapshot = snap
             except NoMatches:  # the window is being taken down
                 pass
+
+    def _trends_due(self, snap: Snapshot, view: tuple[object, ...], timer: bool) -> bool:
+        """Whether to redraw the trends now.
+
+        Drawing a trend costs plotext tens of milliseconds, so on the timer they are
+        drawn only when the curves moved by at least one braille dot of the time
+        axis, and at most every TREND_MIN_INTERVAL of wall time; otherwise the
+        redraws would take the CPU the control loop needs (seen in a terminal as
+        overruns at speed x8).  A changed view, a stop, or an explicit refresh draws
+        at once.
+        """
+        if not timer or view != self._drawn_view:
+            return True
+        if snap.k == self._drawn_k:
+            return False
+        if snap.state != "Run":
+            return True
+        dot = WINDOWS[self.window_index] / max(1, 2 * self.query_one("#upper", Trend).size.width)
+        return (abs(snap.t - self._drawn_t) >= dot
+                and time.monotonic() - self._drawn_at >= TREND_MIN_INTERVAL)
 
     # --- commands to the engine ------------------------------------------------------
 

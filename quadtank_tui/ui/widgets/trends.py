@@ -26,9 +26,11 @@ COLORS = {"y1": "blue", "y2": "red", "y3": "green", "y4": "orange",
 
 
 def decimate(n: int, columns: int) -> slice:
-    """A stride that keeps at most about 4 points per column (braille resolution
-    is 2 per cell; more only costs time) and always ends on the newest sample."""
-    step = max(1, math.ceil(n / max(1, 4 * columns)))
+    """A stride that keeps about one point per column and always ends on the
+    newest sample.  plotext joins the points at braille resolution anyway, and its
+    drawing time grows with the points (measured: 4 curves of 460 points 35 ms,
+    of 115 points about 12 ms)."""
+    step = max(1, math.ceil(n / max(1, columns)))
     return slice((n - 1) % step, None, step)
 
 
