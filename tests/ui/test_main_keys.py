@@ -17,6 +17,7 @@ from quadtank_tui.ui.widgets.trends import Trend
 from quadtank_tui.ui.windows.base import ConfirmWindow
 from quadtank_tui.ui.windows.controller import PIDWindow
 from quadtank_tui.ui.windows.process import TankWindow
+from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
 
 
 async def test_mode_keys_send_mode_commands(engine: Recording) -> None:
@@ -249,3 +250,29 @@ async def test_modified_values_are_marked_and_default_restores(engine: Recording
         await pilot.press("enter")
         await pilot.pause()
     assert engine.snapshot().params.get("CONTROLLER ONE.K") == 3.0
+
+
+async def test_mouse_on_modes_trend_and_input_panel(engine: Recording) -> None:
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        status = app.main.query_one("#status")
+        line = str(status.render()).splitlines()[0]
+        await pilot.click("#status", offset=(line.index("Run") + 1, 0))
+        await pilot.pause()
+        await pilot.click("#lower")
+        assert isinstance(app.screen, PlotTypeWindow) and app.screen.key == "PLOTS.Lower"
+        await pilot.press("escape")
+        await pilot.click("#channel-2")
+        assert isinstance(app.screen, InputSignalWindow)
+        await pilot.press("escape")
+    assert engine.commands == [c.SetState("Run")]
+
+
+async def test_logging_window_warns_when_the_file_exists(engine: Recording) -> None:
+    (engine.loop.logs_dir / "data.log").write_text("% an earlier log\n")
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("l")
+        assert "exists" in str(app.screen.query_one("#file-error").render())
+        await pilot.press("tab", "ctrl+a", "ctrl+k", *"fresh")
+        assert str(app.screen.query_one("#file-error").render()).strip() == ""

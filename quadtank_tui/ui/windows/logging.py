@@ -96,6 +96,7 @@ class LoggingWindow(Window[Commands]):
 
     def on_mount(self) -> None:
         self._mark_all()
+        self._warn_if_exists()
         self.watch_snapshot(self.snapshot)
 
     # --- the live part ------------------------------------------------------------
@@ -156,6 +157,12 @@ class LoggingWindow(Window[Commands]):
         for wid in ("#points-error", "#file-error", "#vars-error"):
             self.query_one(wid, Static).update("")
         self._mark_all()
+        self._warn_if_exists()
+
+    def _warn_if_exists(self) -> None:
+        name = self.query_one("#file", Input).value.strip()
+        if name and self.log_exists(name):
+            self.query_one("#file-error", Static).update("exists: Save asks before overwriting")
 
     # --- actions --------------------------------------------------------------------
 
