@@ -12,14 +12,22 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 from quadtank_tui.core.analysis import analyze, format_report
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
+from quadtank_tui.daq.cli import (
+    add_daq_option, add_daq_parser, add_rig_parser, open_daq, run_clock,
+)
 from quadtank_tui.files.export import FORMATS, export_log
 from quadtank_tui.files.log import format_tsamp, read_log
 from quadtank_tui.files.par import read_par
 from quadtank_tui.files.script import read_script
+
+
+if TYPE_CHECKING:  # the TUI's modules load only when it starts
+    from quadtank_tui.engine.runner import Engine
+    from quadtank_tui.ui.app import QuadTankApp
 
 
 class UsageError(Exception):
@@ -139,6 +147,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--realtime", action="store_true", help="keep the sampling time in wall time")
     pace.add_argument("--speed", metavar="X", type=float, help="virtual time at X times real time (1..1000)")
+    add_daq_option(p)
     p.set_defaults(handler=_cmd_run)
 
 
@@ -153,9 +162,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.seed is not None and args.seed < 0:
         raise UsageError(f"--seed must be >= 0, got {args.seed}")
     script = read_script(args.script) if args.script else None
-    clock = "realtime" if args.realtime else ("virtual" if args.speed is not None else "manual")
+    clock, daq = run_clock(realtime=args.realtime, speed=args.speed,
+                           config=args.daq or getattr(args, "daq_global", None))
     result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
-                          seed=args.seed, clock=clock, speed=args.speed)
+                          seed=args.seed, clock=clock, speed=args.speed, daq=daq)
     _warn(result.warnings)
     print(result.text)
     return result.status
@@ -167,45 +177,42 @@ def _warn(warnings: Sequence[str]) -> None:
 
 
 def _add_tui_options(parser: argparse.ArgumentParser) -> None:
-    """Options of the TUI, which starts when no subcommand is given."""
+    """Options of the TUI, which starts when no COMMAND is given.  Their own dests
+    keep them apart from `run`'s options of the same names."""
     tui = parser.add_argument_group("the TUI (no COMMAND)")
-    tui.add_argument("--par", metavar="FILE", help="parameters: a .par file or a name in params/ "
+    tui.add_argument("--par", metavar="FILE", dest="tui_par",
+                     help="parameters: a .par file or a name in params/ "
                      "(default: params/default.par, else the built-in values)")
-    tui.add_argument("--daq", metavar="CONFIG", help="a DAQ configuration: offers Active mode on the rig")
-    tui.add_argument("--speed", metavar="X", type=float, default=1.0,
+    add_daq_option(tui, dest="daq_global")  # type: ignore[arg-type]
+    tui.add_argument("--speed", metavar="X", type=float, default=1.0, dest="tui_speed",
                      help="simulated seconds per wall second at start (1..1000; keys + and - change it)")
     tui.add_argument("--refresh", metavar="SECONDS", type=float, default=0.05,
                      help="screen refresh interval (default 0.05; raise it on a slow link)")
 
 
-def _daq_backend(config: str) -> object:
-    """The DAQ backend a configuration describes (the Modbus TCP backend)."""
-    try:
-        from quadtank_tui.daq.config import load_daq_config
-        from quadtank_tui.daq.modbus import ModbusBackend
-    except ImportError:
-        raise UsageError("--daq: this installation has no DAQ backend") from None
-    return ModbusBackend(load_daq_config(config))
-
-
-def _cmd_tui(args: argparse.Namespace) -> int:
-    # Imported here: the other subcommands need neither Textual nor the engine.
+def build_tui(args: argparse.Namespace) -> tuple[Engine, QuadTankApp]:
+    """The engine (not started) and the app the TUI runs, from the options.  A rig
+    (--daq) keeps wall time; the simulator runs on a virtual clock so a student
+    can speed it up."""
     from quadtank_tui.engine.runner import build_engine
     from quadtank_tui.ui.app import build_app
 
-    if not 1.0 <= args.speed <= 1000.0:
-        raise UsageError(f"--speed must be 1..1000, got {args.speed:g}")
+    if not 1.0 <= args.tui_speed <= 1000.0:
+        raise UsageError(f"--speed must be 1..1000, got {args.tui_speed:g}")
     if not 0.01 <= args.refresh <= 5.0:
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
-    daq = _daq_backend(args.daq) if args.daq else None
-    # The rig keeps wall time; the simulator runs on a virtual clock so a student
-    # can speed it up.
+    daq = open_daq(args.daq_global)
     clock = "realtime" if daq is not None else "virtual"
-    engine = build_engine(args.par, daq=daq, clock=clock, speed=args.speed)  # type: ignore[arg-type]
+    engine = build_engine(args.tui_par, daq=daq, clock=clock, speed=args.tui_speed)
+    return engine, build_app(engine, refresh_interval=args.refresh)
+
+
+def _cmd_tui(args: argparse.Namespace) -> int:
+    engine, app = build_tui(args)
     _warn(engine.warnings)
     engine.start()
     try:
-        build_app(engine, refresh_interval=args.refresh).run()
+        app.run()
     finally:
         engine.stop()  # stops the loop, pumps to 0
     return 0
@@ -222,6 +229,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_analyze(sub)
     _add_log(sub)
     _add_run(sub)
+    add_rig_parser(sub)
+    add_daq_parser(sub)
     return parser
 
 

@@ -13,7 +13,8 @@ from pathlib import Path
 
 from quadtank_tui.core.parameters import POINTS_MAX, ControlMode, check_file_name
 from quadtank_tui.core.validation import ParameterError
-from quadtank_tui.engine.commands import LogOn, LogSave, SetParams, SetState
+from quadtank_tui.engine.backend import ProcessBackend
+from quadtank_tui.engine.commands import LogOn, LogSave, SetOperation, SetParams, SetState
 from quadtank_tui.engine.experiment import format_summary, run_experiment, summarize
 from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.runner import ClockKind, build_engine, load_parameters, virtual_epoch
@@ -43,10 +44,13 @@ def run_headless(
     clock: ClockKind = "manual",
     speed: float | None = None,
     params_dir: Path = Path("params"),
+    daq: ProcessBackend | None = None,
 ) -> HeadlessResult:
     """Run and save `out`.  Without a script the run logs from the start, for the
     whole duration, in Run.  A `.par` in Automatic starts in Automatic with its
-    references (controllers at rest)."""
+    references (controllers at rest).  With `daq` the run is in Active on that
+    process (the clock must then be paced: real time, or the rig's speed factor);
+    a link fault pauses it and the status is 1."""
     name = out.name if out.name.endswith(".log") else out.name + ".log"
     try:
         check_file_name(name[: -len(".log")], "--log")
@@ -58,11 +62,13 @@ def run_headless(
     capacity = min(MAX_HISTORY, max(DEFAULT_CAPACITY, math.ceil(duration / params.tsamp) + 2))
     engine = build_engine(par, clock=clock, speed=speed, seed=seed, params_dir=params_dir,
                           logs_dir=out.parent, threaded=False, history_capacity=capacity,
-                          epoch=virtual_epoch())
+                          epoch=virtual_epoch(), daq=daq)
     warnings = engine.warnings
     try:
         # The partial file of an interrupted run sits next to OUT, named after it.
         _must(engine.submit(SetParams({"LOGGING.LogFile": name[: -len(".log")]})).result())
+        if daq is not None:
+            _must(engine.submit(SetOperation("Active")).result())
         if params.control.mode is ControlMode.AUTOMATIC:
             engine.loop.set_initial_mode(ControlMode.AUTOMATIC)
         if script is None or not any(e.action == "log" for e in script.events):
@@ -78,7 +84,8 @@ def run_headless(
             text = format_summary(summary) + f"\nno log written: {saved.message}"
             return HeadlessResult(1, text, warnings, None)
         rows = engine.snapshot().log.rows
-        return HeadlessResult(0, format_summary(summary) + f"\nlog        {out} ({rows} rows)", warnings, out)
+        status = 1 if daq is not None and summary.fault else 0
+        return HeadlessResult(status, format_summary(summary) + f"\nlog        {out} ({rows} rows)", warnings, out)
     finally:
         engine.stop()
 

@@ -1,0 +1,205 @@
+"""`quadtank rig`, `quadtank daq` and `--daq`: parsers and commands kept out of
+cli.py's way.
+
+cli.py adds the subcommands with `add_rig_parser` / `add_daq_parser` and the
+option with `add_daq_option`; everything about them lives here next to the DAQ.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import ipaddress
+import sys
+from typing import TYPE_CHECKING, Literal
+
+from quadtank_tui.core.calibration import fit_sensor
+from quadtank_tui.core.parameters import PRESET
+from quadtank_tui.daq.config import PRESETS, load_daq_config
+from quadtank_tui.daq.rig import SensorModel, VirtualRig, serve_rig
+from quadtank_tui.engine.backend import BackendError
+
+if TYPE_CHECKING:  # pymodbus is imported only when a DAQ is used
+    from quadtank_tui.daq.modbus import ModbusBackend
+
+
+def add_rig_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "rig",
+        help="serve the simulated process over Modbus TCP (a virtual rig for Active mode)",
+        description="A Modbus TCP server whose input registers are the simulated level-sensor "
+        "voltages and whose output registers drive the simulated pumps, in real time times "
+        "--speed.  Point `quadtank --daq params/virtual-rig.yaml` at it.",
+    )
+    p.add_argument("--par", metavar="FILE", help="a .par file: its SIMULATION section gives the "
+                   "plant and the starting levels (default: the built-in preset, P-)")
+    p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1, loopback only)")
+    p.add_argument("--port", type=int, default=5020, help="TCP port (default 5020; 0 picks a free one)")
+    p.add_argument("--map", default="labjack", metavar="NAME|FILE",
+                   help=f"register map and wiring: a preset ({', '.join(PRESETS)}) or a DAQ "
+                   "configuration file (default labjack)")
+    p.add_argument("--speed", type=float, default=1.0, help="process seconds per wall second (default 1)")
+    p.add_argument("--noise", type=float, default=0.0, metavar="SIGMA",
+                   help="sensor noise, standard deviation in volts (default 0)")
+    p.add_argument("--offset", type=float, default=0.0, metavar="V", help="sensor zero offset, volts")
+    p.add_argument("--lsb", type=float, default=0.0, metavar="V",
+                   help="sensor quantization step, volts (default 0: none)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
+    p.add_argument("--watchdog", type=float, default=15.0, metavar="S",
+                   help="pumps to 0 when no write comes for S wall seconds; keep it longer than "
+                   "the sampling time (default 15, above the longest TSamp of 10 s; 0: off)")
+    p.add_argument("--reply-delay", type=float, default=0.0, metavar="S",
+                   help="answer every request S seconds late (to try a slow link)")
+    p.add_argument("--status", type=float, default=0.0, metavar="S",
+                   help="print the levels and pumps every S seconds (default 0: never)")
+    p.set_defaults(handler=cmd_rig)
+
+
+def cmd_rig(args: argparse.Namespace) -> int:
+    from quadtank_tui.files.par import read_par  # files layer, only when a .par is given
+
+    if args.par is not None:
+        read = read_par(args.par)
+        for w in read.warnings:
+            print(f"quadtank: warning: {w}", file=sys.stderr)
+        params = read.params
+    else:
+        params = PRESET
+    config = load_daq_config(args.map)
+    for name in ("speed",):
+        if not getattr(args, name) > 0:
+            raise ValueError(f"--{name} must be > 0, got {getattr(args, name)}")
+    for name in ("noise", "lsb", "watchdog", "reply_delay", "status"):
+        if getattr(args, name) < 0:
+            raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
+    if not 0 <= args.port <= 65535:
+        raise ValueError(f"--port must be in 0..65535, got {args.port}")
+    if not _is_loopback(args.host):
+        print(f"quadtank rig: warning: binding {args.host}: the rig is reachable from the network",
+              file=sys.stderr)
+    rig = VirtualRig(
+        config, params.plant(), params.operating_levels(),
+        speed=args.speed, watchdog=args.watchdog,
+        sensors=SensorModel(noise=args.noise, offset=args.offset, lsb=args.lsb, seed=args.seed),
+        report=lambda text: print(f"quadtank rig: {text}", flush=True),
+    )
+    asyncio.run(serve_rig(rig, args.host, args.port, reply_delay=args.reply_delay, status_every=args.status))
+    return 0
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+# --- quadtank daq check | fit: bringing up a real rig ------------------------------------
+
+def add_daq_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("daq", help="check a DAQ link, fit a sensor calibration",
+                       description="Bring up a rig: read its sensors once through a DAQ "
+                       "configuration (nothing is written), or fit a level sensor's gain and "
+                       "offset from steady-state pairs (Desautel 2.3).")
+    daqsub = p.add_subparsers(dest="daq_command", metavar="ACTION", required=True)
+    check = daqsub.add_parser("check", help="read the four sensors once; writes nothing")
+    check.add_argument("config", metavar="CONFIG", help="a DAQ configuration file or preset name")
+    check.set_defaults(handler=cmd_daq_check)
+    fit = daqsub.add_parser("fit", help="least-squares gain and offset from VOLTS:CM pairs")
+    fit.add_argument("pairs", metavar="VOLTS:CM", nargs="+",
+                     help="a steady-state sensor voltage and the level read off the scale, e.g. 1.34:7.5")
+    fit.add_argument("--tank", type=int, choices=(1, 2, 3, 4), default=1,
+                     help="the tank, for the configuration line printed (default 1)")
+    fit.set_defaults(handler=cmd_daq_fit)
+
+
+def cmd_daq_check(args: argparse.Namespace) -> int:
+    """Read-only on purpose: checking a link must never move a pump."""
+    from quadtank_tui.daq.modbus import ModbusBackend
+
+    config = load_daq_config(args.config)
+    backend = ModbusBackend(config)
+    try:
+        volts = backend.read_raw_volts()
+        y = backend.read_levels()
+    except BackendError as exc:
+        print(f"quadtank: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        backend.close()
+    print(f"{backend.description}  (device id {config.device_id}, timeout {config.timeout:g} s)")
+    for i in range(4):
+        ch = config.channels[f"tank{i + 1}"]
+        level = config.sensors[i].level(volts[i])
+        print(f"tank {i + 1}  {ch:>6}  {volts[i]:8.4f} V  {level:7.2f} cm  y = {y[i]:.4f}")
+    for alarm in backend.alarms:
+        print(alarm)
+    return 0
+
+
+def cmd_daq_fit(args: argparse.Namespace) -> int:
+    volts, levels = [], []
+    for pair in args.pairs:
+        v, sep, h = pair.partition(":")
+        try:
+            volts.append(float(v))
+            levels.append(float(h))
+        except ValueError:
+            raise ValueError(f"{pair!r}: expected VOLTS:CM, e.g. 1.34:7.5") from None
+        if not sep:
+            raise ValueError(f"{pair!r}: expected VOLTS:CM, e.g. 1.34:7.5")
+    cal = fit_sensor(volts, levels)
+    print(f"gain {cal.gain:.4f} cm/V  offset {cal.offset:.4f} cm  rms residual {cal.rms:.3f} cm")
+    print(f"  tank{args.tank}: {{gain: {cal.gain:.4f}, offset: {cal.offset:.4f}}}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`python -m quadtank_tui.daq rig ...`: the rig alone, without loading the
+    analysis stack the full `quadtank` command imports (a second or more at start-up,
+    which matters on a small lab computer and in the tests that start many rigs)."""
+    parser = argparse.ArgumentParser(prog="python -m quadtank_tui.daq")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    add_rig_parser(sub)
+    args = parser.parse_args(argv)
+    try:
+        return int(args.handler(args))
+    except (OSError, ValueError) as exc:
+        print(f"quadtank: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+# --- --daq for `quadtank` and `quadtank run` ------------------------------------------------
+
+DAQ_HELP = ("Active mode through a DAQ: a DAQ configuration file (params/daq-labjack.yaml, "
+            "params/virtual-rig.yaml) or a preset name (labjack)")
+
+
+def add_daq_option(parser: argparse.ArgumentParser, *, dest: str = "daq") -> None:
+    parser.add_argument("--daq", metavar="CONFIG", dest=dest, help=DAQ_HELP)
+
+
+def open_daq(config: str | None) -> ModbusBackend | None:
+    """The Modbus backend a `--daq CONFIG` asks for (None without one).  The file is
+    read and checked now, so a bad one stops the program before anything runs; the
+    link is opened on the first sample."""
+    if config is None:
+        return None
+    from quadtank_tui.daq.modbus import ModbusBackend  # pymodbus only when asked for
+
+    return ModbusBackend(load_daq_config(config))
+
+
+def run_clock(*, realtime: bool, speed: float | None,
+              config: str | None) -> tuple[Literal["realtime", "virtual", "manual"], ModbusBackend | None]:
+    """The clock and the DAQ backend of `quadtank [--daq C] run [--daq C]`.  A real
+    process is never run unpaced: with a DAQ the run is real time, unless --speed
+    gives the virtual rig's speed factor."""
+    daq = open_daq(config)
+    if realtime or (daq is not None and speed is None):
+        return "realtime", daq
+    return ("virtual" if speed is not None else "manual"), daq

@@ -1,0 +1,349 @@
+"""The DAQ configuration: how the program reaches the rig's converter over Modbus TCP.
+
+One YAML file (examples: `params/daq-labjack.yaml`, `params/virtual-rig.yaml`) says
+
+- the link: `host`, `port`, `device_id`, `timeout` (s per request; one retry);
+- the register map: four analog inputs and two outputs by name, each an address in
+  the input or holding table, FLOAT32 (with word order) or a scaled 16-bit integer;
+- the channel map: which input carries which tank and which output drives which
+  pump (the original's Table 1, Nunes 1998 appendix A.2: in 0..3 = tanks 1..4,
+  out 0/1 = pumps 1/2);
+- the calibration: level (cm) = gain * volts + offset per tank (Desautel 2.3; fit
+  with `quadtank_tui.core.calibration.fit_sensor`) and the sensor gain kc (V/cm) the
+  normalized units assume; per pump, pump volts = gain * output volts + offset
+  (an amplifier between a 0-5 V DAC and a 0-10 V pump is gain 2);
+- output limits (volts the output may be written, the device's safe range);
+- the high-level interlock (fraction of the tank height, default 0.95).
+
+Every file starts from a preset (`preset: labjack`, the default; `preset: none` for
+a complete file of your own) and overrides keys.  Unknown keys, wrong types and
+out-of-range values are refused with the file, the line and the dotted key, so a
+typo never silently leaves a default in force.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import yaml
+
+from quadtank_tui.core.calibration import SensorCalibration
+from quadtank_tui.daq.registers import MAX_ADDRESS, TABLES, TYPES, WORD_ORDERS, Register
+
+TANKS = ("tank1", "tank2", "tank3", "tank4")
+PUMPS = ("pump1", "pump2")
+
+#: LabJack T-series (T4/T7/T8) Modbus map, zero-based, big-endian, one overlapping
+#: map served on function codes 3 and 4: AIN#(0:13) from address 0 and DAC#(0:1) from
+#: 1000, FLOAT32 (2 registers) each; DACs read/write, 0-5 V.  Wired as Table 1.
+LABJACK: dict[str, Any] = {
+    "host": "192.168.1.207",
+    "port": 502,
+    "device_id": 1,
+    "timeout": 0.5,
+    "inputs": {
+        f"AIN{i}": {"table": "input", "address": 2 * i, "type": "float32", "word_order": "big"}
+        for i in range(4)
+    },
+    "outputs": {
+        f"DAC{i}": {"table": "holding", "address": 1000 + 2 * i, "type": "float32",
+                    "word_order": "big", "limits": [0.0, 5.0]}
+        for i in range(2)
+    },
+    "channels": {"tank1": "AIN0", "tank2": "AIN1", "tank3": "AIN2", "tank4": "AIN3",
+                 "pump1": "DAC0", "pump2": "DAC1"},
+    "calibration": {
+        "sensor_gain": 0.5,
+        **{t: {"gain": 2.0, "offset": 0.0} for t in TANKS},
+        **{p: {"gain": 1.0, "offset": 0.0} for p in PUMPS},
+    },
+    "interlock": {"enabled": True, "limit": 0.95, "tank_height": 20.0},
+}
+
+PRESETS: dict[str, dict[str, Any]] = {"labjack": LABJACK}
+
+
+class DaqConfigError(ValueError):
+    """A DAQ configuration refused; the message names the file, line and key."""
+
+    def __init__(self, file: str, reason: str, *, key: str | None = None, line: int | None = None) -> None:
+        where = file if line is None else f"{file}:{line}"
+        what = f"{where}: {key}: {reason}" if key else f"{where}: {reason}"
+        super().__init__(what)
+        self.file, self.key, self.line, self.reason = file, key, line, reason
+
+
+@dataclass(frozen=True)
+class Output:
+    """An analog output: its register and the volts it may be written (lo, hi)."""
+
+    register: Register
+    limits: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class DaqConfig:
+    """A validated configuration; see the module docstring for the meaning."""
+
+    host: str
+    port: int
+    device_id: int
+    timeout: float
+    inputs: Mapping[str, Register]
+    outputs: Mapping[str, Output]
+    #: tank1..tank4 -> input name; pump1, pump2 -> output name
+    channels: Mapping[str, str]
+    #: per tank: level (cm) from volts
+    sensors: tuple[SensorCalibration, SensorCalibration, SensorCalibration, SensorCalibration]
+    #: per pump: pump volts from output volts
+    pumps: tuple[SensorCalibration, SensorCalibration]
+    #: kc (V/cm) of the normalized units: y = sensor_gain * level / 10
+    sensor_gain: float = 0.5
+    interlock_enabled: bool = True
+    interlock_limit: float = 0.95
+    tank_height: float = 20.0
+    source: str = field(default="<preset>", compare=False)
+
+    def tank_register(self, tank: int) -> Register:
+        """The input register of tank 1..4."""
+        return self.inputs[self.channels[TANKS[tank - 1]]]
+
+    def pump_output(self, pump: int) -> Output:
+        """The output of pump 1..2."""
+        return self.outputs[self.channels[PUMPS[pump - 1]]]
+
+
+# --- reading -------------------------------------------------------------------------
+
+def load_daq_config(path: Path | str) -> DaqConfig:
+    """Read and validate a DAQ configuration file, or a preset name (`labjack`)."""
+    text_path = str(path)
+    if text_path in PRESETS:
+        return parse_daq_config(yaml.safe_dump({"preset": text_path}), name=f"preset {text_path}")
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DaqConfigError(text_path, "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DaqConfigError(text_path, f"cannot read: {exc}") from None
+    return parse_daq_config(text, name=text_path)
+
+
+def parse_daq_config(text: str, *, name: str = "<daq config>") -> DaqConfig:
+    """Validate the YAML `text` (named `name` in errors) over its preset."""
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = None if mark is None else mark.line + 1
+        problem = getattr(exc, "problem", None) or getattr(exc, "reason", None) or str(exc)
+        problem = " ".join(str(problem).split())
+        raise DaqConfigError(name, f"not valid YAML: {problem}", line=line) from None
+    lines = _key_lines(node)
+    v = _Validator(name, lines)
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise DaqConfigError(name, "must be a mapping of keys (host: ..., port: ...)", line=1)
+    preset_name = data.get("preset", "labjack")
+    if preset_name in (None, "none"):
+        base: dict[str, Any] = {}
+    elif preset_name in PRESETS:
+        base = copy.deepcopy(PRESETS[preset_name])
+    else:
+        v.fail("preset", f"unknown preset {preset_name!r}; known: {', '.join([*PRESETS, 'none'])}")
+    merged = _merge(base, {k: val for k, val in data.items() if k != "preset"})
+    return v.config(merged)
+
+
+def _key_lines(node: yaml.Node | None, prefix: str = "") -> dict[str, int]:
+    """Dotted key -> 1-based line of that key in the file (yaml's marks)."""
+    out: dict[str, int] = {}
+    if isinstance(node, yaml.MappingNode):
+        for k, val in node.value:
+            key = f"{prefix}{k.value}" if isinstance(k, yaml.ScalarNode) else prefix.rstrip(".")
+            out[key] = k.start_mark.line + 1
+            out.update(_key_lines(val, key + "."))
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            key = f"{prefix}{i}"
+            out[key] = item.start_mark.line + 1
+            out.update(_key_lines(item, key + "."))
+    return out
+
+
+def _merge(base: dict[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    """`over` on top of `base`, mappings merged key by key (a map replaces a map's
+    keys, so `inputs: {AIN0: {address: 8}}` changes one address of the preset).
+    A whole register table given in the file replaces the preset's names only when
+    it names none of them (a PLC map with names of its own)."""
+    out = dict(base)
+    for k, val in over.items():
+        if isinstance(val, dict) and isinstance(out.get(k), dict):
+            if k in ("inputs", "outputs") and not set(val) & set(out[k]):
+                out[k] = val
+            else:
+                out[k] = _merge(out[k], val)
+        else:
+            out[k] = val
+    return out
+
+
+class _Validator:
+    """Turns the merged mapping into a DaqConfig, failing with file, line and key."""
+
+    def __init__(self, name: str, lines: Mapping[str, int]) -> None:
+        self.name = name
+        self.lines = lines
+
+    def fail(self, key: str, reason: str) -> Any:
+        line = self.lines.get(key)
+        probe = key
+        while line is None and "." in probe:
+            probe = probe.rsplit(".", 1)[0]
+            line = self.lines.get(probe)
+        raise DaqConfigError(self.name, reason, key=key, line=line)
+
+    def mapping(self, key: str, value: Any, allowed: tuple[str, ...] | None = None) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            self.fail(key, f"must be a mapping, got {_show(value)}")
+        for k in value:
+            if not isinstance(k, str):
+                self.fail(key, f"keys must be names, got {k!r}")
+            if allowed is not None and k not in allowed:
+                self.fail(f"{key}.{k}" if key else k, f"unknown key; expected one of {', '.join(allowed)}")
+        return value
+
+    def require(self, m: Mapping[str, Any], key: str, sub: str) -> Any:
+        if sub not in m:
+            self.fail(f"{key}.{sub}" if key else sub, "missing")
+        return m[sub]
+
+    def number(self, key: str, value: Any, lo: float | None = None, hi: float | None = None,
+               *, lo_open: bool = False) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            self.fail(key, f"must be a number, got {_show(value)}")
+        x = float(value)
+        if lo is not None and (x <= lo if lo_open else x < lo):
+            self.fail(key, f"must be {'>' if lo_open else '>='} {lo:g}, got {x:g}")
+        if hi is not None and x > hi:
+            self.fail(key, f"must be <= {hi:g}, got {x:g}")
+        return x
+
+    def integer(self, key: str, value: Any, lo: int, hi: int) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            self.fail(key, f"must be a whole number, got {_show(value)}")
+        if not lo <= value <= hi:
+            self.fail(key, f"must be in {lo}..{hi}, got {value}")
+        return int(value)
+
+    def choice(self, key: str, value: Any, options: tuple[str, ...]) -> str:
+        if value not in options:
+            self.fail(key, f"must be one of {', '.join(options)}, got {_show(value)}")
+        return str(value)
+
+    def register(self, key: str, value: Any, *, output: bool) -> tuple[Register, dict[str, Any]]:
+        allowed = ("table", "address", "type", "word_order", "scale") + (("limits",) if output else ())
+        m = self.mapping(key, value, allowed)
+        table = self.choice(f"{key}.table", m.get("table", "holding" if output else "input"), TABLES)
+        if output and table != "holding":
+            self.fail(f"{key}.table", "an output must be a holding register (inputs cannot be written)")
+        reg_type = self.choice(f"{key}.type", m.get("type", "float32"), TYPES)
+        address = self.integer(f"{key}.address", self.require(m, key, "address"), 0,
+                               MAX_ADDRESS - (1 if reg_type == "float32" else 0))
+        word_order = self.choice(f"{key}.word_order", m.get("word_order", "big"), WORD_ORDERS)
+        scale = 1.0
+        if reg_type != "float32":
+            scale = self.number(f"{key}.scale", self.require(m, key, "scale"), 0.0, lo_open=True)
+        return Register(table, address, reg_type, word_order, scale), m  # type: ignore[arg-type]
+
+    def limits(self, key: str, value: Any) -> tuple[float, float]:
+        if not isinstance(value, list) or len(value) != 2:
+            self.fail(key, f"must be [low, high] in volts, got {_show(value)}")
+        lo = self.number(f"{key}.0", value[0], -10.5, 10.5)
+        hi = self.number(f"{key}.1", value[1], -10.5, 10.5)
+        if not lo < hi:
+            self.fail(key, f"low ({lo:g}) must be below high ({hi:g})")
+        return (lo, hi)
+
+    def calibration(self, key: str, value: Any) -> SensorCalibration:
+        m = self.mapping(key, value, ("gain", "offset"))
+        gain = self.number(f"{key}.gain", self.require(m, key, "gain"))
+        if gain == 0.0:
+            self.fail(f"{key}.gain", "must not be 0")
+        offset = self.number(f"{key}.offset", m.get("offset", 0.0))
+        return SensorCalibration(gain=gain, offset=offset)
+
+    def config(self, d: dict[str, Any]) -> DaqConfig:
+        top = ("host", "port", "device_id", "timeout", "inputs", "outputs", "channels",
+               "calibration", "interlock")
+        self.mapping("", d, top)
+        host = self.require(d, "", "host")
+        if not isinstance(host, str) or not host.strip():
+            self.fail("host", f"must be a host name or address, got {_show(host)}")
+        port = self.integer("port", self.require(d, "", "port"), 1, 65535)
+        device_id = self.integer("device_id", d.get("device_id", 1), 0, 255)
+        timeout = self.number("timeout", d.get("timeout", 0.5), 0.0, 10.0, lo_open=True)
+        inputs = {n: self.register(f"inputs.{n}", r, output=False)[0]
+                  for n, r in self.mapping("inputs", self.require(d, "", "inputs")).items()}
+        outputs: dict[str, Output] = {}
+        for n, r in self.mapping("outputs", self.require(d, "", "outputs")).items():
+            reg, m = self.register(f"outputs.{n}", r, output=True)
+            outputs[n] = Output(reg, self.limits(f"outputs.{n}.limits", m.get("limits", [0.0, 10.0])))
+        channels = self._channels(self.mapping("channels", self.require(d, "", "channels"), TANKS + PUMPS),
+                                  inputs, outputs)
+        cal = self.mapping("calibration", d.get("calibration", {}), ("sensor_gain",) + TANKS + PUMPS)
+        sensor_gain = self.number("calibration.sensor_gain", cal.get("sensor_gain", 0.5), 0.0, 10.0, lo_open=True)
+        sensors = tuple(self.calibration(f"calibration.{t}", cal.get(t, {"gain": 1.0 / sensor_gain}))
+                        for t in TANKS)
+        pumps = tuple(self.calibration(f"calibration.{p}", cal.get(p, {"gain": 1.0})) for p in PUMPS)
+        lock = self.mapping("interlock", d.get("interlock", {}), ("enabled", "limit", "tank_height"))
+        enabled = lock.get("enabled", True)
+        if not isinstance(enabled, bool):
+            self.fail("interlock.enabled", f"must be true or false, got {_show(enabled)}")
+        limit = self.number("interlock.limit", lock.get("limit", 0.95), 0.0, 1.0, lo_open=True)
+        height = self.number("interlock.tank_height", lock.get("tank_height", 20.0), 0.0, 1000.0, lo_open=True)
+        self._no_overlap(inputs, outputs)
+        return DaqConfig(
+            host=host.strip(), port=port, device_id=device_id, timeout=timeout,
+            inputs=inputs, outputs=outputs, channels=channels,
+            sensors=sensors, pumps=pumps,  # type: ignore[arg-type]
+            sensor_gain=sensor_gain, interlock_enabled=enabled, interlock_limit=limit,
+            tank_height=height, source=self.name,
+        )
+
+    def _channels(self, m: Mapping[str, Any], inputs: Mapping[str, Register],
+                  outputs: Mapping[str, Output]) -> dict[str, str]:
+        out: dict[str, str] = {}
+        for names, table, kind in ((TANKS, inputs, "inputs"), (PUMPS, outputs, "outputs")):
+            seen: dict[str, str] = {}
+            for ch in names:
+                ref = self.require(m, "channels", ch)
+                if ref not in table:
+                    self.fail(f"channels.{ch}", f"{_show(ref)} is not one of the {kind} ({', '.join(table)})")
+                if ref in seen:
+                    self.fail(f"channels.{ch}", f"{ref} is already wired to {seen[ref]}")
+                seen[ref] = ch
+                out[ch] = ref
+        return out
+
+    def _no_overlap(self, inputs: Mapping[str, Register], outputs: Mapping[str, Output]) -> None:
+        """Two channels sharing a register is a typo that would read one tank twice."""
+        owner: dict[tuple[str, int], str] = {}
+        regs = [(f"inputs.{n}", r) for n, r in inputs.items()]
+        regs += [(f"outputs.{n}", o.register) for n, o in outputs.items()]
+        for key, reg in regs:
+            for a in reg.span:
+                if (reg.table, a) in owner:
+                    self.fail(f"{key}.address", f"{reg.table} register {a} is also used by {owner[reg.table, a]}")
+                owner[reg.table, a] = key
+
+
+def _show(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."

@@ -1,0 +1,60 @@
+"""The high-level interlock: cut the pump that feeds an overfull tank, and say so.
+
+Pump 1 feeds tanks 1 and 4 through valve 1, pump 2 feeds tanks 2 and 3 through
+valve 2 (Johansson's process; plant.py), so a tank above the limit cuts its own
+pump whatever the controller asks.  The trip holds until the level is back below
+the limit minus a hysteresis, so a level sitting on the limit does not make the
+pump chatter.  Pure logic: the DAQ backend feeds it each sample's levels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+#: Which pump (0-based) feeds each tank 1..4.
+FEEDER = (0, 1, 1, 0)
+#: The trip releases this far (fraction of the tank height) below the limit.
+HYSTERESIS = 0.02
+
+
+@dataclass
+class Interlock:
+    """Level limit per tank, in the same units as the levels it is given.
+
+    `limit` is the trip level (e.g. 0.95 of the height in normalized units);
+    `release` the level below which a tripped tank lets its pump run again.
+    """
+
+    limit: float
+    release: float
+    enabled: bool = True
+    tripped: set[int] = field(default_factory=set)
+
+    @classmethod
+    def for_height(cls, fraction: float, full_scale: float, *, enabled: bool = True) -> Interlock:
+        """Trip at `fraction` of `full_scale` (the tank height in the levels' units)."""
+        return cls(limit=fraction * full_scale, release=(fraction - HYSTERESIS) * full_scale, enabled=enabled)
+
+    def update(self, levels: tuple[float, float, float, float]) -> None:
+        """Trip tanks above the limit; release those back below `release`."""
+        if not self.enabled:
+            self.tripped.clear()
+            return
+        for i, y in enumerate(levels):
+            if y >= self.limit:
+                self.tripped.add(i)
+            elif y < self.release:
+                self.tripped.discard(i)
+
+    def cut(self, u: tuple[float, float]) -> tuple[float, float]:
+        """`u` with the pumps feeding a tripped tank set to 0."""
+        cut = {FEEDER[i] for i in self.tripped}
+        return (0.0 if 0 in cut else u[0], 0.0 if 1 in cut else u[1])
+
+    def alarms(self, full_scale: float) -> tuple[str, ...]:
+        """One line per tripped tank, e.g. "interlock: tank 1 above 95 % of its height, pump 1 cut"."""
+        pct = 100.0 * self.limit / full_scale
+        return tuple(
+            f"interlock: tank {i + 1} above {pct:.0f} % of its height, pump {FEEDER[i] + 1} cut"
+            for i in sorted(self.tripped)
+        )

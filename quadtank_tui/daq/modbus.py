@@ -1,0 +1,223 @@
+"""Active mode over Modbus TCP: a LabJack T-series, a PLC, or the virtual rig.
+
+Each sample the engine calls `read_levels` (one request for the four inputs when
+the map lets them be read together) and `write_pumps` (one request for both outputs
+likewise).  A request that fails or times out is tried once more; a second failure
+raises BackendError with the reason, and the engine pauses with the pumps commanded
+to 0.  Nothing here reconnects in the background or restarts a pump: the next
+request after a fault simply opens a new connection, so when the link is back the
+user's explicit Run works again.
+
+The sync pymodbus client is used from the engine's loop thread; the client's own
+retry loop is off (retries=0) so the worst case per request is bounded by
+2 x timeout and known.  Register values go through `registers.encode/decode`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Callable
+
+from pymodbus.client import ModbusTcpClient
+from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+
+from quadtank_tui.core.plant import FULL_SCALE_V
+from quadtank_tui.daq.config import DaqConfig, Output
+from quadtank_tui.daq.interlock import Interlock
+from quadtank_tui.daq.registers import Register, block, decode, encode
+from quadtank_tui.engine.backend import BackendError, Levels4, Pair, ProcessBackend
+
+# pymodbus logs link errors at ERROR level; with no handler of the application's,
+# Python's last-resort handler would print them over the TUI.  The reason reaches
+# the user through BackendError instead.
+logging.getLogger("pymodbus").addHandler(logging.NullHandler())
+
+#: Modbus exception codes a device answers with (Modbus Application Protocol 1.1b, 7).
+EXCEPTION_CODES = {
+    1: "illegal function", 2: "illegal data address", 3: "illegal data value",
+    4: "device failure", 5: "acknowledge", 6: "device busy", 10: "gateway path unavailable",
+    11: "gateway target failed to respond",
+}
+
+
+class ModbusBackend(ProcessBackend):
+    """The rig behind a Modbus TCP server, in the engine's normalized units.
+
+    y_i = kc * level_i / 10 with level_i = gain_i * volts_i + offset_i (cm) and kc the
+    configuration's `sensor_gain`; pump volts = 10 u_i, written as
+    (pump volts - offset) / gain clipped to the output's limits.
+    """
+
+    kind = "Active"
+
+    def __init__(self, config: DaqConfig) -> None:
+        self.config = config
+        self.description = f"modbus {config.host}:{config.port}"
+        # `timeout` bounds the connect and each answer; the client's own retries are
+        # off: this class retries once itself, so the worst case is known.
+        self._client = ModbusTcpClient(config.host, port=config.port, timeout=config.timeout, retries=0)
+        self._tanks = [config.tank_register(i) for i in range(1, 5)]
+        self._pumps: list[Output] = [config.pump_output(i) for i in (1, 2)]
+        #: normalized level of a full tank (the interlock's scale)
+        self.full_scale = config.sensor_gain * config.tank_height / FULL_SCALE_V
+        self.interlock = Interlock.for_height(
+            config.interlock_limit, self.full_scale, enabled=config.interlock_enabled,
+        )
+        #: the pump inputs last written, after the interlock (normalized)
+        self.applied: Pair = (0.0, 0.0)
+        #: why the last safe_state could not be confirmed ("" when it was)
+        self.safe_state_error = ""
+
+    @property
+    def alarms(self) -> tuple[str, ...]:
+        """What the interlock is doing now (the engine shows it in its snapshot)."""
+        return self.interlock.alarms(self.full_scale)
+
+    # --- ProcessBackend --------------------------------------------------------------
+
+    def read_levels(self) -> Levels4:
+        volts = self._read_volts(self._tanks, [self.config.channels[f"tank{i}"] for i in range(1, 5)])
+        kc = self.config.sensor_gain
+        y = tuple(kc * cal.level(v) / FULL_SCALE_V for cal, v in zip(self.config.sensors, volts))
+        levels: Levels4 = (y[0], y[1], y[2], y[3])
+        self.interlock.update(levels)
+        return levels
+
+    def write_pumps(self, u: Pair) -> None:
+        applied = self.interlock.cut(u)
+        self._write_volts([self._output_volts(i, applied[i]) for i in (0, 1)])
+        self.applied = applied
+
+    def safe_state(self) -> None:
+        """Each output to the value that stops its pump, separately (one bad output
+        must not keep the other pump running); each tried twice; never raises."""
+        errors: list[str] = []
+        for i in (0, 1):
+            try:
+                self._write_one(i, self._output_volts(i, 0.0))
+            except BackendError as exc:
+                errors.append(str(exc))
+            except Exception as exc:  # noqa: BLE001 - the contract: safe_state never raises
+                errors.append(f"{type(exc).__name__}: {exc}")
+        if not errors:
+            self.applied = (0.0, 0.0)
+        self.safe_state_error = "; ".join(errors)
+
+    def close(self) -> None:
+        try:
+            self._client.close()
+        except Exception:  # noqa: BLE001 - closing a dead socket must not hide the real fault
+            pass
+
+    # --- registers ---------------------------------------------------------------------
+
+    def read_raw_volts(self) -> tuple[float, float, float, float]:
+        """The four sensor voltages before calibration (for calibrating, B9)."""
+        v = self._read_volts(self._tanks, [self.config.channels[f"tank{i}"] for i in range(1, 5)])
+        return (v[0], v[1], v[2], v[3])
+
+    def _output_volts(self, pump: int, u: float) -> float:
+        cal = self.config.pumps[pump]
+        lo, hi = self._pumps[pump].limits
+        return min(hi, max(lo, cal.volts(FULL_SCALE_V * u)))
+
+    def _read_volts(self, regs: list[Register], names: list[str]) -> list[float]:
+        span = block(regs)
+        chunks = [(regs, span)] if span else [([r], (r.address, r.count)) for r in regs]
+        words: dict[tuple[str, int], int] = {}
+        for group, (first, count) in chunks:
+            table = group[0].table
+            label = _label([names[regs.index(r)] for r in group], table, first, count)
+            got = self._request(f"read of {label}", lambda: self._read(table, first, count))
+            words.update(((table, a), w) for a, w in zip(range(first, first + count), got))
+        volts = []
+        for name, reg in zip(names, regs):
+            v = decode(reg, [words[reg.table, a] for a in reg.span])
+            if not math.isfinite(v):
+                raise BackendError(f"{name} ({reg.describe()}) at {self._where()} returned {v}, not a voltage")
+            volts.append(v)
+        return volts
+
+    def _read(self, table: str, first: int, count: int) -> list[int]:
+        dev = self.config.device_id
+        if table == "input":
+            rr = self._client.read_input_registers(first, count=count, device_id=dev)
+        else:
+            rr = self._client.read_holding_registers(first, count=count, device_id=dev)
+        if rr.isError():
+            raise _DeviceAnswer(rr)
+        if len(rr.registers) < count:
+            raise ModbusIOException(f"short answer: {len(rr.registers)} of {count} registers")
+        return list(rr.registers[:count])
+
+    def _write_volts(self, volts: list[float]) -> None:
+        regs = [o.register for o in self._pumps]
+        if regs[0].address + regs[0].count == regs[1].address:  # one request for both
+            names = [self.config.channels["pump1"], self.config.channels["pump2"]]
+            values = encode(regs[0], volts[0]) + encode(regs[1], volts[1])
+            label = _label(names, "holding", regs[0].address, len(values))
+            self._request(f"write of {label}", lambda: self._write(regs[0].address, values))
+            return
+        for i in (0, 1):
+            self._write_one(i, volts[i])
+
+    def _write_one(self, pump: int, volts: float) -> None:
+        reg = self._pumps[pump].register
+        values = encode(reg, volts)
+        label = _label([self.config.channels[f"pump{pump + 1}"]], "holding", reg.address, len(values))
+        self._request(f"write of {label}", lambda: self._write(reg.address, values))
+
+    def _write(self, address: int, values: list[int]) -> list[int]:
+        rr = self._client.write_registers(address, values, device_id=self.config.device_id)
+        if rr.isError():
+            raise _DeviceAnswer(rr)
+        return values
+
+    # --- the link ---------------------------------------------------------------------
+
+    def _request(self, what: str, call: Callable[[], list[int]]) -> list[int]:
+        """`call` tried twice; BackendError naming `what` and the reason after that."""
+        reasons: list[str] = []
+        for _ in range(2):
+            try:
+                if not self._client.connect():
+                    raise _NoConnection()
+                return call()
+            except _NoConnection:
+                reasons.append(f"cannot connect to {self._where()}")
+            except _DeviceAnswer as exc:
+                reasons.append(f"the device answered '{exc.text}'")
+            except ModbusIOException:
+                reasons.append(f"no answer within {self.config.timeout:g} s")
+            except ConnectionException:
+                reasons.append("connection lost")
+            except (ModbusException, OSError) as exc:
+                reasons.append(str(exc) or type(exc).__name__)
+            # A late answer to the failed request must not be taken for the next one.
+            self.close()
+        seen = list(dict.fromkeys(reasons))
+        raise BackendError(f"{what} at {self._where()} failed twice: {', then '.join(seen)}")
+
+    def _where(self) -> str:
+        return f"{self.config.host}:{self.config.port}"
+
+
+class _NoConnection(Exception):
+    """connect() returned False (refused, unreachable, or timed out)."""
+
+
+class _DeviceAnswer(Exception):
+    """The device answered with a Modbus exception response."""
+
+    def __init__(self, response: object) -> None:
+        code = int(getattr(response, "exception_code", 0) or 0)
+        self.text = EXCEPTION_CODES.get(code, f"exception code {code}") if code else str(response)
+        super().__init__(self.text)
+
+
+def _label(names: list[str], table: str, first: int, count: int) -> str:
+    """e.g. "AIN0..AIN3 (input registers 0-7)"."""
+    who = names[0] if len(names) == 1 else f"{names[0]}..{names[-1]}"
+    regs = f"register {first}" if count == 1 else f"registers {first}-{first + count - 1}"
+    return f"{who} ({table} {regs})"

@@ -1,0 +1,207 @@
+"""The virtual rig: the nonlinear quadruple-tank model served over Modbus TCP (B11).
+
+It stands where the lab's DAQ would: its input registers carry the sensor voltages
+of the simulated tanks (kc * h, plus optional noise, offset and quantization), its
+output registers drive the simulated pumps, and the process advances in wall-clock
+time (times a speed factor), whatever the client does.  Like a real rig's firmware
+it has a watchdog: when no write has come for `watchdog` s it sets its pumps (and
+their registers) to 0, so a program that dies cannot leave the pumps running.
+
+The register layout and the wiring are those of a DAQ configuration (`--map`, the
+LabJack preset by default), so `quadtank --daq params/virtual-rig.yaml` reaches it
+exactly as it would reach the hardware.  Time is injected (`clock`), so the
+model-side behaviour is testable without sleeping.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import random
+import signal
+import sys
+import time
+from dataclasses import dataclass
+from typing import Callable, Sequence, TextIO
+
+from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams, advance
+from quadtank_tui.daq.config import PUMPS, TANKS, DaqConfig
+from quadtank_tui.daq.registers import decode, encode
+from quadtank_tui.daq.server import IllegalAddress, ModbusTcpServer
+
+#: The pumps take 0..10 V; an analog input reads at most about +-10.5 V.
+PUMP_RANGE = (0.0, FULL_SCALE_V)
+AIN_RANGE = (-10.5, 10.5)
+#: How often (wall s) the rig advances without being asked, so the watchdog and the
+#: water keep time even when nobody reads.
+TICK_S = 0.05
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """What the rig's level sensors add to kc * h: V = kc h + offset + N(0, noise),
+    rounded to a multiple of `lsb` (0: none)."""
+
+    noise: float = 0.0
+    offset: float = 0.0
+    lsb: float = 0.0
+    seed: int = 0
+
+
+class VirtualRig:
+    """The register bank the server serves: model state, pumps, watchdog."""
+
+    def __init__(
+        self,
+        config: DaqConfig,
+        plant: PlantParams,
+        levels_cm: Sequence[float],
+        *,
+        speed: float = 1.0,
+        watchdog: float = 15.0,
+        sensors: SensorModel = SensorModel(),
+        clock: Callable[[], float] = time.monotonic,
+        report: Callable[[str], None] = lambda text: None,
+    ) -> None:
+        if not speed > 0 or not math.isfinite(speed):
+            raise ValueError(f"speed must be a number > 0, got {speed}")
+        if watchdog < 0 or not math.isfinite(watchdog):
+            raise ValueError(f"watchdog must be >= 0 s (0: off), got {watchdog}")
+        self.config = config
+        self.plant = plant
+        self.h = tuple(float(x) for x in levels_cm)
+        self.speed = speed
+        self.watchdog = watchdog
+        self.sensors = sensors
+        self.clock = clock
+        self.report = report
+        self._rng = random.Random(sensors.seed)
+        self._tanks = [config.tank_register(i) for i in range(1, 5)]
+        self._outputs = [config.pump_output(i).register for i in (1, 2)]
+        self._out_words: dict[int, int] = {}
+        for reg in self._outputs:
+            self._out_words.update(zip(reg.span, encode(reg, 0.0)))
+        self.pump_volts = (0.0, 0.0)
+        self._now = clock()
+        self.t = 0.0                      # process time, s
+        self.last_write = self._now       # wall time of the last write
+        self.watchdog_trips = 0
+
+    # --- time -------------------------------------------------------------------------
+
+    def tick(self) -> None:
+        """Bring the process up to the clock (and apply the watchdog on the way)."""
+        now = self.clock()
+        if self.watchdog > 0 and self.pump_volts != (0.0, 0.0):
+            deadline = self.last_write + self.watchdog
+            if deadline <= now:
+                self._advance_to(max(deadline, self._now))
+                self._stop_pumps()
+                self.watchdog_trips += 1
+                self.report(f"watchdog: no write for {self.watchdog:g} s, pumps set to 0")
+        self._advance_to(now)
+
+    def _advance_to(self, wall: float) -> None:
+        if wall <= self._now:
+            return
+        dt = (wall - self._now) * self.speed
+        self.h = advance(self.h, self.pump_volts, dt, self.plant)
+        self.t += dt
+        self._now = wall
+
+    def _stop_pumps(self) -> None:
+        self.pump_volts = (0.0, 0.0)
+        for reg in self._outputs:
+            self._out_words.update(zip(reg.span, encode(reg, 0.0)))
+
+    # --- the registers ----------------------------------------------------------------
+
+    def sensor_volts(self) -> tuple[float, float, float, float]:
+        """One reading of the four sensors (tanks 1..4), noise drawn afresh."""
+        s = self.sensors
+        out = []
+        for h in self.h:
+            v = self.plant.kc * h + s.offset
+            if s.noise > 0:
+                v += self._rng.gauss(0.0, s.noise)
+            if s.lsb > 0:
+                v = round(v / s.lsb) * s.lsb
+            out.append(min(AIN_RANGE[1], max(AIN_RANGE[0], v)))
+        return (out[0], out[1], out[2], out[3])
+
+    def read(self, address: int, count: int) -> list[int]:
+        self.tick()
+        words = dict(self._out_words)
+        for reg, v in zip(self._tanks, self.sensor_volts()):
+            words.update(zip(reg.span, encode(reg, v)))
+        try:
+            return [words[a] for a in range(address, address + count)]
+        except KeyError as exc:
+            raise IllegalAddress(f"no register {exc.args[0]}") from None
+
+    def write(self, address: int, values: Sequence[int]) -> None:
+        span = range(address, address + len(values))
+        if any(a not in self._out_words for a in span):
+            raise IllegalAddress(f"registers {address}..{span[-1]} are not all outputs")
+        self.tick()
+        self._out_words.update(zip(span, values))
+        volts = []
+        for i, reg in enumerate(self._outputs):
+            dac = decode(reg, [self._out_words[a] for a in reg.span])
+            pump = self.config.pumps[i].level(dac) if math.isfinite(dac) else 0.0
+            volts.append(min(PUMP_RANGE[1], max(PUMP_RANGE[0], pump)))
+        self.pump_volts = (volts[0], volts[1])
+        self.last_write = self._now
+
+    def status(self) -> str:
+        """One line for the rig's console."""
+        h = " ".join(f"{x:5.2f}" for x in self.h)
+        return f"t={self.t:8.1f} s  h=[{h}] cm  pumps=[{self.pump_volts[0]:.2f} {self.pump_volts[1]:.2f}] V"
+
+
+# --- running it ------------------------------------------------------------------------
+
+def describe(config: DaqConfig) -> str:
+    """The wiring the rig serves, e.g. "tank1=AIN0@input:0 ... pump2=DAC1@holding:1002"."""
+    parts = [f"{t}={config.channels[t]}@{config.tank_register(i + 1).address}" for i, t in enumerate(TANKS)]
+    parts += [f"{p}={config.channels[p]}@{config.pump_output(i + 1).register.address}" for i, p in enumerate(PUMPS)]
+    return " ".join(parts)
+
+
+async def serve_rig(
+    rig: VirtualRig,
+    host: str,
+    port: int,
+    *,
+    reply_delay: float = 0.0,
+    status_every: float = 0.0,
+    out: TextIO = sys.stdout,
+    stop: asyncio.Event | None = None,
+) -> None:
+    """Serve `rig` until `stop` is set (or SIGINT/SIGTERM)."""
+    server = ModbusTcpServer(rig, reply_delay=reply_delay)
+    bound_host, bound_port = await server.start(host, port)
+    print(f"quadtank rig: serving on {bound_host}:{bound_port} "
+          f"(speed x{rig.speed:g}, watchdog {rig.watchdog:g} s, noise {rig.sensors.noise:g} V; "
+          f"{describe(rig.config)})", file=out, flush=True)
+    stop = stop or asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.add_signal_handler(sig, stop.set)
+        except (NotImplementedError, RuntimeError):  # not the main thread / platform
+            pass
+    last_status = time.monotonic()
+    try:
+        while not stop.is_set():
+            rig.tick()
+            if status_every > 0 and time.monotonic() - last_status >= status_every:
+                last_status = time.monotonic()
+                print(rig.status(), file=out, flush=True)
+            try:
+                await asyncio.wait_for(stop.wait(), TICK_S)
+            except asyncio.TimeoutError:
+                pass
+    finally:
+        await server.stop()
+        print("quadtank rig: stopped", file=out, flush=True)

@@ -1,0 +1,54 @@
+"""`quadtank daq check CONFIG` (read-only) and `quadtank daq fit VOLTS:CM ...`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import pytest
+
+from quadtank_tui.cli import main
+from quadtank_tui.daq.modbus import ModbusBackend
+
+ROOT = Path(__file__).parents[2]
+
+
+def test_fit_prints_desautel_sensor_1_and_a_config_line(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["daq", "fit", "0.5864:3.5", "1.3422:7.5", "2.2396:12.25", "3.2051:17.75", "--tank", "3"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out == ["gain 5.4310 cm/V  offset 0.2390 cm  rms residual 0.101 cm",
+                   "  tank3: {gain: 5.4310, offset: 0.2390}"]
+
+
+@pytest.mark.parametrize(("pairs", "message"), [(["1:2", "x"], "'x': expected VOLTS:CM"),
+                                                (["1:2"], "at least two"), (["1:2", "1:3"], "same voltage")])
+def test_fit_refuses_bad_pairs(pairs: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["daq", "fit", *pairs]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_check_reads_and_writes_nothing(rig: Callable, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    r = rig()
+    config = tmp_path / "rig.yaml"
+    config.write_text((ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {r.port}"))
+    driver = ModbusBackend(r.config())
+    driver.write_pumps((0.25, 0.35))
+    assert main(["daq", "check", str(config)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith(f"modbus 127.0.0.1:{r.port}")
+    assert [ln.split()[:3] for ln in lines[1:5]] == [["tank", str(i), f"AIN{i - 1}"] for i in range(1, 5)]
+    assert r.dacs() == pytest.approx((2.5, 3.5))  # the pumps were left alone
+    driver.safe_state()
+    driver.close()
+
+
+def test_check_without_a_device_says_why(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    config = tmp_path / "rig.yaml"
+    config.write_text(f"host: 127.0.0.1\nport: {port}\n")
+    assert main(["daq", "check", str(config)]) == 1
+    assert "cannot connect" in capsys.readouterr().err
