@@ -1,5 +1,6 @@
-"""The `quadtank` command: subcommands for analysis and logs (and, as they land,
-the TUI, headless runs and the virtual rig).
+"""The `quadtank` command: without a subcommand the TUI (the Main screen) on the
+simulator or, with --daq, on the rig; subcommands for analysis, logs and headless
+runs.
 
 Every subcommand turns bad input into one clear line on stderr and exit status 2;
 a traceback never reaches the user.
@@ -11,17 +12,22 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 from quadtank_tui.core.analysis import analyze, format_report
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
 from quadtank_tui.daq.cli import (
-    add_daq_option, add_daq_parser, add_rig_parser, cmd_daq_without_tui, run_clock,
+    add_daq_option, add_daq_parser, add_rig_parser, open_daq, run_clock,
 )
 from quadtank_tui.files.export import FORMATS, export_log
 from quadtank_tui.files.log import format_tsamp, read_log
 from quadtank_tui.files.par import read_par
 from quadtank_tui.files.script import read_script
+
+
+if TYPE_CHECKING:  # the TUI's modules load only when it starts
+    from quadtank_tui.engine.runner import Engine
+    from quadtank_tui.ui.app import QuadTankApp
 
 
 class UsageError(Exception):
@@ -170,12 +176,55 @@ def _warn(warnings: Sequence[str]) -> None:
         print(f"quadtank: warning: {w}", file=sys.stderr)
 
 
+def _add_tui_options(parser: argparse.ArgumentParser) -> None:
+    """Options of the TUI, which starts when no COMMAND is given.  Their own dests
+    keep them apart from `run`'s options of the same names."""
+    tui = parser.add_argument_group("the TUI (no COMMAND)")
+    tui.add_argument("--par", metavar="FILE", dest="tui_par",
+                     help="parameters: a .par file or a name in params/ "
+                     "(default: params/default.par, else the built-in values)")
+    add_daq_option(tui, dest="daq_global")  # type: ignore[arg-type]
+    tui.add_argument("--speed", metavar="X", type=float, default=1.0, dest="tui_speed",
+                     help="simulated seconds per wall second at start (1..1000; keys + and - change it)")
+    tui.add_argument("--refresh", metavar="SECONDS", type=float, default=0.05,
+                     help="screen refresh interval (default 0.05; raise it on a slow link)")
+
+
+def build_tui(args: argparse.Namespace) -> tuple[Engine, QuadTankApp]:
+    """The engine (not started) and the app the TUI runs, from the options.  A rig
+    (--daq) keeps wall time; the simulator runs on a virtual clock so a student
+    can speed it up."""
+    from quadtank_tui.engine.runner import build_engine
+    from quadtank_tui.ui.app import build_app
+
+    if not 1.0 <= args.tui_speed <= 1000.0:
+        raise UsageError(f"--speed must be 1..1000, got {args.tui_speed:g}")
+    if not 0.01 <= args.refresh <= 5.0:
+        raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
+    daq = open_daq(args.daq_global)
+    clock = "realtime" if daq is not None else "virtual"
+    engine = build_engine(args.tui_par, daq=daq, clock=clock, speed=args.tui_speed)
+    return engine, build_app(engine, refresh_interval=args.refresh)
+
+
+def _cmd_tui(args: argparse.Namespace) -> int:
+    engine, app = build_tui(args)
+    _warn(engine.warnings)
+    engine.start()
+    try:
+        app.run()
+    finally:
+        engine.stop()  # stops the loop, pumps to 0
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="quadtank",
-        description="Run and analyse the quadruple-tank laboratory process.",
+        description="Run and analyse the quadruple-tank laboratory process. "
+        "Without a COMMAND: the interactive screen on the simulator.",
     )
-    add_daq_option(parser, dest="daq_global")
+    _add_tui_options(parser)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_analyze(sub)
     _add_log(sub)
@@ -189,12 +238,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     handler: Handler | None = getattr(args, "handler", None)
-    if handler is None and args.daq_global is not None:
-        handler = cmd_daq_without_tui  # until the TUI's launcher passes open_daq(...) on
-    elif handler is None:
-        # No TUI yet: show the analysis of the default setting.
-        handler = _cmd_analyze
-        args = parser.parse_args(["analyze", *(argv or [])[:0]])
+    if handler is None:
+        handler = _cmd_tui
     try:
         return handler(args)
     except (UsageError, PlantError, OSError, ValueError) as exc:

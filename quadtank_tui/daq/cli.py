@@ -203,15 +203,3 @@ def run_clock(*, realtime: bool, speed: float | None,
     if realtime or (daq is not None and speed is None):
         return "realtime", daq
     return ("virtual" if speed is not None else "manual"), daq
-
-
-def cmd_daq_without_tui(args: argparse.Namespace) -> int:
-    """`quadtank --daq CONFIG` with no command, while this build has no TUI: check
-    the file (a bad one is reported as always) and say how to run Active now.  The
-    TUI's launcher replaces this with build_engine(..., daq=open_daq(args.daq_global))."""
-    config = load_daq_config(args.daq_global)
-    print(f"quadtank: {args.daq_global}: DAQ configuration for {config.host}:{config.port} is valid, "
-          "but this build has no TUI yet; run Active mode headless with "
-          f"`quadtank run --daq {args.daq_global} --duration S --log OUT.log`, "
-          f"or check the link with `quadtank daq check {args.daq_global}`", file=sys.stderr)
-    return 2

@@ -7,7 +7,7 @@ from typing import Callable
 
 import pytest
 
-from quadtank_tui.cli import main
+from quadtank_tui.cli import build_parser, build_tui, main
 from quadtank_tui.files.log import read_log
 
 ROOT = Path(__file__).parents[2]
@@ -96,10 +96,10 @@ def test_ctrl_c_commands_the_pumps_to_zero_and_keeps_the_log(rig: Callable, poll
 
 
 def test_top_level_daq_without_a_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """`quadtank --daq CONFIG`: the file is checked; this build has no TUI to start,
-    so it says how to run Active mode instead of silently doing something else."""
-    assert main(["--daq", str(ROOT / "params" / "virtual-rig.yaml")]) == 2
-    assert "quadtank run --daq" in capsys.readouterr().err
+    """`quadtank --daq CONFIG`: the file is checked before anything runs; a good one
+    gives the TUI an engine that offers Active mode on a real-time clock."""
+    engine, _app = build_tui(build_parser().parse_args(["--daq", str(ROOT / "params" / "virtual-rig.yaml")]))
+    assert engine.snapshot().active_available and engine.snapshot().realtime
     bad = tmp_path / "bad.yaml"
     bad.write_text("port: 0\n")
     assert main(["--daq", str(bad)]) == 2

@@ -12,8 +12,8 @@ from quadtank_tui.engine.runner import Engine
 from quadtank_tui.files.log import read_log
 from quadtank_tui.ui.screens.setup import SetupScreen
 
-from conftest import manual_engine  # noqa: E402
-from setup_app import SetupApp  # noqa: E402
+from conftest import make_app, manual_engine, open_setup  # noqa: E402
+from quadtank_tui.ui.screens.main import MainScreen
 
 H = 0.1  # the default sampling time, s
 
@@ -31,22 +31,25 @@ def start_experiment(engine: Engine) -> None:
     ok(engine, LogOn())
 
 
-async def test_switching_to_setup_and_back_leaves_the_process_alone(engine: Engine) -> None:
-    # The same experiment twice: once while a user goes to Setup, opens and cancels
-    # windows and comes back; once untouched.  The logs must be identical.
+async def test_switching_to_setup_and_back_leaves_the_process_alone(setup_engine: Engine) -> None:
+    # The same experiment twice: once while a user goes from Main to Setup, opens
+    # and cancels windows there and comes back; once untouched.  The logs must be
+    # identical.
+    engine = setup_engine
     start_experiment(engine)
-    app = SetupApp(engine, open_setup=False)
+    app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
-        engine.run_for(10.0)
-        app.push_screen(SetupScreen(engine))
         await pilot.pause()
+        engine.run_for(10.0)
+        await open_setup(pilot)
+        assert isinstance(app.screen, SetupScreen)
         engine.run_for(10.0)
         for key in ("h", "enter", "escape", "s", "escape", "i", "escape", "1", "escape", "f", "escape"):
             await pilot.press(key)
             engine.run_for(2.0)
         await pilot.press("escape")  # back
         await pilot.pause()
-        assert not isinstance(app.screen, SetupScreen)
+        assert isinstance(app.screen, MainScreen)
         engine.run_for(18.0)
     ok(engine, LogSave("with_setup"))
 
@@ -65,13 +68,16 @@ async def test_switching_to_setup_and_back_leaves_the_process_alone(engine: Engi
     assert engine.snapshot().params == twin.snapshot().params
 
 
-async def test_a_sampling_time_change_mid_run_is_bumpless(engine: Engine, app: SetupApp) -> None:
+async def test_a_sampling_time_change_mid_run_is_bumpless(setup_engine: Engine) -> None:
+    engine = setup_engine
+    app = make_app(engine)
     ok(engine, SetState("Run"))
     engine.run_for(20.0)
     ok(engine, SetControlMode("Automatic"))
     ok(engine, NudgeMean(1, 0.05))  # a reference step, so the controllers are working
     engine.run_for(20.0)
     async with app.run_test(size=(120, 40)) as pilot:
+        await open_setup(pilot)
         await pilot.press("s")
         field = app.screen.query_one(Input)
         assert field.value == "100"

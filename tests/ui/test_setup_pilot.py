@@ -16,6 +16,14 @@ from quadtank_tui.ui.windows.par_files import ParFileWindow
 from quadtank_tui.ui.windows.tank_setup import TankSetupWindow
 from quadtank_tui.ui.windows.wave import WaveWindow
 
+from conftest import open_setup  # noqa: E402
+
+
+@pytest.fixture
+def app(setup_app):  # type: ignore[no-untyped-def]
+    """Main as the CLI builds it; each test goes to Setup by its key."""
+    return setup_app
+
 
 async def _type(pilot, text: str) -> None:  # type: ignore[no-untyped-def]
     await pilot.press(*text)
@@ -46,7 +54,7 @@ def _panel_text(app) -> str:  # type: ignore[no-untyped-def]
 
 async def test_moving_the_valves_across_one_moves_a_zero_into_the_rhp(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         assert _zeros(app) == [-0.058, -0.0172]
         assert "minimum phase" in _panel_text(app) and "nonminimum" not in _panel_text(app)
         # gamma1 + gamma2 from 1.30 to 0.77 (P+'s valves), typed in the tank windows.
@@ -67,7 +75,7 @@ async def test_moving_the_valves_across_one_moves_a_zero_into_the_rhp(app) -> No
 
 async def test_tank_window_links_the_values_and_sets_them_together(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         await pilot.press("h", "enter")
         window = app.screen
         assert isinstance(window, TankSetupWindow)
@@ -90,7 +98,7 @@ async def test_tank_window_links_the_values_and_sets_them_together(app) -> None:
 
 async def test_tank_window_refuses_a_bad_value_and_default_restores(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         await app.screen.run_action("tank(1)")
         await pilot.pause()
         window = app.screen
@@ -115,7 +123,7 @@ async def test_tank_window_refuses_a_bad_value_and_default_restores(app) -> None
 
 async def test_wave_window_refuses_a_too_short_period_with_the_shortest_allowed(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         await pilot.press("i")
         window = app.screen
         assert isinstance(window, WaveWindow)
@@ -141,7 +149,7 @@ async def test_wave_window_refuses_a_too_short_period_with_the_shortest_allowed(
 
 async def test_sampling_time_is_validated(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         await pilot.press("s")
         await _type(pilot, "20")
         await pilot.press("enter")
@@ -157,7 +165,7 @@ async def test_sampling_time_is_validated(app) -> None:  # type: ignore[no-untyp
 
 async def test_pid_extras_are_set_from_setup(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         await pilot.press("1")
         await pilot.pause()
         window = app.screen
@@ -195,7 +203,7 @@ async def _par(pilot, name: str, action: str) -> None:  # type: ignore[no-untype
 
 async def test_save_change_load_restores(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         await _set_tank(pilot, 1, "Valve", "0.43")
         saved = app.engine.snapshot().params
         await _par(pilot, "mysetting", "ctrl+s")
@@ -218,7 +226,7 @@ async def test_save_change_load_restores(app) -> None:  # type: ignore[no-untype
 
 async def test_saving_as_default_is_refused(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         before = Path("params/default.par").read_bytes()
         _change(app, {"SIMULATION.Valve2": 0.34})
         for name in ("default", "preset", "Default.par"):
@@ -237,7 +245,7 @@ async def test_loading_a_broken_file_names_file_line_key_and_changes_nothing(app
         "% TANK PAR-file\n\nSAMPLING TIME\nTSamp 100.0000\n\nSIMULATION\nValve1 0.5\nValve2 1.7\n"
     )
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         _change(app, {"SIMULATION.Valve1": 0.43})
         before = app.engine.snapshot().params
         await _par(pilot, "broken", "enter")
@@ -251,7 +259,7 @@ async def test_loading_a_broken_file_names_file_line_key_and_changes_nothing(app
 
 async def test_default_all_reloads_default_par_after_asking(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         _change(app, {"SIMULATION.Valve2": 0.34})
         await pilot.press("D")
         await pilot.press("n")
@@ -270,7 +278,7 @@ async def test_a_click_on_a_tank_of_the_image_opens_its_window(app) -> None:  # 
     from quadtank_tui.ui.widgets.process_image import ProcessImage
 
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         image = app.screen.query_one(ProcessImage)
         box = next(b for b in image._boxes if b.action == "tank(3)")
         # The image has a one-cell border: content cell (x, y) is at (x + 1, y + 1).
@@ -285,7 +293,7 @@ async def test_a_click_on_the_sampling_time_opens_its_window(app) -> None:  # ty
     from quadtank_tui.ui.windows.sampling import SamplingTimeWindow
 
     async with app.run_test(size=(80, 24)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         await pilot.click("#sampling")
         await pilot.pause()
         assert isinstance(app.screen, SamplingTimeWindow)
@@ -295,7 +303,7 @@ async def test_the_controller_table_follows_the_family(app) -> None:  # type: ig
     from quadtank_tui.ui.widgets.setup_tables import ControllerTable
 
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await open_setup(pilot)
         table = app.screen.query_one(ControllerTable)
         headers = lambda: [str(c.label) for c in table.columns.values()][1:]  # noqa: E731
         assert headers()[:3] == ["K", "Ti", "Td"] and "N" in headers() and "b" in headers()

@@ -5,28 +5,37 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from textual.widgets import Input
+
+from conftest import open_setup  # noqa: E402
+
+
+@pytest.fixture
+def app(setup_app):  # type: ignore[no-untyped-def]
+    return setup_app
 
 
 def test_setup_120x40(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
-    assert snap_compare(app, terminal_size=(120, 40))
+    assert snap_compare(app, terminal_size=(120, 40), run_before=open_setup)
 
 
 def test_setup_80x24(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
-    assert snap_compare(app, terminal_size=(80, 24))
+    assert snap_compare(app, terminal_size=(80, 24), run_before=open_setup)
 
 
 def test_wave_window_prbs(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
     # Reference 1, wave type switched to PRBS by key: period in samples, seed enabled.
-    assert snap_compare(app, terminal_size=(80, 24), press=["i", "ctrl+t", "ctrl+t"])
+    assert snap_compare(app, terminal_size=(80, 24), run_before=open_setup, press=["i", "ctrl+t", "ctrl+t"])
 
 
 def test_pid_window_with_extras(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
-    assert snap_compare(app, terminal_size=(80, 24), press=["4"])
+    assert snap_compare(app, terminal_size=(80, 24), run_before=open_setup, press=["4"])
 
 
 def test_tank_window_with_valve(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
     async def type_diameter(pilot) -> None:  # type: ignore[no-untyped-def]
+        await open_setup(pilot)
         await pilot.press("h", "enter")
         pilot.app.screen.query_one("#f-Diameter", Input).focus()
         await pilot.pause()
@@ -41,6 +50,7 @@ def test_par_window_with_an_error(app, snap_compare) -> None:  # type: ignore[no
     Path("params/broken.par").write_text("% TANK PAR-file\n\nSIMULATION\nValve1 0.5\nValve2 1.7\n")
 
     async def load_broken(pilot) -> None:  # type: ignore[no-untyped-def]
+        await open_setup(pilot)
         await pilot.press("f")
         pilot.app.screen.query_one("#name", Input).value = "broken"
         await pilot.pause()

@@ -35,6 +35,7 @@ from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.setup_tables import ControllerTable, ParamTable, ProcessTable, ReferenceTable
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow
+from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow
 from quadtank_tui.ui.windows.par_files import ParFileWindow
 from quadtank_tui.ui.windows.pid_extras import PIDExtrasWindow
 from quadtank_tui.ui.windows.sampling import SamplingTimeWindow
@@ -96,12 +97,15 @@ class SetupScreen(Screen[None]):
         Binding("I", "reference(2)", "Ref 2", show=False),
         Binding("h", "tanks", "Tanks"),
         Binding("f", "par_files", "Files"),
+        Binding("t", "controller_type", "Type"),
         Binding("1", "element(0)", "Element 11", show=False),
         Binding("2", "element(1)", "Element 12", show=False),
         Binding("3", "element(2)", "Element 21", show=False),
         Binding("4", "element(3)", "Element 22", show=False),
         Binding("d", "process_default", "Process default"),
         Binding("D", "default_all", "Default all"),
+        Binding("q", "app.request_exit", "Exit"),
+        Binding("S", "main", "Main", show=False),
     ]
 
     def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.25,
@@ -221,10 +225,14 @@ class SetupScreen(Screen[None]):
         opener = "i" if channel == 1 else "I"
         self.app.push_screen(WaveWindow(channel, self.snap.params, self.defaults, opener=opener), self.send_all)
 
+    def action_controller_type(self) -> None:
+        self.app.push_screen(ControllerTypeWindow(self.snap.params, self.defaults, opener="t"), self.send_all)
+
     def action_element(self, index: int) -> None:
-        self.app.push_screen(
-            PIDExtrasWindow(index, self.snap.params, self.defaults, opener=str(index + 1)), self.send_all
-        )
+        """An element's window: PID with the extras, or Main's General window."""
+        p = self.snap.params
+        window = PIDExtrasWindow if p.control.family.value == "PID" else GeneralWindow
+        self.app.push_screen(window(index, p, self.defaults, opener=str(index + 1)), self.send_all)
 
     def action_tank(self, tank: int) -> None:
         if tank in TANKS:

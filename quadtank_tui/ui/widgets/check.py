@@ -1,4 +1,4 @@
-"""Check boxes and radio buttons whose state reads without colour.
+"""Check boxes whose state reads without colour.
 
 Textual draws the mark in both states and tells them apart by colour only; over
 SSH, with an unknown colour scheme, a student cannot see which variables will
@@ -7,7 +7,8 @@ be logged.  These draw the mark only when on.
 
 from __future__ import annotations
 
-from textual.widgets import Checkbox, RadioButton
+from textual.binding import Binding
+from textual.widgets import Checkbox
 
 
 class Check(Checkbox):
@@ -18,9 +19,16 @@ class Check(Checkbox):
         return "X" if self.value else " "
 
 
-class Radio(RadioButton):
-    """A radio button: a dot when chosen, blank otherwise."""
+class Switch(Check, inherit_bindings=False):
+    """A checkbox for an on/off parameter, its label saying which it is.
 
-    @property
-    def BUTTON_INNER(self) -> str:  # type: ignore[override]
-        return "●" if self.value else " "
+    Space toggles it; Enter is left to the window, where it means Set.
+    """
+
+    BINDINGS = [Binding("space", "toggle_button", "Toggle", show=False)]
+
+    def __init__(self, value: bool = False, **kwargs: object) -> None:
+        super().__init__("on" if value else "off", value, **kwargs)  # type: ignore[arg-type]
+
+    def on_checkbox_changed(self, event: Checkbox.Changed) -> None:
+        self.label = "on" if event.value else "off"

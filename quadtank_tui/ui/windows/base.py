@@ -26,7 +26,7 @@ from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import Command, SetParams
 from quadtank_tui.ui.values import fmt, parse_number
-from quadtank_tui.ui.widgets.check import Check
+from quadtank_tui.ui.widgets.check import Switch
 
 T = TypeVar("T")
 
@@ -86,9 +86,12 @@ class Window(ModalScreen[T], Generic[T]):
         message.update(text)
         message.display = bool(text)
 
-    @on(Button.Pressed, "#cancel")
-    def _cancel_pressed(self) -> None:
-        self.action_cancel()
+    async def on_button_pressed(self, event: Button.Pressed) -> None:
+        """A button's id names the action it runs ("set", "cancel", "log_on", ...),
+        so a button and its key cannot do different things."""
+        event.stop()
+        if event.button.id:
+            await self.run_action(event.button.id)
 
     def on_click(self, event: events.Click) -> None:
         # A click on the dimmed background is a click where the opener is; a click
@@ -132,7 +135,7 @@ class ParamWindow(Window[Commands]):
                 yield Label(f.label, classes="label")
                 value = self.params.get(f.key)
                 if f.flag:
-                    yield Check("on", value=bool(value), id=f"f-{i}", compact=True)
+                    yield Switch(bool(value), id=f"f-{i}", compact=True)
                 else:
                     yield Input(fmt(value), id=f"f-{i}", compact=True, select_on_focus=True)
                 yield Label(f.unit, classes="unit")
@@ -240,14 +243,6 @@ class ParamWindow(Window[Commands]):
     def _submitted(self) -> None:
         self.action_set()
 
-    @on(Button.Pressed, "#set")
-    def _set_pressed(self) -> None:
-        self.action_set()
-
-    @on(Button.Pressed, "#default")
-    def _default_pressed(self) -> None:
-        self.action_default()
-
 
 class ConfirmWindow(Window[bool]):
     """A yes/no question (Exit, overwriting a file); Esc answers no."""
@@ -273,6 +268,6 @@ class ConfirmWindow(Window[bool]):
     def action_answer(self, yes: bool) -> None:
         self.dismiss(yes)
 
-    @on(Button.Pressed, "#yes")
-    def _yes(self) -> None:
+    def action_yes(self) -> None:
         self.dismiss(True)
+

@@ -1,0 +1,209 @@
+"""The Logging window (thesis Figure 36; M8).
+
+Points, file name and variables are parameters (LOGGING.*), set with the usual
+Default / Set / Cancel.  LogOn, LogOff and Save act at once, like the original's
+buttons, through the `submit` the screen hands in; the window stays open and its
+progress bar follows the snapshots the screen passes down.  Save asks before it
+overwrites an existing file.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from textual import on, work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal
+from textual.reactive import reactive
+from textual.widgets import Button, Checkbox, Input, Label, ProgressBar, Static
+
+from quadtank_tui.core.parameters import LOG_VARIABLES, POINTS_MAX, Parameters
+from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.engine.commands import Command, LogOff, LogOn, LogSave, SetParams
+from quadtank_tui.engine.snapshot import LogStatus, Snapshot
+from quadtank_tui.ui.values import fmt, parse_number
+from quadtank_tui.ui.widgets.check import Check
+from quadtank_tui.ui.windows.base import Commands, ConfirmWindow, Window
+
+_POINTS, _FILE, _VARS = "LOGGING.Points", "LOGGING.LogFile", "LOGGING.Variables"
+
+
+def log_state(log: LogStatus) -> str:
+    """One line on what the logger is doing (the window and the status line)."""
+    if log.active:
+        return f"logging {log.rows}/{log.points}"
+    if log.unsaved:
+        return f"{log.rows} rows not saved"
+    if log.saved_path:
+        return f"saved {log.saved_path}"
+    return "off"
+
+
+class LoggingWindow(Window[Commands]):
+    """Set up, start, stop and save a log."""
+
+    BINDINGS = [
+        Binding("ctrl+o", "log_on", "LogOn"),
+        Binding("ctrl+b", "log_off", "LogOff"),
+        Binding("ctrl+s", "save", "Save"),
+        Binding("ctrl+r", "default", "Default"),
+    ]
+
+    snapshot: reactive[Snapshot | None] = reactive(None, always_update=True)
+
+    def __init__(self, snapshot: Snapshot, defaults: Parameters, *,
+                 submit: Callable[[Command], Any], log_exists: Callable[[str], bool],
+                 opener: str | None = None) -> None:
+        super().__init__("Logging", opener=opener)
+        self.set_reactive(LoggingWindow.snapshot, snapshot)
+        self.params = snapshot.params
+        self.defaults = defaults
+        self.submit = submit
+        self.log_exists = log_exists
+
+    def compose_body(self) -> ComposeResult:
+        p = self.params
+        with Horizontal(classes="field", id="row-points"):
+            yield Label("Points", classes="label")
+            yield Input(fmt(p.get(_POINTS)), id="points", compact=True, select_on_focus=True)
+            yield Label(f"1..{POINTS_MAX}", classes="unit")
+            yield Static("", classes="error", id="points-error")
+        with Horizontal(classes="field", id="row-file"):
+            yield Label("File", classes="label")
+            yield Input(p.get(_FILE), id="file", compact=True, select_on_focus=True)
+            yield Label(".log", classes="unit")
+            yield Static("", classes="error", id="file-error")
+        chosen = p.get(_VARS)
+        half = (len(LOG_VARIABLES) + 1) // 2
+        for row, names in enumerate((LOG_VARIABLES[:half], LOG_VARIABLES[half:])):
+            with Horizontal(classes="field vars", id=f"row-vars-{row}"):
+                yield Label("Variables" if row == 0 else "", classes="label")
+                for name in names:
+                    yield Check(name, value=name in chosen, id=f"var-{name}", compact=True)
+        yield Static("", classes="error", id="vars-error")
+        with Horizontal(id="progress-row"):
+            yield ProgressBar(total=100, show_eta=False, id="progress")
+            yield Label("", id="log-state")
+
+    def compose_buttons(self) -> ComposeResult:
+        yield Button("LogOn", id="log_on", variant="success")
+        yield Button("LogOff", id="log_off", variant="warning")
+        yield Button("Save", id="save")
+        yield Button("Set", id="set", variant="primary")
+        yield Button("Default", id="default")
+        yield Button("Cancel", id="cancel")
+
+    def on_mount(self) -> None:
+        self._mark_all()
+        self._warn_if_exists()
+        self.watch_snapshot(self.snapshot)
+
+    # --- the live part ------------------------------------------------------------
+
+    def watch_snapshot(self, snapshot: Snapshot | None) -> None:
+        if snapshot is None or not self.is_mounted or not self.is_attached:
+            return
+        log = snapshot.log
+        self.query_one(ProgressBar).update(progress=round(100 * log.progress, 1))
+        self.query_one("#log-state", Label).update(log_state(log))
+        self.query_one("#log_on", Button).disabled = log.active
+        self.query_one("#log_off", Button).disabled = not log.active
+        self.query_one("#save", Button).disabled = not log.unsaved
+
+    # --- the settings -------------------------------------------------------------
+
+    def _variables(self) -> tuple[str, ...]:
+        return tuple(n for n in LOG_VARIABLES if self.query_one(f"#var-{n}", Checkbox).value)
+
+    def values(self) -> dict[str, Any] | None:
+        """The settings in the fields, validated together; None after showing why not."""
+        try:
+            points = parse_number(_POINTS, self.query_one("#points", Input).value)
+        except ParameterError as exc:
+            self.query_one("#points-error", Static).update(exc.reason)
+            return None
+        out = {_POINTS: points, _FILE: self.query_one("#file", Input).value.strip(),
+               _VARS: self._variables()}
+        try:
+            self.params.with_values(out)
+        except ParameterError as exc:
+            where = {_POINTS: "#points-error", _FILE: "#file-error"}.get(exc.field, "#vars-error")
+            self.query_one(where, Static).update(exc.reason)
+            return None
+        return out
+
+    def changes(self) -> dict[str, Any] | None:
+        values = self.values()
+        if values is None:
+            return None
+        return {k: v for k, v in values.items() if v != self.params.get(k)}
+
+    def _mark_all(self) -> None:
+        d = self.defaults
+        try:
+            points_same = parse_number(_POINTS, self.query_one("#points", Input).value) == d.get(_POINTS)
+        except ParameterError:
+            points_same = False
+        self.query_one("#row-points").set_class(not points_same, "-modified")
+        self.query_one("#row-file").set_class(
+            self.query_one("#file", Input).value.strip() != d.get(_FILE), "-modified")
+        for row in self.query(".vars"):
+            row.set_class(self._variables() != d.get(_VARS), "-modified")
+
+    @on(Input.Changed)
+    @on(Checkbox.Changed)
+    def _changed(self) -> None:
+        for wid in ("#points-error", "#file-error", "#vars-error"):
+            self.query_one(wid, Static).update("")
+        self._mark_all()
+        self._warn_if_exists()
+
+    def _warn_if_exists(self) -> None:
+        name = self.query_one("#file", Input).value.strip()
+        if name and self.log_exists(name):
+            self.query_one("#file-error", Static).update("exists: Save asks before overwriting")
+
+    # --- actions --------------------------------------------------------------------
+
+    def action_set(self) -> None:
+        changes = self.changes()
+        if changes is not None:
+            self.dismiss((SetParams(changes),) if changes else ())
+
+    def action_default(self) -> None:
+        d = self.defaults
+        self.query_one("#points", Input).value = fmt(d.get(_POINTS))
+        self.query_one("#file", Input).value = d.get(_FILE)
+        for n in LOG_VARIABLES:
+            self.query_one(f"#var-{n}", Checkbox).value = n in d.get(_VARS)
+
+    def action_log_on(self) -> None:
+        """Apply the settings in the fields, then start logging with them."""
+        changes = self.changes()
+        if changes is None:
+            return
+        if changes:
+            self.submit(SetParams(changes))
+            self.params = self.params.with_values(changes)
+        self.submit(LogOn())
+
+    def action_log_off(self) -> None:
+        self.submit(LogOff())
+
+    @work
+    async def action_save(self) -> None:
+        """Save under the name in the field; ask first if that file exists."""
+        name = self.query_one("#file", Input).value.strip()
+        overwrite = False
+        if self.log_exists(name):
+            question = f"logs/{name}.log exists. Overwrite it?"
+            overwrite = await self.app.push_screen_wait(
+                ConfirmWindow("Save log", question, yes="Overwrite"))
+            if not overwrite:
+                return
+        self.submit(LogSave(name, overwrite=overwrite))
+
+    @on(Input.Submitted)
+    def _submitted(self) -> None:
+        self.action_set()
