@@ -11,31 +11,30 @@ logic lives here.
 from __future__ import annotations
 
 import time
-from concurrent.futures import Future
 from typing import Callable
 
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
-from textual.screen import Screen
 from textual.widgets import Footer
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS
 from quadtank_tui.engine.commands import (
-    Command, CommandResult, LogDiscard, NudgeMean, ResetControllers, SetControlMode,
+    LogDiscard, NudgeMean, ResetControllers, SetControlMode,
     SetOperation, SetParams, SetSpeed, SetState,
 )
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.messages import ActionRequested
+from quadtank_tui.ui.screens.sending import CommandSender
 from quadtank_tui.ui.screens.setup import SetupScreen
 from quadtank_tui.ui.widgets.controller_box import ControllerBox, element_used
 from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.status_line import StatusLine
 from quadtank_tui.ui.widgets.trends import WINDOWS, Trend
-from quadtank_tui.ui.windows.base import Commands, ConfirmWindow
+from quadtank_tui.ui.windows.base import ConfirmWindow
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
 from quadtank_tui.ui.windows.logging import LoggingWindow
 from quadtank_tui.ui.windows.process import PumpWindow, TankWindow
@@ -48,7 +47,7 @@ TREND_MIN_INTERVAL = 0.2
 NO_DAQ = "Active needs a DAQ backend: start with quadtank --daq ..."
 
 
-class MainScreen(Screen[None]):
+class MainScreen(CommandSender):
     """Operate the process."""
 
     # Nothing focused at start, so the footer shows the screen's keys; Tab
@@ -188,41 +187,6 @@ class MainScreen(Screen[None]):
         dot = WINDOWS[self.window_index] / max(1, 2 * self.query_one("#upper", Trend).size.width)
         return (abs(snap.t - self._drawn_t) >= dot
                 and time.monotonic() - self._drawn_at >= TREND_MIN_INTERVAL)
-
-    # --- commands to the engine ------------------------------------------------------
-
-    def send(self, command: Command) -> None:
-        """Submit a command; a refusal or warning comes back as a notification."""
-        future = self.engine.submit(command)
-
-        def deliver(f: Future[CommandResult]) -> None:
-            try:
-                self.app.call_from_thread(self._result, command, f)
-            except RuntimeError:  # completed on the UI thread itself
-                self._result(command, f)
-
-        if future.done():
-            self._result(command, future)
-        else:
-            future.add_done_callback(deliver)
-
-    def _result(self, command: Command, future: Future[CommandResult]) -> None:
-        try:
-            result = future.result()
-        except Exception as exc:  # the engine failed to apply it: say so, go on
-            result = CommandResult.refused(f"{type(exc).__name__}: {exc}")
-        if not result.ok:
-            self.notify(result.message, title=type(command).__name__, severity="error", timeout=6)
-        for warning in result.warnings:
-            self.notify(warning, severity="warning")
-        if result.ok and result.message:
-            self.notify(result.message, timeout=3)
-        self.refresh_view()
-
-    def send_all(self, commands: Commands | None) -> None:
-        """A window's result: send its commands in order (none if cancelled)."""
-        for command in commands or ():
-            self.send(command)
 
     # --- messages up ----------------------------------------------------------------
 

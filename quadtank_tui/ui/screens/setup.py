@@ -13,23 +13,22 @@ hands snapshots down to its widgets on a timer and sends the windows' commands.
 from __future__ import annotations
 
 import dataclasses
-from concurrent.futures import Future
 from typing import Callable
 
 from textual import events
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
-from textual.screen import Screen
 from textual.widgets import Footer, Static
 
 from quadtank_tui.core.parameters import TSAMP, Parameters, keys_of
 from quadtank_tui.core.plant import FULL_SCALE_V, PlantError, steady_state_inputs
 from quadtank_tui.core.setup_relations import TANKS
-from quadtank_tui.engine.commands import Command, CommandResult, LoadPar, SavePar, SetDefaults
+from quadtank_tui.engine.commands import LoadPar, SavePar, SetDefaults
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.messages import ActionRequested
+from quadtank_tui.ui.screens.sending import CommandSender
 from quadtank_tui.ui.values import fmt
 from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
@@ -84,7 +83,7 @@ class SamplingLine(Static):
         self.post_message(ActionRequested("sampling"))
 
 
-class SetupScreen(Screen[None]):
+class SetupScreen(CommandSender):
     """Configure the process, the references, the controllers; load and save."""
 
     CSS_PATH = "../styles/setup.tcss"
@@ -170,45 +169,6 @@ class SetupScreen(Screen[None]):
             f"[b reverse] SETUP [/]  {snap.operation} · {snap.state} · {snap.control}"
             f"   t = {snap.t:.1f} s  [dim]process keeps running · Esc: Main[/]"
         )
-
-    # --- commands to the engine -------------------------------------------------------------
-
-    def send(self, command: Command, on_refused: Callable[[str], None] | None = None) -> None:
-        """Submit a command; a refusal comes back to `on_refused` or as a notification."""
-        future = self.engine.submit(command)
-
-        def deliver(f: Future[CommandResult]) -> None:
-            try:
-                self.app.call_from_thread(self._result, command, f, on_refused)
-            except RuntimeError:  # completed on the UI thread itself
-                self._result(command, f, on_refused)
-
-        if future.done():
-            self._result(command, future, on_refused)
-        else:
-            future.add_done_callback(deliver)
-
-    def _result(self, command: Command, future: Future[CommandResult],
-                on_refused: Callable[[str], None] | None) -> None:
-        try:
-            result = future.result()
-        except Exception as exc:  # the engine failed to apply it: say so, go on
-            result = CommandResult.refused(f"{type(exc).__name__}: {exc}")
-        if not result.ok:
-            if on_refused is not None:
-                on_refused(result.message)
-            else:
-                self.notify(result.message, title=type(command).__name__, severity="error", timeout=8)
-        for warning in result.warnings:
-            self.notify(warning, severity="warning", timeout=8)
-        if result.ok and result.message:
-            self.notify(result.message, timeout=3)
-        self.refresh_view()
-
-    def send_all(self, commands: Commands | None) -> None:
-        """A window's result: its commands in order (none if cancelled)."""
-        for command in commands or ():
-            self.send(command)
 
     # --- messages up ---------------------------------------------------------------------
 

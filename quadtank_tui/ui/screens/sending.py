@@ -1,0 +1,66 @@
+"""Sending commands to the engine from a screen, and showing what became of them.
+
+Main and Setup are the only parts of the UI that talk to the engine; both send a
+window's commands the same way: submit, and when the result comes back (at once
+with a manual clock, after the next sample from the loop's thread) notify a
+refusal, the warnings and a success message, then redraw from the engine.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import Future
+from typing import Callable
+
+from textual.screen import Screen
+
+from quadtank_tui.engine.commands import Command, CommandResult
+from quadtank_tui.engine.handle import EngineHandle
+from quadtank_tui.ui.windows.base import Commands
+
+#: Called with the engine's message instead of the error notification.
+OnRefused = Callable[[str], None]
+
+
+class CommandSender(Screen[None]):
+    """A screen that sends commands; it has `engine` and `refresh_view()`."""
+
+    engine: EngineHandle
+
+    def refresh_view(self) -> None:
+        """Redraw from the engine (each screen says what that means)."""
+
+    def send(self, command: Command, on_refused: OnRefused | None = None) -> None:
+        """Submit a command; a refusal goes to `on_refused` or is notified."""
+        future = self.engine.submit(command)
+
+        def deliver(f: Future[CommandResult]) -> None:
+            try:
+                self.app.call_from_thread(self._result, command, f, on_refused)
+            except RuntimeError:  # completed on the UI thread itself
+                self._result(command, f, on_refused)
+
+        if future.done():
+            self._result(command, future, on_refused)
+        else:
+            future.add_done_callback(deliver)
+
+    def _result(self, command: Command, future: Future[CommandResult], on_refused: OnRefused | None) -> None:
+        try:
+            result = future.result()
+        except Exception as exc:  # the engine failed to apply it: say so, go on
+            result = CommandResult.refused(f"{type(exc).__name__}: {exc}")
+        if not result.ok:
+            if on_refused is not None:
+                on_refused(result.message)
+            else:
+                self.notify(result.message, title=type(command).__name__, severity="error", timeout=6)
+        for warning in result.warnings:
+            self.notify(warning, severity="warning")
+        if result.ok and result.message:
+            self.notify(result.message, timeout=3)
+        self.refresh_view()
+
+    def send_all(self, commands: Commands | None) -> None:
+        """A window's result: send its commands in order (none if cancelled)."""
+        for command in commands or ():
+            self.send(command)
