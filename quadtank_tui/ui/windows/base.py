@@ -185,9 +185,14 @@ class ParamWindow(Window[Commands]):
     def on_field_changed(self, key: str) -> None:
         """Hook: a field was edited (the General window enables coefficients)."""
 
+    def extra_values(self) -> dict[str, Any]:
+        """Hook: values chosen outside the fields (the Setup wave window's wave
+        type), validated together with them and set with them."""
+        return {}
+
     def values(self) -> dict[str, Any] | None:
         """The fields' values by key, or None after showing what is wrong."""
-        out: dict[str, Any] = {}
+        out: dict[str, Any] = self.extra_values()
         bad = False
         for i, f in enumerate(self.fields):
             try:

@@ -20,7 +20,6 @@ from textual.widgets import Input, Label, RadioButton, RadioSet
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS, Parameters
 from quadtank_tui.core.signals import Wave
-from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.ui.windows.base import Field, ParamWindow
 
 WAVES = tuple(w.value for w in Wave)
@@ -95,29 +94,10 @@ class WaveWindow(ParamWindow):
 
     # --- values ---------------------------------------------------------------------------
 
-    def values(self) -> dict[str, Any] | None:
-        """The fields plus the wave type, validated together (the period's meaning
-        depends on the type)."""
-        out: dict[str, Any] = {self.wave_key: self.wave}
-        for i, f in enumerate(self.fields):
-            try:
-                out[f.key] = self._read(i)
-            except ParameterError as exc:
-                self._error(f.key, exc.reason)
-                return None
-        try:
-            self.params.with_values(out)
-        except ParameterError as exc:
-            self._error(exc.field, exc.reason)
-            return None
-        return out
-
-    def changes(self) -> dict[str, Any] | None:
-        values = self.values()
-        if values is None:
-            return None
-        current = {k: getattr(v, "value", v) for k, v in ((k, self.params.get(k)) for k in values)}
-        return {k: v for k, v in values.items() if v != current[k]}
+    def extra_values(self) -> dict[str, Any]:
+        """The wave type, validated with the fields (the period's meaning depends
+        on it)."""
+        return {self.wave_key: self.wave}
 
     def action_default(self) -> None:
         super().action_default()
