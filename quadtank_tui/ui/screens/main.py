@@ -305,7 +305,9 @@ class MainScreen(CommandSender):
     def action_setup(self) -> None:
         """The Setup screen (M1's third operation mode): the process runs on as it
         was; Esc there comes back here."""
-        self.app.push_screen(SetupScreen(self.engine))
+        # Setup shows only the process time live: a quarter second is plenty, and
+        # a slower refresh asked for a slow link is kept.
+        self.app.push_screen(SetupScreen(self.engine, refresh_interval=max(0.25, self.refresh_interval)))
 
     def action_exit(self) -> None:
         snap = self.current()

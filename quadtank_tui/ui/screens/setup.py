@@ -13,7 +13,6 @@ hands snapshots down to its widgets on a timer and sends the windows' commands.
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
 
 from textual import events
 from textual.app import ComposeResult
@@ -107,12 +106,10 @@ class SetupScreen(CommandSender):
         Binding("S", "main", "Main", show=False),
     ]
 
-    def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.25,
-                 on_main: Callable[[], None] | None = None) -> None:
+    def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.25) -> None:
         super().__init__()
         self.engine = engine
         self.refresh_interval = refresh_interval
-        self.on_main = on_main
         self.defaults = engine.defaults()
         self.snap: Snapshot = engine.snapshot()
         #: The name last used in the Parameters window (offered again next time).
@@ -247,10 +244,7 @@ class SetupScreen(CommandSender):
     # --- back to Main ---------------------------------------------------------------------------
 
     def action_main(self) -> None:
-        if self.on_main is not None:
-            self.on_main()
-        else:
-            self.dismiss(None)
+        self.dismiss(None)
 
 
 __all__ = ["SetupScreen"]
