@@ -311,3 +311,20 @@ async def test_the_controller_table_follows_the_family(app) -> None:  # type: ig
         await pilot.pause(0.3)  # the screen's refresh timer
         assert headers() == ["Degree", "s0", "s1", "s2", "s3", "s4", "r1", "r2", "r3", "r4"]
         assert "General" in str(table.border_title)
+
+
+async def test_setup_opens_main_s_windows_and_s_goes_back(app) -> None:  # type: ignore[no-untyped-def]
+    from quadtank_tui.ui.screens.main import MainScreen
+    from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow
+
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_setup(pilot)
+        await pilot.press("t")
+        assert isinstance(app.screen, ControllerTypeWindow)
+        await pilot.press("escape")
+        _change(app, {"CONTROL.Type": "General"})
+        await pilot.press("1")
+        assert isinstance(app.screen, GeneralWindow)  # a General element: Main's window
+        await pilot.press("escape", "S")  # the key that opened Setup closes it
+        await pilot.pause()
+        assert isinstance(app.screen, MainScreen)

@@ -124,12 +124,6 @@ class MainScreen(CommandSender):
 
     # --- attributes down ------------------------------------------------------------
 
-    def current(self) -> Snapshot:
-        """Bring the view up to date and return the snapshot a window opens on, so a
-        window never shows values older than the screen behind it."""
-        self.refresh_view()
-        return self.snap
-
     def _tick(self) -> None:
         # While the Setup screen covers this one nothing here is seen: skip the work.
         if not any(isinstance(screen, SetupScreen) for screen in self.app.screen_stack):

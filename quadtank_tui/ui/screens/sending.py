@@ -15,6 +15,7 @@ from textual.screen import Screen
 
 from quadtank_tui.engine.commands import Command, CommandResult
 from quadtank_tui.engine.handle import EngineHandle
+from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.windows.base import Commands
 
 #: Called with the engine's message instead of the error notification.
@@ -22,12 +23,20 @@ OnRefused = Callable[[str], None]
 
 
 class CommandSender(Screen[None]):
-    """A screen that sends commands; it has `engine` and `refresh_view()`."""
+    """A screen that sends commands; it has `engine`, `snap` (the snapshot it
+    shows) and `refresh_view()`."""
 
     engine: EngineHandle
+    snap: Snapshot
 
     def refresh_view(self) -> None:
         """Redraw from the engine (each screen says what that means)."""
+
+    def current(self) -> Snapshot:
+        """Bring the view up to date and return the snapshot a window opens on, so a
+        window never shows values older than the screen behind it."""
+        self.refresh_view()
+        return self.snap
 
     def send(self, command: Command, on_refused: OnRefused | None = None) -> None:
         """Submit a command; a refusal goes to `on_refused` or is notified."""

@@ -176,24 +176,24 @@ class SetupScreen(CommandSender):
     # --- windows -----------------------------------------------------------------------------
 
     def action_sampling(self) -> None:
-        self.app.push_screen(SamplingTimeWindow(self.snap.params, self.defaults, opener="s"), self.send_all)
+        self.app.push_screen(SamplingTimeWindow(self.current().params, self.defaults, opener="s"), self.send_all)
 
     def action_reference(self, channel: int) -> None:
         opener = "i" if channel == 1 else "I"
-        self.app.push_screen(WaveWindow(channel, self.snap.params, self.defaults, opener=opener), self.send_all)
+        self.app.push_screen(WaveWindow(channel, self.current().params, self.defaults, opener=opener), self.send_all)
 
     def action_controller_type(self) -> None:
-        self.app.push_screen(ControllerTypeWindow(self.snap.params, self.defaults, opener="t"), self.send_all)
+        self.app.push_screen(ControllerTypeWindow(self.current().params, self.defaults, opener="t"), self.send_all)
 
     def action_element(self, index: int) -> None:
         """An element's window: PID with the extras, or Main's General window."""
-        p = self.snap.params
+        p = self.current().params
         window = PIDExtrasWindow if p.control.family.value == "PID" else GeneralWindow
         self.app.push_screen(window(index, p, self.defaults, opener=str(index + 1)), self.send_all)
 
     def action_tank(self, tank: int) -> None:
         if tank in TANKS:
-            self.app.push_screen(TankSetupWindow(tank, self.snap.params, self.defaults), self.send_all)
+            self.app.push_screen(TankSetupWindow(tank, self.current().params, self.defaults), self.send_all)
 
     def action_pump(self, pump: int) -> None:
         """A click on a pump of the operating-point image: its input is Main's."""
