@@ -33,6 +33,7 @@ import yaml
 
 from quadtank_tui.core.calibration import SensorCalibration
 from quadtank_tui.daq.registers import MAX_ADDRESS, TABLES, TYPES, WORD_ORDERS, Register
+from quadtank_tui.files.yamltext import parse_yaml, read_text
 
 TANKS = ("tank1", "tank2", "tank3", "tank4")
 PUMPS = ("pump1", "pump2")
@@ -119,31 +120,21 @@ class DaqConfig:
 
 # --- reading -------------------------------------------------------------------------
 
+def _error(name: str, message: str, line: int | None) -> DaqConfigError:
+    return DaqConfigError(name, message, line=line)
+
+
 def load_daq_config(path: Path | str) -> DaqConfig:
     """Read and validate a DAQ configuration file, or a preset name (`labjack`)."""
     text_path = str(path)
     if text_path in PRESETS:
         return parse_daq_config(yaml.safe_dump({"preset": text_path}), name=f"preset {text_path}")
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise DaqConfigError(text_path, "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DaqConfigError(text_path, f"cannot read: {exc}") from None
-    return parse_daq_config(text, name=text_path)
+    return parse_daq_config(read_text(path, _error), name=text_path)
 
 
 def parse_daq_config(text: str, *, name: str = "<daq config>") -> DaqConfig:
     """Validate the YAML `text` (named `name` in errors) over its preset."""
-    try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = None if mark is None else mark.line + 1
-        problem = getattr(exc, "problem", None) or getattr(exc, "reason", None) or str(exc)
-        problem = " ".join(str(problem).split())
-        raise DaqConfigError(name, f"not valid YAML: {problem}", line=line) from None
+    node, data = parse_yaml(text, name, _error)
     lines = _key_lines(node)
     v = _Validator(name, lines)
     if data is None:

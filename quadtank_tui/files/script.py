@@ -34,6 +34,7 @@ import yaml
 
 from quadtank_tui.core.parameters import Kind, spec
 from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.files.yamltext import parse_yaml, read_text
 
 ACTIONS = ("mode", "state", "set", "step", "add_water", "log")
 MODES = ("Manual", "Automatic")
@@ -74,25 +75,16 @@ class Script:
     events: tuple[Event, ...]  # in time order (stable: same time keeps file order)
 
 
+def _error(name: str, message: str, line: int | None) -> ScriptError:
+    return ScriptError(name, message, line=line)
+
+
 def read_script(path: Path | str) -> Script:
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ScriptError(str(path), "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScriptError(str(path), f"cannot read: {exc}") from None
-    return parse_script(text, name=str(path))
+    return parse_script(read_text(path, _error), name=str(path))
 
 
 def parse_script(text: str, *, name: str = "<script>") -> Script:
-    try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise ScriptError(name, f"not valid YAML: {getattr(exc, 'problem', exc)}",
-                          line=None if mark is None else mark.line + 1) from None
+    node, data = parse_yaml(text, name, _error)
     if data is None:
         return Script(name, ())
     if not isinstance(data, list) or not isinstance(node, yaml.SequenceNode):
