@@ -30,7 +30,6 @@ from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
 from quadtank_tui.core.parameters import SimulationSettings
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams, area_from_diameter, outlet_from_time_constant
 from quadtank_tui.core.validation import ParameterError, check_number
 
 TANKS = (1, 2, 3, 4)
@@ -72,11 +71,7 @@ def tank_keys(tank: int) -> tuple[str, ...]:
 def outlet(sim: SimulationSettings, tank: int) -> float:
     """The hidden outlet area a_i (cm^2) the tank's three values imply."""
     _check_tank(tank)
-    i = tank - 1
-    return outlet_from_time_constant(
-        area_from_diameter(sim.diameters[i]), sim.time_constants[i], _level_cm(sim, sim.op_points[i]),
-        PlantParams.g,
-    )
+    return sim.plant().outlet(tank - 1)
 
 
 def tank_setup(sim: SimulationSettings, tank: int) -> TankSetup:
@@ -185,15 +180,8 @@ def apply_changes(sim: SimulationSettings, changes: Mapping[str, Any]) -> Simula
 
 # --- helpers ------------------------------------------------------------------------------
 
-def _level_cm(sim: SimulationSettings, op_point: float) -> float:
-    return op_point * FULL_SCALE_V / sim.sensor
-
-
 def _number(field: str, value: Any) -> float:
-    try:
-        return check_number(field, value)
-    except ParameterError as exc:
-        raise ParameterError(f"SIMULATION.{exc.field}", exc.reason) from None
+    return check_number(f"SIMULATION.{field}", value)
 
 
 def _check_positive(tank: int, op: float, d: float) -> None:
