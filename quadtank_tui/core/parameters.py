@@ -45,6 +45,7 @@ from quadtank_tui.core.plant import (
     Setting,
     area_from_diameter,
     diameter_from_area,
+    levels_to_normalized,
     outlet_from_time_constant,
     time_constant,
 )
@@ -90,11 +91,15 @@ def _enum(key: str, enum: type[Enum], value: Any) -> Any:
         raise ParameterError(key, f"must be one of {allowed}; got {value!r}") from None
 
 
-def _integer(key: str, value: Any, lo: int, hi: int) -> int:
+def _whole(key: str, value: Any) -> int:
     x = check_number(key, value)
     if x != int(x):
         raise ParameterError(key, f"must be a whole number, got {x:g}")
-    return int(check_range(key, x, lo, hi))
+    return int(x)
+
+
+def _integer(key: str, value: Any, lo: int, hi: int) -> int:
+    return int(check_range(key, _whole(key, value), lo, hi))
 
 
 def check_file_name(name: Any, key: str = "LogFile") -> str:
@@ -221,7 +226,7 @@ class SimulationSettings:
         h = setting.op.h
         return cls(
             diameters=tuple(round(diameter_from_area(p.area(i)), 6) for i in range(4)),  # type: ignore[arg-type]
-            op_points=tuple(round(p.kc * h[i] / FULL_SCALE_V, 6) for i in range(4)),  # type: ignore[arg-type]
+            op_points=tuple(round(y, 6) for y in levels_to_normalized(h, p)),  # type: ignore[arg-type]
             time_constants=tuple(  # type: ignore[arg-type]
                 round(time_constant(p.area(i), p.outlet(i), h[i], p.g), 6) for i in range(4)
             ),
@@ -396,10 +401,7 @@ def _coerce_number(k: KeySpec, value: Any) -> float:
 
 
 def _coerce_integer(k: KeySpec, value: Any) -> int:
-    x = check_number(k.key, value)
-    if x != int(x):
-        raise ParameterError(k.key, f"must be a whole number, got {x:g}")
-    return int(x)
+    return _whole(k.key, value)
 
 
 def _coerce_flag(k: KeySpec, value: Any) -> bool:
