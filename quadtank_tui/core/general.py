@@ -10,7 +10,7 @@ from typing import Sequence
 
 import numpy as np
 
-from quadtank_tui.core.validation import ParameterError, check_number, check_range
+from quadtank_tui.core.validation import ParameterError, check_number, check_sampling_time
 
 MAX_DEGREE = 4
 
@@ -118,7 +118,7 @@ class General:
     """
 
     def __init__(self, params: GeneralParams, h: float) -> None:
-        self._h = check_range("TSamp", h, 0.0, None, lo_open=True)
+        self._h = check_sampling_time(h)
         self._p = params
         self._Phi, self._Gam, self._C, self._D = realize(*tustin(params.numerator, params.denominator, self._h))
         self._x = np.zeros(params.degree)
@@ -167,7 +167,7 @@ class General:
 
     def set_sampling_time(self, h: float) -> None:
         """Re-discretize at the new sampling time (s) without a jump in u."""
-        h = check_range("TSamp", h, 0.0, None, lo_open=True)
+        h = check_sampling_time(h)
         realization = realize(*tustin(self._p.numerator, self._p.denominator, h))
         self._h = h
         self._Phi, self._Gam, self._C, self._D = realization

@@ -28,7 +28,7 @@ from typing import Mapping, Sequence
 
 from quadtank_tui.core.general import General, GeneralParams, tustin
 from quadtank_tui.core.pid import PID, PIDParams
-from quadtank_tui.core.validation import ParameterError, check_range
+from quadtank_tui.core.validation import ParameterError, check_sampling_time
 
 Element = tuple[int, int]
 Pair = tuple[float, float]
@@ -91,7 +91,7 @@ class ControllerMatrix:
         pid: Mapping[Element, PIDParams] | None = None,
         general: Mapping[Element, GeneralParams] | None = None,
     ) -> None:
-        h = check_range("TSamp", h, 0.0, None, lo_open=True)
+        h = check_sampling_time(h)
         self._family = Family(family)
         self._structure = Structure(structure)
         pid = pid or {}
@@ -216,7 +216,7 @@ class ControllerMatrix:
         Every General element is re-discretized first as a check, so a pole that Tustin
         cannot map at the new h refuses the change before any element has moved.
         """
-        h = check_range("TSamp", h, 0.0, None, lo_open=True)
+        h = check_sampling_time(h)
         for g in self._general.values():
             tustin(g.params.numerator, g.params.denominator, h)
         for e in ELEMENTS:

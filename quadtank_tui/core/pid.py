@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-from quadtank_tui.core.validation import ParameterError, check_range
+from quadtank_tui.core.validation import ParameterError, check_range, check_sampling_time
 
 
 @dataclass(frozen=True)
@@ -86,7 +86,7 @@ class PID:
     """
 
     def __init__(self, params: PIDParams, h: float, *, anti_windup: bool = True) -> None:
-        check_range("TSamp", h, 0.0, None, lo_open=True)
+        check_sampling_time(h)
         self._p = params
         self._h = float(h)
         self.anti_windup = anti_windup
@@ -182,7 +182,7 @@ class PID:
     def set_sampling_time(self, h: float) -> None:
         """New sampling time, s.  I and D are stored as contributions to v; the
         derivative filter's new coefficient is absorbed like a parameter change."""
-        h = check_range("TSamp", h, 0.0, None, lo_open=True)
+        h = check_sampling_time(h)
         self._absorb(lambda: setattr(self, "_h", h))
 
     def _set(self, params: PIDParams) -> None:

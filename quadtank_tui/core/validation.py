@@ -42,3 +42,8 @@ def check_range(
     if hi is not None and (x >= hi if hi_open else x > hi):
         raise ParameterError(field, f"must be {'<' if hi_open else '<='} {hi:g}, got {x:g}")
     return x
+
+
+def check_sampling_time(h: object) -> float:
+    """A sampling time `h` (s) as float: a finite number > 0, refused as "TSamp"."""
+    return check_range("TSamp", h, 0.0, None, lo_open=True)
