@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass, replace
 from enum import Enum
 
-from quadtank_tui.core.validation import ParameterError, check_number, check_range
+from quadtank_tui.core.validation import ParameterError, check_number, check_range, check_sampling_time
 
 
 class Wave(str, Enum):
@@ -21,6 +21,9 @@ class Wave(str, Enum):
     SQUARE = "Square"
     SINE = "Sine"
     PRBS = "PRBS"
+
+
+MEAN_MIN, MEAN_MAX = -1.0, 2.0  # the range WaveParams accepts for Mean
 
 
 @dataclass(frozen=True)
@@ -45,7 +48,7 @@ class WaveParams:
                 object.__setattr__(self, "wave", Wave(self.wave))
             except ValueError:
                 raise ParameterError("Wave", f"must be Square, Sine or PRBS, got {self.wave!r}") from None
-        check_range("Mean", self.mean, -1.0, 2.0)
+        check_range("Mean", self.mean, MEAN_MIN, MEAN_MAX)
         check_range("Amplitude", self.amplitude, 0.0, 1.0)
         check_range("Period", self.period, 0.0, 1e6, lo_open=True)
         if not isinstance(self.on, bool):
@@ -63,9 +66,6 @@ DEFAULT_RAMP_RATE = 0.05
 #: The shortest Square/Sine period, in samples, that can be told apart from a constant.
 MIN_SAMPLES_PER_PERIOD = 2
 
-MEAN_MIN, MEAN_MAX = -1.0, 2.0  # the range WaveParams accepts for Mean
-
-
 def check_period(params: WaveParams, h: float) -> None:
     """Refuse a period the sampling time ``h`` (s) cannot render.
 
@@ -78,7 +78,7 @@ def check_period(params: WaveParams, h: float) -> None:
     the `.par` reader applies).  Refused with the wave off too, so switching it on
     can never reveal a bad period.
     """
-    check_range("TSamp", h, 0.0, None, lo_open=True)
+    check_sampling_time(h)
     if params.wave is Wave.PRBS:
         if params.period < 1 or params.period != int(params.period):
             raise ParameterError(
@@ -161,12 +161,8 @@ class Generator:
         self._p = params
         self._h = float(h)
         self.ramp_rate = check_range("ramp_rate", ramp_rate, 0.0, None, lo_open=True)
-        self._mean = params.mean
         self._target = params.mean
-        self._t = 0.0  # seconds into the current period (Square/Sine)
-        self._n = 0  # samples into the current hold (PRBS)
-        self._lfsr = LFSR(mixed_seed(params.seed))
-        self._level = self._prbs_level()
+        self.reset()  # phase 0, the PRBS from its seed, the mean at the target
 
     # --- reading ----------------------------------------------------------------------
 
@@ -290,8 +286,8 @@ class Generator:
     def reset(self) -> None:
         """Restart the wave: phase 0 and the PRBS from its seed; the mean jumps to its
         target (a reset ends a ramp), so the same settings give the same samples."""
-        self._t = 0.0
-        self._n = 0
+        self._t = 0.0  # seconds into the current period (Square/Sine)
+        self._n = 0  # samples into the current hold (PRBS)
         self._lfsr = LFSR(mixed_seed(self._p.seed))
         self._level = self._prbs_level()
         self._mean = self._target
