@@ -68,18 +68,18 @@ def test_pumps_off_water_only_decreases(p: PlantParams, h0) -> None:
 @given(plants(), levels, volts)
 def test_linearization_matches_finite_differences(p: PlantParams, h0, v) -> None:
     m = linearize(p, h0)
-    eps = 1e-6
-    J = np.empty((4, 4))
-    for j in range(4):
-        hp, hm = list(h0), list(h0)
-        hp[j] += eps
-        hm[j] -= eps
-        J[:, j] = (np.array(rhs(hp, v, p)) - np.array(rhs(hm, v, p))) / (2 * eps)
-    Bn = np.empty((4, 2))
-    for j in range(2):
-        vp, vm = list(v), list(v)
-        vp[j] += eps
-        vm[j] -= eps
-        Bn[:, j] = (np.array(rhs(h0, vp, p)) - np.array(rhs(h0, vm, p))) / (2 * eps)
+    J = _central_differences(lambda h: rhs(h, v, p), h0)
+    Bn = _central_differences(lambda u: rhs(h0, u, p), v)
     assert np.allclose(m.A, J, rtol=1e-5, atol=1e-8)
     assert np.allclose(m.B, Bn, rtol=1e-5, atol=1e-8)
+
+
+def _central_differences(f, x, eps: float = 1e-6) -> np.ndarray:
+    """d f / d x by central differences, one column per component of x."""
+    cols = []
+    for j in range(len(x)):
+        xp, xm = list(x), list(x)
+        xp[j] += eps
+        xm[j] -= eps
+        cols.append((np.array(f(xp)) - np.array(f(xm))) / (2 * eps))
+    return np.column_stack(cols)
