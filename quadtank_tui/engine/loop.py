@@ -44,7 +44,7 @@ from quadtank_tui.engine.logsession import LogRefused, LogSession
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
 from quadtank_tui.files.log import LogFileError
-from quadtank_tui.files.par import ParFileError, ParStore
+from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 
 MODE_KEY = "CONTROL.Mode"
 MEAN_KEYS = ("REFERENCE ONE.Mean", "REFERENCE TWO.Mean")
@@ -415,7 +415,8 @@ class ControlLoop:
         return CommandResult(True, f"loaded {cmd.name}", warnings=tuple(read.warnings))
 
     def _save_par(self, cmd: SavePar) -> CommandResult:
-        if self.store.exists(cmd.name) and not cmd.overwrite and cmd.name.lower() not in ("default", "preset"):
+        # A reserved name skips the "exists" question: store.save refuses it with the reason.
+        if self.store.exists(cmd.name) and not cmd.overwrite and cmd.name.lower() not in RESERVED:
             return CommandResult.refused(f"{self.store.path_of(cmd.name)} exists (save again to overwrite)")
         path = self.store.save(cmd.name, self.params)
         return CommandResult(True, f"saved {path}")
