@@ -111,7 +111,7 @@ class ControlLoop:
         self.realtime = False
         self.speed = math.inf
         self.stats = LoopStats()
-        self._snapshot = self._make_snapshot()
+        self.publish()
 
     # --- reading -----------------------------------------------------------------------
 
@@ -146,8 +146,7 @@ class ControlLoop:
                 self._y = self.backend.read_levels()  # a paused rig still shows its levels
         except Exception as exc:  # noqa: BLE001 - any fault: pumps safe, Pause, say why
             self._fail(exc)
-        self._snapshot = self._make_snapshot()
-        return self._snapshot
+        return self.publish()
 
     def _sample(self) -> None:
         y = self.backend.read_levels()
@@ -232,7 +231,7 @@ class ControlLoop:
             return CommandResult.refused(str(message))
         except OSError as exc:
             return CommandResult.refused(f"{getattr(exc, 'filename', '') or ''} {exc.strerror or exc}".strip())
-        self._snapshot = self._make_snapshot()
+        self.publish()
         return result
 
     def _set_params(self, cmd: SetParams) -> CommandResult:
