@@ -36,7 +36,7 @@ from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.loop import ControlLoop
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log import log_path
-from quadtank_tui.files.par import ParStore, read_par
+from quadtank_tui.files.par import ParRead, ParStore, read_par
 
 ClockKind = Literal["realtime", "virtual", "manual"]
 
@@ -312,12 +312,14 @@ def virtual_epoch() -> datetime:
     return VIRTUAL_EPOCH
 
 
-def load_parameters(par: str | Path | None, store: ParStore) -> tuple[Parameters, tuple[str, ...]]:
+def load_parameters(par: str | Path | None, store: ParStore,
+                    defaults: ParRead | None = None) -> tuple[Parameters, tuple[str, ...]]:
     """The defaults file, or `par`: a path to a `.par` file, else a name in the store.
 
-    Missing values of a file take the defaults.  Errors are ParFileError naming file,
-    line and key."""
-    defaults = store.defaults()
+    Missing values of a file take the defaults (`defaults`: the store's, already
+    read).  Errors are ParFileError naming file, line and key."""
+    if defaults is None:
+        defaults = store.defaults()
     if par is None:
         return defaults.params, tuple(defaults.warnings)
     path = Path(par)
@@ -367,7 +369,8 @@ def build_engine(
     now = now or time.monotonic
     sleep = sleep or time.sleep
     store = ParStore(params_dir)
-    params, warnings = load_parameters(par, store)
+    defaults = store.defaults()
+    params, warnings = load_parameters(par, store, defaults)
     if seed is not None:
         params = with_seed(params, seed)
     h = params.tsamp
@@ -380,7 +383,7 @@ def build_engine(
         stamp = lambda: origin + timedelta(seconds=round(control.t, 6))  # noqa: E731
     else:
         raise ValueError(f"clock must be realtime, virtual or manual, got {clock!r}")
-    control = ControlLoop(params, defaults=store.defaults().params, store=store, logs_dir=logs_dir,
+    control = ControlLoop(params, defaults=defaults.params, store=store, logs_dir=logs_dir,
                           daq=daq, history_capacity=history_capacity, now=lambda: stamp())
     return Engine(control, clk, threaded=(clock != "manual") if threaded is None else threaded,
                   sleep=sleep, warnings=warnings)
