@@ -194,11 +194,14 @@ class Engine:
                 self._sample()
         return self.loop.snapshot()
 
-    def run_for(self, seconds: float) -> int:
+    def run_for(self, seconds: float, before: Callable[[LoopTime], None] | None = None) -> int:
         """Sample for `seconds` of loop time (sum of the sampling periods, paused or
-        not); returns the number of samples."""
+        not); returns the number of samples.  `before(elapsed)` runs ahead of each
+        sample (a script applies its due events there)."""
         elapsed = LoopTime(self.loop.h)
         while not elapsed.reached(seconds):
+            if before is not None:
+                before(elapsed)
             h = self.loop.h
             self.step()
             elapsed.add(h)
