@@ -9,6 +9,7 @@ names the script, the event and its line; the log so far is kept.
 
 from __future__ import annotations
 
+import collections
 import math
 from dataclasses import dataclass
 
@@ -59,18 +60,14 @@ def run_experiment(engine: Engine, script: Script | None, duration: float) -> in
     """Run `duration` s of loop time applying the script's events; returns samples."""
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
-    events = list(script.events) if script else []
+    events = collections.deque(script.events if script else ())
     name = script.file if script else ""
-    i = 0
-    elapsed = LoopTime(engine.loop.h)
-    while not elapsed.reached(duration):
-        while i < len(events) and elapsed.reached(events[i].at):
-            _apply(engine, events[i], name)
-            i += 1
-        h = engine.loop.h
-        engine.step()
-        elapsed.add(h)
-    return elapsed.samples
+
+    def apply_due(elapsed: LoopTime) -> None:
+        while events and elapsed.reached(events[0].at):
+            _apply(engine, events.popleft(), name)
+
+    return engine.run_for(duration, before=apply_due)
 
 
 def _apply(engine: Engine, event: Event, name: str) -> None:

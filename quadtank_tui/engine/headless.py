@@ -18,6 +18,7 @@ from quadtank_tui.engine.commands import LogOn, LogSave, SetOperation, SetParams
 from quadtank_tui.engine.experiment import format_summary, run_experiment, summarize
 from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.runner import ClockKind, build_engine, load_parameters, virtual_epoch
+from quadtank_tui.files.log import SUFFIX
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.files.script import Script
 
@@ -51,9 +52,10 @@ def run_headless(
     references (controllers at rest).  With `daq` the run is in Active on that
     process (the clock must then be paced: real time, or the rig's speed factor);
     a link fault pauses it and the status is 1."""
-    name = out.name if out.name.endswith(".log") else out.name + ".log"
+    stem = out.name.removesuffix(SUFFIX)
+    name = stem + SUFFIX
     try:
-        check_file_name(name[: -len(".log")], "--log")
+        check_file_name(stem, "--log")
     except ParameterError as exc:
         raise ValueError(str(exc)) from None
     out = out.with_name(name)
@@ -66,7 +68,7 @@ def run_headless(
     warnings = engine.warnings
     try:
         # The partial file of an interrupted run sits next to OUT, named after it.
-        _must(engine.submit(SetParams({"LOGGING.LogFile": name[: -len(".log")]})).result())
+        _must(engine.submit(SetParams({"LOGGING.LogFile": stem})).result())
         if daq is not None:
             _must(engine.submit(SetOperation("Active")).result())
         if params.control.mode is ControlMode.AUTOMATIC:

@@ -44,7 +44,7 @@ from quadtank_tui.engine.logsession import LogRefused, LogSession
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
 from quadtank_tui.files.log import LogFileError
-from quadtank_tui.files.par import ParFileError, ParStore
+from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 
 MODE_KEY = "CONTROL.Mode"
 MEAN_KEYS = ("REFERENCE ONE.Mean", "REFERENCE TWO.Mean")
@@ -111,7 +111,7 @@ class ControlLoop:
         self.realtime = False
         self.speed = math.inf
         self.stats = LoopStats()
-        self._snapshot = self._make_snapshot()
+        self.publish()
 
     # --- reading -----------------------------------------------------------------------
 
@@ -146,8 +146,7 @@ class ControlLoop:
                 self._y = self.backend.read_levels()  # a paused rig still shows its levels
         except Exception as exc:  # noqa: BLE001 - any fault: pumps safe, Pause, say why
             self._fail(exc)
-        self._snapshot = self._make_snapshot()
-        return self._snapshot
+        return self.publish()
 
     def _sample(self) -> None:
         y = self.backend.read_levels()
@@ -232,7 +231,7 @@ class ControlLoop:
             return CommandResult.refused(str(message))
         except OSError as exc:
             return CommandResult.refused(f"{getattr(exc, 'filename', '') or ''} {exc.strerror or exc}".strip())
-        self._snapshot = self._make_snapshot()
+        self.publish()
         return result
 
     def _set_params(self, cmd: SetParams) -> CommandResult:
@@ -415,7 +414,8 @@ class ControlLoop:
         return CommandResult(True, f"loaded {cmd.name}", warnings=tuple(read.warnings))
 
     def _save_par(self, cmd: SavePar) -> CommandResult:
-        if self.store.exists(cmd.name) and not cmd.overwrite and cmd.name.lower() not in ("default", "preset"):
+        # A reserved name skips the "exists" question: store.save refuses it with the reason.
+        if self.store.exists(cmd.name) and not cmd.overwrite and cmd.name.lower() not in RESERVED:
             return CommandResult.refused(f"{self.store.path_of(cmd.name)} exists (save again to overwrite)")
         path = self.store.save(cmd.name, self.params)
         return CommandResult(True, f"saved {path}")

@@ -36,7 +36,7 @@ from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.loop import ControlLoop
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log import log_path
-from quadtank_tui.files.par import ParStore, read_par
+from quadtank_tui.files.par import ParRead, ParStore, read_par
 
 ClockKind = Literal["realtime", "virtual", "manual"]
 
@@ -194,11 +194,14 @@ class Engine:
                 self._sample()
         return self.loop.snapshot()
 
-    def run_for(self, seconds: float) -> int:
+    def run_for(self, seconds: float, before: Callable[[LoopTime], None] | None = None) -> int:
         """Sample for `seconds` of loop time (sum of the sampling periods, paused or
-        not); returns the number of samples."""
+        not); returns the number of samples.  `before(elapsed)` runs ahead of each
+        sample (a script applies its due events there)."""
         elapsed = LoopTime(self.loop.h)
         while not elapsed.reached(seconds):
+            if before is not None:
+                before(elapsed)
             h = self.loop.h
             self.step()
             elapsed.add(h)
@@ -312,12 +315,14 @@ def virtual_epoch() -> datetime:
     return VIRTUAL_EPOCH
 
 
-def load_parameters(par: str | Path | None, store: ParStore) -> tuple[Parameters, tuple[str, ...]]:
+def load_parameters(par: str | Path | None, store: ParStore,
+                    defaults: ParRead | None = None) -> tuple[Parameters, tuple[str, ...]]:
     """The defaults file, or `par`: a path to a `.par` file, else a name in the store.
 
-    Missing values of a file take the defaults.  Errors are ParFileError naming file,
-    line and key."""
-    defaults = store.defaults()
+    Missing values of a file take the defaults (`defaults`: the store's, already
+    read).  Errors are ParFileError naming file, line and key."""
+    if defaults is None:
+        defaults = store.defaults()
     if par is None:
         return defaults.params, tuple(defaults.warnings)
     path = Path(par)
@@ -367,7 +372,8 @@ def build_engine(
     now = now or time.monotonic
     sleep = sleep or time.sleep
     store = ParStore(params_dir)
-    params, warnings = load_parameters(par, store)
+    defaults = store.defaults()
+    params, warnings = load_parameters(par, store, defaults)
     if seed is not None:
         params = with_seed(params, seed)
     h = params.tsamp
@@ -380,7 +386,7 @@ def build_engine(
         stamp = lambda: origin + timedelta(seconds=round(control.t, 6))  # noqa: E731
     else:
         raise ValueError(f"clock must be realtime, virtual or manual, got {clock!r}")
-    control = ControlLoop(params, defaults=store.defaults().params, store=store, logs_dir=logs_dir,
+    control = ControlLoop(params, defaults=defaults.params, store=store, logs_dir=logs_dir,
                           daq=daq, history_capacity=history_capacity, now=lambda: stamp())
     return Engine(control, clk, threaded=(clock != "manual") if threaded is None else threaded,
                   sleep=sleep, warnings=warnings)

@@ -9,9 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from quadtank_tui.core.parameters import Parameters
-
-Levels4 = tuple[float, float, float, float]
-Pair = tuple[float, float]
+from quadtank_tui.engine.backend import Levels4, Pair
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,6 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
-import scipy.io
-
 from quadtank_tui.files.atomic import atomic_write_bytes
 from quadtank_tui.files.log import LogData
 
@@ -22,6 +20,8 @@ FORMATS = ("mat", "csv")
 
 def mat_bytes(log: LogData) -> bytes:
     """The `.mat` file's content."""
+    import scipy.io  # here, not at module level: it costs every `quadtank` start ~0.2 s
+
     out: dict[str, object] = {name: log[name].reshape(-1, 1) for name in log.variables}
     if log.tsamp is not None:
         out["TSamp"] = log.tsamp
