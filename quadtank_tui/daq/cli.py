@@ -8,17 +8,16 @@ option with `add_daq_option`; everything about them lives here next to the DAQ.
 from __future__ import annotations
 
 import argparse
-import asyncio
 import ipaddress
 import sys
 from typing import TYPE_CHECKING, Literal
 
-from quadtank_tui.core.calibration import fit_sensor
-from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.daq.config import PRESETS, load_daq_config
-from quadtank_tui.daq.rig import SensorModel, VirtualRig, serve_rig
 from quadtank_tui.engine.backend import BackendError
 
+# The commands import what they run inside their handlers (the rig: asyncio; the
+# preset parameters: numpy), so building the parser, which every `quadtank`
+# command does, stays cheap.
 if TYPE_CHECKING:  # pymodbus is imported only when a DAQ is used
     from quadtank_tui.daq.modbus import ModbusBackend
 
@@ -56,6 +55,10 @@ def add_rig_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_rig(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from quadtank_tui.core.parameters import PRESET
+    from quadtank_tui.daq.rig import SensorModel, VirtualRig, serve_rig
     from quadtank_tui.files.par import read_par  # files layer, only when a .par is given
 
     if args.par is not None:
@@ -140,6 +143,8 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
 
 
 def cmd_daq_fit(args: argparse.Namespace) -> int:
+    from quadtank_tui.core.calibration import fit_sensor
+
     volts, levels = [], []
     for pair in args.pairs:
         v, sep, h = pair.partition(":")
