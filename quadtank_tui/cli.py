@@ -69,35 +69,29 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     from quadtank_tui.core.analysis import analyze, format_report
 
     if args.par is not None:
-        return _analyze_par(args)
-    setting = SETTINGS[args.preset]
-    params, h0 = setting.params, setting.op.h
-    where = "operating levels"
-    if args.at == "steady":
-        h0 = steady_state_levels(setting.op.v, params)
-        where = f"steady state of v = ({setting.op.v[0]:.2f}, {setting.op.v[1]:.2f}) V"
+        from quadtank_tui.files.par import read_par
+
+        if args.at == "steady":
+            raise UsageError("--at steady needs pump voltages; a .par file gives operating levels only")
+        read = read_par(args.par)
+        _warn(read.warnings)
+        params, h0 = read.params.plant(), read.params.operating_levels()
+        source = {"par": args.par}
+        title = f"{args.par}, linearized at its operating levels"
+    else:
+        setting = SETTINGS[args.preset]
+        params, h0 = setting.params, setting.op.h
+        where = "operating levels"
+        if args.at == "steady":
+            h0 = steady_state_levels(setting.op.v, params)
+            where = f"steady state of v = ({setting.op.v[0]:.2f}, {setting.op.v[1]:.2f}) V"
+        source = {"setting": setting.name}
+        title = f"{setting.title}, linearized at the {where}"
     result = analyze(params, h0)
     if args.json:
-        out = {"setting": setting.name, "linearized_at": args.at, **result.to_dict()}
-        print(json.dumps(out, indent=2))
+        print(json.dumps({**source, "linearized_at": args.at, **result.to_dict()}, indent=2))
     else:
-        print(format_report(f"{setting.title}, linearized at the {where}", result))
-    return 0
-
-
-def _analyze_par(args: argparse.Namespace) -> int:
-    from quadtank_tui.core.analysis import analyze, format_report
-    from quadtank_tui.files.par import read_par
-
-    if args.at == "steady":
-        raise UsageError("--at steady needs pump voltages; a .par file gives operating levels only")
-    read = read_par(args.par)
-    _warn(read.warnings)
-    result = analyze(read.params.plant(), read.params.operating_levels())
-    if args.json:
-        print(json.dumps({"par": args.par, "linearized_at": "levels", **result.to_dict()}, indent=2))
-    else:
-        print(format_report(f"{args.par}, linearized at its operating levels", result))
+        print(format_report(title, result))
     return 0
 
 
@@ -168,7 +162,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from quadtank_tui.engine.headless import run_headless
     from quadtank_tui.files.script import read_script
 
-    if not args.duration > 0 or args.duration != args.duration:
+    if not args.duration > 0:  # NaN too
         raise UsageError(f"--duration must be a positive number of seconds, got {args.duration:g}")
     if args.speed is not None and not 1.0 <= args.speed <= 1000.0:
         raise UsageError(f"--speed must be 1..1000, got {args.speed:g}")
