@@ -69,9 +69,8 @@ def cmd_rig(args: argparse.Namespace) -> int:
     else:
         params = PRESET
     config = load_daq_config(args.map)
-    for name in ("speed",):
-        if not getattr(args, name) > 0:
-            raise ValueError(f"--{name} must be > 0, got {getattr(args, name)}")
+    if not args.speed > 0:
+        raise ValueError(f"--speed must be > 0, got {args.speed}")
     for name in ("noise", "lsb", "watchdog", "reply_delay", "status"):
         if getattr(args, name) < 0:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
@@ -162,9 +161,8 @@ def cmd_daq_fit(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """`python -m quadtank_tui.daq rig ...`: the rig alone, without loading the
-    analysis stack the full `quadtank` command imports (a second or more at start-up,
-    which matters on a small lab computer and in the tests that start many rigs)."""
+    """`python -m quadtank_tui.daq rig ...`: the rig alone, through the DAQ layer's
+    own parser (the `quadtank` command builds the CLI layer's parser as well)."""
     parser = argparse.ArgumentParser(prog="python -m quadtank_tui.daq")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     add_rig_parser(sub)
