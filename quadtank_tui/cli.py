@@ -14,15 +14,18 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
-from quadtank_tui.core.analysis import analyze, format_report
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
 from quadtank_tui.daq.cli import (
     add_daq_option, add_daq_parser, add_rig_parser, open_daq, run_clock,
 )
-from quadtank_tui.files.export import FORMATS, export_log
-from quadtank_tui.files.log import format_tsamp, read_log
-from quadtank_tui.files.par import read_par
-from quadtank_tui.files.script import read_script
+
+# Each subcommand imports what it needs inside its handler: the analysis stack
+# (python-control, scipy: over a second), numpy and yaml would otherwise be paid by
+# every `quadtank` command, `--help` and the TUI's start included.
+
+#: files.export.FORMATS, written out because that module loads scipy.io just for
+#: the parser's choices (tests/cli/test_files_cli.py checks they agree).
+EXPORT_FORMATS = ("mat", "csv")
 
 
 if TYPE_CHECKING:  # the TUI's modules load only when it starts
@@ -63,33 +66,32 @@ def _add_analyze(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
+    from quadtank_tui.core.analysis import analyze, format_report
+
     if args.par is not None:
-        return _analyze_par(args)
-    setting = SETTINGS[args.preset]
-    params, h0 = setting.params, setting.op.h
-    where = "operating levels"
-    if args.at == "steady":
-        h0 = steady_state_levels(setting.op.v, params)
-        where = f"steady state of v = ({setting.op.v[0]:.2f}, {setting.op.v[1]:.2f}) V"
+        from quadtank_tui.files.par import read_par
+
+        if args.at == "steady":
+            raise UsageError("--at steady needs pump voltages; a .par file gives operating levels only")
+        read = read_par(args.par)
+        _warn(read.warnings)
+        params, h0 = read.params.plant(), read.params.operating_levels()
+        source = {"par": args.par}
+        title = f"{args.par}, linearized at its operating levels"
+    else:
+        setting = SETTINGS[args.preset]
+        params, h0 = setting.params, setting.op.h
+        where = "operating levels"
+        if args.at == "steady":
+            h0 = steady_state_levels(setting.op.v, params)
+            where = f"steady state of v = ({setting.op.v[0]:.2f}, {setting.op.v[1]:.2f}) V"
+        source = {"setting": setting.name}
+        title = f"{setting.title}, linearized at the {where}"
     result = analyze(params, h0)
     if args.json:
-        out = {"setting": setting.name, "linearized_at": args.at, **result.to_dict()}
-        print(json.dumps(out, indent=2))
+        print(json.dumps({**source, "linearized_at": args.at, **result.to_dict()}, indent=2))
     else:
-        print(format_report(f"{setting.title}, linearized at the {where}", result))
-    return 0
-
-
-def _analyze_par(args: argparse.Namespace) -> int:
-    if args.at == "steady":
-        raise UsageError("--at steady needs pump voltages; a .par file gives operating levels only")
-    read = read_par(args.par)
-    _warn(read.warnings)
-    result = analyze(read.params.plant(), read.params.operating_levels())
-    if args.json:
-        print(json.dumps({"par": args.par, "linearized_at": "levels", **result.to_dict()}, indent=2))
-    else:
-        print(format_report(f"{args.par}, linearized at its operating levels", result))
+        print(format_report(title, result))
     return 0
 
 
@@ -102,12 +104,14 @@ def _add_log(sub: argparse._SubParsersAction) -> None:
     info.set_defaults(handler=_cmd_log_info)
     exp = logsub.add_parser("export", help="write a log as .mat (one variable per column + TSamp) or .csv")
     exp.add_argument("file", metavar="FILE")
-    exp.add_argument("--to", choices=FORMATS, required=True, help="output format")
+    exp.add_argument("--to", choices=EXPORT_FORMATS, required=True, help="output format")
     exp.add_argument("--out", metavar="PATH", help="output file (default: FILE with the format's suffix)")
     exp.set_defaults(handler=_cmd_log_export)
 
 
 def _cmd_log_info(args: argparse.Namespace) -> int:
+    from quadtank_tui.files.log import format_tsamp, read_log
+
     log = read_log(args.file)
     _warn(log.warnings)
     tsamp = "unknown" if log.tsamp is None else f"{format_tsamp(log.tsamp)} s"
@@ -122,6 +126,9 @@ def _cmd_log_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_log_export(args: argparse.Namespace) -> int:
+    from quadtank_tui.files.export import export_log
+    from quadtank_tui.files.log import read_log
+
     log = read_log(args.file)
     _warn(log.warnings)
     out = args.out or str(Path(args.file).with_suffix("." + args.to))
@@ -152,10 +159,10 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    # Imported here: the engine is not needed by the other subcommands.
     from quadtank_tui.engine.headless import run_headless
+    from quadtank_tui.files.script import read_script
 
-    if not args.duration > 0 or args.duration != args.duration:
+    if not args.duration > 0:  # NaN too
         raise UsageError(f"--duration must be a positive number of seconds, got {args.duration:g}")
     if args.speed is not None and not 1.0 <= args.speed <= 1000.0:
         raise UsageError(f"--speed must be 1..1000, got {args.speed:g}")

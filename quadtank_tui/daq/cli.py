@@ -8,17 +8,16 @@ option with `add_daq_option`; everything about them lives here next to the DAQ.
 from __future__ import annotations
 
 import argparse
-import asyncio
 import ipaddress
 import sys
 from typing import TYPE_CHECKING, Literal
 
-from quadtank_tui.core.calibration import fit_sensor
-from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.daq.config import PRESETS, load_daq_config
-from quadtank_tui.daq.rig import SensorModel, VirtualRig, serve_rig
 from quadtank_tui.engine.backend import BackendError
 
+# The commands import what they run inside their handlers (the rig: asyncio; the
+# preset parameters: numpy), so building the parser, which every `quadtank`
+# command does, stays cheap.
 if TYPE_CHECKING:  # pymodbus is imported only when a DAQ is used
     from quadtank_tui.daq.modbus import ModbusBackend
 
@@ -56,6 +55,10 @@ def add_rig_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_rig(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from quadtank_tui.core.parameters import PRESET
+    from quadtank_tui.daq.rig import SensorModel, VirtualRig, serve_rig
     from quadtank_tui.files.par import read_par  # files layer, only when a .par is given
 
     if args.par is not None:
@@ -66,9 +69,8 @@ def cmd_rig(args: argparse.Namespace) -> int:
     else:
         params = PRESET
     config = load_daq_config(args.map)
-    for name in ("speed",):
-        if not getattr(args, name) > 0:
-            raise ValueError(f"--{name} must be > 0, got {getattr(args, name)}")
+    if not args.speed > 0:
+        raise ValueError(f"--speed must be > 0, got {args.speed}")
     for name in ("noise", "lsb", "watchdog", "reply_delay", "status"):
         if getattr(args, name) < 0:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
@@ -140,6 +142,8 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
 
 
 def cmd_daq_fit(args: argparse.Namespace) -> int:
+    from quadtank_tui.core.calibration import fit_sensor
+
     volts, levels = [], []
     for pair in args.pairs:
         v, sep, h = pair.partition(":")
@@ -157,9 +161,8 @@ def cmd_daq_fit(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """`python -m quadtank_tui.daq rig ...`: the rig alone, without loading the
-    analysis stack the full `quadtank` command imports (a second or more at start-up,
-    which matters on a small lab computer and in the tests that start many rigs)."""
+    """`python -m quadtank_tui.daq rig ...`: the rig alone, through the DAQ layer's
+    own parser (the `quadtank` command builds the CLI layer's parser as well)."""
     parser = argparse.ArgumentParser(prog="python -m quadtank_tui.daq")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     add_rig_parser(sub)

@@ -23,7 +23,7 @@ from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
 from quadtank_tui.core.plant import FULL_SCALE_V
-from quadtank_tui.daq.config import DaqConfig, Output
+from quadtank_tui.daq.config import PUMPS, TANKS, DaqConfig, Output
 from quadtank_tui.daq.interlock import Interlock
 from quadtank_tui.daq.registers import Register, block, decode, encode
 from quadtank_tui.engine.backend import BackendError, Levels4, Pair, ProcessBackend
@@ -58,7 +58,20 @@ class ModbusBackend(ProcessBackend):
         # off: this class retries once itself, so the worst case is known.
         self._client = ModbusTcpClient(config.host, port=config.port, timeout=config.timeout, retries=0)
         self._tanks = [config.tank_register(i) for i in range(1, 5)]
+        self._tank_names = [config.channels[t] for t in TANKS]
         self._pumps: list[Output] = [config.pump_output(i) for i in (1, 2)]
+        # The requests do not change from sample to sample: planned once here.
+        self._reads = _plan_reads(self._tanks, self._tank_names)
+        pump_regs = [o.register for o in self._pumps]
+        pump_names = [config.channels[p] for p in PUMPS]
+        #: "write of DAC0 (holding register 1000-1001)" per pump, and for both at once
+        #: when they are adjacent (one request), else None
+        self._write_labels = [f"write of {_label([n], 'holding', r.address, r.count)}"
+                              for n, r in zip(pump_names, pump_regs)]
+        self._write_both: str | None = None
+        if pump_regs[0].address + pump_regs[0].count == pump_regs[1].address:
+            count = pump_regs[0].count + pump_regs[1].count
+            self._write_both = f"write of {_label(pump_names, 'holding', pump_regs[0].address, count)}"
         #: normalized level of a full tank (the interlock's scale)
         self.full_scale = config.sensor_gain * config.tank_height / FULL_SCALE_V
         self.interlock = Interlock.for_height(
@@ -77,7 +90,7 @@ class ModbusBackend(ProcessBackend):
     # --- ProcessBackend --------------------------------------------------------------
 
     def read_levels(self) -> Levels4:
-        volts = self._read_volts(self._tanks, [self.config.channels[f"tank{i}"] for i in range(1, 5)])
+        volts = self._read_volts()
         kc = self.config.sensor_gain
         y = tuple(kc * cal.level(v) / FULL_SCALE_V for cal, v in zip(self.config.sensors, volts))
         levels: Levels4 = (y[0], y[1], y[2], y[3])
@@ -114,7 +127,7 @@ class ModbusBackend(ProcessBackend):
 
     def read_raw_volts(self) -> tuple[float, float, float, float]:
         """The four sensor voltages before calibration (for calibrating, B9)."""
-        v = self._read_volts(self._tanks, [self.config.channels[f"tank{i}"] for i in range(1, 5)])
+        v = self._read_volts()
         return (v[0], v[1], v[2], v[3])
 
     def _output_volts(self, pump: int, u: float) -> float:
@@ -122,17 +135,14 @@ class ModbusBackend(ProcessBackend):
         lo, hi = self._pumps[pump].limits
         return min(hi, max(lo, cal.volts(FULL_SCALE_V * u)))
 
-    def _read_volts(self, regs: list[Register], names: list[str]) -> list[float]:
-        span = block(regs)
-        chunks = [(regs, span)] if span else [([r], (r.address, r.count)) for r in regs]
+    def _read_volts(self) -> list[float]:
+        """The four tanks' input voltages, in as few requests as the map allows."""
         words: dict[tuple[str, int], int] = {}
-        for group, (first, count) in chunks:
-            table = group[0].table
-            label = _label([names[regs.index(r)] for r in group], table, first, count)
-            got = self._request(f"read of {label}", lambda: self._read(table, first, count))
+        for table, first, count, what in self._reads:
+            got = self._request(what, lambda: self._read(table, first, count))
             words.update(((table, a), w) for a, w in zip(range(first, first + count), got))
         volts = []
-        for name, reg in zip(names, regs):
+        for name, reg in zip(self._tank_names, self._tanks):
             v = decode(reg, [words[reg.table, a] for a in reg.span])
             if not math.isfinite(v):
                 raise BackendError(f"{name} ({reg.describe()}) at {self._where()} returned {v}, not a voltage")
@@ -152,12 +162,10 @@ class ModbusBackend(ProcessBackend):
         return list(rr.registers[:count])
 
     def _write_volts(self, volts: list[float]) -> None:
-        regs = [o.register for o in self._pumps]
-        if regs[0].address + regs[0].count == regs[1].address:  # one request for both
-            names = [self.config.channels["pump1"], self.config.channels["pump2"]]
-            values = encode(regs[0], volts[0]) + encode(regs[1], volts[1])
-            label = _label(names, "holding", regs[0].address, len(values))
-            self._request(f"write of {label}", lambda: self._write(regs[0].address, values))
+        if self._write_both is not None:  # one request for both
+            first, second = (o.register for o in self._pumps)
+            values = encode(first, volts[0]) + encode(second, volts[1])
+            self._request(self._write_both, lambda: self._write(first.address, values))
             return
         for i in (0, 1):
             self._write_one(i, volts[i])
@@ -165,8 +173,7 @@ class ModbusBackend(ProcessBackend):
     def _write_one(self, pump: int, volts: float) -> None:
         reg = self._pumps[pump].register
         values = encode(reg, volts)
-        label = _label([self.config.channels[f"pump{pump + 1}"]], "holding", reg.address, len(values))
-        self._request(f"write of {label}", lambda: self._write(reg.address, values))
+        self._request(self._write_labels[pump], lambda: self._write(reg.address, values))
 
     def _write(self, address: int, values: list[int]) -> list[int]:
         rr = self._client.write_registers(address, values, device_id=self.config.device_id)
@@ -214,6 +221,17 @@ class _DeviceAnswer(Exception):
         code = int(getattr(response, "exception_code", 0) or 0)
         self.text = EXCEPTION_CODES.get(code, f"exception code {code}") if code else str(response)
         super().__init__(self.text)
+
+
+def _plan_reads(regs: list[Register], names: list[str]) -> list[tuple[str, int, int, str]]:
+    """(table, first address, count, "read of ...") of each request that reads `regs`:
+    one for all when they form one block, else one per register."""
+    span = block(regs)
+    if span is not None:
+        first, count = span
+        return [(regs[0].table, first, count, f"read of {_label(names, regs[0].table, first, count)}")]
+    return [(r.table, r.address, r.count, f"read of {_label([n], r.table, r.address, r.count)}")
+            for r, n in zip(regs, names)]
 
 
 def _label(names: list[str], table: str, first: int, count: int) -> str:

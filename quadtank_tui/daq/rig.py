@@ -79,9 +79,7 @@ class VirtualRig:
         self._tanks = [config.tank_register(i) for i in range(1, 5)]
         self._outputs = [config.pump_output(i).register for i in (1, 2)]
         self._out_words: dict[int, int] = {}
-        for reg in self._outputs:
-            self._out_words.update(zip(reg.span, encode(reg, 0.0)))
-        self.pump_volts = (0.0, 0.0)
+        self._stop_pumps()  # pumps and their registers at 0
         self._now = clock()
         self.t = 0.0                      # process time, s
         self.last_write = self._now       # wall time of the last write

@@ -96,3 +96,11 @@ def test_log_export_needs_a_format(capsys: pytest.CaptureFixture[str]) -> None:
         main(["log", "export", str(THESIS_LOG)])
     assert info.value.code == 2
     assert "the following arguments are required: --to" in capsys.readouterr().err
+
+
+def test_log_export_choices_are_the_export_formats() -> None:
+    """cli.py writes the formats out so its parser does not load scipy.io."""
+    from quadtank_tui.cli import EXPORT_FORMATS
+    from quadtank_tui.files.export import FORMATS
+
+    assert EXPORT_FORMATS == FORMATS

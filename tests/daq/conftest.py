@@ -31,8 +31,8 @@ class RigProcess:
     """`quadtank rig ...` running; `lines` collects its stdout."""
 
     def __init__(self, *args: str, port: int = 0, full_cli: bool = False) -> None:
-        # `python -m quadtank_tui.daq rig` is the same command without the analysis
-        # stack's import time; one test starts the full `quadtank rig`.
+        # `python -m quadtank_tui.daq rig` is the same command through the DAQ
+        # layer's own entry point; one test starts the full `quadtank rig`.
         entry = "quadtank_tui" if full_cli else "quadtank_tui.daq"
         cmd = [sys.executable, "-m", entry, "rig", "--port", str(port),
                "--map", str(VIRTUAL_RIG), *args]
