@@ -150,7 +150,7 @@ class MainScreen(CommandSender):
                 trend.plot_type, trend.window, trend.autoscale = plot_type, window, self.autoscale
                 trend.show(history)
         live = self.app.screen
-        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) and live.snapshot != snap:
+        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)):
             try:
                 live.snapshot = snap
             except NoMatches:  # the window is being taken down
