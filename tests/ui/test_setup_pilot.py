@@ -328,3 +328,25 @@ async def test_setup_opens_main_s_windows_and_s_goes_back(app) -> None:  # type:
         await pilot.press("escape", "S")  # the key that opened Setup closes it
         await pilot.pause()
         assert isinstance(app.screen, MainScreen)
+
+
+async def test_a_click_on_set_closes_only_the_window(setup_app) -> None:  # type: ignore[no-untyped-def]
+    """The button runs its action once (Window's on_button_pressed): Set sends
+    once and leaves Setup showing, Load likewise."""
+    app = setup_app
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_setup(pilot)
+        await app.screen.run_action("tank(1)")
+        await pilot.pause()
+        app.screen.query_one("#f-TimeConst", Input).value = "80"
+        await pilot.pause()
+        await pilot.click("#set")
+        await pilot.pause()
+        assert isinstance(app.screen, SetupScreen)
+        assert len(app.engine.sent(SetParams)) == 1
+        await pilot.press("f")
+        await pilot.pause()
+        app.screen.query_one("#name", Input).value = "default"
+        await pilot.click("#load")
+        await pilot.pause()
+        assert isinstance(app.screen, SetupScreen)

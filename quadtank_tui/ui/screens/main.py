@@ -26,7 +26,6 @@ from quadtank_tui.engine.commands import (
 )
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
-from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.screens.sending import CommandSender
 from quadtank_tui.ui.screens.setup import SetupScreen
 from quadtank_tui.ui.widgets.controller_box import ControllerBox, element_used
@@ -40,8 +39,6 @@ from quadtank_tui.ui.windows.logging import LoggingWindow
 from quadtank_tui.ui.windows.process import PumpWindow, TankWindow
 from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
 
-#: Below this width or height the layout packs tighter (80x24 terminals).
-COMPACT_WIDTH, COMPACT_HEIGHT = 110, 34
 #: Least wall time between two trend drawings on the timer, s (see _trends_due).
 TREND_MIN_INTERVAL = 0.2
 NO_DAQ = "Active needs a DAQ backend: start with quadtank --daq ..."
@@ -119,9 +116,6 @@ class MainScreen(CommandSender):
         self.refresh_view()
         self.set_interval(self.refresh_interval, self._tick)
 
-    def on_resize(self) -> None:
-        self.set_class(self.size.width < COMPACT_WIDTH or self.size.height < COMPACT_HEIGHT, "-compact")
-
     # --- attributes down ------------------------------------------------------------
 
     def _tick(self) -> None:
@@ -183,10 +177,6 @@ class MainScreen(CommandSender):
                 and time.monotonic() - self._drawn_at >= TREND_MIN_INTERVAL)
 
     # --- messages up ----------------------------------------------------------------
-
-    async def on_action_requested(self, message: ActionRequested) -> None:
-        message.stop()
-        await self.run_action(message.action)
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         """Keys that cannot act now are shown disabled (and do nothing)."""

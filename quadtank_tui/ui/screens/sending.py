@@ -16,7 +16,11 @@ from textual.screen import Screen
 from quadtank_tui.engine.commands import Command, CommandResult
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.windows.base import Commands
+
+#: Below this width or height a screen packs tighter (80x24 terminals).
+COMPACT_WIDTH, COMPACT_HEIGHT = 110, 34
 
 #: Called with the engine's message instead of the error notification.
 OnRefused = Callable[[str], None]
@@ -24,10 +28,19 @@ OnRefused = Callable[[str], None]
 
 class CommandSender(Screen[None]):
     """A screen that sends commands; it has `engine`, `snap` (the snapshot it
-    shows) and `refresh_view()`."""
+    shows) and `refresh_view()`, runs its widgets' ActionRequested and packs
+    tighter (`-compact`) on a small terminal."""
 
     engine: EngineHandle
     snap: Snapshot
+
+    def on_resize(self) -> None:
+        self.set_class(self.size.width < COMPACT_WIDTH or self.size.height < COMPACT_HEIGHT, "-compact")
+
+    async def on_action_requested(self, message: ActionRequested) -> None:
+        """A widget's intent runs the action its key runs (see ActionRequested)."""
+        message.stop()
+        await self.run_action(message.action)
 
     def refresh_view(self) -> None:
         """Redraw from the engine (each screen says what that means)."""

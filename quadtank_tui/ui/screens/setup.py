@@ -33,15 +33,13 @@ from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.setup_tables import ControllerTable, ParamTable, ProcessTable, ReferenceTable
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow
-from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow
+from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, type_modified
 from quadtank_tui.ui.windows.par_files import ParFileWindow
 from quadtank_tui.ui.windows.pid_extras import PIDExtrasWindow
 from quadtank_tui.ui.windows.sampling import SamplingTimeWindow
 from quadtank_tui.ui.windows.tank_setup import TankSetupWindow
 from quadtank_tui.ui.windows.wave import WaveWindow
 
-#: Below this width or height the layout packs tighter (80x24 terminals).
-COMPACT_WIDTH, COMPACT_HEIGHT = 110, 34
 SIMULATION_KEYS = tuple(k.name for k in keys_of("SIMULATION"))
 
 LEGEND = (
@@ -137,9 +135,6 @@ class SetupScreen(CommandSender):
         self.refresh_view(force=True)
         self.set_interval(self.refresh_interval, self.refresh_view)
 
-    def on_resize(self) -> None:
-        self.set_class(self.size.width < COMPACT_WIDTH or self.size.height < COMPACT_HEIGHT, "-compact")
-
     # --- attributes down ----------------------------------------------------------------
 
     def refresh_view(self, force: bool = False) -> None:
@@ -148,15 +143,15 @@ class SetupScreen(CommandSender):
         previous, self.snap = self.snap, snap
         self.query_one("#setup-status", Static).update(self.status_text(snap))
         p = snap.params
-        self.query_one(SamplingLine).show(p, self.defaults)
         if force or p != previous.params:
+            self.query_one(SamplingLine).show(p, self.defaults)
             self.query_one(ProcessImage).snapshot = operating_point_view(snap)
             for table in self.query(ParamTable):
                 table.params = p
             self.query_one(AnalysisPanel).params = p
             c = p.control
             kind = f"{c.family.value}, {c.structure.value}"
-            if p.is_modified("CONTROL.Type", self.defaults) or p.is_modified("CONTROL.Structure", self.defaults):
+            if type_modified(p, self.defaults):
                 kind = f"[i]{kind}[/i]"
             self.query_one("#controllers").border_title = f"Controller: {kind}  1-4"
 
@@ -166,12 +161,6 @@ class SetupScreen(CommandSender):
             f"[b reverse] SETUP [/]  {snap.operation} · {snap.state} · {snap.control}"
             f"   t = {snap.t:.1f} s  [dim]process keeps running · Esc: Main[/]"
         )
-
-    # --- messages up ---------------------------------------------------------------------
-
-    async def on_action_requested(self, message: ActionRequested) -> None:
-        message.stop()
-        await self.run_action(message.action)
 
     # --- windows -----------------------------------------------------------------------------
 

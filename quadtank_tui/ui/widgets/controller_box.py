@@ -18,7 +18,7 @@ from textual.widgets import Static
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Parameters
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fmt
-from quadtank_tui.ui.windows.controller import ELEMENT_NAMES, TYPES
+from quadtank_tui.ui.windows.controller import ELEMENT_NAMES, TYPES, type_index, type_modified
 
 
 def element_used(p: Parameters, index: int) -> bool:
@@ -90,9 +90,8 @@ class ControllerBox(Vertical):
     def watch_params(self, p: Parameters | None) -> None:
         if p is None:
             return
-        label = next(lab for f, s, lab in TYPES if f is p.control.family and s is p.control.structure)
-        modified = p.is_modified("CONTROL.Type", self.defaults) or p.is_modified("CONTROL.Structure", self.defaults)
-        style = "i dim" if modified else "b"
+        label = TYPES[type_index(p)][2]
+        style = "i dim" if type_modified(p, self.defaults) else "b"
         self.query_one("#controller-type", Static).update(Content.from_markup(
             f"[{style} @click=screen.controller_type]{label}[/]  "
             "[@click=screen.reset_controllers]Reset[/]"))

@@ -20,6 +20,7 @@ from textual.widgets import DataTable
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, REFERENCE_SECTIONS, Parameters
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fmt
+from quadtank_tui.ui.widgets.controller_box import element_used
 
 MODIFIED = "italic dim"
 
@@ -142,8 +143,7 @@ class ControllerTable(ParamTable):
         return self.COLUMNS if params.control.family.value == "PID" else self.GENERAL
 
     def row_label(self, params: Parameters, row: int) -> Text:
-        used = params.control.structure.value == "FullMatrix" or row in (0, 3)
-        return Text(self.ROWS[row], style="bold" if used else "dim strike")
+        return Text(self.ROWS[row], style="bold" if element_used(params, row) else "dim strike")
 
 
 def _tank(name: str, tanks: tuple[int, ...] = (1, 2, 3, 4)) -> Callable[[int], str | None]:

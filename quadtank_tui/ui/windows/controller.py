@@ -27,6 +27,16 @@ TYPES: tuple[tuple[Family, Structure, str], ...] = (
 )
 
 
+def type_index(p: Parameters) -> int:
+    """The row of TYPES the parameters' family and structure are."""
+    return next(n for n, (f, s, _) in enumerate(TYPES) if f is p.control.family and s is p.control.structure)
+
+
+def type_modified(p: Parameters, defaults: Parameters) -> bool:
+    """Whether the controller type differs from the default (shown dim italic)."""
+    return p.is_modified("CONTROL.Type", defaults) or p.is_modified("CONTROL.Structure", defaults)
+
+
 def element_ij(index: int) -> tuple[int, int]:
     """Element 0..3 as (i, j), 1-based, as ResetControllers wants it."""
     return (index // 2 + 1, index % 2 + 1)
@@ -44,13 +54,8 @@ class ControllerTypeWindow(Window[Commands]):
 
     def __init__(self, params: Parameters, defaults: Parameters, *, opener: str | None = None) -> None:
         super().__init__("Controller type", opener=opener)
-        self.current = self._index(params)
-        self.default = self._index(defaults)
-
-    @staticmethod
-    def _index(p: Parameters) -> int:
-        return next(n for n, (f, s, _) in enumerate(TYPES)
-                    if f is p.control.family and s is p.control.structure)
+        self.current = type_index(params)
+        self.default = type_index(defaults)
 
     def compose_body(self) -> ComposeResult:
         options = []
@@ -145,7 +150,6 @@ class GeneralWindow(ParamWindow):
 
     def _enable(self, degree: int) -> None:
         for i, f in enumerate(self.fields[1:], start=1):
-            name = f.key.rsplit(".", 1)[1]
-            used = int(name[1:]) <= degree if name[0] == "s" else int(name[1:]) <= degree
+            used = int(f.key.rsplit(".", 1)[1][1:]) <= degree  # s0..s4, r1..r4
             self.query_one(f"#row-{i}").set_class(not used, "-unused")
             self.query_one(f"#f-{i}", Input).disabled = not used

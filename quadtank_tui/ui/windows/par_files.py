@@ -138,10 +138,5 @@ class ParFileWindow(Window[Commands]):
             self.say("")
 
     @on(Input.Submitted, "#name")
-    @on(Button.Pressed, "#load")
-    def _load(self) -> None:
+    def _submitted(self) -> None:
         self.action_load()
-
-    @on(Button.Pressed, "#save")
-    def _save(self) -> None:
-        self.action_save()

@@ -15,6 +15,7 @@ from textual.reactive import reactive
 from textual.widgets import Button, Input, Label, Static
 
 from quadtank_tui.core.parameters import Parameters
+from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import AddWater
 from quadtank_tui.engine.snapshot import Snapshot
@@ -155,7 +156,7 @@ class PumpWindow(_LiveWindow):
         rows = [
             self._header("Pump"),
             f"{'Input':<12}" + "".join(f"{fixed(x):>9}" for x in u),
-            f"{'Volts':<12}" + "".join(f"{fixed(10 * x, 2):>9}" for x in u),
+            f"{'Volts':<12}" + "".join(f"{fixed(FULL_SCALE_V * x, 2):>9}" for x in u),
             f"{'Valve gamma':<12}" + "".join(f"{fmt(x):>9}" for x in g),
             f"{'to tank':<12}" + f"{'1: ' + fmt(g[0]):>9}{'2: ' + fmt(g[1]):>9}",
             f"{'':<12}" + f"{'4: ' + fmt(round(1 - g[0], 6)):>9}{'3: ' + fmt(round(1 - g[1], 6)):>9}",

@@ -12,6 +12,7 @@ from quadtank_tui.core.parameters import PLOT_TYPES, REFERENCE_SECTIONS, Paramet
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.ui.values import fmt
 from quadtank_tui.ui.windows.base import Commands, Field, ParamWindow, Window
+from quadtank_tui.ui.windows.wave import period_unit
 
 
 def channel_label(channel: int, control: str) -> str:
@@ -27,11 +28,10 @@ class InputSignalWindow(ParamWindow):
                  focus_mean: bool = True, opener: str | None = None) -> None:
         sec = REFERENCE_SECTIONS[channel - 1]
         wave = fmt(params.get(f"{sec}.Wave"))
-        period_unit = "samples" if wave == "PRBS" else "s"
         fields = (
             Field(f"{sec}.Mean", "Mean", "0..1 (a step)"),
             Field(f"{sec}.Amplitude", "Amplitude"),
-            Field(f"{sec}.Period", "Period", period_unit),
+            Field(f"{sec}.Period", "Period", period_unit(wave)),
             Field(f"{sec}.On", "Wave on", flag=True),
         )
         super().__init__(f"Input {channel_label(channel, control)} - {wave} wave", params, defaults,

@@ -139,10 +139,5 @@ class TankSetupWindow(Window[Commands]):
         self._show()
 
     @on(Input.Submitted)
-    @on(Button.Pressed, "#set")
-    def _set(self) -> None:
+    def _submitted(self) -> None:
         self.action_set()
-
-    @on(Button.Pressed, "#default")
-    def _default(self) -> None:
-        self.action_default()
