@@ -308,7 +308,8 @@ async def test_the_controller_table_follows_the_family(app) -> None:  # type: ig
         headers = lambda: [str(c.label) for c in table.columns.values()][1:]  # noqa: E731
         assert headers()[:3] == ["K", "Ti", "Td"] and "N" in headers() and "b" in headers()
         _change(app, {"CONTROL.Type": "General"})
-        await pilot.pause(0.3)  # the screen's refresh timer
+        app.screen.refresh_view()  # what the screen's refresh timer does; no race with it
+        await pilot.pause()
         assert headers() == ["Degree", "s0", "s1", "s2", "s3", "s4", "r1", "r2", "r3", "r4"]
         assert "General" in str(table.border_title)
 
