@@ -11,20 +11,26 @@ widget only formats them (attributes down: the screen or a window sets `params`)
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 from rich.text import Text
 from textual.reactive import reactive
 from textual.widgets import Static
 
-from quadtank_tui.core.analysis import Analysis, analyze
 from quadtank_tui.core.parameters import Parameters, SimulationSettings
 from quadtank_tui.core.plant import PlantError
+
+if TYPE_CHECKING:
+    from quadtank_tui.core.analysis import Analysis
 
 
 @lru_cache(maxsize=32)
 def analysis_of(sim: SimulationSettings) -> Analysis | str:
     """The analysis of a setting, or why there is none (cached: the screen redraws
-    often, the setting changes rarely)."""
+    often, the setting changes rarely).  python-control is imported here, on the
+    first analysis, not when the app starts: the Main screen never needs it."""
+    from quadtank_tui.core.analysis import analyze
+
     try:
         return analyze(sim.plant(), sim.operating_levels())
     except PlantError as exc:
