@@ -328,9 +328,9 @@ def load_parameters(par: str | Path | None, store: ParStore,
     path = Path(par)
     if path.suffix.lower() == ".par" or path.exists() or len(path.parts) > 1:
         read = read_par(path, base=defaults.params)
-    else:
-        read = store.load(str(par))
-    return read.params, tuple(defaults.warnings) + tuple(read.warnings)
+        return read.params, tuple(defaults.warnings) + tuple(read.warnings)
+    read = store.load(str(par), defaults)  # its warnings already hold the defaults'
+    return read.params, tuple(read.warnings)
 
 
 def with_seed(params: Parameters, seed: int) -> Parameters:

@@ -273,15 +273,17 @@ class ParStore:
         except ParFileError as exc:
             return ParRead(PRESET, (f"{exc}; using the built-in (preset) values instead",))
 
-    def load(self, name: str) -> ParRead:
-        """The parameters saved under `name`; missing values take the defaults."""
+    def load(self, name: str, defaults: ParRead | None = None) -> ParRead:
+        """The parameters saved under `name`; missing values take the defaults
+        (`defaults`: `default.par` as already read, to read it only once)."""
         stem = _stem(name)
         if stem.lower() == "preset":
             return ParRead(PRESET)
+        if defaults is None:
+            defaults = self.defaults()
         if stem.lower() == "default":
-            return self.defaults()
+            return defaults
         path = self.path_of(stem)
-        defaults = self.defaults()
         read = read_par(path, base=defaults.params)
         return ParRead(read.params, defaults.warnings + read.warnings)
 

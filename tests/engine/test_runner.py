@@ -178,3 +178,15 @@ def test_a_fault_on_the_loop_thread_pauses_and_the_thread_lives_on(make_engine: 
     assert e.running and s.state == "Pause" and s.fault == "dead rig: no reply from 127.0.0.1:5020"
     e.stop()
     assert e.crash is None
+
+
+def test_a_stored_name_without_default_par_warns_once(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """default.par is read once; its warning is not repeated by the named file's load."""
+    import shutil
+
+    from quadtank_tui.engine.runner import load_parameters
+    from quadtank_tui.files.par import ParStore
+
+    shutil.copy(Path(__file__).resolve().parents[2] / "params" / "minphase.par", tmp_path)
+    _, warnings = load_parameters("minphase", ParStore(tmp_path))
+    assert warnings == (f"{tmp_path / 'default.par'} not found: using the built-in (preset) values",)
