@@ -2,13 +2,21 @@
 
 One preallocated (capacity x signals) float array: appending a sample writes one row
 and never allocates, so an 8-hour run at 50 ms uses the same memory as a minute.
-Readers (the UI's trend timer, on another thread) get copies of the last N seconds,
-oldest first, taken under a lock so a row is never half-written.
+
+The loop writes and the UI reads, on another thread or in another process (the
+arrays may live in memory both processes map, see :mod:`engine.shared`).  The writer
+never waits for a reader: it announces the row, writes it, then bumps the count of
+rows ever written.  A reader copies what it saw as complete and afterwards drops the rows the
+writer may have overwritten meanwhile, so a reader can lose a few of its oldest rows
+to a fast writer but never gets a half-written one.  A clear (Reset) bumps a
+generation counter twice, seqlock style; a reader that sees it change starts over.
+The stores are plain 8-byte writes in program order, which x86-64 and the other
+targets CPython supports make visible in that order (a row before the count).
 """
 
 from __future__ import annotations
 
-import threading
+import time
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -19,50 +27,68 @@ from quadtank_tui.engine.handle import SIGNALS
 DEFAULT_CAPACITY = 36_000
 #: The trends need at least this many samples of every signal (issue 5).
 MIN_CAPACITY = 5_000
+#: Header words: rows ever written, absolute index of the first row kept (moves on
+#: clear), clear generation (odd while a clear is under way), rows begun (one more
+#: than written while a row is being written).
+HEADER_WORDS = 4
+_TOTAL, _START, _GEN, _BEGUN = range(HEADER_WORDS)
+
+
+def check_capacity(capacity: int) -> int:
+    if capacity < MIN_CAPACITY:
+        raise ValueError(f"history capacity must be >= {MIN_CAPACITY} samples, got {capacity}")
+    return int(capacity)
 
 
 class History:
-    """The last `capacity` samples of :data:`SIGNALS` ("t" first)."""
+    """The last `capacity` samples of :data:`SIGNALS` ("t" first).
 
-    def __init__(self, capacity: int = DEFAULT_CAPACITY) -> None:
-        if capacity < MIN_CAPACITY:
-            raise ValueError(f"history capacity must be >= {MIN_CAPACITY} samples, got {capacity}")
-        self.capacity = int(capacity)
-        self._buf = np.zeros((self.capacity, len(SIGNALS)), dtype=float)
-        self._next = 0      # row the next sample goes to
-        self._count = 0     # rows filled (<= capacity)
-        self._lock = threading.Lock()
+    header, rows : where to keep them (int64[HEADER_WORDS] and float64[capacity,
+        len(SIGNALS)], e.g. views of shared memory); private arrays by default.  A
+        reader attached to another process's buffers must not write.
+    """
+
+    def __init__(self, capacity: int = DEFAULT_CAPACITY, *,
+                 header: np.ndarray | None = None, rows: np.ndarray | None = None) -> None:
+        self.capacity = check_capacity(capacity)
+        if header is None or rows is None:
+            header = np.zeros(HEADER_WORDS, dtype=np.int64)
+            rows = np.zeros((self.capacity, len(SIGNALS)), dtype=float)
+        if header.shape != (HEADER_WORDS,) or rows.shape != (self.capacity, len(SIGNALS)):
+            raise ValueError("history buffers do not match the capacity")
+        self._hdr = header
+        self._buf = rows
 
     def __len__(self) -> int:
-        return self._count
+        total, start = int(self._hdr[_TOTAL]), int(self._hdr[_START])
+        return min(total - start, self.capacity)
 
     @property
     def nbytes(self) -> int:
         """Memory held by the samples (constant)."""
         return self._buf.nbytes
 
+    # --- the writer (the loop) ---------------------------------------------------------------
+
     def append(self, row: Sequence[float]) -> None:
         """One sample, values in :data:`SIGNALS` order."""
-        with self._lock:
-            self._buf[self._next] = row
-            self._next = (self._next + 1) % self.capacity
-            if self._count < self.capacity:
-                self._count += 1
+        total = int(self._hdr[_TOTAL])
+        self._hdr[_BEGUN] = total + 1  # the oldest row is about to go
+        self._buf[total % self.capacity] = row
+        self._hdr[_TOTAL] = total + 1  # published only once the row is whole
 
     def clear(self) -> None:
-        with self._lock:
-            self._next = 0
-            self._count = 0
+        hdr = self._hdr
+        hdr[_GEN] += 1
+        hdr[_START] = hdr[_TOTAL]
+        hdr[_GEN] += 1
+
+    # --- readers (any thread or process) ---------------------------------------------------
 
     def last(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
         """Copies of the samples with t >= t_last - seconds (all kept if None)."""
-        with self._lock:
-            n = self._count
-            if n == self.capacity:
-                rows = np.concatenate((self._buf[self._next:], self._buf[: self._next]))
-            else:
-                rows = self._buf[:n].copy()
-        if seconds is not None and n:
+        rows = self._consistent_rows()
+        if seconds is not None and len(rows):
             t = rows[:, 0]
             rows = rows[np.searchsorted(t, t[-1] - seconds, side="left"):]
         out = {}
@@ -71,3 +97,26 @@ class History:
             col.flags.writeable = False
             out[name] = col
         return out
+
+    def _consistent_rows(self) -> np.ndarray:
+        hdr, cap = self._hdr, self.capacity
+        while True:
+            gen = int(hdr[_GEN])
+            if gen & 1:  # a clear is under way: it takes a few stores
+                time.sleep(0)
+                continue
+            total, start = int(hdr[_TOTAL]), int(hdr[_START])
+            lo = max(start, total - cap)
+            a, b = lo % cap, total % cap
+            if total - lo == 0:
+                rows = self._buf[:0].copy()
+            elif a < b:
+                rows = self._buf[a:b].copy()
+            else:
+                rows = np.concatenate((self._buf[a:], self._buf[:b]))
+            if int(hdr[_GEN]) != gen:
+                continue
+            # Rows the writer began while we copied may hold newer samples: drop
+            # them from the old end.
+            safe_lo = int(hdr[_BEGUN]) - cap
+            return rows[max(0, safe_lo - lo):]

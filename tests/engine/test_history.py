@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import multiprocessing
+
 import numpy as np
 import pytest
 
 from quadtank_tui.engine.handle import SIGNALS
 from quadtank_tui.engine.history import History
+from quadtank_tui.engine.shared import SharedState
 
 
 def test_wraps_at_capacity_and_keeps_the_newest_in_order() -> None:
@@ -39,3 +42,41 @@ def test_last_seconds_and_copies() -> None:
 def test_capacity_of_at_least_5000_samples() -> None:
     with pytest.raises(ValueError):
         History(4999)
+
+
+def write_rows(path: str, capacity: int, count: int) -> None:
+    """In another process: rows (k, k, k, ...) as fast as it can, a clear now and then."""
+    h = SharedState.attach(path, capacity).history
+    for k in range(count):
+        h.append([float(k)] * len(SIGNALS))
+        if k % 7919 == 7918:
+            h.clear()
+
+
+def test_a_reader_never_gets_a_torn_or_stale_row_while_another_process_writes() -> None:
+    """Every copy a reader takes of memory another process is writing must be whole
+    rows of consecutive k (the writer laps the 5000-row ring every few ms)."""
+    state = SharedState.create(5000)
+    ctx = multiprocessing.get_context("spawn")
+    writer = ctx.Process(target=write_rows, args=(state.block.path, 5000, 3_000_000))
+    writer.start()
+    try:
+        h, reads, full = state.history, 0, 0
+        while writer.is_alive() or reads == 0:
+            data = h.last()
+            rows = np.column_stack([data[name] for name in SIGNALS])
+            assert np.all(rows == rows[:, :1]), "a row mixes two samples"
+            assert np.all(np.diff(rows[:, 0]) == 1.0), "rows out of order or skipped"
+            reads += 1
+            full += len(rows) > 4000
+    finally:
+        writer.join()
+        state.block.unlink()
+    assert writer.exitcode == 0 and reads > 100 and full > 10
+
+
+def test_a_full_buffer_read_at_rest_gives_every_row() -> None:
+    h = History(5000)
+    for k in range(5000 * 3 + 17):
+        h.append([float(k)] * len(SIGNALS))
+    assert len(h.last()["t"]) == 5000 == len(h)
