@@ -29,6 +29,7 @@ class Summary:
     samples: int
     overruns: int
     jitter_max: float
+    jitter_p99: float
     control: str
     window: float | None              # seconds of Automatic measured (None: Manual)
     loops: tuple[LoopMetrics, ...]     # empty in Manual
@@ -92,14 +93,14 @@ def summarize(engine: Engine, duration: float) -> Summary:
             window = float(t[-1] - t[0] + loop.h)
             loops = tuple(loop_metrics(t, hist[f"y{i}"][keep], hist[f"ref{i}"][keep]) for i in (1, 2))
     return Summary(duration, snap.stats.samples, snap.stats.overruns, snap.stats.jitter_max,
-                   snap.control, window, loops, (snap.y[0], snap.y[1]), snap.u, snap.fault)
+                   snap.stats.jitter_p99, snap.control, window, loops, (snap.y[0], snap.y[1]), snap.u, snap.fault)
 
 
 def format_summary(s: Summary) -> str:
     """One screen of text."""
     lines = [
         f"ran {s.duration:g} s: {s.samples} samples, {s.overruns} overruns, "
-        f"max |jitter| {s.jitter_max * 1000:.2f} ms",
+        f"|jitter| p99 {s.jitter_p99 * 1000:.2f} ms, max {s.jitter_max * 1000:.2f} ms",
         f"final      y1 {s.final_y[0]:.4f}  y2 {s.final_y[1]:.4f}   u1 {s.final_u[0]:.4f}  u2 {s.final_u[1]:.4f}",
     ]
     if s.fault:

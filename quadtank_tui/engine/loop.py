@@ -40,6 +40,7 @@ from quadtank_tui.engine.commands import (
     SetState,
 )
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, History
+from quadtank_tui.engine.jitter import JitterHistogram
 from quadtank_tui.engine.logsession import LogRefused, LogSession
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
@@ -91,6 +92,8 @@ class ControlLoop:
         self.daq = daq
         self.backend: ProcessBackend = self.sim
         self.history = History(history_capacity)
+        #: Called with every published snapshot (the loop process hands them to the UI's).
+        self.on_publish: Callable[[Snapshot], None] | None = None
         self._gens = (Generator(params.references[0], params.tsamp),
                       Generator(params.references[1], params.tsamp))
         self._matrix = _matrix_for(params)
@@ -111,6 +114,7 @@ class ControlLoop:
         self.realtime = False
         self.speed = math.inf
         self.stats = LoopStats()
+        self._jitter = JitterHistogram()
         self.publish()
 
     # --- reading -----------------------------------------------------------------------
@@ -202,20 +206,26 @@ class ControlLoop:
     def publish(self) -> Snapshot:
         """Publish a fresh snapshot of the current state (after a stop, say)."""
         self._snapshot = self._make_snapshot()
+        if self.on_publish is not None:
+            self.on_publish(self._snapshot)
         return self._snapshot
 
     def record_timing(self, jitter: float, missed: int, wall: float) -> None:
         """The runner's measurement of the sample about to be done (LoopStats); the
         sample's snapshot carries it."""
         s = self.stats
+        self._jitter.add(jitter)
         self.stats = LoopStats(
             samples=s.samples + 1, overruns=s.overruns + missed, jitter_last=jitter,
             jitter_max=max(s.jitter_max, abs(jitter)), last_sample_wall=wall,
+            jitter_p50=self._jitter.percentile(50), jitter_p99=self._jitter.percentile(99),
         )
 
     def set_clock_info(self, realtime: bool, speed: float) -> None:
         self.realtime, self.speed = realtime, speed
         self._snapshot = replace(self._snapshot, realtime=realtime, speed=speed)
+        if self.on_publish is not None:
+            self.on_publish(self._snapshot)
 
     # --- commands -----------------------------------------------------------------------
 

@@ -20,6 +20,10 @@ class LoopStats:
     overruns: int = 0
     jitter_last: float = 0.0
     jitter_max: float = 0.0
+    #: 50th and 99th percentiles of |jitter| over the run, s (upper bin edges, at
+    #: most 4.7 % above the true value: engine/jitter.py).
+    jitter_p50: float = 0.0
+    jitter_p99: float = 0.0
     #: Monotonic wall-clock time (time.monotonic) at which the last sample was taken;
     #: the UI shows its age so a user sees a stalled loop ("last sample 3.2 s ago").
     last_sample_wall: float = 0.0
