@@ -22,6 +22,7 @@ import sys
 import threading
 import time
 from concurrent.futures import Future
+from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import Callable, Literal, Mapping
@@ -32,7 +33,7 @@ from quadtank_tui.core.parameters import Parameters, REFERENCE_SECTIONS
 from quadtank_tui.engine.backend import ProcessBackend
 from quadtank_tui.engine.clock import Clock, ManualClock, RealTimeClock, VirtualClock
 from quadtank_tui.engine.commands import Command, CommandResult, SetSpeed
-from quadtank_tui.engine.history import DEFAULT_CAPACITY
+from quadtank_tui.engine.history import DEFAULT_CAPACITY, check_capacity
 from quadtank_tui.engine.loop import ControlLoop
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log import log_path
@@ -340,6 +341,78 @@ def with_seed(params: Parameters, seed: int) -> Parameters:
     return params.with_values({f"{sec}.Seed": (seed + i) % 2**31 for i, sec in enumerate(REFERENCE_SECTIONS)})
 
 
+@dataclass(frozen=True)
+class EngineSpec:
+    """What an engine is built from, as plain values: files already read and checked.
+
+    The TUI's loop process builds its engine from a pickled copy, so a bad file is
+    refused in the program the user started, with the same message as in-process.
+    """
+
+    params: Parameters
+    defaults: Parameters
+    warnings: tuple[str, ...]
+    params_dir: Path
+    logs_dir: Path
+    clock: ClockKind = "realtime"
+    speed: float | None = 1.0
+    history_capacity: int = DEFAULT_CAPACITY
+    epoch: datetime | None = None
+
+
+def engine_spec(
+    par: str | Path | None = None,
+    *,
+    clock: ClockKind = "realtime",
+    speed: float | None = 1.0,
+    seed: int | None = None,
+    params_dir: Path | str = Path("params"),
+    logs_dir: Path | str = Path("logs"),
+    history_capacity: int = DEFAULT_CAPACITY,
+    epoch: datetime | None = None,
+) -> EngineSpec:
+    """Read and check the parameter files (ParFileError names file, line and key)."""
+    if clock not in ("realtime", "virtual", "manual"):
+        raise ValueError(f"clock must be realtime, virtual or manual, got {clock!r}")
+    check_capacity(history_capacity)
+    store = ParStore(params_dir)
+    defaults = store.defaults()
+    params, warnings = load_parameters(par, store, defaults)
+    if seed is not None:
+        params = with_seed(params, seed)
+    return EngineSpec(params, defaults.params, warnings, Path(params_dir), Path(logs_dir),
+                      clock, speed, history_capacity, epoch)
+
+
+def assemble(
+    spec: EngineSpec,
+    *,
+    daq: ProcessBackend | None = None,
+    threaded: bool | None = None,
+    now: Callable[[], float] | None = None,
+    sleep: Callable[[float], None] | None = None,
+) -> Engine:
+    """The engine `spec` describes, in the start-up state (Simul, Pause, Manual)."""
+    if spec.clock == "manual" and now is None and sleep is None:
+        fake = ManualClock()
+        now, sleep = fake.now, fake.sleep
+    now = now or time.monotonic
+    sleep = sleep or time.sleep
+    h = spec.params.tsamp
+    if spec.clock == "realtime":
+        clk: Clock = RealTimeClock(h, now)
+        stamp: Callable[[], datetime] = datetime.now
+    else:
+        clk = VirtualClock(h, None if spec.clock == "manual" else spec.speed, now)
+        origin = spec.epoch or datetime.now().replace(microsecond=0)
+        stamp = lambda: origin + timedelta(seconds=round(control.t, 6))  # noqa: E731
+    control = ControlLoop(spec.params, defaults=spec.defaults, store=ParStore(spec.params_dir),
+                          logs_dir=spec.logs_dir, daq=daq, history_capacity=spec.history_capacity,
+                          now=lambda: stamp())
+    return Engine(control, clk, threaded=(spec.clock != "manual") if threaded is None else threaded,
+                  sleep=sleep, warnings=spec.warnings)
+
+
 def build_engine(
     par: str | Path | None = None,
     *,
@@ -366,27 +439,6 @@ def build_engine(
         time.sleep; for "manual", a fresh ManualClock, so even a SetSpeed-paced
         manual engine never really waits and its snapshots are reproducible)
     """
-    if clock == "manual" and now is None and sleep is None:
-        fake = ManualClock()
-        now, sleep = fake.now, fake.sleep
-    now = now or time.monotonic
-    sleep = sleep or time.sleep
-    store = ParStore(params_dir)
-    defaults = store.defaults()
-    params, warnings = load_parameters(par, store, defaults)
-    if seed is not None:
-        params = with_seed(params, seed)
-    h = params.tsamp
-    if clock == "realtime":
-        clk: Clock = RealTimeClock(h, now)
-        stamp: Callable[[], datetime] = datetime.now
-    elif clock in ("virtual", "manual"):
-        clk = VirtualClock(h, None if clock == "manual" else speed, now)
-        origin = epoch or datetime.now().replace(microsecond=0)
-        stamp = lambda: origin + timedelta(seconds=round(control.t, 6))  # noqa: E731
-    else:
-        raise ValueError(f"clock must be realtime, virtual or manual, got {clock!r}")
-    control = ControlLoop(params, defaults=defaults.params, store=store, logs_dir=logs_dir,
-                          daq=daq, history_capacity=history_capacity, now=lambda: stamp())
-    return Engine(control, clk, threaded=(clock != "manual") if threaded is None else threaded,
-                  sleep=sleep, warnings=warnings)
+    spec = engine_spec(par, clock=clock, speed=speed, seed=seed, params_dir=params_dir,
+                       logs_dir=logs_dir, history_capacity=history_capacity, epoch=epoch)
+    return assemble(spec, daq=daq, threaded=threaded, now=now, sleep=sleep)
