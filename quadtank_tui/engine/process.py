@@ -1,0 +1,300 @@
+"""The engine in a process of its own, behind the same EngineHandle.
+
+In one process the loop's thread shares the interpreter lock with the UI: while the
+UI builds a chart the loop's wake-up waits for the lock, and its p99 jitter at 50 ms
+was 5-8 ms (benchmarks/loop_timing.py).  Here the loop runs in a child process
+(started with "spawn": a fresh interpreter, no inherited threads), so its timing
+does not depend on what the UI does.
+
+- The parent reads files and checks them (:func:`engine_spec`), so a bad `.par` is
+  refused with the same message as in-process, before any process starts.
+- Commands go down a pipe; the child applies each between samples and sends the
+  CommandResult back, which resolves the parent's Future.  Before the result is
+  sent, the snapshot that shows the command's effect is published.
+- Snapshots and ring buffers come up through shared memory (:mod:`engine.shared`),
+  written without locks: no reader can hold the loop up.
+- The child stops the loop, pumps to 0, if the parent goes away (its end of the
+  pipe closes: crash, kill, lost SSH session), or on SIGTERM or SIGHUP.  It ignores
+  SIGINT: Ctrl-C in a terminal reaches the whole process group, and the parent
+  decides how to stop.  If the child dies, the parent's snapshot says so and new
+  commands are refused.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+import threading
+from concurrent.futures import Future
+from dataclasses import replace
+from datetime import datetime
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from quadtank_tui.core.parameters import Parameters
+from quadtank_tui.engine.backend import ProcessBackend
+from quadtank_tui.engine.commands import Command, CommandResult
+from quadtank_tui.engine.history import DEFAULT_CAPACITY
+from quadtank_tui.engine.runner import ClockKind, Engine, EngineSpec, assemble, engine_spec
+from quadtank_tui.engine.shared import SharedState, SnapshotReader, SnapshotWriter
+from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.files.log import log_path
+from quadtank_tui.files.par import ParStore
+
+#: How long the child may take to import and build its engine.
+START_TIMEOUT = 60.0
+#: How long stop() waits for the child to put the pumps at 0 and close its log.
+STOP_TIMEOUT = 10.0
+
+
+class EngineProcessError(OSError):
+    """The loop process could not be started; the message says why (an OSError, like
+    the other failures of the system around the program)."""
+
+
+class _Stop(Exception):
+    """Raised in the child's main thread by SIGTERM / SIGHUP."""
+
+
+def _stop_signal(signum: int, frame: object) -> None:
+    raise _Stop(signal.Signals(signum).name)
+
+
+def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
+                daq_factory: Callable[[], ProcessBackend] | None,
+                setup: Callable[[Engine], None] | None) -> None:
+    """The loop process: build the engine, then serve the parent's messages."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _stop_signal)
+    signal.signal(signal.SIGHUP, _stop_signal)
+    try:
+        shared = SharedState.attach(shared_path, spec.history_capacity)
+        engine = assemble(spec, daq=daq_factory() if daq_factory is not None else None)
+        engine.loop.history = shared.history
+        writer = SnapshotWriter(shared)
+        engine.loop.on_publish = writer
+        if setup is not None:
+            setup(engine)
+        engine.loop.publish()
+        writer.flush()
+    except BaseException as exc:  # noqa: BLE001 - tell the parent why, whatever it was
+        outbox.send(("failed", f"{type(exc).__name__}: {exc}"))
+        return
+    outbox.send(("ready", engine.loop.defaults))
+    try:
+        while True:
+            try:
+                message = inbox.recv()
+            except (EOFError, OSError):
+                break  # the parent is gone: stop, pumps at 0
+            kind = message[0]
+            if kind == "start":
+                engine.start()
+                outbox.send(("started",))
+            elif kind == "command":
+                result = engine.submit(message[2]).result()
+                writer.flush()
+                outbox.send(("result", message[1], result))
+            else:
+                break
+    except _Stop:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+        engine.stop()
+        writer.flush()
+        try:
+            outbox.send(("stopped", engine.crash))
+        except (OSError, ValueError):
+            pass
+
+
+class EngineProcess:
+    """Implements :class:`quadtank_tui.engine.handle.EngineHandle` with the loop in a
+    child process.  Built ready to read (start-up state, not running), like
+    :func:`build_engine`'s Engine; :meth:`start` starts the sampling."""
+
+    def __init__(self, spec: EngineSpec, *, daq_factory: Callable[[], ProcessBackend] | None = None,
+                 setup: Callable[[Engine], None] | None = None) -> None:
+        self.warnings = spec.warnings
+        self.crash: str | None = None
+        self._store = ParStore(spec.params_dir)
+        self._logs_dir = spec.logs_dir
+        self._shared = SharedState.create(spec.history_capacity)
+        self._reader = SnapshotReader(self._shared)
+        self._send_lock = threading.Lock()
+        self._futures: dict[int, Future[CommandResult]] = {}
+        self._next_id = 0
+        self._started = False
+        self._stopping = False
+        self._stopped = False
+        self._gone = threading.Event()  # the child's pipe closed
+        ctx = multiprocessing.get_context("spawn")
+        child_inbox, self._inbox = ctx.Pipe(duplex=False)
+        self._outbox, child_outbox = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(
+            target=_child_main, name="quadtank-loop", daemon=True,
+            args=(spec, self._shared.block.path, child_inbox, child_outbox, daq_factory, setup),
+        )
+        try:
+            try:
+                self._proc.start()
+            finally:
+                child_inbox.close()
+                child_outbox.close()
+            reply = self._receive_first()
+        finally:
+            self._shared.block.unlink()  # both processes have it mapped (or the child failed)
+        if reply[0] != "ready":
+            self._proc.join(timeout=STOP_TIMEOUT)
+            self._stopped = True
+            raise EngineProcessError(f"the control loop process did not start: {reply[1]}")
+        self._defaults: Parameters = reply[1]
+        self._snap = self._reader.read()
+        self._listener = threading.Thread(target=self._listen, name="quadtank-loop-results", daemon=True)
+        self._listener.start()
+
+    def _receive_first(self) -> tuple[Any, ...]:
+        if not self._outbox.poll(START_TIMEOUT):
+            self._proc.kill()
+            return ("failed", f"no answer within {START_TIMEOUT:g} s")
+        try:
+            return self._outbox.recv()
+        except (EOFError, OSError):
+            self._proc.join(timeout=STOP_TIMEOUT)
+            return ("failed", f"it exited with code {self._proc.exitcode}")
+
+    # --- the EngineHandle read side ------------------------------------------------------------
+
+    def snapshot(self) -> Snapshot:
+        snap = self._reader.read() or self._snap
+        self._snap = snap
+        if self._gone.is_set() and not self._stopping and snap.fault is None:
+            self._proc.join(timeout=0.5)
+            why = self.crash or f"exit code {self._proc.exitcode}"
+            return replace(snap, state="Pause",
+                           fault=f"the control loop process stopped unexpectedly ({why}); restart the program")
+        return snap
+
+    def history(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
+        return self._shared.history.last(seconds)
+
+    def defaults(self) -> Parameters:
+        return self._defaults
+
+    def par_names(self) -> list[str]:
+        return self._store.names()
+
+    def log_exists(self, name: str) -> bool:
+        return log_path(self._logs_dir, name).exists()
+
+    @property
+    def running(self) -> bool:
+        """The loop samples (started, and its process is alive)."""
+        return self._started and not self._gone.is_set()
+
+    # --- the one write door -----------------------------------------------------------------
+
+    def submit(self, command: Command) -> Future[CommandResult]:
+        """Send `command` to the loop; the Future resolves when it has been applied."""
+        fut: Future[CommandResult] = Future()
+        with self._send_lock:
+            if self._stopping or self._gone.is_set():
+                fut.set_result(CommandResult.refused("the engine has stopped"))
+                return fut
+            self._next_id += 1
+            self._futures[self._next_id] = fut
+            try:
+                self._inbox.send(("command", self._next_id, command))
+            except (OSError, ValueError) as exc:
+                self._futures.pop(self._next_id, None)
+                fut.set_result(CommandResult.refused(f"the control loop process is gone ({exc})"))
+        return fut
+
+    def _listen(self) -> None:
+        """Results up from the child until its end of the pipe closes."""
+        while True:
+            try:
+                message = self._outbox.recv()
+            except (EOFError, OSError):
+                break
+            if message[0] == "result":
+                with self._send_lock:
+                    fut = self._futures.pop(message[1], None)
+                if fut is not None and not fut.done():
+                    fut.set_result(message[2])
+            elif message[0] == "stopped":
+                self.crash = message[1]
+        with self._send_lock:
+            self._gone.set()
+            waiting, self._futures = list(self._futures.values()), {}
+        for fut in waiting:
+            if not fut.done():
+                fut.set_result(CommandResult.refused("the engine has stopped"))
+
+    # --- lifetime ------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Start sampling (idempotent)."""
+        with self._send_lock:
+            if self._started or self._stopping or self._gone.is_set():
+                return
+            self._started = True
+            self._inbox.send(("start",))
+
+    def stop(self) -> None:
+        """Stop the loop, pumps to 0, logging stopped (rows kept); wait for the process
+        to end.  Idempotent."""
+        if self._stopped:
+            return
+        with self._send_lock:
+            self._stopping = True
+            try:
+                self._inbox.send(("stop",))
+            except (OSError, ValueError):
+                pass
+        self._listener.join(timeout=STOP_TIMEOUT)
+        self._proc.join(timeout=STOP_TIMEOUT)
+        if self._proc.is_alive():
+            self._proc.kill()
+            self._proc.join()
+        self._inbox.close()
+        self._snap = self._reader.read() or self._snap
+        self._stopped = True
+
+    def __enter__(self) -> EngineProcess:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def spawn_engine(
+    par: str | Path | None = None,
+    *,
+    daq_factory: Callable[[], ProcessBackend] | None = None,
+    clock: ClockKind = "realtime",
+    speed: float | None = 1.0,
+    seed: int | None = None,
+    params_dir: Path | str = Path("params"),
+    logs_dir: Path | str = Path("logs"),
+    history_capacity: int = DEFAULT_CAPACITY,
+    epoch: datetime | None = None,
+    setup: Callable[[Engine], None] | None = None,
+) -> EngineProcess:
+    """:func:`build_engine`'s engine, in a process of its own (not yet sampling).
+
+    daq_factory : builds the DAQ backend in the child (a backend holds locks and
+        sockets, which do not cross processes); e.g. ``functools.partial(open_daq,
+        path)``.  Check the configuration in the parent first.
+    setup : called in the child with the engine before it is published (benchmarks
+        and tests); must be picklable, i.e. a module-level function or a partial.
+    """
+    if clock == "manual":
+        raise ValueError("a manual clock is stepped by hand: use build_engine")
+    spec = engine_spec(par, clock=clock, speed=speed, seed=seed, params_dir=params_dir,
+                       logs_dir=logs_dir, history_capacity=history_capacity, epoch=epoch)
+    return EngineProcess(spec, daq_factory=daq_factory, setup=setup)
