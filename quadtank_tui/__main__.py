@@ -2,4 +2,5 @@
 
 from quadtank_tui.cli import main
 
-raise SystemExit(main())
+if __name__ == "__main__":  # the loop process (spawn) imports this module again
+    raise SystemExit(main())

@@ -9,6 +9,7 @@ a traceback never reaches the user.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 from pathlib import Path
@@ -29,6 +30,7 @@ EXPORT_FORMATS = ("mat", "csv")
 
 
 if TYPE_CHECKING:  # the TUI's modules load only when it starts
+    from quadtank_tui.engine.process import EngineProcess
     from quadtank_tui.engine.runner import Engine
     from quadtank_tui.ui.app import QuadTankApp
 
@@ -195,12 +197,16 @@ def _add_tui_options(parser: argparse.ArgumentParser) -> None:
                      help="simulated seconds per wall second at start (1..1000; keys + and - change it)")
     tui.add_argument("--refresh", metavar="SECONDS", type=float, default=0.05,
                      help="screen refresh interval (default 0.05; raise it on a slow link)")
+    tui.add_argument("--loop", choices=("process", "thread"), default="process",
+                     help="where the control loop runs: its own process (default; the screen "
+                     "cannot delay a sample) or a thread of this one (for debugging)")
 
 
-def build_tui(args: argparse.Namespace) -> tuple[Engine, QuadTankApp]:
+def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTankApp]:
     """The engine (not started) and the app the TUI runs, from the options.  A rig
     (--daq) keeps wall time; the simulator runs on a virtual clock so a student
-    can speed it up."""
+    can speed it up.  The loop runs in a process of its own unless `--loop thread`."""
+    from quadtank_tui.engine.process import spawn_engine
     from quadtank_tui.engine.runner import build_engine
     from quadtank_tui.ui.app import build_app
 
@@ -208,9 +214,14 @@ def build_tui(args: argparse.Namespace) -> tuple[Engine, QuadTankApp]:
         raise UsageError(f"--speed must be 1..1000, got {args.tui_speed:g}")
     if not 0.01 <= args.refresh <= 5.0:
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
-    daq = open_daq(args.daq_global)
+    daq = open_daq(args.daq_global)  # the configuration is checked here, in any case
     clock = "realtime" if daq is not None else "virtual"
-    engine = build_engine(args.tui_par, daq=daq, clock=clock, speed=args.tui_speed)
+    engine: Engine | EngineProcess
+    if args.loop == "thread":
+        engine = build_engine(args.tui_par, daq=daq, clock=clock, speed=args.tui_speed)
+    else:  # a backend holds sockets and locks: the loop process opens its own
+        factory = None if daq is None else functools.partial(open_daq, args.daq_global)
+        engine = spawn_engine(args.tui_par, daq_factory=factory, clock=clock, speed=args.tui_speed)
     return engine, build_app(engine, refresh_interval=args.refresh)
 
 

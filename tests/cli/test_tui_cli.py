@@ -5,6 +5,8 @@ from __future__ import annotations
 import pytest
 
 from quadtank_tui.cli import build_parser, build_tui, main
+from quadtank_tui.engine.process import EngineProcess
+from quadtank_tui.engine.runner import Engine
 
 
 @pytest.mark.parametrize("argv, word", [
@@ -31,9 +33,14 @@ def test_tui_options_do_not_shadow_run_options() -> None:
     assert (args.tui_par, args.par) == ("minphase", "nonminphase")
 
 
-def test_the_tui_runs_the_simulator_on_a_virtual_clock() -> None:
-    engine, app = build_tui(build_parser().parse_args(["--speed", "4", "--refresh", "0.2"]))
-    s = engine.snapshot()
-    assert (s.operation, s.state, s.control) == ("Simul", "Pause", "Manual")
-    assert not s.realtime and s.speed == 4.0 and not s.active_available
-    assert app.main.refresh_interval == 0.2
+@pytest.mark.parametrize("loop, kind", [([], EngineProcess), (["--loop", "thread"], Engine)])
+def test_the_tui_runs_the_simulator_on_a_virtual_clock(loop: list[str], kind: type) -> None:
+    engine, app = build_tui(build_parser().parse_args(["--speed", "4", "--refresh", "0.2", *loop]))
+    try:
+        assert isinstance(engine, kind)  # its own process unless asked otherwise
+        s = engine.snapshot()
+        assert (s.operation, s.state, s.control) == ("Simul", "Pause", "Manual")
+        assert not s.realtime and s.speed == 4.0 and not s.active_available
+        assert app.main.refresh_interval == 0.2
+    finally:
+        engine.stop()

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Callable
 
 import pytest
 
 from quadtank_tui.cli import build_parser, build_tui, main
+from quadtank_tui.engine.commands import SetOperation, SetParams, SetState
 from quadtank_tui.files.log import read_log
 
 ROOT = Path(__file__).parents[2]
@@ -99,8 +101,34 @@ def test_top_level_daq_without_a_command(tmp_path: Path, capsys: pytest.CaptureF
     """`quadtank --daq CONFIG`: the file is checked before anything runs; a good one
     gives the TUI an engine that offers Active mode on a real-time clock."""
     engine, _app = build_tui(build_parser().parse_args(["--daq", str(ROOT / "params" / "virtual-rig.yaml")]))
-    assert engine.snapshot().active_available and engine.snapshot().realtime
+    try:
+        assert engine.snapshot().active_available and engine.snapshot().realtime
+    finally:
+        engine.stop()
     bad = tmp_path / "bad.yaml"
     bad.write_text("port: 0\n")
     assert main(["--daq", str(bad)]) == 2
     assert capsys.readouterr().err.strip() == f"quadtank: error: {bad}:1: port: must be in 1..65535, got 0"
+
+
+def test_the_tuis_loop_process_drives_the_rig_and_leaves_its_pumps_at_0(rig: Callable, tmp_path: Path) -> None:
+    """The TUI's engine runs in its own process, which opens the DAQ link itself:
+    Active, Run, manual inputs reach the rig's registers; stopping puts them at 0."""
+    r = rig("--speed", "1")
+    engine, _app = build_tui(build_parser().parse_args(["--daq", str(config_for(tmp_path, r.port))]))
+    try:
+        for command in (SetOperation("Active"), SetParams({"REFERENCE ONE.Mean": 0.4, "REFERENCE TWO.Mean": 0.5}),
+                        SetState("Run")):
+            result = engine.submit(command).result(timeout=10)
+            assert result.ok, result.message
+        engine.start()
+        deadline = time.monotonic() + 20
+        while engine.snapshot().k < 10 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        s = engine.snapshot()
+        assert s.k >= 10 and s.fault is None
+        assert (s.operation, s.backend) == ("Active", f"modbus 127.0.0.1:{r.port}")
+        assert s.u == pytest.approx((0.4, 0.5)) and r.dacs() == pytest.approx((4.0, 5.0), abs=1e-4)
+    finally:
+        engine.stop()
+    assert r.dacs() == (0.0, 0.0)
