@@ -23,27 +23,52 @@ EDGES = np.concatenate(([LOWEST], LOWEST * 10.0 ** (np.arange(1, _NBINS - 1) / B
 
 
 class JitterHistogram:
-    def __init__(self) -> None:
-        self.counts = np.zeros(_NBINS, dtype=np.int64)
+    """Counts of |jitter| per bin, and the bins holding the tracked percentiles.
+
+    The engine asks for the percentiles after every sample, so each tracked
+    percentile keeps a pointer to its bin that an added sample moves by a step or
+    two (about 1 µs a sample in pure Python, against 6 µs for a cumulative sum)."""
+
+    def __init__(self, tracked: tuple[float, ...] = (50.0, 99.0)) -> None:
+        self.counts = [0] * _NBINS
         self.n = 0
         self.max = 0.0
+        #: percentile -> [bin, number of samples in the bins below it]
+        self._at = {q: [0, 0] for q in tracked}
 
     def add(self, jitter: float) -> None:
         a = abs(jitter)
         if not a >= LOWEST:  # also NaN
-            i = 0
+            b = 0
         else:
-            i = min(_NBINS - 1, 1 + int(math.log10(a / LOWEST) * BINS_PER_DECADE))
-        self.counts[i] += 1
+            b = min(_NBINS - 1, 1 + int(math.log10(a / LOWEST) * BINS_PER_DECADE))
+        counts = self.counts
+        counts[b] += 1
         self.n += 1
         if a > self.max:
             self.max = a
+        for q, at in self._at.items():
+            i, below = at
+            if b < i:
+                below += 1
+            rank = max(1, math.ceil(q / 100.0 * self.n))
+            while below >= rank:            # the rank fell into a lower bin
+                i -= 1
+                below -= counts[i]
+            while below + counts[i] < rank:  # or a higher one
+                below += counts[i]
+                i += 1
+            at[0], at[1] = i, below
 
     def percentile(self, q: float) -> float:
         """Upper bound of the q-th percentile of |jitter| (its bin's edge, or the
         largest value seen if that is smaller), s; 0 if empty."""
         if self.n == 0:
             return 0.0
-        rank = max(1, math.ceil(q / 100.0 * self.n))
-        i = int(np.searchsorted(np.cumsum(self.counts), rank))
+        at = self._at.get(q)
+        if at is not None:
+            i = at[0]
+        else:
+            rank = max(1, math.ceil(q / 100.0 * self.n))
+            i = int(np.searchsorted(np.cumsum(self.counts), rank))
         return min(float(EDGES[i]), self.max)

@@ -42,3 +42,14 @@ def test_empty_tiny_huge_and_nan() -> None:
     hist.add(math.nan)
     hist.add(100.0)  # beyond 10 s: the last bin
     assert hist.n == 4 and hist.percentile(100) == 100.0
+
+
+def test_the_tracked_percentiles_agree_with_a_full_count_after_every_sample() -> None:
+    rng = np.random.default_rng(7)
+    values = np.exp(rng.uniform(np.log(1e-7), np.log(20.0), 3000))  # all bins, in any order
+    tracked, plain = JitterHistogram(), JitterHistogram(tracked=())
+    for v in values:
+        tracked.add(float(v))
+        plain.add(float(v))
+        for q in (50.0, 99.0):
+            assert tracked.percentile(q) == plain.percentile(q)
