@@ -10,8 +10,11 @@ rows ever written.  A reader copies what it saw as complete and afterwards drops
 writer may have overwritten meanwhile, so a reader can lose a few of its oldest rows
 to a fast writer but never gets a half-written one.  A clear (Reset) bumps a
 generation counter twice, seqlock style; a reader that sees it change starts over.
-The stores are plain 8-byte writes in program order, which x86-64 and the other
-targets CPython supports make visible in that order (a row before the count).
+The stores are plain 8-byte writes in program order, which x86-64 makes visible
+to the other process in that order (a row before its count).  A weakly ordered CPU
+(aarch64) gives no such promise: there a reader may, rarely, show one stale row for
+one frame.  Only the display could be wrong; the loop's own data and its log are
+written by the loop alone.  (The snapshot slot has a checksum: engine/shared.py.)
 """
 
 from __future__ import annotations
@@ -98,15 +101,20 @@ class History:
             out[name] = col
         return out
 
-    def _consistent_rows(self) -> np.ndarray:
+    def copy(self) -> History:
+        """A private copy (the shared memory can then go)."""
+        return History(self.capacity, header=self._hdr.copy(), rows=self._buf.copy())
+
+    def _consistent_rows(self, attempts: int = 100) -> np.ndarray:
         hdr, cap = self._hdr, self.capacity
-        while True:
+        for attempt in range(attempts):
+            last = attempt == attempts - 1  # a writer that died half-way: take what is there
             gen = int(hdr[_GEN])
-            if gen & 1:  # a clear is under way: it takes a few stores
+            if gen & 1 and not last:  # a clear is under way: it takes a few stores
                 time.sleep(0)
                 continue
             total, start = int(hdr[_TOTAL]), int(hdr[_START])
-            lo = max(start, total - cap)
+            lo = min(max(start, total - cap), total)
             a, b = lo % cap, total % cap
             if total - lo == 0:
                 rows = self._buf[:0].copy()
@@ -114,9 +122,10 @@ class History:
                 rows = self._buf[a:b].copy()
             else:
                 rows = np.concatenate((self._buf[a:], self._buf[:b]))
-            if int(hdr[_GEN]) != gen:
+            if int(hdr[_GEN]) != gen and not last:
                 continue
             # Rows the writer began while we copied may hold newer samples: drop
             # them from the old end.
             safe_lo = int(hdr[_BEGUN]) - cap
             return rows[max(0, safe_lo - lo):]
+        raise AssertionError("unreachable: the last attempt returns")

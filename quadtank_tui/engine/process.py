@@ -23,11 +23,13 @@ does not depend on what the UI does.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 import threading
 from concurrent.futures import Future
 from dataclasses import replace
 from datetime import datetime
+from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -54,23 +56,37 @@ class EngineProcessError(OSError):
     the other failures of the system around the program)."""
 
 
-class _Stop(Exception):
-    """Raised in the child's main thread by SIGTERM / SIGHUP."""
+class _StopRequest:
+    """SIGTERM / SIGHUP in the loop process: a flag, and a byte on a pipe the main
+    thread waits on with the parent's messages.  (A handler that raised could cut a
+    shared-memory write, or the stop itself, in half.)"""
 
+    def __init__(self) -> None:
+        self.reason: str | None = None
+        self.fd, self._wake = os.pipe()
+        os.set_blocking(self._wake, False)
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, self._handle)
 
-def _stop_signal(signum: int, frame: object) -> None:
-    raise _Stop(signal.Signals(signum).name)
+    def _handle(self, signum: int, frame: object) -> None:
+        self.reason = signal.Signals(signum).name
+        try:
+            os.write(self._wake, b"!")
+        except OSError:
+            pass
 
 
 def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
                 daq_factory: Callable[[], ProcessBackend] | None,
                 setup: Callable[[Engine], None] | None) -> None:
-    """The loop process: build the engine, then serve the parent's messages."""
+    """The loop process: build the engine, then serve the parent's messages until
+    told to stop, a stop signal, or the parent's end of the pipe closing."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, _stop_signal)
-    signal.signal(signal.SIGHUP, _stop_signal)
+    stop = _StopRequest()
+    engine: Engine | None = None
     try:
         shared = SharedState.attach(shared_path, spec.history_capacity)
+        shared.block.unlink()  # mapped on both sides now (and gone if the parent died)
         engine = assemble(spec, daq=daq_factory() if daq_factory is not None else None)
         engine.loop.history = shared.history
         writer = SnapshotWriter(shared)
@@ -79,12 +95,21 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
             setup(engine)
         engine.loop.publish()
         writer.flush()
+        outbox.send(("ready", engine.loop.defaults))
     except BaseException as exc:  # noqa: BLE001 - tell the parent why, whatever it was
-        outbox.send(("failed", f"{type(exc).__name__}: {exc}"))
+        try:
+            outbox.send(("failed", f"{type(exc).__name__}: {exc}"))
+        except (OSError, ValueError):
+            pass
+        if engine is not None:
+            engine.stop()  # a DAQ link it opened is closed, pumps at 0
         return
-    outbox.send(("ready", engine.loop.defaults))
+    crash: str | None = None
     try:
-        while True:
+        while stop.reason is None:
+            wait([inbox, stop.fd])
+            if stop.reason is not None:
+                break
             try:
                 message = inbox.recv()
             except (EOFError, OSError):
@@ -92,22 +117,19 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
             kind = message[0]
             if kind == "start":
                 engine.start()
-                outbox.send(("started",))
             elif kind == "command":
                 result = engine.submit(message[2]).result()
                 writer.flush()
                 outbox.send(("result", message[1], result))
             else:
                 break
-    except _Stop:
-        pass
+    except Exception as exc:  # noqa: BLE001 - stop in order and say why
+        crash = f"{type(exc).__name__}: {exc}"
     finally:
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        signal.signal(signal.SIGHUP, signal.SIG_IGN)
         engine.stop()
         writer.flush()
         try:
-            outbox.send(("stopped", engine.crash))
+            outbox.send(("stopped", engine.crash or crash))
         except (OSError, ValueError):
             pass
 
@@ -121,10 +143,15 @@ class EngineProcess:
                  setup: Callable[[Engine], None] | None = None) -> None:
         self.warnings = spec.warnings
         self.crash: str | None = None
+        #: What the parent did about the pumps after the child died (for the fault line).
+        self.rescue: str | None = None
+        self._daq_factory = daq_factory
         self._store = ParStore(spec.params_dir)
         self._logs_dir = spec.logs_dir
-        self._shared = SharedState.create(spec.history_capacity)
-        self._reader = SnapshotReader(self._shared)
+        self._shared: SharedState | None = SharedState.create(spec.history_capacity)
+        self._history = self._shared.history
+        self._reader: SnapshotReader | None = SnapshotReader(self._shared)
+        self._read_lock = threading.Lock()
         self._send_lock = threading.Lock()
         self._futures: dict[int, Future[CommandResult]] = {}
         self._next_id = 0
@@ -150,10 +177,12 @@ class EngineProcess:
             self._shared.block.unlink()  # both processes have it mapped (or the child failed)
         if reply[0] != "ready":
             self._proc.join(timeout=STOP_TIMEOUT)
-            self._stopped = True
+            self._release()
             raise EngineProcessError(f"the control loop process did not start: {reply[1]}")
         self._defaults: Parameters = reply[1]
-        self._snap = self._reader.read()
+        snap = self._reader.read()
+        assert snap is not None  # the child published before it said ready
+        self._snap: Snapshot = snap
         self._listener = threading.Thread(target=self._listen, name="quadtank-loop-results", daemon=True)
         self._listener.start()
 
@@ -170,17 +199,23 @@ class EngineProcess:
     # --- the EngineHandle read side ------------------------------------------------------------
 
     def snapshot(self) -> Snapshot:
-        snap = self._reader.read() or self._snap
-        self._snap = snap
+        with self._read_lock:
+            if self._reader is not None:
+                gone = self._gone.is_set()
+                self._snap = self._reader.read() or self._snap
+                if gone:  # nothing will write again: one last read, then keep it
+                    self._reader = None
+            snap = self._snap
         if self._gone.is_set() and not self._stopping and snap.fault is None:
             self._proc.join(timeout=0.5)
             why = self.crash or f"exit code {self._proc.exitcode}"
-            return replace(snap, state="Pause",
-                           fault=f"the control loop process stopped unexpectedly ({why}); restart the program")
+            pumps = f"; {self.rescue}" if self.rescue else ""
+            return replace(snap, state="Pause", fault=f"the control loop process stopped unexpectedly "
+                           f"({why}){pumps}; restart the program")
         return snap
 
     def history(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
-        return self._shared.history.last(seconds)
+        return self._history.last(seconds)
 
     def defaults(self) -> Parameters:
         return self._defaults
@@ -230,10 +265,28 @@ class EngineProcess:
                 self.crash = message[1]
         with self._send_lock:
             self._gone.set()
+            unexpected = not self._stopping
             waiting, self._futures = list(self._futures.values()), {}
         for fut in waiting:
             if not fut.done():
                 fut.set_result(CommandResult.refused("the engine has stopped"))
+        if unexpected:
+            self._pumps_to_zero()
+
+    def _pumps_to_zero(self) -> None:
+        """The loop process died (killed, out of memory) without its stop: command the
+        rig's pumps to 0 over a link of our own."""
+        if self._daq_factory is None:
+            return
+        try:
+            backend = self._daq_factory()
+            try:
+                backend.safe_state()
+            finally:
+                backend.close()
+            self.rescue = "the pumps were commanded to 0 from here"
+        except Exception as exc:  # noqa: BLE001 - say it; the rig's watchdog is the last line
+            self.rescue = f"the pumps could NOT be commanded to 0 ({type(exc).__name__}: {exc})"
 
     # --- lifetime ------------------------------------------------------------------------------
 
@@ -243,11 +296,14 @@ class EngineProcess:
             if self._started or self._stopping or self._gone.is_set():
                 return
             self._started = True
-            self._inbox.send(("start",))
+            try:
+                self._inbox.send(("start",))
+            except (OSError, ValueError):
+                pass  # gone: the listener has seen it or will
 
     def stop(self) -> None:
         """Stop the loop, pumps to 0, logging stopped (rows kept); wait for the process
-        to end.  Idempotent."""
+        to end.  The last snapshot and the trends stay readable.  Idempotent."""
         if self._stopped:
             return
         with self._send_lock:
@@ -261,9 +317,24 @@ class EngineProcess:
         if self._proc.is_alive():
             self._proc.kill()
             self._proc.join()
-        self._inbox.close()
-        self._snap = self._reader.read() or self._snap
+            self._pumps_to_zero()
+        self.snapshot()  # the last one the child published
+        self._release()
+
+    def _release(self) -> None:
+        """Close the pipes and the process handle; keep a private copy of the trends
+        and let the shared memory go."""
         self._stopped = True
+        self._inbox.close()
+        self._outbox.close()
+        try:
+            self._proc.close()
+        except ValueError:  # still running after kill(): leave the handle to the GC
+            pass
+        with self._read_lock:
+            self._reader = None
+            self._history = self._history.copy()
+            self._shared = None
 
     def __enter__(self) -> EngineProcess:
         return self

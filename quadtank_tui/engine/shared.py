@@ -18,6 +18,7 @@ import pickle
 import tempfile
 import threading
 import time
+import zlib
 from dataclasses import replace
 from typing import Callable
 
@@ -83,10 +84,13 @@ class SharedBlock:
 class BytesSlot:
     """One byte string at a time, seqlock style: the writer makes the sequence odd,
     writes, makes it even; a reader keeps a copy only if the sequence was even and
-    unchanged around it."""
+    unchanged around it and the copy's CRC-32 is the one written with it (which
+    also catches stores seen out of order on weakly ordered CPUs)."""
+
+    HEADER_WORDS = 3  # sequence, length, crc32
 
     def __init__(self, header: np.ndarray, data: np.ndarray) -> None:
-        self._hdr = header  # int64[2]: sequence, length
+        self._hdr = header
         self._data = data   # uint8[capacity]
 
     @property
@@ -98,13 +102,16 @@ class BytesSlot:
         n = len(payload)
         if n > len(self._data):
             raise ValueError(f"{n} bytes do not fit a shared slot of {len(self._data)}")
-        self._hdr[0] += 1
+        seq = int(self._hdr[0])
+        seq += seq & 1  # a writer before us died half-way: carry on from even
+        self._hdr[0] = seq + 1
         self._data[:n] = np.frombuffer(payload, dtype=np.uint8)
         self._hdr[1] = n
-        self._hdr[0] += 1
-        return int(self._hdr[0])
+        self._hdr[2] = zlib.crc32(payload)
+        self._hdr[0] = seq + 2
+        return seq + 2
 
-    def read(self, attempts: int = 10_000) -> tuple[int, bytes] | None:
+    def read(self, attempts: int = 100) -> tuple[int, bytes] | None:
         """(sequence, payload), or None if nothing whole could be read (never written,
         or the writer died in the middle of a write)."""
         for _ in range(attempts):
@@ -112,8 +119,9 @@ class BytesSlot:
             if seq == 0:
                 return None
             if not seq & 1:
-                payload = self._data[: int(self._hdr[1])].tobytes()
-                if int(self._hdr[0]) == seq:
+                n, crc = int(self._hdr[1]), int(self._hdr[2])
+                payload = self._data[:n].tobytes()
+                if int(self._hdr[0]) == seq and zlib.crc32(payload) == crc:
                     return seq, payload
             time.sleep(0)
         return None
@@ -129,12 +137,14 @@ class SharedState:
         hist_header = block.array((HEADER_WORDS,), np.int64)
         hist_rows = block.array((capacity, len(SIGNALS)), np.float64)
         self.history = History(capacity, header=hist_header, rows=hist_rows)
-        self.params = BytesSlot(block.array((2,), np.int64), block.array((PARAMS_BYTES,), np.uint8))
-        self.snapshot = BytesSlot(block.array((2,), np.int64), block.array((SNAPSHOT_BYTES,), np.uint8))
+        slot_header = (BytesSlot.HEADER_WORDS,)
+        self.params = BytesSlot(block.array(slot_header, np.int64), block.array((PARAMS_BYTES,), np.uint8))
+        self.snapshot = BytesSlot(block.array(slot_header, np.int64), block.array((SNAPSHOT_BYTES,), np.uint8))
 
     @staticmethod
     def size(capacity: int) -> int:
-        words = HEADER_WORDS * 8 + capacity * len(SIGNALS) * 8 + 2 * 16 + PARAMS_BYTES + SNAPSHOT_BYTES
+        words = (HEADER_WORDS * 8 + capacity * len(SIGNALS) * 8 + 2 * BytesSlot.HEADER_WORDS * 8
+                 + PARAMS_BYTES + SNAPSHOT_BYTES)
         return words + 8 * _ALIGN
 
     @classmethod

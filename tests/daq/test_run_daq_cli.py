@@ -132,3 +132,31 @@ def test_the_tuis_loop_process_drives_the_rig_and_leaves_its_pumps_at_0(rig: Cal
     finally:
         engine.stop()
     assert r.dacs() == (0.0, 0.0)
+
+
+def test_when_the_loop_process_is_killed_the_tui_commands_the_pumps_to_0(rig: Callable, tmp_path: Path) -> None:
+    """kill -9 of the loop process (the OOM killer, say): it cannot stop in order, so
+    the TUI's process opens a link of its own and commands the pumps to 0 (the rig's
+    watchdog is off here), and the screen's fault line says so."""
+    import os
+    import signal
+
+    r = rig("--speed", "1", "--watchdog", "0")
+    engine, _app = build_tui(build_parser().parse_args(["--daq", str(config_for(tmp_path, r.port))]))
+    try:
+        for command in (SetOperation("Active"), SetParams({"REFERENCE ONE.Mean": 0.4}), SetState("Run")):
+            assert engine.submit(command).result(timeout=10).ok
+        engine.start()
+        deadline = time.monotonic() + 20
+        while r.dacs()[0] == 0.0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert r.dacs()[0] == pytest.approx(4.0, abs=1e-4)
+        os.kill(engine._proc.pid, signal.SIGKILL)
+        deadline = time.monotonic() + 20
+        while "commanded to 0" not in (engine.snapshot().fault or "") and time.monotonic() < deadline:
+            time.sleep(0.05)
+        fault = engine.snapshot().fault or ""
+        assert "stopped unexpectedly (exit code -9); the pumps were commanded to 0 from here" in fault
+        assert r.dacs() == (0.0, 0.0)
+    finally:
+        engine.stop()

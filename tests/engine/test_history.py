@@ -80,3 +80,11 @@ def test_a_full_buffer_read_at_rest_gives_every_row() -> None:
     for k in range(5000 * 3 + 17):
         h.append([float(k)] * len(SIGNALS))
     assert len(h.last()["t"]) == 5000 == len(h)
+
+
+def test_a_writer_that_died_in_a_clear_does_not_hang_the_reader() -> None:
+    h = History(5000)
+    for k in range(10):
+        h.append([float(k)] * len(SIGNALS))
+    h._hdr[2] += 1  # the generation left odd, as by a writer killed between its stores
+    assert list(h.last()["y1"]) == [float(k) for k in range(10)]

@@ -168,3 +168,23 @@ def test_no_shared_memory_file_is_left_behind(spawn: Callable[..., EngineProcess
     e = spawn()
     assert not Path(e._shared.block.path).exists()  # unlinked once both sides had it
     e.stop()
+
+
+def test_stopped_engines_hold_no_descriptors_and_keep_their_last_picture(
+        spawn: Callable[..., EngineProcess]) -> None:
+    def fds() -> int:
+        return len(os.listdir("/proc/self/fd"))
+
+    kept = [spawn()]  # the first spawn sets up multiprocessing's own helpers
+    kept[0].stop()
+    before = fds()
+    for _ in range(5):
+        e = spawn()
+        e.submit(SetState("Run"))
+        e.start()
+        wait_for(lambda: e.snapshot().k > 5)
+        e.stop()
+        kept.append(e)
+    assert fds() == before
+    last = kept[-1]
+    assert last.snapshot().k > 5 and len(last.history()["t"]) >= 5
