@@ -74,6 +74,9 @@ def test_ctrl_c_commands_the_pumps_to_zero_and_keeps_the_log(rig: Callable, poll
         [sys.executable, "-m", "quadtank_tui", "run", "--daq", str(config_for(tmp_path, r.port)),
          "--speed", "20", "--duration", "3000", "--log", str(out), "--par", str(ROOT / "params" / "default.par")],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        # A job a non-interactive shell starts in the background inherits SIGINT
+        # ignored (POSIX), and so would the program: give it the terminal's default.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     partial = tmp_path / "interrupted.log.partial"  # LOGGING.LogFile follows --log
 
