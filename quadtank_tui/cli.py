@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import signal
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
@@ -160,6 +161,15 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=_cmd_run)
 
 
+class Terminated(Exception):
+    """SIGTERM (systemd stopping the unit, `kill`): unwinds like Ctrl-C, so the run
+    stops with the pumps at 0 and its rows kept, instead of dying where it stands."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated(signal.Signals(signum).name)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from quadtank_tui.engine.headless import run_headless
     from quadtank_tui.files.script import read_script
@@ -173,8 +183,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     script = read_script(args.script) if args.script else None
     clock, daq = run_clock(realtime=args.realtime, speed=args.speed,
                            config=args.daq or getattr(args, "daq_global", None))
-    result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
-                          seed=args.seed, clock=clock, speed=args.speed, daq=daq)
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
+                              seed=args.seed, clock=clock, speed=args.speed, daq=daq)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     _warn(result.warnings)
     print(result.text)
     return result.status
@@ -266,6 +280,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("quadtank: interrupted", file=sys.stderr)
         return 130
+    except Terminated as exc:
+        print(f"quadtank: stopped by {exc}", file=sys.stderr)
+        return 143
 
 
 if __name__ == "__main__":  # pragma: no cover

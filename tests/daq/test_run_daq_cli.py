@@ -59,11 +59,13 @@ def test_run_daq_with_a_bad_config_is_one_line(tmp_path: Path, capsys: pytest.Ca
     assert capsys.readouterr().err.strip() == f"quadtank: error: {bad}:2: timeout: must be a number, got 'soon'"
 
 
-def test_ctrl_c_commands_the_pumps_to_zero_and_keeps_the_log(rig: Callable, poll: Callable,
-                                                             tmp_path: Path) -> None:
-    """SIGINT to a running `quadtank run --daq`: the program (not the rig's watchdog,
-    which is off here) puts the pumps at 0, exits 130 without a traceback, and the
-    rows logged so far are in the partial log."""
+@pytest.mark.parametrize("sig, status, said", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "stopped by SIGTERM")])
+def test_ctrl_c_or_sigterm_commands_the_pumps_to_zero_and_keeps_the_log(
+        rig: Callable, poll: Callable, tmp_path: Path, sig: str, status: int, said: str) -> None:
+    """SIGINT (Ctrl-C) or SIGTERM (kill, systemd) to a running `quadtank run --daq`:
+    the program (not the rig's watchdog, which is off here) puts the pumps at 0,
+    exits 130 / 143 without a traceback, and the rows logged so far are in the
+    partial log."""
     import signal
     import subprocess
     import sys
@@ -89,13 +91,13 @@ def test_ctrl_c_commands_the_pumps_to_zero_and_keeps_the_log(rig: Callable, poll
     try:
         assert poll(lambda: logged(3) and r.dacs() != (0.0, 0.0), timeout=30.0)
         rows_before = read_log(partial).rows
-        run.send_signal(signal.SIGINT)
+        run.send_signal(getattr(signal, sig))
         _, err = run.communicate(timeout=30)
     finally:
         if run.poll() is None:
             run.kill()
-    assert run.returncode == 130
-    assert "Traceback" not in err and "interrupted" in err
+    assert run.returncode == status
+    assert "Traceback" not in err and f"quadtank: {said}" in err
     assert r.dacs() == (0.0, 0.0)
     assert read_log(partial).rows >= rows_before
 
