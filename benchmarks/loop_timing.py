@@ -34,8 +34,8 @@ import plotext
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState  # noqa: E402
-from quadtank_tui.engine.process import EngineProcess, spawn_engine  # noqa: E402
-from quadtank_tui.engine.runner import Engine, build_engine  # noqa: E402
+from quadtank_tui.engine.process import EngineProcess  # noqa: E402
+from quadtank_tui.engine.runner import Engine, build_engine, engine_spec  # noqa: E402
 
 POINTS = 5000
 UI_HZ = 20.0
@@ -77,7 +77,7 @@ def measure(runner: str, period: float, seconds: float, points: int) -> dict[str
         dirs = {"params_dir": Path(tmp), "logs_dir": Path(tmp)}
         engine: Engine | EngineProcess
         if runner == "process":
-            engine = spawn_engine(clock="realtime", setup=functools.partial(prepare, period), **dirs)
+            engine = EngineProcess(engine_spec(clock="realtime", **dirs), setup=functools.partial(prepare, period))
         else:
             engine = build_engine(clock="realtime", **dirs)
             prepare(period, engine)

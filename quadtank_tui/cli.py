@@ -220,8 +220,8 @@ def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTan
     """The engine (not started) and the app the TUI runs, from the options.  A rig
     (--daq) keeps wall time; the simulator runs on a virtual clock so a student
     can speed it up.  The loop runs in a process of its own unless `--loop thread`."""
-    from quadtank_tui.engine.process import spawn_engine
-    from quadtank_tui.engine.runner import build_engine
+    from quadtank_tui.engine.process import EngineProcess
+    from quadtank_tui.engine.runner import build_engine, engine_spec
     from quadtank_tui.ui.app import build_app
 
     if not 1.0 <= args.tui_speed <= 1000.0:
@@ -234,8 +234,8 @@ def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTan
     if args.loop == "thread":
         engine = build_engine(args.tui_par, daq=daq, clock=clock, speed=args.tui_speed)
     else:  # a backend holds sockets and locks: the loop process opens its own
-        factory = None if daq is None else functools.partial(open_daq, args.daq_global)
-        engine = spawn_engine(args.tui_par, daq_factory=factory, clock=clock, speed=args.tui_speed)
+        factory = None if daq is None else functools.partial(type(daq), daq.config)
+        engine = EngineProcess(engine_spec(args.tui_par, clock=clock, speed=args.tui_speed), daq_factory=factory)
     return engine, build_app(engine, refresh_interval=args.refresh)
 
 

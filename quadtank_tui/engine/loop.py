@@ -205,10 +205,13 @@ class ControlLoop:
 
     def publish(self) -> Snapshot:
         """Publish a fresh snapshot of the current state (after a stop, say)."""
-        self._snapshot = self._make_snapshot()
+        return self._publish(self._make_snapshot())
+
+    def _publish(self, snap: Snapshot) -> Snapshot:
+        self._snapshot = snap
         if self.on_publish is not None:
-            self.on_publish(self._snapshot)
-        return self._snapshot
+            self.on_publish(snap)
+        return snap
 
     def record_timing(self, jitter: float, missed: int, wall: float) -> None:
         """The runner's measurement of the sample about to be done (LoopStats); the
@@ -223,9 +226,7 @@ class ControlLoop:
 
     def set_clock_info(self, realtime: bool, speed: float) -> None:
         self.realtime, self.speed = realtime, speed
-        self._snapshot = replace(self._snapshot, realtime=realtime, speed=speed)
-        if self.on_publish is not None:
-            self.on_publish(self._snapshot)
+        self._publish(replace(self._snapshot, realtime=realtime, speed=speed))
 
     # --- commands -----------------------------------------------------------------------
 

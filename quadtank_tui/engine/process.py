@@ -6,7 +6,7 @@ was 5-8 ms (benchmarks/loop_timing.py).  Here the loop runs in a child process
 (started with "spawn": a fresh interpreter, no inherited threads), so its timing
 does not depend on what the UI does.
 
-- The parent reads files and checks them (:func:`engine_spec`), so a bad `.par` is
+- The parent reads files and checks them (``runner.engine_spec``), so a bad `.par` is
   refused with the same message as in-process, before any process starts.
 - Commands go down a pipe; the child applies each between samples and sends the
   CommandResult back, which resolves the parent's Future.  Before the result is
@@ -28,9 +28,7 @@ import signal
 import threading
 from concurrent.futures import Future
 from dataclasses import replace
-from datetime import datetime
 from multiprocessing.connection import wait
-from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import numpy as np
@@ -38,8 +36,7 @@ import numpy as np
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.backend import ProcessBackend
 from quadtank_tui.engine.commands import Command, CommandResult
-from quadtank_tui.engine.history import DEFAULT_CAPACITY
-from quadtank_tui.engine.runner import ClockKind, Engine, EngineSpec, assemble, engine_spec
+from quadtank_tui.engine.runner import Engine, EngineSpec, assemble
 from quadtank_tui.engine.shared import SharedState, SnapshotReader, SnapshotWriter
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log import log_path
@@ -136,11 +133,21 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
 
 class EngineProcess:
     """Implements :class:`quadtank_tui.engine.handle.EngineHandle` with the loop in a
-    child process.  Built ready to read (start-up state, not running), like
-    :func:`build_engine`'s Engine; :meth:`start` starts the sampling."""
+    child process: ``EngineProcess(engine_spec(...))`` is ``build_engine(...)``'s
+    engine, built ready to read (start-up state, not running); :meth:`start` starts
+    the sampling.
+
+    daq_factory : builds the DAQ backend, in the child (a backend holds locks and
+        sockets, which do not cross processes) and, should the child be killed, here
+        to put the pumps at 0; e.g. ``functools.partial(ModbusBackend, config)``
+    setup : called in the child with the engine before it is published (benchmarks
+        and tests); must be picklable, i.e. a module-level function or a partial.
+    """
 
     def __init__(self, spec: EngineSpec, *, daq_factory: Callable[[], ProcessBackend] | None = None,
                  setup: Callable[[Engine], None] | None = None) -> None:
+        if spec.clock == "manual":
+            raise ValueError("a manual clock is stepped by hand: use build_engine")
         self.warnings = spec.warnings
         self.crash: str | None = None
         #: What the parent did about the pumps after the child died (for the fault line).
@@ -341,31 +348,3 @@ class EngineProcess:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
-
-
-def spawn_engine(
-    par: str | Path | None = None,
-    *,
-    daq_factory: Callable[[], ProcessBackend] | None = None,
-    clock: ClockKind = "realtime",
-    speed: float | None = 1.0,
-    seed: int | None = None,
-    params_dir: Path | str = Path("params"),
-    logs_dir: Path | str = Path("logs"),
-    history_capacity: int = DEFAULT_CAPACITY,
-    epoch: datetime | None = None,
-    setup: Callable[[Engine], None] | None = None,
-) -> EngineProcess:
-    """:func:`build_engine`'s engine, in a process of its own (not yet sampling).
-
-    daq_factory : builds the DAQ backend in the child (a backend holds locks and
-        sockets, which do not cross processes); e.g. ``functools.partial(open_daq,
-        path)``.  Check the configuration in the parent first.
-    setup : called in the child with the engine before it is published (benchmarks
-        and tests); must be picklable, i.e. a module-level function or a partial.
-    """
-    if clock == "manual":
-        raise ValueError("a manual clock is stepped by hand: use build_engine")
-    spec = engine_spec(par, clock=clock, speed=speed, seed=seed, params_dir=params_dir,
-                       logs_dir=logs_dir, history_capacity=history_capacity, epoch=epoch)
-    return EngineProcess(spec, daq_factory=daq_factory, setup=setup)

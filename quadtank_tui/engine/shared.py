@@ -42,13 +42,13 @@ def _shm_dir() -> str:
 class SharedBlock:
     """A file-backed memory map of `size` bytes, cut into aligned numpy views."""
 
-    def __init__(self, path: str, size: int, *, create: bool) -> None:
+    def __init__(self, path: str, size: int, fd: int | None = None) -> None:
+        """Map the file at `path` (or the open `fd`, which is closed: the map keeps
+        its own)."""
         self.path = path
-        flags = os.O_RDWR | (os.O_CREAT | os.O_EXCL if create else 0)
-        fd = os.open(path, flags, 0o600)
+        if fd is None:
+            fd = os.open(path, os.O_RDWR)
         try:
-            if create:
-                os.ftruncate(fd, size)
             self._mm = mmap.mmap(fd, size)
         finally:
             os.close(fd)
@@ -58,9 +58,16 @@ class SharedBlock:
     @classmethod
     def create(cls, size: int) -> SharedBlock:
         fd, path = tempfile.mkstemp(prefix="quadtank-", suffix=".shm", dir=_shm_dir())
-        os.close(fd)
-        os.unlink(path)  # mkstemp only chose a free name; O_EXCL makes it ours
-        return cls(path, size, create=True)
+        try:
+            try:
+                os.ftruncate(fd, size)  # zero-filled
+            except BaseException:
+                os.close(fd)
+                raise
+            return cls(path, size, fd)  # which closes fd
+        except BaseException:
+            os.unlink(path)
+            raise
 
     def array(self, shape: tuple[int, ...], dtype: type) -> np.ndarray:
         """The next `shape` x `dtype` region of the block (the same order in every
@@ -92,10 +99,6 @@ class BytesSlot:
     def __init__(self, header: np.ndarray, data: np.ndarray) -> None:
         self._hdr = header
         self._data = data   # uint8[capacity]
-
-    @property
-    def sequence(self) -> int:
-        return int(self._hdr[0])
 
     def write(self, payload: bytes) -> int:
         """Store `payload`; returns its (even) sequence number."""
@@ -153,7 +156,7 @@ class SharedState:
 
     @classmethod
     def attach(cls, path: str, capacity: int) -> SharedState:
-        return cls(SharedBlock(path, cls.size(capacity), create=False), capacity)
+        return cls(SharedBlock(path, cls.size(capacity)), capacity)
 
 
 class SnapshotWriter:

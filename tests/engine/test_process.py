@@ -17,8 +17,8 @@ import pytest
 from quadtank_tui.engine.commands import (
     LogOn, SetControlMode, SetParams, SetState,
 )
-from quadtank_tui.engine.process import EngineProcess, spawn_engine
-from quadtank_tui.engine.runner import Engine, build_engine
+from quadtank_tui.engine.process import EngineProcess
+from quadtank_tui.engine.runner import Engine, build_engine, engine_spec
 from quadtank_tui.files.par import ParFileError
 
 COMMANDS = (
@@ -53,12 +53,12 @@ def wait_for(condition: Callable[[], bool], timeout: float = 20.0) -> None:
 def spawn(tmp_path: Path) -> Callable[..., EngineProcess]:
     made: list[EngineProcess] = []
 
-    def make(**kwargs: object) -> EngineProcess:
+    def make(setup: Callable[[Engine], None] | None = None, **kwargs: object) -> EngineProcess:
         kwargs.setdefault("clock", "virtual")
         kwargs.setdefault("speed", 1000.0)
         kwargs.setdefault("params_dir", tmp_path / "params")
         kwargs.setdefault("logs_dir", tmp_path / "logs")
-        engine = spawn_engine(**kwargs)  # type: ignore[arg-type]
+        engine = EngineProcess(engine_spec(**kwargs), setup=setup)  # type: ignore[arg-type]
         made.append(engine)
         return engine
 
@@ -116,7 +116,7 @@ def test_a_bad_par_file_is_refused_before_any_process_starts(tmp_path: Path) -> 
     bad = tmp_path / "bad.par"
     bad.write_text("CONTROLLER ONE\nK = three\n")
     with pytest.raises(ParFileError, match=r"bad\.par, line 2: .*K"):
-        spawn_engine(bad, clock="virtual", params_dir=tmp_path, logs_dir=tmp_path)
+        EngineProcess(engine_spec(bad, clock="virtual", params_dir=tmp_path, logs_dir=tmp_path))
     assert multiprocessing.active_children() == []
 
 

@@ -10,7 +10,8 @@ from conftest import make_app, write_params
 from textual.pilot import Pilot
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.engine.process import spawn_engine
+from quadtank_tui.engine.process import EngineProcess
+from quadtank_tui.engine.runner import engine_spec
 from quadtank_tui.ui.widgets.controller_box import ElementCell
 from quadtank_tui.ui.widgets.trends import Trend
 
@@ -23,8 +24,9 @@ async def wait_until(pilot: Pilot, condition, timeout: float = 20.0) -> None:  #
 
 
 async def test_keys_drive_the_loop_process_and_the_screen_follows(tmp_path: Path) -> None:
-    engine = spawn_engine(clock="virtual", speed=50.0, seed=1,
-                          params_dir=write_params(tmp_path / "params", PRESET), logs_dir=tmp_path / "logs")
+    engine = EngineProcess(engine_spec(clock="virtual", speed=50.0, seed=1,
+                                       params_dir=write_params(tmp_path / "params", PRESET),
+                                       logs_dir=tmp_path / "logs"))
     try:
         app = make_app(engine)
         engine.start()
