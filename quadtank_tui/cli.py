@@ -161,9 +161,11 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=_cmd_run)
 
 
-class Terminated(Exception):
+class Terminated(BaseException):
     """SIGTERM (systemd stopping the unit, `kill`): unwinds like Ctrl-C, so the run
-    stops with the pumps at 0 and its rows kept, instead of dying where it stands."""
+    stops with the pumps at 0 and its rows kept, instead of dying where it stands.
+    A BaseException, like KeyboardInterrupt: the loop's `except Exception` (a fault
+    pauses the loop and carries on) must not swallow it."""
 
 
 def _terminate(signum: int, frame: object) -> None:
