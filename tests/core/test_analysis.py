@@ -107,3 +107,19 @@ def test_rga_undefined_when_valves_sum_to_one() -> None:
 def test_bad_operating_point_is_refused() -> None:
     with pytest.raises(ValueError, match="h3"):
         linearize(P_MINUS.params, (12.0, 12.0, 0.0, 1.0))
+
+
+@pytest.mark.parametrize("gammas", [(0.7, 0.6), (0.43, 0.34), (0.9, 0.2), (0.15, 0.8), (0.5, 0.5)])
+def test_pencil_zeros_equal_python_controls(gammas: tuple[float, float]) -> None:
+    """transmission_zeros avoids importing python-control; it must still agree with it."""
+    import control
+    from dataclasses import replace
+
+    from quadtank_tui.core.analysis import transmission_zeros
+
+    p = replace(P_MINUS.params, gamma1=gammas[0], gamma2=gammas[1])
+    m = linearize(p, P_MINUS.op.h)
+    ours = np.sort_complex(np.array(transmission_zeros(m)))
+    theirs = np.sort_complex(np.asarray(control.zeros(m.ss()), dtype=complex))
+    assert len(ours) == len(theirs)
+    assert ours == pytest.approx(theirs, rel=1e-9, abs=1e-12)

@@ -27,8 +27,9 @@ if TYPE_CHECKING:
 @lru_cache(maxsize=32)
 def analysis_of(sim: SimulationSettings) -> Analysis | str:
     """The analysis of a setting, or why there is none (cached: the screen redraws
-    often, the setting changes rarely).  python-control is imported here, on the
-    first analysis, not when the app starts: the Main screen never needs it."""
+    often, the setting changes rarely).  The analysis (numpy, scipy.linalg) is
+    imported here, on the first analysis, not when the app starts: the Main
+    screen never needs it."""
     from quadtank_tui.core.analysis import analyze
 
     try:
