@@ -7,7 +7,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test install clean
+.PHONY: run test lint install clean
 
 run: $(STAMP)
 	$(BIN)/quadtank
@@ -15,12 +15,18 @@ run: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest
 
+# Errors (ruff), types of the headless layers (mypy), the layer contract (import-linter).
+lint: $(STAMP)
+	$(BIN)/ruff check quadtank_tui tests benchmarks
+	$(BIN)/mypy
+	$(BIN)/lint-imports
+
 install: $(STAMP)
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,lint]'
 	touch $(STAMP)
 
 clean:
