@@ -121,7 +121,7 @@ class General:
         self._h = check_sampling_time(h)
         self._p = params
         self._Phi, self._Gam, self._C, self._D = realize(*tustin(params.numerator, params.denominator, self._h))
-        self._x = np.zeros(params.degree)
+        self._x: np.ndarray = np.zeros(params.degree)
         self._bias = 0.0
         self._last: tuple[float, float] | None = None  # (e, u) of the previous sample
 

@@ -156,6 +156,11 @@ class Generator:
       Switching the wave on starts a fresh period (a full first half of a Square).
     """
 
+    # Set by reset(), which __init__ calls (declared here for the type checker).
+    _t: float
+    _n: int
+    _mean: float
+
     def __init__(self, params: WaveParams, h: float, *, ramp_rate: float = DEFAULT_RAMP_RATE) -> None:
         check_period(params, h)
         self._p = params
@@ -226,14 +231,13 @@ class Generator:
         numbers, so this is exactly the sample-by-sample result); the batch studies
         generate millions of reference samples this way."""
         p = self._p
+        out: list[float] = []
         if p.wave is not Wave.PRBS or self._mean != self._target:
-            out = []
             for _ in range(n):
                 out.append(self.value())
                 self.advance()
             return out
         period = int(p.period)
-        out: list[float] = []
         while len(out) < n:
             chunk = min(period - self._n, n - len(out))
             out.extend([self.value()] * chunk)

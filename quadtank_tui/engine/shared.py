@@ -193,7 +193,8 @@ class SnapshotWriter:
         if snap.params is not self._params:
             self._params_seq = self._state.params.write(pickle.dumps(snap.params, protocol=5))
             self._params = snap.params
-        record = (self._params_seq, replace(snap, params=None))
+        # The parameters travel in their own slot; the reader puts them back.
+        record = (self._params_seq, replace(snap, params=None))  # type: ignore[arg-type]
         self._state.snapshot.write(pickle.dumps(record, protocol=5))
         self._last = self._now()
 
