@@ -161,15 +161,25 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=_cmd_run)
 
 
+#: The signals that end a headless run in order (pumps at 0, rows kept), besides
+#: SIGINT (KeyboardInterrupt): SIGTERM (systemd, `kill`, `timeout`) and SIGHUP (the
+#: terminal went away: a dropped SSH session, a closed tmux window).
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+
+
 class Terminated(BaseException):
-    """SIGTERM (systemd stopping the unit, `kill`): unwinds like Ctrl-C, so the run
-    stops with the pumps at 0 and its rows kept, instead of dying where it stands.
-    A BaseException, like KeyboardInterrupt: the loop's `except Exception` (a fault
-    pauses the loop and carries on) must not swallow it."""
+    """A stop signal (STOP_SIGNALS): unwinds like Ctrl-C, so the run stops with the
+    pumps at 0 and its rows kept, instead of dying where it stands.  A BaseException,
+    like KeyboardInterrupt: the loop's `except Exception` (a fault pauses the loop
+    and carries on) must not swallow it."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
 
 
 def _terminate(signum: int, frame: object) -> None:
-    raise Terminated(signal.Signals(signum).name)
+    raise Terminated(signum)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -185,12 +195,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
     script = read_script(args.script) if args.script else None
     clock, daq = run_clock(realtime=args.realtime, speed=args.speed,
                            config=args.daq or getattr(args, "daq_global", None))
-    previous = signal.signal(signal.SIGTERM, _terminate)
+    previous = {sig: signal.signal(sig, _terminate) for sig in STOP_SIGNALS}
     try:
         result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
                               seed=args.seed, clock=clock, speed=args.speed, daq=daq)
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     _warn(result.warnings)
     print(result.text)
     return result.status
@@ -277,14 +288,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return handler(args)
     except (UsageError, PlantError, OSError, ValueError) as exc:
-        print(f"quadtank: error: {exc}", file=sys.stderr)
+        _say(f"quadtank: error: {exc}")
         return 2
     except KeyboardInterrupt:
-        print("quadtank: interrupted", file=sys.stderr)
+        _say("quadtank: interrupted")
         return 130
     except Terminated as exc:
-        print(f"quadtank: stopped by {exc}", file=sys.stderr)
-        return 143
+        _say(f"quadtank: stopped by {exc}")
+        return 128 + exc.signum  # the shell's convention: 143 SIGTERM, 129 SIGHUP
+
+
+def _say(line: str) -> None:
+    """One line on stderr; after a hang-up the terminal is gone and writing to it
+    fails (EIO), which must not turn a clean stop into a traceback."""
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except OSError:
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

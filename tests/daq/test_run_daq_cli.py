@@ -59,12 +59,13 @@ def test_run_daq_with_a_bad_config_is_one_line(tmp_path: Path, capsys: pytest.Ca
     assert capsys.readouterr().err.strip() == f"quadtank: error: {bad}:2: timeout: must be a number, got 'soon'"
 
 
-@pytest.mark.parametrize("sig, status, said", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "stopped by SIGTERM")])
+@pytest.mark.parametrize("sig, status, said", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "stopped by SIGTERM"),
+                                               ("SIGHUP", 129, "stopped by SIGHUP")])
 def test_ctrl_c_or_sigterm_commands_the_pumps_to_zero_and_keeps_the_log(
         rig: Callable, poll: Callable, tmp_path: Path, sig: str, status: int, said: str) -> None:
-    """SIGINT (Ctrl-C) or SIGTERM (kill, systemd) to a running `quadtank run --daq`:
-    the program (not the rig's watchdog, which is off here) puts the pumps at 0,
-    exits 130 / 143 without a traceback, and the rows logged so far are in the
+    """SIGINT (Ctrl-C), SIGTERM (kill, systemd) or SIGHUP (the SSH session dropped)
+    to a running `quadtank run --daq`: the program (not the rig's watchdog, which is
+    off here) puts the pumps at 0, exits 130 / 143 / 129 without a traceback, and the rows logged so far are in the
     partial log."""
     import signal
     import subprocess
