@@ -253,14 +253,24 @@ def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTan
 
 
 def _cmd_tui(args: argparse.Namespace) -> int:
+    """The TUI until Exit, a crash (status 1), or its terminal going away (a hang-up,
+    SIGHUP, SIGTERM: status 129 / 143, within about a second); in every case the
+    terminal is put back and the loop stopped with the pumps at 0."""
+    from quadtank_tui.ui.terminal_watch import TerminalWatch
+
     engine, app = build_tui(args)
     _warn(engine.warnings)
+    watch = TerminalWatch(app.exit_soon, engine.stop)
     engine.start()
+    watch.start()
     try:
         app.run()
     finally:
+        watch.close()
         engine.stop()  # stops the loop, pumps to 0
-    return 0
+    if watch.reason is not None:
+        _say(f"quadtank: stopped: {watch.reason}")
+    return app.return_code or watch.status
 
 
 def build_parser() -> argparse.ArgumentParser:
