@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Callable
+from typing import Callable, Sequence
 
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
@@ -90,12 +90,18 @@ class ModbusBackend(ProcessBackend):
     # --- ProcessBackend --------------------------------------------------------------
 
     def read_levels(self) -> Levels4:
-        volts = self._read_volts()
-        kc = self.config.sensor_gain
-        y = tuple(kc * cal.level(v) / FULL_SCALE_V for cal, v in zip(self.config.sensors, volts))
-        levels: Levels4 = (y[0], y[1], y[2], y[3])
+        levels = self.levels_from_volts(self._read_volts())
         self.interlock.update(levels)
         return levels
+
+    def levels_from_volts(self, volts: Sequence[float]) -> Levels4:
+        """The normalized levels of four sensor voltages; BackendError for a reading
+        outside its tank's plausible range."""
+        kc = self.config.sensor_gain
+        cm = [cal.level(v) for cal, v in zip(self.config.sensors, volts)]
+        self._check_plausible(volts, cm)
+        y = [kc * h / FULL_SCALE_V for h in cm]
+        return (y[0], y[1], y[2], y[3])
 
     def write_pumps(self, u: Pair) -> None:
         applied = self.interlock.cut(u)
@@ -122,6 +128,16 @@ class ModbusBackend(ProcessBackend):
             self._client.close()
         except Exception:  # noqa: BLE001 - closing a dead socket must not hide the real fault
             pass
+
+    def _check_plausible(self, volts: Sequence[float], cm: Sequence[float]) -> None:
+        """A level no tank can have is a sensor fault (a broken wire at the rail), not
+        a level: the controllers and the interlock would act on it."""
+        for tank, (v, h) in enumerate(zip(volts, cm), start=1):
+            lo, hi = self.config.plausible_range(tank)
+            if not lo <= h <= hi:
+                raise BackendError(
+                    f"sensor fault: tank{tank} ({self._tank_names[tank - 1]}) reads {v:.6g} V = {h:.4g} cm, "
+                    f"outside its plausible {lo:g}..{hi:g} cm (a broken wire or a dead sensor?)")
 
     # --- registers ---------------------------------------------------------------------
 
