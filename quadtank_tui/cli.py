@@ -13,6 +13,7 @@ import functools
 import json
 import signal
 import sys
+import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
@@ -267,7 +268,11 @@ def _cmd_tui(args: argparse.Namespace) -> int:
         app.run()
     finally:
         watch.close()
+        # A hung DAQ holds the loop for a timeout or two: say what the wait is for.
+        slow = threading.Timer(0.5, _say, ("quadtank: stopping the control loop (pumps to 0) ...",))
+        slow.start()
         engine.stop()  # stops the loop, pumps to 0
+        slow.cancel()
     if watch.reason is not None:
         _say(f"quadtank: stopped: {watch.reason}")
     return app.return_code or watch.status

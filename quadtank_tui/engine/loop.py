@@ -17,6 +17,9 @@ One sample (Run)::
 
 Pause: a simulation freezes (no time passes, nothing is logged); a real process gets
 its pumps at 0.  Any exception in a sample puts the pumps at 0, pauses and shows why.
+A real process does not wait for a late loop: the sampling slots the runner's clock
+skipped pass (t moves on over them) and a log notes the late row (`% late: ...`),
+so its TSamp never silently stands for samples that were further apart.
 """
 
 from __future__ import annotations
@@ -115,6 +118,7 @@ class ControlLoop:
         self.speed = math.inf
         self.stats = LoopStats()
         self._jitter = JitterHistogram()
+        self._missed = 0  # sampling slots missed before the sample about to be done
         self.publish()
 
     # --- reading -----------------------------------------------------------------------
@@ -153,6 +157,9 @@ class ControlLoop:
         return self.publish()
 
     def _sample(self) -> None:
+        missed, self._missed = self._missed, 0
+        if missed and self.backend is not self.sim:
+            self._skip(missed)
         y = self.backend.read_levels()
         self._y = y
         y12 = (y[0], y[1])
@@ -170,6 +177,8 @@ class ControlLoop:
             m.track(r, y12, u)
         self._u, self._w, self._r = u, w, r
         if self.log.running:
+            if missed and self.backend is not self.sim:
+                self.log.late((missed + 1) * self.h, self.h)
             self.log.row(self.t, y, u, r)
         self.history.append((self.t, y[0], y[1], y[2], y[3], u[0], u[1], r[0], r[1]))
         self.backend.elapse(self.h)
@@ -177,6 +186,16 @@ class ControlLoop:
         self._gens[1].advance()
         self.k += 1
         self.t = self.k * self.h if self._fixed_h else self.t + self.h
+
+    def _skip(self, missed: int) -> None:
+        """A real process does not wait for a late loop: the `missed` sampling slots
+        went by, so process time and the generators move on over them (t stays true,
+        and the log notes the late row), rather than the samples closing up."""
+        self.k += missed
+        self.t = self.k * self.h if self._fixed_h else self.t + missed * self.h
+        for _ in range(missed):
+            self._gens[0].advance()
+            self._gens[1].advance()
 
     def _fail(self, exc: BaseException) -> None:
         reason = str(exc) if isinstance(exc, BackendError) else f"{type(exc).__name__}: {exc}"
@@ -217,6 +236,7 @@ class ControlLoop:
         """The runner's measurement of the sample about to be done (LoopStats); the
         sample's snapshot carries it."""
         s = self.stats
+        self._missed = missed
         self._jitter.add(jitter)
         self.stats = LoopStats(
             samples=s.samples + 1, overruns=s.overruns + missed, jitter_last=jitter,

@@ -259,3 +259,51 @@ def test_a_watch_closed_in_time_does_nothing_more() -> None:
     time.sleep(0.2)
     assert ended == [] and watch.reason is None
     os.close(r)
+
+
+def test_exit_is_prompt_with_a_hung_device(tmp_path: Path) -> None:
+    """Active on a device that accepts and never answers (timeout 0.5 s, the LabJack
+    preset's): the loop faults (pumps to 0, Pause); Run and Pause are pressed and
+    wait for the hung sample, and Exit (q, Enter) meanwhile ends the program within
+    a bounded time - a sample's timeouts and the last pumps-to-0 - with no
+    traceback: the answers that come after the screen has gone are dropped.  It
+    took 20-30 s and printed `NoMatches: No nodes match 'StatusLine'`."""
+    import socket
+
+    listener = socket.create_server(("127.0.0.1", 0))
+    held: list[socket.socket] = []
+    threading.Thread(target=lambda: [held.append(listener.accept()[0]) for _ in iter(int, 1)],
+                     daemon=True).start()
+    port = listener.getsockname()[1]
+    config = tmp_path / "hung.yaml"
+    config.write_text((ROOT / "params" / "virtual-rig.yaml").read_text()
+                      .replace("port: 5020", f"port: {port}").replace("timeout: 0.2", "timeout: 0.5"))
+    code = f"import sys; from quadtank_tui.cli import main; sys.exit(main(['--daq', {str(config)!r}]))"
+    tui = Tui(tmp_path, code=code)
+    try:
+        tui.wait_started()
+        assert tui.master is not None
+        os.write(tui.master, b"A")
+        time.sleep(0.5)
+        os.write(tui.master, b"r")
+        deadline = time.monotonic() + 30
+        while b"no answer within 0.5 s" not in tui.output and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert b"no answer within 0.5 s" in tui.output
+        os.write(tui.master, b"rpq")  # Run and Pause wait for the hung sample; Exit meanwhile
+        deadline = time.monotonic() + 30
+        while b"Stop the loop and exit?" not in tui.output and time.monotonic() < deadline:
+            time.sleep(0.05)
+        t0 = time.monotonic()
+        os.write(tui.master, b"\r")
+        assert tui.proc.wait(timeout=30) == 0
+        took = time.monotonic() - t0
+        print(f"Exit with a hung device took {took:.2f} s")
+        assert took < 5.0
+        time.sleep(0.2)
+        assert b"Traceback" not in tui.output and b"NoMatches" not in tui.output
+    finally:
+        tui.kill()
+        listener.close()
+        for s in held:
+            s.close()
