@@ -163,9 +163,10 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
 
 
 #: The signals that end a headless run in order (pumps at 0, rows kept), besides
-#: SIGINT (KeyboardInterrupt): SIGTERM (systemd, `kill`, `timeout`) and SIGHUP (the
-#: terminal went away: a dropped SSH session, a closed tmux window).
-STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+#: SIGINT (KeyboardInterrupt): SIGTERM (systemd, `kill`, `timeout`), SIGHUP (the
+#: terminal went away: a dropped SSH session, a closed tmux window) and SIGQUIT
+#: (Ctrl-\, whose default would dump core with the pumps running).
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
 
 
 class Terminated(BaseException):

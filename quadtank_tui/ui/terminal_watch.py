@@ -24,7 +24,7 @@ import select
 import signal
 import sys
 import threading
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 #: Seconds the app has to close in order before the watch ends the program itself.
 GRACE = 0.8
@@ -170,13 +170,13 @@ class TerminalWatch:
                 pass
 
 
-def _terminal_attrs(fds: Sequence[int]) -> dict[int, list[object]]:
+def _terminal_attrs(fds: Sequence[int]) -> dict[int, list[Any]]:
     """The termios settings of each terminal among `fds`, before the app changes them."""
     if sys.platform == "win32":  # pragma: no cover - no termios there
         return {}
     import termios
 
-    out: dict[int, list[object]] = {}
+    out: dict[int, list[Any]] = {}
     for fd in fds:
         try:
             if os.isatty(fd):

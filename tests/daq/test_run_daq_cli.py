@@ -66,7 +66,8 @@ def test_run_daq_with_a_bad_config_is_one_line(tmp_path: Path, capsys: pytest.Ca
 
 
 @pytest.mark.parametrize("sig, status, said", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "stopped by SIGTERM"),
-                                               ("SIGHUP", 129, "stopped by SIGHUP")])
+                                               ("SIGHUP", 129, "stopped by SIGHUP"),
+                                               ("SIGQUIT", 131, "stopped by SIGQUIT")])
 def test_ctrl_c_or_sigterm_commands_the_pumps_to_zero_and_keeps_the_log(
         rig: Callable, poll: Callable, tmp_path: Path, sig: str, status: int, said: str) -> None:
     """SIGINT (Ctrl-C), SIGTERM (kill, systemd) or SIGHUP (the SSH session dropped)
