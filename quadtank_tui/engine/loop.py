@@ -119,6 +119,7 @@ class ControlLoop:
         self.stats = LoopStats()
         self._jitter = JitterHistogram()
         self._missed = 0  # sampling slots missed before the sample about to be done
+        self._sampled_last = False  # the last step was a sample (not an idle tick, not a fault)
         self.publish()
 
     # --- reading -----------------------------------------------------------------------
@@ -147,18 +148,22 @@ class ControlLoop:
 
     def step(self) -> Snapshot:
         """Do one sample (Run) or one idle tick (Pause); never raises."""
+        # Slots missed after a sample are late samples; after an idle tick, only Pause.
+        missed = self._missed if self._sampled_last and self.backend is not self.sim else 0
+        self._sampled_last = False
         try:
             if self.running:
-                self._sample()
+                self._sample(missed)
+                self._sampled_last = True
             else:
                 self._y = self.backend.read_levels()  # a paused rig still shows its levels
         except Exception as exc:  # noqa: BLE001 - any fault: pumps safe, Pause, say why
             self._fail(exc)
         return self.publish()
 
-    def _sample(self) -> None:
-        missed, self._missed = self._missed, 0
-        if missed and self.backend is not self.sim:
+    def _sample(self, missed: int = 0) -> None:
+        """One sample; `missed` sampling slots of a real process went by since the last."""
+        if missed:
             self._skip(missed)
         y = self.backend.read_levels()
         self._y = y
@@ -177,7 +182,7 @@ class ControlLoop:
             m.track(r, y12, u)
         self._u, self._w, self._r = u, w, r
         if self.log.running:
-            if missed and self.backend is not self.sim:
+            if missed:
                 self.log.late((missed + 1) * self.h, self.h)
             self.log.row(self.t, y, u, r)
         self.history.append((self.t, y[0], y[1], y[2], y[3], u[0], u[1], r[0], r[1]))
