@@ -13,6 +13,7 @@ import functools
 import json
 import signal
 import sys
+import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
@@ -161,15 +162,26 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=_cmd_run)
 
 
+#: The signals that end a headless run in order (pumps at 0, rows kept), besides
+#: SIGINT (KeyboardInterrupt): SIGTERM (systemd, `kill`, `timeout`), SIGHUP (the
+#: terminal went away: a dropped SSH session, a closed tmux window) and SIGQUIT
+#: (Ctrl-\, whose default would dump core with the pumps running).
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
+
+
 class Terminated(BaseException):
-    """SIGTERM (systemd stopping the unit, `kill`): unwinds like Ctrl-C, so the run
-    stops with the pumps at 0 and its rows kept, instead of dying where it stands.
-    A BaseException, like KeyboardInterrupt: the loop's `except Exception` (a fault
-    pauses the loop and carries on) must not swallow it."""
+    """A stop signal (STOP_SIGNALS): unwinds like Ctrl-C, so the run stops with the
+    pumps at 0 and its rows kept, instead of dying where it stands.  A BaseException,
+    like KeyboardInterrupt: the loop's `except Exception` (a fault pauses the loop
+    and carries on) must not swallow it."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
 
 
 def _terminate(signum: int, frame: object) -> None:
-    raise Terminated(signal.Signals(signum).name)
+    raise Terminated(signum)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -185,12 +197,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
     script = read_script(args.script) if args.script else None
     clock, daq = run_clock(realtime=args.realtime, speed=args.speed,
                            config=args.daq or getattr(args, "daq_global", None))
-    previous = signal.signal(signal.SIGTERM, _terminate)
+    previous = {sig: signal.signal(sig, _terminate) for sig in STOP_SIGNALS}
     try:
         result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
                               seed=args.seed, clock=clock, speed=args.speed, daq=daq)
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     _warn(result.warnings)
     print(result.text)
     return result.status
@@ -242,14 +255,28 @@ def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTan
 
 
 def _cmd_tui(args: argparse.Namespace) -> int:
+    """The TUI until Exit, a crash (status 1), or its terminal going away (a hang-up,
+    SIGHUP, SIGTERM: status 129 / 143, within about a second); in every case the
+    terminal is put back and the loop stopped with the pumps at 0."""
+    from quadtank_tui.ui.terminal_watch import TerminalWatch
+
     engine, app = build_tui(args)
     _warn(engine.warnings)
+    watch = TerminalWatch(app.exit_soon, engine.stop)
     engine.start()
+    watch.start()
     try:
         app.run()
     finally:
+        watch.close()
+        # A hung DAQ holds the loop for a timeout or two: say what the wait is for.
+        slow = threading.Timer(0.5, _say, ("quadtank: stopping the control loop (pumps to 0) ...",))
+        slow.start()
         engine.stop()  # stops the loop, pumps to 0
-    return 0
+        slow.cancel()
+    if watch.reason is not None:
+        _say(f"quadtank: stopped: {watch.reason}")
+    return app.return_code or watch.status
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -277,14 +304,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return handler(args)
     except (UsageError, PlantError, OSError, ValueError) as exc:
-        print(f"quadtank: error: {exc}", file=sys.stderr)
+        _say(f"quadtank: error: {exc}")
         return 2
     except KeyboardInterrupt:
-        print("quadtank: interrupted", file=sys.stderr)
+        _say("quadtank: interrupted")
         return 130
     except Terminated as exc:
-        print(f"quadtank: stopped by {exc}", file=sys.stderr)
-        return 143
+        _say(f"quadtank: stopped by {exc}")
+        return 128 + exc.signum  # the shell's convention: 143 SIGTERM, 129 SIGHUP
+
+
+def _say(line: str) -> None:
+    """One line on stderr; after a hang-up the terminal is gone and writing to it
+    fails (EIO), which must not turn a clean stop into a traceback."""
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except OSError:
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

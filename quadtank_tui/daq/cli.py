@@ -12,6 +12,7 @@ import ipaddress
 import sys
 from typing import TYPE_CHECKING, Literal
 
+from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.daq.config import PRESETS, load_daq_config
 from quadtank_tui.engine.backend import BackendError
 
@@ -125,20 +126,26 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
     backend = ModbusBackend(config)
     try:
         volts = backend.read_raw_volts()
-        y = backend.read_levels()
     except BackendError as exc:
         print(f"quadtank: {exc}", file=sys.stderr)
         return 1
     finally:
         backend.close()
     print(f"{backend.description}  (device id {config.device_id}, timeout {config.timeout:g} s)")
+    faults = 0
     for i in range(4):
         ch = config.channels[f"tank{i + 1}"]
         level = config.sensors[i].level(volts[i])
-        print(f"tank {i + 1}  {ch:>6}  {volts[i]:8.4f} V  {level:7.2f} cm  y = {y[i]:.4f}")
+        y = config.sensor_gain * level / FULL_SCALE_V
+        lo, hi = config.plausible_range(i + 1)
+        mark = "" if lo <= level <= hi else f"  SENSOR FAULT: outside its plausible {lo:g}..{hi:g} cm"
+        faults += bool(mark)
+        print(f"tank {i + 1}  {ch:>6}  {volts[i]:8.4f} V  {level:7.2f} cm  y = {y:.4f}{mark}")
+    if not faults:
+        backend.interlock.update(backend.levels_from_volts(volts))
     for alarm in backend.alarms:
         print(alarm)
-    return 0
+    return 1 if faults else 0
 
 
 def cmd_daq_fit(args: argparse.Namespace) -> int:

@@ -13,7 +13,10 @@ One YAML file (examples: `params/daq-labjack.yaml`, `params/virtual-rig.yaml`) s
   normalized units assume; per pump, pump volts = gain * output volts + offset
   (an amplifier between a 0-5 V DAC and a 0-10 V pump is gain 2);
 - output limits (volts the output may be written, the device's safe range);
-- the high-level interlock (fraction of the tank height, default 0.95).
+- the high-level interlock (fraction of the tank height, default 0.95);
+- the plausible range of each tank's level (cm): a reading outside it is a sensor
+  fault (a broken wire reads the rail, -10.5 V), not a level; by default the tank
+  from `margin` x its height below the bottom to as much above the top.
 
 Every file starts from a preset (`preset: labjack`, the default; `preset: none` for
 a complete file of your own) and overrides keys.  Unknown keys, wrong types and
@@ -67,6 +70,10 @@ LABJACK: dict[str, Any] = {
 
 PRESETS: dict[str, dict[str, Any]] = {"labjack": LABJACK}
 
+#: Default plausible range: this fraction of the tank height below 0 cm and above
+#: the top (-2..22 cm for 20 cm tanks), room for a sensor's offset and noise.
+PLAUSIBLE_MARGIN = 0.1
+
 
 class DaqConfigError(ValueError):
     """A DAQ configuration refused; the message names the file, line and key."""
@@ -107,11 +114,23 @@ class DaqConfig:
     interlock_enabled: bool = True
     interlock_limit: float = 0.95
     tank_height: float = 20.0
+    #: fraction of tank_height below 0 and above the top of the default plausible range
+    plausible_margin: float = PLAUSIBLE_MARGIN
+    #: tank1..tank4 -> (low, high) cm, where the file gives a range of its own
+    plausible: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     source: str = field(default="<preset>", compare=False)
 
     def tank_register(self, tank: int) -> Register:
         """The input register of tank 1..4."""
         return self.inputs[self.channels[TANKS[tank - 1]]]
+
+    def plausible_range(self, tank: int) -> tuple[float, float]:
+        """(low, high) cm a level of tank 1..4 can really read; outside: a sensor fault."""
+        own = self.plausible.get(TANKS[tank - 1])
+        if own is not None:
+            return own
+        margin = self.plausible_margin * self.tank_height
+        return (-margin, self.tank_height + margin)
 
     def pump_output(self, pump: int) -> Output:
         """The output of pump 1..2."""
@@ -253,11 +272,12 @@ class _Validator:
             scale = self.number(f"{key}.scale", self.require(m, key, "scale"), 0.0, lo_open=True)
         return Register(table, address, reg_type, word_order, scale), m  # type: ignore[arg-type]
 
-    def limits(self, key: str, value: Any) -> tuple[float, float]:
+    def limits(self, key: str, value: Any, unit: str = "volts", bound: float = 10.5) -> tuple[float, float]:
+        """[low, high], each within +-bound, low below high."""
         if not isinstance(value, list) or len(value) != 2:
-            self.fail(key, f"must be [low, high] in volts, got {_show(value)}")
-        lo = self.number(f"{key}.0", value[0], -10.5, 10.5)
-        hi = self.number(f"{key}.1", value[1], -10.5, 10.5)
+            self.fail(key, f"must be [low, high] in {unit}, got {_show(value)}")
+        lo = self.number(f"{key}.0", value[0], -bound, bound)
+        hi = self.number(f"{key}.1", value[1], -bound, bound)
         if not lo < hi:
             self.fail(key, f"low ({lo:g}) must be below high ({hi:g})")
         return (lo, hi)
@@ -272,7 +292,7 @@ class _Validator:
 
     def config(self, d: dict[str, Any]) -> DaqConfig:
         top = ("host", "port", "device_id", "timeout", "inputs", "outputs", "channels",
-               "calibration", "interlock")
+               "calibration", "interlock", "plausible")
         self.mapping("", d, top)
         host = self.require(d, "", "host")
         if not isinstance(host, str) or not host.strip():
@@ -299,14 +319,21 @@ class _Validator:
             self.fail("interlock.enabled", f"must be true or false, got {_show(enabled)}")
         limit = self.number("interlock.limit", lock.get("limit", 0.95), 0.0, 1.0, lo_open=True)
         height = self.number("interlock.tank_height", lock.get("tank_height", 20.0), 0.0, 1000.0, lo_open=True)
+        margin, plausible = self.plausible(self.mapping("plausible", d.get("plausible", {}), ("margin",) + TANKS))
         self._no_overlap(inputs, outputs)
         return DaqConfig(
             host=host.strip(), port=port, device_id=device_id, timeout=timeout,
             inputs=inputs, outputs=outputs, channels=channels,
             sensors=sensors, pumps=pumps,  # type: ignore[arg-type]
             sensor_gain=sensor_gain, interlock_enabled=enabled, interlock_limit=limit,
-            tank_height=height, source=self.name,
+            tank_height=height, plausible_margin=margin, plausible=plausible, source=self.name,
         )
+
+    def plausible(self, m: Mapping[str, Any]) -> tuple[float, dict[str, tuple[float, float]]]:
+        """`plausible:` - the default margin and the tanks' own ranges (cm)."""
+        margin = self.number("plausible.margin", m.get("margin", PLAUSIBLE_MARGIN), 0.0, 1.0)
+        ranges = {tank: self.limits(f"plausible.{tank}", m[tank], "cm", 1000.0) for tank in TANKS if tank in m}
+        return margin, ranges
 
     def _channels(self, m: Mapping[str, Any], inputs: Mapping[str, Register],
                   outputs: Mapping[str, Output]) -> dict[str, str]:

@@ -2,22 +2,27 @@
 
 Each sample the engine calls `read_levels` (one request for the four inputs when
 the map lets them be read together) and `write_pumps` (one request for both outputs
-likewise).  A request that fails or times out is tried once more; a second failure
-raises BackendError with the reason, and the engine pauses with the pumps commanded
-to 0.  Nothing here reconnects in the background or restarts a pump: the next
-request after a fault simply opens a new connection, so when the link is back the
-user's explicit Run works again.
+likewise).  A request that fails at once (a stale connection after the device
+restarted, a refused connect, an exception answer) is tried once more; one that
+waited out the timeout is not - the device had its whole `timeout` to answer, and
+a second wait would only double the time a hung device holds the loop.  The
+failure raises BackendError with the reason, and the engine pauses with the pumps
+commanded to 0.  Nothing here reconnects in the background or restarts a pump: the
+next request after a fault simply opens a new connection, so when the link is back
+the user's explicit Run works again.
 
 The sync pymodbus client is used from the engine's loop thread; the client's own
-retry loop is off (retries=0) so the worst case per request is bounded by
-2 x timeout and known.  Register values go through `registers.encode/decode`.
+retry loop is off (retries=0), so the worst case is known: a silent device is a
+fault within one timeout per request, and safe_state takes at most one more
+timeout per pump.  Register values go through `registers.encode/decode`.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from typing import Callable
+import time
+from typing import Callable, Sequence
 
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
@@ -90,12 +95,18 @@ class ModbusBackend(ProcessBackend):
     # --- ProcessBackend --------------------------------------------------------------
 
     def read_levels(self) -> Levels4:
-        volts = self._read_volts()
-        kc = self.config.sensor_gain
-        y = tuple(kc * cal.level(v) / FULL_SCALE_V for cal, v in zip(self.config.sensors, volts))
-        levels: Levels4 = (y[0], y[1], y[2], y[3])
+        levels = self.levels_from_volts(self._read_volts())
         self.interlock.update(levels)
         return levels
+
+    def levels_from_volts(self, volts: Sequence[float]) -> Levels4:
+        """The normalized levels of four sensor voltages; BackendError for a reading
+        outside its tank's plausible range."""
+        kc = self.config.sensor_gain
+        cm = [cal.level(v) for cal, v in zip(self.config.sensors, volts)]
+        self._check_plausible(volts, cm)
+        y = [kc * h / FULL_SCALE_V for h in cm]
+        return (y[0], y[1], y[2], y[3])
 
     def write_pumps(self, u: Pair) -> None:
         applied = self.interlock.cut(u)
@@ -104,7 +115,8 @@ class ModbusBackend(ProcessBackend):
 
     def safe_state(self) -> None:
         """Each output to the value that stops its pump, separately (one bad output
-        must not keep the other pump running); each tried twice; never raises."""
+        must not keep the other pump running); each tried as `_request` tries;
+        never raises."""
         errors: list[str] = []
         for i in (0, 1):
             try:
@@ -122,6 +134,16 @@ class ModbusBackend(ProcessBackend):
             self._client.close()
         except Exception:  # noqa: BLE001 - closing a dead socket must not hide the real fault
             pass
+
+    def _check_plausible(self, volts: Sequence[float], cm: Sequence[float]) -> None:
+        """A level no tank can have is a sensor fault (a broken wire at the rail), not
+        a level: the controllers and the interlock would act on it."""
+        for tank, (v, h) in enumerate(zip(volts, cm), start=1):
+            lo, hi = self.config.plausible_range(tank)
+            if not lo <= h <= hi:
+                raise BackendError(
+                    f"sensor fault: tank{tank} ({self._tank_names[tank - 1]}) reads {v:.6g} V = {h:.4g} cm, "
+                    f"outside its plausible {lo:g}..{hi:g} cm (a broken wire or a dead sensor?)")
 
     # --- registers ---------------------------------------------------------------------
 
@@ -184,9 +206,11 @@ class ModbusBackend(ProcessBackend):
     # --- the link ---------------------------------------------------------------------
 
     def _request(self, what: str, call: Callable[[], list[int]]) -> list[int]:
-        """`call` tried twice; BackendError naming `what` and the reason after that."""
+        """`call`, tried once more if it failed fast; BackendError naming `what` and
+        the reasons after that."""
         reasons: list[str] = []
         for _ in range(2):
+            start = time.monotonic()
             try:
                 if not self._client.connect():
                     raise _NoConnection()
@@ -203,8 +227,11 @@ class ModbusBackend(ProcessBackend):
                 reasons.append(str(exc) or type(exc).__name__)
             # A late answer to the failed request must not be taken for the next one.
             self.close()
+            if time.monotonic() - start >= self.config.timeout / 2:
+                break  # it waited (out) the timeout: no second wait
         seen = list(dict.fromkeys(reasons))
-        raise BackendError(f"{what} at {self._where()} failed twice: {', then '.join(seen)}")
+        tries = "failed twice" if len(reasons) == 2 else "failed"
+        raise BackendError(f"{what} at {self._where()} {tries}: {', then '.join(seen)}")
 
     def _where(self) -> str:
         return f"{self.config.host}:{self.config.port}"

@@ -87,7 +87,12 @@ def run_headless(
             return HeadlessResult(1, text, warnings, None)
         rows = engine.snapshot().log.rows
         status = 1 if daq is not None and summary.fault else 0
-        return HeadlessResult(status, format_summary(summary) + f"\nlog        {out} ({rows} rows)", warnings, out)
+        text = format_summary(summary) + f"\nlog        {out} ({rows} rows)"
+        late = engine.loop.log.late_rows
+        if late:
+            text += (f"\nlate       {late} of the {rows} rows came late, each after a '% late:' line "
+                     "in the log: the device or this computer is too slow for the sampling time")
+        return HeadlessResult(status, text, warnings, out)
     finally:
         engine.stop()
 

@@ -31,6 +31,8 @@ class LogSession:
         self._t0 = 0.0
         self._unsaved = False
         self._saved = ""
+        #: Rows of this log that came late (each noted in the file), see `late`.
+        self.late_rows = 0
 
     @property
     def running(self) -> bool:
@@ -52,6 +54,7 @@ class LogSession:
                                  settings.points, created=self._now())
         self._t0 = t
         self._unsaved = False
+        self.late_rows = 0
         if self._writer.recovered is not None:
             return (f"an unsaved earlier log was kept as {self._writer.recovered}",)
         return ()
@@ -64,6 +67,16 @@ class LogSession:
             "u1": u[0], "u2": u[1], "r1": r[0], "r2": r[1],
         })
         self._unsaved = True
+
+    def late(self, gap: float, tsamp: float) -> None:
+        """The next row was sampled `gap` s after the previous one, not `tsamp` (a
+        real process whose samples came late): the log says so before the row."""
+        assert self._writer is not None
+        if self._writer.rows == 0:
+            return  # the first row: there is no previous one to be late after
+        self._writer.note(f"late: the next row was sampled {gap:.6g} s after the previous one, "
+                          f"not TSamp {tsamp:g} s")
+        self.late_rows += 1
 
     def off(self) -> None:
         if not self.running:

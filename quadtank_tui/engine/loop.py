@@ -17,6 +17,9 @@ One sample (Run)::
 
 Pause: a simulation freezes (no time passes, nothing is logged); a real process gets
 its pumps at 0.  Any exception in a sample puts the pumps at 0, pauses and shows why.
+A real process does not wait for a late loop: the sampling slots the runner's clock
+skipped pass (t moves on over them) and a log notes the late row (`% late: ...`),
+so its TSamp never silently stands for samples that were further apart.
 """
 
 from __future__ import annotations
@@ -115,6 +118,8 @@ class ControlLoop:
         self.speed = math.inf
         self.stats = LoopStats()
         self._jitter = JitterHistogram()
+        self._missed = 0  # sampling slots missed before the sample about to be done
+        self._sampled_last = False  # the last step was a sample (not an idle tick, not a fault)
         self.publish()
 
     # --- reading -----------------------------------------------------------------------
@@ -143,16 +148,23 @@ class ControlLoop:
 
     def step(self) -> Snapshot:
         """Do one sample (Run) or one idle tick (Pause); never raises."""
+        # Slots missed after a sample are late samples; after an idle tick, only Pause.
+        missed = self._missed if self._sampled_last and self.backend is not self.sim else 0
+        self._sampled_last = False
         try:
             if self.running:
-                self._sample()
+                self._sample(missed)
+                self._sampled_last = True
             else:
                 self._y = self.backend.read_levels()  # a paused rig still shows its levels
         except Exception as exc:  # noqa: BLE001 - any fault: pumps safe, Pause, say why
             self._fail(exc)
         return self.publish()
 
-    def _sample(self) -> None:
+    def _sample(self, missed: int = 0) -> None:
+        """One sample; `missed` sampling slots of a real process went by since the last."""
+        if missed:
+            self._skip(missed)
         y = self.backend.read_levels()
         self._y = y
         y12 = (y[0], y[1])
@@ -170,6 +182,8 @@ class ControlLoop:
             m.track(r, y12, u)
         self._u, self._w, self._r = u, w, r
         if self.log.running:
+            if missed:
+                self.log.late((missed + 1) * self.h, self.h)
             self.log.row(self.t, y, u, r)
         self.history.append((self.t, y[0], y[1], y[2], y[3], u[0], u[1], r[0], r[1]))
         self.backend.elapse(self.h)
@@ -177,6 +191,16 @@ class ControlLoop:
         self._gens[1].advance()
         self.k += 1
         self.t = self.k * self.h if self._fixed_h else self.t + self.h
+
+    def _skip(self, missed: int) -> None:
+        """A real process does not wait for a late loop: the `missed` sampling slots
+        went by, so process time and the generators move on over them (t stays true,
+        and the log notes the late row), rather than the samples closing up."""
+        self.k += missed
+        self.t = self.k * self.h if self._fixed_h else self.t + missed * self.h
+        for _ in range(missed):
+            self._gens[0].advance()
+            self._gens[1].advance()
 
     def _fail(self, exc: BaseException) -> None:
         reason = str(exc) if isinstance(exc, BackendError) else f"{type(exc).__name__}: {exc}"
@@ -217,6 +241,7 @@ class ControlLoop:
         """The runner's measurement of the sample about to be done (LoopStats); the
         sample's snapshot carries it."""
         s = self.stats
+        self._missed = missed
         self._jitter.add(jitter)
         self.stats = LoopStats(
             samples=s.samples + 1, overruns=s.overruns + missed, jitter_last=jitter,

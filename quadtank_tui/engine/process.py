@@ -22,6 +22,7 @@ does not depend on what the UI does.
 
 from __future__ import annotations
 
+import functools
 import multiprocessing
 import os
 import signal
@@ -102,7 +103,24 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
             engine.stop()  # a DAQ link it opened is closed, pumps at 0
         return
     crash: str | None = None
+    send_lock = threading.Lock()
+
+    def send(message: tuple[Any, ...]) -> None:
+        with send_lock:
+            outbox.send(message)
+
+    def answer(command_id: int, fut: Future[CommandResult]) -> None:
+        # In the loop's thread, between samples: the snapshot showing the command's
+        # effect goes out before the result.
+        writer.flush()
+        try:
+            send(("result", command_id, fut.result()))
+        except (OSError, ValueError):
+            pass  # the parent is gone; the main thread sees it too
+
     try:
+        # This thread never waits for a command's result, so a stop (or the parent
+        # going away) is seen at once, even while a sample hangs on a silent device.
         while stop.reason is None:
             wait([inbox, stop.fd])
             if stop.reason is not None:
@@ -115,18 +133,16 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
             if kind == "start":
                 engine.start()
             elif kind == "command":
-                result = engine.submit(message[2]).result()
-                writer.flush()
-                outbox.send(("result", message[1], result))
+                engine.submit(message[2]).add_done_callback(functools.partial(answer, message[1]))
             else:
                 break
     except Exception as exc:  # noqa: BLE001 - stop in order and say why
         crash = f"{type(exc).__name__}: {exc}"
     finally:
-        engine.stop()
+        engine.stop()  # commands still queued are refused: the user asked to stop
         writer.flush()
         try:
-            outbox.send(("stopped", engine.crash or crash))
+            send(("stopped", engine.crash or crash))
         except (OSError, ValueError):
             pass
 

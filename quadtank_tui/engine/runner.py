@@ -63,11 +63,12 @@ class LoopTime:
     def seconds(self) -> float:
         return self._base + self._n * self._h
 
-    def add(self, h: float) -> None:
-        """One sample of `h` s went by."""
+    def add(self, h: float, slots: int = 1) -> None:
+        """One sample went by, and with it `slots` sampling periods of `h` s (more than
+        one when a real process's sample came late: its missed slots passed too)."""
         if h != self._h:
             self._base, self._n, self._h = self.seconds, 0, h
-        self._n += 1
+        self._n += slots
         self.samples += 1
 
     def reached(self, t: float) -> bool:
@@ -99,6 +100,8 @@ class Engine:
         self._stopping = False
         self._stopped = False
         self.crash: str | None = None
+        #: Sampling slots the clock skipped before the last sample (it came late).
+        self.missed = 0
         loop.set_clock_info(clock.realtime, clock.speed)
 
     # --- the EngineHandle read side -------------------------------------------------------
@@ -176,6 +179,7 @@ class Engine:
 
     def _sample(self) -> None:
         timing = self.clock.tick()
+        self.missed = timing.missed
         self.loop.record_timing(timing.jitter, timing.missed, timing.actual)
         self.loop.step()
 
@@ -198,14 +202,17 @@ class Engine:
     def run_for(self, seconds: float, before: Callable[[LoopTime], None] | None = None) -> int:
         """Sample for `seconds` of loop time (sum of the sampling periods, paused or
         not); returns the number of samples.  `before(elapsed)` runs ahead of each
-        sample (a script applies its due events there)."""
+        sample (a script applies its due events there).  On a real process the
+        periods the loop missed count too: its time passes whether or not the loop
+        keeps up, so a run against a slow or hung device still ends on time."""
         elapsed = LoopTime(self.loop.h)
         while not elapsed.reached(seconds):
             if before is not None:
                 before(elapsed)
             h = self.loop.h
             self.step()
-            elapsed.add(h)
+            real = self.loop.backend is not self.loop.sim
+            elapsed.add(h, 1 + self.missed if real else 1)
         return elapsed.samples
 
     # --- the thread --------------------------------------------------------------------------
@@ -259,7 +266,8 @@ class Engine:
             else:
                 await asyncio.sleep(0)  # unpaced: still let commands in
             self._sample()
-        self._drain()
+        # Commands still queued are refused by stop(), not applied: after a stop was
+        # asked for, a Run or a Pause on a hung device would only delay it.
 
     def stop(self) -> None:
         """Stop the loop, pumps to 0, logging stopped (rows kept), backends closed.

@@ -179,6 +179,12 @@ class LogWriter:
             self.stop()
         return True
 
+    def note(self, text: str) -> None:
+        """A `% text` comment line before the next row (every reader skips it): what
+        a reader of the numbers should know about that row, e.g. that it came late."""
+        if self.running:
+            self._pending.append(f"% {text}\n")
+
     def flush(self) -> None:
         """Hand the pending rows to the OS in one write; fsync if a second passed."""
         if self._file is None or self._file.closed:

@@ -7,6 +7,7 @@ runs (the CLI does; tests drive a manual-clock engine themselves).
 
 from __future__ import annotations
 
+import asyncio
 import time
 from functools import partial
 from typing import Callable, Iterable
@@ -32,9 +33,19 @@ class QuadTankApp(App[None]):
         super().__init__()
         self.engine = engine
         self.main = MainScreen(engine, refresh_interval=refresh_interval, wall_clock=wall_clock)
+        self._aloop: asyncio.AbstractEventLoop | None = None
 
     def on_mount(self) -> None:
+        self._aloop = asyncio.get_running_loop()
         self.push_screen(self.main)
+
+    def exit_soon(self, return_code: int) -> None:
+        """Exit with `return_code`, from any thread (the terminal went away: see
+        ui/terminal_watch.py): the orderly exit, without the Exit window's questions;
+        an unsaved log stays on disk as the partial file."""
+        aloop = self._aloop
+        if aloop is not None and not aloop.is_closed():
+            aloop.call_soon_threadsafe(self.exit, None, return_code)
 
     def action_request_exit(self) -> None:
         # From Main or Setup (the original had Exit on both), not over a window.

@@ -20,7 +20,8 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 
 from quadtank_tui.daq.config import DaqConfig, load_daq_config
-from quadtank_tui.daq.registers import Register, decode
+from quadtank_tui.daq.registers import Register, decode, encode
+from quadtank_tui.daq.server import IllegalAddress, ModbusTcpServer
 
 ROOT = Path(__file__).parents[2]
 VIRTUAL_RIG = ROOT / "params" / "virtual-rig.yaml"
@@ -194,3 +195,108 @@ def link_proxy() -> Iterator[Callable[[int], LinkProxy]]:
     yield make
     for p in made:
         p.close()
+
+
+class FixedBank:
+    """The LabJack map (AIN0..AIN3 at 0..7, DAC0/DAC1 at 1000..1003, FLOAT32 big-endian)
+    with sensor voltages the test sets: a device that reads what we say."""
+
+    def __init__(self, volts: tuple[float, float, float, float]) -> None:
+        self.words: dict[int, int] = dict(zip(range(1000, 1004), encode(DAC, 0.0) * 2))
+        self.set_volts(volts)
+
+    def set_volts(self, volts: tuple[float, float, float, float]) -> None:
+        for i, v in enumerate(volts):
+            for a, w in zip((2 * i, 2 * i + 1), encode(Register("input", 2 * i, "float32", "big"), v)):
+                self.words[a] = w
+
+    def read(self, address: int, count: int) -> list[int]:
+        if any(a not in self.words for a in range(address, address + count)):
+            raise IllegalAddress(address)
+        return [self.words[a] for a in range(address, address + count)]
+
+    def write(self, address: int, values: list[int]) -> None:
+        if not all(1000 <= a < 1004 for a in range(address, address + len(values))):
+            raise IllegalAddress(address)
+        self.words.update(zip(range(address, address + len(values)), values))
+
+    def dacs(self) -> tuple[float, float]:
+        return (decode(DAC, [self.words[1000], self.words[1001]]),
+                decode(DAC, [self.words[1002], self.words[1003]]))
+
+
+class Device:
+    """A Modbus TCP device in this process (our server on a thread of its own) over a
+    FixedBank; `reply_delay` s before each answer."""
+
+    def __init__(self, volts: tuple[float, float, float, float], reply_delay: float = 0.0) -> None:
+        import asyncio
+
+        self.bank = FixedBank(volts)
+        self._loop = asyncio.new_event_loop()
+        self._server = ModbusTcpServer(self.bank, reply_delay=reply_delay)
+        self.port = self._loop.run_until_complete(self._server.start("127.0.0.1", 0))[1]
+        self._thread = threading.Thread(target=self._loop.run_forever, daemon=True)
+        self._thread.start()
+
+    def config(self, **changes: object) -> DaqConfig:
+        options: dict[str, object] = {"host": "127.0.0.1", "port": self.port, **changes}
+        return dataclasses.replace(load_daq_config(VIRTUAL_RIG), **options)  # type: ignore[arg-type]
+
+    def close(self) -> None:
+        import asyncio
+
+        asyncio.run_coroutine_threadsafe(self._server.stop(), self._loop).result(timeout=10)
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join(timeout=10)
+        self._loop.close()
+
+
+@pytest.fixture
+def device() -> Iterator[Callable[..., Device]]:
+    """Start in-process devices with `device(volts, reply_delay=0.0)`; closed after."""
+    made: list[Device] = []
+
+    def make(volts: tuple[float, float, float, float], reply_delay: float = 0.0) -> Device:
+        d = Device(volts, reply_delay)
+        made.append(d)
+        return d
+
+    yield make
+    for d in made:
+        d.close()
+
+
+class SilentDevice:
+    """Accepts connections and never answers: a hung device (a PLC stuck in its
+    program, a gateway whose far side is gone)."""
+
+    def __init__(self) -> None:
+        import socket
+
+        self._listener = socket.create_server(("127.0.0.1", 0))
+        self.port = self._listener.getsockname()[1]
+        self._held: list[socket.socket] = []
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                conn, _ = self._listener.accept()
+            except OSError:
+                return
+            self._held.append(conn)
+
+    def close(self) -> None:
+        for s in [self._listener, *self._held]:
+            try:
+                s.close()
+            except OSError:
+                pass
+
+
+@pytest.fixture
+def silent_device() -> Iterator[SilentDevice]:
+    d = SilentDevice()
+    yield d
+    d.close()

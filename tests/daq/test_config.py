@@ -123,3 +123,23 @@ def test_garbage_config_through_the_cli_is_one_line(tmp_path: Path, capsys: pyte
     assert main(["rig", "--map", str(path)]) == 2
     err = capsys.readouterr().err.strip()
     assert err == f"quadtank: error: {path}:2: channels.pump1: 'DAC7' is not one of the outputs (DAC0, DAC1)"
+
+
+def test_plausible_ranges_default_from_the_tank_height_or_come_from_the_file() -> None:
+    c = load_daq_config("labjack")
+    assert [c.plausible_range(t) for t in (1, 4)] == [(-2.0, 22.0), (-2.0, 22.0)]
+    c = parse_daq_config("interlock: {tank_height: 30}\nplausible:\n  margin: 0.2\n  tank3: [-1, 25.5]\n")
+    assert [c.plausible_range(t) for t in (1, 2, 3, 4)] == [(-6.0, 36.0), (-6.0, 36.0), (-1.0, 25.5), (-6.0, 36.0)]
+
+
+@pytest.mark.parametrize("text, message", [
+    ("plausible:\n  tank2: [5, 1]\n", "f.yaml:2: plausible.tank2: low (5) must be below high (1)"),
+    ("plausible:\n  tank5: [0, 20]\n", "f.yaml:2: plausible.tank5: unknown key; expected one of margin, tank1, tank2, tank3, tank4"),
+    ("plausible:\n  margin: 2\n", "f.yaml:2: plausible.margin: must be <= 1, got 2"),
+    ("plausible:\n  tank1: 20\n", "f.yaml:2: plausible.tank1: must be [low, high] in cm, got 20"),
+    ("plausible:\n  tank1: [0, .nan]\n", "f.yaml:2: plausible.tank1.1: must be a number, got nan"),
+])
+def test_bad_plausible_ranges_are_refused_with_file_line_and_key(text: str, message: str) -> None:
+    with pytest.raises(DaqConfigError) as err:
+        parse_daq_config(text, name="f.yaml")
+    assert str(err.value) == message

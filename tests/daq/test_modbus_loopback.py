@@ -96,9 +96,9 @@ def test_a_rig_slower_than_the_timeout(rig: Callable) -> None:
     r = rig("--reply-delay", "0.6")
     backend = ModbusBackend(r.config(timeout=0.15))
     t0 = time.monotonic()
-    with pytest.raises(BackendError, match=r"failed twice: no answer within 0.15 s"):
+    with pytest.raises(BackendError, match=r"failed: no answer within 0.15 s$"):
         backend.read_levels()
-    assert time.monotonic() - t0 < 3.0  # 2 tries x 0.15 s, with room for a slow machine
+    assert time.monotonic() - t0 < 1.5  # 1 try of 0.15 s (a timeout is not waited twice), with room
     backend.safe_state()
     assert "no answer" in backend.safe_state_error
     patient = ModbusBackend(r.config(timeout=2.0))  # the same rig, a timeout it can meet
@@ -179,9 +179,9 @@ def test_cable_cut_times_out_and_the_rig_watchdog_stops_the_pumps(
         assert r.dacs() == pytest.approx((4.0, 4.0))
         proxy.cut.set()
         t0 = time.monotonic()
-        with pytest.raises(BackendError, match=r"read of AIN0..AIN3 .* failed twice: no answer within 0.2 s"):
+        with pytest.raises(BackendError, match=r"read of AIN0..AIN3 .* failed: no answer within 0.2 s$"):
             backend.read_levels()
-        assert 0.35 < time.monotonic() - t0 < 3.0       # two tries of 0.2 s each
+        assert 0.19 < time.monotonic() - t0 < 1.5       # one try of 0.2 s: a silence is not waited twice
         backend.safe_state()
         assert "no answer within 0.2 s" in backend.safe_state_error
         assert poll(lambda: r.dacs() == (0.0, 0.0), timeout=5.0)  # the rig's firmware

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import time
 from pathlib import Path
 from typing import Callable
@@ -31,9 +32,14 @@ def test_run_daq_logs_an_active_experiment(rig: Callable, tmp_path: Path,
                    "--duration", "30", "--log", str(out), "--par", str(ROOT / "params" / "default.par")])
     text = capsys.readouterr().out
     assert status == 0, text
-    assert "ran 30 s: 300 samples" in text and "FAULT" not in text
+    assert "FAULT" not in text
+    # 300 sampling slots of 0.1 s: each either sampled (a row) or, at x20 (5 ms) on a
+    # busy machine, missed - the rig's time does not wait, the log notes the late rows.
+    samples, overruns = (int(w) for w in re.match(r"ran 30 s: (\d+) samples, (\d+) overruns", text).groups())
     log = read_log(out)
-    assert log.rows == 300
+    assert samples + overruns == 300 and log.rows == samples
+    notes = out.read_text().count("% late:")
+    assert (notes > 0) == (f"late       {notes} of the {samples} rows came late" in text)
     assert abs(log.columns()["u1"][-1] - 0.3) < 1e-9
     assert r.dacs() == (0.0, 0.0)  # the run ended: pumps commanded to 0
 
@@ -59,12 +65,14 @@ def test_run_daq_with_a_bad_config_is_one_line(tmp_path: Path, capsys: pytest.Ca
     assert capsys.readouterr().err.strip() == f"quadtank: error: {bad}:2: timeout: must be a number, got 'soon'"
 
 
-@pytest.mark.parametrize("sig, status, said", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "stopped by SIGTERM")])
+@pytest.mark.parametrize("sig, status, said", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "stopped by SIGTERM"),
+                                               ("SIGHUP", 129, "stopped by SIGHUP"),
+                                               ("SIGQUIT", 131, "stopped by SIGQUIT")])
 def test_ctrl_c_or_sigterm_commands_the_pumps_to_zero_and_keeps_the_log(
         rig: Callable, poll: Callable, tmp_path: Path, sig: str, status: int, said: str) -> None:
-    """SIGINT (Ctrl-C) or SIGTERM (kill, systemd) to a running `quadtank run --daq`:
-    the program (not the rig's watchdog, which is off here) puts the pumps at 0,
-    exits 130 / 143 without a traceback, and the rows logged so far are in the
+    """SIGINT (Ctrl-C), SIGTERM (kill, systemd) or SIGHUP (the SSH session dropped)
+    to a running `quadtank run --daq`: the program (not the rig's watchdog, which is
+    off here) puts the pumps at 0, exits 130 / 143 / 129 without a traceback, and the rows logged so far are in the
     partial log."""
     import signal
     import subprocess

@@ -8,9 +8,11 @@ refusal, the warnings and a success message, then redraw from the engine.
 
 from __future__ import annotations
 
+import threading
 from concurrent.futures import Future
 from typing import Callable
 
+from textual.message import Message
 from textual.screen import Screen
 
 from quadtank_tui.engine.commands import Command, CommandResult
@@ -24,6 +26,17 @@ COMPACT_WIDTH, COMPACT_HEIGHT = 110, 34
 
 #: Called with the engine's message instead of the error notification.
 OnRefused = Callable[[str], None]
+
+
+class CommandAnswered(Message, bubble=False):
+    """The engine's answer to a command, from the engine's thread.  A message rather
+    than `call_from_thread`: that waits for the app, and an answer that a slow
+    engine (a hung DAQ) gives after Exit would hold the engine's thread (and the
+    Exit) or reach a screen already taken down (NoMatches)."""
+
+    def __init__(self, command: Command, future: Future[CommandResult], on_refused: OnRefused | None) -> None:
+        super().__init__()
+        self.command, self.future, self.on_refused = command, future, on_refused
 
 
 class CommandSender(Screen[None]):
@@ -54,17 +67,22 @@ class CommandSender(Screen[None]):
     def send(self, command: Command, on_refused: OnRefused | None = None) -> None:
         """Submit a command; a refusal goes to `on_refused` or is notified."""
         future = self.engine.submit(command)
+        ui_thread = threading.get_ident()
 
         def deliver(f: Future[CommandResult]) -> None:
-            try:
-                self.app.call_from_thread(self._result, command, f, on_refused)
-            except RuntimeError:  # completed on the UI thread itself
+            if threading.get_ident() == ui_thread:  # completed on the UI thread itself
                 self._result(command, f, on_refused)
+            else:  # thread-safe, never waits on the app, dropped once the screen has closed
+                self.post_message(CommandAnswered(command, f, on_refused))
 
         if future.done():
             self._result(command, future, on_refused)
         else:
             future.add_done_callback(deliver)
+
+    def on_command_answered(self, message: CommandAnswered) -> None:
+        if self.is_attached:  # not while the app takes the screen down (Exit)
+            self._result(message.command, message.future, message.on_refused)
 
     def _result(self, command: Command, future: Future[CommandResult], on_refused: OnRefused | None) -> None:
         try:
