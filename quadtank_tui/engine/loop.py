@@ -88,7 +88,7 @@ class ControlLoop:
         self.defaults = defaults if defaults is not None else params
         self.store = store if store is not None else ParStore(Path("params"))
         self.logs_dir = Path(logs_dir)
-        self.sim = SimBackend(params.plant(), params.operating_levels())
+        self.sim = SimBackend.for_plant(params.process_plant(), params.process_levels())
         self.daq = daq
         self.backend: ProcessBackend = self.sim
         self.history = History(history_capacity)
@@ -271,7 +271,8 @@ class ControlLoop:
                                  "the log's TSamp would no longer be true")
         for e in new.controllers:
             tustin(e.general.numerator, e.general.denominator, h)
-        plant = new.plant() if new.simulation != old.simulation else None
+        changed = new.simulation != old.simulation or new.process != old.process
+        plant = new.process_plant() if changed else None
         # --- nothing below refuses ---
         if h != old.tsamp:
             self._matrix.set_sampling_time(h)
@@ -293,7 +294,7 @@ class ControlLoop:
             if a.general != b.general:
                 self._matrix.set_element_params(*e, b.general)
         if plant is not None:
-            self.sim.set_params(plant, new.operating_levels())
+            self.sim.set_plant(plant, new.process_levels())
         self.params = new
 
     def _switch_mode(self, mode: ControlMode, *, adjust_means: bool = True) -> None:

@@ -90,3 +90,25 @@ def test_controller_from_par_is_volts_per_volt() -> None:
     num, den = controller_from_par(p.controllers[0], "General", 2.2)  # K s + K/Ti over s
     assert np.polyval(num, s) / np.polyval(den, s) == pytest.approx(2.2 * 5 * (1 + 6.2 * s) / s, rel=1e-9)
     assert show((np.array([31.0, -5.0]), np.array([1.0, 0.0]))) == "(31s - 5)/(1s)"
+
+
+@pytest.mark.parametrize("name, poles", [
+    ("coupled-cascade", [-0.057025, -0.055988]),
+    ("desautel-qtp", [-0.07438, -0.06758, -0.05201, -0.03308]),
+])
+def test_analyze_par_of_another_plant(capsys: pytest.CaptureFixture[str], name: str, poles: list[float]) -> None:
+    """`quadtank analyze --par` linearizes the plant the file names."""
+    assert main(["analyze", "--par", str(PARAMS / f"{name}.par"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["plant"] == name
+    assert [p[0] for p in out["poles"]] == pytest.approx(poles, abs=1e-5)
+    if name == "desautel-qtp":
+        assert [z[0] for z in out["zeros"]] == pytest.approx([-0.06090, -0.02419], abs=1e-5)
+        assert out["phase"] == "minimum"
+
+
+def test_analyze_table_of_the_two_input_rig(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["analyze", "--par", TITO]) == 0
+    text = capsys.readouterr().out
+    assert "Operating levels (m): H1=0.115  H2=0.071" in text
+    assert "RGA at s = 0:" in text

@@ -179,6 +179,24 @@ class Plant(ABC):
     def layout(self) -> Layout:
         """What a process image shows."""
 
+    # --- what a fault acts on (core.faults) ---------------------------------------------
+
+    #: Name of the constant that sets each tank's outlet (its drain, or the orifice it
+    #: empties through): a clogged outlet scales it.
+    outlet_names: ClassVar[tuple[str, ...]] = ()
+    #: Names of the valve splits (a drifting valve moves one), () without valves.
+    valve_names: ClassVar[tuple[str, ...]] = ()
+
+    @property
+    def gravity(self) -> float:
+        """g in the plant's length unit per s^2."""
+        return float(self.values()["g"])
+
+    def area(self, i: int) -> float:
+        """Cross-section of tank i (0-based), the length unit squared; 1 for a plant
+        written per unit area (alpha_i = a_i / A_i), where an outlet area is alpha."""
+        return 1.0
+
     def values(self) -> dict[str, float]:
         """The physical constants by name (what a `.par` file and Setup hold)."""
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}  # type: ignore[arg-type]

@@ -79,6 +79,7 @@ class CoupledCascade(Plant):
 
     kind = "coupled-cascade"
     title = "coupled tanks, cascade (Quanser, Desautel)"
+    outlet_names = ("alpha1", "alpha2")
     #: The loop controls the lower tank (Desautel: c = [0 1]).
     controlled: ClassVar[tuple[int, ...]] = (1,)
 
@@ -176,6 +177,11 @@ class CoupledTITO(Plant):
     kind = "coupled-tito"
     title = "coupled tanks, two inputs (Murray-Smith)"
     controlled: ClassVar[tuple[int, ...]] = (0, 1)
+    #: Tank 1 empties through the orifice into tank 2, tank 2 through the drain.
+    outlet_names = ("a1", "a2")
+
+    def area(self, i: int) -> float:
+        return (self.A1, self.A2)[i]
 
     def __post_init__(self) -> None:
         _positive(self, ("A1", "A2", "a1", "a2", "Cd1", "Cd2", "g", "Gp", "Gd", "hmax", "qmax"))

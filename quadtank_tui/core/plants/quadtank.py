@@ -132,6 +132,11 @@ class QuadTank(_FourTanks):
 
     kind = "quadtank"
     title = "quadruple tank (Johansson)"
+    outlet_names = ("a1", "a2", "a3", "a4")
+    valve_names = ("gamma1", "gamma2")
+
+    def area(self, i: int) -> float:
+        return self.params.area(i)
 
     def plant_params(self) -> PlantParams:
         return self.params
@@ -173,6 +178,7 @@ class DesautelQTP(_FourTanks):
 
     kind = "desautel-qtp"
     title = "quadruple tank (Quanser, Desautel)"
+    outlet_names = ("alpha1", "alpha2", "alpha3", "alpha4")
 
     def __post_init__(self) -> None:
         if not self.vmax > 0:
