@@ -65,6 +65,12 @@ class LogSession:
         })
         self._unsaved = True
 
+    def comment(self, t: float, text: str) -> None:
+        """A `%` line stamped with the log's time (s since LogOn), if logging is on."""
+        if self.running:
+            assert self._writer is not None
+            self._writer.comment(f"t = {t - self._t0:g} s: {text}")
+
     def off(self) -> None:
         if not self.running:
             raise LogRefused("logging is not on")

@@ -22,6 +22,9 @@ from quadtank_tui.core.plant import (
     add_water,
     advance,
 )
+import random
+
+from quadtank_tui.core import faults as fx
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.core.plant import PlantError
 from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend
@@ -43,6 +46,9 @@ class SimBackend(ProcessBackend):
         self._op: Levels = tuple(float(x) for x in levels)  # type: ignore[assignment]
         self._h: Levels = self._op
         self._v: tuple[float, ...] = (0.0, 0.0)
+        self._faults = fx.Faults()
+        self._t = 0.0  # process time, s (sensor drift counts from it)
+        self._rng = random.Random(0)  # sensor noise, reproducible run to run
 
     @classmethod
     def for_plant(cls, plant: Plant, levels: tuple[float, ...]) -> SimBackend:
@@ -56,6 +62,14 @@ class SimBackend(ProcessBackend):
     # --- the backend interface ---------------------------------------------------------
 
     def read_levels(self) -> Levels4:
+        y = self._true_levels()
+        if not self._faults:
+            return y
+        normal = [self._rng.gauss(0.0, 1.0) for _ in y]
+        m = fx.measure(y, self._faults, self._t, normal)
+        return (m[0], m[1], m[2], m[3])
+
+    def _true_levels(self) -> Levels4:
         if self._plant is not None:
             y = [v / FULL_SCALE_V for v in self._plant.output(self._h)][:4]
             y += [0.0] * (4 - len(y))
@@ -76,6 +90,13 @@ class SimBackend(ProcessBackend):
 
     def elapse(self, dt: float) -> None:
         """Integrate dt seconds with the pump voltages held."""
+        self._t += dt
+        if self._faults:
+            plant = fx.drift_valves(self.plant, self._faults, dt)
+            if plant is not self.plant:
+                self.set_plant(plant)
+            self._h = fx.advance(self.plant, self._faults, self._h, self._v, dt)  # type: ignore[assignment]
+            return
         if self._plant is not None:
             self._h = self._plant.advance(self._h, self._v, dt)
             return
@@ -130,6 +151,25 @@ class SimBackend(ProcessBackend):
         if len(self._v) != len(plant.inputs):
             self._v = tuple(0.0 for _ in plant.inputs)
         self._plant = plant
+
+    # --- faults (core.faults) ----------------------------------------------------------------
+
+    @property
+    def faults(self) -> fx.Faults:
+        return self._faults
+
+    def set_fault(self, fault: fx.Fault) -> fx.Fault:
+        """Switch a fault on now (replacing one of the same kind on the same target);
+        FaultError if this plant cannot have it.  Returns it as it began."""
+        began = fx.switched(fault, self.plant, self._t, self._true_levels())
+        self._faults = self._faults.on(began)
+        return began
+
+    def clear_fault(self, kind: str, target: int) -> bool:
+        """Switch a fault off; False if it was not on."""
+        before = self._faults
+        self._faults = before.off(kind, target)
+        return self._faults != before
 
     def add_water(self, tank: int, amount: float) -> None:
         """Pour `amount` (normalized level, negative drains) into tank 1..n."""

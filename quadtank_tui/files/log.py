@@ -179,6 +179,16 @@ class LogWriter:
             self.stop()
         return True
 
+    def comment(self, text: str) -> bool:
+        """A `%` line between the rows (an event: a fault switched on); readers skip it.
+        False once logging has stopped."""
+        if not self.running:
+            return False
+        line = " ".join(str(text).split())
+        self._pending.append(f"% {line}\n")
+        self.flush()
+        return True
+
     def flush(self) -> None:
         """Hand the pending rows to the OS in one write; fsync if a second passed."""
         if self._file is None or self._file.closed:

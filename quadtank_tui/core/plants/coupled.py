@@ -249,12 +249,10 @@ class CoupledTITO(Plant):
         q1, q2 = self.Gp * v1, self.Gp * v2
         h2 = self.H3 + head_for_flow(q1 + q2, self.Cd2 * self.a2, self.g, FILM_M)
         h1 = h2 + head_for_flow(q1, self.Cd1 * self.a1, self.g, FILM_M)
-        if h2 >= self.hmax:
-            return (self.hmax, self.hmax)
         if h1 <= self.hmax:
             return (h1, h2)
         # tank 1 brims over and spills; F(H2) = q12(hmax - H2) + Qi2 - drain(H2) = 0,
-        # F decreasing in H2: bisect on [H3, hmax]
+        # F decreasing in H2: bisect on [H3, hmax] (H2 = hmax when tank 2 spills too)
         lo, hi = self.H3, self.hmax
         for _ in range(100):
             mid = 0.5 * (lo + hi)

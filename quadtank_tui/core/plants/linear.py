@@ -9,11 +9,12 @@ exponential of [[A, B], [0, 0]] T (Desautel 3.1: Phi = e^{AT}, Gamma = int e^{As
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
-import control
 import numpy as np
-from scipy.linalg import eigvals, expm
+
+if TYPE_CHECKING:
+    import control
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,11 +40,15 @@ class LinearModel:
 
     def ss(self) -> control.StateSpace:
         """The python-control state-space object, signals named."""
+        import control  # python-control and scipy load in a second: only when asked
+
         return control.ss(self.A, self.B, self.C, self.D, inputs=list(self.inputs),
                           outputs=list(self.outputs), states=list(self.states))
 
     def tf(self) -> control.TransferFunction:
         """The transfer matrix G(s) (outputs x inputs), V/V."""
+        import control
+
         return control.ss2tf(self.ss())
 
     def select(self, outputs: Sequence[int]) -> LinearModel:
@@ -63,6 +68,8 @@ class LinearModel:
         if self.C.shape[0] != m:
             raise ValueError(f"transmission zeros need as many outputs as inputs ({self.C.shape[0]} vs {m}); "
                              "select the controlled outputs first")
+        from scipy.linalg import eigvals
+
         M = np.block([[self.A, self.B], [self.C, self.D]])
         N = np.zeros_like(M)
         N[:n, :n] = np.eye(n)
@@ -88,6 +95,8 @@ class LinearModel:
         """(Phi, Gamma) of the zero-order-hold discretization at sampling time T s."""
         if not T > 0:
             raise ValueError(f"sampling time must be > 0 s, got {T}")
+        from scipy.linalg import expm
+
         n, m = self.B.shape
         M = np.zeros((n + m, n + m))
         M[:n, :n] = self.A * T

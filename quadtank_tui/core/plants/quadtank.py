@@ -21,7 +21,6 @@ from dataclasses import dataclass, fields, replace
 from typing import Any, Sequence
 
 from quadtank_tui.core import plant as qt
-from quadtank_tui.core.analysis import linearize as linearize_levels
 from quadtank_tui.core.plant import FULL_SCALE_V, PlantError, PlantParams
 from quadtank_tui.core.plants.base import (
     Layout,
@@ -83,6 +82,8 @@ class _FourTanks(Plant):
     def jacobians(self, x0: Sequence[float], u0: Sequence[float]) -> tuple[Any, Any, Any]:
         """core.analysis.linearize's matrices (bit for bit); a level inside the last
         film of water (core.plant.H_FILM), where that refuses, follows the blend."""
+        from quadtank_tui.core.analysis import linearize as linearize_levels  # loads python-control
+
         p = self.plant_params()
         if min(x0) >= qt.H_FILM:
             m = linearize_levels(p, x0)

@@ -202,3 +202,22 @@ def test_tito_drains_to_h3_and_never_below() -> None:
         x = p.advance(x, (0.0, 0.0), 60.0)
         assert min(x) >= p.H3 - 1e-9  # the drain stops at H3 (to the solver tolerance)
     assert x == pytest.approx((p.H3, p.H3), abs=1e-4)
+
+
+@pytest.mark.parametrize("u", [(6.9, 0.0), (6.9, 6.9), (0.0, 6.9), (4.0, 6.0)])  # the first two brim
+def test_tito_steady_state_at_the_brim_is_an_equilibrium(u: tuple[float, float]) -> None:
+    """A brimming tank spills: the steady state still has dx/dt = 0 (spill rule)."""
+    p = CoupledTITO()
+    x = p.steady_state(u)
+    assert np.abs(p.rhs(x, u)).max() < 1e-9
+    assert p.advance(x, u, 500.0) == pytest.approx(x, abs=1e-9)
+
+
+def test_importing_the_parameters_and_the_loop_loads_no_analysis_stack() -> None:
+    """python-control and scipy (a second or two) load only when a linearization asks."""
+    import subprocess
+    import sys
+    code = ("import sys, quadtank_tui.core.parameters, quadtank_tui.engine.loop\n"
+            "print(sorted(m for m in ('control', 'scipy') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
