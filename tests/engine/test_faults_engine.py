@@ -65,3 +65,12 @@ def test_shipped_drain_test(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert abs(y1[1000:] - r1).max() < 0.2 * rise
     assert u2[2990] < u2[990] - 0.1  # pump 2 passes less while the drain is half shut
     assert abs(y1[-1] - r1) < 1e-4 and abs(y2[-1] - r2) < 1e-4
+
+
+def test_status_line_names_the_active_faults(make_engine) -> None:  # type: ignore[no-untyped-def]
+    from quadtank_tui.ui.widgets.status_line import StatusLine
+
+    e = make_engine()
+    assert e.submit(SetFault("sensor_stuck", 2)).result().ok
+    e.step(1)
+    assert StatusLine().numbers(e.snapshot()).endswith("faults: sensor stuck sensor 2")
