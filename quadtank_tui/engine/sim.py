@@ -57,6 +57,7 @@ class SimBackend(ProcessBackend):
             return cls(plant.params, levels)  # type: ignore[arg-type]
         sim = cls(PlantParams(), (0.0, 0.0, 0.0, 0.0))
         sim.set_plant(plant, levels)
+        sim.set_levels(levels)  # the water starts at the operating point whatever the tank count
         return sim
 
     # --- the backend interface ---------------------------------------------------------

@@ -34,6 +34,19 @@ def test_cascade_io_scales() -> None:
     assert sim.levels_cm == (15.0, 14.0) and sim.voltages == (0.0,)
 
 
+def test_a_four_tank_plant_starts_at_its_operating_levels() -> None:
+    from quadtank_tui.core.plants import DesautelQTP
+
+    p = DesautelQTP()
+    x = p.steady_state((6.0, 6.0))
+    sim = SimBackend.for_plant(p, x)
+    assert sim.levels_cm == x
+    assert sim.read_levels() == pytest.approx(tuple(h / 3 / 10 for h in x))
+    sim.write_pumps((6 / 22, 6 / 22))
+    sim.elapse(50.0)
+    assert sim.levels_cm == pytest.approx(x, abs=1e-6)
+
+
 def test_switching_plants_keeps_what_fits() -> None:
     sim = SimBackend(qt.P_MINUS.params, qt.P_MINUS.op.h)
     sim.set_plant(CoupledTITO(), (0.115, 0.071))
