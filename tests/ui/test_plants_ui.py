@@ -67,3 +67,30 @@ def test_main_with_another_plant_80x24(snap_compare, make_engine, name: str) -> 
 def test_setup_with_the_two_input_rig(snap_compare, make_engine) -> None:  # type: ignore[no-untyped-def]
     engine: Recording = make_engine(PLANT_SETTINGS["coupled-tito"])
     assert snap_compare(make_app(engine), terminal_size=(120, 40), press=["S"])
+
+
+async def test_fault_window_switches_a_fault_on_and_off(engine: Recording) -> None:
+    from quadtank_tui.engine import commands as c
+    from quadtank_tui.ui.windows.faults import FaultWindow
+
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("F")
+        assert isinstance(app.screen, FaultWindow)
+        await pilot.press("enter")                      # leak (the first kind) chosen: to Target
+        await pilot.press("tab", *"0.02", "enter")      # value, On
+        await pilot.pause()
+        assert engine.sent(c.SetFault) == [c.SetFault("leak", 1, 0.02, True)]
+        engine.run_for(0.2)
+        assert engine.snapshot().faults == "leak tank 1 (0.02)"
+        await pilot.press("F")
+        await pilot.press("enter")
+        await pilot.click("#off")
+        await pilot.pause()
+        assert engine.sent(c.SetFault)[-1] == c.SetFault("leak", 1, 0.0, False)
+        engine.run_for(0.2)
+        assert engine.snapshot().faults == ""
+
+
+def test_fault_window_80x24(snap_compare, engine: Recording) -> None:  # type: ignore[no-untyped-def]
+    assert snap_compare(make_app(engine), terminal_size=(80, 24), press=["F"])
