@@ -146,7 +146,9 @@ def parse_par(data: bytes | str, *, name: str = "<par>", base: Parameters = PRES
     except ParameterError as exc:
         line = where.get(exc.field) or _related_line(exc.field, where)
         raise ParFileError(name, exc.reason, line, exc.field) from None
-    process = _read_plant(plant_entries, plant_lines, name) if plant_lines else base.process
+    # No PLANT section is the quadruple tank, whatever the base: an old file always
+    # loads as what it was written for.
+    process = _read_plant(plant_entries, plant_lines, name) if plant_lines else None
     return ParRead(dataclasses.replace(params, extra=tuple(extra), process=process), tuple(warnings))
 
 

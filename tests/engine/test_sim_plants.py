@@ -82,3 +82,21 @@ def test_headless_run_of_the_cascade_stays_at_its_operating_point(tmp_path: Path
     last = read_log(out).data[-1]
     assert last[0] * 10 * 5.4310 == pytest.approx(15.0, abs=1e-4)
     assert last[1] * 10 * 5.5558 == pytest.approx(14.7274, abs=1e-3)
+
+
+def test_loading_a_par_switches_the_simulated_plant(make_engine, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    from quadtank_tui.engine.commands import LoadPar, SetState
+    from quadtank_tui.files.shipped import write_shipped
+
+    write_shipped(tmp_path / "params")
+    e = make_engine()
+    assert e.submit(LoadPar("coupled-tito")).result().ok
+    assert e.loop.sim.plant == CoupledTITO()
+    e.submit(SetState("Run"))
+    e.step(1)
+    assert e.snapshot().y[:2] == pytest.approx((33.33 * 0.115 / 10, 33.33 * 0.071 / 10), abs=1e-3)
+    assert e.snapshot().y[2:] == (0.0, 0.0)
+    assert e.submit(LoadPar("minphase")).result().ok
+    assert e.loop.sim.plant == QuadTank(e.snapshot().params.plant())
+    e.step(1)
+    assert len(e.loop.sim.levels_cm) == 4

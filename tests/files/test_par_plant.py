@@ -61,6 +61,12 @@ def test_a_partial_plant_section_takes_the_plant_defaults() -> None:
     assert p.tsamp_ms == PRESET.tsamp_ms  # the other sections keep the base's values
 
 
+def test_a_file_without_plant_section_is_the_quadruple_tank_whatever_the_base() -> None:
+    text = (PARAMS / "minphase.par").read_text()
+    p = parse_par(text, base=PLANT_SETTINGS["coupled-tito"]).params
+    assert p.process is None and p.process_plant() == QuadTank(p.plant())
+
+
 def test_kind_quadtank_is_the_simulation_section() -> None:
     p = parse_par("% TANK PAR-file\n\nPLANT\nKind quadtank\n").params
     assert p.process is None
