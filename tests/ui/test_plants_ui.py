@@ -94,3 +94,16 @@ async def test_fault_window_switches_a_fault_on_and_off(engine: Recording) -> No
 
 def test_fault_window_80x24(snap_compare, engine: Recording) -> None:  # type: ignore[no-untyped-def]
     assert snap_compare(make_app(engine), terminal_size=(80, 24), press=["F"])
+
+
+async def test_another_plants_table_opens_no_tank_window(make_engine) -> None:  # type: ignore[no-untyped-def]
+    from quadtank_tui.ui.screens.setup import SetupScreen
+
+    engine: Recording = make_engine(PLANT_SETTINGS["coupled-tito"])
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("S")
+        await pilot.pause()
+        await pilot.press("h", "down", "enter")
+        await pilot.pause()
+        assert isinstance(app.screen, SetupScreen)

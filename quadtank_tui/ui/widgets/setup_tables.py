@@ -185,7 +185,8 @@ class ProcessTable(ParamTable):
             self.add_row(Text(a, style="bold"), Text(va), Text(b, style="bold"), Text(vb), key=str(n // 2))
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        # Textual also runs ParamTable's handler (every class in the MRO): only stop it
+        # for another plant, whose constants have no tank window (edit its .par).
         if self.params is not None and self.params.process is not None:
-            event.stop()  # no tank window for another plant's constants (edit its .par)
-            return
-        super().on_data_table_row_selected(event)
+            event.stop()
+            event.prevent_default()
