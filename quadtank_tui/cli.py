@@ -17,6 +17,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
+from quadtank_tui.commands import icad
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
 from quadtank_tui.daq.cli import (
     add_daq_option, add_daq_parser, add_rig_parser, open_daq, run_clock,
@@ -32,6 +33,7 @@ EXPORT_FORMATS = ("mat", "csv")
 
 
 if TYPE_CHECKING:  # the TUI's modules load only when it starts
+    from quadtank_tui.core.parameters import Parameters
     from quadtank_tui.engine.process import EngineProcess
     from quadtank_tui.engine.runner import Engine
     from quadtank_tui.ui.app import QuadTankApp
@@ -79,6 +81,8 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
             raise UsageError("--at steady needs pump voltages; a .par file gives operating levels only")
         read = read_par(args.par)
         _warn(read.warnings)
+        if read.params.process is not None:  # another rig (core.plants): its generic report
+            return _analyze_other_plant(args, read.params)
         params, h0 = read.params.plant(), read.params.operating_levels()
         source = {"par": args.par}
         title = f"{args.par}, linearized at its operating levels"
@@ -96,6 +100,18 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
         print(json.dumps({**source, "linearized_at": args.at, **result.to_dict()}, indent=2))
     else:
         print(format_report(title, result))
+    return 0
+
+
+def _analyze_other_plant(args: argparse.Namespace, params: Parameters) -> int:
+    from quadtank_tui.core.plants.report import format_plant_report, report
+
+    plant = params.process_plant()
+    result = report(plant, params.process_levels())
+    if args.json:
+        print(json.dumps({"par": args.par, "linearized_at": args.at, **result.to_dict()}, indent=2))
+    else:
+        print(format_plant_report(f"{plant.title}, {args.par}, linearized at its operating levels", result))
     return 0
 
 
@@ -292,6 +308,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_run(sub)
     add_rig_parser(sub)
     add_daq_parser(sub)
+    icad.add_parser(sub)
     return parser
 
 

@@ -49,6 +49,8 @@ from quadtank_tui.core.plant import (
     outlet_from_time_constant,
     time_constant,
 )
+from quadtank_tui.core.plants import Plant, QuadTank
+from quadtank_tui.core.plants.spec import PlantSpec
 from quadtank_tui.core.signals import Wave, WaveParams
 from quadtank_tui.core.validation import ParameterError, check_number, check_range
 
@@ -277,6 +279,8 @@ class Parameters:
     controllers : elements 11, 12, 21, 22 (CONTROLLER ONE..FOUR)
     extra : unknown `(section, key, value)` entries read from a file, kept so that
         saving writes them back; they have no effect
+    process : the plant when it is not the quadruple tank of the SIMULATION section
+        (a `.par` file's PLANT section; None for every file written before it)
     """
 
     tsamp_ms: float
@@ -287,6 +291,7 @@ class Parameters:
     logging: LoggingSettings = LoggingSettings()
     plots: PlotSettings = PlotSettings()
     extra: tuple[tuple[str, str, str], ...] = ()
+    process: PlantSpec | None = None
 
     def __post_init__(self) -> None:
         check_range(TSAMP, self.tsamp_ms, TSAMP_MIN_MS, TSAMP_MAX_MS)
@@ -350,6 +355,14 @@ class Parameters:
     def operating_levels(self) -> Levels:
         """Operating levels, cm."""
         return self.simulation.operating_levels()
+
+    def process_plant(self) -> Plant:
+        """The plant in use, through the plant interface (core.plants)."""
+        return QuadTank(self.plant()) if self.process is None else self.process.plant()
+
+    def process_levels(self) -> tuple[float, ...]:
+        """Operating levels of the plant in use, in its own length unit."""
+        return tuple(self.operating_levels()) if self.process is None else self.process.levels
 
 
 # --- the key registry ----------------------------------------------------------------
@@ -600,3 +613,50 @@ NAMED_SETTINGS: dict[str, Parameters] = {
     "minphase": PRESET,
     "nonminphase": from_setting(P_PLUS, (1.5, 110.0), (-0.12, 220.0)),
 }
+
+
+# --- the other rigs (core.plants; issue 14) -----------------------------------------------
+
+def from_plant(plant: Plant, levels: Sequence[float], means: Sequence[float], *,
+               mode: ControlMode = ControlMode.MANUAL,
+               pi1: tuple[float, float] | None = None, pi2: tuple[float, float] | None = None,
+               tsamp_ms: float = 100.0) -> Parameters:
+    """Parameters for another plant (a PLANT section) operated at `levels`.
+
+    means : the generators' means, normalized (pump voltages in Manual, sensor
+        references in Automatic); pi1, pi2 : decentralized PI (K, Ti) on the diagonal,
+        zero elements where None (the source gives no PI for that rig)
+    """
+    refs = tuple(
+        WaveParams(wave=Wave.SQUARE, mean=round(m, 6), amplitude=0.05, period=60.0, on=False, seed=1)
+        for m in means
+    )
+    return dataclasses.replace(
+        PRESET,
+        tsamp_ms=tsamp_ms,
+        references=refs,  # type: ignore[arg-type]
+        control=ControlSettings(mode=mode),
+        controllers=(_ZERO_ELEMENT if pi1 is None else _pi_element(*pi1), _ZERO_ELEMENT, _ZERO_ELEMENT,
+                     _ZERO_ELEMENT if pi2 is None else _pi_element(*pi2)),
+        process=PlantSpec.of(plant, levels),
+    )
+
+
+def _plant_settings() -> dict[str, Parameters]:
+    from quadtank_tui.core.plants import CoupledCascade, CoupledTITO, DesautelQTP
+
+    ctp = CoupledCascade()
+    op = ctp.steady_inputs((15.0, None))  # Desautel 2.1.3: x1 = 15 cm, u_e = 6.77 V
+    qtp = DesautelQTP()
+    tito = CoupledTITO()
+    h0 = (0.115, 0.071)  # Murray-Smith's design point; his PI k1 = 5 (1 + 6.2 s)/s, k2 = 0.56 (1 + 10 s)/s
+    return {
+        "coupled-cascade": from_plant(ctp, op.x, (op.u[0] / ctp.inputs[0].full_scale, 0.0)),
+        "desautel-qtp": from_plant(qtp, qtp.steady_state((6.0, 6.0)), (6.0 / qtp.vmax, 6.0 / qtp.vmax)),
+        "coupled-tito": from_plant(tito, h0, [y / FULL_SCALE_V for y in tito.output(h0)],
+                                   mode=ControlMode.AUTOMATIC, pi1=(31.0, 6.2), pi2=(5.6, 10.0)),  # K = 5 x 6.2, 0.56 x 10
+    }
+
+
+#: The shipped settings of the other rigs (params/coupled-cascade.par, ...).
+PLANT_SETTINGS: dict[str, Parameters] = _plant_settings()

@@ -31,8 +31,8 @@ def add_rig_parser(sub: argparse._SubParsersAction) -> None:
         "voltages and whose output registers drive the simulated pumps, in real time times "
         "--speed.  Point `quadtank --daq params/virtual-rig.yaml` at it.",
     )
-    p.add_argument("--par", metavar="FILE", help="a .par file: its SIMULATION section gives the "
-                   "plant and the starting levels (default: the built-in preset, P-)")
+    p.add_argument("--par", metavar="FILE", help="a .par file: its PLANT (else SIMULATION) section "
+                   "gives the plant and the starting levels (default: the built-in preset, P-)")
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1, loopback only)")
     p.add_argument("--port", type=int, default=5020, help="TCP port (default 5020; 0 picks a free one)")
     p.add_argument("--map", default="labjack", metavar="NAME|FILE",
@@ -52,7 +52,21 @@ def add_rig_parser(sub: argparse._SubParsersAction) -> None:
                    help="answer every request S seconds late (to try a slow link)")
     p.add_argument("--status", type=float, default=0.0, metavar="S",
                    help="print the levels and pumps every S seconds (default 0: never)")
+    p.add_argument("--fault", action="append", default=[], metavar="KIND:N[:VALUE]",
+                   help="inject a fault from the start, e.g. leak:1:0.02, clog:2:0.7, weak_pump:1:0.5, "
+                   "sensor_bias:1:0.05 (normalized), sensor_stuck:2; repeatable")
     p.set_defaults(handler=cmd_rig)
+
+
+def parse_fault(text: str) -> tuple[str, int, float]:
+    """KIND:N[:VALUE] of --fault; ValueError naming the option."""
+    parts = text.split(":")
+    try:
+        if len(parts) not in (2, 3):
+            raise ValueError
+        return parts[0], int(parts[1]), float(parts[2]) if len(parts) == 3 else 0.0
+    except ValueError:
+        raise ValueError(f"--fault {text!r}: expected KIND:N or KIND:N:VALUE, e.g. leak:1:0.02") from None
 
 
 def cmd_rig(args: argparse.Namespace) -> int:
@@ -80,12 +94,19 @@ def cmd_rig(args: argparse.Namespace) -> int:
     if not _is_loopback(args.host):
         print(f"quadtank rig: warning: binding {args.host}: the rig is reachable from the network",
               file=sys.stderr)
+    faults = [parse_fault(text) for text in args.fault]
+    plant = params.plant() if params.process is None else params.process_plant()
     rig = VirtualRig(
-        config, params.plant(), params.operating_levels(),
+        config, plant, params.process_levels(),
         speed=args.speed, watchdog=args.watchdog,
         sensors=SensorModel(noise=args.noise, offset=args.offset, lsb=args.lsb, seed=args.seed),
         report=lambda text: print(f"quadtank rig: {text}", flush=True),
     )
+    from quadtank_tui.core.faults import Fault
+
+    for kind, target, value in faults:
+        began = rig.set_fault(Fault(kind, target, value))
+        print(f"quadtank rig: fault on: {began.label()}", flush=True)
     asyncio.run(serve_rig(rig, args.host, args.port, reply_delay=args.reply_delay, status_every=args.status))
     return 0
 

@@ -24,7 +24,9 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Sequence, TextIO
 
+from quadtank_tui.core import faults as fx
 from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams, advance
+from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.daq.config import PUMPS, TANKS, DaqConfig
 from quadtank_tui.daq.registers import decode, encode
 from quadtank_tui.daq.server import IllegalAddress, ModbusTcpServer
@@ -54,7 +56,7 @@ class VirtualRig:
     def __init__(
         self,
         config: DaqConfig,
-        plant: PlantParams,
+        plant: PlantParams | Plant,
         levels_cm: Sequence[float],
         *,
         speed: float = 1.0,
@@ -68,7 +70,12 @@ class VirtualRig:
         if watchdog < 0 or not math.isfinite(watchdog):
             raise ValueError(f"watchdog must be >= 0 s (0: off), got {watchdog}")
         self.config = config
-        self.plant = plant
+        #: The process through the plant interface; `plant` stays the quadruple tank's
+        #: constants (None for another plant: core.plants).
+        self.process: Plant = QuadTank(plant) if isinstance(plant, PlantParams) else plant
+        self.plant = self.process.params if isinstance(self.process, QuadTank) else None
+        #: Faults injected at the rig (`quadtank rig --fault`): the Active path sees them.
+        self.faults = fx.Faults()
         self.h = tuple(float(x) for x in levels_cm)
         self.speed = speed
         self.watchdog = watchdog
@@ -103,7 +110,11 @@ class VirtualRig:
         if wall <= self._now:
             return
         dt = (wall - self._now) * self.speed
-        self.h = advance(self.h, self.pump_volts, dt, self.plant)
+        if self.plant is not None and not self.faults:
+            self.h = advance(self.h, self.pump_volts, dt, self.plant)
+        else:  # the DAQ's 0..10 V drive the plant's amplifiers over their range
+            v = [x * s.full_scale / FULL_SCALE_V for x, s in zip(self.pump_volts, self.process.inputs)]
+            self.h = fx.advance(self.process, self.faults, self.h, v, dt)
         self.t += dt
         self._now = wall
 
@@ -118,8 +129,13 @@ class VirtualRig:
         """One reading of the four sensors (tanks 1..4), noise drawn afresh."""
         s = self.sensors
         out = []
-        for h in self.h:
-            v = self.plant.kc * h + s.offset
+        true = list(self.process.output(self.h))[:4]
+        true += [0.0] * (4 - len(true))  # a two-tank rig: nothing on tank 3, 4's inputs
+        if self.faults:
+            gauss = [self._rng.gauss(0.0, 1.0) for _ in true]
+            true = [10.0 * y for y in fx.measure([v / 10.0 for v in true], self.faults, self.t, gauss)]
+        for v in true:
+            v += s.offset
             if s.noise > 0:
                 v += self._rng.gauss(0.0, s.noise)
             if s.lsb > 0:
@@ -151,10 +167,19 @@ class VirtualRig:
         self.pump_volts = (volts[0], volts[1])
         self.last_write = self._now
 
+    def set_fault(self, fault: fx.Fault) -> fx.Fault:
+        """Switch a fault on now (FaultError if the plant cannot have it)."""
+        reading = [v / 10.0 for v in list(self.process.output(self.h))[:4]]
+        began = fx.switched(fault, self.process, self.t, reading)
+        self.faults = self.faults.on(began)
+        return began
+
     def status(self) -> str:
         """One line for the rig's console."""
-        h = " ".join(f"{x:5.2f}" for x in self.h)
-        return f"t={self.t:8.1f} s  h=[{h}] cm  pumps=[{self.pump_volts[0]:.2f} {self.pump_volts[1]:.2f}] V"
+        h = " ".join(f"{x:5.3g}" if self.plant is None else f"{x:5.2f}" for x in self.h)
+        unit = self.process.states[0].unit
+        faults = f"  faults: {self.faults.labels()}" if self.faults else ""
+        return f"t={self.t:8.1f} s  h=[{h}] {unit}  pumps=[{self.pump_volts[0]:.2f} {self.pump_volts[1]:.2f}] V{faults}"
 
 
 # --- running it ------------------------------------------------------------------------

@@ -72,6 +72,17 @@ class AddWater:
 
 
 @dataclass(frozen=True)
+class SetFault:
+    """Simul only: switch a fault on (`on`) or off (core.faults: kind, 1-based
+    target tank/pump/sensor/valve, value)."""
+
+    kind: str
+    target: int
+    value: float = 0.0
+    on: bool = True
+
+
+@dataclass(frozen=True)
 class ResetControllers:
     """Reset all controller states, or one element (i, j) with i, j in 1..2."""
 
@@ -126,7 +137,7 @@ class SetSpeed:
 
 Command = Union[
     SetParams, SetDefaults, SetOperation, SetState, SetControlMode, NudgeMean, AddWater,
-    ResetControllers, LogOn, LogOff, LogSave, LogDiscard, LoadPar, SavePar, SetSpeed,
+    SetFault, ResetControllers, LogOn, LogOff, LogSave, LogDiscard, LoadPar, SavePar, SetSpeed,
 ]
 
 

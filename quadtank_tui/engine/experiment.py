@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
 from quadtank_tui.engine.commands import (
-    AddWater, Command, LogOff, LogOn, SetControlMode, SetParams, SetState,
+    AddWater, Command, LogOff, LogOn, SetControlMode, SetFault, SetParams, SetState,
 )
 from quadtank_tui.engine.runner import Engine, LoopTime
 from quadtank_tui.files.script import Event, Script
@@ -54,6 +54,8 @@ def event_commands(event: Event, engine: Engine) -> list[Command]:
         return [AddWater(*v)]
     if a == "log":
         return [LogOn() if v == "on" else LogOff()]
+    if a == "fault":
+        return [SetFault(*v)]
     raise ValueError(f"unknown action {a!r}")
 
 

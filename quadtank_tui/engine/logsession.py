@@ -74,9 +74,15 @@ class LogSession:
         assert self._writer is not None
         if self._writer.rows == 0:
             return  # the first row: there is no previous one to be late after
-        self._writer.note(f"late: the next row was sampled {gap:.6g} s after the previous one, "
-                          f"not TSamp {tsamp:g} s")
+        self._writer.comment(f"late: the next row was sampled {gap:.6g} s after the previous one, "
+                              f"not TSamp {tsamp:g} s")
         self.late_rows += 1
+
+    def comment(self, t: float, text: str) -> None:
+        """A `%` line stamped with the log's time (s since LogOn), if logging is on."""
+        if self.running:
+            assert self._writer is not None
+            self._writer.comment(f"t = {t - self._t0:g} s: {text}")
 
     def off(self) -> None:
         if not self.running:

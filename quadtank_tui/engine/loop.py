@@ -30,6 +30,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from quadtank_tui.core.faults import Fault
 from quadtank_tui.core.general import tustin
 from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, saturate
 from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
@@ -38,7 +39,7 @@ from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.backend import BackendError, ProcessBackend
 from quadtank_tui.engine.commands import (
-    AddWater, Command, CommandResult, LoadPar, LogDiscard, LogOff, LogOn, LogSave, NudgeMean,
+    AddWater, Command, CommandResult, SetFault, LoadPar, LogDiscard, LogOff, LogOn, LogSave, NudgeMean,
     ResetControllers, SavePar, SetControlMode, SetDefaults, SetOperation, SetParams, SetSpeed,
     SetState,
 )
@@ -91,7 +92,7 @@ class ControlLoop:
         self.defaults = defaults if defaults is not None else params
         self.store = store if store is not None else ParStore(Path("params"))
         self.logs_dir = Path(logs_dir)
-        self.sim = SimBackend(params.plant(), params.operating_levels())
+        self.sim = SimBackend.for_plant(params.process_plant(), params.process_levels())
         self.daq = daq
         self.backend: ProcessBackend = self.sim
         self.history = History(history_capacity)
@@ -225,6 +226,7 @@ class ControlLoop:
             log=self.log.status(self.params.logging),
             stats=self.stats, fault=self.fault,
             alarms=tuple(getattr(self.backend, "alarms", ()) or ()),
+            faults=self.sim.faults.labels() if self.backend is self.sim else "",
         )
 
     def publish(self) -> Snapshot:
@@ -296,7 +298,8 @@ class ControlLoop:
                                  "the log's TSamp would no longer be true")
         for e in new.controllers:
             tustin(e.general.numerator, e.general.denominator, h)
-        plant = new.plant() if new.simulation != old.simulation else None
+        changed = new.simulation != old.simulation or new.process != old.process
+        plant = new.process_plant() if changed else None
         # --- nothing below refuses ---
         if h != old.tsamp:
             self._matrix.set_sampling_time(h)
@@ -318,7 +321,7 @@ class ControlLoop:
             if a.general != b.general:
                 self._matrix.set_element_params(*e, b.general)
         if plant is not None:
-            self.sim.set_params(plant, new.operating_levels())
+            self.sim.set_plant(plant, new.process_levels())
         self.params = new
 
     def _switch_mode(self, mode: ControlMode, *, adjust_means: bool = True) -> None:
@@ -413,6 +416,25 @@ class ControlLoop:
             self._y = self.sim.read_levels()
         return CommandResult(True)
 
+    def _set_fault(self, cmd: SetFault) -> CommandResult:
+        """A fault on or off in the simulation (core.faults); the log gets a `%` line."""
+        if self.backend is not self.sim:
+            return CommandResult.refused("faults act on the simulation only (Simul)")
+        if cmd.on:
+            try:
+                began = self.sim.set_fault(Fault(cmd.kind, cmd.target, cmd.value))
+            except PlantError as exc:
+                return CommandResult.refused(str(exc))
+            text = f"fault on: {began.label()}"
+        else:
+            if not self.sim.clear_fault(cmd.kind, cmd.target):
+                return CommandResult.refused(f"no {cmd.kind} fault on {cmd.target} to switch off")
+            text = f"fault off: {cmd.kind.replace('_', ' ')} {cmd.target}"
+        self.log.comment(self.t, text)
+        if not self.running:
+            self._y = self.sim.read_levels()
+        return CommandResult(True)
+
     def _reset_controllers(self, cmd: ResetControllers) -> CommandResult:
         if cmd.element is None:
             self._matrix.reset()
@@ -475,7 +497,8 @@ _HANDLERS: Mapping[type, Callable[[ControlLoop, Any], CommandResult]] = {
     SetParams: ControlLoop._set_params, SetDefaults: ControlLoop._set_defaults,
     SetOperation: ControlLoop._set_operation, SetState: ControlLoop._set_state,
     SetControlMode: ControlLoop._set_control_mode, NudgeMean: ControlLoop._nudge,
-    AddWater: ControlLoop._add_water, ResetControllers: ControlLoop._reset_controllers,
+    AddWater: ControlLoop._add_water, SetFault: ControlLoop._set_fault,
+    ResetControllers: ControlLoop._reset_controllers,
     LogOn: ControlLoop._log_on, LogOff: ControlLoop._log_off, LogSave: ControlLoop._log_save,
     LogDiscard: ControlLoop._log_discard, LoadPar: ControlLoop._load_par,
     SavePar: ControlLoop._save_par, SetSpeed: ControlLoop._set_speed,

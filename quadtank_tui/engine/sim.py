@@ -6,6 +6,11 @@ integrated accurately with the inputs held (core.plant.advance), so the result d
 not depend on the sampling time beyond the zero-order hold.  It also offers what a
 real rig cannot do from software (B7): pour water, change a valve, a cross-section
 or an outlet while running, and jump back to the operating point on Reset.
+
+Any plant of core.plants runs behind it (:meth:`SimBackend.for_plant`): its sensors
+are read as y = volts / 10 (y3, y4 read 0 on a two-tank rig) and pump i gets
+u_i times the pump's full scale (22 V on a Quanser amplifier).  The quadruple tank
+built from PlantParams keeps calling core.plant directly, bit for bit as before.
 """
 
 from __future__ import annotations
@@ -17,6 +22,11 @@ from quadtank_tui.core.plant import (
     add_water,
     advance,
 )
+import random
+
+from quadtank_tui.core import faults as fx
+from quadtank_tui.core.plants import Plant, QuadTank
+from quadtank_tui.core.plant import PlantError
 from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend
 
 
@@ -32,33 +42,80 @@ class SimBackend(ProcessBackend):
 
     def __init__(self, params: PlantParams, levels: Levels) -> None:
         self._p = params
+        self._plant: Plant | None = None  # None: the quadruple tank of self._p
         self._op: Levels = tuple(float(x) for x in levels)  # type: ignore[assignment]
         self._h: Levels = self._op
-        self._v: tuple[float, float] = (0.0, 0.0)
+        self._v: tuple[float, ...] = (0.0, 0.0)
+        self._faults = fx.Faults()
+        self._t = 0.0  # process time, s (sensor drift counts from it)
+        self._rng = random.Random(0)  # sensor noise, reproducible run to run
+
+    @classmethod
+    def for_plant(cls, plant: Plant, levels: tuple[float, ...]) -> SimBackend:
+        """Any plant of core.plants, at `levels` (its own length unit)."""
+        if isinstance(plant, QuadTank):
+            return cls(plant.params, levels)  # type: ignore[arg-type]
+        sim = cls(PlantParams(), (0.0, 0.0, 0.0, 0.0))
+        sim.set_plant(plant, levels)
+        sim.set_levels(levels)  # the water starts at the operating point whatever the tank count
+        return sim
 
     # --- the backend interface ---------------------------------------------------------
 
     def read_levels(self) -> Levels4:
+        y = self._true_levels()
+        if not self._faults:
+            return y
+        normal = [self._rng.gauss(0.0, 1.0) for _ in y]
+        m = fx.measure(y, self._faults, self._t, normal)
+        return (m[0], m[1], m[2], m[3])
+
+    def _true_levels(self) -> Levels4:
+        if self._plant is not None:
+            y = [v / FULL_SCALE_V for v in self._plant.output(self._h)][:4]
+            y += [0.0] * (4 - len(y))
+            return (y[0], y[1], y[2], y[3])
         kc = self._p.kc
         h = self._h
         return (kc * h[0] / FULL_SCALE_V, kc * h[1] / FULL_SCALE_V,
                 kc * h[2] / FULL_SCALE_V, kc * h[3] / FULL_SCALE_V)
 
     def write_pumps(self, u: Pair) -> None:
+        if self._plant is not None:
+            self._v = tuple(s.full_scale * float(x) for s, x in zip(self._plant.inputs, u))
+            return
         self._v = (FULL_SCALE_V * float(u[0]), FULL_SCALE_V * float(u[1]))
 
     def safe_state(self) -> None:
-        self._v = (0.0, 0.0)
+        self._v = tuple(0.0 for _ in self._v)
 
     def elapse(self, dt: float) -> None:
         """Integrate dt seconds with the pump voltages held."""
+        self._t += dt
+        if self._faults:
+            plant = fx.drift_valves(self.plant, self._faults, dt)
+            if plant is not self.plant:
+                self.set_plant(plant)
+            self._h = fx.advance(self.plant, self._faults, self._h, self._v, dt)  # type: ignore[assignment]
+            return
+        if self._plant is not None:
+            self._h = self._plant.advance(self._h, self._v, dt)
+            return
         self._h = advance(self._h, self._v, dt, self._p)
 
     # --- what only a simulation can do ---------------------------------------------------
 
     @property
     def params(self) -> PlantParams:
+        """The quadruple tank's constants (PlantError for another plant: use `plant`)."""
+        if self._plant is not None:
+            raise PlantError(f"the simulated plant is a {self._plant.kind}, not the quadruple tank")
         return self._p
+
+    @property
+    def plant(self) -> Plant:
+        """The simulated plant through the plant interface."""
+        return QuadTank(self._p) if self._plant is None else self._plant
 
     @property
     def levels_cm(self) -> Levels:
@@ -78,15 +135,68 @@ class SimBackend(ProcessBackend):
         if operating_levels is not None:
             self._op = tuple(float(x) for x in operating_levels)  # type: ignore[assignment]
 
+    def set_plant(self, plant: Plant, operating_levels: tuple[float, ...] | None = None) -> None:
+        """Another plant (or new constants of it) with the water where it is, when the
+        tank count agrees; the operating levels when given (Reset goes there)."""
+        n = len(plant.states)
+        if isinstance(plant, QuadTank):
+            if len(self._h) != 4:
+                self._h = tuple(float(x) for x in (operating_levels or (0.0,) * 4))  # type: ignore[assignment]
+                self._v = (0.0, 0.0)
+            self._plant = None
+            self.set_params(plant.params, operating_levels)  # type: ignore[arg-type]
+            return
+        if operating_levels is not None:
+            self._op = plant.clip(operating_levels)  # type: ignore[assignment]
+        self._h = plant.clip(self._h) if len(self._h) == n else self._op  # type: ignore[assignment]
+        if len(self._v) != len(plant.inputs):
+            self._v = tuple(0.0 for _ in plant.inputs)
+        self._plant = plant
+
+    # --- faults (core.faults) ----------------------------------------------------------------
+
+    @property
+    def faults(self) -> fx.Faults:
+        return self._faults
+
+    def set_fault(self, fault: fx.Fault) -> fx.Fault:
+        """Switch a fault on now (replacing one of the same kind on the same target);
+        FaultError if this plant cannot have it.  Returns it as it began."""
+        began = fx.switched(fault, self.plant, self._t, self._true_levels())
+        self._faults = self._faults.on(began)
+        return began
+
+    def clear_fault(self, kind: str, target: int) -> bool:
+        """Switch a fault off; False if it was not on."""
+        before = self._faults
+        self._faults = before.off(kind, target)
+        return self._faults != before
+
     def add_water(self, tank: int, amount: float) -> None:
-        """Pour `amount` (normalized level, negative drains) into tank 1..4."""
-        self._h = add_water(self._h, tank, amount * FULL_SCALE_V / self._p.kc, self._p)
+        """Pour `amount` (normalized level, negative drains) into tank 1..n."""
+        if self._plant is None:
+            self._h = add_water(self._h, tank, amount * FULL_SCALE_V / self._p.kc, self._p)
+            return
+        n = len(self._h)
+        if tank not in range(1, n + 1):
+            raise PlantError(f"tank must be 1..{n}, got {tank}")
+        unit = [1.0 if i == tank - 1 else 0.0 for i in range(n)]
+        gain = self._plant.output(unit)[tank - 1]  # sensor volts per level unit
+        h = list(self._h)
+        h[tank - 1] += amount * FULL_SCALE_V / gain
+        self._h = self._plant.clip(h)  # type: ignore[assignment]
 
     def set_levels(self, levels: Levels) -> None:
         """Put the water at `levels` (cm), e.g. a steady state to start from."""
+        if self._plant is not None:
+            self._h = self._plant.clip(levels)  # type: ignore[assignment]
+            return
         self._h = tuple(min(max(float(x), 0.0), self._p.hmax) for x in levels)  # type: ignore[assignment]
 
     def reset(self) -> None:
         """Back to the operating point with the pumps off (Reset, M2)."""
-        self._h = tuple(min(x, self._p.hmax) for x in self._op)  # type: ignore[assignment]
-        self._v = (0.0, 0.0)
+        if self._plant is not None:
+            self._h = self._plant.clip(self._op)  # type: ignore[assignment]
+        else:
+            self._h = tuple(min(x, self._p.hmax) for x in self._op)  # type: ignore[assignment]
+        self._v = tuple(0.0 for _ in self._v)

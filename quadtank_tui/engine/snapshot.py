@@ -73,3 +73,4 @@ class Snapshot:
     stats: LoopStats
     fault: str | None = None   # why the loop paused itself (backend error, interlock)
     alarms: tuple[str, ...] = ()
+    faults: str = ""           # injected faults acting on the simulation (core.faults), for the status line

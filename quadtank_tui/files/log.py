@@ -179,11 +179,15 @@ class LogWriter:
             self.stop()
         return True
 
-    def note(self, text: str) -> None:
-        """A `% text` comment line before the next row (every reader skips it): what
-        a reader of the numbers should know about that row, e.g. that it came late."""
-        if self.running:
-            self._pending.append(f"% {text}\n")
+    def comment(self, text: str) -> bool:
+        """A `%` line between the rows (an event: a fault switched on); readers skip it.
+        False once logging has stopped."""
+        if not self.running:
+            return False
+        line = " ".join(str(text).split())
+        self._pending.append(f"% {line}\n")
+        self.flush()
+        return True
 
     def flush(self) -> None:
         """Hand the pending rows to the OS in one write; fsync if a second passed."""

@@ -38,6 +38,8 @@ from quadtank_tui.core.parameters import (
     check_file_name,
     keys_of,
 )
+from quadtank_tui.core.plants.spec import SECTION as PLANT_SECTION
+from quadtank_tui.core.plants.spec import PlantSpec, spec_from_entries
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.files.atomic import atomic_write_text
 from quadtank_tui.files.stamp import format_stamp
@@ -94,6 +96,8 @@ def parse_par(data: bytes | str, *, name: str = "<par>", base: Parameters = PRES
     seen: dict[tuple[str, str], int] = {}
     section: str | None = None
     any_section = False
+    plant_entries: dict[str, str] = {}
+    plant_lines: dict[str, int] = {}
     for no, raw in enumerate(lines, start=1):
         line = raw.strip()
         if not line:
@@ -108,7 +112,7 @@ def parse_par(data: bytes | str, *, name: str = "<par>", base: Parameters = PRES
         if _SECTION_LINE.fullmatch(line):
             section = " ".join(line.split())
             any_section = True
-            if section not in SECTIONS:
+            if section not in SECTIONS and section != PLANT_SECTION:
                 warnings.append(f"{name}, line {no}: unknown section {section!r} (kept, not used)")
             continue
         m = _ENTRY_LINE.fullmatch(line)
@@ -117,6 +121,11 @@ def parse_par(data: bytes | str, *, name: str = "<par>", base: Parameters = PRES
         key, text = m.group(1), m.group(2)
         if section is None:
             raise ParFileError(name, "entry outside any section (a section name in capitals must come first)", no, key)
+        if section == PLANT_SECTION:
+            if key in plant_lines:
+                raise ParFileError(name, f"duplicate key (first set on line {plant_lines[key]})", no, f"{section}.{key}")
+            plant_entries[key], plant_lines[key] = text, no
+            continue
         spec = _SPEC.get((section, key.lower()))
         if spec is not None:
             key = spec.key  # keys match whatever their case ("tsamp"): no two differ only by it
@@ -137,7 +146,25 @@ def parse_par(data: bytes | str, *, name: str = "<par>", base: Parameters = PRES
     except ParameterError as exc:
         line = where.get(exc.field) or _related_line(exc.field, where)
         raise ParFileError(name, exc.reason, line, exc.field) from None
-    return ParRead(dataclasses.replace(params, extra=tuple(extra)), tuple(warnings))
+    # No PLANT section is the quadruple tank, whatever the base: an old file always
+    # loads as what it was written for.
+    process = _read_plant(plant_entries, plant_lines, name) if plant_lines else None
+    return ParRead(dataclasses.replace(params, extra=tuple(extra), process=process), tuple(warnings))
+
+
+def _read_plant(entries: dict[str, str], lines: dict[str, int], name: str) -> PlantSpec | None:
+    """The PLANT section (core.plants.spec); errors name its line and key."""
+    def number(key: str, text: str) -> float:
+        if not _NUMBER.fullmatch(text):
+            raise ParFileError(name, f"not a number: {text[:40]!r}", lines[key], f"{PLANT_SECTION}.{key}")
+        return float(text)
+
+    try:
+        return spec_from_entries(entries, number)
+    except ParameterError as exc:
+        key = exc.field.split(".", 1)[1]
+        line = lines.get(key, min(lines.values()))
+        raise ParFileError(name, exc.reason, line, exc.field) from None
 
 
 def read_par(path: Path | str, *, base: Parameters = PRESET) -> ParRead:
@@ -222,6 +249,9 @@ def format_par(params: Parameters, created: datetime) -> str:
         out.append(section)
         out += [f"{k.key} {format_value(k, params.get(k.name))}" for k in keys_of(section)]
         out += [f"{key} {text}" for s, key, text in params.extra if s == section]
+    if params.process is not None:  # written only for another plant: quadtank files stay as they were
+        out += ["", PLANT_SECTION]
+        out += [f"{k} {v if isinstance(v, str) else format_number(v)}" for k, v in params.process.entries()]
     return "\n".join(out) + "\n"
 
 

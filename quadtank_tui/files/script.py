@@ -15,6 +15,10 @@ one action::
       step: {"REFERENCE ONE.Mean": 0.1}   # add to a number's current value
     - at: 900
       add_water: {tank: 1, amount: 0.05}  # normalized level, Simul only
+    - at: 1000
+      fault: {kind: clog, target: 2, value: 0.5}   # Simul only (core.faults)
+    - at: 1200
+      fault: {kind: clog, target: 2, on: off}      # switch it off again
 
 Keys are the `.par` "SECTION.Key" names.  Everything that can be checked without
 running is checked here: unknown keys, values of the wrong kind, times, actions; a
@@ -36,7 +40,7 @@ from quadtank_tui.core.parameters import Kind, spec
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.files.yamltext import parse_yaml, read_text
 
-ACTIONS = ("mode", "state", "set", "step", "add_water", "log")
+ACTIONS = ("mode", "state", "set", "step", "add_water", "log", "fault")
 MODES = ("Manual", "Automatic")
 STATES = ("Run", "Pause", "Reset")
 
@@ -57,7 +61,8 @@ class ScriptError(ValueError):
 @dataclass(frozen=True)
 class Event:
     """One timed action.  `value` by action: mode/state: the name; set/step: a
-    {key: value} map; add_water: (tank, amount); log: "on" | "off"."""
+    {key: value} map; add_water: (tank, amount); log: "on" | "off"; fault:
+    (kind, target, value, on)."""
 
     at: float
     action: str
@@ -134,7 +139,35 @@ def _check_value(action: str, value: Any, fail: Any) -> Any:
         if isinstance(amount, bool) or not isinstance(amount, (int, float)) or not math.isfinite(amount):
             raise fail(f"add_water.amount must be a number, got {amount!r}")
         return (int(tank), float(amount))
+    if action == "fault":
+        return _fault(value, fail)
     return _params(action, value, fail)
+
+
+def _fault(value: Any, fail: Any) -> tuple[str, int, float, bool]:
+    """{kind, target, value (default 0), on (default on)}; the plant checks the rest
+    (which tanks it has, the value's range) when the event is applied."""
+    from quadtank_tui.core.faults import KINDS
+
+    if isinstance(value, dict) and True in value and "on" not in value:  # YAML 1.1 reads the key on as true
+        value = {("on" if k is True else k): v for k, v in value.items()}
+    if not isinstance(value, dict) or not {"kind", "target"} <= set(value) or set(value) - {
+            "kind", "target", "value", "on"}:
+        raise fail("fault needs {kind: KIND, target: N, value: X, on: on|off} (value and on optional)")
+    kind = value["kind"]
+    if kind not in KINDS:
+        raise fail(f"fault.kind must be one of {', '.join(KINDS)}, got {kind!r}")
+    target = value["target"]
+    if isinstance(target, bool) or not isinstance(target, int) or target < 1:
+        raise fail(f"fault.target must be a whole number >= 1, got {target!r}")
+    x = value.get("value", 0.0)
+    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+        raise fail(f"fault.value must be a number, got {x!r}")
+    on = value.get("on", True)
+    on = {"on": True, "off": False}.get(on.strip().lower(), on) if isinstance(on, str) else on
+    if not isinstance(on, bool):
+        raise fail(f"fault.on must be on or off, got {value.get('on')!r}")
+    return str(kind), int(target), float(x), on
 
 
 def _choice(value: Any, choices: tuple[str, ...], what: str, fail: Any) -> str:

@@ -2,7 +2,8 @@
 
 `default.par` is the built-in preset (P-, PI (3.0, 30) and (2.7, 40), 100 ms);
 `minphase.par` and `nonminphase.par` are the paper's P- and P+ with the thesis's
-decentralized PI controllers.  A test checks the committed files equal this
+decentralized PI controllers; `coupled-cascade.par`, `coupled-tito.par` and
+`desautel-qtp.par` the other rigs (core.plants) at their published operating points.  A test checks the committed files equal this
 module's output, so the files and the code cannot drift apart.  Regenerate with
 ``python -m quadtank_tui.files.shipped params``.
 """
@@ -13,7 +14,7 @@ import sys
 from datetime import datetime
 from pathlib import Path
 
-from quadtank_tui.core.parameters import NAMED_SETTINGS, PRESET, Parameters
+from quadtank_tui.core.parameters import NAMED_SETTINGS, PLANT_SETTINGS, PRESET, Parameters
 from quadtank_tui.files.par import SUFFIX, write_par
 
 #: The `Created on:` stamp of the shipped files (fixed, so regenerating is a no-op).
@@ -22,7 +23,7 @@ SHIPPED_STAMP = datetime(2026, 11, 21, 5, 0, 0)
 
 def shipped_settings() -> dict[str, Parameters]:
     """File name (without `.par`) -> parameters."""
-    return {"default": PRESET, **NAMED_SETTINGS}
+    return {"default": PRESET, **NAMED_SETTINGS, **PLANT_SETTINGS}
 
 
 def write_shipped(folder: Path | str) -> list[Path]:

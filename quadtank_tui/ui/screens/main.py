@@ -35,6 +35,7 @@ from quadtank_tui.ui.widgets.status_line import StatusLine
 from quadtank_tui.ui.widgets.trends import WINDOWS, Trend
 from quadtank_tui.ui.windows.base import ConfirmWindow
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
+from quadtank_tui.ui.windows.faults import FaultWindow
 from quadtank_tui.ui.windows.logging import LoggingWindow
 from quadtank_tui.ui.windows.process import PumpWindow, TankWindow
 from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
@@ -76,6 +77,7 @@ class MainScreen(CommandSender):
         Binding("left_curly_bracket", "nudge(2, -0.01)", "Mean 2 -", show=False),
         Binding("h", "tank(1)", "Tanks"),
         Binding("v", "pump(1)", "Pumps", show=False),
+        Binding("F", "faults", "Faults", show=False, tooltip="Simul only: break the simulated process"),
         Binding("g", "plot_type('upper')", "Upper plot", show=False),
         Binding("G", "plot_type('lower')", "Lower plot", show=False),
         Binding("z", "time_window", "Time window", show=False),
@@ -262,6 +264,9 @@ class MainScreen(CommandSender):
     def action_pump(self, pump: int = 1) -> None:
         snap = self.current()
         self.app.push_screen(PumpWindow(snap, self.defaults, pump, opener="v"), self.send_all)
+
+    def action_faults(self) -> None:
+        self.app.push_screen(FaultWindow(self.current(), opener="F"), self.send_all)
 
     # --- trends (M7) ------------------------------------------------------------------
 

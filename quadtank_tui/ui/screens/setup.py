@@ -55,6 +55,15 @@ def operating_point_view(snap: Snapshot) -> Snapshot:
     operating point, the pumps at the inputs that hold it (the live inputs if no
     input can, e.g. at gamma1 + gamma2 = 1), the tubes as paths, not flows."""
     p = snap.params
+    if p.process is not None:  # another plant: its levels and the pumps that hold them
+        plant, levels = p.process_plant(), p.process_levels()
+        ys = [v / FULL_SCALE_V for v in plant.output(levels)] + [0.0] * 4
+        try:
+            v = plant.steady_inputs([x if i in plant.controlled else None for i, x in enumerate(levels)]).u
+            u = tuple(x / s.full_scale for x, s in zip(v, plant.inputs)) + (0.0,) * (2 - len(v))
+        except PlantError:
+            u = snap.u
+        return dataclasses.replace(snap, y=tuple(ys[:4]), u=u, state="Pause", operation="Simul")
     y = p.simulation.op_points
     try:
         h = p.operating_levels()

@@ -19,6 +19,7 @@ from textual.widgets import Static
 
 from quadtank_tui.core.parameters import Parameters, SimulationSettings
 from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.spec import PlantSpec
 
 if TYPE_CHECKING:
     from quadtank_tui.core.analysis import Analysis
@@ -63,6 +64,51 @@ def summary_lines(a: Analysis) -> list[Text]:
     return [t, zeros, phase, rga]
 
 
+@lru_cache(maxsize=32)
+def plant_lines(spec: PlantSpec, k1: tuple, k2: tuple) -> list[Text] | str:
+    """Another plant (core.plants.report): time constants, zeros and, for a 2x2 loop,
+    the ICAD channel margins of the diagonal controllers in use (volts per volt)."""
+    from quadtank_tui.core.icad import analyze_icad
+    from quadtank_tui.core.plants.report import report
+
+    try:
+        r = report(spec.plant(), spec.levels)
+    except (PlantError, ValueError) as exc:
+        return str(exc)
+    lines = [Text.assemble(("T ", "bold"), "  ".join(f"{-1 / p.real:.1f}" for p in r.poles), " s")]
+    if r.zeros is not None:
+        zeros = Text("Zeros   ", style="bold")
+        zeros.append("  ".join(zero_text(z) for z in r.zeros) or "none")
+        lines.append(zeros)
+    if r.rga is not None:
+        lines.append(Text.assemble(("RGA λ11 ", "bold"), f"{r.rga[0, 0]:.2f}"))
+    if r.model.C.shape[0] == 2 == r.model.B.shape[1] and k1[0] and k2[0]:
+        icad = analyze_icad(r.model, k1, k2)
+        for i, c in enumerate(icad.channels, start=1):
+            wc = "none" if c.crossover is None else f"{c.crossover:.3g} rad/s"
+            pm = "-" if c.phase_margin_deg is None else f"{c.phase_margin_deg:.0f}°"
+            lines.append(Text.assemble((f"C{i} ", "bold"), f"ωc {wc}  PM {pm}"))
+        lines.append(Text.assemble(("ICAD ", "bold"), f"γ(0) {icad.gamma_at_0:.2f}  ",
+                                   ("stable" if icad.stable else "UNSTABLE", "bold green" if icad.stable else "bold red")))
+    return lines
+
+
+def diagonal_pi(params: Parameters) -> tuple[tuple, tuple]:
+    """The diagonal PI elements as (num, den) in volts per volt, hashable; empty
+    when the controllers are not PID or an element is off (no ICAD shown then)."""
+    out = []
+    plant = params.process_plant()
+    for i, element in ((0, params.controllers[0]), (1, params.controllers[3])):
+        pid = element.pid
+        if params.control.family.value != "PID" or pid.K == 0 or i >= len(plant.inputs):
+            return ((), ()), ((), ())
+        scale = plant.inputs[i].full_scale / 10.0
+        num = (pid.K * scale * pid.Ti, pid.K * scale) if pid.integral else (pid.K * scale,)
+        den = (pid.Ti, 0.0) if pid.integral else (1.0,)
+        out.append((num, den))
+    return out[0], out[1]
+
+
 class AnalysisPanel(Static):
     """Time constants, zeros and phase of `params` (None: nothing shown yet)."""
 
@@ -71,6 +117,12 @@ class AnalysisPanel(Static):
     def watch_params(self, params: Parameters | None) -> None:
         if params is None:
             self.update("")
+            return
+        if params.process is not None:
+            lines = plant_lines(params.process, *diagonal_pi(params))
+            self.update(Text(f"No linearization: {lines}", style="italic") if isinstance(lines, str)
+                        else Text("\n").join(lines))
+            self.set_class(False, "-nonminimum")
             return
         a = analysis_of(params.simulation)
         if isinstance(a, str):

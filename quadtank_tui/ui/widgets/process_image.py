@@ -8,6 +8,11 @@ into 1 and 2.  A click on a tank or a pump opens its window.
 
 Drawn on a character canvas sized to the widget, so it works from about 24x9
 (80x24 terminals) to large terminals.
+
+Another plant (a `.par` PLANT section) is drawn from its layout (core.plants):
+its tanks in their columns and rows with the water to scale of their height, one
+pump or two up the sides into the tanks they feed, drains below, an orifice between
+tanks side by side ("◀"/"▶" the way the water runs).
 """
 
 from __future__ import annotations
@@ -82,9 +87,12 @@ class Box:
         return self.x0 <= x <= self.x1 and self.y0 <= y <= self.y1
 
 
-def draw_tank(c: Canvas, x0: int, top: int, width: int, depth: int, level: float, number: int) -> Box:
+def draw_tank(c: Canvas, x0: int, top: int, width: int, depth: int, level: float, number: int,
+              shown: float | None = None) -> Box:
     """An open tank: walls, water to `level` (0..1 of its height), the bottom
-    border carrying "n:level"; returns its clickable box."""
+    border carrying "n:level" (`shown` instead of the level when given: the
+    normalized reading of a tank whose sensor does not span 10 V); returns its
+    clickable box."""
     inner = width - 2
     units = round(max(0.0, min(1.0, level)) * depth * 8)
     for row in range(depth):
@@ -95,13 +103,16 @@ def draw_tank(c: Canvas, x0: int, top: int, width: int, depth: int, level: float
         c.text(x0 + 1, y, _FILL[fill] * inner, WATER)
     bottom = top + depth
     c.text(x0, bottom, "└" + "─" * inner + "┘")
-    label = f"{number}:{fixed(level, 2)}" if inner >= 6 else fixed(level, 2)[-3:]
+    value = fixed(level if shown is None else shown, 2)
+    label = f"{number}:{value}" if inner >= 6 else value[-3:]
     c.text(x0 + 1 + (inner - len(label)) // 2, bottom, label[:inner], LABEL)
     return Box(x0, top, x0 + width - 1, bottom, f"tank({number})")
 
 
 def draw(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[Box]]:
     """The process image of `snapshot` in width x height cells, and its boxes."""
+    if snapshot.params.process is not None and width >= 22 and height >= 8:
+        return draw_plant(snapshot, width, height)
     c = Canvas(width, height)
     y, u, p = snapshot.y, snapshot.u, snapshot.params
     has_gamma_row = height >= 12
@@ -163,6 +174,70 @@ def draw(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[Box]]:
         c.text(left + 2, pump_row + 1, f"γ1 {g1:.2f}", DIM)
         text2 = f"γ2 {g2:.2f}"
         c.text(right - 1 - len(text2), pump_row + 1, text2, DIM)
+    return c.render(), boxes
+
+
+def draw_plant(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[Box]]:
+    """Another plant, drawn from its layout (core.plants.base.Layout)."""
+    plant = snapshot.params.process_plant()
+    lay = plant.layout()
+    c = Canvas(width, height)
+    y, u = snapshot.y, snapshot.u
+    flowing = snapshot.state == "Run" or snapshot.operation == "Active"
+    cols, rows = lay.columns, lay.rows
+    depth = max(1, (height - 4) // rows - 2)
+    tw = max(6, min(14, (width - 6) // cols - 4))
+    gap = (width - 4 - cols * tw) // (cols + 1)
+    x_of = [2 + gap + col * (tw + gap) for col in range(cols)]
+    top_of = [2 + (rows - 1 - row) * (depth + 2) for row in range(rows)]
+    boxes: list[Box] = []
+    fraction = []
+    for t in lay.tanks:  # level as a fraction of the tank height: reading x 10 V / full-scale volts
+        fraction.append(y[t.state] * 10.0 / plant.outputs[t.state].hi if t.state < 4 else 0.0)
+        boxes.append(draw_tank(c, x_of[t.column], top_of[t.row], tw, depth, fraction[-1], t.state + 1,
+                               shown=y[t.state]))
+    by_state = {t.state: t for t in lay.tanks}
+    for pipe in lay.pipes:
+        src = by_state[pipe.source]
+        wet = flowing and fraction[lay.tanks.index(src)] > EMPTY
+        bottom = top_of[src.row] + depth
+        if pipe.target is None:  # a drain to the basin
+            c.put(x_of[src.column] + tw // 2, bottom + 1, "│", FLOW if wet else DRY)
+            continue
+        dst = by_state[pipe.target]
+        if dst.row < src.row:  # drips into the tank below
+            c.vline(x_of[src.column] + tw // 2, bottom + 1, top_of[dst.row] - 1, FLOW if wet else DRY)
+        else:  # side by side: an orifice near the base, the water runs to the lower level
+            x0, x1 = x_of[src.column] + tw, x_of[dst.column] - 1
+            forward = y[pipe.source] >= y[pipe.target]
+            c.hline(x0, x1, bottom - 1, FLOW if flowing else DRY)
+            c.put((x0 + x1) // 2, bottom - 1, "▶" if forward else "◀", FLOW if flowing else DRY)
+    pump_row = height - 1
+    for k, pump in enumerate(lay.pumps):
+        style = FLOW if flowing and u[pump.input] > EMPTY else DRY
+        side = 1 if k == 0 else width - 2
+        rows_used = []
+        for state, _share in pump.feeds:
+            t = by_state[state]
+            inlet = x_of[t.column] + (1 if k == 0 else tw - 2)
+            top = top_of[t.row]
+            # into a top-row tank the two pumps' tubes take the two free rows above it;
+            # into a lower tank the row between the tank rows
+            row = top - 1 - k if t.row == rows - 1 else top - 1
+            rows_used.append(row)
+            c.hline(min(side, inlet) + 1, max(side, inlet) - 1, row, style)
+            c.put(inlet, row, "┐" if k == 0 else "┌", style)
+            for yy in range(row + 1, top):
+                c.put(inlet, yy, "│", style)
+        top_row = min(rows_used, default=pump_row)
+        c.vline(side, top_row, pump_row - 1, style)
+        for row in rows_used:
+            c.put(side, row, ("┌" if k == 0 else "┐") if row == top_row else ("├" if k == 0 else "┤"), style)
+        c.put(side, pump_row, "●", style)
+        label = f"P{pump.input + 1} {fixed(u[pump.input])}"
+        lx = side + 2 if k == 0 else side - 1 - len(label)
+        c.text(lx, pump_row, label, LABEL)
+        boxes.append(Box(min(lx, side), pump_row, max(lx + len(label), side), pump_row, f"pump({pump.input + 1})"))
     return c.render(), boxes
 
 

@@ -163,3 +163,30 @@ class ProcessTable(ParamTable):
         Column("T s", _tank("TimeConst"), lambda v: f"{v:.2f}"),  # type: ignore[str-format]
         Column("γ", _tank("Valve", (1, 2)), lambda v: f"{v:.2f}"),  # type: ignore[str-format]
     )
+
+    def watch_params(self, params: Parameters | None) -> None:
+        if params is None or not self.is_mounted or params.process is None:
+            super().watch_params(params)
+            return
+        # another plant (a PLANT section): its constants and operating levels, read-only
+        # here (the .par file holds them; core.plants.spec)
+        plant = params.process_plant()
+        rows = [(f"{s.name} op.", f"{x:.4g} {s.unit}") for s, x in zip(plant.states, params.process_levels())]
+        rows += [(name, f"{value:.6g}") for name, value in plant.values().items()]
+        if rows == getattr(self, "_plant_rows", None) and len(self.columns) == 4:
+            return  # unchanged: keep the cursor (the screen refreshes 20 times a second)
+        self._plant_rows = rows
+        self.clear(columns=True)
+        self.add_column(plant.kind, key="row")  # two constants a row: the analysis stays in view
+        for key in ("v1", "n2", "v2"):
+            self.add_column("", key=key)
+        for n in range(0, len(rows), 2):
+            (a, va), (b, vb) = rows[n], rows[n + 1] if n + 1 < len(rows) else ("", "")
+            self.add_row(Text(a, style="bold"), Text(va), Text(b, style="bold"), Text(vb), key=str(n // 2))
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        # Textual also runs ParamTable's handler (every class in the MRO): only stop it
+        # for another plant, whose constants have no tank window (edit its .par).
+        if self.params is not None and self.params.process is not None:
+            event.stop()
+            event.prevent_default()

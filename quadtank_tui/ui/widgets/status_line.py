@@ -65,4 +65,6 @@ class StatusLine(Widget):
         parts.append(f"log {log_state(s.log)}" + (f" {100 * s.log.progress:.0f}%" if s.log.active else ""))
         parts.append(s.backend)
         parts.extend(s.alarms)
+        if s.faults:  # injected in Simul (core.faults): a student should know the process is broken
+            parts.append(f"faults: {s.faults}")
         return "  ".join(parts)

@@ -1,0 +1,108 @@
+"""The Faults window (B7, Simul only): break the simulated process on purpose.
+
+A list of the fault kinds (core.faults), the tank, pump, sensor or valve it hits,
+and its value; On switches it on (replacing one of the same kind there), Off
+switches it off.  The faults in force are listed from the live snapshot.  The
+engine checks the fault against the plant and says why it refuses one.
+"""
+
+from __future__ import annotations
+
+from textual import on
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal
+from textual.widgets import Button, Input, Label, OptionList, Static
+from textual.widgets.option_list import Option
+
+from quadtank_tui.core.faults import KINDS
+from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.engine.commands import SetFault
+from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.ui.values import parse_number
+from quadtank_tui.ui.windows.base import Commands, Window
+
+NAMES = tuple(KINDS)
+#: What the value means, short enough for an 80-column window.
+VALUES = {
+    "leak": "area of the extra outlet", "clog": "fraction left open", "weak_pump": "fraction of flow left",
+    "valve_drift": "gamma per s", "sensor_bias": "offset (normalized)", "sensor_drift": "offset per s",
+    "sensor_noise": "standard deviation", "sensor_stuck": "(none: stuck where it reads)",
+}
+
+
+class FaultWindow(Window[Commands]):
+    """Choose a kind, its target and value; On or Off."""
+
+    BINDINGS = [Binding("enter", "on", "On", show=False)]
+
+    def __init__(self, snapshot: Snapshot, *, opener: str | None = None) -> None:
+        super().__init__("Faults (Simul)", opener=opener)
+        self.snapshot = snapshot
+        self.kind = NAMES[0]
+
+    def compose_body(self) -> ComposeResult:
+        yield OptionList(*(Option(f"{k.replace('_', ' '):<13} {KINDS[k][0]:<7} {VALUES[k]}", id=k) for k in NAMES),
+                         id="kinds")
+        with Horizontal(classes="field"):
+            yield Label("Target", classes="label")
+            yield Input("1", id="target", compact=True)
+            yield Label("", id="target-unit", classes="unit")
+        with Horizontal(classes="field"):
+            yield Label("Value", classes="label")
+            yield Input("", id="value", placeholder="e.g. 0.02", compact=True)
+        active = self.snapshot.faults or "none"
+        yield Static(f"In force: {active}", id="active", classes="hint")
+        if self.snapshot.operation != "Simul":
+            yield Static("Faults act on the simulation only: switch to Simul first.", classes="error")
+
+    def compose_buttons(self) -> ComposeResult:
+        yield Button("On", id="on", variant="primary")
+        yield Button("Off", id="off")
+        yield Button("Cancel", id="cancel")
+
+    def on_mount(self) -> None:
+        self.query_one(OptionList).highlighted = 0
+        self.query_one(OptionList).focus()
+        self._show_target()
+
+    @on(OptionList.OptionHighlighted)
+    def _highlighted(self, event: OptionList.OptionHighlighted) -> None:
+        self.kind = NAMES[event.option_index]
+        self._show_target()
+
+    @on(OptionList.OptionSelected)
+    def _selected(self, event: OptionList.OptionSelected) -> None:
+        self.kind = NAMES[event.option_index]
+        self.query_one("#target", Input).focus()
+
+    def _show_target(self) -> None:
+        if self.is_mounted:
+            self.query_one("#target-unit", Label).update(KINDS[self.kind][0])
+
+    def _command(self, on: bool) -> SetFault | None:
+        try:
+            target = parse_number("target", self.query_one("#target", Input).value)
+            text = self.query_one("#value", Input).value
+            value = parse_number("value", text) if text.strip() else 0.0
+        except ParameterError as exc:
+            self.show_message(exc.reason)
+            return None
+        if target != int(target) or target < 1:
+            self.show_message(f"the target is a {KINDS[self.kind][0]} number 1, 2, ...")
+            return None
+        return SetFault(self.kind, int(target), value, on)
+
+    def action_on(self) -> None:
+        command = self._command(True)
+        if command is not None:
+            self.dismiss((command,))
+
+    @on(Input.Submitted)
+    def _submitted(self) -> None:
+        self.action_on()
+
+    def action_off(self) -> None:
+        command = self._command(False)
+        if command is not None:
+            self.dismiss((command,))
