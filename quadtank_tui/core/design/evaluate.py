@@ -60,17 +60,17 @@ def load_size(g: DelayTF) -> float:
 
 
 def time_step(g: DelayTF, m: Margins) -> float:
-    """Step h: 1/STEPS_PER_RAD of 1/wc, and at most a quarter of the delay."""
+    """Step h: 1/STEPS_PER_RAD of 1/wc, dividing the delay (see simulate)."""
     h = 1.0 / (STEPS_PER_RAD * m.crossover) if math.isfinite(m.crossover) else 0.01
     if g.delay > 0.0:
-        h = g.delay / max(4, math.ceil(g.delay / h))
+        h = g.delay / math.ceil(g.delay / h)
     return h
 
 
 def settled_response(g: DelayTF, c: PID, m: Margins, *, r: float = 0.0, d: float = 0.0) -> Response:
     """Simulate long enough for the error to die out (doubling the horizon)."""
     h = time_step(g, m)
-    horizon = 60.0 / m.crossover + 10.0 * (c.Ti if math.isfinite(c.Ti) else 0.0)
+    horizon = 30.0 / m.crossover + 5.0 * (c.Ti if math.isfinite(c.Ti) else 0.0)
     for _ in range(6):
         resp = step_response(g, c, r=r, d=d, horizon=horizon, h=h)
         e = np.abs(resp.e)

@@ -25,7 +25,7 @@ from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import PID
 
 #: steps per 1/wc (closed-loop time scale) at least; see module docstring.
-STEPS_PER_RAD = 100.0
+STEPS_PER_RAD = 40.0
 MAX_STEPS = 400_000
 
 
@@ -126,20 +126,27 @@ def step_response(g: DelayTF, c: PID, *, r: float = 0.0, d: float = 0.0,
             u[k] = uk
             z = Ad @ z + bd
         return Response(np.arange(steps + 1) * h, y, u, r, d)
+    # the load passes the delay with u (Y = G (U + V), G with its dead time): it is a
+    # step reaching the process at t = L = m h, held exactly from that sample on
     Ad, Bd = _discretize(A, np.column_stack([Bv, Bw]), h)
-    bv, bw = Bd[:, 0], Bd[:, 1:] @ w
-    fw = float(Fw @ w)
-    dyw = float(Dyw @ w)
+    bv, br, bd = Bd[:, 0], Bd[:, 1] * r, Bd[:, 2] * d
+    fw = float(Fw[0] * r)
     ring = [0.0] * (m + 1)  # u_i in slot i % (m+1); from rest, earlier u are 0
     z = np.zeros(nz)
+    out = np.vstack([Cy, F])  # y and u are linear in z: one product a step
     y = np.empty(steps + 1)
     u = np.empty(steps + 1)
+    size = m + 1
     for k in range(steps + 1):
-        v_now = ring[(k + 1) % (m + 1)]  # u(t_k - L)
-        y[k] = Cy @ z + dy * v_now + dyw
-        uk = float(F @ z) + Fv * v_now + fw
+        v_now = ring[(k + 1) % size]  # u(t_k - L)
+        load = d if k >= m else 0.0
+        yk, fz = out @ z
+        y[k] = yk + dy * (v_now + load)
+        uk = fz + Fv * (v_now + load) + fw
         u[k] = uk
-        ring[k % (m + 1)] = uk
-        v_next = ring[(k + 2) % (m + 1)]  # u(t_{k+1} - L)
-        z = Ad @ z + bv * (0.5 * (v_now + v_next)) + bw
+        ring[k % size] = uk
+        # u(t - L) over the step: the mean of its end values (second order in h)
+        z = Ad @ z + bv * (0.5 * (v_now + ring[(k + 2) % size])) + br
+        if k >= m:
+            z += bd
     return Response(np.arange(steps + 1) * h, y, u, r, d)
