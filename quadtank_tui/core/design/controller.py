@@ -36,6 +36,16 @@ class PID:
     N: float = DERIVATIVE_FILTER_N
     b: float = 1.0
 
+    def __post_init__(self) -> None:
+        for name in ("Kc", "Ti", "Td", "N", "b"):  # plain floats (numpy scalars print badly)
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+    def rounded(self, digits: int = 4) -> PID:
+        """Kc, Ti, Td to `digits` significant figures: what is applied and saved."""
+        def r(x: float) -> float:
+            return float(f"{x:.{digits}g}") if math.isfinite(x) else x
+        return PID(r(self.Kc), r(self.Ti), r(self.Td), self.N, self.b)
+
     @property
     def ki(self) -> float:
         """Integral gain Kc/Ti: load-disturbance IE = step / ki."""

@@ -208,8 +208,8 @@ def design_2x2(G: Matrix, method: str = "lambda", *, lam: tuple[float | None, fl
     """Design both diagonal loops and check the 2x2 closed loop (see the module)."""
     g11, g22 = G[0][0], G[1][1]
     notes: list[str] = []
-    c1 = design_loop(g11, method, lam=lam[0], ms=ms)
-    c2 = design_loop(g22, method, lam=lam[1], ms=ms)
+    c1 = design_loop(g11, method, lam=lam[0], ms=ms).rounded()
+    c2 = design_loop(g22, method, lam=lam[1], ms=ms).rounded()
     det0 = g11.static_gain * g22.static_gain - G[0][1].static_gain * G[1][0].static_gain
     l0 = float(lambda11(G, 0.0).real)
     how2 = "g22"
@@ -223,7 +223,7 @@ def design_2x2(G: Matrix, method: str = "lambda", *, lam: tuple[float | None, fl
         how2 = "g22 with loop 1 closed"
         # its right-half-plane zero bounds the gain: an Ms-constrained PI fits it (a
         # first-order fit for lambda tuning would hide the inverse response)
-        c2 = pi_ms(model2, ms)
+        c2 = pi_ms(model2, ms).rounded()
         notes.append(f"loop 2 designed on {how2} (PI, Ms {ms:g}): gain {model2.static_gain:.3g} "
                      f"at s = 0, so K2 = {c2.Kc:.3g} < 0")
     poles = closed_loop_poles(G, c1, c2)
