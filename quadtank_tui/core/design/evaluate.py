@@ -84,8 +84,9 @@ def settled_response(g: DelayTF, c: PID, m: Margins, *, r: float = 0.0, d: float
     return resp
 
 
-def evaluate(c: PID, g: DelayTF, w: np.ndarray | None = None) -> Evaluation:
-    """All figures of controller `c` on process model `g`."""
+def evaluate(c: PID, g: DelayTF, w: np.ndarray | None = None, *, setpoint: bool = True) -> Evaluation:
+    """All figures of controller `c` on process model `g` (setpoint=False: skip the
+    setpoint step, which Andersson's table does not show; its figures are then nan)."""
     m = margins(c.loop(g), frequency_grid(c.loop(g)) if w is None else w)
     nan = math.nan
     if not m.stable:
@@ -97,9 +98,11 @@ def evaluate(c: PID, g: DelayTF, w: np.ndarray | None = None) -> Evaluation:
     iae = float(np.trapezoid(e, load.t))
     u_final = -d  # integral action cancels the load exactly
     u_over = float(np.max(np.abs(load.u)) / abs(u_final) - 1.0)
-    sp = settled_response(g, c, m, r=1.0)
-    lm = loop_metrics(np.concatenate([[-1e-9], sp.t]), np.concatenate([[0.0], sp.y]),
-                      np.concatenate([[0.0], np.ones_like(sp.y)]))
+    overshoot, settling = nan, None
+    if setpoint:
+        sp = settled_response(g, c, m, r=1.0)
+        lm = loop_metrics(np.concatenate([[-1e-9], sp.t]), np.concatenate([[0.0], sp.y]),
+                          np.concatenate([[0.0], np.ones_like(sp.y)]))
+        overshoot, settling = float(lm.overshoot or 0.0), lm.settling_time
     return Evaluation(m.Ms, m.phase_margin_deg, m.gain_margin, m.delay_margin, m.crossover,
-                      iae, float(e.max()), max(u_over, 0.0), d,
-                      float(lm.overshoot or 0.0), lm.settling_time, True)
+                      iae, float(e.max()), max(u_over, 0.0), d, overshoot, settling, True)

@@ -44,7 +44,11 @@ def check_ms(ms: float) -> None:
 
 
 def process_sign(g: DelayTF) -> float:
-    """+1 or -1: the sign of the static (or velocity) gain; refuses a zero gain."""
+    """+1 or -1: the sign of the static (or velocity) gain; refuses a zero gain and
+    an unstable model (the search grows ki from 0 along stable loops only)."""
+    if np.any(g.poles().real > 1e-12):
+        raise DesignError("Ms-constrained design needs a stable or integrating model; this one "
+                          "has a pole in the right half-plane")
     k = g.static_gain
     if k == 0.0 or not math.isfinite(k):
         raise DesignError("the model has no static gain (a zero at s = 0): nothing for integral action to act on")

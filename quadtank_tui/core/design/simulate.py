@@ -25,7 +25,7 @@ from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import PID
 
 #: steps per 1/wc (closed-loop time scale) at least; see module docstring.
-STEPS_PER_RAD = 40.0
+STEPS_PER_RAD = 20.0
 MAX_STEPS = 400_000
 
 

@@ -112,7 +112,7 @@ def test_row_reproduces(row: tuple) -> None:
     c = design_row(proc, method, par, printed)
     assert c.Kc == pytest.approx(kc, rel=0.01), f"Kc, line {line}"
     assert c.Ti == pytest.approx(ti, rel=0.01), f"Ti, line {line}"
-    ev = evaluate(c, parse_model(PROCESSES[proc].simulation))
+    ev = evaluate(c, parse_model(PROCESSES[proc].simulation), setpoint=False)
     assert ev.Ms == pytest.approx(ms, abs=0.01), f"Ms, line {line}"
     assert ev.phase_margin_deg == pytest.approx(pm, abs=1.5), f"phase margin, line {line}"
     assert ev.delay_margin == pytest.approx(lm, rel=0.05), f"Lm, line {line}"
@@ -130,7 +130,7 @@ def comparison(proc: int) -> str:
     for row in (r for r in TABLES if r[0] == proc):
         _, line, method, par, kc, ti, td, iae, emax, uo, pm, lm, am, ms = row
         c = design_row(proc, method, par, PID(kc, ti, td))
-        ev: Evaluation = evaluate(c, parse_model(PROCESSES[proc].simulation))
+        ev: Evaluation = evaluate(c, parse_model(PROCESSES[proc].simulation), setpoint=False)
         label = f"{method} {par:g}"
         out.append(f"{label + ' (' + str(line) + ')':<16}{kc:>9.4g}{ti:>8.4g}{td:>6.3g}{iae:>8.4g}"
                    f"{emax:>6.3g}{uo:>6.2f}{pm:>6.0f}{lm:>7.3g}{am:>7.3g}{ms:>6.2f}")

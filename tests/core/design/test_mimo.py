@@ -55,7 +55,7 @@ def test_p_plus_reports_and_designs_k2_negative(g_plus) -> None:
     assert chk.loops[1].evaluation.Ms == pytest.approx(1.4, abs=0.01)
     # the effective loop-2 plant has det G(0)/g11(0) as gain and the RHP zero of P+
     g2 = chk.loops[1].model
-    assert g2.static_gain == pytest.approx(chk.det_G0 / g_plus[0][0].static_gain, rel=1e-6)
+    assert g2.static_gain == pytest.approx(chk.det_G0 / g_plus[0][0].static_gain, rel=1e-4)
     rhp = [z for z in g2.zeros() if z.real > 0]
     assert len(rhp) == 1 and 0 < rhp[0].real < 0.013
     # its zeros are those of g22 + c1 det G: with a tight loop 1, P+'s zero +0.013
