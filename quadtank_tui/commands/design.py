@@ -117,7 +117,8 @@ def format_evaluation(ev: Any) -> str:
 
 def _run_2x2(args: argparse.Namespace) -> int:
     from quadtank_tui.core.design.mimo import design_2x2, format_check, physical_model
-    from quadtank_tui.engine.design_step import controller_values, run_step
+    from quadtank_tui.core.design.apply import controller_values
+    from quadtank_tui.engine.design_step import run_step
     from quadtank_tui.files.par import read_par, write_par
 
     if args.evaluate_on:

@@ -16,6 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
+from quadtank_tui.core.design.apply import controller_values
 from quadtank_tui.core.design.controller import PID
 from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
 from quadtank_tui.core.plant import FULL_SCALE_V, steady_state_inputs
@@ -28,19 +29,6 @@ STEP = 0.1  # normalized: 1 V, about 2 cm
 SETTLE_BEFORE = 200.0  # s in Manual before Automatic
 AUTO_BEFORE_STEP = 10.0  # s in Automatic before the step
 TSAMP_MS = 1000.0  # the thesis's experiments sample at 1 s
-
-ELEMENT = {1: "CONTROLLER ONE", 2: "CONTROLLER FOUR"}  # C11, C22 of the matrix
-
-
-def controller_values(pair: Sequence[PID]) -> dict[str, object]:
-    """The `.par` keys that make the matrix a decentralized PID with these elements."""
-    values: dict[str, object] = {"CONTROL.Type": "PID", "CONTROL.Structure": "Decentralized"}
-    for loop, c in zip((1, 2), pair):
-        sec = ELEMENT[loop]
-        values.update({f"{sec}.K": c.Kc, f"{sec}.Ti": c.Ti, f"{sec}.Td": c.Td,
-                       f"{sec}.N": c.N, f"{sec}.b": c.b, f"{sec}.I": 1, f"{sec}.D": int(c.Td > 0)})
-    return values
-
 
 @dataclass(frozen=True)
 class StepCheck:

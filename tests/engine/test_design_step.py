@@ -8,7 +8,8 @@ import pytest
 
 from quadtank_tui.core.design.controller import PID
 from quadtank_tui.core.design.mimo import design_2x2, physical_model
-from quadtank_tui.engine.design_step import controller_values, run_step
+from quadtank_tui.core.design.apply import controller_values
+from quadtank_tui.engine.design_step import run_step
 from quadtank_tui.engine.runner import load_parameters
 from quadtank_tui.files.par import ParStore
 

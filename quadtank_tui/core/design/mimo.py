@@ -196,9 +196,6 @@ def design_loop(g: DelayTF, method: str, *, lam: float | None = None, ms: float 
             lam = LAMBDA_FRACTION * max(fo.L, fo.T) if not fo.integrating else 3.0 * max(fo.L, 1.0)
         return lambda_pi(fo, lam)
     if method in ("pi-ms", "pid-ms"):
-        if g.delay == 0.0 and not np.any(g.zeros().real > 0) and len(g.den) - len(g.num) <= 1:
-            raise DesignError("Ms alone does not bound the gains of a delay-free first-order "
-                              "loop; use lambda, or give the model a dead time")
         return pi_ms(g, ms) if method == "pi-ms" else pid_ms(g, ms)
     raise DesignError(f"unknown method {method!r}: lambda, pi-ms or pid-ms")
 

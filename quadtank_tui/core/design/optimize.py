@@ -35,6 +35,10 @@ from quadtank_tui.core.design.frequency import frequency_grid
 #: largest Td/Ti of the PID rule (real controller zeros).
 TD_OVER_TI_MAX = 0.25
 KC_GRID = 50
+#: a loop gain this large meeting Ms means Ms does not bound it on this model
+KC_UNBOUNDED = 1e9
+UNBOUNDED = ("Ms alone does not bound the gains on this model (no dead time, no right-half-"
+             "plane zero, phase above -180 deg): use lambda, or give the model a dead time")
 TD_GRID = 24
 
 
@@ -75,8 +79,10 @@ def _ki_max(P: np.ndarray, Q: np.ndarray, r: float) -> np.ndarray:
 def _kc_limit(Gw: np.ndarray, D: np.ndarray, r: float) -> float:
     """Largest Kc with |1 + Kc D G| >= r everywhere (ki = 0): bisection."""
     lo, hi = 0.0, 1.0
-    while np.all(np.abs(1.0 + hi * D * Gw) >= r) and hi < 1e12:
+    while np.all(np.abs(1.0 + hi * D * Gw) >= r):
         lo, hi = hi, hi * 2.0
+        if hi > KC_UNBOUNDED:
+            raise DesignError(UNBOUNDED)
     for _ in range(60):
         mid = 0.5 * (lo + hi)
         if np.all(np.abs(1.0 + mid * D * Gw) >= r):

@@ -37,11 +37,14 @@ class Candidate:
 
 
 def default_lambdas(fo: FirstOrder) -> tuple[float, ...]:
-    """Andersson's tau = 1, 2, 3 (lambda = tau max(L, T)); an integrating model:
-    2, 4, 8 times its delay (his process 4 used 3, 5 and 9 L, process 2 2.3-6.8 L)."""
+    """Andersson's tau = 1, 2, 3 (lambda = tau max(L, T)); without a dead time T/4,
+    T/2, T; an integrating model: 2, 4, 8 times its delay (his process 4 used 3, 5
+    and 9 L, process 2 2.3-6.8 L)."""
     if fo.integrating:
         base = fo.L if fo.L > 0 else 1.0
         return (2.0 * base, 4.0 * base, 8.0 * base)
+    if fo.L == 0.0:  # no dead time (a physical linearization): faster than open loop
+        return (fo.T / 4.0, fo.T / 2.0, fo.T)
     return tuple(lambda_for_tau(fo, t) for t in TAUS)
 
 
@@ -75,18 +78,23 @@ def candidates(g: DelayTF, *, evaluate_on: DelayTF | None = None,
 
 def format_table(rows: Sequence[Candidate]) -> str:
     """Plain-text table (CLI, benchmark, closing notes)."""
-    head = (f"{'candidate':<16}{'Kc':>9}{'Ti':>9}{'Td':>7}{'IAE':>9}{'Emax':>7}{'u_os':>6}"
-            f"{'phi_m':>6}{'Lm':>7}{'Am':>7}{'Ms':>6}")
-    out = [head]
+    widths = (16, 9, 9, 7, 9, 7, 6, 6, 7, 7, 6)
+    names = ("candidate", "Kc", "Ti", "Td", "IAE", "Emax", "u_os", "phi_m", "Lm", "Am", "Ms")
+
+    def line(cells: Sequence[str]) -> str:
+        return cells[0].ljust(widths[0]) + " ".join(c.rjust(w) for c, w in zip(cells[1:], widths[1:]))
+
+    out = [line(names)]
     for r in rows:
         if r.controller is None or r.evaluation is None:
             out.append(f"{r.label:<16}  {r.error}")
             continue
         c, e = r.controller, r.evaluation
+        head = [r.label, f"{c.Kc:.4g}", f"{c.Ti:.4g}", f"{c.Td:.3g}"]
         if not e.stable:
-            out.append(f"{r.label:<16}{c.Kc:>9.4g}{c.Ti:>9.4g}{c.Td:>7.3g}  unstable on this model")
+            out.append(line(head) + "  unstable on this model")
             continue
-        out.append(f"{r.label:<16}{c.Kc:>9.4g}{c.Ti:>9.4g}{c.Td:>7.3g}{e.IAE:>9.4g}{e.Emax:>7.3g}"
-                   f"{e.u_overshoot:>6.2f}{e.phase_margin_deg:>6.0f}{e.delay_margin:>7.3g}"
-                   f"{e.gain_margin:>7.3g}{e.Ms:>6.2f}")
+        out.append(line(head + [f"{e.IAE:.4g}", f"{e.Emax:.3g}", f"{e.u_overshoot:.2f}",
+                                f"{e.phase_margin_deg:.0f}", f"{e.delay_margin:.3g}",
+                                f"{e.gain_margin:.3g}", f"{e.Ms:.2f}"]))
     return "\n".join(out)
