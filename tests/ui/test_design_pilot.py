@@ -30,6 +30,16 @@ async def _open(pilot) -> DesignScreen:  # type: ignore[no-untyped-def]
     return screen
 
 
+async def _type_model(pilot, screen: DesignScreen, loop: int, text: str) -> None:  # type: ignore[no-untyped-def]
+    """Clear loop `loop`'s model box, type `text` and Enter, as a user does."""
+    box = screen.query_one(f"#model-{loop}", Input)
+    box.value = ""
+    box.focus()
+    await pilot.press(*text, "enter")
+    await pilot.app.workers.wait_for_complete()
+    await pilot.pause()
+
+
 def _box_text(app) -> str:  # type: ignore[no-untyped-def]
     return " ".join(str(c.render()) for c in app.screen.query_one(ControllerBox).query(Static))
 
@@ -63,12 +73,7 @@ async def test_design_2x2_apply_shows_in_the_controller_box(app, engine) -> None
 async def test_typed_model_and_chosen_row(app, engine) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await _open(pilot)
-        box = screen.query_one("#model-1", Input)
-        box.value = ""
-        box.focus()
-        await pilot.press(*"1.6592*exp(-2.4*s)/(1.07*s+1)^3", "enter")
-        await app.workers.wait_for_complete()
-        await pilot.pause()
+        await _type_model(pilot, screen, 1, "1.6592*exp(-2.4*s)/(1.07*s+1)^3")
         table = screen.query_one("#design-table", DataTable)
         assert table.row_count == 9
         assert table.get_row_at(4)[:3] == ["PI Ms 1.4", "0.1468", "2.401"]  # Andersson: 0.1464, 2.394
@@ -85,9 +90,5 @@ async def test_typed_model_and_chosen_row(app, engine) -> None:  # type: ignore[
 async def test_a_bad_model_is_pointed_at(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await _open(pilot)
-        box = screen.query_one("#model-2", Input)
-        box.value = ""
-        box.focus()
-        await pilot.press(*"1/(s+1", "enter")
-        await pilot.pause()
+        await _type_model(pilot, screen, 2, "1/(s+1")
         assert any("column 7" in n.message for n in app._notifications)
