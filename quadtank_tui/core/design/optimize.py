@@ -39,7 +39,7 @@ KC_GRID = 50
 KC_UNBOUNDED = 1e9
 UNBOUNDED = ("Ms alone does not bound the gains on this model (no dead time, no right-half-"
              "plane zero, phase above -180 deg): use lambda, or give the model a dead time")
-TD_GRID = 24
+TD_GRID = 16
 
 
 def check_ms(ms: float) -> None:
@@ -83,7 +83,7 @@ def _kc_limit(Gw: np.ndarray, D: np.ndarray, r: float) -> float:
         lo, hi = hi, hi * 2.0
         if hi > KC_UNBOUNDED:
             raise DesignError(UNBOUNDED)
-    for _ in range(60):
+    for _ in range(40):
         mid = 0.5 * (lo + hi)
         if np.all(np.abs(1.0 + mid * D * Gw) >= r):
             lo = mid
@@ -189,7 +189,7 @@ def _boundary_kc(Gw: np.ndarray, Q: np.ndarray, D: np.ndarray, r: float,
         return bool(np.all(np.abs(1.0 + kc * D * Gw + kc * c / td * Q) >= r))
 
     lo, hi = 0.0, _kc_limit(Gw, D, r)
-    for _ in range(50):
+    for _ in range(36):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if ok(mid) else (lo, mid)
     return lo

@@ -65,8 +65,7 @@ def test_ms_must_exceed_one(ms: float) -> None:
         pid_ms(parse_model(P1), ms)
 
 
-@pytest.mark.parametrize("text", [P1, P2, P3, P4])
-@pytest.mark.parametrize("ms", [1.2, 1.4, 1.6])
+@pytest.mark.parametrize("text, ms", [(P1, 1.2), (P1, 1.4), (P1, 1.6), (P2, 1.4), (P3, 1.6), (P4, 1.2)])
 def test_pid_rule_meets_ms_and_beats_pi(text: str, ms: float) -> None:
     """The program's PID (max ki, Td <= Ti/4) meets Ms on its model and integrates
     the load away faster than the PI_opt of the same Ms."""
