@@ -109,7 +109,7 @@ def _best_kc(Gw: np.ndarray, Q: np.ndarray, D: np.ndarray, r: float) -> tuple[fl
     def neg(kc: float) -> float:
         return -float(_ki_max((1.0 + kc * D * Gw)[None, :], Q[None, :], r)[0])
 
-    res = minimize_scalar(neg, bounds=(lo, hi), method="bounded", options={"xatol": kmax * 1e-6})
+    res = minimize_scalar(neg, bounds=(lo, hi), method="bounded", options={"xatol": kmax * 1e-4})
     if -res.fun >= ki[i]:
         return float(res.x), float(-res.fun)
     return float(kcs[i]), float(ki[i])
@@ -176,7 +176,7 @@ def pid_ms(g: DelayTF, ms: float, w: np.ndarray | None = None,
         step = float(tds[1] - tds[0])
         res = minimize_scalar(lambda x: -design(x, Gb, Qb, band)[1],
                               bounds=(max(td - step, step * 1e-3), td + step),
-                              method="bounded", options={"xatol": step * 1e-3})
+                              method="bounded", options={"xatol": step * 1e-2})
         if -res.fun > scores[j]:
             td = float(res.x)
         kc, ki = design(td, Gw, Q, w)
