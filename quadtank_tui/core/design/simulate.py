@@ -133,20 +133,23 @@ def step_response(g: DelayTF, c: PID, *, r: float = 0.0, d: float = 0.0,
     fw = float(Fw[0] * r)
     ring = [0.0] * (m + 1)  # u_i in slot i % (m+1); from rest, earlier u are 0
     z = np.zeros(nz)
-    out = np.vstack([Cy, F])  # y and u are linear in z: one product a step
+    # one product a step gives A_d z, y and u (both linear in z); the constant
+    # inputs (r, and d once it has passed the delay) are folded into one vector
+    big = np.vstack([Ad, Cy, F])
+    const = (br, br + bd)
+    half_bv = 0.5 * bv
     y = np.empty(steps + 1)
     u = np.empty(steps + 1)
     size = m + 1
     for k in range(steps + 1):
         v_now = ring[(k + 1) % size]  # u(t_k - L)
-        load = d if k >= m else 0.0
-        yk, fz = out @ z
-        y[k] = yk + dy * (v_now + load)
-        uk = fz + Fv * (v_now + load) + fw
+        arrived = k >= m
+        v_in = v_now + d if arrived else v_now
+        prod = big @ z
+        y[k] = prod[nz] + dy * v_in
+        uk = prod[nz + 1] + Fv * v_in + fw
         u[k] = uk
         ring[k % size] = uk
         # u(t - L) over the step: the mean of its end values (second order in h)
-        z = Ad @ z + bv * (0.5 * (v_now + ring[(k + 2) % size])) + br
-        if k >= m:
-            z += bd
+        z = prod[:nz] + half_bv * (v_now + ring[(k + 2) % size]) + const[arrived]
     return Response(np.arange(steps + 1) * h, y, u, r, d)
