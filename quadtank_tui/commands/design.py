@@ -37,7 +37,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="lambda tuning, Ms-constrained PI or PID (default: pi-ms for --model, "
                    "lambda for --par)")
     p.add_argument("--lambda", dest="lam", type=float, metavar="L",
-                   help="lambda, s (default: max(L, T) for --model, T/3 of each loop for --par)")
+                   help="lambda, s (default: max(L, T) for --model, T/5 of each loop for --par)")
     p.add_argument("--ms", type=float, default=1.4, help="largest sensitivity Ms (default 1.4)")
     p.add_argument("--evaluate-on", metavar="EXPR",
                    help="evaluate on this model instead of the design model (e.g. a richer one)")
@@ -130,8 +130,8 @@ def _run_2x2(args: argparse.Namespace) -> int:
     chk = design_2x2(G, method, lam=(args.lam, args.lam), ms=args.ms)
     steps = []
     if not args.no_step and chk.stable:
-        duration = 600.0 if chk.lambda11_0 > 0 else 2500.0
-        steps = [run_step(chk.pid_pair(), par=args.par, loop=1, duration=duration)]
+        duration = 600.0 if chk.lambda11_0 > 0 else 3000.0  # P+'s loop 2 is slow
+        steps = [run_step(chk.pid_pair(), par=args.par, loop=i, duration=duration) for i in (1, 2)]
     written = None
     if args.write_par:
         out = Path(args.write_par)

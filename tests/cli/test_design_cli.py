@@ -65,6 +65,7 @@ def test_p_minus_2x2_with_step(capsys: pytest.CaptureFixture[str]) -> None:
     out = capsys.readouterr().out
     assert "closed loop stable" in out
     assert "nonlinear simulator, step 0.1 on r1: overshoot 0.0 %" in out
+    assert "nonlinear simulator, step 0.1 on r2: overshoot" in out and "peak in y1" in out
 
 
 def test_p_plus_2x2_writes_a_par_with_k2_negative(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

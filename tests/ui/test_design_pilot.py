@@ -59,15 +59,15 @@ async def test_design_2x2_apply_shows_in_the_controller_box(app, engine) -> None
         await pilot.press("A")
         await pilot.pause()
         sent = engine.sent(SetParams)
-        assert len(sent) == 1 and sent[0].values["CONTROLLER ONE.K"] == 1.149
+        assert len(sent) == 1 and sent[0].values["CONTROLLER ONE.K"] == 1.916
         p = engine.snapshot().params
-        assert p.get("CONTROLLER ONE.K") == 1.149 and p.get("CONTROLLER ONE.Ti") == 62.7
-        assert p.get("CONTROLLER FOUR.K") == 1.057 and p.get("CONTROLLER FOUR.Ti") == 90.34
+        assert p.get("CONTROLLER ONE.K") == 1.916 and p.get("CONTROLLER ONE.Ti") == 62.7
+        assert p.get("CONTROLLER FOUR.K") == 1.762 and p.get("CONTROLLER FOUR.Ti") == 90.34
         await pilot.press("escape")
         await pilot.pause()
         assert isinstance(app.screen, MainScreen)
         text = _box_text(app)
-        assert "K 1.149 Ti 62.7" in text and "K 1.057 Ti 90.34" in text
+        assert "K 1.916 Ti 62.7" in text and "K 1.762 Ti 90.34" in text
 
 
 async def test_typed_model_and_chosen_row(app, engine) -> None:  # type: ignore[no-untyped-def]

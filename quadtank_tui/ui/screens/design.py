@@ -29,7 +29,9 @@ from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.screens.sending import CommandSender
 
-COLUMNS = ("candidate", "Kc", "Ti", "Td", "IAE", "Emax", "u_os", "φm", "Lm", "Am", "Ms")
+#: Fixed widths (a space included): the header never depends on when the rows came in.
+COLUMNS = (("candidate", 14), ("Kc", 7), ("Ti", 7), ("Td", 5), ("IAE", 7), ("Emax", 6),
+           ("u_os", 5), ("φm", 4), ("Lm", 6), ("Am", 6), ("Ms", 5))
 HELP = "Tab to a model, type it, Enter: its candidates · Enter on a row: choose it for the loop"
 
 
@@ -83,7 +85,8 @@ class DesignScreen(CommandSender):
                 yield Input(id=f"model-{i}", classes="model")
         with Horizontal(id="design-body"):
             with Vertical(id="design-left"):
-                table = DataTable(id="design-table", cursor_type="row", zebra_stripes=False)
+                table = DataTable(id="design-table", cursor_type="row", zebra_stripes=False,
+                                  cell_padding=0)
                 table.border_title = "Candidates"
                 yield table
                 yield Static(id="design-chosen")
@@ -96,8 +99,8 @@ class DesignScreen(CommandSender):
 
     def on_mount(self) -> None:
         table = self.query_one("#design-table", DataTable)
-        for c in COLUMNS:
-            table.add_column(c, key=c)
+        for label, width in COLUMNS:
+            table.add_column(label, key=label, width=width)
         self.query_one("#nyquist", PlotextPlot).border_title = "Nyquist L(iω), circle 1/Ms around -1"
         self.query_one("#response", PlotextPlot).border_title = "Load step at the input: y (blue), u (red)"
         self.action_physical()

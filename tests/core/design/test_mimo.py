@@ -41,8 +41,8 @@ def test_p_minus_design_is_stable_with_positive_gains(g_minus) -> None:
     c1, c2 = chk.pid_pair()
     assert chk.stable and c1.Kc > 0 and c2.Kc > 0 and not chk.notes
     assert chk.det_G0 > 0
-    # lambda = T/3 on first-order elements: Kc = 3/K, Ti = T
-    assert c1.Ti == pytest.approx(62.70, abs=0.01) and c1.Kc == pytest.approx(3 / 2.610, rel=1e-3)
+    # lambda = T/5 on first-order elements: Kc = 5/K, Ti = T
+    assert c1.Ti == pytest.approx(62.70, abs=0.01) and c1.Kc == pytest.approx(5 / 2.610, rel=1e-3)
 
 
 def test_p_plus_reports_and_designs_k2_negative(g_plus) -> None:
