@@ -61,6 +61,7 @@ class MainScreen(CommandSender):
         Binding("s", "simul", "Simul", show=False),
         Binding("A", "active", "Active", show=False, tooltip=NO_DAQ),
         Binding("S", "setup", "Setup"),
+        Binding("d", "design", "Design", show=False),
         Binding("t", "controller_type", "Type"),
         Binding("1", "element(0)", "Element 11", show=False),
         Binding("2", "element(1)", "Element 12", show=False),
@@ -297,6 +298,13 @@ class MainScreen(CommandSender):
         # Setup shows only the process time live: a quarter second is plenty, and
         # a slower refresh asked for a slow link is kept.
         self.app.push_screen(SetupScreen(self.engine, refresh_interval=max(0.25, self.refresh_interval)))
+
+    def action_design(self) -> None:
+        """The Design screen (B3): PI/PID from a model; the process runs on, and
+        nothing is applied until its Apply key."""
+        from quadtank_tui.ui.screens.design import DesignScreen
+
+        self.app.push_screen(DesignScreen(self.engine))
 
     def action_exit(self) -> None:
         snap = self.current()

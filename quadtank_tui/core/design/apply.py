@@ -1,0 +1,37 @@
+"""A designed PI/PID pair as the parameter changes that put it in the controller
+matrix: a decentralized PID with the loops on elements 11 (CONTROLLER ONE) and 22
+(CONTROLLER FOUR).  Applying them is an ordinary SetParams, so it is bumpless like
+any parameter change (the integrator absorbs a new K; core.pid)."""
+
+from __future__ import annotations
+
+from typing import Any, Mapping, Sequence
+
+from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.parameters import Parameters
+
+ELEMENT = {1: "CONTROLLER ONE", 2: "CONTROLLER FOUR"}  # C11, C22 of the matrix
+
+
+def controller_values(pair: Sequence[PID | None]) -> dict[str, Any]:
+    """The `.par` keys (and values) for the loops given (None: leave that loop)."""
+    values: dict[str, Any] = {"CONTROL.Type": "PID", "CONTROL.Structure": "Decentralized"}
+    for loop, c in zip((1, 2), pair):
+        if c is None:
+            continue
+        sec = ELEMENT[loop]
+        values.update({f"{sec}.K": c.Kc, f"{sec}.Ti": c.Ti, f"{sec}.Td": c.Td,
+                       f"{sec}.N": c.N, f"{sec}.b": c.b, f"{sec}.I": 1, f"{sec}.D": int(c.Td > 0)})
+    return values
+
+
+def describe_changes(before: Parameters, values: Mapping[str, Any]) -> list[str]:
+    """'CONTROLLER ONE.K 3 -> 1.149' for each value that changes."""
+    out = []
+    for key, new in values.items():
+        old = before.get(key)
+        old_v = getattr(old, "value", old)
+        if old_v != new:
+            out.append(f"{key} {old_v:g} -> {new:g}" if isinstance(new, float) and isinstance(old_v, float)
+                       else f"{key} {old_v} -> {new}")
+    return out

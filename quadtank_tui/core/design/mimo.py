@@ -1,0 +1,251 @@
+"""The 2x2 check of a decentralized PI/PID design on the quadruple tank.
+
+Each diagonal loop is designed on its element of G (the physical linearization,
+core.analysis, or identified elements), then the whole loop is checked with the
+off-diagonal elements present: closed-loop poles of the linear 2x2 system, the
+relative gain lambda11 = g11 g22 / (g11 g22 - g12 g21) at s = 0 and at each loop's
+crossover.
+
+Why a second loop can need another design: with integral action in both loops,
+the closed loop can be stable only if det G(0) has the sign of g11(0) g22(0)
+(lambda11(0) > 0; Grosdidier, Morari & Holt 1985).  At P+ det G(0) < 0, so no
+pair of PIs with the signs of the diagonal gains (both positive) stabilizes it.
+Loop 2 is then designed on what it sees with loop 1 closed,
+
+    g22_eff = g22 - g12 g21 c1 / (1 + c1 g11),
+
+whose gain at s = 0 is det G(0)/g11(0) < 0: an Ms-constrained PI on it (whatever
+the method of loop 1) gives K2 < 0, as the thesis did (Johansson & Nunes: (1.5, 110) and (-0.12, 220)); g22_eff has the right-half-
+plane zero, so that loop is slow.
+
+Units: G in V/V from pump voltage to level-sensor voltage, which is also the
+ratio of the program's normalized signals (1.0 = 10 V), so Kc is the PID element's K.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+from scipy.signal import tf2ss
+
+from quadtank_tui.core.analysis import analyze
+from quadtank_tui.core.delaytf import DelayTF
+from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.evaluate import Evaluation, evaluate
+from quadtank_tui.core.design.lambda_tuning import first_order, lambda_pi
+from quadtank_tui.core.design.optimize import pi_ms, pid_ms
+from quadtank_tui.core.plant import PlantParams
+
+Matrix = tuple[tuple[DelayTF, DelayTF], tuple[DelayTF, DelayTF]]
+
+#: default lambda of a delay-free loop: a fifth of the first-order time constant (a 0.1
+#: step then settles in 138 s at P- with no overshoot; T/3: 207 s, T/8: 90 s with Kc = 3).
+LAMBDA_FRACTION = 1.0 / 5.0
+
+
+def physical_model(p: PlantParams, h0: Sequence[float]) -> Matrix:
+    """The linearization's G(s) as DelayTFs (no dead time), V/V."""
+    a = analyze(p, h0)
+
+    def tf(i: int, j: int) -> DelayTF:
+        e = a.G[i][j]
+        den = np.array([1.0])
+        for T in e.lags:
+            den = np.polymul(den, [T, 1.0])
+        return DelayTF((e.gain,), tuple(den))
+
+    return ((tf(0, 0), tf(0, 1)), (tf(1, 0), tf(1, 1)))
+
+
+def _mul(a: DelayTF, b: DelayTF) -> DelayTF:
+    return DelayTF(tuple(np.polymul(a.num, b.num)), tuple(np.polymul(a.den, b.den)),
+                   a.delay + b.delay)
+
+
+def loop2_with_loop1_closed(G: Matrix, c1: PID) -> DelayTF:
+    """g22 - g12 g21 c1/(1 + c1 g11) as one rational model (delay-free G only)."""
+    if any(g.delay for row in G for g in row):
+        raise DesignError("the sequential design of loop 2 needs delay-free elements")
+    cn, cd = c1.feedback_tf()
+    (g11, g12), (g21, g22) = G
+    # g12 g21 c1 / (1 + c1 g11) = n12 n21 cn d11 / (d12 d21 (cd d11 + cn n11))
+    inner_den = np.polyadd(np.polymul(cd, g11.den), np.polymul(cn, g11.num))
+    num_c = np.polymul(np.polymul(g12.num, g21.num), np.polymul(cn, g11.den))
+    den_c = np.polymul(np.polymul(g12.den, g21.den), inner_den)
+    num = np.polysub(np.polymul(g22.num, den_c), np.polymul(num_c, g22.den))
+    den = np.polymul(g22.den, den_c)
+    num, den = _cancel(num, den)
+    return DelayTF(tuple(num), tuple(den))
+
+
+def _cancel(num: np.ndarray, den: np.ndarray, tol: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """Remove common roots (pole-zero pairs closer than tol relative), keep the gain."""
+    num = np.trim_zeros(np.asarray(num, dtype=float), "f")
+    den = np.trim_zeros(np.asarray(den, dtype=float), "f")
+    zs, ps = list(np.roots(num)), list(np.roots(den))
+    kept_z = []
+    for z in zs:
+        j = next((k for k, p in enumerate(ps) if abs(p - z) <= tol * max(1.0, abs(z))), None)
+        if j is None:
+            kept_z.append(z)
+        else:
+            ps.pop(j)
+    gain = num[0] / den[0]
+    n = np.real(np.poly(kept_z)) * gain if kept_z else np.array([gain])
+    d = np.real(np.poly(ps)) if ps else np.array([1.0])
+    scale = d[-1] if abs(d[-1]) > 1e-300 else d[0]  # constant term 1 where possible
+    return n / scale, d / scale
+
+
+def lambda11(G: Matrix, w: float) -> complex:
+    """Relative gain of the diagonal pairing at frequency w (rad/s); w = 0 allowed."""
+    if w == 0.0:
+        g = [[G[i][j].static_gain for j in range(2)] for i in range(2)]
+    else:
+        g = [[complex(G[i][j].freqresp(np.array([w]))[0]) for j in range(2)] for i in range(2)]
+    det = g[0][0] * g[1][1] - g[0][1] * g[1][0]
+    if det == 0:
+        return complex(math.inf)
+    return complex(g[0][0] * g[1][1] / det)
+
+
+def _ss(num: Sequence[float], den: Sequence[float]) -> tuple[np.ndarray, ...]:
+    """State space of a proper SISO transfer function (A, B, C, D as 2-D arrays)."""
+    A, B, C, D = tf2ss(np.asarray(num, dtype=float), np.asarray(den, dtype=float))
+    n = A.shape[0]
+    return (A.reshape(n, n), B.reshape(n, 1), C.reshape(1, n), D.reshape(1, 1))
+
+
+def closed_loop_poles(G: Matrix, c1: PID, c2: PID) -> np.ndarray:
+    """Poles of the decentralized 2x2 loop u_i = c_i (r_i - y_i), G strictly proper
+    (a dead time is replaced by its 6th-order Pade approximation)."""
+    blocks = []  # (i, j, A, B, C) of each element y_i += G_ij u_j
+    for i in range(2):
+        for j in range(2):
+            g = G[i][j]
+            num, den = np.array(g.num), np.array(g.den)
+            if g.delay > 0:
+                pn, pd = _pade(g.delay, 6)
+                num, den = np.polymul(num, pn), np.polymul(den, pd)
+            A, B, C, D = _ss(num, den)
+            if abs(D[0, 0]) > 1e-12:
+                raise DesignError("the 2x2 check needs strictly proper elements")
+            blocks.append((i, j, A, B, C))
+    ctrl = [_ss(*c.feedback_tf()) for c in (c1, c2)]
+    ng = sum(b[2].shape[0] for b in blocks)
+    nc = sum(c[0].shape[0] for c in ctrl)
+    Ag, Bg, Cg = np.zeros((ng, ng)), np.zeros((ng, 2)), np.zeros((2, ng))
+    k = 0
+    for i, j, A, B, C in blocks:
+        n = A.shape[0]
+        Ag[k:k + n, k:k + n], Bg[k:k + n, j], Cg[i, k:k + n] = A, B[:, 0], C[0]
+        k += n
+    Ac, Bc, Cc, Dc = np.zeros((nc, nc)), np.zeros((nc, 2)), np.zeros((2, nc)), np.zeros((2, 2))
+    k = 0
+    for i, (A, B, C, D) in enumerate(ctrl):
+        n = A.shape[0]
+        Ac[k:k + n, k:k + n], Bc[k:k + n, i], Cc[i, k:k + n], Dc[i, i] = A, B[:, 0], C[0], D[0, 0]
+        k += n
+    # u = Cc xc - Dc Cg xg (r = 0); xg' = Ag xg + Bg u; xc' = Ac xc - Bc Cg xg
+    top = np.hstack([Ag - Bg @ Dc @ Cg, Bg @ Cc])
+    bottom = np.hstack([-Bc @ Cg, Ac])
+    return np.linalg.eigvals(np.vstack([top, bottom]))
+
+
+def _pade(delay: float, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pade approximation of e^(-delay s): (num, den) descending in s."""
+    k = np.arange(order + 1)
+    fact = [math.factorial(int(x)) for x in range(2 * order + 1)]
+    c = np.array([fact[2 * order - i] * fact[order] / (fact[2 * order] * fact[i] * fact[order - i])
+                  for i in k]) * delay ** k
+    num = (c * (-1.0) ** k)[::-1]
+    return num, c[::-1]
+
+
+@dataclass(frozen=True)
+class LoopDesign:
+    loop: int
+    model: DelayTF
+    how: str
+    controller: PID
+    evaluation: Evaluation
+
+
+@dataclass(frozen=True)
+class MimoCheck:
+    loops: tuple[LoopDesign, LoopDesign]
+    det_G0: float
+    lambda11_0: float
+    lambda11_wc: tuple[complex, complex]
+    stable: bool
+    slowest_pole: float
+    notes: tuple[str, ...] = field(default=())
+
+    def pid_pair(self) -> tuple[PID, PID]:
+        return self.loops[0].controller, self.loops[1].controller
+
+
+def design_loop(g: DelayTF, method: str, *, lam: float | None = None, ms: float = 1.4) -> PID:
+    """One loop: lambda (default lambda: LAMBDA_FRACTION x the first-order T, or
+    its max(L, T)), pi-ms or pid-ms."""
+    if method == "lambda":
+        fo = first_order(g)
+        if lam is None:
+            lam = LAMBDA_FRACTION * max(fo.L, fo.T) if not fo.integrating else 3.0 * max(fo.L, 1.0)
+        return lambda_pi(fo, lam)
+    if method in ("pi-ms", "pid-ms"):
+        return pi_ms(g, ms) if method == "pi-ms" else pid_ms(g, ms)
+    raise DesignError(f"unknown method {method!r}: lambda, pi-ms or pid-ms")
+
+
+def design_2x2(G: Matrix, method: str = "lambda", *, lam: tuple[float | None, float | None] = (None, None),
+               ms: float = 1.4) -> MimoCheck:
+    """Design both diagonal loops and check the 2x2 closed loop (see the module)."""
+    g11, g22 = G[0][0], G[1][1]
+    notes: list[str] = []
+    c1 = design_loop(g11, method, lam=lam[0], ms=ms).rounded()
+    c2 = design_loop(g22, method, lam=lam[1], ms=ms).rounded()
+    det0 = g11.static_gain * g22.static_gain - G[0][1].static_gain * G[1][0].static_gain
+    l0 = float(lambda11(G, 0.0).real)
+    how2 = "g22"
+    model2 = g22
+    if l0 < 0.0:
+        notes.append(
+            f"det G(0) = {det0:.3g} has the opposite sign of g11(0) g22(0) (lambda11(0) = {l0:.3g} < 0): "
+            "no decentralized PI with the signs of the diagonal gains (both positive) stabilizes "
+            "this setting")
+        model2 = loop2_with_loop1_closed(G, c1)
+        how2 = "g22 with loop 1 closed"
+        # its right-half-plane zero bounds the gain: an Ms-constrained PI fits it (a
+        # first-order fit for lambda tuning would hide the inverse response)
+        c2 = pi_ms(model2, ms).rounded()
+        notes.append(f"loop 2 designed on {how2} (PI, Ms {ms:g}): gain {model2.static_gain:.3g} "
+                     f"at s = 0, so K2 = {c2.Kc:.3g} < 0")
+    poles = closed_loop_poles(G, c1, c2)
+    slowest = float(np.max(poles.real))
+    stable = slowest < 0.0
+    if not stable:
+        notes.append(f"the 2x2 closed loop is unstable (a pole at {slowest:.3g} 1/s)")
+    ev1 = evaluate(c1, g11)
+    ev2 = evaluate(c2, model2)
+    wc = (lambda11(G, ev1.crossover), lambda11(G, ev2.crossover))
+    loops = (LoopDesign(1, g11, "g11", c1, ev1), LoopDesign(2, model2, how2, c2, ev2))
+    return MimoCheck(loops, det0, l0, wc, stable, slowest, tuple(notes))
+
+
+def format_check(check: MimoCheck) -> str:
+    """The MIMO check as text (CLI and screen)."""
+    lines = [f"det G(0) = {check.det_G0:.4g}   lambda11(0) = {check.lambda11_0:.3f}"]
+    for d, lw in zip(check.loops, check.lambda11_wc):
+        e = d.evaluation
+        lines.append(
+            f"loop {d.loop} on {d.how}: {d.controller.describe()}   Ms {e.Ms:.2f}  "
+            f"phi_m {e.phase_margin_deg:.0f} deg  wc {e.crossover:.3g} rad/s  "
+            f"|lambda11(i wc)| {abs(lw):.2f}")
+    lines.append(("closed loop stable" if check.stable else "closed loop UNSTABLE")
+                 + f" (slowest pole {check.slowest_pole:.3g} 1/s)")
+    lines.extend(check.notes)
+    return "\n".join(lines)

@@ -1,0 +1,100 @@
+"""A comparison table of candidate controllers in the style of Andersson's 4.4:
+three lambdas, PI_opt and this program's PID at three Ms values, each evaluated
+on one model (the "simulation model", by default the design model).
+
+A candidate that cannot be designed on the model (e.g. lambda on a model with a
+right-half-plane pole) is kept as a row with its reason, so the table always says
+why a cell is empty.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+from quadtank_tui.core.delaytf import DelayTF
+from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.evaluate import Evaluation, evaluate
+from quadtank_tui.core.design.lambda_tuning import FirstOrder, first_order, lambda_for_tau, lambda_pi
+from quadtank_tui.core.design.optimize import pi_ms, pid_ms
+
+TAUS = (1.0, 2.0, 3.0)
+MS_VALUES = (1.6, 1.4, 1.2)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    method: str  # "lambda", "pi-ms", "pid-ms"
+    parameter: float  # lambda (s) or Ms
+    controller: PID | None
+    evaluation: Evaluation | None
+    error: str | None = None
+
+    @property
+    def label(self) -> str:
+        name = {"lambda": "Lambda", "pi-ms": "PI Ms", "pid-ms": "PID Ms"}[self.method]
+        return f"{name} {self.parameter:.3g}" if self.method != "lambda" else f"{name} \u03bb={self.parameter:.3g}"
+
+
+def default_lambdas(fo: FirstOrder) -> tuple[float, ...]:
+    """Andersson's tau = 1, 2, 3 (lambda = tau max(L, T)); without a dead time T/4,
+    T/2, T; an integrating model: 2, 4, 8 times its delay (his process 4 used 3, 5
+    and 9 L, process 2 2.3-6.8 L)."""
+    if fo.integrating:
+        base = fo.L if fo.L > 0 else 1.0
+        return (2.0 * base, 4.0 * base, 8.0 * base)
+    if fo.L == 0.0:  # no dead time (a physical linearization): faster than open loop
+        return (fo.T / 4.0, fo.T / 2.0, fo.T)
+    return tuple(lambda_for_tau(fo, t) for t in TAUS)
+
+
+def candidates(g: DelayTF, *, evaluate_on: DelayTF | None = None,
+               lambdas: Sequence[float] | None = None,
+               ms_values: Sequence[float] = MS_VALUES) -> list[Candidate]:
+    """Design and evaluate every candidate (9 with the defaults)."""
+    target = evaluate_on or g
+    rows: list[Candidate] = []
+
+    def add(method: str, par: float, make) -> None:  # type: ignore[no-untyped-def]
+        try:
+            c = make()
+            rows.append(Candidate(method, par, c, evaluate(c, target, setpoint=False)))
+        except DesignError as exc:
+            rows.append(Candidate(method, par, None, None, str(exc)))
+
+    try:
+        fo = first_order(g)
+        lams = tuple(lambdas) if lambdas is not None else default_lambdas(fo)
+        for lam in lams:
+            add("lambda", lam, lambda lam=lam: lambda_pi(fo, lam))
+    except DesignError as exc:
+        rows.append(Candidate("lambda", 0.0, None, None, str(exc)))
+    for ms in ms_values:
+        add("pi-ms", ms, lambda ms=ms: pi_ms(g, ms))
+    for ms in ms_values:
+        add("pid-ms", ms, lambda ms=ms: pid_ms(g, ms))
+    return rows
+
+
+def format_table(rows: Sequence[Candidate]) -> str:
+    """Plain-text table (CLI, benchmark, closing notes)."""
+    widths = (16, 9, 9, 7, 9, 7, 6, 6, 7, 7, 6)
+    names = ("candidate", "Kc", "Ti", "Td", "IAE", "Emax", "u_os", "phi_m", "Lm", "Am", "Ms")
+
+    def line(cells: Sequence[str]) -> str:
+        return cells[0].ljust(widths[0]) + " ".join(c.rjust(w) for c, w in zip(cells[1:], widths[1:]))
+
+    out = [line(names)]
+    for r in rows:
+        if r.controller is None or r.evaluation is None:
+            out.append(f"{r.label:<16}  {r.error}")
+            continue
+        c, e = r.controller, r.evaluation
+        head = [r.label, f"{c.Kc:.4g}", f"{c.Ti:.4g}", f"{c.Td:.3g}"]
+        if not e.stable:
+            out.append(line(head) + "  unstable on this model")
+            continue
+        out.append(line(head + [f"{e.IAE:.4g}", f"{e.Emax:.3g}", f"{e.u_overshoot:.2f}",
+                                f"{e.phase_margin_deg:.0f}", f"{e.delay_margin:.3g}",
+                                f"{e.gain_margin:.3g}", f"{e.Ms:.2f}"]))
+    return "\n".join(out)

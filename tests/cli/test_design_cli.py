@@ -1,0 +1,83 @@
+"""`quadtank design`: one model to Kc, Ti, Td and Andersson's figures; the 2x2 check."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from quadtank_tui.cli import main
+from quadtank_tui.files.par import read_par
+
+PARAMS = Path(__file__).resolve().parents[2] / "params"
+P1 = "1.6592*exp(-2.4*s)/(1.07*s+1)^3"
+
+
+def test_pi_ms_json_is_andersson_s_row(capsys: pytest.CaptureFixture[str]) -> None:
+    """003_... line 475: PI_opt Ms=1.4 on process 1, Kc=0.1464, Ti=2.394, IAE 98.52."""
+    assert main(["design", "--model", P1, "--method", "pi-ms", "--ms", "1.4", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["Kc"] == pytest.approx(0.1464, rel=0.01) and out["Ti"] == pytest.approx(2.394, rel=0.01)
+    assert out["Td"] == 0.0
+    ev = out["evaluation"]
+    assert set(ev) >= {"Ms", "phase_margin_deg", "gain_margin", "delay_margin", "crossover",
+                       "IAE", "Emax", "u_overshoot"}
+    assert ev["Ms"] == pytest.approx(1.40, abs=0.01) and ev["IAE"] == pytest.approx(98.52, rel=0.02)
+
+
+def test_lambda_evaluated_on_another_model(capsys: pytest.CaptureFixture[str]) -> None:
+    """Line 471: lambda 4 on the first-order model, evaluated on the simulation model."""
+    assert main(["design", "--model", "1.6637*exp(-3.60*s)/(2.13*s+1)", "--method", "lambda",
+                 "--lambda", "4", "--evaluate-on", P1]) == 0
+    out = capsys.readouterr().out
+    assert "Kc = 0.1685   Ti = 2.13 s" in out
+    assert "Ms 1.569" in out and "IAE 77.9" in out
+
+
+def test_pid_ms_table(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["design", "--model=-0.00651*exp(-2*s)/s", "--method", "pid-ms", "--ms", "1.4"]) == 0
+    out = capsys.readouterr().out
+    assert "Kc = -32.6" in out and "Td s/(1 + s Td/10) on y" in out and "Ms 1.40" in out
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--model", "1/(s+1"], "column 7: expected ')'"),
+    (["--model", "1/(s-1)", "--method", "lambda"], "pole in the right half-plane"),
+    (["--model", P1, "--ms", "0.9"], "Ms must be a number > 1"),
+    (["--model", P1, "--write-par", "x.par"], "--write-par needs --par"),
+    (["--par", str(PARAMS / "minphase.par"), "--method", "pi-ms"], "Ms alone does not bound"),
+])
+def test_bad_input_is_one_message(argv: list[str], words: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["design", *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("quadtank: error: ") and words in err and "Traceback" not in err
+
+
+def test_caret_under_the_column(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["design", "--model", "2*s/(s+1)+exp(-s)"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[1] == "  2*s/(s+1)+exp(-s)" and err[2] == "  " + " " * 9 + "^"
+
+
+def test_p_minus_2x2_with_step(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["design", "--par", str(PARAMS / "minphase.par")]) == 0
+    out = capsys.readouterr().out
+    assert "closed loop stable" in out
+    assert "nonlinear simulator, step 0.1 on r1: overshoot 0.0 %" in out
+    assert "nonlinear simulator, step 0.1 on r2: overshoot" in out and "peak in y1" in out
+
+
+def test_p_plus_2x2_writes_a_par_with_k2_negative(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out_par = tmp_path / "designed.par"
+    assert main(["design", "--par", str(PARAMS / "nonminphase.par"), "--no-step", "--json",
+                 "--write-par", str(out_par)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["det_G0"] < 0 and out["stable"]
+    assert "no decentralized PI" in out["notes"][0]
+    k1, k2 = (loop["Kc"] for loop in out["loops"])
+    assert k1 > 0 > k2
+    params = read_par(out_par).params
+    assert params.get("CONTROLLER ONE.K") == k1 and params.get("CONTROLLER FOUR.K") == k2
+    assert params.get("CONTROLLER FOUR.Ti") == out["loops"][1]["Ti"]
+    assert params.get("CONTROL.Structure").value == "Decentralized"

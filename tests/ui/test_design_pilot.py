@@ -1,0 +1,94 @@
+"""The Design screen driven by keys: design, choose, apply, and see the new K and
+Ti in Main's controller box (what reached the engine is one SetParams)."""
+
+from __future__ import annotations
+
+import pytest
+from textual.widgets import DataTable, Input, Static
+
+from quadtank_tui.engine.commands import SetParams
+from quadtank_tui.ui.screens.design import DesignScreen
+from quadtank_tui.ui.screens.main import MainScreen
+from quadtank_tui.ui.widgets.controller_box import ControllerBox
+
+from conftest import make_app  # noqa: E402
+
+
+@pytest.fixture
+def app(engine):  # type: ignore[no-untyped-def]
+    return make_app(engine)
+
+
+async def _open(pilot) -> DesignScreen:  # type: ignore[no-untyped-def]
+    await pilot.pause()
+    await pilot.press("d")
+    await pilot.pause()
+    screen = pilot.app.screen
+    assert isinstance(screen, DesignScreen)
+    await pilot.app.workers.wait_for_complete()
+    await pilot.pause()
+    return screen
+
+
+async def _type_model(pilot, screen: DesignScreen, loop: int, text: str) -> None:  # type: ignore[no-untyped-def]
+    """Clear loop `loop`'s model box, type `text` and Enter, as a user does."""
+    box = screen.query_one(f"#model-{loop}", Input)
+    box.value = ""
+    box.focus()
+    await pilot.press(*text, "enter")
+    await pilot.app.workers.wait_for_complete()
+    await pilot.pause()
+
+
+def _box_text(app) -> str:  # type: ignore[no-untyped-def]
+    return " ".join(str(c.render()) for c in app.screen.query_one(ControllerBox).query(Static))
+
+
+async def test_design_2x2_apply_shows_in_the_controller_box(app, engine) -> None:  # type: ignore[no-untyped-def]
+    async with app.run_test(size=(120, 40)) as pilot:
+        screen = await _open(pilot)
+        # P- (the preset): the physical g11 fills loop 1, its table has nine rows
+        assert screen.query_one("#model-1", Input).value == "(2.61003)/(62.7034*s + 1)"
+        assert screen.query_one("#design-table", DataTable).row_count == 9
+        await pilot.press("2")
+        await app.workers.wait_for_complete()
+        await pilot.pause()
+        mimo = str(screen.query_one("#design-mimo", Static).render())
+        assert "closed loop stable" in mimo
+        assert engine.sent(SetParams) == []  # nothing applied before A
+        await pilot.press("A")
+        await pilot.pause()
+        sent = engine.sent(SetParams)
+        assert len(sent) == 1 and sent[0].values["CONTROLLER ONE.K"] == 1.916
+        p = engine.snapshot().params
+        assert p.get("CONTROLLER ONE.K") == 1.916 and p.get("CONTROLLER ONE.Ti") == 62.7
+        assert p.get("CONTROLLER FOUR.K") == 1.762 and p.get("CONTROLLER FOUR.Ti") == 90.34
+        await pilot.press("escape")
+        await pilot.pause()
+        assert isinstance(app.screen, MainScreen)
+        text = _box_text(app)
+        assert "K 1.916 Ti 62.7" in text and "K 1.762 Ti 90.34" in text
+
+
+async def test_typed_model_and_chosen_row(app, engine) -> None:  # type: ignore[no-untyped-def]
+    async with app.run_test(size=(120, 40)) as pilot:
+        screen = await _open(pilot)
+        await _type_model(pilot, screen, 1, "1.6592*exp(-2.4*s)/(1.07*s+1)^3")
+        table = screen.query_one("#design-table", DataTable)
+        assert table.row_count == 9
+        assert table.get_row_at(4)[:3] == ["PI Ms 1.4", "0.1468", "2.401"]  # Andersson: 0.1464, 2.394
+        table.focus()
+        await pilot.press("down", "down", "down", "down", "enter")
+        await pilot.pause()
+        assert "loop 1: Kc=0.1468, Ti=2.401  (PI Ms 1.4)" in str(screen.query_one("#design-chosen", Static).render())
+        await pilot.press("A")
+        await pilot.pause()
+        p = engine.snapshot().params
+        assert p.get("CONTROLLER ONE.K") == 0.1468 and p.get("CONTROLLER FOUR.K") == 2.7  # loop 2 kept
+
+
+async def test_a_bad_model_is_pointed_at(app) -> None:  # type: ignore[no-untyped-def]
+    async with app.run_test(size=(120, 40)) as pilot:
+        screen = await _open(pilot)
+        await _type_model(pilot, screen, 2, "1/(s+1")
+        assert any("column 7" in n.message for n in app._notifications)
