@@ -38,6 +38,7 @@ Example (Desautel's CTP, 3.4)
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -213,17 +214,24 @@ def design(
     *,
     settling_time: float | None = None,
     poles: Sequence[complex] = (),
+    use_zeros: bool = False,
 ) -> Design:
     """Place the closed-loop poles of the design model at sampling time T (s).
 
-    `poles` are s-plane poles (rad/s) the user fixes; the rest, up to n + p, are
-    Bessel poles scaled to `settling_time`.  Giving all n + p poles needs no settling
-    time.  DesignError says what is wrong (order, conjugates, controllability).
+    `poles` are s-plane poles (rad/s) the user fixes; with `use_zeros` the plant's
+    slow zeros come first (:func:`slow_zeros`, Desautel 4.1.2); the rest, up to n + p,
+    are Bessel poles scaled to `settling_time`.  Giving all n + p poles needs no
+    settling time.  DesignError says what is wrong (order, conjugates, controllability).
     """
     if not T > 0 or not math.isfinite(T):
         raise DesignError(f"the sampling time must be > 0 s, got {T!r}")
     order = model.n + model.p
-    fixed = np.array([complex(s) for s in poles], dtype=complex)
+    chosen = [complex(s) for s in poles]
+    if use_zeros:
+        if settling_time is None:
+            raise DesignError("choosing the slow zeros needs a settling time")
+        chosen = list(slow_zeros(model, settling_time)) + chosen
+    fixed = np.array(chosen, dtype=complex)
     if fixed.size > order:
         raise DesignError(f"{fixed.size} poles given, the design model has order {order}")
     if np.any(fixed.real >= 0):
@@ -245,9 +253,40 @@ def design(
                   robustness(Phi, Gamma, model.C, L[:, : model.n], L[:, model.n:]))
 
 
+def transmission_zeros(model: OperatingModel) -> np.ndarray:
+    """Finite zeros of (A, B, C, 0) from tracked outputs to inputs (p = m), rad/s."""
+    n, m, p = model.n, model.m, model.p
+    if p != m:
+        return np.array([], dtype=complex)
+    M = np.block([[model.A, model.B], [model.C, np.zeros((p, m))]])
+    N = np.block([[np.eye(n), np.zeros((n, m))], [np.zeros((p, n + m))]])
+    z = linalg.eigvals(M, N)
+    return z[np.isfinite(z)]
+
+
+def slow_zeros(model: OperatingModel, settling_time: float) -> tuple[complex, ...]:
+    """Plant zeros to use as closed-loop poles (Vaccaro's rule, Desautel 4.1.2): the
+    stable ones slower than 4 s1 / Ts (s1 = Table 8's first-order pole), and, our
+    extension for a nonminimum-phase setting, the mirror image -conj(z) of a
+    right-half-plane zero (placing a pole there would need huge gains)."""
+    limit = 4 * BESSEL_POLES[1][0].real / settling_time
+    out = []
+    for z in transmission_zeros(model):
+        z = complex(z.real, 0.0) if abs(z.imag) < 1e-12 else complex(z)
+        if z.real > 0:
+            z = -z.conjugate()
+        if limit < z.real < 0:
+            out.append(z)
+    return tuple(sorted(out, key=lambda z: (z.real, z.imag)))
+
+
 def _place(Phi_d: np.ndarray, Gamma_d: np.ndarray, poles_z: np.ndarray) -> np.ndarray:
     try:
-        result = signal.place_poles(Phi_d, Gamma_d, poles_z, method=PLACEMENT_METHOD)
+        with warnings.catch_warnings():
+            # YT's "convergence not reached" concerns its robustness criterion, not the
+            # poles, which design() checks itself.
+            warnings.simplefilter("ignore", UserWarning)
+            result = signal.place_poles(Phi_d, Gamma_d, poles_z, method=PLACEMENT_METHOD)
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise DesignError(f"pole placement failed: {exc}") from None
     return np.real_if_close(result.gain_matrix).real
@@ -258,9 +297,11 @@ def _freq_grid(points: int = 4000) -> np.ndarray:
     return np.concatenate([np.logspace(-6, math.log10(math.pi), points - 1), [math.pi]])
 
 
-def _response(A: np.ndarray, B: np.ndarray, Cm: np.ndarray, theta: float) -> np.ndarray:
-    z = complex(math.cos(theta), math.sin(theta))
-    return Cm @ np.linalg.solve(z * np.eye(A.shape[0]) - A, B)
+def _response(A: np.ndarray, B: np.ndarray, Cm: np.ndarray, theta: np.ndarray | float) -> np.ndarray:
+    """Cm (zI - A)^-1 B at z = e^(i theta), stacked along theta's shape."""
+    z = np.exp(1j * np.asarray(theta, dtype=float))
+    M = z[..., None, None] * np.eye(A.shape[0]) - A
+    return Cm @ np.linalg.solve(M, np.broadcast_to(B, (*z.shape, *B.shape)))
 
 
 def loop_to_perturbation(Phi: np.ndarray, Gamma: np.ndarray, C: np.ndarray,
@@ -283,7 +324,7 @@ def robustness(Phi: np.ndarray, Gamma: np.ndarray, C: np.ndarray,
         return float(np.linalg.svd(_response(A, B, Cm, theta), compute_uv=False)[0])
 
     grid = _freq_grid()
-    g = np.array([gain(t) for t in grid])
+    g = np.linalg.svd(_response(A, B, Cm, grid), compute_uv=False)[:, 0]
     k = int(np.argmax(g))
     lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
     best = g[k]
@@ -318,7 +359,7 @@ def loop_margins(d: Design) -> Margins:
     def loop(theta: float) -> complex:
         return complex(_response(d.Phi_d, d.Gamma_d, d.L, theta)[0, 0])
 
-    values = np.array([loop(t) for t in grid])
+    values = _response(d.Phi_d, d.Gamma_d, d.L, grid)[:, 0, 0]
     mag = np.abs(values)
     phase = np.unwrap(np.angle(values))
     crossings = np.nonzero((mag[:-1] - 1.0) * (mag[1:] - 1.0) <= 0)[0]
