@@ -28,8 +28,6 @@ import math
 from dataclasses import dataclass
 from typing import Sequence
 
-import numpy as np
-
 
 class CalibrationError(ValueError):
     """The pairs cannot determine a gain and an offset (too few, or all one voltage)."""
@@ -100,7 +98,12 @@ class OutletFit:
 
 
 def _flow_fit(rows: list[list[float]], rhs: list[float], names: str) -> OutletFit:
-    """Least squares M c = q, refusing what cannot determine every coefficient."""
+    """Least squares M c = q, refusing what cannot determine every coefficient.
+
+    numpy loads here: the DAQ configuration imports this module when the `quadtank`
+    parser is built, and that must stay light (tests/cli/test_cli_startup.py)."""
+    import numpy as np
+
     M, q = np.array(rows, dtype=float), np.array(rhs, dtype=float)
     if not (np.all(np.isfinite(M)) and np.all(np.isfinite(q))):
         raise CalibrationError("every voltage and level must be a finite number")
