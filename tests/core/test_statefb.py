@@ -248,3 +248,17 @@ def test_smart_integrator_overshoots_less_than_plain_with_the_pump_limit_active(
     smart, plain = overshoot["Smart"], overshoot["Plain"]
     assert max(smart) < 0.3 and plain[0] > 0.5 and plain[1] > 1.5, msg
     assert smart[0] < plain[0] and smart[1] < plain[1], msg
+
+
+def test_quadtank_level_limits_hold_each_upper_tank_below_its_trigger() -> None:
+    """Tank 3 is filled by pump 2 alone, tank 4 by pump 1: U_ssmax of each holds its
+    tank at top - 1.5 margin, below the trigger at top - margin (3.2.2)."""
+    from quadtank_tui.core.plant import P_MINUS, steady_state_levels
+    from quadtank_tui.core.statefb.quadtank import level_limits
+
+    p = P_MINUS.params
+    limits = {lim.state: lim for lim in level_limits(p, 2.0)}
+    assert sorted(limits) == [2, 3] and limits[2].pump == 1 and limits[3].pump == 0
+    assert limits[2].trigger == limits[3].trigger == pytest.approx(p.hmax - 2.0)
+    h = steady_state_levels((limits[3].u_hold, limits[2].u_hold), p)
+    assert (h[2], h[3]) == pytest.approx((p.hmax - 3.0, p.hmax - 3.0), abs=1e-9)

@@ -13,6 +13,9 @@ then the smart integrator (Desautel's Figure 12, generalized to several inputs):
    x_a <- x_a - L3 (u_wanted - u_applied) (3.3);
 3. otherwise the plain digital integrator, x_a <- x_a + e.
 
+Desautel's Figure 12 enters the pump case at 0.95 U_max and then applies U_max; here
+the case starts at the limit itself, so u is never pushed up to U_max by the rule.
+
 `AntiWindup.PLAIN` keeps step 3 always (the pumps still clip): the integrator then winds
 up while a limit holds the process, the comparison of his Figures 7-10.
 
