@@ -67,16 +67,18 @@ class DesignError(ValueError):
 
 
 def _matrix(name: str, value: object, rows: int | None = None, cols: int | None = None) -> np.ndarray:
-    a = np.atleast_2d(np.asarray(value, dtype=float))
+    a = np.atleast_2d(np.array(value, dtype=float))  # a copy: it is made read-only
     if a.ndim != 2 or not np.all(np.isfinite(a)):
         raise DesignError(f"{name} must be a finite matrix")
-    if (rows is not None and a.shape[0] != rows) or (cols is not None and a.shape[1] != cols):
-        raise DesignError(f"{name} must be {rows}x{cols}, got {a.shape[0]}x{a.shape[1]}")
+    if rows is not None and a.shape[0] != rows:
+        raise DesignError(f"{name} must have {rows} rows, got {a.shape[0]}")
+    if cols is not None and a.shape[1] != cols:
+        raise DesignError(f"{name} must have {cols} columns, got {a.shape[1]}")
     return a
 
 
 def _vector(name: str, value: object, size: int) -> np.ndarray:
-    v = np.asarray(value, dtype=float).reshape(-1)
+    v = np.array(value, dtype=float).reshape(-1)
     if v.size != size or not np.all(np.isfinite(v)):
         raise DesignError(f"{name} must be {size} finite numbers")
     return v
@@ -109,7 +111,7 @@ class OperatingModel:
         if p > m:
             raise DesignError(f"{p} tracked outputs need at least {p} inputs, the model has {m}")
         u_min = np.zeros(m) if self.u_min is None else _vector("u_min", self.u_min, m)
-        u_max = np.full(m, np.inf) if self.u_max is None else np.asarray(self.u_max, dtype=float).reshape(-1)
+        u_max = np.full(m, np.inf) if self.u_max is None else np.array(self.u_max, dtype=float).reshape(-1)
         if u_max.size != m or np.any(np.isnan(u_max)) or np.any(u_max <= u_min):
             raise DesignError("u_max must be above u_min for every input")
         for name, value in (("A", A), ("B", B), ("C", C), ("x_e", _vector("x_e", self.x_e, n)),
