@@ -14,12 +14,14 @@ the columns (any of u1 u2 volts1..volts4 level1..level4)::
     2.0 2.0  2.725  2.841  0.363  0.313    5.45   5.68   0.73   0.63
 
 I/O (the backend, sleeping, asking) is injected, so the procedure runs as well on a
-virtual rig in a test as on the lab's.
+virtual rig in a test as on the lab's.  :func:`with_calibration` puts the fitted
+sensors into a DAQ configuration's text, line by line, so its comments survive.
 """
 
 from __future__ import annotations
 
 import math
+import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -199,3 +201,29 @@ def format_result(r: Result, plant: PlantParams | None = None) -> str:
             known = f"   (.par: {plant.outlet(i - 1):.4f})" if plant is not None else ""
             lines.append(f"  a{i} {a:.4f} cm^2{known}")
     return "\n".join(lines)
+
+
+_TANK_LINE = r"^([ \t]*)tank{i}:[ \t]*\{{[^}}\n]*\}}[ \t]*(#[^\n]*)?$"
+
+
+def with_calibration(text: str, sensors: dict[int, SensorCalibration]) -> str:
+    """The DAQ configuration `text` with each fitted tank's `tankN: {gain, offset}`
+    line replaced (comments kept), or added under `calibration:` (the section added
+    at the end when there is none)."""
+    for i, cal in sorted(sensors.items(), reverse=True):  # each added line goes first
+        value = f"{{gain: {cal.gain:.6g}, offset: {cal.offset:.6g}}}"
+        pattern = re.compile(_TANK_LINE.format(i=i), re.MULTILINE)
+        if pattern.search(text):
+            text = pattern.sub(lambda m: f"{m.group(1)}tank{i}: {value}" + (f"  {m.group(2)}" if m.group(2) else ""),
+                               text, count=1)
+            continue
+        if re.search(rf"^[ \t]*tank{i}:", text, re.MULTILINE):
+            raise CalibrationError(f"tank{i} is not written on one line as {{gain: ..., offset: ...}}: "
+                                   "paste the printed lines yourself")
+        section = re.search(r"^calibration:[ \t]*(#[^\n]*)?$", text, re.MULTILINE)
+        if section is None:
+            text = text.rstrip("\n") + "\n\ncalibration:\n"
+            section = re.search(r"^calibration:[ \t]*$", text, re.MULTILINE)
+        assert section is not None
+        text = text[: section.end()] + f"\n  tank{i}: {value}" + text[section.end():]
+    return text

@@ -120,7 +120,8 @@ def add_daq_parser(sub: argparse._SubParsersAction) -> None:
         description="Hold the pumps at each voltage until the four sensors settle, ask for the "
         "heights read on the tanks' scales, and fit each sensor's gain and offset by least "
         "squares (Desautel 2.3); with --par also the outlet areas. Or fit pairs from a file "
-        "(--pairs). Prints the configuration lines and the pairs; changes no file.")
+        "(--pairs). Prints the configuration lines and the pairs; --write puts them into a "
+        "DAQ configuration file.")
     cal.add_argument("config", metavar="CONFIG", nargs="?",
                      help="the DAQ configuration of the rig (not needed with --pairs)")
     cal.add_argument("--volts", metavar="V", type=float, nargs="+", default=[2.0, 2.5, 3.0, 3.5],
@@ -133,6 +134,10 @@ def add_daq_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument("--tol", metavar="V", type=float, default=0.004, help="settling band, volts (default 0.004)")
     cal.add_argument("--timeout", metavar="S", type=float, default=3600.0,
                      help="give up after S seconds at one voltage (default 3600)")
+    cal.add_argument("--write", metavar="CONFIG_FILE",
+                     help="put the fitted gains and offsets into this DAQ configuration file "
+                     "(asks first; comments are kept)")
+    cal.add_argument("--yes", action="store_true", help="with --write: do not ask")
     cal.set_defaults(handler=cmd_daq_calibrate)
 
 
@@ -213,8 +218,36 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
             backend.close()
         print("# the settled states (save them to refit with --pairs FILE)")
         print(pairs.format(), end="")
-    print(format_result(fit_pairs(pairs, plant), plant))
+    result = fit_pairs(pairs, plant)
+    print(format_result(result, plant))
+    if args.write is not None:
+        _write_calibration(args.write, result.sensors, ask=not args.yes)
     return 0
+
+
+def _write_calibration(path: str, sensors: dict, *, ask: bool) -> None:
+    """Into the DAQ file, checked by the configuration reader first (a file it would
+    refuse is not written), atomically."""
+    from pathlib import Path
+
+    from quadtank_tui.daq.calibrate import with_calibration
+    from quadtank_tui.daq.config import parse_daq_config
+    from quadtank_tui.files.atomic import atomic_write_text
+
+    try:
+        old = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    new = with_calibration(old, sensors)
+    parse_daq_config(new, name=path)
+    if ask:
+        print(f"write the calibration of tank {', '.join(map(str, sensors))} into {path}? [y/N] ",
+              end="", file=sys.stderr, flush=True)
+        if sys.stdin.readline().strip().lower() not in ("y", "yes"):
+            print(f"{path} left as it was", file=sys.stderr)
+            return
+    atomic_write_text(path, new, encoding="utf-8")
+    print(f"calibration written into {path}", file=sys.stderr)
 
 
 def _ask_heights(volts: tuple[float, float], settled: tuple[float, ...]) -> list[float]:

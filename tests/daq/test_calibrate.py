@@ -89,3 +89,38 @@ def test_on_the_virtual_rig_it_recovers_the_sensor_gain_and_offset(
         assert float(f[3]) == pytest.approx(1 / 0.45, rel=2e-3), out
         assert float(f[6]) == pytest.approx(-0.1 / 0.45, abs=0.02), out
     assert "u1 u2 volts1 volts2 volts3 volts4 level1 level2 level3 level4" in out
+
+
+def test_write_puts_the_fit_into_the_daq_file_keeping_its_comments(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    from quadtank_tui.daq.config import load_daq_config
+
+    pairs = tmp_path / "table1.txt"
+    pairs.write_text(TABLE_1)
+    config = tmp_path / "rig.yaml"
+    original = (ROOT / "params" / "virtual-rig.yaml").read_text()
+    config.write_text(original)
+    monkeypatch.setattr("sys.stdin", io.StringIO("n\n"))
+    assert main(["daq", "calibrate", "--pairs", str(pairs), "--write", str(config)]) == 0
+    assert config.read_text() == original and "left as it was" in capsys.readouterr().err
+    monkeypatch.setattr("sys.stdin", io.StringIO("y\n"))
+    assert main(["daq", "calibrate", "--pairs", str(pairs), "--write", str(config)]) == 0
+    text = config.read_text()
+    assert "  tank1: {gain: 5.43096, offset: 0.238976}\n  tank2: {gain: 5.55574, offset: 1.54193}\n" in text
+    assert text.replace("tank1: {gain: 5.43096, offset: 0.238976}", "tank1: {gain: 2.0, offset: 0.0}").replace(
+        "tank2: {gain: 5.55574, offset: 1.54193}", "tank2: {gain: 2.0, offset: 0.0}") == original
+    sensors = load_daq_config(config).sensors
+    assert (sensors[0].gain, sensors[1].offset, sensors[2].gain) == (5.43096, 1.54193, 2.0)
+
+
+def test_a_daq_file_without_a_calibration_section_gets_one() -> None:
+    from quadtank_tui.core.calibration import SensorCalibration
+    from quadtank_tui.daq.calibrate import with_calibration
+    from quadtank_tui.daq.config import parse_daq_config
+
+    text = with_calibration("preset: labjack\nhost: 10.0.0.2  # the lab's\n",
+                            {1: SensorCalibration(2.1, -0.3), 3: SensorCalibration(1.9, 0.25)})
+    assert text == ("preset: labjack\nhost: 10.0.0.2  # the lab's\n\ncalibration:\n"
+                    "  tank1: {gain: 2.1, offset: -0.3}\n  tank3: {gain: 1.9, offset: 0.25}\n")
+    c = parse_daq_config(text)
+    assert (c.sensors[0].gain, c.sensors[0].offset, c.sensors[2].offset) == (2.1, -0.3, 0.25)
