@@ -13,11 +13,11 @@ One sample (Run)::
     w  = generator values                    (w1, w2)
     Automatic: r = w,  u = sat(C(r, y)),  C.update(r, y, u)
     Manual:    u = sat(w), r = y,         C.track(r, y, u)    (bumpless later)
+    write u; log a row; history; snapshot; let h seconds of process time pass
 
 C is the PID/General matrix on y1, y2, or the state feedback (core.statefb) on all
 four levels; while the state feedback runs, the matrix tracks u so that switching
 back to its family is bumpless too.
-    write u; log a row; history; snapshot; let h seconds of process time pass
 
 Pause: a simulation freezes (no time passes, nothing is logged); a real process gets
 its pumps at 0.  Any exception in a sample puts the pumps at 0, pauses and shows why.
