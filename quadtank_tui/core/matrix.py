@@ -42,10 +42,14 @@ U_MIN, U_MAX = 0.0, 1.0
 
 
 class Family(str, Enum):
-    """Controller family, spelled as the `.par` file's CONTROL `Type`."""
+    """Controller family, spelled as the `.par` file's CONTROL `Type`.
+
+    State feedback is a controller type but not a matrix of SISO elements: the loop
+    runs it from core.statefb, and the matrix keeps its own family meanwhile."""
 
     PID = "PID"
     GENERAL = "General"
+    STATE_FEEDBACK = "State feedback"
 
 
 class Structure(str, Enum):
@@ -58,6 +62,13 @@ class Structure(str, Enum):
 def saturate(u: Sequence[float]) -> Pair:
     """Clip both pump inputs to [U_MIN, U_MAX] (normalized)."""
     return (min(U_MAX, max(U_MIN, float(u[0]))), min(U_MAX, max(U_MIN, float(u[1]))))
+
+
+def _matrix_family(family: Family | str) -> Family:
+    family = Family(family)
+    if family is Family.STATE_FEEDBACK:
+        raise ParameterError("Type", "state feedback is not a matrix family (core.statefb runs it)")
+    return family
 
 
 def _row_sums(v: Mapping[Element, float]) -> Pair:
@@ -92,7 +103,7 @@ class ControllerMatrix:
         general: Mapping[Element, GeneralParams] | None = None,
     ) -> None:
         h = check_sampling_time(h)
-        self._family = Family(family)
+        self._family = _matrix_family(family)
         self._structure = Structure(structure)
         pid = pid or {}
         general = general or {}
@@ -187,7 +198,7 @@ class ControllerMatrix:
         within a family the states are kept, and off-diagonal elements switched in by
         going to full matrix start from rest (they had no part in the decentralized
         controller)."""
-        family, structure = Family(family), Structure(structure)
+        family, structure = _matrix_family(family), Structure(structure)
         if family is not self._family:
             self._family = family
             self._structure = structure

@@ -52,6 +52,7 @@ from quadtank_tui.core.plant import (
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.core.plants.spec import PlantSpec
 from quadtank_tui.core.signals import Wave, WaveParams
+from quadtank_tui.core.statefb.settings import StateFeedbackParams
 from quadtank_tui.core.validation import ParameterError, check_number, check_range
 
 
@@ -277,6 +278,8 @@ class Parameters:
         unit so a saved value reloads exactly; :attr:`tsamp` gives seconds)
     references : generators 1 and 2 (u1/u2 in Manual, ref1/ref2 in Automatic)
     controllers : elements 11, 12, 21, 22 (CONTROLLER ONE..FOUR)
+    statefb : the state-feedback controller's settings (STATE FEEDBACK; files
+        without the section get the defaults)
     extra : unknown `(section, key, value)` entries read from a file, kept so that
         saving writes them back; they have no effect
     process : the plant when it is not the quadruple tank of the SIMULATION section
@@ -290,6 +293,7 @@ class Parameters:
     simulation: SimulationSettings
     logging: LoggingSettings = LoggingSettings()
     plots: PlotSettings = PlotSettings()
+    statefb: StateFeedbackParams = StateFeedbackParams()
     extra: tuple[tuple[str, str, str], ...] = ()
     process: PlantSpec | None = None
 
@@ -370,6 +374,7 @@ class Parameters:
 TSAMP = "SAMPLING TIME.TSamp"
 REFERENCE_SECTIONS = ("REFERENCE ONE", "REFERENCE TWO")
 CONTROLLER_SECTIONS = ("CONTROLLER ONE", "CONTROLLER TWO", "CONTROLLER THREE", "CONTROLLER FOUR")
+STATEFB_SECTION = "STATE FEEDBACK"
 
 
 class Kind(str, Enum):
@@ -494,6 +499,16 @@ def _build_keys() -> tuple[KeySpec, ...]:
         KeySpec("PLOTS", "Upper", Kind.CHOICE, ("plots", "upper"), PLOT_TYPES),
         KeySpec("PLOTS", "Lower", Kind.CHOICE, ("plots", "lower"), PLOT_TYPES),
     ]
+    sf: tuple[str | int, ...] = ("statefb",)
+    keys += [
+        KeySpec(STATEFB_SECTION, "Ts", Kind.NUMBER, (*sf, "settling_time")),
+        KeySpec(STATEFB_SECTION, "Poles", Kind.NAME, (*sf, "poles")),
+        KeySpec(STATEFB_SECTION, "L3", Kind.NUMBER, (*sf, "l3")),
+        KeySpec(STATEFB_SECTION, "Smart", Kind.FLAG, (*sf, "smart")),
+        KeySpec(STATEFB_SECTION, "LevelMargin", Kind.NUMBER, (*sf, "level_margin")),
+        KeySpec(STATEFB_SECTION, "Level1", Kind.NUMBER, (*sf, "level1")),
+        KeySpec(STATEFB_SECTION, "Level2", Kind.NUMBER, (*sf, "level2")),
+    ]
     return tuple(keys)
 
 
@@ -588,10 +603,11 @@ _ZERO_ELEMENT = ControllerElement(
 
 
 def from_setting(setting: Setting, pi1: tuple[float, float], pi2: tuple[float, float],
-                 *, tsamp_ms: float = 100.0) -> Parameters:
+                 *, tsamp_ms: float = 100.0, settling_time: float = 60.0) -> Parameters:
     """Parameters for a physical setting with decentralized PI controllers
     (K, Ti) on the diagonal; the generators' means are the setting's pump voltages
-    (normalized), so Manual mode starts at the operating point."""
+    (normalized), so Manual mode starts at the operating point.  The state feedback
+    linearizes at the setting's lower levels with a settling time in s."""
     means = [round(v / FULL_SCALE_V, 6) for v in setting.op.v]
     refs = tuple(
         WaveParams(wave=Wave.SQUARE, mean=m, amplitude=0.05, period=60.0, on=False, seed=1) for m in means
@@ -602,6 +618,7 @@ def from_setting(setting: Setting, pi1: tuple[float, float], pi2: tuple[float, f
         control=ControlSettings(),
         controllers=(_pi_element(*pi1), _ZERO_ELEMENT, _ZERO_ELEMENT, _pi_element(*pi2)),
         simulation=SimulationSettings.from_setting(setting),
+        statefb=StateFeedbackParams(settling_time=settling_time, level1=setting.op.h[0], level2=setting.op.h[1]),
     )
 
 
@@ -611,7 +628,9 @@ PRESET: Parameters = from_setting(P_MINUS, (3.0, 30.0), (2.7, 40.0))
 #: The named settings shipped in params/ (besides default.par, which equals PRESET).
 NAMED_SETTINGS: dict[str, Parameters] = {
     "minphase": PRESET,
-    "nonminphase": from_setting(P_PLUS, (1.5, 110.0), (-0.12, 220.0)),
+    # A nonminimum-phase setting needs settling times an order of magnitude longer
+    # (Desautel, chapter 5).
+    "nonminphase": from_setting(P_PLUS, (1.5, 110.0), (-0.12, 220.0), settling_time=300.0),
 }
 
 

@@ -137,6 +137,30 @@ def add_daq_parser(sub: argparse._SubParsersAction) -> None:
     fit.add_argument("--tank", type=int, choices=(1, 2, 3, 4), default=1,
                      help="the tank, for the configuration line printed (default 1)")
     fit.set_defaults(handler=cmd_daq_fit)
+    cal = daqsub.add_parser(
+        "calibrate", help="the steady-state calibration on the rig, or from a file of pairs",
+        description="Hold the pumps at each voltage until the four sensors settle, ask for the "
+        "heights read on the tanks' scales, and fit each sensor's gain and offset by least "
+        "squares (Desautel 2.3); with --par also the outlet areas. Or fit pairs from a file "
+        "(--pairs). Prints the configuration lines and the pairs; --write puts them into a "
+        "DAQ configuration file.")
+    cal.add_argument("config", metavar="CONFIG", nargs="?",
+                     help="the DAQ configuration of the rig (not needed with --pairs)")
+    cal.add_argument("--volts", metavar="V", type=float, nargs="+", default=[2.0, 2.5, 3.0, 3.5],
+                     help="pump voltages, both pumps alike (default 2 2.5 3 3.5)")
+    cal.add_argument("--pairs", metavar="FILE", help="fit these settled states instead of running the rig")
+    cal.add_argument("--par", metavar="FILE", help="a .par file: its pumps and valves give the outlet areas")
+    cal.add_argument("--poll", metavar="S", type=float, default=2.0, help="seconds between reads (default 2)")
+    cal.add_argument("--window", metavar="N", type=int, default=30,
+                     help="reads that must agree within --tol to count as settled (default 30)")
+    cal.add_argument("--tol", metavar="V", type=float, default=0.004, help="settling band, volts (default 0.004)")
+    cal.add_argument("--timeout", metavar="S", type=float, default=3600.0,
+                     help="give up after S seconds at one voltage (default 3600)")
+    cal.add_argument("--write", metavar="CONFIG_FILE",
+                     help="put the fitted gains and offsets into this DAQ configuration file "
+                     "(asks first; comments are kept)")
+    cal.add_argument("--yes", action="store_true", help="with --write: do not ask")
+    cal.set_defaults(handler=cmd_daq_calibrate)
 
 
 def cmd_daq_check(args: argparse.Namespace) -> int:
@@ -186,6 +210,88 @@ def cmd_daq_fit(args: argparse.Namespace) -> int:
     print(f"gain {cal.gain:.4f} cm/V  offset {cal.offset:.4f} cm  rms residual {cal.rms:.3f} cm")
     print(f"  tank{args.tank}: {{gain: {cal.gain:.4f}, offset: {cal.offset:.4f}}}")
     return 0
+
+
+def cmd_daq_calibrate(args: argparse.Namespace) -> int:
+    from quadtank_tui.daq.calibrate import Settle, fit_pairs, format_result, read_pairs, run_procedure
+
+    plant = None
+    if args.par is not None:
+        from quadtank_tui.files.par import read_par
+
+        plant = read_par(args.par).params.plant()
+    if args.pairs is not None:
+        pairs = read_pairs(args.pairs)
+    else:
+        if args.config is None:
+            raise ValueError("give the rig's DAQ configuration, or --pairs FILE")
+        for name in ("poll", "tol", "timeout"):
+            if not getattr(args, name) > 0:
+                raise ValueError(f"--{name} must be > 0, got {getattr(args, name)}")
+        if args.window < 2:
+            raise ValueError(f"--window must be >= 2 reads, got {args.window}")
+        if any(not 0 <= v <= 10 for v in args.volts):
+            raise ValueError("--volts must be within 0..10 V")
+        from quadtank_tui.daq.modbus import ModbusBackend
+
+        backend = ModbusBackend(load_daq_config(args.config))
+        try:
+            pairs = run_procedure(
+                backend, [(v, v) for v in args.volts], Settle(args.poll, args.window, args.tol, args.timeout),
+                _ask_heights, report=lambda text: print(text, file=sys.stderr, flush=True))
+        except BackendError as exc:
+            print(f"quadtank: {exc}", file=sys.stderr)
+            return 1
+        finally:
+            backend.close()
+        print("# the settled states (save them to refit with --pairs FILE)")
+        print(pairs.format(), end="")
+    result = fit_pairs(pairs, plant)
+    print(format_result(result, plant))
+    if args.write is not None:
+        _write_calibration(args.write, result.sensors, ask=not args.yes)
+    return 0
+
+
+def _write_calibration(path: str, sensors: dict, *, ask: bool) -> None:
+    """Into the DAQ file, checked by the configuration reader first (a file it would
+    refuse is not written), atomically."""
+    from pathlib import Path
+
+    from quadtank_tui.daq.calibrate import with_calibration
+    from quadtank_tui.daq.config import parse_daq_config
+    from quadtank_tui.files.atomic import atomic_write_text
+
+    try:
+        old = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    new = with_calibration(old, sensors)
+    parse_daq_config(new, name=path)
+    if ask:
+        print(f"write the calibration of tank {', '.join(map(str, sensors))} into {path}? [y/N] ",
+              end="", file=sys.stderr, flush=True)
+        if sys.stdin.readline().strip().lower() not in ("y", "yes"):
+            print(f"{path} left as it was", file=sys.stderr)
+            return
+    atomic_write_text(path, new, encoding="utf-8")
+    print(f"calibration written into {path}", file=sys.stderr)
+
+
+def _ask_heights(volts: tuple[float, float], settled: tuple[float, ...]) -> list[float]:
+    """The operator types the four heights read on the scales (stdin)."""
+    while True:
+        print("heights on the scales, cm (h1 h2 h3 h4): ", end="", file=sys.stderr, flush=True)
+        line = sys.stdin.readline()
+        if not line:
+            raise ValueError("no heights given (end of input)")
+        try:
+            heights = [float(w) for w in line.replace(",", " ").split()]
+        except ValueError:
+            heights = []
+        if len(heights) == 4 and all(h >= 0 for h in heights):
+            return heights
+        print("four numbers >= 0, please", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:

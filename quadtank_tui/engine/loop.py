@@ -15,6 +15,10 @@ One sample (Run)::
     Manual:    u = sat(w), r = y,         C.track(r, y, u)    (bumpless later)
     write u; log a row; history; snapshot; let h seconds of process time pass
 
+C is the PID/General matrix on y1, y2, or the state feedback (core.statefb) on all
+four levels; while the state feedback runs, the matrix tracks u so that switching
+back to its family is bumpless too.
+
 Pause: a simulation freezes (no time passes, nothing is logged); a real process gets
 its pumps at 0.  Any exception in a sample puts the pumps at 0, pauses and shows why.
 A real process does not wait for a late loop: the sampling slots the runner's clock
@@ -32,8 +36,10 @@ from typing import Any, Callable, Mapping
 
 from quadtank_tui.core.faults import Fault
 from quadtank_tui.core.general import tustin
-from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, saturate
+from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, Family, saturate
 from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
+from quadtank_tui.core.statefb.design import Design
+from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback, design_for
 from quadtank_tui.core.plant import PlantError
 from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
@@ -57,8 +63,9 @@ _FAMILY_KEYS = ("CONTROL.Type", "CONTROL.Structure")
 
 
 def _matrix_for(p: Parameters) -> ControllerMatrix:
+    family = Family.PID if p.control.family is Family.STATE_FEEDBACK else p.control.family
     return ControllerMatrix(
-        p.tsamp, p.control.family, p.control.structure,
+        p.tsamp, family, p.control.structure,
         pid={e: c.pid for e, c in zip(ELEMENTS, p.controllers)},
         general={e: c.general for e, c in zip(ELEMENTS, p.controllers)},
     )
@@ -101,6 +108,14 @@ class ControlLoop:
         self._gens = (Generator(params.references[0], params.tsamp),
                       Generator(params.references[1], params.tsamp))
         self._matrix = _matrix_for(params)
+        self._sf: QuadTankStateFeedback | None = None
+        sf_refused = None
+        if params.control.family is Family.STATE_FEEDBACK:
+            try:
+                self._sf = QuadTankStateFeedback(params.plant(), params.statefb, params.tsamp)
+            except ParameterError as exc:  # a file asked for a design there is none of
+                sf_refused = f"State feedback: {exc}; the PID controllers are in force"
+                params = self.params = params.with_value("CONTROL.Type", Family.PID.value)
         self.running = False
         #: Process time at which Automatic began (None in Manual): the window the
         #: headless summary measures the loops over.
@@ -108,7 +123,7 @@ class ControlLoop:
         self.k = 0
         self.t = 0.0
         self._fixed_h = True  # t = k h until the sampling time changes (no drift in t)
-        self.fault: str | None = None
+        self.fault: str | None = sf_refused
         self._y = self.sim.read_levels()
         self._u = (0.0, 0.0)
         self._w = (self._gens[0].value(), self._gens[1].value())
@@ -142,6 +157,11 @@ class ControlLoop:
     def matrix(self) -> ControllerMatrix:
         return self._matrix
 
+    @property
+    def statefb(self) -> QuadTankStateFeedback | None:
+        """The state-feedback controller while it is the type in force."""
+        return self._sf
+
     def snapshot(self) -> Snapshot:
         return self._snapshot
 
@@ -170,17 +190,23 @@ class ControlLoop:
         self._y = y
         y12 = (y[0], y[1])
         w = (self._gens[0].value(), self._gens[1].value())
-        m = self._matrix
+        m, sf = self._matrix, self._sf
         if self.params.control.mode is ControlMode.AUTOMATIC:
             r = w
-            u = saturate(m.compute(r, y12))
+            u = saturate(sf.compute(r, y) if sf is not None else m.compute(r, y12))
             self.backend.write_pumps(u)
-            m.update(r, y12, u)
+            if sf is not None:
+                sf.update(r, y, u)
+                m.track(r, y12, u)
+            else:
+                m.update(r, y12, u)
         else:
             r = y12
             u = saturate(w)
             self.backend.write_pumps(u)
             m.track(r, y12, u)
+            if sf is not None:
+                sf.track(y, u)
         self._u, self._w, self._r = u, w, r
         if self.log.running:
             if missed:
@@ -225,6 +251,7 @@ class ControlLoop:
             backend=self.backend.description or self.backend.kind,
             log=self.log.status(self.params.logging),
             stats=self.stats, fault=self.fault,
+            statefb=self._sf.info if self._sf is not None else None,
             alarms=tuple(getattr(self.backend, "alarms", ()) or ()),
             faults=self.sim.faults.labels() if self.backend is self.sim else "",
         )
@@ -300,6 +327,7 @@ class ControlLoop:
             tustin(e.general.numerator, e.general.denominator, h)
         changed = new.simulation != old.simulation or new.process != old.process
         plant = new.process_plant() if changed else None
+        sf_design = self._statefb_for(new, old)
         # --- nothing below refuses ---
         if h != old.tsamp:
             self._matrix.set_sampling_time(h)
@@ -313,8 +341,10 @@ class ControlLoop:
                 g.set_sampling_time(h)
             if h < old.tsamp and a != b:
                 g.set_params(b)
-        if (new.control.family, new.control.structure) != (old.control.family, old.control.structure):
+        if new.control.family is not Family.STATE_FEEDBACK and (
+                (new.control.family, new.control.structure) != (self._matrix.family, self._matrix.structure)):
             self._matrix.set_type(new.control.family, new.control.structure)
+        self._install_statefb(new, sf_design)
         for e, (a, b) in zip(ELEMENTS, zip(old.controllers, new.controllers)):
             if a.pid != b.pid:
                 self._matrix.set_element_params(*e, b.pid)
@@ -323,6 +353,31 @@ class ControlLoop:
         if plant is not None:
             self.sim.set_plant(plant, new.process_levels())
         self.params = new
+
+    def _statefb_for(self, new: Parameters, old: Parameters) -> QuadTankStateFeedback | Design | None:
+        """What the state feedback needs for `new`, designed (or refused) before anything
+        moves: a new controller (switched to it), a new design for the one running, or
+        None (nothing to do)."""
+        if new.control.family is not Family.STATE_FEEDBACK:
+            return None
+        if new.process is not None:
+            raise ParameterError("CONTROL.Type", "the state feedback runs on the quadruple tank only "
+                                 f"for now; this setting's plant is {new.process.kind}")
+        if self._sf is None:
+            return QuadTankStateFeedback(new.plant(), new.statefb, new.tsamp)
+        if (new.statefb, new.simulation, new.tsamp) == (old.statefb, old.simulation, old.tsamp):
+            return None
+        return design_for(new.plant(), new.statefb, new.tsamp)
+
+    def _install_statefb(self, new: Parameters, change: QuadTankStateFeedback | Design | None) -> None:
+        """Switch to, redesign (between samples, bumpless) or drop the state feedback."""
+        if new.control.family is not Family.STATE_FEEDBACK:
+            self._sf = None
+        elif isinstance(change, QuadTankStateFeedback):
+            self._sf = change
+            self._sf.track(self._y, self._u)  # start where the pumps are (3.1.10)
+        elif change is not None and self._sf is not None:
+            self._sf.configure(new.plant(), new.statefb, change)
 
     def _switch_mode(self, mode: ControlMode, *, adjust_means: bool = True) -> None:
         """Manual <-> Automatic, bumpless (M3): Manual -> Automatic sets the reference
@@ -366,6 +421,8 @@ class ControlLoop:
         self.running = False
         self._safe(self.backend)
         self._matrix.reset()
+        if self._sf is not None:
+            self._sf.reset()
         for g in self._gens:
             g.reset()
         self.sim.reset()
@@ -438,6 +495,8 @@ class ControlLoop:
     def _reset_controllers(self, cmd: ResetControllers) -> CommandResult:
         if cmd.element is None:
             self._matrix.reset()
+            if self._sf is not None:
+                self._sf.reset()
         else:
             self._matrix.reset_element(*cmd.element)
         return CommandResult(True)

@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from quadtank_tui.core.parameters import Parameters
+from quadtank_tui.core.statefb.quadtank import StateFeedbackInfo
 from quadtank_tui.engine.backend import Levels4, Pair
 
 
@@ -74,3 +75,5 @@ class Snapshot:
     fault: str | None = None   # why the loop paused itself (backend error, interlock)
     alarms: tuple[str, ...] = ()
     faults: str = ""           # injected faults acting on the simulation (core.faults), for the status line
+    #: The state feedback's gains, poles and delta while it is the controller type.
+    statefb: StateFeedbackInfo | None = None

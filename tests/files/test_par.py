@@ -77,7 +77,9 @@ def test_format_starts_like_the_original() -> None:
     assert "\nCONTROLLER ONE\nK 3.000000\nTi 30.000000\nTd 0.000000\nTr 1.000000\nN 10.000000\n" in text
     assert "\nSIMULATION\nDiameter1 5.970821\nOpPoint1 0.620000\nTimeConst1 62.703390\n" in text
     assert text.endswith("\nLOGGING\nPoints 5000\nLogFile data\nVariables y1 y2 u1 u2\n\n"
-                         "PLOTS\nUpper u1 u2\nLower y1 y2 ref1 ref2\n")
+                         "PLOTS\nUpper u1 u2\nLower y1 y2 ref1 ref2\n\n"
+                         "STATE FEEDBACK\nTs 60.000000\nPoles zeros\nL3 1.000000\nSmart 1\n"
+                         "LevelMargin 2.000000\nLevel1 12.400000\nLevel2 12.700000\n")
 
 
 @pytest.mark.parametrize(
@@ -176,7 +178,7 @@ def test_unknown_sections_and_keys_are_kept_and_reported() -> None:
     )
     out = format_par(read.params, STAMP)
     assert "Sensor 0.500000\nFlowMeter 3.2\n\nLOGGING\n" in out
-    assert out.endswith("\nLower y1 y2 ref1 ref2\n\nWINDOWS\nMainX 10\nMainY 20\n")
+    assert out.endswith("\nLevel2 12.700000\n\nWINDOWS\nMainX 10\nMainY 20\n")
     assert parse_par(out).params == read.params
 
 

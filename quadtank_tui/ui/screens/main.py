@@ -36,6 +36,7 @@ from quadtank_tui.ui.widgets.trends import WINDOWS, Trend
 from quadtank_tui.ui.windows.base import ConfirmWindow
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
 from quadtank_tui.ui.windows.faults import FaultWindow
+from quadtank_tui.ui.windows.statefb import StateFeedbackWindow
 from quadtank_tui.ui.windows.logging import LoggingWindow
 from quadtank_tui.ui.windows.process import PumpWindow, TankWindow
 from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
@@ -137,7 +138,9 @@ class MainScreen(CommandSender):
         if changed:
             previous, self.snap = self.snap, snap
             status.snapshot = snap
-            self.query_one(ControllerBox).params = snap.params
+            box = self.query_one(ControllerBox)
+            box.statefb = snap.statefb
+            box.params = snap.params
             self.query_one(ProcessImage).snapshot = snap
             for panel in self.query(ChannelPanel):
                 panel.snapshot = snap
@@ -234,7 +237,7 @@ class MainScreen(CommandSender):
         p = snap.params
         if not element_used(p, index):
             return
-        window = PIDWindow if p.control.family.value == "PID" else GeneralWindow
+        window = {"PID": PIDWindow, "State feedback": StateFeedbackWindow}.get(p.control.family.value, GeneralWindow)
         self.app.push_screen(window(index, p, self.defaults, opener=str(index + 1)), self.send_all)
 
     def action_reset_controllers(self) -> None:

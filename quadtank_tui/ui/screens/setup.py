@@ -34,6 +34,7 @@ from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.setup_tables import ControllerTable, ParamTable, ProcessTable, ReferenceTable
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, type_modified
+from quadtank_tui.ui.windows.statefb import StateFeedbackWindow
 from quadtank_tui.ui.windows.par_files import ParFileWindow
 from quadtank_tui.ui.windows.pid_extras import PIDExtrasWindow
 from quadtank_tui.ui.windows.sampling import SamplingTimeWindow
@@ -186,7 +187,8 @@ class SetupScreen(CommandSender):
     def action_element(self, index: int) -> None:
         """An element's window: PID with the extras, or Main's General window."""
         p = self.current().params
-        window = PIDExtrasWindow if p.control.family.value == "PID" else GeneralWindow
+        window = {"PID": PIDExtrasWindow, "State feedback": StateFeedbackWindow}.get(p.control.family.value,
+                                                                                   GeneralWindow)
         self.app.push_screen(window(index, p, self.defaults, opener=str(index + 1)), self.send_all)
 
     def action_tank(self, tank: int) -> None:

@@ -3,7 +3,8 @@ element with its main parameters, the type, Type and Reset.
 
 Element ij maps error j to input i.  In a decentralized structure only 11 and 22
 take part; 12 and 21 are shown as unused.  Values that differ from the defaults
-are dim italic (the original's gray).
+are dim italic (the original's gray).  The state feedback has no elements: the box
+shows its gains L1, L2, the placed poles (z) and delta instead.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from textual.reactive import reactive
 from textual.widgets import Static
 
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Parameters
+from quadtank_tui.core.statefb.quadtank import StateFeedbackInfo
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fmt
 from quadtank_tui.ui.windows.controller import ELEMENT_NAMES, TYPES, type_index, type_modified
@@ -51,6 +53,37 @@ def element_lines(p: Parameters, defaults: Parameters, index: int) -> list[str]:
     return [f"[{style}]n {degree}: {num}[/]", f"[{style}]d {den}[/]"]
 
 
+def _numbers(row: tuple[float, ...]) -> str:
+    return " ".join(f"{x:.3g}" for x in row)
+
+
+def _pole(z: complex) -> str:
+    return f"{z.real:.4f}" if z.imag == 0 else f"{z.real:.4f}±{abs(z.imag):.4f}i"
+
+
+def statefb_lines(info: StateFeedbackInfo, p: Parameters) -> list[str]:
+    """Markup lines of the state feedback in use: delta, placed poles, gains."""
+    s = p.statefb
+    limit = f" [reverse]{info.limited} limit[/]" if info.limited else ""
+    lines = [f"[b]δ[/] {info.delta:.3f} Ts {s.settling_time:g} s {'smart' if s.smart else 'plain'}{limit}"]
+    lines.append("[b]z[/] " + " ".join(_pole(z) for z in info.poles_z if z.imag >= 0))
+    for name, M in (("L1", info.L1), ("L2", info.L2)):
+        lines += [f"[b]{name if i == 0 else '  '}[/] {_numbers(row)}" for i, row in enumerate(M)]
+    return lines
+
+
+class StateFeedbackCell(Static):
+    """The state feedback's design in use; a click opens its window."""
+
+    def show(self, info: StateFeedbackInfo | None, p: Parameters) -> None:
+        body = statefb_lines(info, p) if info is not None else ["[dim]no design yet[/]"]
+        self.update(Content.from_markup("\n".join(body)))
+
+    def on_click(self, event: events.Click) -> None:
+        event.stop()
+        self.post_message(ActionRequested("element(0)"))
+
+
 class ElementCell(Static):
     """One element of the matrix; a click opens its window."""
 
@@ -74,6 +107,8 @@ class ControllerBox(Vertical):
     """Type line and the four cells; the screen sets `params` (attributes down)."""
 
     params: reactive[Parameters | None] = reactive(None)
+    #: The state feedback in use (from the snapshot), None with the other types.
+    statefb: reactive[StateFeedbackInfo | None] = reactive(None)
 
     def __init__(self, defaults: Parameters, **kwargs: object) -> None:
         super().__init__(**kwargs)  # type: ignore[arg-type]
@@ -86,6 +121,7 @@ class ControllerBox(Vertical):
         with Grid(id="matrix"):
             for n in range(4):
                 yield ElementCell(n)
+        yield StateFeedbackCell(id="statefb", classes="element")
 
     def watch_params(self, p: Parameters | None) -> None:
         if p is None:
@@ -95,5 +131,16 @@ class ControllerBox(Vertical):
         self.query_one("#controller-type", Static).update(Content.from_markup(
             f"[{style} @click=screen.controller_type]{label}[/]  "
             "[@click=screen.reset_controllers]Reset[/]"))
+        sf = p.control.family.value == "State feedback"
+        self.query_one("#matrix").display = not sf
+        cell_sf = self.query_one(StateFeedbackCell)
+        cell_sf.display = sf
+        if sf:
+            cell_sf.show(self.statefb, p)
+            return
         for cell in self.query(ElementCell):
             cell.show(p, self.defaults)
+
+    def watch_statefb(self, info: StateFeedbackInfo | None) -> None:
+        if self.params is not None and self.params.control.family.value == "State feedback":
+            self.query_one(StateFeedbackCell).show(info, self.params)

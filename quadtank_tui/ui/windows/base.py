@@ -102,12 +102,14 @@ class Window(ModalScreen[T], Generic[T]):
 
 @dataclass(frozen=True)
 class Field:
-    """One editable parameter: its `.par` key, its label, its unit."""
+    """One editable parameter: its `.par` key, its label, its unit; a flag is a
+    switch, `text` a free text the model validates (poles), else a number."""
 
     key: str
     label: str
     unit: str = ""
     flag: bool = False
+    text: bool = False
 
 
 class ParamWindow(Window[Commands]):
@@ -162,7 +164,7 @@ class ParamWindow(Window[Commands]):
         if isinstance(w, Checkbox):
             return w.value
         assert isinstance(w, Input)
-        return parse_number(f.key, w.value)
+        return " ".join(w.value.split()) if f.text else parse_number(f.key, w.value)
 
     def _mark(self, i: int) -> None:
         """Mark the field modified (dim italic) unless it holds its default."""

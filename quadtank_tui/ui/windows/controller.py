@@ -18,18 +18,22 @@ from quadtank_tui.ui.windows.base import Commands, Field, ParamWindow, Window
 #: Element index 0..3 -> its name in the matrix (row = input i, column = error j).
 ELEMENT_NAMES = ("11", "12", "21", "22")
 
-#: The four structures, in the order the Type window lists them.
+#: The four structures and the state feedback (one type on all four levels, whatever
+#: the structure), in the order the Type window lists them.
 TYPES: tuple[tuple[Family, Structure, str], ...] = (
     (Family.PID, Structure.DECENTRALIZED, "PID decentralized"),
     (Family.PID, Structure.FULL_MATRIX, "PID full matrix"),
     (Family.GENERAL, Structure.DECENTRALIZED, "General decentral."),
     (Family.GENERAL, Structure.FULL_MATRIX, "General full matrix"),
+    (Family.STATE_FEEDBACK, Structure.DECENTRALIZED, "State feedback"),
 )
 
 
 def type_index(p: Parameters) -> int:
     """The row of TYPES the parameters' family and structure are."""
-    return next(n for n, (f, s, _) in enumerate(TYPES) if f is p.control.family and s is p.control.structure)
+    c = p.control
+    return next(n for n, (f, s, _) in enumerate(TYPES)
+                if f is c.family and (s is c.structure or f is Family.STATE_FEEDBACK))
 
 
 def type_modified(p: Parameters, defaults: Parameters) -> bool:
@@ -64,8 +68,8 @@ class ControllerTypeWindow(Window[Commands]):
             note += "  (default)" if n == self.default else ""
             options.append(Option(f"{n + 1}  {label}{note}", id=f"type-{n}"))
         yield OptionList(*options, id="types")
-        yield Label("States are kept only between the two structures of one family.",
-                    classes="hint")
+        yield Label("States are kept only between the two structures of one family; "
+                    "state feedback starts from the pumps' u.", classes="hint")
 
     def compose_buttons(self) -> ComposeResult:
         yield Button("Set", id="set", variant="primary")
@@ -79,8 +83,10 @@ class ControllerTypeWindow(Window[Commands]):
 
     def action_choose(self, n: int) -> None:
         family, structure, _ = TYPES[n]
-        self.dismiss(() if n == self.current else (
-            SetParams({"CONTROL.Type": family.value, "CONTROL.Structure": structure.value}),))
+        values = {"CONTROL.Type": family.value}
+        if family is not Family.STATE_FEEDBACK:
+            values["CONTROL.Structure"] = structure.value
+        self.dismiss(() if n == self.current else (SetParams(values),))
 
     def action_set(self) -> None:
         highlighted = self.query_one(OptionList).highlighted
