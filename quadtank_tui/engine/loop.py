@@ -32,14 +32,12 @@ import math
 from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 from quadtank_tui.core.faults import Fault
 from quadtank_tui.core.general import tustin
 from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, Family, saturate
 from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
-from quadtank_tui.core.statefb.design import Design
-from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback, design_for
 from quadtank_tui.core.plant import PlantError
 from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
@@ -54,6 +52,10 @@ from quadtank_tui.engine.jitter import JitterHistogram
 from quadtank_tui.engine.logsession import LogRefused, LogSession
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
+
+if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is chosen
+    from quadtank_tui.core.statefb.design import Design
+    from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
 from quadtank_tui.files.log import LogFileError
 from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 
@@ -111,6 +113,8 @@ class ControlLoop:
         self._sf: QuadTankStateFeedback | None = None
         sf_refused = None
         if params.control.family is Family.STATE_FEEDBACK:
+            from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+
             try:
                 self._sf = QuadTankStateFeedback(params.plant(), params.statefb, params.tsamp)
             except ParameterError as exc:  # a file asked for a design there is none of
@@ -360,6 +364,8 @@ class ControlLoop:
         None (nothing to do)."""
         if new.control.family is not Family.STATE_FEEDBACK:
             return None
+        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback, design_for
+
         if new.process is not None:
             raise ParameterError("CONTROL.Type", "the state feedback runs on the quadruple tank only "
                                  f"for now; this setting's plant is {new.process.kind}")
@@ -373,7 +379,10 @@ class ControlLoop:
         """Switch to, redesign (between samples, bumpless) or drop the state feedback."""
         if new.control.family is not Family.STATE_FEEDBACK:
             self._sf = None
-        elif isinstance(change, QuadTankStateFeedback):
+            return
+        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+
+        if isinstance(change, QuadTankStateFeedback):
             self._sf = change
             self._sf.track(self._y, self._u)  # start where the pumps are (3.1.10)
         elif change is not None and self._sf is not None:

@@ -7,10 +7,13 @@ loop's state.  Everything here is a frozen value, safe to hand across threads.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from quadtank_tui.core.parameters import Parameters
-from quadtank_tui.core.statefb.quadtank import StateFeedbackInfo
 from quadtank_tui.engine.backend import Levels4, Pair
+
+if TYPE_CHECKING:  # scipy behind it; the loop process starts without it
+    from quadtank_tui.core.statefb.quadtank import StateFeedbackInfo
 
 
 @dataclass(frozen=True)

@@ -12,17 +12,14 @@ import math
 import numpy as np
 import pytest
 
-from quadtank_tui.core.statefb import (
-    AntiWindup,
+from quadtank_tui.core.statefb.controller import AntiWindup, LevelLimit, StateFeedback, u_ssmax
+from quadtank_tui.core.statefb.design import (
     DesignError,
-    LevelLimit,
     OperatingModel,
-    StateFeedback,
     bessel_poles,
     design,
     loop_margins,
     robustness,
-    u_ssmax,
 )
 
 G = 981.0

@@ -45,18 +45,7 @@ from typing import Sequence
 import numpy as np
 from scipy import linalg, optimize, signal
 
-#: Table 8: roots of the normalized Bessel polynomials of order 1..6 for a 1 s settling
-#: time (Vaccaro).  Their radii are 0.15-0.40 % larger than an exact 1 % settling
-#: scaling; the table's numbers are used as printed (control.md).
-BESSEL_POLES: dict[int, tuple[complex, ...]] = {
-    1: (-4.6200,),
-    2: (-4.0530 + 2.3400j, -4.0530 - 2.3400j),
-    3: (-5.0093, -3.9668 + 3.7845j, -3.9668 - 3.7845j),
-    4: (-4.0156 + 5.0723j, -4.0156 - 5.0723j, -5.5281 + 1.6553j, -5.5281 - 1.6553j),
-    5: (-6.4480, -4.1104 + 6.3142j, -4.1104 - 6.3142j, -5.9268 + 3.0813j, -5.9268 - 3.0813j),
-    6: (-4.2169 + 7.5300j, -4.2169 - 7.5300j, -6.2613 + 4.4018j, -6.2613 - 4.4018j,
-        -7.1205 + 1.4540j, -7.1205 - 1.4540j),
-}
+from quadtank_tui.core.statefb.bessel import BESSEL_POLES  # noqa: E402  (re-exported)
 
 #: Placement method of scipy.signal.place_poles (see the module docstring).
 PLACEMENT_METHOD = "YT"
@@ -309,7 +298,7 @@ def _response(A: np.ndarray, B: np.ndarray, Cm: np.ndarray, theta: np.ndarray | 
 def loop_to_perturbation(Phi: np.ndarray, Gamma: np.ndarray, C: np.ndarray,
                          L1: np.ndarray, L2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """State-space (A, B, C) of G(z), perturbation w -> controller output v, r = 0."""
-    n, p = Phi.shape[0], C.shape[0]
+    p = C.shape[0]
     A = np.block([[Phi - Gamma @ L1, Gamma @ L2], [-C, np.eye(p)]])
     B = np.vstack([Gamma, np.zeros((p, Gamma.shape[1]))])
     return A, B, np.hstack([-L1, L2])

@@ -9,6 +9,8 @@ shows its gains L1, L2, the placed poles (z) and delta instead.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from textual import events
 from textual.app import ComposeResult
 from textual.containers import Grid, Vertical
@@ -17,10 +19,12 @@ from textual.reactive import reactive
 from textual.widgets import Static
 
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Parameters
-from quadtank_tui.core.statefb.quadtank import StateFeedbackInfo
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fmt
 from quadtank_tui.ui.windows.controller import ELEMENT_NAMES, TYPES, type_index, type_modified
+
+if TYPE_CHECKING:  # scipy behind it: the Main screen starts without the analysis stack
+    from quadtank_tui.core.statefb.quadtank import StateFeedbackInfo
 
 
 def element_used(p: Parameters, index: int) -> bool:
