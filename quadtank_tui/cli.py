@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
+from quadtank_tui.commands import identify as identify_command
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
 from quadtank_tui.daq.cli import (
     add_daq_option, add_daq_parser, add_rig_parser, open_daq, run_clock,
@@ -265,6 +266,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_run(sub)
     add_rig_parser(sub)
     add_daq_parser(sub)
+    identify_command.add_parser(sub)
     return parser
 
 

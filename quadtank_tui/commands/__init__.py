@@ -1,0 +1,1 @@
+"""One module per `quadtank` subcommand that grew beyond a handler in cli.py."""
