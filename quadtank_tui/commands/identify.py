@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     from quadtank_tui.core.identify.experiment import Options, Record, identify
     from quadtank_tui.core.identify.report import format_report, to_dict
     from quadtank_tui.files.log import read_log
-    from quadtank_tui.files.model import ModelFile, model_path, write_model
+    from quadtank_tui.files.model import from_identification, model_path, write_model
 
     if not 0.0 <= args.validate < 1.0:
         raise IdentifyUsageError(f"--validate must be a fraction in [0, 1), got {args.validate:g}")
@@ -105,12 +105,7 @@ def run(args: argparse.Namespace) -> int:
     saved = None
     if args.save is not None:
         target = Path(args.save) if args.save else model_path(args.logs[0])
-        data = to_dict(ident, None, name)
-        saved = write_model(target, ModelFile(
-            elements=ident.system.elements, inputs=ident.inputs, outputs=ident.outputs,
-            method=ident.method, logs=ident.records, sampling_time=ident.h,
-            operating_point=ident.operating_point, fit_percent=ident.fit_percent,
-            extra={k: data[k] for k in ("static_gains", "zeros", "phase")}))
+        saved = write_model(target, from_identification(ident))
     if args.json:
         out = to_dict(ident, cmp, name)
         if saved is not None:

@@ -27,10 +27,13 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 from quadtank_tui.core.delaytf import DelayTF, ModelError
 from quadtank_tui.files.atomic import atomic_write_text
+
+if TYPE_CHECKING:
+    from quadtank_tui.core.identify.experiment import Identification
 
 FORMAT = "quadtank-model"
 VERSION = 1
@@ -68,6 +71,17 @@ def model_path(log: Path | str) -> Path:
     """`logs/NAME.model.json` for `logs/NAME.log`."""
     p = Path(log)
     return p.with_name(p.name.removesuffix(".log") + SUFFIX)
+
+
+def from_identification(ident: Identification) -> ModelFile:
+    """What `quadtank identify --save` and the Identify screen's Keep write."""
+    from quadtank_tui.core.identify.report import to_dict
+
+    data = to_dict(ident, None, "")
+    return ModelFile(
+        elements=ident.system.elements, inputs=ident.inputs, outputs=ident.outputs, method=ident.method,
+        logs=ident.records, sampling_time=ident.h, operating_point=ident.operating_point,
+        fit_percent=ident.fit_percent, extra={k: data[k] for k in ("static_gains", "zeros", "phase")})
 
 
 def _finite(x: float) -> float | None:

@@ -60,6 +60,7 @@ class MainScreen(CommandSender):
         Binding("s", "simul", "Simul", show=False),
         Binding("A", "active", "Active", show=False, tooltip=NO_DAQ),
         Binding("S", "setup", "Setup"),
+        Binding("y", "identify", "Identify", show=False),
         Binding("t", "controller_type", "Type"),
         Binding("1", "element(0)", "Element 11", show=False),
         Binding("2", "element(1)", "Element 12", show=False),
@@ -292,6 +293,13 @@ class MainScreen(CommandSender):
         # Setup shows only the process time live: a quarter second is plenty, and
         # a slower refresh asked for a slow link is kept.
         self.app.push_screen(SetupScreen(self.engine, refresh_interval=max(0.25, self.refresh_interval)))
+
+    def action_identify(self) -> None:
+        """The Identify screen: models from logs while the process runs on; Esc
+        comes back here."""
+        from quadtank_tui.ui.screens.identify import IdentifyScreen
+
+        self.app.push_screen(IdentifyScreen(last_log=self.current().log.saved_path))
 
     def action_exit(self) -> None:
         snap = self.current()
