@@ -68,6 +68,11 @@ def test_identify_after_a_fit_120x40(app, snap_compare) -> None:  # type: ignore
     assert snap_compare(app, terminal_size=(120, 40), run_before=fit_both, press=["v"])
 
 
+def test_identify_before_a_fit_80x24(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
+    # The highlighted log's signals, before any fit.
+    assert snap_compare(app, terminal_size=(80, 24), press=["y"])
+
+
 async def test_fit_compares_keeps_and_returns(app) -> None:  # type: ignore[no-untyped-def]
     async with app.run_test(size=(120, 40)) as pilot:
         await fit_both(pilot)

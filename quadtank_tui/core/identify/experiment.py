@@ -25,7 +25,7 @@ from quadtank_tui.core.identify.arx import fit_arx
 from quadtank_tui.core.identify.oe import fit_oe, simulate_oe
 from quadtank_tui.core.identify.step import STRUCTURES, find_steps, fit_step, simulate_steps
 from quadtank_tui.core.identify.subspace import fit_subspace
-from quadtank_tui.core.identify.system import SystemModel, from_elements, from_state_space
+from quadtank_tui.core.identify.system import SystemModel, from_elements, from_state_space, time_constants
 from quadtank_tui.core.identify.validation import (
     autocorrelation, cross_correlation, fit_percent, split_index,
 )
@@ -100,7 +100,8 @@ class Element:
             "output": self.output, "input": self.input, "log": self.record, "model": self.kind,
             **self.params,
             "num": list(self.tf.num), "den": list(self.tf.den), "delay": self.tf.delay,
-            "static_gain": self.tf.static_gain, "loss": self.loss, "fit_percent": self.fit_percent,
+            "static_gain": self.tf.static_gain, "time_constants": time_constants(self.tf),
+            "loss": self.loss, "fit_percent": self.fit_percent,
             "residual_whiteness": self.whiteness, "residual_input_independence": self.independence,
         }
 
@@ -119,7 +120,6 @@ class Identification:
     operating_point: dict[str, float]
     records: tuple[str, ...]
     h: float
-    notes: tuple[str, ...] = ()
 
 
 def _choose(records: Sequence[Record], opts: Options) -> tuple[tuple[str, ...], tuple[str, ...]]:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 from textual import work
@@ -26,6 +26,8 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, SelectionList, Static
 from textual.worker import get_current_worker
 from textual_plotext import PlotextPlot
+
+from quadtank_tui.ui.screens.sending import COMPACT_WIDTH
 
 if TYPE_CHECKING:  # the analysis stack loads with the first fit, not with the app
     from quadtank_tui.core.identify.compare import Comparison
@@ -48,8 +50,10 @@ class FitView:
     coherence: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]
 
 
-def compute(paths: list[str], method: str, structure: int, cancel: threading.Event) -> FitView:
-    """Read the logs, identify, compare, and prepare the plots (run in a worker)."""
+def compute(paths: list[str], method: str, structure: int, cancel: threading.Event,
+            progress: Callable[[int], None] = lambda k: None) -> FitView:
+    """Read the logs, identify, compare, and prepare the plots (run in a worker);
+    `progress(k)` is told when the k-th element's fit starts."""
     from quadtank_tui.core.identify.compare import closest_setting, compare
     from quadtank_tui.core.identify.experiment import Options, Record, identify
     from quadtank_tui.core.identify.validation import autocorrelation, coherence
@@ -61,7 +65,14 @@ def compute(paths: list[str], method: str, structure: int, cancel: threading.Eve
         if log.tsamp is None:
             raise ValueError(f"{p}: no TSamp in the header: the sampling time is needed")
         records.append(Record(p, log.tsamp, log.columns()))
-    ident = identify(records, Options(method=method, structure=structure), cancel=cancel.is_set)
+    started = [0]
+
+    def stop() -> bool:
+        started[0] += 1
+        progress(started[0])
+        return cancel.is_set()
+
+    ident = identify(records, Options(method=method, structure=structure), cancel=stop)
     setting = closest_setting(ident.operating_point)
     cmp = None
     if set(ident.inputs) <= {"u1", "u2"} and set(ident.outputs) <= {"y1", "y2"}:
@@ -122,6 +133,9 @@ class IdentifyScreen(Screen[None]):
                 yield PlotextPlot(id="lower")
         yield Footer()
 
+    def on_resize(self) -> None:
+        self.set_class(self.size.width < COMPACT_WIDTH, "-compact")
+
     def on_mount(self) -> None:
         self.query_one("#logs", SelectionList).border_title = f"Logs in {self.logs_dir}/ (space ticks)"
         self.query_one("#compare", DataTable).border_title = "Identified | physical"
@@ -131,6 +145,33 @@ class IdentifyScreen(Screen[None]):
         self._draw()
 
     # --- choices --------------------------------------------------------------------
+
+    def on_selection_list_selection_highlighted(self, event: SelectionList.SelectionHighlighted) -> None:
+        """Before a fit, the top plot shows the highlighted log's signals."""
+        if self.view is None and not self._fitting:
+            self._preview(str(event.selection.value))
+
+    def _preview(self, path: str) -> None:
+        from quadtank_tui.files.log import read_log
+
+        top = self.query_one("#outputs", PlotextPlot)
+        top.plt.clear_figure()
+        top.plt.theme("clear")
+        try:
+            log = read_log(path)
+        except ValueError as exc:
+            self._status(f"[red]{exc}[/]")
+            return
+        h = log.tsamp or 1.0
+        t = np.arange(log.rows) * h
+        step = max(1, log.rows // 400)
+        colors = {"y1": "blue", "y2": "red", "u1": "cyan", "u2": "magenta"}
+        for name in log.variables:
+            if name in colors:
+                top.plt.plot(t[::step].tolist(), log[name][::step].tolist(), color=colors[name], label=name)
+        top.border_title = f"{Path(path).name}: {log.rows} rows at {h:g} s"
+        top.plt.xlabel("t (s)")
+        top.refresh()
 
     def action_rescan(self) -> None:
         sel = self.query_one("#logs", SelectionList)
@@ -183,8 +224,11 @@ class IdentifyScreen(Screen[None]):
 
     @work(thread=True, exclusive=True, group="fit")
     def _run_fit(self, paths: list[str], method: str, structure: int, cancel: threading.Event) -> None:
+        def progress(k: int) -> None:
+            self.app.call_from_thread(self._status, f"Fitting {method}: element {k} ... (c cancels)")
+
         try:
-            view = compute(paths, method, structure, cancel)
+            view = compute(paths, method, structure, cancel, progress)
         except ValueError as exc:  # bad logs, no step, constant input: one line
             message = "cancelled" if cancel.is_set() else str(exc)
             self.app.call_from_thread(self._failed, message)
