@@ -44,6 +44,12 @@ def test_report_and_save(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert model.operating_point["u1"] == pytest.approx(0.30)
 
 
+def test_par_chooses_the_physical_model(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = simo(tmp_path / "steps.log")
+    assert main(["identify", str(log), "--par", "nonminphase", "--outputs", "y1"]) == 0
+    assert "Physical model: P+ (nonminimum phase), linearized" in capsys.readouterr().out
+
+
 def test_step_method_prints_the_structures_parameters(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     log = simo(tmp_path / "steps.log")
     assert main(["identify", str(log), "--method", "step", "--outputs", "y1", "--n", "1"]) == 0
@@ -63,6 +69,7 @@ def test_step_method_prints_the_structures_parameters(tmp_path: Path, capsys: py
     ("mimo", [], "u1 and u2 both move; a per-element fit needs one moving input per log"),
     ("simo", ["--validate", "1.5"], "--validate must be a fraction in [0, 1)"),
     ("notsamp", [], "no TSamp in the header"),
+    ("simo", ["--par", "missing.par"], "missing.par: no such file"),
 ])
 def test_bad_input_is_one_line_and_status_2(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                             make: str | None, args: list[str], message: str) -> None:
