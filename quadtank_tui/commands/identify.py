@@ -11,6 +11,10 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from quadtank_tui.core.plant import PlantParams
 
 METHODS = ("step", "oe", "n4sid", "arx")
 
@@ -55,7 +59,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=run)
 
 
-def _physical(par: str | None, op: dict[str, float]):  # type: ignore[no-untyped-def]
+def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams, str, tuple[float, float]]:
+    """The physical model to compare with, its name, and the pump voltages to
+    assume for an input the logs do not hold."""
     from quadtank_tui.core.identify.compare import closest_setting
     from quadtank_tui.core.plant import SETTINGS
 

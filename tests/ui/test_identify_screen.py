@@ -83,6 +83,14 @@ async def test_fit_compares_keeps_and_returns(app) -> None:  # type: ignore[no-u
         a = screen.view.comparison.physical
         assert np.abs(ident.system.static_gains / a.static_gains - 1).max() < 0.01
         assert np.array(ident.system.zeros).real == pytest.approx([z.real for z in a.zeros], rel=0.02)
+        # The spectral estimate (checked against a known answer in core's tests) next to
+        # the model's gain, up to 0.1 Hz; the model's is G11's: 2.596/(1 + 62.4 s).
+        w, est, mod = screen.view.frequency[("y1", "u1")]
+        assert w.size == est.size == mod.size == 72 and w.max() == pytest.approx(2 * np.pi * 0.1)
+        assert mod[0] == pytest.approx(2.596 / abs(1 + 62.36j * w[0]), rel=0.01)
+        await pilot.press("v", "v")
+        await pilot.pause()
+        assert "spectral estimate" in str(screen.query_one("#lower").border_title)
         lags, r, band = screen.view.residuals[("y1", "u1")]
         assert r[0] == pytest.approx(1.0) and band == pytest.approx(2.576 / np.sqrt(ROWS / 2), rel=1e-3)
         await pilot.press("k")

@@ -3,8 +3,8 @@ experiments without leaving the terminal.  The process keeps running behind it.
 
 Choose one or more logs from `logs/` (the one just saved is ticked), a method and
 its structure, fit (in a worker: the screen never freezes; Esc or `c` cancels),
-then see the measured and model outputs overlaid, the residual autocorrelation or
-the coherence, and the table that sets the identified gains, time constants and
+then see the measured and model outputs overlaid, the residual autocorrelation,
+the coherence or the gain of the spectral estimate against the model's, and the table that sets the identified gains, time constants and
 zeros beside the physical linearization.  `k` keeps the model as JSON next to the
 first log (what design reads).  All numbers come from core/identify; this screen
 only renders them.
@@ -34,20 +34,21 @@ if TYPE_CHECKING:  # the analysis stack loads with the first fit, not with the a
     from quadtank_tui.core.identify.experiment import Element, Identification
 
 METHODS = ("oe", "step", "n4sid", "arx")
-LOWER_PLOTS = ("residuals", "coherence")
+LOWER_PLOTS = ("residuals", "coherence", "frequency")
 
 
 @dataclass(frozen=True)
 class FitView:
     """What a finished fit hands the screen: the identification, the comparison (or
     None), the physical model's name, and per element its residual autocorrelation
-    and coherence."""
+    and coherence, and its gain |G(iw)| from the spectral estimate and from the model."""
 
     ident: Identification
     comparison: Comparison | None
     physical: str
     residuals: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, float]]
     coherence: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]
+    frequency: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 def compute(paths: list[str], method: str, structure: int, cancel: threading.Event,
@@ -56,7 +57,7 @@ def compute(paths: list[str], method: str, structure: int, cancel: threading.Eve
     `progress(k)` is told when the k-th element's fit starts."""
     from quadtank_tui.core.identify.compare import closest_setting, compare
     from quadtank_tui.core.identify.experiment import Options, Record, identify
-    from quadtank_tui.core.identify.validation import autocorrelation, coherence
+    from quadtank_tui.core.identify.validation import autocorrelation, coherence, spectral_estimate
     from quadtank_tui.files.log import read_log
 
     records = []
@@ -78,7 +79,7 @@ def compute(paths: list[str], method: str, structure: int, cancel: threading.Eve
     if set(ident.inputs) <= {"u1", "u2"} and set(ident.outputs) <= {"y1", "y2"}:
         cmp = compare(ident.operating_point, setting.params, ident.system.static_gains,
                       ident.inputs, ident.outputs, setting.op.v)
-    residuals, coh = {}, {}
+    residuals, coh, freq = {}, {}, {}
     for key, e in ident.elements.items():
         k = e.split
         res = e.y[k:] - e.ym[k:]
@@ -87,7 +88,10 @@ def compute(paths: list[str], method: str, structure: int, cancel: threading.Eve
             residuals[key] = (r.lags.astype(float), r.value, r.band)
         f, c = coherence(e.u - e.u[0], e.y - e.y[0], ident.h)
         coh[key] = (f, c)
-    return FitView(ident, cmp, setting.title, residuals, coh)
+        w, g = spectral_estimate(e.u - e.u[0], e.y - e.y[0], ident.h)
+        keep = (w > 0) & (w <= 2 * np.pi * 0.1)
+        freq[key] = (w[keep], np.abs(g[keep]), np.abs(e.tf.freqresp(w[keep])))
+    return FitView(ident, cmp, setting.title, residuals, coh, freq)
 
 
 class IdentifyScreen(Screen[None]):
@@ -103,7 +107,7 @@ class IdentifyScreen(Screen[None]):
         Binding("m", "method", "Method"),
         Binding("n", "structure", "Structure"),
         Binding("e", "element", "Element"),
-        Binding("v", "lower_plot", "Residuals/coherence"),
+        Binding("v", "lower_plot", "Residuals/coherence/gain"),
         Binding("k", "keep", "Keep model"),
         Binding("F5", "rescan", "Rescan logs", show=False),
     ]
@@ -255,7 +259,7 @@ class IdentifyScreen(Screen[None]):
         ident = view.ident
         fits = "  ".join(f"{o} {f:.1f} %" for o, f in ident.fit_percent.items())
         self._status(f"{ident.method}: fit on the validation half {fits}; phase {phase(ident)}."
-                     "  e: next element  v: residuals/coherence  k: keep")
+                     "  e: next element  v: residuals/coherence/gain  k: keep")
         self._table()
         self._draw()
 
@@ -330,6 +334,12 @@ class IdentifyScreen(Screen[None]):
                     low.plt.hline(band, "red")
                     low.plt.hline(-band, "red")
                 low.plt.xlabel("lag (samples)")
+            elif self.lower == "frequency":
+                low.border_title = f"|G{key[0][1:]}{key[1][1:]}(iw)|: spectral estimate (blue), model (red), log scales"
+                w, est, mod = self.view.frequency[key]
+                low.plt.plot(np.log10(w).tolist(), np.log10(est).tolist(), color="blue")
+                low.plt.plot(np.log10(w).tolist(), np.log10(mod).tolist(), color="red")
+                low.plt.xlabel("log10 w (rad/s)")
             else:
                 low.border_title = f"Coherence {key[1]} -> {key[0]} up to 0.1 Hz (Hamming window, 720 points)"
                 f, c = self.view.coherence[key]
