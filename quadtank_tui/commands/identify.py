@@ -47,6 +47,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "arx: na = nb (default 2); n4sid: states (default 4)")
     p.add_argument("--zeros", type=int, default=0, metavar="M", help="oe: zeros per element (default 0)")
     p.add_argument("--no-delay", action="store_true", help="oe: no dead time (L = 0)")
+    p.add_argument("--start", nargs="+", metavar="NAME=VALUE",
+                   help="manual starting values for step and oe fits: T=60 L=2 (oe: one T per "
+                   "pole, T=30,90); K, Tz, y0 and the rest value are solved exactly and need none")
     p.add_argument("--validate", type=float, default=0.5, metavar="FRACTION",
                    help="share of each log kept for validation (default 0.5; 0 validates on "
                    "the identification data)")
@@ -79,6 +82,23 @@ def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams, str, 
     return read.params.plant(), par, (3.0, 3.0)
 
 
+def parse_start(items: list[str] | None) -> dict[str, object] | None:
+    """`T=60 L=2` or `T=30,90` -> {"T": 60.0, "L": 2.0} / {"T": [30.0, 90.0]}."""
+    if not items:
+        return None
+    out: dict[str, object] = {}
+    for item in items:
+        name, eq, value = item.partition("=")
+        if not eq or name not in ("T", "L"):
+            raise IdentifyUsageError(f"--start takes T=VALUE and L=VALUE, got {item!r}")
+        try:
+            numbers = [float(x) for x in value.split(",")]
+        except ValueError:
+            raise IdentifyUsageError(f"--start {name}: not a number in {value!r}") from None
+        out[name] = numbers if name == "T" and "," in value else numbers[0]
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     from quadtank_tui.core.identify.compare import compare
     from quadtank_tui.core.identify.experiment import Options, Record, identify
@@ -101,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     opts = Options(method=args.method, inputs=tuple(args.inputs) if args.inputs else None,
                    outputs=tuple(args.outputs) if args.outputs else None, structure=args.structure,
                    n=args.n, order=args.order, zeros=args.zeros, delay=not args.no_delay,
-                   fraction=1.0 - args.validate)
+                   fraction=1.0 - args.validate, start=parse_start(args.start))
     ident = identify(records, opts)
     params, name, v_default = _physical(args.par, ident.operating_point)
     cmp = None

@@ -44,6 +44,15 @@ def test_report_and_save(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert model.operating_point["u1"] == pytest.approx(0.30)
 
 
+def test_manual_starting_values(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = simo(tmp_path / "steps.log")
+    assert main(["identify", str(log), "--outputs", "y2", "--start", "T=20,100", "L=0"]) == 0
+    assert "G21  1.4/(1+30s)(1+90s)" in capsys.readouterr().out
+    assert main(["identify", str(log), "--method", "step", "--outputs", "y1", "--n", "1",
+                 "--start", "T=40", "L=1"]) == 0
+    assert "K=2.6  T=62  n=1" in capsys.readouterr().out
+
+
 def test_par_chooses_the_physical_model(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     log = simo(tmp_path / "steps.log")
     assert main(["identify", str(log), "--par", "nonminphase", "--outputs", "y1"]) == 0
@@ -70,6 +79,9 @@ def test_step_method_prints_the_structures_parameters(tmp_path: Path, capsys: py
     ("simo", ["--validate", "1.5"], "--validate must be a fraction in [0, 1)"),
     ("notsamp", [], "no TSamp in the header"),
     ("simo", ["--par", "missing.par"], "missing.par: no such file"),
+    ("simo", ["--start", "K=3"], "--start takes T=VALUE and L=VALUE, got 'K=3'"),
+    ("simo", ["--start", "T=abc"], "--start T: not a number in 'abc'"),
+    ("simo", ["--start", "T=30,90", "--outputs", "y1"], "starting T needs 1 time constant(s) > 0 s, one per pole"),
 ])
 def test_bad_input_is_one_line_and_status_2(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                             make: str | None, args: list[str], message: str) -> None:

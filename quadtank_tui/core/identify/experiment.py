@@ -62,7 +62,8 @@ class Record:
 class Options:
     """What to fit.  `order`: poles of an oe element (default 1 on the diagonal, 2
     off it: the path through an upper tank), na = nb of arx (default 2), states of
-    n4sid (default 4).  `n`: the step structures' n (None tries 1..4)."""
+    n4sid (default 4).  `n`: the step structures' n (None tries 1..4).  `start`:
+    manual starting values, T and L (step: T a number; oe: T a list, one per pole)."""
 
     method: str = "oe"
     inputs: tuple[str, ...] | None = None
@@ -73,6 +74,7 @@ class Options:
     zeros: int = 0
     delay: bool = True
     fraction: float = 0.5
+    start: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -209,14 +211,14 @@ def _fit_element(rec: Record, i: str, o: str, opts: Options) -> Element:
         raise IdentificationError(f"{rec.name}: {i} does not move in the identification part "
                                   f"(the first {end} rows); give a larger --validate fraction")
     if opts.method == "step":
-        sf = fit_step(ui, yi, h, opts.structure, opts.n)
+        sf = fit_step(ui, yi, h, opts.structure, opts.n, start=opts.start)
         ym = simulate_steps(sf.model, h, rec.rows, find_steps(u), sf.y0, sf.k0)
         tf, loss = sf.model.tf(), sf.loss
         params = {"structure": sf.model.structure, "form": STRUCTURES[sf.model.structure],
                   **sf.model.params(), "y0": sf.y0, "k0": sf.k0}
     elif opts.method == "oe":
         order = opts.order or (1 if i[1:] == o[1:] else 2)
-        of = fit_oe(ui, yi, h, order, opts.zeros, delay=opts.delay, u0=u[0])
+        of = fit_oe(ui, yi, h, order, opts.zeros, delay=opts.delay, u0=u[0], start=opts.start)
         ym = simulate_oe(of.model, u, h, u[0], of.offset)
         tf, loss = of.model.tf(), of.loss
         params = {"poles": order, "zeros": opts.zeros, **of.model.params(), "offset": of.offset}

@@ -141,9 +141,10 @@ def fit_oe(
 
     start = start or {}
     if "T" in start:
-        T0 = [float(x) for x in start["T"]]  # type: ignore[union-attr]
+        given = start["T"]
+        T0 = [float(x) for x in (given if isinstance(given, (list, tuple)) else [given])]  # type: ignore[union-attr]
         if len(T0) != order or not all(x > 0 for x in T0):
-            raise IdentificationError(f"starting T must be {order} time constants > 0 s")
+            raise IdentificationError(f"starting T needs {order} time constant(s) > 0 s, one per pole")
         candidates = [np.log(T0)]
     else:
         grid = np.log(np.geomspace(2 * h, span / 4, 8 if order <= 2 else 5))
