@@ -91,6 +91,8 @@ def test_gains_within_8_percent_and_the_zeros(logs: dict[str, Path], capsys: pyt
         assert not [z for z in rhp if abs(z) < 0.1]
         assert r["phase"] == "minimum"
     assert min(r["fit_percent"].values()) > 90.0
+    A, B, C = (np.array(r["state_space"][k]) for k in "ABC")
+    assert -C @ np.linalg.solve(A, B) == pytest.approx(gains, rel=1e-6)  # the same model
     if method == "oe":  # control.md: within 3 %, first order on the diagonal, second off it
         assert np.abs(gains / phys.static_gains - 1).max() < 0.03
         for e in r["elements"]:

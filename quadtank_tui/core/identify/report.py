@@ -98,6 +98,10 @@ def to_dict(ident: Identification, cmp: Comparison | None, physical_name: str) -
         "phase": phase(ident),
         "fit_percent": ident.fit_percent,
         "elements": [e.to_dict() for e in ident.elements.values()],
+        # dx/dt = A x + B u, y = C x, in deviations from the operating point (dead
+        # times left out); block-diagonal when the elements were fitted one by one.
+        "state_space": {"A": ident.system.A.tolist(), "B": ident.system.B.tolist(),
+                        "C": ident.system.C.tolist()},
     }
     if cmp is not None:
         out["physical"] = {"model": physical_name, **cmp.physical.to_dict()}
