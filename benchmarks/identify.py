@@ -4,8 +4,9 @@
 
 The logs are the shipped experiments at P- (params/identify-pminus-u1.yaml and
 -mimo.yaml) run on the simulator (virtual clock).  Printed: the best of `--repeat`
-runs of one element per method (step, oe first and second order, arx) and of the
-2x2 subspace model, with the load average beside them (the machine may be shared;
+runs of one element per method (step, oe first and second order, arx), of one
+output's two elements fitted together from the MIMO log (oe), and of the 2x2
+subspace model, with the load average beside them (the machine may be shared;
 multi-threaded BLAS on small matrices suffers most).  Targets (issue 12): under 1 s
 for a step or output-error element, under 3 s for the 2x2 subspace model.
 """
@@ -26,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 from quadtank_tui.core.identify.arx import fit_arx  # noqa: E402
-from quadtank_tui.core.identify.oe import fit_oe  # noqa: E402
+from quadtank_tui.core.identify.oe import fit_oe, fit_oe_miso  # noqa: E402
 from quadtank_tui.core.identify.step import fit_step  # noqa: E402
 from quadtank_tui.core.identify.subspace import fit_subspace  # noqa: E402
 from quadtank_tui.core.identify.system import from_state_space  # noqa: E402
@@ -65,6 +66,7 @@ def main() -> None:
         ("step, structure 1, n = 1..4 (G21)", lambda: fit_step(u1, y2, 1.0, 1, None), 1.0),
         ("oe, 1 pole + delay (G11)", lambda: fit_oe(u1, y1, 1.0, 1), 1.0),
         ("oe, 2 poles + delay (G21)", lambda: fit_oe(u1, y2, 1.0, 2), 1.0),
+        ("oe, MISO from the MIMO log (G21, G22)", lambda: fit_oe_miso(U, Y[:, 1], 1.0, [2, 1]), 3.0),
         ("arx(2, 2, 1) (G21)", lambda: fit_arx(u1, y2, 1.0, 2, 2, 1), 1.0),
         ("n4sid, 4 states, 2x2", lambda: from_state_space(*_abc(fit_subspace(U, Y, 1.0, 4))), 3.0),
     ]

@@ -75,7 +75,7 @@ def test_step_method_prints_the_structures_parameters(tmp_path: Path, capsys: py
     ("simo", ["--inputs", "u2"], "u2 is constant in"),
     ("two-simo", ["--method", "n4sid"], "n4sid needs a log in which u1 and u2 all move (a MIMO experiment)"),
     ("ramp", ["--method", "step"], "no step found in the input"),
-    ("mimo", [], "u1 and u2 both move; a per-element fit needs one moving input per log"),
+    ("mimo", ["--method", "arx"], "u1 and u2 both move; a per-element fit needs one moving input per log"),
     ("simo", ["--validate", "1.5"], "--validate must be a fraction in [0, 1)"),
     ("notsamp", [], "no TSamp in the header"),
     ("simo", ["--par", "missing.par"], "missing.par: no such file"),

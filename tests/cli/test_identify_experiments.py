@@ -73,11 +73,11 @@ def test_the_scripts_log_3600_points_from_rest(logs: dict[str, Path]) -> None:
 
 
 @pytest.mark.parametrize("s", ["pminus", "pplus"])
-@pytest.mark.parametrize("method", ["oe", "n4sid"])
+@pytest.mark.parametrize("method", ["oe", "n4sid", "oe-mimo"])
 def test_gains_within_8_percent_and_the_zeros(logs: dict[str, Path], capsys: pytest.CaptureFixture[str],
                                               s: str, method: str) -> None:
-    files = [logs[f"{s}-mimo"]] if method == "n4sid" else [logs[f"{s}-u1"], logs[f"{s}-u2"]]
-    r = _identify(capsys, *map(str, files), "--method", method)
+    files = [logs[f"{s}-mimo"]] if method != "oe" else [logs[f"{s}-u1"], logs[f"{s}-u2"]]
+    r = _identify(capsys, *map(str, files), "--method", method.removesuffix("-mimo"))
     phys = _physical(SETTING[s], r)
     gains = np.array(r["static_gains"])
     assert np.abs(gains / phys.static_gains - 1).max() < 0.08
@@ -93,11 +93,14 @@ def test_gains_within_8_percent_and_the_zeros(logs: dict[str, Path], capsys: pyt
     assert min(r["fit_percent"].values()) > 90.0
     A, B, C = (np.array(r["state_space"][k]) for k in "ABC")
     assert -C @ np.linalg.solve(A, B) == pytest.approx(gains, rel=1e-6)  # the same model
-    if method == "oe":  # control.md: within 3 %, first order on the diagonal, second off it
+    if method.startswith("oe"):  # control.md: within 3 %, first order on the diagonal, second off it
         assert np.abs(gains / phys.static_gains - 1).max() < 0.03
         for e in r["elements"]:
             o, i = int(e["output"][1]) - 1, int(e["input"][1]) - 1
-            assert sorted(e["T"]) == pytest.approx(sorted(phys.G[o][i].lags), rel=0.05)
+            # MIMO data tell each element less (Nunes 3.2: the cross-couplings'
+            # coherence drops): 10 % there, 5 % from SIMO data.
+            tol = 0.10 if method == "oe-mimo" else 0.05
+            assert sorted(e["T"]) == pytest.approx(sorted(phys.G[o][i].lags), rel=tol)
 
 
 def test_step_fit_of_one_pair(logs: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:

@@ -4,8 +4,9 @@ the transfer matrix.
 
 SIMO records (one input excited per record, the thesis's way) are combined: the
 element from input i to output o comes from the record in which input i moves.  A
-record in which two of the chosen inputs move feeds the subspace method only (a
-per-element fit would take the other input's effect for noise).
+record in which two of the chosen inputs move (MIMO) feeds the subspace method or
+an output-error fit of each output's elements together; step and ARX fits refuse
+it (a per-element fit would take the other input's effect for noise).
 
 The operating point is the first row of each record (our experiment scripts log
 one sample of rest before the excitation starts); models work in deviations from it.
@@ -22,7 +23,7 @@ from scipy import signal
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.identify import IdentificationError
 from quadtank_tui.core.identify.arx import fit_arx
-from quadtank_tui.core.identify.oe import fit_oe, simulate_oe
+from quadtank_tui.core.identify.oe import fit_oe, fit_oe_miso, simulate_oe
 from quadtank_tui.core.identify.step import STRUCTURES, find_steps, fit_step, simulate_steps
 from quadtank_tui.core.identify.subspace import fit_subspace
 from quadtank_tui.core.identify.system import SystemModel, from_elements, from_state_space, time_constants
@@ -165,13 +166,19 @@ def identify(records: Sequence[Record], opts: Options = Options(),
     used: list[str] = []
     op: dict[str, float] = {}
     for i in inputs:
-        rec = _simo_record(records, i, inputs)
+        if any(key[1] == i for key in elements):
+            continue  # fitted with the other inputs of its MIMO record
+        rec = _record_for(records, i, inputs, opts.method)
         if rec.name not in used:
             used.append(rec.name)
+        moving = [j for j in inputs if j in rec.columns and rec.moves(j)]
         for o in outputs:
             if cancel is not None and cancel():
                 raise IdentificationError("cancelled")
-            elements[(o, i)] = _fit_element(rec, i, o, opts)
+            if len(moving) > 1:
+                elements.update(_fit_miso(rec, moving, o, opts))
+            else:
+                elements[(o, i)] = _fit_element(rec, i, o, opts)
         if not op:
             op = {k: float(rec.column(k)[0]) for k in (*inputs, *outputs) if k in rec.columns}
     system = from_elements([[elements[(o, i)].tf for i in inputs] for o in outputs])
@@ -179,14 +186,16 @@ def identify(records: Sequence[Record], opts: Options = Options(),
     return Identification(opts.method, inputs, outputs, elements, system, fits, op, tuple(used), records[0].h)
 
 
-def _simo_record(records: Sequence[Record], i: str, inputs: Sequence[str]) -> Record:
+def _record_for(records: Sequence[Record], i: str, inputs: Sequence[str], method: str) -> Record:
+    """The first record in which input i moves; step and arx need it to be the only
+    chosen input that moves there."""
     for r in records:
         if i in r.columns and r.moves(i):
             others = [j for j in inputs if j != i and j in r.columns and r.moves(j)]
-            if others:
+            if others and method != "oe":
                 raise IdentificationError(
                     f"{r.name}: {i} and {others[0]} both move; a per-element fit needs one moving "
-                    "input per log (a SIMO experiment): use --method n4sid")
+                    "input per log (a SIMO experiment): use --method n4sid or oe")
             return r
     raise IdentificationError(f"{i} does not move in any log")
 
@@ -233,6 +242,24 @@ def _fit_element(rec: Record, i: str, o: str, opts: Options) -> Element:
         params = {"na": order, "nb": order, "nk": 1, "a": af.a.tolist(), "b": af.b.tolist()}
     fp, white, indep = _validate(u - u[0], y, ym, k)
     return Element(o, i, rec.name, tf, opts.method, params, loss, fp, white, indep, k, y, ym, u)
+
+
+def _fit_miso(rec: Record, inputs: Sequence[str], o: str, opts: Options) -> dict[tuple[str, str], Element]:
+    """One output's elements from a MIMO record, fitted together (output error)."""
+    U = np.column_stack([rec.column(i) for i in inputs])
+    y, h = rec.column(o), rec.h
+    k = split_index(rec.rows, opts.fraction)
+    end = k if k else rec.rows
+    orders = [opts.order or (1 if i[1:] == o[1:] else 2) for i in inputs]
+    mf = fit_oe_miso(U[:end], y[:end], h, orders, opts.zeros, delay=opts.delay, u0=U[0])
+    ym = mf.offset + sum(simulate_oe(g, U[:, j], h, U[0, j], 0.0) for j, g in enumerate(mf.models))
+    out = {}
+    for j, (i, g) in enumerate(zip(inputs, mf.models)):
+        fp, white, indep = _validate(U[:, j] - U[0, j], y, ym, k)
+        params = {"poles": orders[j], "zeros": opts.zeros, **g.params(), "offset": mf.offset,
+                  "fitted_with": list(inputs)}
+        out[(o, i)] = Element(o, i, rec.name, g.tf(), "oe", params, mf.loss, fp, white, indep, k, y, ym, U[:, j])
+    return out
 
 
 def _pooled_fit(elements: Sequence[Element]) -> float:

@@ -86,16 +86,20 @@ def _den(T: Sequence[float]) -> np.ndarray:
     return den
 
 
-def _design(du: np.ndarray, h: float, T: Sequence[float], L: float, nz: int) -> np.ndarray:
-    """Columns: the response to s^i / den(s) for i = nz..0, then 1 (the rest value)."""
+def _columns(du: np.ndarray, h: float, T: Sequence[float], L: float, nz: int) -> list[np.ndarray]:
+    """The response to s^i / den(s) for i = nz..0: the output is linear in num."""
     den = _den(T)
     cols = []
     for i in range(nz, -1, -1):
         num = np.zeros(i + 1)
         num[0] = 1.0
         cols.append(simulate(num, den, h, du, L))
-    cols.append(np.ones_like(du))
-    return np.column_stack(cols)
+    return cols
+
+
+def _design(du: np.ndarray, h: float, T: Sequence[float], L: float, nz: int) -> np.ndarray:
+    """Columns: the response to s^i / den(s) for i = nz..0, then 1 (the rest value)."""
+    return np.column_stack(_columns(du, h, T, L, nz) + [np.ones_like(du)])
 
 
 def fit_oe(
@@ -177,6 +181,72 @@ def fit_oe(
     order_T = sorted(T)
     model = OEModel(tuple(float(x) for x in c[:-1]), tuple(order_T), L)
     return OEFit(model, float(c[-1]), float(np.mean((y - ym) ** 2)), ym)
+
+
+@dataclass(frozen=True)
+class MISOFit:
+    """One output's elements fitted together from a record in which several inputs
+    move (a MIMO experiment): a model per input, the rest value, loss, ym."""
+
+    models: tuple[OEModel, ...]
+    offset: float
+    loss: float
+    ym: np.ndarray = field(repr=False)
+
+
+def fit_oe_miso(U: np.ndarray, y: Sequence[float], h: float, orders: Sequence[int], zeros: int = 0, *,
+                delay: bool = True, u0: Sequence[float] | None = None) -> MISOFit:
+    """y = sum_j G_j(s) u_j + rest, all G_j fitted at once (output error).  The
+    starting values come from two rounds of backfitting (each G_j fitted alone to
+    what the others leave unexplained), then one joint least-squares fit."""
+    U = np.asarray(U, dtype=float)
+    y = np.asarray(y, dtype=float)
+    m = U.shape[1]
+    rest = U[0] if u0 is None else np.asarray(u0, dtype=float)
+    dU = U - rest
+    parts = [np.zeros_like(y) for _ in range(m)]
+    starts: list[OEModel] = []
+    for _ in range(2):  # each round searches afresh: starting where the last ended can stick
+        starts = []
+        for j in range(m):
+            others = sum(parts[k] for k in range(m) if k != j)
+            fit = fit_oe(U[:, j], y - others, h, orders[j], zeros, delay=delay, u0=rest[j])
+            parts[j] = fit.ym - fit.offset
+            starts.append(fit.model)
+    span = (y.size - 1) * h
+    lo = np.concatenate([[math.log(0.05 * h)] * k + ([0.0] if delay else []) for k in orders])
+    hi = np.concatenate([[math.log(5 * span)] * k + ([0.25 * span] if delay else []) for k in orders])
+
+    def unpack(p: np.ndarray) -> list[tuple[list[float], float]]:
+        out, at = [], 0
+        for k in orders:
+            out.append(([math.exp(x) for x in p[at:at + k]], float(p[at + k]) if delay else 0.0))
+            at += k + delay
+        return out
+
+    def design(p: np.ndarray) -> np.ndarray:
+        cols: list[np.ndarray] = []
+        for j, (T, L) in enumerate(unpack(p)):
+            cols += _columns(dU[:, j], h, T, L, zeros)
+        return np.column_stack(cols + [np.ones_like(y)])
+
+    def residual(p: np.ndarray) -> np.ndarray:
+        X = design(p)
+        c, *_ = np.linalg.lstsq(X, y, rcond=None)
+        return X @ c - y
+
+    p0 = np.concatenate([np.r_[np.log(g.T), [g.L] if delay else []] for g in starts])
+    r = least_squares(residual, np.clip(p0, lo, hi), bounds=(lo, hi),
+                      x_scale=np.concatenate([[1.0] * k + ([h] if delay else []) for k in orders]),
+                      diff_step=1e-7, xtol=1e-10, ftol=1e-12, gtol=1e-12, max_nfev=300)
+    X = design(r.x)
+    c, *_ = np.linalg.lstsq(X, y, rcond=None)
+    ym = X @ c
+    models, at = [], 0
+    for T, L in unpack(r.x):
+        models.append(OEModel(tuple(float(x) for x in c[at:at + zeros + 1]), tuple(sorted(T)), L))
+        at += zeros + 1
+    return MISOFit(tuple(models), float(c[-1]), float(np.mean((y - ym) ** 2)), ym)
 
 
 def simulate_oe(model: OEModel, u: Sequence[float], h: float, u0: float, offset: float) -> np.ndarray:
