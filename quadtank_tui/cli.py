@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 from quadtank_tui.commands import icad
 from quadtank_tui.commands.design import add_parser as add_design_parser
 from quadtank_tui.commands import statefb
+from quadtank_tui.commands import identify as identify_command
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
 from quadtank_tui.daq.cli import (
     add_daq_option, add_daq_parser, add_rig_parser, open_daq, run_clock,
@@ -313,6 +314,7 @@ def build_parser() -> argparse.ArgumentParser:
     icad.add_parser(sub)
     add_design_parser(sub)
     statefb.add_parser(sub)
+    identify_command.add_parser(sub)
     return parser
 
 

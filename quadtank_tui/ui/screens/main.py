@@ -63,6 +63,7 @@ class MainScreen(CommandSender):
         Binding("A", "active", "Active", show=False, tooltip=NO_DAQ),
         Binding("S", "setup", "Setup"),
         Binding("d", "design", "Design", show=False),
+        Binding("y", "identify", "Identify", show=False),
         Binding("t", "controller_type", "Type"),
         Binding("1", "element(0)", "Element 11", show=False),
         Binding("2", "element(1)", "Element 12", show=False),
@@ -308,6 +309,13 @@ class MainScreen(CommandSender):
         from quadtank_tui.ui.screens.design import DesignScreen
 
         self.app.push_screen(DesignScreen(self.engine))
+
+    def action_identify(self) -> None:
+        """The Identify screen: models from logs while the process runs on; Esc
+        comes back here."""
+        from quadtank_tui.ui.screens.identify import IdentifyScreen
+
+        self.app.push_screen(IdentifyScreen(last_log=self.current().log.saved_path))
 
     def action_exit(self) -> None:
         snap = self.current()

@@ -1,0 +1,85 @@
+"""Time to identify from one 3600-point log, per method.
+
+    .venv/bin/python benchmarks/identify.py [--repeat 3]
+
+The logs are the shipped experiments at P- (params/identify-pminus-u1.yaml and
+-mimo.yaml) run on the simulator (virtual clock).  Printed: the best of `--repeat`
+runs of one element per method (step, oe first and second order, arx), of one
+output's two elements fitted together from the MIMO log (oe), and of the 2x2
+subspace model, with the load average beside them (the machine may be shared;
+multi-threaded BLAS on small matrices suffers most).  Targets (issue 12): under 1 s
+for a step or output-error element, under 3 s for the 2x2 subspace model.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Callable
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import numpy as np  # noqa: E402
+
+from quadtank_tui.core.identify.arx import fit_arx  # noqa: E402
+from quadtank_tui.core.identify.oe import fit_oe, fit_oe_miso  # noqa: E402
+from quadtank_tui.core.identify.step import fit_step  # noqa: E402
+from quadtank_tui.core.identify.subspace import fit_subspace  # noqa: E402
+from quadtank_tui.core.identify.system import from_state_space  # noqa: E402
+from quadtank_tui.engine.headless import run_headless  # noqa: E402
+from quadtank_tui.files.log import LogData, read_log  # noqa: E402
+from quadtank_tui.files.script import read_script  # noqa: E402
+
+
+def experiment(name: str, folder: Path) -> LogData:
+    out = folder / f"{name}.log"
+    run_headless(par="minphase", script=read_script(ROOT / f"params/identify-{name}.yaml"), duration=4200,
+                 out=out, params_dir=ROOT / "params")
+    return read_log(out)
+
+
+def best(fn: Callable[[], object], repeat: int) -> float:
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        simo, mimo = experiment("pminus-u1", Path(tmp)), experiment("pminus-mimo", Path(tmp))
+    u1, y1, y2 = simo["u1"], simo["y1"], simo["y2"]
+    U = np.column_stack([mimo["u1"], mimo["u2"]])
+    Y = np.column_stack([mimo["y1"], mimo["y2"]])
+    cases: list[tuple[str, Callable[[], object], float]] = [
+        ("step, structure 1, n = 1 (G11)", lambda: fit_step(u1, y1, 1.0, 1, 1), 1.0),
+        ("step, structure 1, n = 1..4 (G21)", lambda: fit_step(u1, y2, 1.0, 1, None), 1.0),
+        ("oe, 1 pole + delay (G11)", lambda: fit_oe(u1, y1, 1.0, 1), 1.0),
+        ("oe, 2 poles + delay (G21)", lambda: fit_oe(u1, y2, 1.0, 2), 1.0),
+        ("oe, MISO from the MIMO log (G21, G22)", lambda: fit_oe_miso(U, Y[:, 1], 1.0, [2, 1]), 3.0),
+        ("arx(2, 2, 1) (G21)", lambda: fit_arx(u1, y2, 1.0, 2, 2, 1), 1.0),
+        ("n4sid, 4 states, 2x2", lambda: from_state_space(*_abc(fit_subspace(U, Y, 1.0, 4))), 3.0),
+    ]
+    print(f"3600 rows at 1 s; best of {args.repeat}; load average {os.getloadavg()[0]:.1f} "
+          f"on {os.cpu_count()} cores")
+    for name, fn, target in cases:
+        t = best(fn, args.repeat)
+        print(f"  {name:<36} {t * 1e3:8.0f} ms   (target < {target:g} s{'' if t < target else ', MISSED'})")
+
+
+def _abc(fit):  # type: ignore[no-untyped-def]
+    return fit.A, fit.B, fit.C
+
+
+if __name__ == "__main__":
+    main()

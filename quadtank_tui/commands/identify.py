@@ -1,0 +1,144 @@
+"""`quadtank identify LOG [LOG ...]`: models from experiment logs (step-response,
+output-error, subspace or ARX), validated, next to the physical linearization.
+
+Bad input (a missing column, too few rows, a constant input, no step) is one line
+on stderr and exit status 2, through cli.main's handling of ValueError.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from quadtank_tui.core.plant import PlantParams
+
+METHODS = ("step", "oe", "n4sid", "arx")
+
+
+class IdentifyUsageError(ValueError):
+    """A bad option value; the message says which."""
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "identify", help="identify the process from logs: step, output-error, subspace or ARX models",
+        description="Fit models to experiment logs (each element from the log in which its input "
+        "moves; n4sid from a log in which both move), validate them on the last part of each log, "
+        "and compare the static gains, time constants, zeros and phase with the physical model "
+        "linearized at the log's first row.",
+    )
+    p.add_argument("logs", nargs="+", metavar="LOG", help=".log files (SIMO: one per excited input)")
+    p.add_argument("--method", choices=METHODS, default="oe",
+                   help="step: Andersson's step-response structures; oe: output-error transfer functions "
+                   "(default); n4sid: a MIMO state-space model (PO-MOESP); arx: least squares")
+    p.add_argument("--inputs", nargs="+", metavar="U", help="inputs to use (default: those that move)")
+    p.add_argument("--outputs", nargs="+", metavar="Y", help="outputs to use (default: y1 y2)")
+    p.add_argument("--structure", type=int, choices=range(1, 6), default=1, metavar="1..5",
+                   help="step structure: 1 K/(sT+1)^n, 2 K(sTz+1)/(sT+1)^n, 3 K/s, 4 K/(s(sT+1)), "
+                   "5 K(sTz+1)/(s(sT+1)), all with e^-sL (default 1)")
+    p.add_argument("--n", type=int, choices=range(1, 5), metavar="1..4",
+                   help="n of step structures 1 and 2 (default: the best of 1..4)")
+    p.add_argument("--order", type=int, metavar="N",
+                   help="oe: poles per element (default 1 on the diagonal, 2 off it); "
+                   "arx: na = nb (default 2); n4sid: states (default 4)")
+    p.add_argument("--zeros", type=int, default=0, metavar="M", help="oe: zeros per element (default 0)")
+    p.add_argument("--no-delay", action="store_true", help="oe: no dead time (L = 0)")
+    p.add_argument("--start", nargs="+", metavar="NAME=VALUE",
+                   help="manual starting values for step and oe fits: T=60 L=2 (oe: one T per "
+                   "pole, T=30,90); K, Tz, y0 and the rest value are solved exactly and need none")
+    p.add_argument("--validate", type=float, default=0.5, metavar="FRACTION",
+                   help="share of each log kept for validation (default 0.5; 0 validates on "
+                   "the identification data)")
+    p.add_argument("--par", metavar="FILE",
+                   help="the physical model to compare with: a .par file or a preset name "
+                   "(default: the preset whose steady state matches the log's first row)")
+    p.add_argument("--save", nargs="?", const="", metavar="PATH",
+                   help="keep the model as JSON (default path: next to the first log, NAME.model.json)")
+    p.add_argument("--json", action="store_true", help="print a JSON object instead of a report")
+    p.set_defaults(handler=run)
+
+
+def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams, str, tuple[float, float]]:
+    """The physical model to compare with, its name, and the pump voltages to
+    assume for an input the logs do not hold."""
+    from quadtank_tui.core.identify.compare import closest_setting
+    from quadtank_tui.core.plant import SETTINGS
+
+    if par is None:
+        s = closest_setting(op)
+        return s.params, f"{s.title} (the preset nearest the log's levels; --par to choose)", s.op.v
+    if par in SETTINGS:
+        s = SETTINGS[par]
+        return s.params, s.title, s.op.v
+    from quadtank_tui.files.par import read_par
+
+    read = read_par(par)
+    for w in read.warnings:
+        print(f"quadtank: warning: {w}", file=sys.stderr)
+    return read.params.plant(), par, (3.0, 3.0)
+
+
+def parse_start(items: list[str] | None) -> dict[str, object] | None:
+    """`T=60 L=2` or `T=30,90` -> {"T": 60.0, "L": 2.0} / {"T": [30.0, 90.0]}."""
+    if not items:
+        return None
+    out: dict[str, object] = {}
+    for item in items:
+        name, eq, value = item.partition("=")
+        if not eq or name not in ("T", "L"):
+            raise IdentifyUsageError(f"--start takes T=VALUE and L=VALUE, got {item!r}")
+        try:
+            numbers = [float(x) for x in value.split(",")]
+        except ValueError:
+            raise IdentifyUsageError(f"--start {name}: not a number in {value!r}") from None
+        out[name] = numbers if name == "T" and "," in value else numbers[0]
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    from quadtank_tui.core.identify.compare import compare
+    from quadtank_tui.core.identify.experiment import Options, Record, identify
+    from quadtank_tui.core.identify.report import format_report, to_dict
+    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.model import from_identification, model_path, write_model
+
+    if not 0.0 <= args.validate < 1.0:
+        raise IdentifyUsageError(f"--validate must be a fraction in [0, 1), got {args.validate:g}")
+    if args.order is not None and args.order < 1:
+        raise IdentifyUsageError(f"--order must be >= 1, got {args.order}")
+    records = []
+    for path in args.logs:
+        log = read_log(path)
+        for w in log.warnings:
+            print(f"quadtank: warning: {w}", file=sys.stderr)
+        if log.tsamp is None:
+            raise IdentifyUsageError(f"{path}: no TSamp in the header: the sampling time is needed")
+        records.append(Record(path, log.tsamp, log.columns()))
+    opts = Options(method=args.method, inputs=tuple(args.inputs) if args.inputs else None,
+                   outputs=tuple(args.outputs) if args.outputs else None, structure=args.structure,
+                   n=args.n, order=args.order, zeros=args.zeros, delay=not args.no_delay,
+                   fraction=1.0 - args.validate, start=parse_start(args.start))
+    ident = identify(records, opts)
+    params, name, v_default = _physical(args.par, ident.operating_point)
+    cmp = None
+    if all(k in ("u1", "u2") for k in ident.inputs) and all(k in ("y1", "y2") for k in ident.outputs):
+        cmp = compare(ident.operating_point, params, ident.system.static_gains, ident.inputs,
+                      ident.outputs, v_default)
+    saved = None
+    if args.save is not None:
+        target = Path(args.save) if args.save else model_path(args.logs[0])
+        saved = write_model(target, from_identification(ident))
+    if args.json:
+        out = to_dict(ident, cmp, name)
+        if saved is not None:
+            out["model_file"] = str(saved)
+        print(json.dumps(out, indent=2))
+    else:
+        print(format_report(ident, cmp, name))
+        if saved is not None:
+            print(f"Model saved to {saved}")
+    return 0

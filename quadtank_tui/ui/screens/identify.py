@@ -1,0 +1,368 @@
+"""The Identify screen (issue 12; Nunes 3, Andersson 2): models from logged
+experiments without leaving the terminal.  The process keeps running behind it.
+
+Choose one or more logs from `logs/` (the one just saved is ticked), a method and
+its structure, fit (in a worker: the screen never freezes; Esc or `c` cancels),
+then see the measured and model outputs overlaid, the residual autocorrelation,
+the coherence or the gain of the spectral estimate against the model's, and the table that sets the identified gains, time constants and
+zeros beside the physical linearization.  `k` keeps the model as JSON next to the
+first log (what design reads).  All numbers come from core/identify; this screen
+only renders them.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import DataTable, Footer, SelectionList, Static
+from textual.worker import get_current_worker
+from textual_plotext import PlotextPlot
+
+from quadtank_tui.ui.screens.sending import COMPACT_WIDTH
+
+if TYPE_CHECKING:  # the analysis stack loads with the first fit, not with the app
+    from quadtank_tui.core.identify.compare import Comparison
+    from quadtank_tui.core.identify.experiment import Element, Identification
+
+METHODS = ("oe", "step", "n4sid", "arx")
+LOWER_PLOTS = ("residuals", "coherence", "frequency")
+
+
+@dataclass(frozen=True)
+class FitView:
+    """What a finished fit hands the screen: the identification, the comparison (or
+    None), the physical model's name, and per element its residual autocorrelation
+    and coherence, and its gain |G(iw)| from the spectral estimate and from the model."""
+
+    ident: Identification
+    comparison: Comparison | None
+    physical: str
+    residuals: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, float]]
+    coherence: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]
+    frequency: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+def compute(paths: list[str], method: str, structure: int, cancel: threading.Event,
+            progress: Callable[[int], None] = lambda k: None) -> FitView:
+    """Read the logs, identify, compare, and prepare the plots (run in a worker);
+    `progress(k)` is told when the k-th element's fit starts."""
+    from quadtank_tui.core.identify.compare import closest_setting, compare
+    from quadtank_tui.core.identify.experiment import Options, Record, identify
+    from quadtank_tui.core.identify.validation import autocorrelation, coherence, spectral_estimate
+    from quadtank_tui.files.log import read_log
+
+    records = []
+    for p in paths:
+        log = read_log(p)
+        if log.tsamp is None:
+            raise ValueError(f"{p}: no TSamp in the header: the sampling time is needed")
+        records.append(Record(p, log.tsamp, log.columns()))
+    started = [0]
+
+    def stop() -> bool:
+        started[0] += 1
+        progress(started[0])
+        return cancel.is_set()
+
+    ident = identify(records, Options(method=method, structure=structure), cancel=stop)
+    setting = closest_setting(ident.operating_point)
+    cmp = None
+    if set(ident.inputs) <= {"u1", "u2"} and set(ident.outputs) <= {"y1", "y2"}:
+        cmp = compare(ident.operating_point, setting.params, ident.system.static_gains,
+                      ident.inputs, ident.outputs, setting.op.v)
+    residuals, coh, freq = {}, {}, {}
+    for key, e in ident.elements.items():
+        k = e.split
+        res = e.y[k:] - e.ym[k:]
+        if np.ptp(res) > 0:
+            r = autocorrelation(res)
+            residuals[key] = (r.lags.astype(float), r.value, r.band)
+        f, c = coherence(e.u - e.u[0], e.y - e.y[0], ident.h)
+        coh[key] = (f, c)
+        w, g = spectral_estimate(e.u - e.u[0], e.y - e.y[0], ident.h)
+        keep = (w > 0) & (w <= 2 * np.pi * 0.1)
+        freq[key] = (w[keep], np.abs(g[keep]), np.abs(e.tf.freqresp(w[keep])))
+    return FitView(ident, cmp, setting.title, residuals, coh, freq)
+
+
+class IdentifyScreen(Screen[None]):
+    """Fit models to logs; Esc returns to Main."""
+
+    CSS_PATH = "../styles/identify.tcss"
+    AUTO_FOCUS = "#logs"
+
+    BINDINGS = [
+        Binding("escape", "back", "Back"),
+        Binding("f", "fit", "Fit"),
+        Binding("c", "cancel", "Cancel fit"),
+        Binding("m", "method", "Method"),
+        Binding("n", "structure", "Structure"),
+        Binding("e", "element", "Element"),
+        Binding("v", "lower_plot", "Residuals/coherence/gain"),
+        Binding("k", "keep", "Keep model"),
+        Binding("F5", "rescan", "Rescan logs", show=False),
+    ]
+
+    def __init__(self, logs_dir: Path | str = "logs", last_log: str = "") -> None:
+        super().__init__()
+        self.logs_dir = Path(logs_dir)
+        self.last_log = last_log
+        self.method = "oe"
+        self.structure = 1
+        self.element_index = 0
+        self.lower = LOWER_PLOTS[0]
+        self.view: FitView | None = None
+        self._cancel = threading.Event()
+        self._fitting = False
+
+    def compose(self) -> ComposeResult:
+        yield Static("", id="identify-status")
+        with Horizontal(id="identify-body"):
+            with Vertical(id="identify-left"):
+                yield SelectionList[str](id="logs")
+                yield Static("", id="choice")
+                yield DataTable(id="compare", cursor_type="none", zebra_stripes=True)
+                yield Static("", id="zeros")
+            with Vertical(id="identify-right"):
+                yield PlotextPlot(id="outputs")
+                yield PlotextPlot(id="lower")
+        yield Footer()
+
+    def on_resize(self) -> None:
+        self.set_class(self.size.width < COMPACT_WIDTH, "-compact")
+
+    def on_mount(self) -> None:
+        self.query_one("#logs", SelectionList).border_title = f"Logs in {self.logs_dir}/ (space ticks)"
+        self.query_one("#compare", DataTable).border_title = "Identified | physical"
+        self.action_rescan()
+        self._show_choice()
+        self._status("Tick the logs (SIMO: one per input; n4sid: one MIMO log), choose the method, f to fit.")
+        self._draw()
+
+    # --- choices --------------------------------------------------------------------
+
+    def on_selection_list_selection_highlighted(self, event: SelectionList.SelectionHighlighted) -> None:
+        """Before a fit, the top plot shows the highlighted log's signals."""
+        if self.view is None and not self._fitting:
+            self._preview(str(event.selection.value))
+
+    def _preview(self, path: str) -> None:
+        from quadtank_tui.files.log import read_log
+
+        top = self.query_one("#outputs", PlotextPlot)
+        top.plt.clear_figure()
+        top.plt.theme("clear")
+        try:
+            log = read_log(path)
+        except ValueError as exc:
+            self._status(f"[red]{exc}[/]")
+            return
+        h = log.tsamp or 1.0
+        t = np.arange(log.rows) * h
+        step = max(1, log.rows // 400)
+        colors = {"y1": "blue", "y2": "red", "u1": "cyan", "u2": "magenta"}
+        for name in log.variables:
+            if name in colors:
+                top.plt.plot(t[::step].tolist(), log[name][::step].tolist(), color=colors[name], label=name)
+        top.border_title = f"{Path(path).name}: {log.rows} rows at {h:g} s"
+        top.plt.xlabel("t (s)")
+        top.refresh()
+
+    def action_rescan(self) -> None:
+        sel = self.query_one("#logs", SelectionList)
+        sel.clear_options()
+        logs = sorted(self.logs_dir.glob("*.log")) if self.logs_dir.is_dir() else []
+        last = Path(self.last_log).resolve() if self.last_log else None
+        for p in logs:
+            sel.add_option((p.name, str(p), last is not None and p.resolve() == last))
+        if logs:
+            sel.highlighted = 0
+
+    def _show_choice(self) -> None:
+        extra = f"  structure {self.structure} (n)" if self.method == "step" else ""
+        self.query_one("#choice", Static).update(f"Method [b]{self.method}[/] (m){extra}")
+
+    def action_method(self) -> None:
+        self.method = METHODS[(METHODS.index(self.method) + 1) % len(METHODS)]
+        self._show_choice()
+
+    def action_structure(self) -> None:
+        self.structure = self.structure % 5 + 1
+        self._show_choice()
+
+    def action_element(self) -> None:
+        if self.view is not None:
+            self.element_index = (self.element_index + 1) % len(self.view.ident.elements)
+            self._draw()
+
+    def action_lower_plot(self) -> None:
+        self.lower = LOWER_PLOTS[(LOWER_PLOTS.index(self.lower) + 1) % len(LOWER_PLOTS)]
+        self._draw()
+
+    def action_back(self) -> None:
+        self.action_cancel()
+        self.app.pop_screen()
+
+    # --- the fit ----------------------------------------------------------------------
+
+    def action_fit(self) -> None:
+        paths = list(self.query_one("#logs", SelectionList).selected)
+        if not paths:
+            self._status("[red]Tick at least one log (space) first.[/]")
+            return
+        if self._fitting:
+            return
+        self._cancel = threading.Event()
+        self._fitting = True
+        self._status(f"Fitting {self.method} to {', '.join(Path(p).name for p in paths)} ... (c cancels)")
+        self._run_fit(paths, self.method, self.structure, self._cancel)
+
+    @work(thread=True, exclusive=True, group="fit")
+    def _run_fit(self, paths: list[str], method: str, structure: int, cancel: threading.Event) -> None:
+        def progress(k: int) -> None:
+            self.app.call_from_thread(self._status, f"Fitting {method}: element {k} ... (c cancels)")
+
+        try:
+            view = compute(paths, method, structure, cancel, progress)
+        except ValueError as exc:  # bad logs, no step, constant input: one line
+            message = "cancelled" if cancel.is_set() else str(exc)
+            self.app.call_from_thread(self._failed, message)
+            return
+        if not get_current_worker().is_cancelled and not cancel.is_set():
+            self.app.call_from_thread(self._done, view)
+        else:
+            self.app.call_from_thread(self._failed, "cancelled")
+
+    def action_cancel(self) -> None:
+        if self._fitting:
+            self._cancel.set()
+
+    def _failed(self, message: str) -> None:
+        self._fitting = False
+        self._status(f"[red]{message}[/]")
+
+    def _done(self, view: FitView) -> None:
+        from quadtank_tui.core.identify.report import phase
+
+        self._fitting = False
+        self.view = view
+        self.element_index = 0
+        ident = view.ident
+        fits = "  ".join(f"{o} {f:.1f} %" for o, f in ident.fit_percent.items())
+        self._status(f"{ident.method}: fit on the validation half {fits}; phase {phase(ident)}."
+                     "  e: next element  v: residuals/coherence/gain  k: keep")
+        self._table()
+        self._draw()
+
+    # --- views --------------------------------------------------------------------
+
+    def _status(self, text: str) -> None:
+        self.query_one("#identify-status", Static).update(text)
+
+    def _table(self) -> None:
+        from quadtank_tui.core.identify.compare import physical_time_constants
+        from quadtank_tui.core.identify.report import zero_text
+        from quadtank_tui.core.identify.system import time_constants
+
+        assert self.view is not None
+        ident, cmp = self.view.ident, self.view.comparison
+        t = self.query_one("#compare", DataTable)
+        t.clear(columns=True)
+        t.add_columns("G", "gain", "phys", "T (s)", "phys T", "fit %")
+        gains = ident.system.static_gains
+        for r, o in enumerate(ident.outputs):
+            for c, i in enumerate(ident.inputs):
+                e = ident.elements[(o, i)]
+                tid = ", ".join(f"{x:.0f}" for x in time_constants(e.tf))
+                if cmp is not None:
+                    phys = f"{cmp.physical.static_gains[int(o[1]) - 1, int(i[1]) - 1]:.3f}"
+                    tph = ", ".join(f"{x:.0f}" for x in physical_time_constants(cmp.physical, o, i))
+                else:
+                    phys = tph = "-"
+                t.add_row(f"G{o[1:]}{i[1:]}", f"{gains[r, c]:.3f}", phys, tid, tph, f"{e.fit_percent:.1f}")
+        from quadtank_tui.core.identify.report import phase
+
+        pz = f" | {zero_text(cmp.physical.zeros)}" if cmp is not None else ""
+        pp = f" | {cmp.physical.phase}" if cmp is not None else ""
+        self.query_one("#zeros", Static).update(
+            f"Zeros {zero_text(ident.system.zeros)}{pz}\nPhase {phase(ident)}{pp}")
+        t.border_subtitle = f"physical: {self.view.physical}"
+
+    def _element(self) -> tuple[tuple[str, str], Element] | tuple[None, None]:
+        if self.view is None:
+            return None, None
+        keys = list(self.view.ident.elements)
+        key = keys[self.element_index % len(keys)]
+        return key, self.view.ident.elements[key]
+
+    def _draw(self) -> None:
+        top = self.query_one("#outputs", PlotextPlot)
+        low = self.query_one("#lower", PlotextPlot)
+        for w in (top, low):
+            w.plt.clear_figure()
+            w.plt.theme("clear")
+        key, e = self._element()
+        if e is None:
+            top.border_title = "Measured and model output"
+            low.border_title = "Residual autocorrelation"
+            top.plt.title("no fit yet")
+        else:
+            h = self.view.ident.h
+            t = np.arange(len(e.y)) * h
+            step = max(1, len(t) // 400)
+            top.plt.plot(t[::step].tolist(), e.y[::step].tolist(), color="blue", label="measured")
+            top.plt.plot(t[::step].tolist(), e.ym[::step].tolist(), color="red", label="model")
+            if e.split:
+                top.plt.vline(float(t[e.split]), "gray")
+            top.border_title = (f"G{key[0][1:]}{key[1][1:]}: {key[0]} measured (blue) and model (red), "
+                                f"fit {e.fit_percent:.1f} % right of the line")
+            top.plt.xlabel("t (s)")
+            if self.lower == "residuals":
+                low.border_title = "Residual autocorrelation (validation part), 99 % band"
+                if key in self.view.residuals:
+                    lags, r, band = self.view.residuals[key]
+                    low.plt.bar(lags.tolist(), r.tolist(), color="blue", width=0.3)
+                    low.plt.hline(band, "red")
+                    low.plt.hline(-band, "red")
+                low.plt.xlabel("lag (samples)")
+            elif self.lower == "frequency":
+                low.border_title = f"|G{key[0][1:]}{key[1][1:]}(iw)|: spectral estimate (blue), model (red), log scales"
+                w, est, mod = self.view.frequency[key]
+                low.plt.plot(np.log10(w).tolist(), np.log10(est).tolist(), color="blue")
+                low.plt.plot(np.log10(w).tolist(), np.log10(mod).tolist(), color="red")
+                low.plt.xlabel("log10 w (rad/s)")
+            else:
+                low.border_title = f"Coherence {key[1]} -> {key[0]} up to 0.1 Hz (Hamming window, 720 points)"
+                f, c = self.view.coherence[key]
+                keep = f <= 0.1  # the thesis's range: a linear model holds up to 0.05-0.1 Hz
+                low.plt.plot(f[keep].tolist(), c[keep].tolist(), color="blue")
+                low.plt.ylim(0, 1.05)
+                low.plt.xlabel("f (Hz)")
+        top.refresh()
+        low.refresh()
+
+    # --- keep -------------------------------------------------------------------------
+
+    def action_keep(self) -> None:
+        from quadtank_tui.files.model import from_identification, model_path, write_model
+
+        if self.view is None:
+            self._status("[red]Nothing to keep yet: fit first (f).[/]")
+            return
+        ident = self.view.ident
+        try:
+            path = write_model(model_path(ident.records[0]), from_identification(ident))
+        except OSError as exc:
+            self._status(f"[red]Cannot save the model: {exc}[/]")
+            return
+        self._status(f"Model kept in {path}")
+        self.notify(f"Model saved to {path}")

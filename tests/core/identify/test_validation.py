@@ -1,0 +1,74 @@
+"""Validation figures on cases with a known answer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from quadtank_tui.core.identify import IdentificationError
+from quadtank_tui.core.identify.validation import (
+    Z99, autocorrelation, coherence, cross_correlation, fit_percent, spectral_estimate, split_index,
+)
+
+
+def test_fit_percent_known_values() -> None:
+    y = np.array([1.0, 2.0, 3.0, 4.0])
+    assert fit_percent(y, y) == 100.0
+    assert fit_percent(y, np.full(4, 2.5)) == pytest.approx(0.0)
+    # |y - ym| = 0.5 * |y - mean|: 50 %
+    assert fit_percent(y, y - 0.5 * (y - 2.5)) == pytest.approx(50.0)
+
+
+def test_split() -> None:
+    assert split_index(3600) == 1800
+    assert split_index(3600, 0.75) == 2700
+    assert split_index(3600, 1.0) == 0  # validate on everything
+    with pytest.raises(IdentificationError):
+        split_index(3600, 0.0)
+    with pytest.raises(IdentificationError, match="too few rows"):
+        split_index(12, 0.5)
+
+
+def test_white_noise_stays_inside_the_99_percent_band() -> None:
+    e = np.random.default_rng(0).normal(size=5000)
+    r = autocorrelation(e)
+    assert r.band == pytest.approx(Z99 / np.sqrt(5000))
+    assert r.value[0] == pytest.approx(1.0)
+    assert r.inside >= 0.96  # 25 lags at 1 % each: at most one or two outside
+
+
+def test_coloured_residuals_and_a_missed_input_are_caught() -> None:
+    rng = np.random.default_rng(1)
+    e = signal.lfilter([1.0], [1.0, -0.8], rng.normal(size=5000))  # AR(1): r(k) = 0.8^k
+    r = autocorrelation(e)
+    assert r.value[1] == pytest.approx(0.8, abs=0.03)
+    assert r.inside < 0.6
+    u = rng.normal(size=5000)
+    missed = 0.5 * np.r_[0.0, 0.0, 0.0, u[:-3]] + rng.normal(size=5000)  # residual still holds u(t-3)
+    c = cross_correlation(u, missed)
+    k = int(np.argmax(np.abs(c.value)))
+    assert c.lags[k] == 3
+    assert c.value[k] == pytest.approx(0.5 / np.sqrt(1.25), abs=0.03)
+    assert cross_correlation(u, rng.normal(size=5000)).inside >= 0.95
+
+
+def test_coherence_one_for_a_linear_noiseless_relation_and_low_for_noise() -> None:
+    rng = np.random.default_rng(2)
+    u = rng.normal(size=3600)
+    y = signal.lfilter([0.0, 0.1], [1.0, -0.9], u)
+    f, c = coherence(u, y, 1.0)
+    assert f[-1] == pytest.approx(0.5) and len(f) == 361  # Hamming window of 720 points
+    assert c[1:].min() > 0.99  # windowing leaves a small bias (and the mean is removed at 0 Hz)
+    _, c2 = coherence(u, rng.normal(size=3600), 1.0)
+    assert c2.mean() < 0.35
+
+
+def test_spectral_estimate_matches_the_true_frequency_response() -> None:
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=3600)
+    b, a = [0.0, 0.1], [1.0, -0.9]
+    y = signal.lfilter(b, a, u)
+    w, g = spectral_estimate(u, y, 1.0)
+    _, true = signal.freqz(b, a, worN=w)
+    assert np.abs(g[1:] - true[1:]).max() / np.abs(true).max() < 0.03  # leakage near 0 Hz

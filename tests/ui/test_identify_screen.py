@@ -1,0 +1,119 @@
+"""The Identify screen: from Main by `y`, a fit in a worker on fixed logs, the
+comparison with the physical model, keeping the model, bad logs refused."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from quadtank_tui.core.analysis import analyze
+from quadtank_tui.core.identify.sampling import simulate
+from quadtank_tui.core.plant import P_MINUS, steady_state_levels
+from quadtank_tui.files.log import format_header, format_row
+from quadtank_tui.files.model import read_model
+from quadtank_tui.ui.screens.identify import IdentifyScreen
+
+ROWS = 1200
+
+
+def write_log(path: Path, columns: dict[str, np.ndarray]) -> None:
+    names = list(columns)
+    rows = np.column_stack([columns[n] for n in names])
+    path.write_text(format_header(names, 1.0, datetime(2000, 1, 1)) + "".join(format_row(r) for r in rows))
+
+
+def simo_logs(folder: Path) -> None:
+    """The linearized P- process under a PRBS on u1, then on u2 (fixed seeds)."""
+    h = steady_state_levels(P_MINUS.op.v, P_MINUS.params)
+    a = analyze(P_MINUS.params, h)
+    folder.mkdir(exist_ok=True)
+    for i in range(2):
+        rng = np.random.default_rng(i + 1)
+        du = np.r_[0.0, np.repeat(rng.choice([-0.015, 0.015], ROWS // 60 + 1), 60)[: ROWS - 1]]
+        cols: dict[str, np.ndarray] = {}
+        for o in range(2):
+            e = a.G[o][i]
+            den = np.array([1.0])
+            for T in e.lags:
+                den = np.polymul(den, [T, 1.0])
+            cols[f"y{o + 1}"] = P_MINUS.params.kc * h[o] / 10 + simulate(np.array([e.gain]), den, 1.0, du)
+        cols["u1"] = 0.30 + (du if i == 0 else 0.0 * du)
+        cols["u2"] = 0.30 + (du if i == 1 else 0.0 * du)
+        write_log(folder / f"pminus-u{i + 1}.log", cols)
+
+
+async def fit_both(pilot: Any) -> None:
+    await pilot.pause()
+    await pilot.press("y")
+    await pilot.pause()
+    await pilot.press("space", "down", "space", "f")
+    await pilot.app.workers.wait_for_complete()
+    await pilot.pause()
+    await pilot.pause()
+
+
+@pytest.fixture
+def app(setup_app):  # type: ignore[no-untyped-def]
+    simo_logs(Path("logs"))
+    return setup_app
+
+
+def test_identify_after_a_fit_120x40(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
+    # The coherence (v) depends on the data alone; the residuals of a noiseless fit
+    # are rounding noise whose correlation moves with the BLAS's summation order.
+    assert snap_compare(app, terminal_size=(120, 40), run_before=fit_both, press=["v"])
+
+
+def test_identify_before_a_fit_80x24(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
+    # The highlighted log's signals, before any fit.
+    assert snap_compare(app, terminal_size=(80, 24), press=["y"])
+
+
+async def test_fit_compares_keeps_and_returns(app) -> None:  # type: ignore[no-untyped-def]
+    async with app.run_test(size=(120, 40)) as pilot:
+        await fit_both(pilot)
+        screen = pilot.app.screen
+        assert isinstance(screen, IdentifyScreen)
+        ident = screen.view.ident
+        assert set(ident.elements) == {("y1", "u1"), ("y2", "u1"), ("y1", "u2"), ("y2", "u2")}
+        a = screen.view.comparison.physical
+        assert np.abs(ident.system.static_gains / a.static_gains - 1).max() < 0.01
+        assert np.array(ident.system.zeros).real == pytest.approx([z.real for z in a.zeros], rel=0.02)
+        # The spectral estimate (checked against a known answer in core's tests) next to
+        # the model's gain, up to 0.1 Hz; the model's is G11's: 2.596/(1 + 62.4 s).
+        w, est, mod = screen.view.frequency[("y1", "u1")]
+        assert w.size == est.size == mod.size == 72 and w.max() == pytest.approx(2 * np.pi * 0.1)
+        assert mod[0] == pytest.approx(2.596 / abs(1 + 62.36j * w[0]), rel=0.01)
+        await pilot.press("v", "v")
+        await pilot.pause()
+        assert "spectral estimate" in str(screen.query_one("#lower").border_title)
+        lags, r, band = screen.view.residuals[("y1", "u1")]
+        assert r[0] == pytest.approx(1.0) and band == pytest.approx(2.576 / np.sqrt(ROWS / 2), rel=1e-3)
+        await pilot.press("k")
+        await pilot.pause()
+        model = read_model("logs/pminus-u1.model.json")
+        assert model.method == "oe" and model.inputs == ("u1", "u2")
+        await pilot.press("escape")
+        await pilot.pause()
+        assert not isinstance(pilot.app.screen, IdentifyScreen)
+        assert pilot.app.engine.snapshot() is not None  # the process is untouched
+
+
+async def test_a_bad_log_is_one_line_on_the_screen(app) -> None:  # type: ignore[no-untyped-def]
+    for p in Path("logs").glob("*.log"):
+        p.unlink()
+    write_log(Path("logs/flat.log"), {"y1": np.full(200, 0.6), "u1": np.full(200, 0.3)})
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        await pilot.press("y")
+        await pilot.pause()
+        await pilot.press("space", "f")
+        await pilot.app.workers.wait_for_complete()
+        await pilot.pause()
+        status = str(pilot.app.screen.query_one("#identify-status").render())
+        assert "no input moves (u1 and u2 are constant)" in status
+        assert pilot.app.screen.view is None
