@@ -49,7 +49,7 @@ from quadtank_tui.files.par import format_par, read_par  # noqa: E402
 
 #: Words each part of the Main screen writes (status line, process image, input
 #: panels, footer): the first frame is complete when all have been written.
-FIRST_FRAME = ("overruns", "P2", "now", "Setup")
+FIRST_FRAME = ("Ts ", "P2", "now", "Setup")
 SETUP_SHOWN = "SETUP"
 SETUP_ANALYSED = "Zeros"
 ANSI = re.compile(rb"\x1b(\[[0-9;?<>=$]*[ -/]*[@-~]|\][^\x07]*\x07|[PX^_].*?\x1b\\|.)")
@@ -66,7 +66,7 @@ class Terminal:
         self.master, self.slave = os.openpty()
         fcntl.ioctl(self.slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, cols, 0, 0))
         self.chunks: list[tuple[float, int]] = []
-        self.text = bytearray()
+        self.raw = bytearray()
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._drain, daemon=True)
 
@@ -87,7 +87,7 @@ class Terminal:
             now = time.monotonic()
             with self._lock:
                 self.chunks.append((now, len(data)))
-                self.text += ANSI.sub(b"", data)
+                self.raw += data
 
     def type(self, keys: bytes) -> None:
         os.write(self.master, keys)
@@ -97,21 +97,21 @@ class Terminal:
             return sum(n for t, n in self.chunks if t0 <= t < t1)
 
     def wait_for(self, words: tuple[str, ...], start: int, timeout: float) -> float | None:
-        """Monotonic time at which all `words` had been written after text offset
+        """Monotonic time at which all `words` had been written after byte offset
         `start`, or None after `timeout` s."""
         end = time.monotonic() + timeout
         wanted = [w.encode() for w in words]
         while time.monotonic() < end:
             with self._lock:
-                text = bytes(self.text[start:])
-                if all(w in text for w in wanted):
-                    return time.monotonic()
-            time.sleep(0.005)
+                text = ANSI.sub(b"", bytes(self.raw[start:]))
+            if all(w in text for w in wanted):
+                return time.monotonic()
+            time.sleep(0.01)
         return None
 
     def offset(self) -> int:
         with self._lock:
-            return len(self.text)
+            return len(self.raw)
 
     def close(self) -> None:
         os.close(self.master)
