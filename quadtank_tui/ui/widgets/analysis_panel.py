@@ -10,10 +10,12 @@ widget only formats them (attributes down: the screen or a window sets `params`)
 
 from __future__ import annotations
 
+import threading
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
 from rich.text import Text
+from textual import work
 from textual.reactive import reactive
 from textual.widgets import Static
 
@@ -24,6 +26,23 @@ if TYPE_CHECKING:
     from quadtank_tui.core.analysis import Analysis
 
 
+#: Set once python-control and scipy are imported (seconds, on a loaded machine):
+#: from then on an analysis takes milliseconds and is done at once.
+_READY = threading.Event()
+
+
+def warm_up() -> None:
+    """Import the analysis stack (the Main screen does it in a worker thread after
+    its first frame, so Setup opens at once)."""
+    import quadtank_tui.core.analysis  # noqa: F401
+
+    _READY.set()
+
+
+def analysis_ready() -> bool:
+    return _READY.is_set()
+
+
 @lru_cache(maxsize=32)
 def analysis_of(sim: SimulationSettings) -> Analysis | str:
     """The analysis of a setting, or why there is none (cached: the screen redraws
@@ -31,6 +50,7 @@ def analysis_of(sim: SimulationSettings) -> Analysis | str:
     first analysis, not when the app starts: the Main screen never needs it."""
     from quadtank_tui.core.analysis import analyze
 
+    _READY.set()
     try:
         return analyze(sim.plant(), sim.operating_levels())
     except PlantError as exc:
@@ -63,7 +83,10 @@ def summary_lines(a: Analysis) -> list[Text]:
 
 
 class AnalysisPanel(Static):
-    """Time constants, zeros and phase of `params` (None: nothing shown yet)."""
+    """Time constants, zeros and phase of `params` (None: nothing shown yet).
+
+    Until the analysis stack is imported (see warm_up) the analysis runs in a
+    worker thread and the panel says so: the screen opens at once either way."""
 
     params: reactive[Parameters | None] = reactive(None)
 
@@ -71,7 +94,25 @@ class AnalysisPanel(Static):
         if params is None:
             self.update("")
             return
-        a = analysis_of(params.simulation)
+        if analysis_ready():
+            self._show(analysis_of(params.simulation))
+            return
+        self.update(Text("Analysing (loading python-control)...", style="dim italic"))
+        self._analyse(params)
+
+    @work(thread=True, exclusive=True, group="analysis", exit_on_error=False)
+    def _analyse(self, params: Parameters) -> None:
+        try:
+            result: Analysis | str = analysis_of(params.simulation)
+        except Exception as exc:  # noqa: BLE001 - say it in the panel, not a traceback
+            result = f"the analysis failed: {type(exc).__name__}: {exc}"
+        self.app.call_from_thread(self._show_if_current, params, result)
+
+    def _show_if_current(self, params: Parameters, a: Analysis | str) -> None:
+        if params == self.params:
+            self._show(a)
+
+    def _show(self, a: Analysis | str) -> None:
         if isinstance(a, str):
             self.update(Text(f"No linearization: {a}", style="italic"))
             return
