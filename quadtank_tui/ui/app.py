@@ -28,7 +28,7 @@ class QuadTankApp(App[None]):
     # Exit goes through the Main screen's confirmation (unsaved log, pumps to 0).
     # F1 opens the help from anywhere, a window included (`?` there is text).
     BINDINGS = [Binding("ctrl+q", "request_exit", "Exit", show=False, priority=True),
-                Binding("f1", "help", "Help", show=False)]
+                Binding("f1", "help", "Help", show=False, priority=True)]
 
     def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.05,
                  wall_clock: Callable[[], float] = time.monotonic) -> None:
@@ -59,10 +59,12 @@ class QuadTankApp(App[None]):
             self.main.action_exit()
 
     def action_help(self) -> None:
-        """Every key of every screen and window (`?`, F1); not twice."""
+        """Every key of every screen and window (`?`, F1); F1 again closes it."""
         from quadtank_tui.ui.screens.help import HelpScreen
 
-        if not isinstance(self.screen, HelpScreen):
+        if isinstance(self.screen, HelpScreen):
+            self.screen.dismiss(None)
+        else:
             self.push_screen(HelpScreen())
 
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:

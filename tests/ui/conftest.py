@@ -27,7 +27,7 @@ from quadtank_tui.ui.widgets.analysis_panel import warm_up
 
 # The analysis stack loaded once, up front: the Setup screen then shows its
 # analysis at once, as it does after the Main screen's warm-up in a terminal
-# (test_help_and_cost.py checks the path where it is not loaded yet).
+# (test_help_and_keys.py checks the path where it is not loaded yet).
 warm_up()
 
 EPOCH = datetime(2026, 1, 5, 9, 0, 0)

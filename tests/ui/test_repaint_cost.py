@@ -8,6 +8,7 @@ updates it would write are rendered to bytes, as the terminal driver would.
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from conftest import Recording
@@ -70,3 +71,23 @@ async def test_a_paused_screen_writes_nothing_for_a_second(engine: Recording) ->
 
 async def test_a_paused_screen_writes_nothing_at_80x24(engine: Recording) -> None:
     await check_paused_screen_is_silent(engine, (80, 24))
+
+
+async def test_a_running_sample_repaints_the_numbers_line_and_not_the_rest_of_the_top(engine: Recording) -> None:
+    """Run at Ts = 1 s at the operating point, waves off: each sample changes the
+    process time and little else the top rows print (levels to 2 decimals, inputs
+    to 3); the trends (rows 19-39 at 120x40) redraw when their curves moved."""
+    engine.submit(c.SetParams({"SAMPLING TIME.TSamp": 1000}))
+    engine.submit(c.SetState("Run"))
+    engine.run_for(100.0)
+    app = paused_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        wire = Wire(app)
+        for _ in range(10):
+            engine.step()
+            app.main._tick()
+            await pilot.pause()
+    rows = {int(r) for u in wire.updates for r in re.findall(r"\x1b\[(\d+);\d+H", u)}
+    assert 2 in rows, "the process time is shown"
+    assert not rows & set(range(1, 2)) and not rows & set(range(3, 19)), sorted(rows)

@@ -1,5 +1,5 @@
 """The help screen (`?` or F1): every key of Main, Setup and each window, and what
-it does, in one scrollable page; Esc (or `?`, F1, q) closes it.
+it does, in one scrollable page; Esc (or `?`, F1, q) closes it (F1 is the app's).
 
 The keys are read from the screens' and windows' own bindings (the tooltip is the
 long description), so the page cannot drift from what the keys do.  It replaces
@@ -138,7 +138,6 @@ class HelpScreen(ModalScreen[None]):
     BINDINGS = [
         Binding("escape", "close", "Close"),
         Binding("question_mark", "close", "Close", show=False),
-        Binding("f1", "close", "Close", show=False),
         Binding("q", "close", "Close", show=False),
     ]
 

@@ -40,7 +40,7 @@ _MODES = (
 #: The schedule's slots (samples + skipped deadlines) the held speed is measured over.
 SPEED_SLOTS = 20
 #: Below this fraction of the asked speed the status line says what is held.
-SPEED_HELD = 0.97
+SPEED_HELD = 0.99
 
 
 class SpeedMeter:
@@ -60,15 +60,13 @@ class SpeedMeter:
             self._seen.append(entry)
 
     def held(self) -> float | None:
-        """The speed held over the last SPEED_SLOTS slots or more (None: too few yet)."""
+        """The speed held over the snapshots kept (a few seconds of the screen's
+        ticks), once they span SPEED_SLOTS slots (None before)."""
         if len(self._seen) < 2:
             return None
         speed, samples, overruns = self._seen[-1]
-        for old in reversed(self._seen):
-            done, skipped = samples - old[1], overruns - old[2]
-            if done + skipped >= SPEED_SLOTS:
-                break
-        else:
+        done, skipped = samples - self._seen[0][1], overruns - self._seen[0][2]
+        if done + skipped < SPEED_SLOTS:
             return None
         return speed * done / (done + skipped)
 
