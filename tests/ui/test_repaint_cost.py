@@ -91,3 +91,19 @@ async def test_a_running_sample_repaints_the_numbers_line_and_not_the_rest_of_th
     rows = {int(r) for u in wire.updates for r in re.findall(r"\x1b\[(\d+);\d+H", u)}
     assert 2 in rows, "the process time is shown"
     assert not rows & set(range(1, 2)) and not rows & set(range(3, 19)), sorted(rows)
+
+
+async def test_the_setup_screen_paused_writes_nothing(engine: Recording) -> None:
+    app = paused_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("S")
+        await pilot.pause()
+        setup = app.screen
+        wire = Wire(app)
+        for _ in range(8):  # two seconds of Setup's quarter-second refresh
+            engine.step()
+            engine.step()
+            setup.refresh_view()
+            await pilot.pause()
+    assert engine.snapshot().stats.samples >= 16
+    assert wire.bytes == 0, wire.updates[:1]
