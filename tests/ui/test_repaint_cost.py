@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
+import pytest
 from conftest import Recording
 
 from textual._compositor import CompositorUpdate
@@ -107,3 +108,17 @@ async def test_the_setup_screen_paused_writes_nothing(engine: Recording) -> None
             await pilot.pause()
     assert engine.snapshot().stats.samples >= 16
     assert wire.bytes == 0, wire.updates[:1]
+
+
+@pytest.mark.parametrize("key", ["v", "h", "l"])  # Pump, Tank, Logging: the live windows
+async def test_a_paused_screen_under_a_live_window_writes_nothing(engine: Recording, key: str) -> None:
+    """A live window's update repaints the whole screen behind it (about a
+    megabyte a second before, from the paused loop's idle ticks alone)."""
+    app = paused_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press(key)
+        await ticks(app, pilot, engine, 0.25)
+        wire = Wire(app)
+        await ticks(app, pilot, engine, 1.0)
+        assert app.screen is not app.main
+    assert wire.bytes == 0, f"{wire.bytes} bytes in {len(wire.updates)} updates"

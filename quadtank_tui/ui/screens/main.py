@@ -10,6 +10,7 @@ logic lives here.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Callable
 
@@ -26,7 +27,7 @@ from quadtank_tui.engine.commands import (
 )
 from quadtank_tui.engine.clock import next_speed
 from quadtank_tui.engine.handle import EngineHandle
-from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.engine.snapshot import LoopStats, Snapshot
 from quadtank_tui.ui.screens.sending import CommandSender
 from quadtank_tui.ui.widgets.analysis_panel import analysis_ready, warm_up
 from quadtank_tui.ui.widgets.controller_box import ControllerBox, element_used
@@ -40,10 +41,16 @@ from quadtank_tui.ui.windows.logging import LoggingWindow
 from quadtank_tui.ui.windows.process import PumpWindow, TankWindow
 from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
 
+_NO_STATS = LoopStats()
 #: Least wall time between two trend drawings on the timer, s (see _trends_due).
 TREND_MIN_INTERVAL = 0.2
 NO_DAQ = ("Active runs the real rig, and this session has no DAQ: it runs the simulator "
           "only. Start with quadtank --daq CONFIG (see params/daq-*.yaml) to offer Active.")
+
+
+def _untimed(snap: Snapshot) -> Snapshot:
+    """The snapshot without the loop's timing, which no window shows."""
+    return dataclasses.replace(snap, stats=_NO_STATS)
 
 
 def _warm_up() -> None:
@@ -176,7 +183,11 @@ class MainScreen(CommandSender):
                 trend.plot_type, trend.window, trend.autoscale = plot_type, window, self.autoscale
                 trend.show(history)
         live = self.app.screen
-        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)):
+        # A live window gets the snapshot only when more than the loop's timing
+        # changed (a paused loop's idle ticks): its update repaints the whole
+        # screen behind it, 1 MB a second of nothing new at 120x40.
+        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) and (
+                live.snapshot is None or _untimed(live.snapshot) != _untimed(snap)):
             try:
                 live.snapshot = snap
             except NoMatches:  # the window is being taken down
