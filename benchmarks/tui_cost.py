@@ -10,6 +10,7 @@ tmux pane would, and reads everything it writes.  States:
 - paused: as launched (Pause, Ts 0.1 s), nothing on the screen changes;
 - ts1:    Run at Ts = 1 s, x1;
 - ts01:   Run at Ts = 0.1 s, x1;
+- ts01pump (only when asked for): the same with the Pump window open;
 
 (Ts comes from a `--par` file written for the run; `r` is typed to Run.)  After
 `--settle` seconds the next `--seconds` are measured: bytes per second written to
@@ -21,8 +22,9 @@ everything written until the window.  Also measured: the first frame (launch
 until the status line, process image, input panels and footer have all been
 written), the TUI's CPU seconds by then (the work itself, whatever the machine's
 load), and the Setup screen's first open (`S` typed after the window: until its
-status line is written, and until its analysis panel shows the zeros).  Medians of `--runs` runs are printed; figures, not assertions.  On a
-shared machine the times include waiting for a core; the CPU shares do not.
+status line is written, and until its analysis panel shows the zeros).  Medians
+of `--runs` runs are printed; figures, not assertions.  On a shared machine the
+times include waiting for a core; the CPU shares do not.
 """
 
 from __future__ import annotations
@@ -57,8 +59,12 @@ SETUP_SHOWN = "SETUP"
 SETUP_ANALYSED = "Zeros"
 ANSI = re.compile(rb"\x1b(\[[0-9;?<>=$]*[ -/]*[@-~]|\][^\x07]*\x07|[PX^_].*?\x1b\\|.)")
 CLK_TCK = os.sysconf("SC_CLK_TCK")
-#: state: (TSamp in ms, whether `r` is typed to Run).
-STATES = {"paused": (100, False), "ts1": (1000, True), "ts01": (100, True)}
+#: state: (TSamp in ms, the keys typed after the first frame, the keys that go
+#: back to Main before Setup is opened).  ts01pump (not run by default): the Pump
+#: window open over a running screen.
+STATES = {"paused": (100, b"", b""), "ts1": (1000, b"r", b""), "ts01": (100, b"r", b""),
+          "ts01pump": (100, b"rv", b"v")}
+DEFAULT_STATES = ["paused", "ts1", "ts01"]
 
 
 class Terminal:
@@ -169,7 +175,7 @@ def par_file(folder: Path, tsamp_ms: int) -> Path:
 
 def one_run(program: Path, size: tuple[int, int], state: str, settle: float, seconds: float,
             folder: Path) -> Run:
-    tsamp, run = STATES[state]
+    tsamp, keys, back = STATES[state]
     term = Terminal(*size)
     env = dict(os.environ, TERM="xterm-256color", COLORTERM="truecolor", COLUMNS=str(size[0]),
                LINES=str(size[1]))
@@ -186,8 +192,9 @@ def one_run(program: Path, size: tuple[int, int], state: str, settle: float, sec
         first = (shown - t0) if shown is not None else nan
         first_cpu = cpu_seconds(proc.pid)
         loop_pid = loop_process(proc.pid)
-        if run:
-            term.type(b"r")
+        for key in keys:
+            term.type(bytes([key]))
+            time.sleep(0.2)
         time.sleep(settle)
         start_kb = term.bytes_between(t0, time.monotonic()) / 1024
         w0 = time.monotonic()
@@ -197,6 +204,9 @@ def one_run(program: Path, size: tuple[int, int], state: str, settle: float, sec
         d_tui = cpu_seconds(proc.pid) - c_tui
         d_loop = (cpu_seconds(loop_pid) - c_loop) if loop_pid else nan
         written = term.bytes_between(w0, w1)
+        if back:
+            term.type(back)
+            time.sleep(0.5)
         at = term.offset()
         pressed = time.monotonic()
         term.type(b"S")
@@ -254,7 +264,7 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=5.0, help="measured window, s")
     ap.add_argument("--settle", type=float, default=6.0, help="wait after the first frame, s")
     ap.add_argument("--sizes", nargs="+", default=["120x40", "80x24"])
-    ap.add_argument("--states", nargs="+", default=list(STATES), choices=list(STATES))
+    ap.add_argument("--states", nargs="+", default=DEFAULT_STATES, choices=list(STATES))
     ap.add_argument("--program", type=Path, default=ROOT / ".venv" / "bin" / "quadtank")
     args = ap.parse_args()
     rows = []
