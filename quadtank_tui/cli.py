@@ -254,9 +254,10 @@ def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTan
     """The engine (not started) and the app the TUI runs, from the options.  A rig
     (--daq) keeps wall time; the simulator runs on a virtual clock so a student
     can speed it up.  The loop runs in a process of its own unless `--loop thread`."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from quadtank_tui.engine.process import EngineProcess
     from quadtank_tui.engine.runner import build_engine, engine_spec
-    from quadtank_tui.ui.app import build_app
 
     if not 1.0 <= args.tui_speed <= 1000.0:
         raise UsageError(f"--speed must be 1..1000, got {args.tui_speed:g}")
@@ -266,10 +267,18 @@ def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTan
     clock = "realtime" if daq is not None else "virtual"
     engine: Engine | EngineProcess
     if args.loop == "thread":
+        from quadtank_tui.ui.app import build_app
+
         engine = build_engine(args.tui_par, daq=daq, clock=clock, speed=args.tui_speed)
     else:  # a backend holds sockets and locks: the loop process opens its own
         factory = None if daq is None else functools.partial(type(daq), daq.config)
-        engine = EngineProcess(engine_spec(args.tui_par, clock=clock, speed=args.tui_speed), daq_factory=factory)
+        spec = engine_spec(args.tui_par, clock=clock, speed=args.tui_speed)
+        # The loop process boots (a fresh interpreter, numpy) while this one loads
+        # the UI: the first frame comes that much sooner (benchmarks/tui_cost.py).
+        with ThreadPoolExecutor(1, thread_name_prefix="quadtank-start") as pool:
+            starting = pool.submit(EngineProcess, spec, daq_factory=factory)
+            from quadtank_tui.ui.app import build_app
+            engine = starting.result()
     return engine, build_app(engine, refresh_interval=args.refresh)
 
 

@@ -26,6 +26,17 @@ Now = Callable[[], float]
 
 #: The speed factors a virtual clock accepts (SetSpeed, --speed).
 SPEED_MIN, SPEED_MAX = 1.0, 1000.0
+#: The factors the UI's faster / slower keys step through (a 1-2-5 series: round
+#: numbers a student can reason with, where doubling from 1 ends at 512).
+SPEED_STEPS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0)
+
+
+def next_speed(speed: float, direction: int) -> float:
+    """The step after `speed` going up (direction > 0) or down (< 0); a speed between
+    steps (``--speed 3``) goes to the neighbouring step; the ends stay where they are."""
+    if direction > 0:
+        return next((s for s in SPEED_STEPS if s > speed), SPEED_STEPS[-1])
+    return next((s for s in reversed(SPEED_STEPS) if s < speed), SPEED_STEPS[0])
 
 
 @dataclass(frozen=True)

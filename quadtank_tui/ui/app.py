@@ -18,6 +18,7 @@ from textual.screen import ModalScreen, Screen
 
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.ui.screens.main import MainScreen
+from quadtank_tui.ui.screens.too_small import TooSmallScreen, too_small
 
 
 class QuadTankApp(App[None]):
@@ -26,7 +27,9 @@ class QuadTankApp(App[None]):
     TITLE = "quadtank"
     CSS_PATH = ["styles/app.tcss", "styles/main.tcss", "styles/windows.tcss"]
     # Exit goes through the Main screen's confirmation (unsaved log, pumps to 0).
-    BINDINGS = [Binding("ctrl+q", "request_exit", "Exit", show=False, priority=True)]
+    # F1 opens the help from anywhere, a window included (`?` there is text).
+    BINDINGS = [Binding("ctrl+q", "request_exit", "Exit", show=False, priority=True),
+                Binding("f1", "help", "Help", show=False, priority=True)]
 
     def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.05,
                  wall_clock: Callable[[], float] = time.monotonic) -> None:
@@ -38,6 +41,20 @@ class QuadTankApp(App[None]):
     def on_mount(self) -> None:
         self._aloop = asyncio.get_running_loop()
         self.push_screen(self.main)
+        self._check_size()
+
+    def on_resize(self) -> None:
+        self.call_later(self._check_size)
+
+    def _check_size(self) -> None:
+        """Below MIN_SIZE a sentence says so instead of a clipped screen."""
+        if self.main not in self.screen_stack:
+            return  # not started yet: on_mount checks
+        small = too_small(*self.size)
+        if small and not isinstance(self.screen, TooSmallScreen):
+            self.push_screen(TooSmallScreen())
+        elif not small and isinstance(self.screen, TooSmallScreen):
+            self.pop_screen()
 
     def exit_soon(self, return_code: int) -> None:
         """Exit with `return_code`, from any thread (the terminal went away: see
@@ -52,15 +69,32 @@ class QuadTankApp(App[None]):
         if not isinstance(self.screen, ModalScreen):
             self.main.action_exit()
 
+    def action_help(self) -> None:
+        """Every key of every screen and window (`?`, F1); F1 again closes it."""
+        from quadtank_tui.ui.screens.help import HelpScreen
+
+        if isinstance(self.screen, HelpScreen):
+            self.screen.dismiss(None)
+        else:
+            self.push_screen(HelpScreen())
+
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
-        """The command palette lists every action the screen's keys offer now."""
-        yield from super().get_system_commands(screen)
+        """The command palette lists every action the screen's keys offer now, each
+        once, with its key and what it does.  Textual's "Keys" panel (it squeezed
+        the process image, Esc did not close it) is replaced by Help; its "Quit"
+        (no question, a log lost) by the screen's Exit."""
+        for command in super().get_system_commands(screen):
+            if command.title not in ("Keys", "Quit"):
+                yield command
+        yield SystemCommand("Help", "? or F1 · every key of Main, Setup and each window", self.action_help)
         if isinstance(screen, ModalScreen):
             return
-        for key, active in screen.active_bindings.items():
+        seen = {"app.help"}
+        for active in screen.active_bindings.values():
             b = active.binding
-            if active.node is screen and active.enabled and b.description:
-                yield SystemCommand(b.description, f"key {key}",
+            if active.node is screen and active.enabled and b.description and b.action not in seen:
+                seen.add(b.action)
+                yield SystemCommand(b.description, f"{self.get_key_display(b)} · {b.tooltip or b.description}",
                                     partial(self.call_later, screen.run_action, b.action))
 
 

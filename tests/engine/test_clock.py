@@ -76,3 +76,16 @@ def test_manual_clock_does_not_run_backwards() -> None:
     assert src.now() == 0.0
     with pytest.raises(ValueError):
         src.advance(-0.1)
+
+
+def test_speed_steps_are_1_2_5_and_stop_at_the_ends() -> None:
+    from quadtank_tui.engine.clock import SPEED_STEPS, next_speed
+
+    up, speed = [], 1.0
+    for _ in range(10):
+        speed = next_speed(speed, 1)
+        up.append(speed)
+    assert up == [2, 5, 10, 20, 50, 100, 200, 500, 1000, 1000]
+    assert [next_speed(s, -1) for s in SPEED_STEPS] == [1, 1, 2, 5, 10, 20, 50, 100, 200, 500]
+    # A speed between the steps (quadtank --speed 3) goes to its neighbours.
+    assert (next_speed(3.0, 1), next_speed(3.0, -1)) == (5, 2)

@@ -23,6 +23,12 @@ from quadtank_tui.engine.runner import Engine, build_engine
 from quadtank_tui.files.par import format_par
 from quadtank_tui.files.shipped import write_shipped
 from quadtank_tui.ui.app import QuadTankApp, build_app
+from quadtank_tui.ui.widgets.analysis_panel import warm_up
+
+# The analysis stack loaded once, up front: the Setup screen then shows its
+# analysis at once, as it does after the Main screen's warm-up in a terminal
+# (test_help_and_keys.py checks the path where it is not loaded yet).
+warm_up()
 
 EPOCH = datetime(2026, 1, 5, 9, 0, 0)
 

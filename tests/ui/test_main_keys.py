@@ -91,13 +91,14 @@ async def test_refused_value_keeps_the_old_one(engine: Recording) -> None:
         assert engine.snapshot().params.get("REFERENCE ONE.Mean") == 0.3
 
 
-async def test_active_unavailable_without_daq(engine: Recording) -> None:
+async def test_active_unavailable_without_daq_says_why(engine: Recording) -> None:
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("A")
         await pilot.pause()
-        assert app.main.check_action("active", ()) is None
-        assert "DAQ" in app.main.active_bindings["A"].binding.tooltip
+        said = [n.message for n in app._notifications]
+        assert len(said) == 1 and "no DAQ" in said[0] and "--daq CONFIG" in said[0]
+        assert "--daq" in app.main.active_bindings["A"].binding.tooltip
         assert engine.snapshot().operation == "Simul"
     assert engine.sent(c.SetOperation) == []
 
@@ -221,17 +222,18 @@ async def test_command_palette_lists_the_screen_actions(engine: Recording) -> No
     async with app.run_test(size=(120, 40)):
         titles = {cmd.title for cmd in app.get_system_commands(app.main)}
     assert {"Run", "Pause", "Manual", "Auto", "Log", "Exit", "Element 11", "Tanks"} <= titles
-    assert "Active" not in titles and "Element 12" not in titles
+    assert "Element 12" not in titles
 
 
-async def test_speed_keys_double_and_halve_in_virtual_simul(make_engine, engine: Recording) -> None:
-    assert make_app(engine).main.check_action("speed", (2.0,)) is None  # manual: unpaced
+async def test_speed_keys_step_1_2_5_in_virtual_simul(make_engine, engine: Recording) -> None:
+    assert make_app(engine).main.check_action("speed", (1,)) is None  # manual: unpaced
     engine = make_engine(clock="virtual", speed=1.0, threaded=False)
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.press("plus", "minus")
+        await pilot.press("minus", *["plus"] * 11, "minus", "minus")
         await pilot.pause()
-    assert engine.sent(c.SetSpeed) == [c.SetSpeed(2.0), c.SetSpeed(1.0)]
+    assert [cmd.factor for cmd in engine.sent(c.SetSpeed)] == [
+        2, 5, 10, 20, 50, 100, 200, 500, 1000, 500, 200]  # the ends do not move
 
 
 async def test_modified_values_are_marked_and_default_restores(engine: Recording) -> None:

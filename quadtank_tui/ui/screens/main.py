@@ -10,6 +10,7 @@ logic lives here.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Callable
 
@@ -24,10 +25,11 @@ from quadtank_tui.engine.commands import (
     LogDiscard, NudgeMean, ResetControllers, SetControlMode,
     SetOperation, SetParams, SetSpeed, SetState,
 )
+from quadtank_tui.engine.clock import next_speed
 from quadtank_tui.engine.handle import EngineHandle
-from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.engine.snapshot import LoopStats, Snapshot
 from quadtank_tui.ui.screens.sending import CommandSender
-from quadtank_tui.ui.screens.setup import SetupScreen
+from quadtank_tui.ui.widgets.analysis_panel import analysis_ready, warm_up
 from quadtank_tui.ui.widgets.controller_box import ControllerBox, element_used
 from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
@@ -41,9 +43,26 @@ from quadtank_tui.ui.windows.logging import LoggingWindow
 from quadtank_tui.ui.windows.process import PumpWindow, TankWindow
 from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
 
+_NO_STATS = LoopStats()
 #: Least wall time between two trend drawings on the timer, s (see _trends_due).
 TREND_MIN_INTERVAL = 0.2
-NO_DAQ = "Active needs a DAQ backend: start with quadtank --daq ..."
+NO_DAQ = ("Active runs the real rig, and this session has no DAQ: it runs the simulator "
+          "only. Start with quadtank --daq CONFIG (see params/daq-*.yaml) to offer Active.")
+
+
+def _untimed(snap: Snapshot) -> Snapshot:
+    """The snapshot without the loop's timing, which no window shows."""
+    return dataclasses.replace(snap, stats=_NO_STATS)
+
+
+def _warm_up() -> None:
+    """After the first frame, in a thread: what the Setup screen needs, so it opens
+    at once with its analysis (python-control takes seconds to import), without
+    delaying the first frame."""
+    import quadtank_tui.ui.screens.setup  # noqa: F401
+
+    if not analysis_ready():
+        warm_up()
 
 
 class MainScreen(CommandSender):
@@ -53,42 +72,48 @@ class MainScreen(CommandSender):
     # reaches the input panels (up/down nudge the mean there).
     AUTO_FOCUS = ""
 
+    # The tooltip is the longer description the help screen (`?`) and the command
+    # palette show next to the key.  The footer shows only the keys the status
+    # line does not (its mode words carry theirs), so it fits 80 columns.
     BINDINGS = [
-        Binding("r", "run", "Run"),
-        Binding("p", "pause", "Pause"),
-        Binding("R", "reset", "Reset"),
-        Binding("m", "manual", "Manual"),
-        Binding("a", "automatic", "Auto"),
-        Binding("s", "simul", "Simul", show=False),
-        Binding("A", "active", "Active", show=False, tooltip=NO_DAQ),
-        Binding("S", "setup", "Setup"),
-        Binding("d", "design", "Design", show=False),
-        Binding("y", "identify", "Identify", show=False),
-        Binding("t", "controller_type", "Type"),
-        Binding("1", "element(0)", "Element 11", show=False),
-        Binding("2", "element(1)", "Element 12", show=False),
-        Binding("3", "element(2)", "Element 21", show=False),
-        Binding("4", "element(3)", "Element 22", show=False),
-        Binding("C", "reset_controllers", "Reset controllers", show=False),
-        Binding("i", "input(1)", "Input 1"),
-        Binding("I", "input(2)", "Input 2", show=False),
-        Binding("o", "toggle_wave(1)", "Wave 1 on/off", show=False),
-        Binding("O", "toggle_wave(2)", "Wave 2 on/off", show=False),
-        Binding("right_square_bracket", "nudge(1, 0.01)", "Mean 1 +", show=False),
-        Binding("left_square_bracket", "nudge(1, -0.01)", "Mean 1 -", show=False),
-        Binding("right_curly_bracket", "nudge(2, 0.01)", "Mean 2 +", show=False),
-        Binding("left_curly_bracket", "nudge(2, -0.01)", "Mean 2 -", show=False),
-        Binding("h", "tank(1)", "Tanks"),
-        Binding("v", "pump(1)", "Pumps", show=False),
-        Binding("F", "faults", "Faults", show=False, tooltip="Simul only: break the simulated process"),
-        Binding("g", "plot_type('upper')", "Upper plot", show=False),
-        Binding("G", "plot_type('lower')", "Lower plot", show=False),
-        Binding("z", "time_window", "Time window", show=False),
-        Binding("Z", "autoscale", "Autoscale", show=False),
-        Binding("plus", "speed(2.0)", "Faster", show=False, tooltip="Simul with a virtual clock only"),
-        Binding("minus", "speed(0.5)", "Slower", show=False, tooltip="Simul with a virtual clock only"),
-        Binding("l", "logging", "Log"),
-        Binding("q", "exit", "Exit"),
+        Binding("r", "run", "Run", show=False, tooltip="Run: sample, control and log"),
+        Binding("p", "pause", "Pause", show=False, tooltip="Pause: the pumps hold, nothing is sampled"),
+        Binding("R", "reset", "Reset", show=False, tooltip="All states back, the simulation to its operating point, Pause"),
+        Binding("m", "manual", "Manual", show=False, tooltip="Manual: the generators drive u1, u2 (bumpless)"),
+        Binding("a", "automatic", "Auto", show=False, tooltip="Automatic: the generators drive ref1, ref2 (bumpless)"),
+        Binding("s", "simul", "Simul", show=False, tooltip="Simul: the simulated process"),
+        Binding("A", "active", "Active", show=False, tooltip="Active: the real rig (needs quadtank --daq CONFIG)"),
+        Binding("S", "setup", "Setup", tooltip="The Setup screen: sampling time, waves, PID extras, tanks, .par files"),
+        Binding("d", "design", "Design", show=False, tooltip="The Design screen: PI/PID from a model, evaluated, then Apply"),
+        Binding("y", "identify", "Identify", show=False, tooltip="The Identify screen: models from a logged experiment"),
+        Binding("F", "faults", "Faults", show=False, tooltip="Simul only: break the simulated process (leaks, clogs, sensors)"),
+        Binding("t", "controller_type", "Type", tooltip="Controller type: PID or General, decentralized or full"),
+        Binding("1", "element(0)", "Element 11", show=False, tooltip="Controller element 11 (error 1 to input 1)"),
+        Binding("2", "element(1)", "Element 12", show=False, tooltip="Controller element 12 (full matrix only)"),
+        Binding("3", "element(2)", "Element 21", show=False, tooltip="Controller element 21 (full matrix only)"),
+        Binding("4", "element(3)", "Element 22", show=False, tooltip="Controller element 22 (error 2 to input 2)"),
+        Binding("C", "reset_controllers", "Reset controllers", show=False, tooltip="Reset the controllers' states"),
+        Binding("i", "input(1)", "Input 1", tooltip="Input signal 1: wave, mean (a typed mean is a step), amplitude, period"),
+        Binding("I", "input(2)", "Input 2", show=False, tooltip="Input signal 2"),
+        Binding("o", "toggle_wave(1)", "Wave 1 on/off", show=False, tooltip="Wave of input 1 on or off"),
+        Binding("O", "toggle_wave(2)", "Wave 2 on/off", show=False, tooltip="Wave of input 2 on or off"),
+        Binding("right_square_bracket", "nudge(1, 0.01)", "Mean 1 +", show=False, tooltip="Mean of input 1 up by 0.01"),
+        Binding("left_square_bracket", "nudge(1, -0.01)", "Mean 1 -", show=False, tooltip="Mean of input 1 down by 0.01"),
+        Binding("right_curly_bracket", "nudge(2, 0.01)", "Mean 2 +", show=False, tooltip="Mean of input 2 up by 0.01"),
+        Binding("left_curly_bracket", "nudge(2, -0.01)", "Mean 2 -", show=False, tooltip="Mean of input 2 down by 0.01"),
+        Binding("h", "tank(1)", "Tanks", tooltip="Tank window: op. point, diameter, time constant; in Simul add water"),
+        Binding("v", "pump(1)", "Pumps", show=False, tooltip="Pump window: the pumps' inputs and valves"),
+        Binding("g", "plot_type('upper')", "Upper plot", show=False, tooltip="What the upper trend shows"),
+        Binding("G", "plot_type('lower')", "Lower plot", show=False, tooltip="What the lower trend shows"),
+        Binding("z", "time_window", "Time window", show=False, tooltip="Trend time window: 2, 5, 10, 30 min"),
+        Binding("Z", "autoscale", "Autoscale", show=False, tooltip="Trends autoscaled or 0..1"),
+        Binding("plus", "speed(1)", "Faster", show=False,
+                tooltip="Simul: next speed of 1, 2, 5 ... 1000 x real time"),
+        Binding("minus", "speed(-1)", "Slower", show=False, tooltip="Simul: previous speed step"),
+        Binding("l", "logging", "Log", show=False, tooltip="Logging window: points, file, variables, LogOn, LogOff, Save"),
+        Binding("question_mark", "app.help", "Help", tooltip="Every key of every screen and window"),
+        Binding("f1", "app.help", "Help", show=False, tooltip="Every key of every screen and window"),
+        Binding("q", "exit", "Exit", show=False, tooltip="Exit: asks first, and says so if a log would be thrown away"),
     ]
 
     def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.05,
@@ -118,32 +143,39 @@ class MainScreen(CommandSender):
         yield Footer()
 
     def on_mount(self) -> None:
+        # The widgets the timer feeds, found once: a DOM query costs milliseconds,
+        # at 20 ticks a second most of an idle screen's CPU.
+        self._status = self.query_one(StatusLine)
+        self._fed = (self.query_one(ControllerBox), self.query_one(ProcessImage), *self.query(ChannelPanel))
         self.refresh_view()
         self.set_interval(self.refresh_interval, self._tick)
+        self.call_after_refresh(self.run_worker, _warm_up, thread=True, group="warm-up", exit_on_error=False)
 
     # --- attributes down ------------------------------------------------------------
 
     def _tick(self) -> None:
-        # While the Setup screen covers this one nothing here is seen: skip the work.
-        if not any(isinstance(screen, SetupScreen) for screen in self.app.screen_stack):
+        # While the Setup screen (the other CommandSender) covers this one nothing
+        # here is seen: skip the work.
+        if not any(isinstance(screen, CommandSender) and screen is not self for screen in self.app.screen_stack):
             self.refresh_view(timer=True)
 
     def refresh_view(self, *, timer: bool = False) -> None:
         """Show the latest snapshot (status, controller box, image, inputs), and the
         trends when that shows something (see `_trends_due`)."""
         snap = self.engine.snapshot()
-        status = self.query_one(StatusLine)
+        status = self._status
         status.age = max(0.0, self.wall_clock() - snap.stats.last_sample_wall)
         window = WINDOWS[self.window_index]
         changed = snap != self.snap or status.snapshot is None
         if changed:
             previous, self.snap = self.snap, snap
             status.snapshot = snap
-            box = self.query_one(ControllerBox)
-            box.statefb = snap.statefb
-            box.params = snap.params
-            self.query_one(ProcessImage).snapshot = snap
-            for panel in self.query(ChannelPanel):
+            # Each widget repaints only if what it shows changed.
+            controller, image, *panels = self._fed
+            controller.statefb = snap.statefb
+            controller.params = snap.params
+            image.snapshot = snap
+            for panel in panels:
                 panel.snapshot = snap
             if snap.params.control != previous.params.control:
                 self.refresh_bindings()
@@ -157,7 +189,11 @@ class MainScreen(CommandSender):
                 trend.plot_type, trend.window, trend.autoscale = plot_type, window, self.autoscale
                 trend.show(history)
         live = self.app.screen
-        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)):
+        # A live window gets the snapshot only when more than the loop's timing
+        # changed (a paused loop's idle ticks): its update repaints the whole
+        # screen behind it, 1 MB a second of nothing new at 120x40.
+        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) and (
+                live.snapshot is None or _untimed(live.snapshot) != _untimed(snap)):
             try:
                 live.snapshot = snap
             except NoMatches:  # the window is being taken down
@@ -188,8 +224,6 @@ class MainScreen(CommandSender):
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         """Keys that cannot act now are shown disabled (and do nothing)."""
         snap = self.snap
-        if action == "active" and not snap.active_available:
-            return None
         if action == "speed" and (snap.operation != "Simul" or snap.realtime or snap.speed == float("inf")):
             return None
         if action == "element" and parameters and not element_used(snap.params, int(parameters[0])):  # type: ignore[call-overload]
@@ -222,10 +256,11 @@ class MainScreen(CommandSender):
     def action_automatic(self) -> None:
         self.send(SetControlMode("Automatic"))
 
-    def action_speed(self, factor: float) -> None:
-        """Simul with a virtual clock: process seconds per wall second, 1..1000."""
-        speed = min(1000.0, max(1.0, self.current().speed * factor))
-        self.send(SetSpeed(speed))
+    def action_speed(self, direction: int) -> None:
+        """Simul with a virtual clock: the next step of SPEED_STEPS up or down."""
+        speed = next_speed(self.current().speed, direction)
+        if speed != self.snap.speed:
+            self.send(SetSpeed(speed))
 
     # --- controller box (M5) ------------------------------------------------------------
 
@@ -301,6 +336,8 @@ class MainScreen(CommandSender):
         was; Esc there comes back here."""
         # Setup shows only the process time live: a quarter second is plenty, and
         # a slower refresh asked for a slow link is kept.
+        from quadtank_tui.ui.screens.setup import SetupScreen  # loaded by _warm_up, not at start
+
         self.app.push_screen(SetupScreen(self.engine, refresh_interval=max(0.25, self.refresh_interval)))
 
     def action_design(self) -> None:

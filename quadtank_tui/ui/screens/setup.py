@@ -96,22 +96,24 @@ class SetupScreen(CommandSender):
     CSS_PATH = "../styles/setup.tcss"
     AUTO_FOCUS = ""
 
+    # The tooltip is the longer description the help screen and the palette show.
     BINDINGS = [
-        Binding("escape", "main", "Main"),
-        Binding("s", "sampling", "Sampling"),
-        Binding("i", "reference(1)", "Ref 1"),
-        Binding("I", "reference(2)", "Ref 2", show=False),
-        Binding("h", "tanks", "Tanks"),
-        Binding("f", "par_files", "Files"),
-        Binding("t", "controller_type", "Type"),
-        Binding("1", "element(0)", "Element 11", show=False),
-        Binding("2", "element(1)", "Element 12", show=False),
-        Binding("3", "element(2)", "Element 21", show=False),
-        Binding("4", "element(3)", "Element 22", show=False),
-        Binding("d", "process_default", "Process default"),
-        Binding("D", "default_all", "Default all"),
-        Binding("q", "app.request_exit", "Exit"),
-        Binding("S", "main", "Main", show=False),
+        Binding("escape", "main", "Main", tooltip="Back to Main (the process ran on all along)"),
+        Binding("s", "sampling", "Sampling", tooltip="Sampling time, 50 ms to 10 s (bumpless)"),
+        Binding("i", "reference(1)", "Ref 1", tooltip="Reference 1: wave type, mean, amplitude, period, seed, on/off"),
+        Binding("I", "reference(2)", "Ref 2", show=False, tooltip="Reference 2"),
+        Binding("h", "tanks", "Tanks", tooltip="Choose a tank in the process table (arrows, Enter opens it)"),
+        Binding("f", "par_files", "Files", tooltip="Load or save a .par file"),
+        Binding("t", "controller_type", "Type", tooltip="Controller type: PID or General, decentralized or full"),
+        Binding("1", "element(0)", "Element 11", show=False, tooltip="Element 11 with the PID extras N, Tr, a, b"),
+        Binding("2", "element(1)", "Element 12", show=False, tooltip="Element 12 with the PID extras"),
+        Binding("3", "element(2)", "Element 21", show=False, tooltip="Element 21 with the PID extras"),
+        Binding("4", "element(3)", "Element 22", show=False, tooltip="Element 22 with the PID extras"),
+        Binding("d", "process_default", "Process default", tooltip="Every tank and valve back to its default"),
+        Binding("D", "default_all", "Default all", tooltip="Every parameter reread from default.par (asks)"),
+        Binding("question_mark", "app.help", "Help", show=False, tooltip="Every key of every screen and window"),
+        Binding("q", "app.request_exit", "Exit", tooltip="Exit: asks first"),
+        Binding("S", "main", "Main", show=False, tooltip="Back to Main"),
     ]
 
     def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.25) -> None:
@@ -132,7 +134,7 @@ class SetupScreen(CommandSender):
                 yield ControllerTable(self.defaults, id="controllers")
                 yield Static(LEGEND, id="legend", classes="hint")
             with Vertical(id="setup-right"):
-                yield ProcessImage(id="setup-image")
+                yield ProcessImage(caption="P1 P2: the inputs that hold it", id="setup-image")
                 yield ProcessTable(self.defaults, id="process")
                 yield AnalysisPanel(id="analysis")
         yield Footer()
@@ -151,7 +153,9 @@ class SetupScreen(CommandSender):
         """Show the latest snapshot; the tables only when the parameters changed."""
         snap = self.engine.snapshot()
         previous, self.snap = self.snap, snap
-        self.query_one("#setup-status", Static).update(self.status_text(snap))
+        status = self.status_text(snap)
+        if force or status != self.status_text(previous):  # Static.update repaints, even unchanged
+            self.query_one("#setup-status", Static).update(status)
         p = snap.params
         if force or p != previous.params:
             self.query_one(SamplingLine).show(p, self.defaults)

@@ -10,10 +10,12 @@ widget only formats them (attributes down: the screen or a window sets `params`)
 
 from __future__ import annotations
 
+import threading
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
 from rich.text import Text
+from textual import work
 from textual.reactive import reactive
 from textual.widgets import Static
 
@@ -25,6 +27,23 @@ if TYPE_CHECKING:
     from quadtank_tui.core.analysis import Analysis
 
 
+#: Set once python-control and scipy are imported (seconds, on a loaded machine):
+#: from then on an analysis takes milliseconds and is done at once.
+_READY = threading.Event()
+
+
+def warm_up() -> None:
+    """Import the analysis stack (the Main screen does it in a worker thread after
+    its first frame, so Setup opens at once)."""
+    import quadtank_tui.core.analysis  # noqa: F401
+
+    _READY.set()
+
+
+def analysis_ready() -> bool:
+    return _READY.is_set()
+
+
 @lru_cache(maxsize=32)
 def analysis_of(sim: SimulationSettings) -> Analysis | str:
     """The analysis of a setting, or why there is none (cached: the screen redraws
@@ -33,6 +52,7 @@ def analysis_of(sim: SimulationSettings) -> Analysis | str:
     screen never needs it."""
     from quadtank_tui.core.analysis import analyze
 
+    _READY.set()
     try:
         return analyze(sim.plant(), sim.operating_levels())
     except PlantError as exc:
@@ -110,7 +130,10 @@ def diagonal_pi(params: Parameters) -> tuple[tuple, tuple]:
 
 
 class AnalysisPanel(Static):
-    """Time constants, zeros and phase of `params` (None: nothing shown yet)."""
+    """Time constants, zeros and phase of `params` (None: nothing shown yet).
+
+    Until the analysis stack is imported (see warm_up) the analysis runs in a
+    worker thread and the panel says so: the screen opens at once either way."""
 
     params: reactive[Parameters | None] = reactive(None)
 

@@ -118,7 +118,7 @@ class ControllerBox(Vertical):
         super().__init__(**kwargs)  # type: ignore[arg-type]
         self.defaults = defaults
         self.border_title = "Controller"
-        self.border_subtitle = "t type · 1-4 element · C reset"
+        self.border_subtitle = "t type · 1-4 · C reset"
 
     def compose(self) -> ComposeResult:
         yield Static(id="controller-type")

@@ -2,12 +2,14 @@
 
 Four tanks, their widths in proportion to their diameters and their water drawn
 to scale (eighth-cell blocks) with the level as a number; the two pumps with their
-input; the tubes, bright where water flows.  Pump 1 feeds tank 1 (fraction gamma1)
-and tank 4 (the rest), pump 2 feeds tank 2 (gamma2) and tank 3; tanks 3 and 4 drain
-into 1 and 2.  A click on a tank or a pump opens its window.
+input; the tubes, bright where water flows, with arrows saying which way.  Pump 1
+feeds tank 1 (fraction gamma1) and tank 4 (the rest), pump 2 feeds tank 2 (gamma2)
+and tank 3; tanks 3 and 4 drain into 1 and 2; the gamma row says the split.  A
+click on a tank or a pump opens its window.
 
-Drawn on a character canvas sized to the widget, so it works from about 24x9
-(80x24 terminals) to large terminals.
+Drawn on a character canvas sized to the widget, so it works from about 24x8
+(80x24 terminals: the gammas go to the border when there is no row for them) to
+large terminals.
 
 Another plant (a `.par` PLANT section) is drawn from its layout (core.plants):
 its tanks in their columns and rows with the water to scale of their height, one
@@ -64,10 +66,15 @@ class Canvas:
             self.put(x, y, "│", style)
 
     def render(self) -> Text:
+        """The grid as Text, one span per run of equally styled cells: a span per
+        cell would put a colour sequence before every character on the wire."""
         out = Text()
         for n, row in enumerate(self.cells):
-            for ch, style in row:
-                out.append(ch, style)
+            start = 0
+            for x in range(1, len(row) + 1):
+                if x == len(row) or row[x][1] != row[start][1]:
+                    out.append("".join(ch for ch, _ in row[start:x]), row[start][1])
+                    start = x
             if n < self.height - 1:
                 out.append("\n")
         return out
@@ -87,6 +94,28 @@ class Box:
         return self.x0 <= x <= self.x1 and self.y0 <= y <= self.y1
 
 
+def tank_label(number: int, level: float, room: int) -> str:
+    """"1:0.62", or "1:.62" in a narrow tank (80x24), or the level alone."""
+    text = fixed(level, 2)
+    short = text[1:] if text.startswith("0.") else text[:3]  # ".62"; "1.0" when full
+    for label in (f"{number}:{text}", f"{number}:{short}", short):
+        if len(label) <= room:
+            return label
+    return short
+
+
+def gamma_text(p: object, pump: int, wide: bool) -> str:
+    """A valve's split: "γ1 0.70→1 0.30→4" (how much of pump 1 goes to which tank),
+    or "γ1 0.70" where there is no room."""
+    g = p.get(f"SIMULATION.Valve{pump}")  # type: ignore[attr-defined]
+    lower, upper = (1, 4) if pump == 1 else (2, 3)
+    return f"γ{pump} {g:.2f}→{lower} {1 - g:.2f}→{upper}" if wide else f"γ{pump} {g:.2f}"
+
+
+def has_gamma_row(height: int) -> bool:
+    return height >= 12
+
+
 def draw_tank(c: Canvas, x0: int, top: int, width: int, depth: int, level: float, number: int,
               shown: float | None = None) -> Box:
     """An open tank: walls, water to `level` (0..1 of its height), the bottom
@@ -103,8 +132,7 @@ def draw_tank(c: Canvas, x0: int, top: int, width: int, depth: int, level: float
         c.text(x0 + 1, y, _FILL[fill] * inner, WATER)
     bottom = top + depth
     c.text(x0, bottom, "└" + "─" * inner + "┘")
-    value = fixed(level if shown is None else shown, 2)
-    label = f"{number}:{value}" if inner >= 6 else value[-3:]
+    label = tank_label(number, level if shown is None else shown, inner)
     c.text(x0 + 1 + (inner - len(label)) // 2, bottom, label[:inner], LABEL)
     return Box(x0, top, x0 + width - 1, bottom, f"tank({number})")
 
@@ -115,8 +143,8 @@ def draw(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[Box]]:
         return draw_plant(snapshot, width, height)
     c = Canvas(width, height)
     y, u, p = snapshot.y, snapshot.u, snapshot.params
-    has_gamma_row = height >= 12
-    depth = max(1, (height - 6 - (1 if has_gamma_row else 0)) // 2)
+    gamma_row = has_gamma_row(height)
+    depth = max(1, (height - 6 - (1 if gamma_row else 0)) // 2)
     if width < 22 or height < 8:
         c.text(0, 0, "y " + " ".join(fixed(v, 2) for v in y))
         c.text(0, 1, "u " + " ".join(fixed(v, 2) for v in u))
@@ -138,7 +166,7 @@ def draw(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[Box]]:
     ]
     drain_row = top_upper + depth + 1
     for upper, x in ((2, xl), (3, xr)):  # tank 3 -> 1, tank 4 -> 2
-        c.put(x, drain_row, "│", FLOW if flowing and y[upper] > EMPTY else DRY)
+        c.put(x, drain_row, "▼", FLOW if flowing and y[upper] > EMPTY else DRY)
     # Pump 1: up the left side, into tank 1 and across the top into tank 4.
     left, right = 1, width - 2
     in1, in4 = xs[0] + 1, xs[3] + 1
@@ -161,6 +189,14 @@ def draw(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[Box]]:
     c.put(right, drain_row, "┤", s2)
     c.hline(in2 + 1, right - 1, drain_row, s2)
     c.put(in2, drain_row, "┌", s2)
+    # Which way the water goes: up from each pump, along the tubes into the tanks.
+    riser = pump_row - 1 if pump_row - 1 != drain_row else pump_row - 2
+    c.put(left, riser, "▲", s1)
+    c.put(right, riser, "▲", s2)
+    c.put(in4 - 1, 0, "►", s1)
+    c.put(in1 - 1, drain_row, "►", s1)
+    c.put(in3 + 1, 1, "◄", s2)
+    c.put(in2 + 1, drain_row, "◄", s2)
     # The pumps and their inputs.
     c.put(left, pump_row, "●", s1)
     c.text(left + 2, pump_row, f"P1 {fixed(u[0])}", LABEL)
@@ -169,10 +205,10 @@ def draw(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[Box]]:
     c.text(right - 1 - len(label2), pump_row, label2, LABEL)
     boxes += [Box(0, pump_row, left + 2 + 8, pump_row, "pump(1)"),
               Box(right - 1 - len(label2), pump_row, width - 1, pump_row, "pump(2)")]
-    if has_gamma_row:
-        g1, g2 = p.get("SIMULATION.Valve1"), p.get("SIMULATION.Valve2")
-        c.text(left + 2, pump_row + 1, f"γ1 {g1:.2f}", DIM)
-        text2 = f"γ2 {g2:.2f}"
+    if gamma_row:
+        wide = width >= 40
+        c.text(left + 2, pump_row + 1, gamma_text(p, 1, wide), DIM)
+        text2 = gamma_text(p, 2, wide)
         c.text(right - 1 - len(text2), pump_row + 1, text2, DIM)
     return c.render(), boxes
 
@@ -242,21 +278,65 @@ def draw_plant(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[
 
 
 class ProcessImage(Widget):
-    """Renders the latest snapshot; a click on a tank or pump asks for its window."""
+    """Renders the latest snapshot; a click on a tank or pump asks for its window.
 
-    snapshot: reactive[Snapshot | None] = reactive(None)
+    A new snapshot repaints the image only if the drawing differs (levels move by
+    less than a printed digit or an eighth of a cell most samples)."""
 
-    def __init__(self, **kwargs: object) -> None:
+    snapshot: reactive[Snapshot | None] = reactive(None, repaint=False)
+
+    def __init__(self, caption: str = "", **kwargs: object) -> None:
         super().__init__(**kwargs)  # type: ignore[arg-type]
         self._boxes: list[Box] = []
+        self._drawn: tuple[tuple[int, int], Text] | None = None
+        #: What the border's subtitle says (Setup: what the pump values are).
+        self.caption = caption
         self.border_title = "Process"
+        self.border_subtitle = caption
 
-    def render(self) -> Text:
+    def _draw(self) -> Text:
+        """The drawing of the snapshot at the current size (cached per size)."""
         if self.snapshot is None:
             return Text("")
         size = self.content_size
         text, self._boxes = draw(self.snapshot, size.width, size.height)
+        self._drawn = ((size.width, size.height), text)
         return text
+
+    @staticmethod
+    def _drawn_from(s: Snapshot) -> tuple[object, ...]:
+        """What `draw` reads of a snapshot (the loop's timing changes every tick)."""
+        return (s.y, s.u, s.state, s.operation, s.params.simulation)
+
+    def watch_snapshot(self, old: Snapshot | None, new: Snapshot | None) -> None:
+        size = self.content_size
+        if (old is not None and new is not None and self._drawn is not None
+                and self._drawn[0] == (size.width, size.height)
+                and self._drawn_from(old) == self._drawn_from(new)):
+            return
+        before = self._drawn
+        text = self._draw()
+        if before is None or before[0] != self._drawn[0] or before[1] != text:  # type: ignore[index]
+            self.refresh()
+        self._subtitle()
+
+    def on_resize(self) -> None:
+        self._subtitle()
+
+    def _subtitle(self) -> None:
+        """The valves on the border when the image has no row for them (80x24)."""
+        s = self.snapshot
+        text = self.caption
+        if s is not None and not has_gamma_row(self.content_size.height):
+            text = " ".join(filter(None, (gamma_text(s.params, 1, False), gamma_text(s.params, 2, False), text)))
+        if text != (self.border_subtitle or ""):  # setting it repaints, even unchanged
+            self.border_subtitle = text
+
+    def render(self) -> Text:
+        size = self.content_size
+        if self._drawn is not None and self._drawn[0] == (size.width, size.height):
+            return self._drawn[1]
+        return self._draw()
 
     def on_click(self, event: events.Click) -> None:
         offset = event.get_content_offset(self)

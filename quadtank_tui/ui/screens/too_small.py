@@ -1,0 +1,47 @@
+"""Shown instead of the screens when the terminal is smaller than they can be
+drawn in: clipped tanks and cut-off keys would mislead; a sentence does not.
+
+The app pushes it when the terminal shrinks below MIN_SIZE and takes it away when
+it grows again; the process runs on meanwhile, and ctrl+q still exits (asking).
+"""
+
+from __future__ import annotations
+
+from textual.app import ComposeResult
+from textual.screen import ModalScreen
+from textual.widgets import Static
+
+#: The smallest terminal the screens are laid out for, columns x rows.
+MIN_SIZE = (80, 24)
+
+
+def too_small(width: int, height: int) -> bool:
+    return width < MIN_SIZE[0] or height < MIN_SIZE[1]
+
+
+class TooSmallScreen(ModalScreen[None]):
+    """One line: how small the terminal is, and what it needs."""
+
+    DEFAULT_CSS = """
+    TooSmallScreen {
+        align: center middle;
+        background: $background;
+    }
+    TooSmallScreen Static {
+        width: auto;
+        max-width: 100%;
+        color: $warning;
+        text-style: bold;
+    }
+    """
+
+    def compose(self) -> ComposeResult:
+        yield Static(id="too-small")
+
+    def on_mount(self) -> None:
+        self.on_resize()
+
+    def on_resize(self) -> None:
+        w, h = self.app.size
+        self.query_one("#too-small", Static).update(
+            f"terminal too small ({w}x{h}, need {MIN_SIZE[0]}x{MIN_SIZE[1]})")

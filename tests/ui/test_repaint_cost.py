@@ -1,0 +1,124 @@
+"""What the Main screen writes to the terminal when little or nothing changes.
+
+Over SSH every repaint costs the link (issue 17: 156 KB/s while paused): a paused
+screen must write nothing, and a sample repaints only what it changed.  The
+headless driver writes nothing, so the app's display step is wrapped and the
+updates it would write are rendered to bytes, as the terminal driver would.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import pytest
+from conftest import Recording
+
+from textual._compositor import CompositorUpdate
+
+from quadtank_tui.engine import commands as c
+from quadtank_tui.ui.app import QuadTankApp, build_app
+
+#: The screen's refresh interval, s; the engine's default.par samples every 0.1 s.
+TICK = 0.05
+
+
+class Wire:
+    """Counts the bytes the app's display updates would put on the terminal."""
+
+    def __init__(self, app: QuadTankApp) -> None:
+        self.bytes = 0
+        self.updates: list[str] = []
+        display = app._display
+
+        def counting(screen: Any, renderable: Any) -> None:
+            if isinstance(renderable, CompositorUpdate):
+                data = renderable.render_segments(app.console)
+                self.bytes += len(data.encode())
+                self.updates.append(data)
+            display(screen, renderable)
+
+        app._display = counting  # type: ignore[method-assign]
+
+
+def paused_app(engine: Recording) -> QuadTankApp:
+    """The app with the engine's own (manual) clock as its wall clock, so the age of
+    the last sample grows as the paused loop ticks, as it does in a terminal."""
+    return build_app(engine, refresh_interval=TICK, wall_clock=engine.clock.now)
+
+
+async def ticks(app: QuadTankApp, pilot: Any, engine: Recording, seconds: float) -> None:
+    """`seconds` of the screen's ticks, the loop ticking at its sampling time."""
+    for n in range(round(seconds / TICK)):
+        if n % 2:
+            engine.step()
+        app.main._tick()
+        await pilot.pause()
+
+
+async def check_paused_screen_is_silent(engine: Recording, size: tuple[int, int]) -> None:
+    app = paused_app(engine)
+    async with app.run_test(size=size) as pilot:
+        await ticks(app, pilot, engine, 0.5)  # the first frame and the layout settle
+        wire = Wire(app)
+        await ticks(app, pilot, engine, 1.0)
+    assert engine.snapshot().stats.samples >= 15, "the paused loop ticked"
+    assert wire.bytes == 0, f"{wire.bytes} bytes in {len(wire.updates)} updates: {wire.updates[:1]!r}"
+
+
+async def test_a_paused_screen_writes_nothing_for_a_second(engine: Recording) -> None:
+    await check_paused_screen_is_silent(engine, (120, 40))
+
+
+async def test_a_paused_screen_writes_nothing_at_80x24(engine: Recording) -> None:
+    await check_paused_screen_is_silent(engine, (80, 24))
+
+
+async def test_a_running_sample_repaints_the_numbers_line_and_not_the_rest_of_the_top(engine: Recording) -> None:
+    """Run at Ts = 1 s at the operating point, waves off: each sample changes the
+    process time and little else the top rows print (levels to 2 decimals, inputs
+    to 3); the trends (rows 19-39 at 120x40) redraw when their curves moved."""
+    engine.submit(c.SetParams({"SAMPLING TIME.TSamp": 1000}))
+    engine.submit(c.SetState("Run"))
+    engine.run_for(100.0)
+    app = paused_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        wire = Wire(app)
+        for _ in range(10):
+            engine.step()
+            app.main._tick()
+            await pilot.pause()
+    rows = {int(r) for u in wire.updates for r in re.findall(r"\x1b\[(\d+);\d+H", u)}
+    assert 2 in rows, "the process time is shown"
+    assert not rows & set(range(1, 2)) and not rows & set(range(3, 19)), sorted(rows)
+
+
+async def test_the_setup_screen_paused_writes_nothing(engine: Recording) -> None:
+    app = paused_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("S")
+        await pilot.pause()
+        setup = app.screen
+        wire = Wire(app)
+        for _ in range(8):  # two seconds of Setup's quarter-second refresh
+            engine.step()
+            engine.step()
+            setup.refresh_view()
+            await pilot.pause()
+    assert engine.snapshot().stats.samples >= 16
+    assert wire.bytes == 0, wire.updates[:1]
+
+
+@pytest.mark.parametrize("key", ["v", "h", "l"])  # Pump, Tank, Logging: the live windows
+async def test_a_paused_screen_under_a_live_window_writes_nothing(engine: Recording, key: str) -> None:
+    """A live window's update repaints the whole screen behind it (about a
+    megabyte a second before, from the paused loop's idle ticks alone)."""
+    app = paused_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press(key)
+        await ticks(app, pilot, engine, 0.25)
+        wire = Wire(app)
+        await ticks(app, pilot, engine, 1.0)
+        assert app.screen is not app.main
+    assert wire.bytes == 0, f"{wire.bytes} bytes in {len(wire.updates)} updates"
