@@ -26,6 +26,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and Linux ptys")
+
 ROOT = Path(__file__).parents[2]
 #: Seconds the tree may take to go once the terminal is gone (the program's own bound
 #: is about 1 s; the rest is margin for a loaded 2-core machine).
