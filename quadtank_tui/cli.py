@@ -186,6 +186,9 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
 #: terminal went away: a dropped SSH session, a closed tmux window) and SIGQUIT
 #: (Ctrl-\, whose default would dump core with the pumps running).
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
+#: On a rig, Ctrl-Z (SIGTSTP) ends the run too: a suspended loop would leave the
+#: pumps at their last value, with nothing watching the levels but the rig's watchdog.
+RIG_STOP_SIGNALS = STOP_SIGNALS + (signal.SIGTSTP,)
 
 
 class Terminated(BaseException):
@@ -216,7 +219,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     script = read_script(args.script) if args.script else None
     clock, daq = run_clock(realtime=args.realtime, speed=args.speed,
                            config=args.daq or getattr(args, "daq_global", None))
-    previous = {sig: signal.signal(sig, _terminate) for sig in STOP_SIGNALS}
+    previous = {sig: signal.signal(sig, _terminate) for sig in (RIG_STOP_SIGNALS if daq else STOP_SIGNALS)}
     try:
         result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
                               seed=args.seed, clock=clock, speed=args.speed, daq=daq)
@@ -342,7 +345,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         _say("quadtank: interrupted")
         return 130
     except Terminated as exc:
-        _say(f"quadtank: stopped by {exc}")
+        why = ": a run on a rig is not suspended, its pumps would run on unwatched" \
+            if exc.signum == signal.SIGTSTP else ""
+        _say(f"quadtank: stopped by {exc}{why}")
         return 128 + exc.signum  # the shell's convention: 143 SIGTERM, 129 SIGHUP
 
 

@@ -67,13 +67,15 @@ def test_run_daq_with_a_bad_config_is_one_line(tmp_path: Path, capsys: pytest.Ca
 
 @pytest.mark.parametrize("sig, status, said", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "stopped by SIGTERM"),
                                                ("SIGHUP", 129, "stopped by SIGHUP"),
-                                               ("SIGQUIT", 131, "stopped by SIGQUIT")])
+                                               ("SIGQUIT", 131, "stopped by SIGQUIT"),
+                                               ("SIGTSTP", 148, "stopped by SIGTSTP: a run on a rig is not suspended")])
 def test_ctrl_c_or_sigterm_commands_the_pumps_to_zero_and_keeps_the_log(
         rig: Callable, poll: Callable, tmp_path: Path, sig: str, status: int, said: str) -> None:
-    """SIGINT (Ctrl-C), SIGTERM (kill, systemd) or SIGHUP (the SSH session dropped)
-    to a running `quadtank run --daq`: the program (not the rig's watchdog, which is
-    off here) puts the pumps at 0, exits 130 / 143 / 129 without a traceback, and the rows logged so far are in the
-    partial log."""
+    """SIGINT (Ctrl-C), SIGTERM (kill, systemd), SIGHUP (the SSH session dropped),
+    SIGQUIT (Ctrl-\\) or SIGTSTP (Ctrl-Z: suspended, the pumps would run on) to a
+    running `quadtank run --daq`: the program (not the rig's watchdog, which is off
+    here) puts the pumps at 0, exits 128 + the signal without a traceback, and the
+    rows logged so far are in the partial log."""
     import signal
     import subprocess
     import sys

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and Linux ptys")
+
 ROOT = Path(__file__).parents[2]
 #: Seconds the tree may take to go once the terminal is gone (the program's own bound
 #: is about 1 s; the rest is margin for a loaded 2-core machine).
@@ -168,8 +170,7 @@ def _wait_gone(pids: list[int], within: float) -> float:
 
 @pytest.mark.parametrize("how, shell, status", [
     ("hang-up under a shell that keeps SIGHUP (make run)", True, 129),
-    ("hang-up, the TUI the session leader", False, 129),
-    ("SIGHUP", False, 129),
+    ("SIGHUP", False, 129),  # what the TUI gets from a hang-up when it leads the session
     ("SIGTERM", False, 143),
 ])
 def test_losing_the_terminal_ends_the_tui_and_its_loop(tmp_path: Path, how: str, shell: bool,
