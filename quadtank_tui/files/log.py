@@ -46,6 +46,7 @@ except ImportError:  # pragma: no cover
 from quadtank_tui.core.parameters import LOG_VARIABLES, check_variables
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.files.atomic import atomic_write_bytes, fsync_dir
+from quadtank_tui.files.regular import read_regular
 from quadtank_tui.files.stamp import format_stamp, parse_stamp
 
 HEADER = "% TANK LOG-file"
@@ -470,7 +471,7 @@ def read_log(path: Path | str) -> LogData:
     """Read a `.log` (or a `.log.partial` left by a killed run)."""
     path = Path(path)
     try:
-        data = path.read_bytes()
+        data = read_regular(path)
     except FileNotFoundError:
         raise LogFileError(str(path), "no such file") from None
     except OSError as exc:
