@@ -266,8 +266,8 @@ class LogWriter:
             try:
                 os.replace(self.partial_path, target)
             except OSError as exc:
-                if exc.errno != errno.EXDEV:
-                    raise
+                if exc.errno != errno.EXDEV:  # name the log, not the partial file
+                    raise type(exc)(exc.errno, exc.strerror or str(exc), str(target)) from None
                 atomic_write_bytes(target, self.partial_path.read_bytes())  # other file system
                 self.partial_path.unlink()
         self._release()

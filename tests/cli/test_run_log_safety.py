@@ -182,3 +182,30 @@ def par(folder: Path, name: str, u1: float) -> Path:
     from quadtank_tui.files.par import write_par
 
     return write_par(folder / f"{name}.par", PRESET.with_values({"REFERENCE ONE.Mean": u1}))
+
+
+def test_log_info_says_a_torn_last_row_was_dropped(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """What a full disk left before this fix (`0.300` of `0.300000`): `log info`
+    counts the whole rows and says, on stderr, that the cut one was dropped."""
+    torn = tmp_path / "torn.log"
+    torn.write_bytes(b"% TANK LOG-file\n% Logged variables: y1 u1   TSamp: 0.1s\n\n"
+                     b"0.622070  0.300000\n0.623535  0.300")
+    assert main(["log", "info", str(torn)]) == 0
+    captured = capsys.readouterr()
+    assert "rows       1\n" in captured.out
+    assert f"quadtank: warning: {torn}, line 5: incomplete last row dropped (file cut off while writing)" in captured.err
+
+
+def test_a_failed_save_names_the_log_not_the_partial_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    w = LogWriter(tmp_path / "x.log", ("y1",), 1.0, 10)
+    w.append({"y1": 0.5})
+
+    def denied(src: str, dst: str) -> None:
+        raise PermissionError(errno.EACCES, "Permission denied", src, dst)
+
+    monkeypatch.setattr(log_module.os, "replace", denied)
+    with pytest.raises(PermissionError) as info:
+        w.save()
+    assert str(info.value) == f"[Errno 13] Permission denied: '{tmp_path / 'x.log'}'"
+    monkeypatch.undo()
+    assert read_log(w.save()).rows == 1
