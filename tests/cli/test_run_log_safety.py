@@ -209,3 +209,14 @@ def test_a_failed_save_names_the_log_not_the_partial_file(tmp_path: Path, monkey
     assert str(info.value) == f"[Errno 13] Permission denied: '{tmp_path / 'x.log'}'"
     monkeypatch.undo()
     assert read_log(w.save()).rows == 1
+
+
+@pytest.mark.parametrize("kind", ["fifo", "directory"])
+def test_a_log_target_that_is_not_a_file_is_refused_at_the_start(
+        kind: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "x.log"
+    os.mkfifo(out) if kind == "fifo" else out.mkdir()
+    assert main(["run", "--duration", "5", "--log", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"quadtank: error: {out}: not a regular file; --log names the .log to write\n"
+    assert sorted(os.listdir(tmp_path)) == ["x.log"]
