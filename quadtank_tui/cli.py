@@ -129,6 +129,7 @@ def _add_log(sub: argparse._SubParsersAction) -> None:
     exp.add_argument("file", metavar="FILE")
     exp.add_argument("--to", choices=EXPORT_FORMATS, required=True, help="output format")
     exp.add_argument("--out", metavar="PATH", help="output file (default: FILE with the format's suffix)")
+    exp.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
     exp.set_defaults(handler=_cmd_log_export)
 
 
@@ -157,7 +158,10 @@ def _cmd_log_export(args: argparse.Namespace) -> int:
     out = args.out or str(Path(args.file).with_suffix("." + args.to))
     if Path(out).resolve() == Path(args.file).resolve():
         raise UsageError(f"{out}: the export would overwrite the log itself; give --out")
-    print(export_log(log, out, args.to))
+    try:
+        print(export_log(log, out, args.to, overwrite=args.force))
+    except FileExistsError:
+        raise UsageError(f"{out} exists; give --force to overwrite it") from None
     return 0
 
 

@@ -71,6 +71,10 @@ TSAMP_MAX_MS = 10_000.0
 #: original never exceed 5000, so reading them is unaffected.
 POINTS_MAX_ORIGINAL = 5000
 POINTS_MAX = 100_000
+#: Smallest operating point (normalized level): 0.2 mm at kc = 0.5 V/cm.  Any
+#: positive number used to pass, and 4.9e-324 then failed in plant() with no file,
+#: line or key (its outlet area underflowed to 0).
+OP_POINT_MIN = 0.001
 #: Columns a `.log` may hold, in the order the Logging window lists them.
 LOG_VARIABLES = ("t", "y1", "y2", "y3", "y4", "u1", "u2", "r1", "r2")
 #: Plot types of the two trends (thesis Figure 35).
@@ -191,7 +195,7 @@ class SimulationSettings:
             raise ParameterError("Diameter1", "four tanks are needed")
         for i in range(4):
             check_range(f"Diameter{i + 1}", self.diameters[i], 0.5, 100.0)
-            check_range(f"OpPoint{i + 1}", self.op_points[i], 0.0, 1.0, lo_open=True)
+            check_range(f"OpPoint{i + 1}", self.op_points[i], OP_POINT_MIN, 1.0)
             check_range(f"TimeConst{i + 1}", self.time_constants[i], 1.0, 1e5)
         for i in range(2):
             check_range(f"Valve{i + 1}", self.valves[i], 0.0, 1.0)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import ipaddress
+import math
 import sys
 from typing import TYPE_CHECKING, Literal
 
@@ -84,11 +85,14 @@ def cmd_rig(args: argparse.Namespace) -> int:
     else:
         params = PRESET
     config = load_daq_config(args.map)
-    if not args.speed > 0:
-        raise ValueError(f"--speed must be > 0, got {args.speed}")
+    if not (args.speed > 0 and math.isfinite(args.speed)):
+        raise ValueError(f"--speed must be a number > 0, got {args.speed}")
+    if not math.isfinite(args.offset):
+        raise ValueError(f"--offset must be a number of volts, got {args.offset}")
     for name in ("noise", "lsb", "watchdog", "reply_delay", "status"):
-        if getattr(args, name) < 0:
-            raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
+        value = getattr(args, name)
+        if not (value >= 0 and math.isfinite(value)):  # NaN fails both
+            raise ValueError(f"--{name.replace('_', '-')} must be a number >= 0, got {value}")
     if not 0 <= args.port <= 65535:
         raise ValueError(f"--port must be in 0..65535, got {args.port}")
     if not _is_loopback(args.host):

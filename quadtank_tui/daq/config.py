@@ -161,6 +161,8 @@ def parse_daq_config(text: str, *, name: str = "<daq config>") -> DaqConfig:
     if not isinstance(data, dict):
         raise DaqConfigError(name, "must be a mapping of keys (host: ..., port: ...)", line=1)
     preset_name = data.get("preset", "labjack")
+    if preset_name is not None and not isinstance(preset_name, str):
+        v.fail("preset", f"must be a preset name ({', '.join([*PRESETS, 'none'])}), got {_show(preset_name)}")
     if preset_name in (None, "none"):
         base: dict[str, Any] = {}
     elif preset_name in PRESETS:
@@ -342,7 +344,7 @@ class _Validator:
             seen: dict[str, str] = {}
             for ch in names:
                 ref = self.require(m, "channels", ch)
-                if ref not in table:
+                if not isinstance(ref, str) or ref not in table:
                     self.fail(f"channels.{ch}", f"{_show(ref)} is not one of the {kind} ({', '.join(table)})")
                 if ref in seen:
                     self.fail(f"channels.{ch}", f"{ref} is already wired to {seen[ref]}")

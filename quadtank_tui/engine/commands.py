@@ -91,7 +91,11 @@ class ResetControllers:
 
 @dataclass(frozen=True)
 class LogOn:
-    """Start logging with the LOGGING parameters in force."""
+    """Start logging with the LOGGING parameters in force.  `points`: rows to take
+    instead of LOGGING.Points (a headless run without a script logs every sample
+    of its duration, beyond the Logging window's limit)."""
+
+    points: int | None = None
 
 
 @dataclass(frozen=True)

@@ -11,14 +11,15 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from quadtank_tui.core.parameters import POINTS_MAX, ControlMode, check_file_name
+from quadtank_tui.core.parameters import ControlMode, check_file_name
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.backend import ProcessBackend
-from quadtank_tui.engine.commands import LogOn, LogSave, SetOperation, SetParams, SetState
+from quadtank_tui.engine.commands import LogOn, SetOperation, SetParams, SetState
 from quadtank_tui.engine.experiment import format_summary, run_experiment, summarize
 from quadtank_tui.engine.history import DEFAULT_CAPACITY
+from quadtank_tui.engine.logsession import LogExists, LogRefused, LogSession
 from quadtank_tui.engine.runner import ClockKind, build_engine, load_parameters, virtual_epoch
-from quadtank_tui.files.log import SUFFIX
+from quadtank_tui.files.log import SUFFIX, check_log_folder, file_identity
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.files.script import Script
 
@@ -60,6 +61,10 @@ def run_headless(
         raise ValueError(str(exc)) from None
     out = out.with_name(name)
     out.parent.mkdir(parents=True, exist_ok=True)
+    check_log_folder(out.parent)  # now, not at a LogOn far into the run
+    if out.exists() and not out.is_file():
+        raise ValueError(f"{out}: not a regular file; --log names the .log to write")
+    before = file_identity(out)  # an earlier run's log, which this run replaces
     params, _ = load_parameters(par, ParStore(params_dir))
     capacity = min(MAX_HISTORY, max(DEFAULT_CAPACITY, math.ceil(duration / params.tsamp) + 2))
     engine = build_engine(par, clock=clock, speed=speed, seed=seed, params_dir=params_dir,
@@ -74,27 +79,51 @@ def run_headless(
         if params.control.mode is ControlMode.AUTOMATIC:
             engine.loop.set_initial_mode(ControlMode.AUTOMATIC)
         if script is None or not any(e.action == "log" for e in script.events):
-            points = min(POINTS_MAX, math.ceil(duration / params.tsamp - 1e-9))
-            _must(engine.submit(SetParams({"LOGGING.Points": points})).result())
-            _must(engine.submit(LogOn()).result())
+            # Every sample of the run, however many: the writer streams them to disk,
+            # so the Logging window's Points limit does not apply.
+            points = max(1, math.ceil(duration / params.tsamp - 1e-9))
+            _must(engine.submit(LogOn(points=points)).result())
         if script is None:
             _must(engine.submit(SetState("Run")).result())
         run_experiment(engine, script, duration)
         summary = summarize(engine, duration)
-        saved = engine.submit(LogSave(name=name, overwrite=True)).result()
-        if not saved.ok:
-            text = format_summary(summary) + f"\nno log written: {saved.message}"
+        session = engine.loop.log
+        rows, error = session.rows, session.error
+        try:
+            saved, moved = _save(session, out, before)
+        except (LogRefused, OSError) as exc:
+            text = format_summary(summary) + f"\nno log written: {exc}"
             return HeadlessResult(1, text, warnings, None)
-        rows = engine.snapshot().log.rows
-        status = 1 if daq is not None and summary.fault else 0
-        text = format_summary(summary) + f"\nlog        {out} ({rows} rows)"
-        late = engine.loop.log.late_rows
-        if late:
-            text += (f"\nlate       {late} of the {rows} rows came late, each after a '% late:' line "
-                     "in the log: the device or this computer is too slow for the sampling time")
-        return HeadlessResult(status, text, warnings, out)
+        text = format_summary(summary) + f"\nlog        {saved} ({rows} rows)"
+        if moved:
+            warnings = (*warnings, f"{out} was written by another run meanwhile: this run's log is {saved}")
+        if session.late_rows:
+            text += (f"\nlate       {session.late_rows} of the {rows} rows came late, each after a '% late:' "
+                     "line in the log: the device or this computer is too slow for the sampling time")
+        if error:
+            text += f"\nLOG FAULT  {error}"
+        status = 1 if summary.fault or error else 0
+        return HeadlessResult(status, text, warnings, saved)
     finally:
         engine.stop()
+
+
+def _save(session: LogSession, out: Path, before: tuple[int, ...] | None) -> tuple[Path, bool]:
+    """Save the log as `out`, replacing only the file that was there when the run
+    began (an earlier run's, which a rerun replaces).  If another run has saved
+    `out` meanwhile, its log stays and this one goes to the first free
+    `<name>-2.log`, `<name>-3.log`, ...; True then."""
+    stem = out.name.removesuffix(SUFFIX)
+    try:
+        return session.save(out.name, lambda p: file_identity(p) == before), False
+    except LogExists:
+        pass
+    n = 2
+    while True:
+        try:
+            return session.save(f"{stem}-{n}{SUFFIX}", False), True
+        except LogExists:
+            n += 1
 
 
 def _must(result) -> None:  # type: ignore[no-untyped-def]

@@ -2,7 +2,9 @@
 
 Rows go to the partial file as they are taken (files/log.py), so nothing logged is
 lost if the program dies; Save moves it to `logs/<name>.log`.  The loop owns one
-session and hands it a row per sample while it is on.
+session and hands it a row per sample while it is on.  The partial file is this
+run's alone (locked, and named apart from another run's of the same name), so two
+runs logging under one name in one folder never mix their rows.
 """
 
 from __future__ import annotations
@@ -18,6 +20,10 @@ from quadtank_tui.files.log import LogWriter, log_path
 
 class LogRefused(ValueError):
     """A logging command that cannot be honoured now; the message says why."""
+
+
+class LogExists(LogRefused):
+    """Save refused because the target exists (and may not be replaced)."""
 
 
 class LogSession:
@@ -38,6 +44,15 @@ class LogSession:
     def running(self) -> bool:
         return self._writer is not None and self._writer.running
 
+    @property
+    def rows(self) -> int:
+        return 0 if self._writer is None else self._writer.rows
+
+    @property
+    def error(self) -> str | None:
+        """Why the current log stopped early (a failed write), or None."""
+        return None if self._writer is None else self._writer.error
+
     def status(self, settings: LoggingSettings) -> LogStatus:
         w = self._writer
         return LogStatus(
@@ -46,27 +61,26 @@ class LogSession:
             file=settings.log_file, saved_path=self._saved,
         )
 
-    def on(self, settings: LoggingSettings, tsamp: float, t: float) -> tuple[str, ...]:
-        """LogOn: a new log from process time `t`; returns warnings."""
+    def on(self, settings: LoggingSettings, tsamp: float, t: float, points: int | None = None) -> tuple[str, ...]:
+        """LogOn: a new log from process time `t` of `points` rows (default: the
+        Logging window's Points); returns warnings."""
         self.logs_dir.mkdir(parents=True, exist_ok=True)
-        self.stop()
+        self.close()
         self._writer = LogWriter(log_path(self.logs_dir, settings.log_file), settings.variables, tsamp,
-                                 settings.points, created=self._now())
+                                 settings.points if points is None else points, created=self._now())
         self._t0 = t
         self._unsaved = False
         self.late_rows = 0
-        if self._writer.recovered is not None:
-            return (f"an unsaved earlier log was kept as {self._writer.recovered}",)
-        return ()
+        return tuple(f"an unsaved earlier log was kept as {p}" for p in self._writer.recovered)
 
     def row(self, t: float, y: Sequence[float], u: Sequence[float], r: Sequence[float]) -> None:
         """One sample at process time `t` (the `t` column counts from LogOn)."""
         assert self._writer is not None
+        self._unsaved = True  # before: a failed write still leaves the rows before it
         self._writer.append({
             "t": t - self._t0, "y1": y[0], "y2": y[1], "y3": y[2], "y4": y[3],
             "u1": u[0], "u2": u[1], "r1": r[0], "r2": r[1],
         })
-        self._unsaved = True
 
     def late(self, gap: float, tsamp: float) -> None:
         """The next row was sampled `gap` s after the previous one, not `tsamp` (a
@@ -90,18 +104,30 @@ class LogSession:
         self.stop()
 
     def stop(self) -> None:
-        """Stop taking rows (LogOff, Reset, Exit); the rows stay in the partial file."""
+        """Stop taking rows (LogOff, Reset); the rows stay in the partial file."""
         if self._writer is not None:
             self._writer.stop()
 
-    def save(self, name: str, overwrite: bool) -> Path:
-        if self._writer is None or not self._unsaved:
+    def close(self) -> None:
+        """Exit (or a new LogOn): stop; a partial file without rows is removed,
+        one with rows stays for the next LogOn of its name to recover."""
+        if self._writer is not None:
+            self._writer.close()
+
+    def save(self, name: str, overwrite: bool | Callable[[Path], bool]) -> Path:
+        """Save under `name`; an existing file is replaced only if `overwrite` is
+        True or says so for it (LogExists otherwise).  Nothing logged: LogRefused,
+        and the empty partial file is removed."""
+        if self._writer is None or not self._unsaved or self._writer.rows == 0:
+            if self._writer is not None and self._writer.rows == 0:
+                self.discard()
             raise LogRefused("nothing to save: no rows logged since the last Save")
         check_file_name(name.removesuffix(".log"), "LogFile")
         target = log_path(self.logs_dir, name)
-        if target.exists() and not overwrite:
-            raise LogRefused(f"{target} exists (save again to overwrite)")
-        saved = self._writer.save(target)
+        try:
+            saved = self._writer.save(target, replace=overwrite)
+        except FileExistsError:
+            raise LogExists(f"{target} exists (save again to overwrite)") from None
         self._saved = str(saved)
         self._unsaved = False
         return saved

@@ -513,7 +513,7 @@ class ControlLoop:
     # --- logging --------------------------------------------------------------------------
 
     def _log_on(self, cmd: LogOn) -> CommandResult:
-        warnings = self.log.on(self.params.logging, self.h, self.t)
+        warnings = self.log.on(self.params.logging, self.h, self.t, cmd.points)
         return CommandResult(True, warnings=warnings)
 
     def _log_off(self, cmd: LogOff) -> CommandResult:
@@ -529,8 +529,9 @@ class ControlLoop:
         return CommandResult(True)
 
     def close_log(self) -> None:
-        """Exit: stop logging; an unsaved log stays on disk as the partial file."""
-        self.log.stop()
+        """Exit: stop logging; an unsaved log stays on disk as the partial file
+        (one without rows is removed)."""
+        self.log.close()
 
     # --- parameter files --------------------------------------------------------------------
 

@@ -9,6 +9,7 @@ before the rename, the temporary file is removed and the old file is untouched.
 
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 from pathlib import Path
@@ -28,24 +29,57 @@ def fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
-def atomic_write_bytes(path: Path | str, data: bytes) -> Path:
-    """Replace `path` by `data` atomically; returns the path written."""
+def atomic_write_bytes(path: Path | str, data: bytes, *, overwrite: bool = True) -> Path:
+    """Replace `path` by `data` atomically; returns the path written.  With
+    `overwrite` False an existing `path` is left as it is (FileExistsError), also
+    one that appears while writing.  An error names `path`, never the temporary
+    file (which is gone by then)."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise _naming(exc, path) from None
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
+        if overwrite:
+            os.replace(tmp, path)
+        else:
+            _link_new(tmp, path)
+    except BaseException as exc:
         try:
             os.unlink(tmp)
         except FileNotFoundError:
             pass
+        if isinstance(exc, OSError):
+            raise _naming(exc, path) from None
         raise
     fsync_dir(path.parent)
     return path
+
+
+def _link_new(tmp: str, path: Path) -> None:
+    """Give `tmp`'s file the name `path` unless `path` exists (a hard link fails
+    then, atomically); where links are not supported, check first."""
+    try:
+        os.link(tmp, path)
+    except FileExistsError:
+        raise
+    except OSError:
+        if os.path.lexists(path):
+            raise FileExistsError(errno.EEXIST, "File exists", str(path)) from None
+        os.replace(tmp, path)
+        return
+    os.unlink(tmp)
+
+
+def _naming(exc: OSError, path: Path) -> OSError:
+    """The same error about `path` (the user's file), not the temporary one."""
+    if exc.errno is None:
+        return exc
+    return type(exc)(exc.errno, exc.strerror or str(exc), str(path))
 
 
 def atomic_write_text(path: Path | str, text: str, encoding: str = "ascii") -> Path:

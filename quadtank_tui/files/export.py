@@ -4,7 +4,8 @@
 named as in the header, plus the scalar `TSamp` (seconds) when the log has it -
 the workspace the original's `load4t` left.  `.csv`: a header row of the names,
 then one row per sample, values as the shortest decimal that reads back exactly.
-Both are written atomically.
+Both are written atomically, never over an existing file unless asked to, and
+never as a reserved parameter file (`default.par`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from pathlib import Path
 
 from quadtank_tui.files.atomic import atomic_write_bytes
 from quadtank_tui.files.log import LogData
+from quadtank_tui.files.par import RESERVED
+from quadtank_tui.files.par import SUFFIX as PAR_SUFFIX
 
 FORMATS = ("mat", "csv")
 
@@ -37,10 +40,15 @@ def csv_text(log: LogData) -> str:
     return "\n".join(lines) + "\n"
 
 
-def export_log(log: LogData, path: Path | str, fmt: str) -> Path:
-    """Write `log` to `path` as `fmt` ("mat" or "csv"); returns the path."""
+def export_log(log: LogData, path: Path | str, fmt: str, *, overwrite: bool = False) -> Path:
+    """Write `log` to `path` as `fmt` ("mat" or "csv"); returns the path.  The
+    reserved parameter-file names (`default.par`, `preset.par`) are refused, an
+    existing file is kept (FileExistsError) unless `overwrite`."""
+    path = Path(path)
+    if path.suffix.lower() == PAR_SUFFIX and path.stem.lower() in RESERVED:
+        raise ValueError(f"{path}: {RESERVED[path.stem.lower()]}; an export never takes that name")
     if fmt == "mat":
-        return atomic_write_bytes(path, mat_bytes(log))
+        return atomic_write_bytes(path, mat_bytes(log), overwrite=overwrite)
     if fmt == "csv":
-        return atomic_write_bytes(path, csv_text(log).encode("ascii"))
+        return atomic_write_bytes(path, csv_text(log).encode("ascii"), overwrite=overwrite)
     raise ValueError(f"export format must be one of {', '.join(FORMATS)}, got {fmt!r}")

@@ -11,8 +11,10 @@ The layout (thesis 5.3)::
 :class:`LogWriter` is the Logging window's LogOn/LogOff/Save.  Rows go to a
 partial file (`<name>.log.partial`) as they come, so a crash loses nothing that was
 flushed, and that partial file is itself a valid log (the header is written and
-synced first; each flush is one `write` of whole lines).  Save renames it to the
-final `.log` atomically.  Clock and `Created on:` stamp are injected for tests.
+synced first; each flush is whole lines, cut back if the write fails).  The
+partial file is locked by its writer, so another run logging under the same name
+takes `<name>.log.2.partial` instead of mixing rows into it.  Save renames it to
+the final `.log` atomically.  Clock and `Created on:` stamp are injected for tests.
 
 :func:`read_log` is the Python counterpart of the original's `load4t`: named
 columns, tolerant of CRLF, trailing blanks, extra `%` lines and a missing
@@ -21,22 +23,30 @@ columns, tolerant of CRLF, trailing blanks, extra `%` lines and a missing
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import math
 import os
 import re
+import tempfile
 import time
 from dataclasses import dataclass
 from datetime import datetime
 from decimal import Decimal
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
-from quadtank_tui.core.parameters import LOG_VARIABLES, POINTS_MAX, check_variables
+try:  # POSIX; elsewhere the unique partial names alone keep runs apart
+    import fcntl
+except ImportError:  # pragma: no cover
+    fcntl = None  # type: ignore[assignment]
+
+from quadtank_tui.core.parameters import LOG_VARIABLES, check_variables
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.files.atomic import atomic_write_bytes, fsync_dir
+from quadtank_tui.files.regular import read_regular
 from quadtank_tui.files.stamp import format_stamp, parse_stamp
 
 HEADER = "% TANK LOG-file"
@@ -100,17 +110,21 @@ def log_path(folder: Path | str, name: str) -> Path:
 class LogWriter:
     """LogOn .. LogOff .. Save for one log.
 
-    Creating the writer is LogOn: it writes the header to `<path>.partial`.  Then
-    :meth:`append` once per sample (the values by variable name; extra names are
-    ignored).  Logging stops by itself after `points` rows, or at :meth:`stop`
-    (LogOff).  :meth:`save` renames the partial file to the final `.log`;
-    :meth:`discard` removes it.  A partial file already there at LogOn (a run
-    that died before Save) is kept as `<name>-recovered.log`, see `recovered`.
+    Creating the writer is LogOn: it claims a partial file next to the final one,
+    `<name>.log.partial` (or `<name>.log.2.partial`, ... while another run is
+    writing one of that name), holds an exclusive lock on it until Save or
+    Discard (or the process ends), and writes the header.  Then :meth:`append`
+    once per sample (the values by variable name; extra names are ignored).
+    Logging stops by itself after `points` rows, or at :meth:`stop` (LogOff).
+    :meth:`save` renames the partial file to the final `.log`; :meth:`discard`
+    removes it.  An unlocked partial file with rows at LogOn is the unsaved log of
+    a run that died: it is kept as `<name>-recovered.log`, see `recovered`.
 
     Rows are handed to the OS every `flush_rows` rows (default: every row, a
     few dozen bytes per sample) and fsynced at most every `fsync_interval` s of
     `clock` time, so a killed process loses nothing and a power cut at most about
-    a second.
+    a second.  A write that fails (disk full) is cut back to the last whole row
+    and stops the log: the file never ends in a torn row.
     """
 
     def __init__(
@@ -129,13 +143,12 @@ class LogWriter:
             self.variables = check_variables("variables", variables)
         except ParameterError as exc:
             raise LogFileError(str(path), exc.reason) from None
-        if isinstance(points, bool) or not isinstance(points, int) or not 1 <= points <= POINTS_MAX:
-            raise LogFileError(str(path), f"points must be a whole number 1..{POINTS_MAX}, got {points!r}")
+        if isinstance(points, bool) or not isinstance(points, int) or points < 1:
+            raise LogFileError(str(path), f"points must be a whole number >= 1, got {points!r}")
         if flush_rows < 1:
             raise LogFileError(str(path), f"flush_rows must be >= 1, got {flush_rows}")
-        header = format_header(self.variables, tsamp, created or datetime.now())
+        header = format_header(self.variables, tsamp, created or datetime.now()).encode("ascii")
         self.path = Path(path)
-        self.partial_path = self.path.with_name(self.path.name + PARTIAL_SUFFIX)
         self.tsamp = float(tsamp)
         self.points = points
         self.rows = 0
@@ -143,17 +156,28 @@ class LogWriter:
         self._fsync_interval = fsync_interval
         self._clock = clock
         self._pending: list[str] = []
-        #: Where an earlier run's unsaved partial file was moved, if there was one.
-        self.recovered = _keep_earlier_partial(self.partial_path, self.path)
-        self._file = open(self.partial_path, "wb", buffering=0)
-        self._file.write(header.encode("ascii"))
-        os.fsync(self._file.fileno())
+        #: Where earlier runs' unsaved partial files were moved, if there were any.
+        self.recovered: tuple[Path, ...] = ()
+        self._writing = False
+        #: Why logging stopped early (a failed write: disk full), or None.
+        self.error: str | None = None
+        fd, self.partial_path, self.recovered = _claim_partial(self.path)
+        self._file = open(fd, "wb", buffering=0)  # holds the lock until closed
+        self._size = 0  # bytes of whole lines in the file
+        self._rows_written = 0
+        try:
+            self._write(header)
+            os.fsync(fd)
+        except OSError as exc:
+            self.discard()
+            raise LogFileError(str(self.path), f"cannot write: {exc.strerror or exc}") from None
+        self._writing = True
         self._last_sync = clock()
 
     @property
     def running(self) -> bool:
-        """True between LogOn and LogOff (or the last point)."""
-        return self._file is not None and not self._file.closed
+        """True between LogOn and LogOff (or the last point, or a failed write)."""
+        return self._writing
 
     @property
     def progress(self) -> float:
@@ -167,10 +191,10 @@ class LogWriter:
         try:
             row = [float(values[name]) for name in self.variables]
         except KeyError as exc:
-            raise LogFileError(str(self.partial_path), f"sample has no value for {exc.args[0]!r}") from None
+            raise LogFileError(str(self.path), f"sample has no value for {exc.args[0]!r}") from None
         bad = [n for n, v in zip(self.variables, row) if not math.isfinite(v)]
         if bad:
-            raise LogFileError(str(self.partial_path), f"not a finite number: {', '.join(bad)}")
+            raise LogFileError(str(self.path), f"not a finite number: {', '.join(bad)}")
         self._pending.append(format_row(row))
         self.rows += 1
         if len(self._pending) >= self._flush_rows or self.rows >= self.points:
@@ -190,62 +214,231 @@ class LogWriter:
         return True
 
     def flush(self) -> None:
-        """Hand the pending rows to the OS in one write; fsync if a second passed."""
-        if self._file is None or self._file.closed:
+        """Hand the pending rows to the OS in one write; fsync if a second passed.
+        A failed write (disk full) is cut back to the last whole row, logging
+        stops, and LogFileError says how many rows the file keeps."""
+        if not self._writing:
             return
-        if self._pending:
-            data = "".join(self._pending).encode("ascii")
+        try:
+            if self._pending:
+                data = "".join(self._pending).encode("ascii")
+                self._write(data)
+                self._rows_written += len(self._pending)
+                self._pending.clear()
+            now = self._clock()
+            if now - self._last_sync >= self._fsync_interval:
+                os.fsync(self._file.fileno())
+                self._last_sync = now
+        except OSError as exc:
+            self._writing = False
             self._pending.clear()
-            view = memoryview(data)
+            self.rows = self._rows_written
+            self.error = (f"cannot write ({exc.strerror or exc}): logging stopped; "
+                          f"the {self.rows} whole rows written are kept")
+            raise LogFileError(str(self.path), self.error) from None
+
+    def _write(self, data: bytes) -> None:
+        """Append `data` whole or not at all: a short write is undone."""
+        view = memoryview(data)
+        try:
             while view:
                 view = view[self._file.write(view):]
-        now = self._clock()
-        if now - self._last_sync >= self._fsync_interval:
-            os.fsync(self._file.fileno())
-            self._last_sync = now
+        except OSError:
+            try:
+                os.ftruncate(self._file.fileno(), self._size)
+            except OSError:
+                pass
+            raise
+        self._size += len(data)
 
     def stop(self) -> None:
-        """LogOff: write and sync what is pending and close the partial file."""
-        if not self.running:
+        """LogOff: write and sync what is pending; the partial file stays locked
+        (this run's) until Save or Discard."""
+        if not self._writing:
             return
-        assert self._file is not None
         self._last_sync = -math.inf
-        self.flush()
-        self._file.close()
+        try:
+            self.flush()
+        finally:
+            self._writing = False
 
-    def save(self, path: Path | str | None = None) -> Path:
+    def save(self, path: Path | str | None = None, *, replace: bool | Callable[[Path], bool] = True) -> Path:
         """Stop if running, then move the partial file to `path` (default: the
-        path given at LogOn) atomically; returns the final path."""
+        path given at LogOn) atomically; returns the final path.  An existing
+        `path` is replaced only if `replace` is True or says so for it (decided
+        under a lock on the folder, so two savers cannot both take one name);
+        otherwise FileExistsError, and the partial file stays."""
         self.stop()
         target = Path(path) if path is not None else self.path
-        try:
-            os.replace(self.partial_path, target)
-        except OSError as exc:
-            if exc.errno != errno.EXDEV:
-                raise
-            atomic_write_bytes(target, self.partial_path.read_bytes())  # other file system
-            self.partial_path.unlink()
+        with _folder_lock(target.parent):
+            if os.path.lexists(target) and not (replace(target) if callable(replace) else replace):
+                raise FileExistsError(errno.EEXIST, "exists", str(target))
+            try:
+                os.replace(self.partial_path, target)
+            except OSError as exc:
+                if exc.errno != errno.EXDEV:  # name the log, not the partial file
+                    raise type(exc)(exc.errno, exc.strerror or str(exc), str(target)) from None
+                atomic_write_bytes(target, self.partial_path.read_bytes())  # other file system
+                self.partial_path.unlink()
+        self._release()
         fsync_dir(target.parent)
         return target
 
     def discard(self) -> None:
         """Stop and delete the partial file (the user chose not to keep the log)."""
-        self.stop()
-        self.partial_path.unlink(missing_ok=True)
+        self._writing = False
+        self._pending.clear()
+        if not self._file.closed:
+            self.partial_path.unlink(missing_ok=True)
+        self._release()
+
+    def close(self) -> None:
+        """Exit: stop; a partial file without rows is removed, one with rows is
+        kept (and unlocked: the next LogOn of this name recovers it)."""
+        try:
+            self.stop()
+        except LogFileError:
+            pass
+        if self.rows == 0:
+            self.discard()
+        self._release()
+
+    def _release(self) -> None:
+        if not self._file.closed:
+            self._file.close()
 
 
-def _keep_earlier_partial(partial: Path, final: Path) -> Path | None:
-    """A partial file at LogOn is the unsaved log of a run that died: rather than
-    truncate it, move it to `<name>-recovered[-N].log` (it loads as it is)."""
-    if not partial.exists():
+def check_log_folder(folder: Path | str) -> None:
+    """Refuse a folder where no log can be written (read-only, not a folder) now,
+    at the start of a run, not at LogOn minutes into it."""
+    folder = Path(folder)
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise LogFileError(str(folder), f"cannot write logs here: {exc.strerror or exc}") from None
+
+
+def file_identity(path: Path | str) -> tuple[int, ...] | None:
+    """What tells one file at `path` from another written there later (None: no
+    file): device, inode, size, modification time."""
+    try:
+        st = os.stat(path)
+    except OSError:
         return None
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def _partial_name(final: Path, n: int) -> Path:
+    return final.with_name(f"{final.name}{'' if n == 1 else f'.{n}'}{PARTIAL_SUFFIX}")
+
+
+def _claim_partial(final: Path) -> tuple[int, Path, tuple[Path, ...]]:
+    """A new, empty, locked partial file for `final`: the first of `<name>.partial`,
+    `<name>.2.partial`, ... that no live run holds.  Unlocked ones on the way that
+    hold rows (a run that died before Save) are kept as `<name>-recovered.log`
+    first; unlocked empty or header-only ones are reused."""
+    kept: list[Path] = []
+    n = 1
+    while True:
+        partial = _partial_name(final, n)
+        try:
+            fd = os.open(partial, os.O_RDWR | os.O_CREAT | _O_NOFOLLOW | _O_CLOEXEC, 0o644)
+        except OSError as exc:
+            raise LogFileError(str(final), f"cannot create a log here: {exc.strerror or exc}") from None
+        try:
+            if not _try_lock(fd):  # a live run's log in progress
+                os.close(fd)
+                n += 1
+                continue
+            if not _names(fd, partial):  # renamed or removed while we locked it: again
+                os.close(fd)
+                continue
+            if _has_rows(fd):
+                kept.append(_keep_earlier_partial(partial, final))
+                os.close(fd)
+                continue
+            os.ftruncate(fd, 0)
+            return fd, partial, tuple(kept)
+        except BaseException:
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+            raise
+
+
+_O_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+_O_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
+
+
+def _try_lock(fd: int) -> bool:
+    """An exclusive, non-blocking lock (flock: released when the process ends,
+    however it ends); True where locks are not available."""
+    if fcntl is None:
+        return True
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    except OSError as exc:
+        if exc.errno in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EACCES):
+            return False
+        return True  # a file system without locks: unique names still apply
+    return True
+
+
+def _names(fd: int, path: Path) -> bool:
+    """Whether `path` still names the open file `fd`."""
+    try:
+        st = os.stat(path, follow_symlinks=False)
+    except FileNotFoundError:
+        return False
+    fst = os.fstat(fd)
+    return (st.st_dev, st.st_ino) == (fst.st_dev, fst.st_ino)
+
+
+def _has_rows(fd: int) -> bool:
+    """Whether a (partial) log holds a data line, not just the header."""
+    if os.fstat(fd).st_size > 4096:  # a header is a few hundred bytes
+        return True
+    head = os.pread(fd, 4096, 0).decode("latin-1")
+    return any(ln.strip() and not ln.lstrip().startswith("%") for ln in head.split("\n"))
+
+
+@contextlib.contextmanager
+def _folder_lock(folder: Path) -> Iterator[None]:
+    """Hold an exclusive lock on `folder` (a short one: a check and a rename)."""
+    if fcntl is None:
+        yield
+        return
+    try:
+        fd = os.open(folder, os.O_RDONLY | _O_CLOEXEC)
+    except OSError:
+        yield
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:
+            pass
+        yield
+    finally:
+        os.close(fd)
+
+
+def _keep_earlier_partial(partial: Path, final: Path) -> Path:
+    """A partial file with rows at LogOn is the unsaved log of a run that died:
+    rather than truncate it, move it to `<name>-recovered[-N].log` (it loads as it
+    is).  No existing file is replaced."""
     stem = final.name[: -len(SUFFIX)] if final.name.endswith(SUFFIX) else final.name
     n = 1
     while True:
         kept = final.with_name(f"{stem}-recovered{'' if n == 1 else f'-{n}'}{SUFFIX}")
-        if not kept.exists():
-            os.replace(partial, kept)
-            return kept
+        with _folder_lock(final.parent):
+            if not os.path.lexists(kept):
+                os.replace(partial, kept)
+                return kept
         n += 1
 
 
@@ -288,7 +481,7 @@ def read_log(path: Path | str) -> LogData:
     """Read a `.log` (or a `.log.partial` left by a killed run)."""
     path = Path(path)
     try:
-        data = path.read_bytes()
+        data = read_regular(path)
     except FileNotFoundError:
         raise LogFileError(str(path), "no such file") from None
     except OSError as exc:
@@ -307,6 +500,10 @@ def parse_log(data: bytes | str, *, name: str = "<log>") -> LogData:
     created_text: str | None = None
     warnings: list[str] = []
     rows: list[list[float]] = []
+    # A last line without its line end may have been cut mid-number ("0.300" of
+    # "0.300000"): it is kept only if its last value is as long as the row
+    # before's (or `%f`'s six decimals), else dropped with a warning.
+    last_decimals = 6
     for no, raw in enumerate(lines, start=1):
         line = raw.rstrip("\r").strip()
         if line.startswith("%"):
@@ -329,9 +526,11 @@ def parse_log(data: bytes | str, *, name: str = "<log>") -> LogData:
             ok = len(values) == len(variables) and all(math.isfinite(v) for v in values)
         except ValueError:
             values, ok = [], False
-        if ok:
+        torn = unterminated_last and no == len(lines)
+        if ok and not (torn and _decimals(cells[-1]) != last_decimals):
             rows.append(values)
-        elif unterminated_last and no == len(lines):
+            last_decimals = _decimals(cells[-1])
+        elif torn:
             warnings.append(f"{name}, line {no}: incomplete last row dropped (file cut off while writing)")
         elif len(cells) != len(variables):
             raise LogFileError(name, f"{len(cells)} values where the header declares {len(variables)} "
@@ -344,6 +543,12 @@ def parse_log(data: bytes | str, *, name: str = "<log>") -> LogData:
         warnings.append(f"{name}: no 'Created on:' line")
     array = np.array(rows, dtype=float).reshape(len(rows), len(variables))
     return LogData(variables, tsamp, array, created, created_text, tuple(warnings))
+
+
+def _decimals(cell: str) -> int:
+    """Digits after the decimal point of a number as written (-1: no point)."""
+    mantissa = cell.lower().split("e", 1)[0]
+    return len(mantissa) - mantissa.index(".") - 1 if "." in mantissa else -1
 
 
 def _parse_variables(m: re.Match[str], name: str, no: int, warnings: list[str]) -> tuple[tuple[str, ...], float | None]:

@@ -42,6 +42,7 @@ from quadtank_tui.core.plants.spec import SECTION as PLANT_SECTION
 from quadtank_tui.core.plants.spec import PlantSpec, spec_from_entries
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.files.atomic import atomic_write_text
+from quadtank_tui.files.regular import read_regular
 from quadtank_tui.files.stamp import format_stamp
 
 HEADER = "% TANK PAR-file"
@@ -171,8 +172,7 @@ def read_par(path: Path | str, *, base: Parameters = PRESET) -> ParRead:
     """Read a `.par` file (see :func:`parse_par`); OS errors become ParFileError."""
     path = Path(path)
     try:
-        with open(path, "rb") as f:
-            data = f.read(MAX_BYTES + 1)
+        data = read_regular(path, MAX_BYTES)
     except FileNotFoundError:
         raise ParFileError(str(path), "no such file") from None
     except OSError as exc:
@@ -196,6 +196,7 @@ def _text_lines(data: bytes | str, name: str) -> list[str]:
         if bad is not None:
             raise ParFileError(name, "not a text file (undecodable byte)", data[:bad].count(b"\n") + 1)
         data = text
+    data = data.removeprefix("\ufeff")  # the byte-order mark some Windows editors write
     return [ln[:-1] if ln.endswith("\r") else ln for ln in data.split("\n")]
 
 

@@ -1,37 +1,106 @@
 """Reading the project's YAML files (experiment scripts, DAQ configurations) with
-errors that name the file and line, whatever went wrong: missing file, bad bytes,
-or YAML that does not parse.  Both readers also need the composed node tree, whose
-marks give the line of every key for their own validation messages."""
+errors that name the file and line, whatever went wrong: missing file, not a
+regular file, bad bytes, YAML that does not parse, or YAML built to hurt (nested
+hundreds of levels deep, or aliases that expand to millions of values: a
+"billion laughs").  Both readers also need the composed node tree, whose marks
+give the line of every key for their own validation messages.
+
+The limits are checked on the event stream, before anything is composed or
+built, so a hostile file costs a bounded time and memory.  Numbers: `1e3` is
+read as a number (YAML 1.1 wants `1.0e+3`); a UTF-8 byte-order mark is skipped.
+"""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any, Callable
 
 import yaml
 
+from quadtank_tui.files.regular import read_regular
+
 #: Builds the reader's own error from (file name, message, line or None).
 ErrorFactory = Callable[[str, str, "int | None"], Exception]
+
+#: A script or a DAQ configuration is a few kB.
+MAX_BYTES = 1_000_000
+#: Collections inside collections: a configuration needs 4, a script 3.
+MAX_DEPTH = 32
+#: Values once every alias is expanded (a long script has a few thousand).
+MAX_NODES = 200_000
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that also reads `1e3`, `-2.5E-4` as floats."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
 
 
 def read_text(path: Path | str, error: ErrorFactory) -> str:
     """The file's text, or `error(path, reason, None)` raised."""
     try:
-        return Path(path).read_text(encoding="utf-8")
+        data = read_regular(path, MAX_BYTES)
     except FileNotFoundError:
         raise error(str(path), "no such file", None) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise error(str(path), f"cannot read: {exc}", None) from None
+    except OSError as exc:
+        raise error(str(path), f"cannot read: {exc.strerror or exc}", None) from None
+    if len(data) > MAX_BYTES:
+        raise error(str(path), f"larger than {MAX_BYTES} bytes: not a script or configuration", None)
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise error(str(path), f"not UTF-8 text (undecodable byte {data[exc.start]:#04x})", line) from None
 
 
 def parse_yaml(text: str, name: str, error: ErrorFactory) -> tuple[Any, Any]:
-    """(node tree, data) of `text`; invalid YAML raises `error` with the line."""
+    """(node tree, data) of `text`; invalid or hostile YAML raises `error` with
+    the line."""
+    text = text.removeprefix("\ufeff")
     try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-        data = yaml.safe_load(text)
+        _check_size(text, name, error)
+        loader = _Loader(text)
+        try:
+            node = loader.get_single_node()
+            data = None if node is None else loader.construct_document(node)
+        finally:
+            loader.dispose()
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         problem = getattr(exc, "problem", None) or getattr(exc, "reason", None) or str(exc)
         problem = " ".join(str(problem).split())
         raise error(name, f"not valid YAML: {problem}", None if mark is None else mark.line + 1) from None
     return node, data
+
+
+def _check_size(text: str, name: str, error: ErrorFactory) -> None:
+    """Refuse, from the events alone, a document nested deeper than MAX_DEPTH or
+    larger than MAX_NODES values with its aliases expanded."""
+    total = 0
+    open_: list[tuple[str | None, int]] = []  # (anchor, total at its start)
+    sizes: dict[str, int] = {}  # anchor -> values it expands to
+    for event in yaml.parse(text, Loader=_Loader):
+        if isinstance(event, yaml.AliasEvent):
+            total += sizes.get(event.anchor, 1)
+        elif isinstance(event, yaml.ScalarEvent):
+            total += 1
+            if event.anchor is not None:
+                sizes[event.anchor] = 1
+        elif isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
+            total += 1
+            open_.append((event.anchor, total - 1))
+            if len(open_) > MAX_DEPTH:
+                raise error(name, f"nested deeper than {MAX_DEPTH} levels", event.start_mark.line + 1)
+        elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+            anchor, start = open_.pop()
+            if anchor is not None:
+                sizes[anchor] = total - start
+        if total > MAX_NODES:
+            raise error(name, f"more than {MAX_NODES} values once its aliases (*name) are expanded",
+                        event.start_mark.line + 1)

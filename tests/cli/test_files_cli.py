@@ -4,6 +4,7 @@ stdout, one clear line and exit 2 on bad input."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -104,3 +105,27 @@ def test_log_export_choices_are_the_export_formats() -> None:
     from quadtank_tui.files.export import FORMATS
 
     assert EXPORT_FORMATS == FORMATS
+
+
+@pytest.mark.parametrize("to, name", [("csv", "default.par"), ("mat", "default.par"), ("csv", "Preset.PAR")])
+def test_log_export_never_writes_a_reserved_parameter_file(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                           to: str, name: str) -> None:
+    params = tmp_path / "params"
+    params.mkdir()
+    (params / "default.par").write_text("SIMULATION\nValve1 0.7\n")
+    for force in ([], ["--force"]):
+        assert main(["log", "export", str(THESIS_LOG), "--to", to, "--out", str(params / name), *force]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"quadtank: error: {params / name}: '") and "is reserved" in err and err.count("\n") == 1
+    assert sorted(os.listdir(params)) == ["default.par"]
+    assert (params / "default.par").read_text() == "SIMULATION\nValve1 0.7\n"
+
+
+def test_log_export_overwrites_only_with_force(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "mine.csv"
+    out.write_text("my notes\n")
+    assert main(["log", "export", str(THESIS_LOG), "--to", "csv", "--out", str(out)]) == 2
+    assert capsys.readouterr().err == f"quadtank: error: {out} exists; give --force to overwrite it\n"
+    assert out.read_text() == "my notes\n" and sorted(os.listdir(tmp_path)) == ["mine.csv"]
+    assert main(["log", "export", str(THESIS_LOG), "--to", "csv", "--out", str(out), "--force"]) == 0
+    assert out.read_text().startswith("y1,y2,u1,u2\n0.62207,")

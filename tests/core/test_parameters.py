@@ -139,7 +139,8 @@ def test_coercion_from_typed_and_loose_values() -> None:
         ("CONTROLLER ONE.I", 2, "must be 0 or 1, got 2"),
         ("CONTROL.Mode", "auto", "must be one of Manual, Automatic; got 'auto'"),
         ("SIMULATION.Diameter4", 0.1, "must be >= 0.5, got 0.1"),
-        ("SIMULATION.OpPoint2", 0, "must be > 0, got 0"),
+        ("SIMULATION.OpPoint2", 0, "must be >= 0.001, got 0"),
+        ("SIMULATION.OpPoint3", 4.9e-324, "must be >= 0.001, got 4.94066e-324"),  # plant() failed on it
         ("SIMULATION.TimeConst1", 0.5, "must be >= 1, got 0.5"),
         ("SIMULATION.Sensor", 0, "must be >= 0.05, got 0"),
         ("SIMULATION.Pump2", 0, "must be > 0, got 0"),

@@ -137,18 +137,92 @@ def test_logoff_before_the_limit_then_save_elsewhere(tmp_path: Path) -> None:
     assert sorted(os.listdir(tmp_path)) == ["b.log"]
 
 
-def test_logon_keeps_a_partial_left_by_an_earlier_run(tmp_path: Path) -> None:
+def _die(writer: LogWriter) -> None:
+    """What SIGKILL does to a writer: its file is closed (the lock with it), the
+    partial file stays."""
+    writer._file.close()
+
+
+def test_logon_keeps_a_partial_left_by_a_run_that_died(tmp_path: Path) -> None:
     first = LogWriter(tmp_path / "data.log", ("y1",), 1.0, 10, created=THESIS_STAMP)
-    first.append({"y1": 0.25})  # ... and the program dies here
+    first.append({"y1": 0.25})
+    _die(first)
     second = LogWriter(tmp_path / "data.log", ("y1",), 1.0, 10, created=THESIS_STAMP)
-    assert second.recovered == tmp_path / "data-recovered.log"
-    assert read_log(second.recovered).data.tolist() == [[0.25]]
+    assert second.recovered == (tmp_path / "data-recovered.log",)
+    assert read_log(second.recovered[0]).data.tolist() == [[0.25]]
+    second.append({"y1": 0.5})
+    _die(second)
     third = LogWriter(tmp_path / "data.log", ("y1",), 1.0, 10)
-    assert third.recovered == tmp_path / "data-recovered-2.log"
-    assert first.recovered is None
-    first.stop()
+    assert third.recovered == (tmp_path / "data-recovered-2.log",)
+    assert first.recovered == ()
+    third.append({"y1": 0.75})
     third.save()
     assert sorted(os.listdir(tmp_path)) == ["data-recovered-2.log", "data-recovered.log", "data.log"]
+    assert read_log(tmp_path / "data.log").data.tolist() == [[0.75]]
+
+
+def test_a_header_only_partial_is_reused_not_recovered(tmp_path: Path) -> None:
+    _die(LogWriter(tmp_path / "data.log", ("y1",), 1.0, 10))
+    w = LogWriter(tmp_path / "data.log", ("y1",), 1.0, 10)
+    assert (w.recovered, w.partial_path.name) == ((), "data.log.partial")
+    w.close()  # Exit without a row: nothing is left behind
+    assert os.listdir(tmp_path) == []
+
+
+def test_two_writers_of_one_name_keep_their_own_rows(tmp_path: Path) -> None:
+    """Two runs logging as `data` into one folder: each partial file is its
+    writer's (the second does not take, truncate or "recover" the first's), and
+    each saved file holds that run's rows."""
+    a = LogWriter(tmp_path / "data.log", ("y1",), 1.0, 10, created=THESIS_STAMP)
+    b = LogWriter(tmp_path / "data.log", ("y1",), 1.0, 10, created=THESIS_STAMP)
+    assert (a.partial_path.name, b.partial_path.name, b.recovered) == ("data.log.partial", "data.log.2.partial", ())
+    for i in range(3):
+        a.append({"y1": 0.1 * i})
+        b.append({"y1": 0.5 + 0.1 * i})
+    assert a.save(tmp_path / "a.log") == tmp_path / "a.log"
+    c = LogWriter(tmp_path / "data.log", ("y1",), 1.0, 10)  # while b still holds its partial file
+    assert (c.partial_path.name, c.recovered) == ("data.log.partial", ())
+    b.append({"y1": 0.9})
+    with pytest.raises(FileExistsError):
+        b.save(tmp_path / "a.log", replace=False)  # a collision on the final name
+    assert b.save(tmp_path / "b.log", replace=False) == tmp_path / "b.log"
+    assert read_log(tmp_path / "a.log").data[:, 0].tolist() == pytest.approx([0.0, 0.1, 0.2])
+    assert read_log(tmp_path / "b.log").data[:, 0].tolist() == pytest.approx([0.5, 0.6, 0.7, 0.9])
+    c.discard()
+    assert sorted(os.listdir(tmp_path)) == ["a.log", "b.log"]
+
+
+_HOLDER = """
+import sys
+from quadtank_tui.files.log import LogWriter
+w = LogWriter(sys.argv[1], ("y1",), 1.0, 100)
+w.append({"y1": 0.25})
+print(w.partial_path.name, flush=True)
+sys.stdin.readline()
+w.append({"y1": 0.5})
+print(w.save(sys.argv[2]), flush=True)
+"""
+
+
+def test_another_process_logging_under_the_same_name_is_left_alone(tmp_path: Path) -> None:
+    """The lock holds across processes: a live run's partial file (with rows) is
+    not mistaken for a dead run's and moved away."""
+    child = subprocess.Popen([sys.executable, "-c", _HOLDER, str(tmp_path / "data.log"), str(tmp_path / "a.log")],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    assert child.stdin is not None and child.stdout is not None
+    try:
+        assert child.stdout.readline().strip() == "data.log.partial"
+        mine = LogWriter(tmp_path / "data.log", ("y1",), 1.0, 100)
+        assert (mine.partial_path.name, mine.recovered) == ("data.log.2.partial", ())
+        mine.append({"y1": 0.75})
+        child.stdin.write("go\n")
+        child.stdin.flush()
+        assert child.stdout.readline().strip() == str(tmp_path / "a.log")
+    finally:
+        child.kill() if child.poll() is None else None
+        child.wait(timeout=30)
+    assert read_log(tmp_path / "a.log").data.tolist() == [[0.25], [0.5]]
+    assert read_log(mine.save()).data.tolist() == [[0.75]]
 
 
 def test_discard(tmp_path: Path) -> None:
@@ -190,7 +264,7 @@ def test_fsync_at_most_once_a_second(tmp_path: Path, monkeypatch: pytest.MonkeyP
 def test_writer_refuses_bad_requests(tmp_path: Path) -> None:
     with pytest.raises(LogFileError, match="must be distinct names"):
         LogWriter(tmp_path / "a.log", ("y1", "y9"), 1.0, 10)
-    with pytest.raises(LogFileError, match="points must be a whole number 1..100000"):
+    with pytest.raises(LogFileError, match="points must be a whole number >= 1"):
         LogWriter(tmp_path / "a.log", ("y1",), 1.0, 0)
     with pytest.raises(ValueError, match="TSamp must be a positive number"):
         LogWriter(tmp_path / "a.log", ("y1",), 0.0, 10)
@@ -253,7 +327,13 @@ def test_binary_junk_is_refused_with_its_line() -> None:
 
 def test_an_unterminated_incomplete_last_row_is_dropped_with_a_warning() -> None:
     log = parse_log(b"% Logged variables: y1 y2   TSamp: 1s\n\n0.1  0.2\n0.3  0.4\n0.5  0.", name="k.log")
-    assert log.data.tolist() == [[0.1, 0.2], [0.3, 0.4], [0.5, 0.0]]  # "0." is a number: kept
+    assert log.data.tolist() == [[0.1, 0.2], [0.3, 0.4]]  # "0." is a number, but cut short
+    assert log.warnings[0] == "k.log, line 5: incomplete last row dropped (file cut off while writing)"
+    head = b"% Logged variables: y1 u1   TSamp: 1s\n\n0.622070  0.300000\n"
+    torn = parse_log(head + b"0.623535  0.300", name="k.log")  # disk full mid-number
+    assert torn.data.tolist() == [[0.622070, 0.3]] and "incomplete last row dropped" in torn.warnings[0]
+    whole = parse_log(head + b"0.623535  0.300000", name="k.log")  # only the line end missing
+    assert whole.rows == 2 and not any("incomplete" in w for w in whole.warnings)
     log = parse_log(b"% Logged variables: y1 y2   TSamp: 1s\n\n0.1  0.2\n0.3", name="k.log")
     assert log.data.tolist() == [[0.1, 0.2]]
     assert "k.log, line 4: incomplete last row dropped (file cut off while writing)" in log.warnings

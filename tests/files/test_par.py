@@ -292,6 +292,23 @@ def test_save_interrupted_before_rename_leaves_old_file(tmp_path: Path, monkeypa
     assert sorted(os.listdir(tmp_path)) == ["lab.par"]  # no temporary file left behind
 
 
+def test_a_failed_save_names_the_file_not_the_temporary_one(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = tmp_path / "mine.par"
+
+    def denied(src: str, dst: str) -> None:
+        raise PermissionError(13, "Permission denied", src, dst)
+
+    monkeypatch.setattr(atomic.os, "replace", denied)
+    with pytest.raises(PermissionError) as info:
+        write_par(path, PRESET, created=STAMP)
+    assert str(info.value) == f"[Errno 13] Permission denied: '{path}'"
+    monkeypatch.setattr(atomic.tempfile, "mkstemp", lambda **kw: denied(kw["dir"] / f"{kw['prefix']}x{kw['suffix']}", ""))
+    with pytest.raises(PermissionError) as info:
+        write_par(path, PRESET, created=STAMP)
+    assert ".tmp" not in str(info.value) and str(path) in str(info.value)
+    assert os.listdir(tmp_path) == []
+
+
 def test_save_replaces_content(tmp_path: Path) -> None:
     path = tmp_path / "lab.par"
     write_par(path, PRESET, created=STAMP)
