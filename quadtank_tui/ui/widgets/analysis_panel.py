@@ -147,7 +147,25 @@ class AnalysisPanel(Static):
                         else Text("\n").join(lines))
             self.set_class(False, "-nonminimum")
             return
-        a = analysis_of(params.simulation)
+        if analysis_ready():
+            self._show(analysis_of(params.simulation))
+            return
+        self.update(Text("Analysing...", style="dim italic"))
+        self._analyse(params)
+
+    @work(thread=True, exclusive=True, group="analysis", exit_on_error=False)
+    def _analyse(self, params: Parameters) -> None:
+        try:
+            result: Analysis | str = analysis_of(params.simulation)
+        except Exception as exc:  # noqa: BLE001 - say it in the panel, not a traceback
+            result = f"the analysis failed: {type(exc).__name__}: {exc}"
+        self.app.call_from_thread(self._show_if_current, params, result)
+
+    def _show_if_current(self, params: Parameters, a: Analysis | str) -> None:
+        if params == self.params:
+            self._show(a)
+
+    def _show(self, a: Analysis | str) -> None:
         if isinstance(a, str):
             self.update(Text(f"No linearization: {a}", style="italic"))
             return
