@@ -42,19 +42,26 @@ class LogSession:
             active=self.running, rows=0 if w is None else w.rows,
             points=settings.points if w is None else w.points, unsaved=self._unsaved,
             file=settings.log_file, saved_path=self._saved,
+            started_as="" if w is None or not self._unsaved else w.path.name.removesuffix(".log"),
         )
 
     def on(self, settings: LoggingSettings, tsamp: float, t: float) -> tuple[str, ...]:
         """LogOn: a new log from process time `t`; returns warnings."""
         self.logs_dir.mkdir(parents=True, exist_ok=True)
+        warnings: list[str] = []
+        if self._writer is not None and self._unsaved:
+            rows = self._writer.rows
+            kept = self._writer.keep()  # under any name: never left as a silent .partial
+            if kept is not None:
+                warnings.append(f"the unsaved log ({rows} rows) was kept as {kept}")
         self.stop()
         self._writer = LogWriter(log_path(self.logs_dir, settings.log_file), settings.variables, tsamp,
                                  settings.points, created=self._now())
         self._t0 = t
         self._unsaved = False
         if self._writer.recovered is not None:
-            return (f"an unsaved earlier log was kept as {self._writer.recovered}",)
-        return ()
+            warnings.append(f"an unsaved earlier log was kept as {self._writer.recovered}")
+        return tuple(warnings)
 
     def row(self, t: float, y: Sequence[float], u: Sequence[float], r: Sequence[float]) -> None:
         """One sample at process time `t` (the `t` column counts from LogOn)."""

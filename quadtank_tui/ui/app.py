@@ -41,6 +41,11 @@ class QuadTankApp(App[None]):
         if not isinstance(self.screen, ModalScreen):
             self.main.action_exit()
 
+    async def action_quit(self) -> None:
+        """Textual's own quit (the palette's "Quit"): the same questions as Exit, so
+        an unsaved log is never lost by the back door."""
+        self.call_later(self.action_request_exit)
+
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
         """The command palette lists every action the screen's keys offer now."""
         yield from super().get_system_commands(screen)

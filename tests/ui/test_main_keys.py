@@ -14,7 +14,7 @@ from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.ui.widgets.controller_box import ElementCell
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.trends import Trend
-from quadtank_tui.ui.windows.base import ConfirmWindow
+from quadtank_tui.ui.windows.base import ChoiceWindow, ConfirmWindow
 from quadtank_tui.ui.windows.controller import PIDWindow
 from quadtank_tui.ui.windows.process import TankWindow
 from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
@@ -207,10 +207,10 @@ async def test_exit_asks_and_discards_an_unsaved_log(engine: Recording) -> None:
             engine.submit(command)
         engine.run_for(5.0)
         await pilot.press("q")
-        assert isinstance(app.screen, ConfirmWindow)
+        assert isinstance(app.screen, ChoiceWindow)
         await pilot.press("escape")
         assert app.screen is app.main and not engine.sent(c.LogDiscard)
-        await pilot.press("ctrl+q", "y")
+        await pilot.press("ctrl+q", "tab", "enter")  # the second answer: Discard
         await pilot.pause()
     assert engine.sent(c.LogDiscard) == [c.LogDiscard()]
     assert app.return_code == 0

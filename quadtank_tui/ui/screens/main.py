@@ -21,7 +21,7 @@ from textual.widgets import Footer
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS
 from quadtank_tui.engine.commands import (
-    LogDiscard, NudgeMean, ResetControllers, SetControlMode,
+    LogDiscard, LogSave, NudgeMean, ResetControllers, SetControlMode,
     SetOperation, SetParams, SetSpeed, SetState,
 )
 from quadtank_tui.engine.handle import EngineHandle
@@ -33,7 +33,7 @@ from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.status_line import StatusLine
 from quadtank_tui.ui.widgets.trends import WINDOWS, Trend
-from quadtank_tui.ui.windows.base import ConfirmWindow
+from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, ConfirmWindow, free_log_name
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
 from quadtank_tui.ui.windows.logging import LoggingWindow
 from quadtank_tui.ui.windows.process import PumpWindow, TankWindow
@@ -294,20 +294,26 @@ class MainScreen(CommandSender):
         self.app.push_screen(SetupScreen(self.engine, refresh_interval=max(0.25, self.refresh_interval)))
 
     def action_exit(self) -> None:
-        snap = self.current()
-        log = snap.log
-        if log.unsaved:
-            question = (f"The log ({log.rows} rows) has not been saved; exiting throws it away.\n"
-                        "Exit anyway?")
-            yes = "Discard log and exit"
-        else:
-            question = "Stop the loop and exit?"
-            yes = "Exit"
+        """Exit, asking first; an unsaved log is saved by default (Enter), never
+        thrown away without a second choice."""
+        log = self.current().log
+        if not log.unsaved:
+            self.app.push_screen(ConfirmWindow("Exit", "Stop the loop and exit?", yes="Exit"),
+                                 lambda yes: self.app.exit() if yes else None)
+            return
+        name = free_log_name(log.started_as or log.file, self.engine.log_exists)
+        question = f"The log ({log.rows} rows) has not been saved."
+        if name != (log.started_as or log.file):
+            question += f"\nlogs/{log.started_as or log.file}.log exists: it is kept."
+        choices = (Choice("save", f"Save as logs/{name}.log and exit", "success"),
+                   Choice("discard", "Discard log and exit", "error"),
+                   Choice("cancel", "Cancel"))
 
-        def answered(yes_: bool | None) -> None:
-            if yes_:
-                if log.unsaved:
-                    self.send(LogDiscard())
-                self.app.exit()
+        def answered(answer: str | None) -> None:
+            if answer == "save":
+                self.send(LogSave(name), on_done=self.app.exit)
+            elif answer == "discard":
+                self.send(LogDiscard(), on_done=self.app.exit)
 
-        self.app.push_screen(ConfirmWindow("Exit", question, yes=yes), answered)
+        self.app.push_screen(ChoiceWindow("Exit", question, choices), answered)
+

@@ -20,11 +20,11 @@ from textual.widgets import Button, Checkbox, Input, Label, ProgressBar, Static
 
 from quadtank_tui.core.parameters import LOG_VARIABLES, POINTS_MAX, Parameters
 from quadtank_tui.core.validation import ParameterError
-from quadtank_tui.engine.commands import Command, LogOff, LogOn, LogSave, SetParams
+from quadtank_tui.engine.commands import Command, LogDiscard, LogOff, LogOn, LogSave, SetParams
 from quadtank_tui.engine.snapshot import LogStatus, Snapshot
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Check
-from quadtank_tui.ui.windows.base import Commands, ConfirmWindow, Window
+from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Commands, ConfirmWindow, Window, free_log_name
 
 _POINTS, _FILE, _VARS = "LOGGING.Points", "LOGGING.LogFile", "LOGGING.Variables"
 
@@ -178,11 +178,28 @@ class LoggingWindow(Window[Commands]):
         for n in LOG_VARIABLES:
             self.query_one(f"#var-{n}", Checkbox).value = n in d.get(_VARS)
 
-    def action_log_on(self) -> None:
-        """Apply the settings in the fields, then start logging with them."""
+    @work
+    async def action_log_on(self) -> None:
+        """Apply the settings in the fields, then start logging with them; an
+        unsaved log is saved (the default) or discarded first, as the user says."""
         changes = self.changes()
         if changes is None:
             return
+        log = self.snapshot.log if self.snapshot is not None else None
+        if log is not None and log.unsaved:
+            earlier = log.started_as or log.file
+            name = free_log_name(earlier, self.log_exists)
+            answer = await self.app.push_screen_wait(ChoiceWindow(
+                "LogOn", f"The log ({log.rows} rows) has not been saved.",
+                (Choice("save", f"Save as logs/{name}.log, then LogOn", "success"),
+                 Choice("discard", "Discard it, then LogOn", "error"),
+                 Choice("cancel", "Cancel"))))
+            if answer == "save":
+                self.submit(LogSave(name))
+            elif answer == "discard":
+                self.submit(LogDiscard())
+            else:
+                return
         if changes:
             self.submit(SetParams(changes))
             self.params = self.params.with_values(changes)
