@@ -16,10 +16,11 @@ from textual.binding import Binding
 from textual.screen import ModalScreen, Screen
 
 from quadtank_tui.engine.handle import EngineHandle
+from quadtank_tui.ui.keyorder import OrderedKeys
 from quadtank_tui.ui.screens.main import MainScreen
 
 
-class QuadTankApp(App[None]):
+class QuadTankApp(OrderedKeys):
     """quadtank: the Lund quadruple-tank lab interface in a terminal."""
 
     TITLE = "quadtank"

@@ -126,7 +126,7 @@ async def test_add_water_shows_in_level_and_trend(engine: Recording) -> None:
         await pilot.press("h")
         assert isinstance(app.screen, TankWindow)
         before = engine.snapshot().y[0]
-        await pilot.press(*"0.2", "enter")
+        await pilot.press("1", *"0.2", "enter")  # 1 chooses the tank, then the amount
         await pilot.pause()
         assert engine.sent(c.AddWater) == [c.AddWater(1, 0.2)]
         engine.run_for(0.1)  # poured in at the next sample

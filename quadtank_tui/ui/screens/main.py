@@ -20,6 +20,7 @@ from textual.css.query import NoMatches
 from textual.widgets import Footer
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS
+from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.engine.commands import (
     LogDiscard, LogSave, NudgeMean, ResetControllers, SetControlMode,
     SetOperation, SetParams, SetSpeed, SetState,
@@ -39,6 +40,8 @@ from quadtank_tui.ui.windows.logging import LoggingWindow
 from quadtank_tui.ui.windows.process import PumpWindow, TankWindow
 from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
 
+#: How close to the brim (normalized level) counts as overflowing.
+SPILL_MARGIN = 1e-6
 #: Least wall time between two trend drawings on the timer, s (see _trends_due).
 TREND_MIN_INTERVAL = 0.2
 NO_DAQ = "Active needs a DAQ backend: start with quadtank --daq ..."
@@ -136,6 +139,7 @@ class MainScreen(CommandSender):
             status.snapshot = snap
             self.query_one(ControllerBox).params = snap.params
             self.query_one(ProcessImage).snapshot = snap
+            self._spill_alarm(snap)
             for panel in self.query(ChannelPanel):
                 panel.snapshot = snap
             if snap.params.control != previous.params.control:
@@ -155,6 +159,19 @@ class MainScreen(CommandSender):
                 live.snapshot = snap
             except NoMatches:  # the window is being taken down
                 pass
+
+    def _spill_alarm(self, snap: Snapshot) -> None:
+        """Mark the tanks that overflow on the image, and say so once when a
+        tank starts to (the simulator spills silently otherwise)."""
+        spilling = spilling_tanks(snap)
+        image = self.query_one(ProcessImage)
+        started = spilling - image.spilling
+        image.spilling = spilling
+        if started:
+            names = " and ".join(str(n) for n in sorted(started))
+            which = f"Tanks {names} overflow" if len(started) > 1 else f"Tank {names} overflows"
+            self.notify(f"{which}: water spills out of the process.",
+                        title="Alarm", severity="warning", timeout=8)
 
     def _trends_due(self, snap: Snapshot, view: tuple[object, ...], timer: bool) -> bool:
         """Whether to redraw the trends now.
@@ -301,12 +318,12 @@ class MainScreen(CommandSender):
             self.app.push_screen(ConfirmWindow("Exit", "Stop the loop and exit?", yes="Exit"),
                                  lambda yes: self.app.exit() if yes else None)
             return
-        name = free_log_name(log.started_as or log.file, self.engine.log_exists)
-        question = f"The log ({log.rows} rows) has not been saved."
-        if name != (log.started_as or log.file):
-            question += f"\nlogs/{log.started_as or log.file}.log exists: it is kept."
-        choices = (Choice("save", f"Save as logs/{name}.log and exit", "success"),
-                   Choice("discard", "Discard log and exit", "error"),
+        earlier = log.started_as or log.file
+        name = free_log_name(earlier, self.engine.log_exists)
+        question = f"The log ({log.rows} rows) has not been saved.\nSave and exit saves it as logs/{name}.log"
+        question += f" (logs/{earlier}.log exists and is kept)." if name != earlier else "."
+        choices = (Choice("save", "Save and exit", "success"),
+                   Choice("discard", "Discard and exit", "error"),
                    Choice("cancel", "Cancel"))
 
         def answered(answer: str | None) -> None:
@@ -317,3 +334,12 @@ class MainScreen(CommandSender):
 
         self.app.push_screen(ChoiceWindow("Exit", question, choices), answered)
 
+
+def spilling_tanks(snap: Snapshot) -> frozenset[int]:
+    """The simulated tanks at the brim while the process runs: water keeps coming
+    in (else the level would fall) and spills over."""
+    if snap.operation != "Simul" or snap.state != "Run":
+        return frozenset()
+    plant = snap.params.plant()
+    brim = plant.kc * plant.hmax / FULL_SCALE_V - SPILL_MARGIN
+    return frozenset(n for n, level in enumerate(snap.y, start=1) if level >= brim)

@@ -31,6 +31,7 @@ DRY = Style(color="grey42")
 WALL = Style()
 LABEL = Style(bold=True)
 DIM = Style(dim=True)
+ALARM = Style(color="white", bgcolor="red", bold=True)
 #: Below this level (normalized) a tank counts as empty: nothing drains from it.
 EMPTY = 1e-3
 
@@ -82,9 +83,10 @@ class Box:
         return self.x0 <= x <= self.x1 and self.y0 <= y <= self.y1
 
 
-def draw_tank(c: Canvas, x0: int, top: int, width: int, depth: int, level: float, number: int) -> Box:
+def draw_tank(c: Canvas, x0: int, top: int, width: int, depth: int, level: float, number: int,
+              spilling: bool = False) -> Box:
     """An open tank: walls, water to `level` (0..1 of its height), the bottom
-    border carrying "n:level"; returns its clickable box."""
+    border carrying "n:level" (white on red while it spills); returns its box."""
     inner = width - 2
     units = round(max(0.0, min(1.0, level)) * depth * 8)
     for row in range(depth):
@@ -96,12 +98,14 @@ def draw_tank(c: Canvas, x0: int, top: int, width: int, depth: int, level: float
     bottom = top + depth
     c.text(x0, bottom, "└" + "─" * inner + "┘")
     label = f"{number}:{fixed(level, 2)}" if inner >= 6 else fixed(level, 2)[-3:]
-    c.text(x0 + 1 + (inner - len(label)) // 2, bottom, label[:inner], LABEL)
+    c.text(x0 + 1 + (inner - len(label)) // 2, bottom, label[:inner], ALARM if spilling else LABEL)
     return Box(x0, top, x0 + width - 1, bottom, f"tank({number})")
 
 
-def draw(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[Box]]:
-    """The process image of `snapshot` in width x height cells, and its boxes."""
+def draw(snapshot: Snapshot, width: int, height: int,
+         spilling: frozenset[int] = frozenset()) -> tuple[Text, list[Box]]:
+    """The process image of `snapshot` in width x height cells (the tanks in
+    `spilling` marked), and its boxes."""
     c = Canvas(width, height)
     y, u, p = snapshot.y, snapshot.u, snapshot.params
     has_gamma_row = height >= 12
@@ -120,10 +124,10 @@ def draw(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[Box]]:
     flowing = snapshot.state == "Run" or snapshot.operation == "Active"
     pump_style = [FLOW if flowing and v > EMPTY else DRY for v in u]
     boxes = [
-        draw_tank(c, xs[2], top_upper, widths[2], depth, y[2], 3),
-        draw_tank(c, xs[3], top_upper, widths[3], depth, y[3], 4),
-        draw_tank(c, xs[0], top_lower, widths[0], depth, y[0], 1),
-        draw_tank(c, xs[1], top_lower, widths[1], depth, y[1], 2),
+        draw_tank(c, xs[2], top_upper, widths[2], depth, y[2], 3, 3 in spilling),
+        draw_tank(c, xs[3], top_upper, widths[3], depth, y[3], 4, 4 in spilling),
+        draw_tank(c, xs[0], top_lower, widths[0], depth, y[0], 1, 1 in spilling),
+        draw_tank(c, xs[1], top_lower, widths[1], depth, y[1], 2, 2 in spilling),
     ]
     drain_row = top_upper + depth + 1
     for upper, x in ((2, xl), (3, xr)):  # tank 3 -> 1, tank 4 -> 2
@@ -170,6 +174,8 @@ class ProcessImage(Widget):
     """Renders the latest snapshot; a click on a tank or pump asks for its window."""
 
     snapshot: reactive[Snapshot | None] = reactive(None)
+    #: Tanks that overflow now (the screen works it out, see spilling_tanks).
+    spilling: reactive[frozenset[int]] = reactive(frozenset())
 
     def __init__(self, **kwargs: object) -> None:
         super().__init__(**kwargs)  # type: ignore[arg-type]
@@ -180,7 +186,7 @@ class ProcessImage(Widget):
         if self.snapshot is None:
             return Text("")
         size = self.content_size
-        text, self._boxes = draw(self.snapshot, size.width, size.height)
+        text, self._boxes = draw(self.snapshot, size.width, size.height, self.spilling)
         return text
 
     def on_click(self, event: events.Click) -> None:

@@ -19,6 +19,7 @@ from textual import events, on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.content import Content
 from textual.screen import ModalScreen
 from textual.widgets import Button, Checkbox, Footer, Input, Label, Static
 
@@ -53,7 +54,7 @@ class Window(ModalScreen[T], Generic[T]):
         with Vertical(id="dialog"):
             yield Label(self.window_title, id="title")
             yield from self.compose_body()
-            yield Static("", id="message", classes="error")
+            yield Static("", id="message", classes="error", markup=False)
             with Horizontal(id="buttons"):
                 yield from self.compose_buttons()
         yield Footer(compact=True)
@@ -139,7 +140,7 @@ class ParamWindow(Window[Commands]):
                 else:
                     yield Input(fmt(value), id=f"f-{i}", compact=True, select_on_focus=True)
                 yield Label(f.unit, classes="unit")
-                yield Static("", classes="error", id=f"e-{i}")
+                yield Static("", classes="error", id=f"e-{i}", markup=False)
 
     def compose_buttons(self) -> ComposeResult:
         yield Button("Set", id="set", variant="primary")
@@ -303,7 +304,7 @@ class ChoiceWindow(Window[str | None]):
 
     def compose_buttons(self) -> ComposeResult:
         for n, choice in enumerate(self.choices):
-            yield Button(choice.label, id=f"choice-{n}", variant=choice.variant)  # type: ignore[arg-type]
+            yield Button(Content(choice.label), id=f"choice-{n}", variant=choice.variant)  # type: ignore[arg-type]
 
     def on_mount(self) -> None:
         self.query_one("#choice-0", Button).focus()

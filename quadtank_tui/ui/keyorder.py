@@ -1,0 +1,93 @@
+"""Keys handled one after the other, as a person typed them (issue 17.2).
+
+Textual forwards a key to the widget that has the focus *when the app reads it*,
+and the key's non-priority bindings (Tab moving the focus, a digit opening a
+window, Enter closing one) run only once the key has bubbled back up to the app.
+Over SSH keys arrive in bursts: `3.0`, Tab, `30` all sit in the app's queue before
+the Tab has moved the focus, so `30` went into the K field (`K 3.030`).
+
+`OrderedKeys` holds a key back while the previous one is still on its way: until
+that key was consumed by a widget or its bindings ran, and the screen it leaves
+behind (possibly a window just opened or closed) has handled what was posted to
+it.  A key's journey takes well under a millisecond; a cap keeps a key that is
+dropped on the way (its screen closed under it) from holding the others forever.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections import deque
+
+from textual import events
+from textual.app import App
+from textual.dom import DOMNode
+
+#: Longest a key is waited for before the next one goes anyway, s.
+KEY_CAP = 0.5
+
+
+class OrderedKeys(App[None]):
+    """An App whose keys reach the focus in the order, and at the place, typed."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        self._key_backlog: deque[events.Key] = deque()
+        self._key_in_flight: events.Key | None = None
+        self._key_released: events.Key | None = None
+        self._key_done = False
+        self._key_waiters: set[asyncio.Task[None]] = set()  # kept: asyncio holds tasks weakly
+
+    @property
+    def keys_pending(self) -> int:
+        """Keys read but not yet handled (tests wait for 0)."""
+        busy = self._key_in_flight is not None or self._key_released is not None
+        return len(self._key_backlog) + busy
+
+    async def on_event(self, event: events.Event) -> None:
+        if not isinstance(event, events.Key) or event.is_forwarded:
+            await super().on_event(event)
+            return
+        busy = self._key_in_flight is not None or self._key_released is not None or self._key_backlog
+        if event is not self._key_released and busy:
+            self._key_backlog.append(event)  # the key before it is still on its way
+            return
+        self._key_released = None
+        self._key_in_flight, self._key_done = event, False
+        await super().on_event(event)
+        if not event.is_forwarded:  # a priority binding took it, here and now
+            self._key_done = True
+        waiter = asyncio.get_running_loop().create_task(self._release_after(event))
+        self._key_waiters.add(waiter)
+        waiter.add_done_callback(self._key_waiters.discard)
+
+    async def _on_key(self, event: events.Key) -> None:
+        # Textual calls the `_on_key` of every class in the MRO: run App's here,
+        # then stop the walk, so its bindings run once and are known to have run.
+        await App._on_key(self, event)
+        event.prevent_default()
+        if event is self._key_in_flight:
+            self._key_done = True
+
+    async def _release_after(self, event: events.Key) -> None:
+        """Wait for `event` to be handled, then let the next key go."""
+        deadline = time.monotonic() + KEY_CAP
+        while time.monotonic() < deadline and not self._settled(event):
+            await asyncio.sleep(0.0005)
+        if self._key_in_flight is event:
+            self._key_in_flight = None
+            if self._key_backlog:
+                self._key_released = self._key_backlog.popleft()
+                self.post_message(self._key_released)
+
+    def _settled(self, event: events.Key) -> bool:
+        if not (self._key_done or event._stop_propagation):
+            return False
+        try:
+            screen = self.screen
+        except Exception:  # no screen (the app is closing)
+            return True
+        if not screen.is_mounted:
+            return False
+        nodes: list[DOMNode] = [screen, *screen.walk_children()]
+        return all(node._message_queue.empty() for node in nodes)
