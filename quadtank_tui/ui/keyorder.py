@@ -9,7 +9,7 @@ the Tab has moved the focus, so `30` went into the K field (`K 3.030`).
 `OrderedKeys` holds a key back while the previous one is still on its way: until
 that key was consumed by a widget or its bindings ran, and the screen it leaves
 behind (possibly a window just opened or closed) has handled what was posted to
-it.  A key's journey takes well under a millisecond; a cap keeps a key that is
+it before (a callback posted to its first-in first-out queue has run).  A key's journey takes well under a millisecond; a cap keeps a key that is
 dropped on the way (its screen closed under it) from holding the others forever.
 """
 
@@ -22,9 +22,13 @@ from collections import deque
 from textual import events
 from textual.app import App
 from textual.dom import DOMNode
+from textual.message import Message
+from textual.screen import Screen
 
 #: Longest a key is waited for before the next one goes anyway, s.
 KEY_CAP = 0.5
+#: How often a key in flight is looked at, s.
+POLL = 0.0005
 
 
 class OrderedKeys(App[None]):
@@ -36,6 +40,7 @@ class OrderedKeys(App[None]):
         self._key_in_flight: events.Key | None = None
         self._key_released: events.Key | None = None
         self._key_done = False
+        self._key_bubbled = False
         self._key_waiters: set[asyncio.Task[None]] = set()  # kept: asyncio holds tasks weakly
 
     @property
@@ -53,13 +58,26 @@ class OrderedKeys(App[None]):
             self._key_backlog.append(event)  # the key before it is still on its way
             return
         self._key_released = None
-        self._key_in_flight, self._key_done = event, False
+        self._key_in_flight, self._key_done, self._key_bubbled = event, False, False
+        screen = self.screen
         await super().on_event(event)
         if not event.is_forwarded:  # a priority binding took it, here and now
             self._key_done = True
-        waiter = asyncio.get_running_loop().create_task(self._release_after(event))
+        waiter = asyncio.get_running_loop().create_task(self._release_after(event, screen))
         self._key_waiters.add(waiter)
         waiter.add_done_callback(self._key_waiters.discard)
+
+    def post_message(self, message: Message) -> bool:
+        if message is self._key_in_flight and message.is_forwarded:
+            # Back from the screen (which marks it stopped as it hands it up): not
+            # consumed; its bindings run here next.
+            self._key_bubbled = True
+        return super().post_message(message)
+
+    def _consumed(self, event: events.Key) -> bool:
+        """Whether `event` has been dealt with: a widget stopped it, or it came
+        back up and the bindings ran."""
+        return self._key_done or (event._stop_propagation and not self._key_bubbled)
 
     async def _on_key(self, event: events.Key) -> None:
         # Textual calls the `_on_key` of every class in the MRO: run App's here,
@@ -69,25 +87,64 @@ class OrderedKeys(App[None]):
         if event is self._key_in_flight:
             self._key_done = True
 
-    async def _release_after(self, event: events.Key) -> None:
+    async def _release_after(self, event: events.Key, screen: Screen[object]) -> None:
         """Wait for `event` to be handled, then let the next key go."""
         deadline = time.monotonic() + KEY_CAP
-        while time.monotonic() < deadline and not self._settled(event):
-            await asyncio.sleep(0.0005)
-        if self._key_in_flight is event:
-            self._key_in_flight = None
-            if self._key_backlog:
-                self._key_released = self._key_backlog.popleft()
-                self.post_message(self._key_released)
-
-    def _settled(self, event: events.Key) -> bool:
-        if not (self._key_done or event._stop_propagation):
-            return False
         try:
-            screen = self.screen
-        except Exception:  # no screen (the app is closing)
-            return True
-        if not screen.is_mounted:
-            return False
-        nodes: list[DOMNode] = [screen, *screen.walk_children()]
-        return all(node._message_queue.empty() for node in nodes)
+            await self._settle(event, screen, deadline)
+        finally:
+            if self._key_in_flight is event:
+                self._key_in_flight = None
+                if self._key_backlog:
+                    self._key_released = self._key_backlog.popleft()
+                    self.post_message(self._key_released)
+
+    async def _settle(self, event: events.Key, before: Screen[object], deadline: float) -> None:
+        """Until `event` was consumed or its bindings ran; then, if it opened or
+        closed a window (or was an Enter, which submits and closes one), until the
+        screen now in front has handled what that set going (a window's mount
+        focusing its first field).  A key that only typed or moved the focus
+        needs no more: the next one goes to the focus of now, behind it in the
+        same first-in first-out queue."""
+        while not self._consumed(event):
+            if time.monotonic() > deadline:
+                return
+            await asyncio.sleep(POLL)
+        try:
+            same = self.screen is before and before.is_mounted
+        except Exception:  # no screen: the app is closing
+            return
+        if same and event.key != "enter":
+            return
+        while time.monotonic() < deadline:
+            try:
+                screen = self.screen
+            except Exception:  # no screen: the app is closing
+                return
+            if screen.is_mounted and not self._focus_chain_busy(screen):
+                await self._drained(screen, deadline)
+                if self.screen is screen and not self._focus_chain_busy(screen):
+                    return
+            else:
+                await asyncio.sleep(POLL)
+
+    def _focus_chain_busy(self, screen: Screen[object]) -> bool:
+        """Whether the focused widget or a container between it and the screen
+        still has messages to handle (a key's consequences bubble up there)."""
+        node: DOMNode | None = screen.focused
+        while node is not None and node is not screen:
+            if not node._message_queue.empty():
+                return True
+            node = node.parent
+        return False
+
+    @staticmethod
+    async def _drained(screen: Screen[object], deadline: float) -> None:
+        """Until the screen has handled everything posted to it so far (its queue
+        is first in, first out: a callback posted now runs after all of it)."""
+        done = asyncio.get_running_loop().create_future()
+        screen.call_later(lambda: done.done() or done.set_result(None))
+        try:
+            await asyncio.wait_for(done, max(0.0, deadline - time.monotonic()))
+        except asyncio.TimeoutError:
+            pass
