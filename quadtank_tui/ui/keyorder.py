@@ -7,10 +7,12 @@ Over SSH keys arrive in bursts: `3.0`, Tab, `30` all sit in the app's queue befo
 the Tab has moved the focus, so `30` went into the K field (`K 3.030`).
 
 `OrderedKeys` holds a key back while the previous one is still on its way: until
-that key was consumed by a widget or its bindings ran, and the screen it leaves
-behind (possibly a window just opened or closed) has handled what was posted to
-it before (a callback posted to its first-in first-out queue has run).  A key's journey takes well under a millisecond; a cap keeps a key that is
-dropped on the way (its screen closed under it) from holding the others forever.
+that key was consumed by a widget or its bindings ran, and, if it opened or
+closed a window, until the screen now in front has handled what was posted to it
+(a callback through its first-in first-out queue).  Typed characters pass at
+once; a key that goes through bindings takes a few to a few hundred
+milliseconds on a loaded machine.  A cap keeps a key that is dropped on the way
+(its screen closed under it) from holding the others forever.
 """
 
 from __future__ import annotations

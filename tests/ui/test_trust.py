@@ -250,3 +250,13 @@ async def test_a_tank_that_overflows_in_simul_raises_an_alarm(engine: Recording)
         engine.submit(c.SetState("Pause"))
         app.main.refresh_view()
         assert image.spilling == frozenset()
+
+
+def test_a_full_narrow_tank_does_not_read_as_empty() -> None:
+    """At 80x24 a tank's label keeps three characters: 1.00 was cut to ".00"."""
+    from quadtank_tui.ui.widgets.process_image import Canvas, draw_tank
+
+    for level, shown in ((1.0, "1.0"), (0.62, ".62"), (0.0, ".00")):
+        canvas = Canvas(5, 3)
+        draw_tank(canvas, 0, 0, 5, 2, level, 1, spilling=level == 1.0)
+        assert canvas.render().plain.splitlines()[2] == f"└{shown}┘"

@@ -97,7 +97,8 @@ def draw_tank(c: Canvas, x0: int, top: int, width: int, depth: int, level: float
         c.text(x0 + 1, y, _FILL[fill] * inner, WATER)
     bottom = top + depth
     c.text(x0, bottom, "└" + "─" * inner + "┘")
-    label = f"{number}:{fixed(level, 2)}" if inner >= 6 else fixed(level, 2)[-3:]
+    short = fixed(level, 2)[-3:] if level < 0.995 else "1.0"  # ".00" would read as empty
+    label = f"{number}:{fixed(level, 2)}" if inner >= 6 else short
     c.text(x0 + 1 + (inner - len(label)) // 2, bottom, label[:inner], ALARM if spilling else LABEL)
     return Box(x0, top, x0 + width - 1, bottom, f"tank({number})")
 
