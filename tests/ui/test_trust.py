@@ -9,13 +9,11 @@ from __future__ import annotations
 
 import math
 import re
-import unicodedata
 from pathlib import Path
 
-from textual import events
-from textual.keys import _character_to_key, _get_unicode_name_from_key
 from textual.widgets import Input
 
+from bursts import burst
 from conftest import Recording, make_app
 
 from quadtank_tui.engine import commands as c
@@ -63,7 +61,7 @@ async def test_exit_never_overwrites_and_cancel_keeps_everything(engine: Recordi
             app.screen.query_one("#question").render())
         await pilot.press("escape")                       # Cancel: nothing happens
         assert app.screen is app.main and engine.snapshot().log.unsaved
-        await pilot.press("q", "tab", "enter")            # Discard and exit
+        await burst(pilot, "q", "tab", "enter")            # Discard and exit
         await pilot.pause()
     assert engine.sent(c.LogDiscard) == [c.LogDiscard()]
     assert (_logs(engine) / "data.log").read_text() == "% an earlier log\n"
@@ -89,7 +87,7 @@ async def test_logon_under_a_new_name_asks_about_the_unsaved_log(engine: Recordi
     async with app.run_test(size=(120, 40)) as pilot:
         _log_rows(engine, 3.0)
         engine.submit(c.LogOff())
-        await pilot.press("l", "tab", "ctrl+a", "ctrl+k", *"second", "ctrl+o")
+        await burst(pilot, "l", "tab", "ctrl+a", "ctrl+k", *"second", "ctrl+o")
         await pilot.pause()
         assert isinstance(app.screen, ChoiceWindow)
         assert "30 rows" in str(app.screen.query_one("#question").render())
@@ -111,25 +109,6 @@ def test_engine_never_leaves_an_unsaved_log_as_a_silent_partial(engine: Recordin
 
 
 # --- 17.2: a burst of keys goes where the person typing meant ---------------------------------
-
-async def burst(pilot, *keys: str) -> None:
-    """Keys as they arrive over SSH: all in the driver's queue before the app has
-    handled the first (Pilot.press waits for the app between keys)."""
-    app = pilot.app
-    for key in keys:  # made as Pilot.press makes them
-        if len(key) == 1 and not key.isalnum():
-            key = _character_to_key(key)
-        try:
-            char: str | None = unicodedata.lookup(_get_unicode_name_from_key(key))
-        except KeyError:
-            char = key if len(key) == 1 else None
-        app._driver.send_message(events.Key(key, char))
-    for _ in range(200):  # until every key was handled (a loaded machine is slow)
-        await pilot.pause()
-        if not getattr(app, "keys_pending", 0):
-            break
-    await pilot.pause()
-
 
 async def test_keys_typed_right_after_tab_land_in_the_next_field(engine: Recording) -> None:
     engine.engine.submit(c.SetParams({"CONTROLLER ONE.K": 1.0, "CONTROLLER ONE.Ti": 10.0}))
@@ -168,9 +147,9 @@ async def test_choosing_a_tank_does_not_type_and_the_amount_must_fit(engine: Rec
         assert window.query_one("#amount", Input).value == "0.9"
         error = str(window.query_one("#amount-error").render())
         assert f"tank 2 has room for {1 - level:.2f}" in error
-        await pilot.press("ctrl+a", "ctrl+k", *"-0.9", "enter")   # more than is there
+        await burst(pilot, "ctrl+a", "ctrl+k", *"-0.9", "enter")   # more than is there
         assert f"tank 2 holds only {level:.2f}" in str(window.query_one("#amount-error").render())
-        await pilot.press("ctrl+a", "ctrl+k", *"0.1", "enter")
+        await burst(pilot, "ctrl+a", "ctrl+k", *"0.1", "enter")
         await pilot.pause()
         assert app.screen is app.main
     assert engine.sent(c.AddWater) == [c.AddWater(2, 0.1)]

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 
+from bursts import burst
 from conftest import open_setup
 
 from textual.widgets import Input, Static
@@ -31,7 +32,7 @@ async def _tank_field(pilot, tank: int, field: str) -> TankSetupWindow:  # type:
     assert isinstance(window, TankSetupWindow)
     window.query_one(f"#f-{field}", Input).focus()
     await pilot.pause()
-    await pilot.press("ctrl+a", "ctrl+k")
+    await burst(pilot, "ctrl+a", "ctrl+k")
     return window
 
 
@@ -43,7 +44,7 @@ async def test_a_long_refusal_is_shown_whole_inside_the_window(setup_app) -> Non
         await pilot.press("s")  # the sampling time window
         await pilot.pause()
         window = setup_app.screen
-        await pilot.press("ctrl+a", "ctrl+k", "1", "0", "enter")
+        await burst(pilot, "ctrl+a", "ctrl+k", "1", "0", "enter")
         await pilot.pause()
         error = window.query_one("#e-0", Static)
         reason = re.sub(r"\s+", " ", str(error.render())).strip()
@@ -58,11 +59,11 @@ async def test_a_long_refusal_is_shown_whole_inside_the_window(setup_app) -> Non
 async def test_the_live_analysis_waits_for_valid_values(setup_app) -> None:  # type: ignore[no-untyped-def]
     async with setup_app.run_test(size=(120, 40)) as pilot:
         window = await _tank_field(pilot, 1, "Valve")
-        await pilot.press(*"1.5")
+        await burst(pilot, *"1.5")
         panel = window.query_one("#tank-analysis", AnalysisPanel)
         text = str(panel.render())
         assert "phase" not in text and "Valve Pos. 1.5 is refused (must be <= 1" in text
-        await pilot.press("ctrl+a", "ctrl+k", *"0.5")  # valid again
+        await burst(pilot, "ctrl+a", "ctrl+k", *"0.5")  # valid again
         await pilot.pause()
         assert "γ1+γ2 1.10 > 1: minimum phase" in str(panel.render())  # valve 2 at 0.6
 
@@ -72,7 +73,7 @@ async def test_the_live_analysis_waits_for_valid_values(setup_app) -> None:  # t
 async def test_a_huge_diameter_is_refused_with_a_message(setup_app) -> None:  # type: ignore[no-untyped-def]
     async with setup_app.run_test(size=(120, 40)) as pilot:
         window = await _tank_field(pilot, 1, "Diameter")
-        await pilot.press(*"1e308")
+        await burst(pilot, *"1e308")
         await pilot.pause()
         assert "must be <= 100, got 1e+308" in str(window.query_one("#e-Diameter", Static).render())
         await pilot.press("escape")
@@ -84,18 +85,18 @@ async def test_a_huge_diameter_is_refused_with_a_message(setup_app) -> None:  # 
 
 async def test_typed_markup_is_shown_as_typed(setup_app) -> None:  # type: ignore[no-untyped-def]
     async with setup_app.run_test(size=(120, 40)) as pilot:
-        await pilot.press("1", "ctrl+a", "ctrl+k", *"[/x]", "enter")      # K = [/x]
+        await burst(pilot, "1", "ctrl+a", "ctrl+k", *"[/x]", "enter")      # K = [/x]
         await pilot.pause()
         error = setup_app.screen.query_one("#e-0", Static)
         assert "[/x]" in shown(error)
-        await pilot.press("ctrl+a", "ctrl+k", *"[b]1", "enter")
+        await burst(pilot, "ctrl+a", "ctrl+k", *"[b]1", "enter")
         await pilot.pause()
         assert "[b]1" in shown(error)
         await pilot.press("escape")
         await open_setup(pilot)
         await pilot.press("f")                                             # the .par window
         await pilot.pause()
-        await pilot.press(*"[/x]", "enter")
+        await burst(pilot, *"[/x]", "enter")
         await pilot.pause()
         assert "'[/x]'" in shown(setup_app.screen.query_one("#par-error", Static))
     assert setup_app.return_code in (None, 0)
