@@ -132,6 +132,8 @@ def edit_tank(
         tau = old.time_constant
     else:
         _check_positive(tank, op, d)
+        # The ranges first: scaling by an absurd diameter (1e308) overflows a float.
+        _settings(sim, op_points=_put(sim.op_points, i, op), diameters=_put(sim.diameters, i, d))
         tau = old.time_constant * (d / old.diameter) ** 2 * math.sqrt(op / old.op_point)
     valves = sim.valves
     if valve is not None:
@@ -139,16 +141,8 @@ def edit_tank(
             raise ParameterError(f"SIMULATION.Valve{tank}", "only the lower tanks 1 and 2 have a valve")
         v = _number(f"Valve{tank}", valve)
         valves = (v, valves[1]) if tank == 1 else (valves[0], v)
-    try:
-        new = replace(
-            sim,
-            op_points=_put(sim.op_points, i, op),
-            diameters=_put(sim.diameters, i, d),
-            time_constants=_put(sim.time_constants, i, tau),
-            valves=valves,
-        )
-    except ParameterError as exc:
-        raise ParameterError(f"SIMULATION.{exc.field}", exc.reason) from None
+    new = _settings(sim, op_points=_put(sim.op_points, i, op), diameters=_put(sim.diameters, i, d),
+                    time_constants=_put(sim.time_constants, i, tau), valves=valves)
     return TankEdit(sim, new)
 
 
@@ -190,6 +184,14 @@ def _check_positive(tank: int, op: float, d: float) -> None:
         raise ParameterError(f"SIMULATION.OpPoint{tank}", f"must be > 0, got {op:g}")
     if d <= 0:
         raise ParameterError(f"SIMULATION.Diameter{tank}", f"must be > 0 cm, got {d:g}")
+
+
+def _settings(sim: SimulationSettings, **changes: Any) -> SimulationSettings:
+    """`sim` with `changes`, validated; a refusal names the full key."""
+    try:
+        return replace(sim, **changes)
+    except ParameterError as exc:
+        raise ParameterError(f"SIMULATION.{exc.field}", exc.reason) from None
 
 
 def _put(values: tuple[float, ...], i: int, x: float) -> Any:

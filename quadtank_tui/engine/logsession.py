@@ -59,19 +59,27 @@ class LogSession:
             active=self.running, rows=0 if w is None else w.rows,
             points=settings.points if w is None else w.points, unsaved=self._unsaved,
             file=settings.log_file, saved_path=self._saved,
+            started_as="" if w is None or not self._unsaved else w.path.name.removesuffix(".log"),
         )
 
     def on(self, settings: LoggingSettings, tsamp: float, t: float, points: int | None = None) -> tuple[str, ...]:
         """LogOn: a new log from process time `t` of `points` rows (default: the
         Logging window's Points); returns warnings."""
         self.logs_dir.mkdir(parents=True, exist_ok=True)
+        warnings: list[str] = []
+        if self._writer is not None and self._unsaved:
+            rows = self._writer.rows
+            kept = self._writer.keep()  # under any name: never left as a silent .partial
+            if kept is not None:
+                warnings.append(f"the unsaved log ({rows} rows) was kept as {kept}")
         self.close()
         self._writer = LogWriter(log_path(self.logs_dir, settings.log_file), settings.variables, tsamp,
                                  settings.points if points is None else points, created=self._now())
         self._t0 = t
         self._unsaved = False
         self.late_rows = 0
-        return tuple(f"an unsaved earlier log was kept as {p}" for p in self._writer.recovered)
+        warnings.extend(f"an unsaved earlier log was kept as {p}" for p in self._writer.recovered)
+        return tuple(warnings)
 
     def row(self, t: float, y: Sequence[float], u: Sequence[float], r: Sequence[float]) -> None:
         """One sample at process time `t` (the `t` column counts from LogOn)."""

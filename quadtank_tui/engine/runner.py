@@ -407,13 +407,16 @@ def assemble(
     now = now or time.monotonic
     sleep = sleep or time.sleep
     h = spec.params.tsamp
+    # "Created on:" is the wall clock at LogOn (a TUI run, at any speed), unless an
+    # epoch is given: then epoch + process time, so a headless run is reproducible.
+    stamp: Callable[[], datetime] = lambda: datetime.now().replace(microsecond=0)  # noqa: E731
     if spec.clock == "realtime":
         clk: Clock = RealTimeClock(h, now)
-        stamp: Callable[[], datetime] = datetime.now
     else:
         clk = VirtualClock(h, None if spec.clock == "manual" else spec.speed, now)
-        origin = spec.epoch or datetime.now().replace(microsecond=0)
-        stamp = lambda: origin + timedelta(seconds=round(control.t, 6))  # noqa: E731
+        if spec.epoch is not None:
+            origin = spec.epoch
+            stamp = lambda: origin + timedelta(seconds=round(control.t, 6))  # noqa: E731
     control = ControlLoop(spec.params, defaults=spec.defaults, store=ParStore(spec.params_dir),
                           logs_dir=spec.logs_dir, daq=daq, history_capacity=spec.history_capacity,
                           now=lambda: stamp())
@@ -442,7 +445,8 @@ def build_engine(
         fast as possible) or "manual" (no thread, unpaced: step it by hand)
     threaded : whether :meth:`Engine.start` is expected (default: not for "manual")
     epoch : with a virtual or manual clock the logs are stamped epoch + process
-        time (default: now), so a fixed epoch makes the `.log` reproducible
+        time, so a fixed epoch makes the `.log` reproducible (default: none, the
+        wall clock at LogOn, as a user at the TUI expects)
     now, sleep : the monotonic time source and the wait (default: time.monotonic and
         time.sleep; for "manual", a fresh ManualClock, so even a SetSpeed-paced
         manual engine never really waits and its snapshots are reproducible)

@@ -43,6 +43,7 @@ class LogStatus:
     unsaved: bool = False       # rows exist that Save has not written to a .log
     file: str = ""              # the name it will be saved under (without .log)
     saved_path: str = ""        # the last .log written
+    started_as: str = ""        # the name the unsaved log was started under
 
     @property
     def progress(self) -> float:

@@ -1,6 +1,10 @@
 """Atomic file replacement: a reader (or a crash) sees the old file or the new one,
 never half of either.
 
+The new file gets the mode a plain `open()` would give it (0666 less the umask),
+or the mode of the file it replaces: mkstemp's private 0600 would hide a saved
+`.par` from the other lab users (issue 17.10).
+
 The data goes to a temporary file in the target's own folder (a rename is only
 atomic within one file system), is fsynced, then `os.replace`d over the target; the
 folder is fsynced too so the rename itself survives a power cut.  If anything fails
@@ -11,8 +15,36 @@ from __future__ import annotations
 
 import errno
 import os
+import stat
 import tempfile
+import threading
 from pathlib import Path
+
+_UMASK_LOCK = threading.Lock()
+
+
+def current_umask() -> int:
+    """The process's umask (read from /proc where there is one: setting it to
+    read it back is a moment when another thread's files get the wrong mode)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    with _UMASK_LOCK:
+        mask = os.umask(0o022)
+        os.umask(mask)
+    return mask
+
+
+def _mode_for(path: Path) -> int:
+    """The replaced file's permission bits, else what open() would create."""
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        return 0o666 & ~current_umask()
 
 
 def fsync_dir(folder: Path) -> None:
@@ -35,11 +67,13 @@ def atomic_write_bytes(path: Path | str, data: bytes, *, overwrite: bool = True)
     one that appears while writing.  An error names `path`, never the temporary
     file (which is gone by then)."""
     path = Path(path)
+    mode = _mode_for(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     except OSError as exc:
         raise _naming(exc, path) from None
     try:
+        os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()

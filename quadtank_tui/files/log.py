@@ -284,6 +284,12 @@ class LogWriter:
         fsync_dir(target.parent)
         return target
 
+    def keep(self) -> Path | None:
+        """Stop and move the partial file to `<name>-recovered[-N].log`: a new log
+        replaces this unsaved one, which must not stay a `.partial` nobody hears of."""
+        self.stop()
+        return _keep_earlier_partial(self.partial_path, self.path)
+
     def discard(self) -> None:
         """Stop and delete the partial file (the user chose not to keep the log)."""
         self._writing = False

@@ -17,11 +17,12 @@ from textual.binding import Binding
 from textual.screen import ModalScreen, Screen
 
 from quadtank_tui.engine.handle import EngineHandle
+from quadtank_tui.ui.keyorder import OrderedKeys
 from quadtank_tui.ui.screens.main import MainScreen
 from quadtank_tui.ui.screens.too_small import TooSmallScreen, too_small
 
 
-class QuadTankApp(App[None]):
+class QuadTankApp(OrderedKeys):
     """quadtank: the Lund quadruple-tank lab interface in a terminal."""
 
     TITLE = "quadtank"
@@ -77,6 +78,10 @@ class QuadTankApp(App[None]):
             self.screen.dismiss(None)
         else:
             self.push_screen(HelpScreen())
+    async def action_quit(self) -> None:
+        """Textual's own quit (the palette's "Quit"): the same questions as Exit, so
+        an unsaved log is never lost by the back door."""
+        self.call_later(self.action_request_exit)
 
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
         """The command palette lists every action the screen's keys offer now, each

@@ -114,3 +114,11 @@ def test_by_key_and_in_sequence(fig39: Parameters) -> None:
         edit_by_key(fig39.simulation, "SIMULATION.Pump1", 3.0)
     # What Set sends is accepted by the parameter model as it stands.
     assert fig39.with_values(e.changes()).simulation == e.after
+
+
+@pytest.mark.parametrize("field, value", [("diameter", 1e308), ("op_point", 1e308), ("diameter", 1e200)])
+def test_an_absurd_value_is_refused_by_its_range_not_an_overflow(field: str, value: float) -> None:
+    """Issue 18.10: 1e308 in a Diameter overflowed while scaling the time constant."""
+    key = {"diameter": "Diameter1", "op_point": "OpPoint1"}[field]
+    with pytest.raises(ParameterError, match=f"SIMULATION.{key}: must be <= "):
+        edit_tank(PRESET.simulation, 1, **{field: value})

@@ -14,7 +14,7 @@ from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.ui.widgets.controller_box import ElementCell
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.trends import Trend
-from quadtank_tui.ui.windows.base import ConfirmWindow
+from quadtank_tui.ui.windows.base import ChoiceWindow, ConfirmWindow
 from quadtank_tui.ui.windows.controller import PIDWindow
 from quadtank_tui.ui.windows.process import TankWindow
 from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
@@ -127,7 +127,7 @@ async def test_add_water_shows_in_level_and_trend(engine: Recording) -> None:
         await pilot.press("h")
         assert isinstance(app.screen, TankWindow)
         before = engine.snapshot().y[0]
-        await pilot.press(*"0.2", "enter")
+        await pilot.press("1", *"0.2", "enter")  # 1 chooses the tank, then the amount
         await pilot.pause()
         assert engine.sent(c.AddWater) == [c.AddWater(1, 0.2)]
         engine.run_for(0.1)  # poured in at the next sample
@@ -208,10 +208,10 @@ async def test_exit_asks_and_discards_an_unsaved_log(engine: Recording) -> None:
             engine.submit(command)
         engine.run_for(5.0)
         await pilot.press("q")
-        assert isinstance(app.screen, ConfirmWindow)
+        assert isinstance(app.screen, ChoiceWindow)
         await pilot.press("escape")
         assert app.screen is app.main and not engine.sent(c.LogDiscard)
-        await pilot.press("ctrl+q", "y")
+        await pilot.press("ctrl+q", "tab", "enter")  # the second answer: Discard
         await pilot.pause()
     assert engine.sent(c.LogDiscard) == [c.LogDiscard()]
     assert app.return_code == 0

@@ -21,8 +21,9 @@ from textual.css.query import NoMatches
 from textual.widgets import Footer
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS
+from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.engine.commands import (
-    LogDiscard, NudgeMean, ResetControllers, SetControlMode,
+    LogDiscard, LogSave, NudgeMean, ResetControllers, SetControlMode,
     SetOperation, SetParams, SetSpeed, SetState,
 )
 from quadtank_tui.engine.clock import next_speed
@@ -35,7 +36,7 @@ from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.status_line import StatusLine
 from quadtank_tui.ui.widgets.trends import WINDOWS, Trend
-from quadtank_tui.ui.windows.base import ConfirmWindow
+from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, ConfirmWindow, free_log_name
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
 from quadtank_tui.ui.windows.faults import FaultWindow
 from quadtank_tui.ui.windows.statefb import StateFeedbackWindow
@@ -44,6 +45,8 @@ from quadtank_tui.ui.windows.process import PumpWindow, TankWindow
 from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
 
 _NO_STATS = LoopStats()
+#: How close to the brim (normalized level) counts as overflowing.
+SPILL_MARGIN = 1e-6
 #: Least wall time between two trend drawings on the timer, s (see _trends_due).
 TREND_MIN_INTERVAL = 0.2
 NO_DAQ = ("Active runs the real rig, and this session has no DAQ: it runs the simulator "
@@ -175,6 +178,7 @@ class MainScreen(CommandSender):
             controller.statefb = snap.statefb
             controller.params = snap.params
             image.snapshot = snap
+            self._spill_alarm(snap)
             for panel in panels:
                 panel.snapshot = snap
             if snap.params.control != previous.params.control:
@@ -198,6 +202,19 @@ class MainScreen(CommandSender):
                 live.snapshot = snap
             except NoMatches:  # the window is being taken down
                 pass
+
+    def _spill_alarm(self, snap: Snapshot) -> None:
+        """Mark the tanks that overflow on the image, and say so once when a
+        tank starts to (the simulator spills silently otherwise)."""
+        spilling = spilling_tanks(snap)
+        image = self.query_one(ProcessImage)
+        started = spilling - image.spilling
+        image.spilling = spilling
+        if started:
+            names = " and ".join(str(n) for n in sorted(started))
+            which = f"Tanks {names} overflow" if len(started) > 1 else f"Tank {names} overflows"
+            self.notify(f"{which}: water spills out of the process.",
+                        title="Alarm", severity="warning", timeout=8)
 
     def _trends_due(self, snap: Snapshot, view: tuple[object, ...], timer: bool) -> bool:
         """Whether to redraw the trends now.
@@ -355,20 +372,35 @@ class MainScreen(CommandSender):
         self.app.push_screen(IdentifyScreen(last_log=self.current().log.saved_path))
 
     def action_exit(self) -> None:
-        snap = self.current()
-        log = snap.log
-        if log.unsaved:
-            question = (f"The log ({log.rows} rows) has not been saved; exiting throws it away.\n"
-                        "Exit anyway?")
-            yes = "Discard log and exit"
-        else:
-            question = "Stop the loop and exit?"
-            yes = "Exit"
+        """Exit, asking first; an unsaved log is saved by default (Enter), never
+        thrown away without a second choice."""
+        log = self.current().log
+        if not log.unsaved:
+            self.app.push_screen(ConfirmWindow("Exit", "Stop the loop and exit?", yes="Exit"),
+                                 lambda yes: self.app.exit() if yes else None)
+            return
+        earlier = log.started_as or log.file
+        name = free_log_name(earlier, self.engine.log_exists)
+        question = f"The log ({log.rows} rows) has not been saved.\nSave and exit saves it as logs/{name}.log"
+        question += f" (logs/{earlier}.log exists and is kept)." if name != earlier else "."
+        choices = (Choice("save", "Save and exit", "success"),
+                   Choice("discard", "Discard and exit", "error"),
+                   Choice("cancel", "Cancel"))
 
-        def answered(yes_: bool | None) -> None:
-            if yes_:
-                if log.unsaved:
-                    self.send(LogDiscard())
-                self.app.exit()
+        def answered(answer: str | None) -> None:
+            if answer == "save":
+                self.send(LogSave(name), on_done=self.app.exit)
+            elif answer == "discard":
+                self.send(LogDiscard(), on_done=self.app.exit)
 
-        self.app.push_screen(ConfirmWindow("Exit", question, yes=yes), answered)
+        self.app.push_screen(ChoiceWindow("Exit", question, choices), answered)
+
+
+def spilling_tanks(snap: Snapshot) -> frozenset[int]:
+    """The simulated tanks at the brim while the process runs: water keeps coming
+    in (else the level would fall) and spills over."""
+    if snap.operation != "Simul" or snap.state != "Run":
+        return frozenset()
+    plant = snap.params.plant()
+    brim = plant.kc * plant.hmax / FULL_SCALE_V - SPILL_MARGIN
+    return frozenset(n for n, level in enumerate(snap.y, start=1) if level >= brim)

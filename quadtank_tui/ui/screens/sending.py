@@ -26,6 +26,8 @@ COMPACT_WIDTH, COMPACT_HEIGHT = 110, 34
 
 #: Called with the engine's message instead of the error notification.
 OnRefused = Callable[[str], None]
+#: Called when the engine applied the command (Exit after a successful Save).
+OnDone = Callable[[], None]
 
 
 class CommandAnswered(Message, bubble=False):
@@ -34,9 +36,10 @@ class CommandAnswered(Message, bubble=False):
     engine (a hung DAQ) gives after Exit would hold the engine's thread (and the
     Exit) or reach a screen already taken down (NoMatches)."""
 
-    def __init__(self, command: Command, future: Future[CommandResult], on_refused: OnRefused | None) -> None:
+    def __init__(self, command: Command, future: Future[CommandResult], on_refused: OnRefused | None,
+                 on_done: OnDone | None = None) -> None:
         super().__init__()
-        self.command, self.future, self.on_refused = command, future, on_refused
+        self.command, self.future, self.on_refused, self.on_done = command, future, on_refused, on_done
 
 
 class CommandSender(Screen[None]):
@@ -64,27 +67,30 @@ class CommandSender(Screen[None]):
         self.refresh_view()
         return self.snap
 
-    def send(self, command: Command, on_refused: OnRefused | None = None) -> None:
-        """Submit a command; a refusal goes to `on_refused` or is notified."""
+    def send(self, command: Command, on_refused: OnRefused | None = None,
+             on_done: OnDone | None = None) -> None:
+        """Submit a command; a refusal goes to `on_refused` or is notified;
+        `on_done` runs once it was applied."""
         future = self.engine.submit(command)
         ui_thread = threading.get_ident()
 
         def deliver(f: Future[CommandResult]) -> None:
             if threading.get_ident() == ui_thread:  # completed on the UI thread itself
-                self._result(command, f, on_refused)
+                self._result(command, f, on_refused, on_done)
             else:  # thread-safe, never waits on the app, dropped once the screen has closed
-                self.post_message(CommandAnswered(command, f, on_refused))
+                self.post_message(CommandAnswered(command, f, on_refused, on_done))
 
         if future.done():
-            self._result(command, future, on_refused)
+            self._result(command, future, on_refused, on_done)
         else:
             future.add_done_callback(deliver)
 
     def on_command_answered(self, message: CommandAnswered) -> None:
         if self.is_attached:  # not while the app takes the screen down (Exit)
-            self._result(message.command, message.future, message.on_refused)
+            self._result(message.command, message.future, message.on_refused, message.on_done)
 
-    def _result(self, command: Command, future: Future[CommandResult], on_refused: OnRefused | None) -> None:
+    def _result(self, command: Command, future: Future[CommandResult], on_refused: OnRefused | None,
+                on_done: OnDone | None = None) -> None:
         try:
             result = future.result()
         except Exception as exc:  # the engine failed to apply it: say so, go on
@@ -93,12 +99,15 @@ class CommandSender(Screen[None]):
             if on_refused is not None:
                 on_refused(result.message)
             else:
-                self.notify(result.message, title=type(command).__name__, severity="error", timeout=6)
+                self.notify(result.message, title=type(command).__name__, severity="error", timeout=6,
+                            markup=False)
         for warning in result.warnings:
-            self.notify(warning, severity="warning")
+            self.notify(warning, severity="warning", markup=False)
         if result.ok and result.message:
-            self.notify(result.message, timeout=3)
+            self.notify(result.message, timeout=3, markup=False)
         self.refresh_view()
+        if result.ok and on_done is not None:
+            on_done()
 
     def send_all(self, commands: Commands | None) -> None:
         """A window's result: send its commands in order (none if cancelled)."""

@@ -171,3 +171,11 @@ class AnalysisPanel(Static):
             return
         self.update(Text("\n").join(summary_lines(a)))
         self.set_class(a.phase != "minimum", "-nonminimum")
+
+    def refuse(self, reason: str) -> None:
+        """No analysis while a value being edited is refused: an analysis of the
+        last valid values would pass for one of the refused (valve 1.5 read as
+        "minimum phase"); say why instead."""
+        self.set_reactive(AnalysisPanel.params, None)
+        self.update(Text(f"No analysis: {reason}", style="italic"))
+        self.set_class(False, "-nonminimum")

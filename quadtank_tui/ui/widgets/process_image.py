@@ -38,6 +38,7 @@ DRY = Style(color="grey42")
 WALL = Style()
 LABEL = Style(bold=True)
 DIM = Style(dim=True)
+ALARM = Style(color="white", bgcolor="red", bold=True)
 #: Below this level (normalized) a tank counts as empty: nothing drains from it.
 EMPTY = 1e-3
 
@@ -117,11 +118,11 @@ def has_gamma_row(height: int) -> bool:
 
 
 def draw_tank(c: Canvas, x0: int, top: int, width: int, depth: int, level: float, number: int,
-              shown: float | None = None) -> Box:
+              shown: float | None = None, spilling: bool = False) -> Box:
     """An open tank: walls, water to `level` (0..1 of its height), the bottom
     border carrying "n:level" (`shown` instead of the level when given: the
-    normalized reading of a tank whose sensor does not span 10 V); returns its
-    clickable box."""
+    normalized reading of a tank whose sensor does not span 10 V; white on red
+    while it spills); returns its clickable box."""
     inner = width - 2
     units = round(max(0.0, min(1.0, level)) * depth * 8)
     for row in range(depth):
@@ -133,12 +134,14 @@ def draw_tank(c: Canvas, x0: int, top: int, width: int, depth: int, level: float
     bottom = top + depth
     c.text(x0, bottom, "└" + "─" * inner + "┘")
     label = tank_label(number, level if shown is None else shown, inner)
-    c.text(x0 + 1 + (inner - len(label)) // 2, bottom, label[:inner], LABEL)
+    c.text(x0 + 1 + (inner - len(label)) // 2, bottom, label[:inner], ALARM if spilling else LABEL)
     return Box(x0, top, x0 + width - 1, bottom, f"tank({number})")
 
 
-def draw(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[Box]]:
-    """The process image of `snapshot` in width x height cells, and its boxes."""
+def draw(snapshot: Snapshot, width: int, height: int,
+         spilling: frozenset[int] = frozenset()) -> tuple[Text, list[Box]]:
+    """The process image of `snapshot` in width x height cells (the tanks in
+    `spilling` marked), and its boxes."""
     if snapshot.params.process is not None and width >= 22 and height >= 8:
         return draw_plant(snapshot, width, height)
     c = Canvas(width, height)
@@ -159,10 +162,10 @@ def draw(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[Box]]:
     flowing = snapshot.state == "Run" or snapshot.operation == "Active"
     pump_style = [FLOW if flowing and v > EMPTY else DRY for v in u]
     boxes = [
-        draw_tank(c, xs[2], top_upper, widths[2], depth, y[2], 3),
-        draw_tank(c, xs[3], top_upper, widths[3], depth, y[3], 4),
-        draw_tank(c, xs[0], top_lower, widths[0], depth, y[0], 1),
-        draw_tank(c, xs[1], top_lower, widths[1], depth, y[1], 2),
+        draw_tank(c, xs[2], top_upper, widths[2], depth, y[2], 3, spilling=3 in spilling),
+        draw_tank(c, xs[3], top_upper, widths[3], depth, y[3], 4, spilling=4 in spilling),
+        draw_tank(c, xs[0], top_lower, widths[0], depth, y[0], 1, spilling=1 in spilling),
+        draw_tank(c, xs[1], top_lower, widths[1], depth, y[1], 2, spilling=2 in spilling),
     ]
     drain_row = top_upper + depth + 1
     for upper, x in ((2, xl), (3, xr)):  # tank 3 -> 1, tank 4 -> 2
@@ -284,6 +287,8 @@ class ProcessImage(Widget):
     less than a printed digit or an eighth of a cell most samples)."""
 
     snapshot: reactive[Snapshot | None] = reactive(None, repaint=False)
+    #: Tanks that overflow now (the screen works it out, see spilling_tanks).
+    spilling: reactive[frozenset[int]] = reactive(frozenset())
 
     def __init__(self, caption: str = "", **kwargs: object) -> None:
         super().__init__(**kwargs)  # type: ignore[arg-type]
@@ -299,14 +304,19 @@ class ProcessImage(Widget):
         if self.snapshot is None:
             return Text("")
         size = self.content_size
-        text, self._boxes = draw(self.snapshot, size.width, size.height)
+        text, self._boxes = draw(self.snapshot, size.width, size.height, self.spilling)
         self._drawn = ((size.width, size.height), text)
         return text
+
+    def watch_spilling(self) -> None:
+        """An overflow starting or ending changes a label: draw again."""
+        self._draw()
+        self.refresh()
 
     @staticmethod
     def _drawn_from(s: Snapshot) -> tuple[object, ...]:
         """What `draw` reads of a snapshot (the loop's timing changes every tick)."""
-        return (s.y, s.u, s.state, s.operation, s.params.simulation)
+        return (s.y, s.u, s.state, s.operation, s.params.simulation, s.params.process)
 
     def watch_snapshot(self, old: Snapshot | None, new: Snapshot | None) -> None:
         size = self.content_size

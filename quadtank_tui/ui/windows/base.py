@@ -13,12 +13,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Generic, Iterable, TypeVar
+from typing import Any, Callable, Generic, Iterable, TypeVar
 
 from textual import events, on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.content import Content
 from textual.screen import ModalScreen
 from textual.widgets import Button, Checkbox, Footer, Input, Label, Static
 
@@ -53,7 +54,7 @@ class Window(ModalScreen[T], Generic[T]):
         with Vertical(id="dialog"):
             yield Label(self.window_title, id="title")
             yield from self.compose_body()
-            yield Static("", id="message", classes="error")
+            yield Static("", id="message", classes="error", markup=False)
             with Horizontal(id="buttons"):
                 yield from self.compose_buttons()
         yield Footer(compact=True)
@@ -141,7 +142,7 @@ class ParamWindow(Window[Commands]):
                 else:
                     yield Input(fmt(value), id=f"f-{i}", compact=True, select_on_focus=True)
                 yield Label(f.unit, classes="unit")
-                yield Static("", classes="error", id=f"e-{i}")
+                yield Static("", classes="error", id=f"e-{i}", markup=False)
 
     def compose_buttons(self) -> ComposeResult:
         yield Button("Set", id="set", variant="primary")
@@ -263,7 +264,7 @@ class ConfirmWindow(Window[bool]):
         self.yes, self.no = yes, no
 
     def compose_body(self) -> ComposeResult:
-        yield Static(self.question, id="question")
+        yield Static(self.question, id="question", markup=False)
 
     def compose_buttons(self) -> ComposeResult:
         yield Button(self.yes, id="yes", variant="error")
@@ -278,3 +279,49 @@ class ConfirmWindow(Window[bool]):
     def action_yes(self) -> None:
         self.dismiss(True)
 
+
+@dataclass(frozen=True)
+class Choice:
+    """One answer of a ChoiceWindow: what it returns, its button text, its colour."""
+
+    answer: str
+    label: str
+    variant: str = "default"
+
+
+class ChoiceWindow(Window[str | None]):
+    """A question with several answers (Exit with an unsaved log: save, discard or
+    cancel); the first answer has the focus, so Enter picks it; Esc answers None.
+
+    The answers are buttons whose ids are the answers, so nothing a user typed
+    (a log name in a label) can become an action name."""
+
+    def __init__(self, title: str, question: str, choices: Iterable[Choice]) -> None:
+        super().__init__(title)
+        self.question = question
+        self.choices = tuple(choices)
+
+    def compose_body(self) -> ComposeResult:
+        yield Static(self.question, id="question", markup=False)
+
+    def compose_buttons(self) -> ComposeResult:
+        for n, choice in enumerate(self.choices):
+            yield Button(Content(choice.label), id=f"choice-{n}", variant=choice.variant)  # type: ignore[arg-type]
+
+    def on_mount(self) -> None:
+        self.query_one("#choice-0", Button).focus()
+
+    async def on_button_pressed(self, event: Button.Pressed) -> None:
+        event.stop()
+        self.dismiss(self.choices[int((event.button.id or "choice-0").removeprefix("choice-"))].answer)
+
+
+def free_log_name(name: str, exists: Callable[[str], bool]) -> str:
+    """`name`, or `name-2`, `name-3`, ... if a log of that name exists: Save at
+    Exit never overwrites, and never asks a second question."""
+    n = 1
+    candidate = name
+    while exists(candidate):
+        n += 1
+        candidate = f"{name}-{n}"
+    return candidate

@@ -18,15 +18,30 @@ from textual.containers import Horizontal
 from textual.reactive import reactive
 from textual.widgets import Button, Checkbox, Input, Label, ProgressBar, Static
 
-from quadtank_tui.core.parameters import LOG_VARIABLES, POINTS_MAX, Parameters
+from quadtank_tui.core.parameters import LOG_VARIABLES, POINTS_MAX, Parameters, check_file_name
 from quadtank_tui.core.validation import ParameterError
-from quadtank_tui.engine.commands import Command, LogOff, LogOn, LogSave, SetParams
+from quadtank_tui.engine.commands import Command, LogDiscard, LogOff, LogOn, LogSave, SetParams
 from quadtank_tui.engine.snapshot import LogStatus, Snapshot
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Check
-from quadtank_tui.ui.windows.base import Commands, ConfirmWindow, Window
+from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Commands, ConfirmWindow, Window, free_log_name
 
 _POINTS, _FILE, _VARS = "LOGGING.Points", "LOGGING.LogFile", "LOGGING.Variables"
+#: Longest log name: the file system's 255 bytes, less `.log.partial` and room for
+#: the `-recovered-N` a kept log gets.
+MAX_NAME = 200
+
+
+def name_problem(name: str) -> str | None:
+    """Why `name` cannot be a log's name (None if it can), checked before the
+    file system is asked anything about it."""
+    if len(name) > MAX_NAME:
+        return f"too long: {len(name)} characters, at most {MAX_NAME}"
+    try:
+        check_file_name(name, _FILE)
+    except ParameterError as exc:
+        return exc.reason
+    return None
 
 
 def log_state(log: LogStatus) -> str:
@@ -68,12 +83,12 @@ class LoggingWindow(Window[Commands]):
             yield Label("Points", classes="label")
             yield Input(fmt(p.get(_POINTS)), id="points", compact=True, select_on_focus=True)
             yield Label(f"1..{POINTS_MAX}", classes="unit")
-            yield Static("", classes="error", id="points-error")
+            yield Static("", classes="error", id="points-error", markup=False)
         with Horizontal(classes="field", id="row-file"):
             yield Label("File", classes="label")
             yield Input(p.get(_FILE), id="file", compact=True, select_on_focus=True)
             yield Label(".log", classes="unit")
-            yield Static("", classes="error", id="file-error")
+            yield Static("", classes="error", id="file-error", markup=False)
         chosen = p.get(_VARS)
         half = (len(LOG_VARIABLES) + 1) // 2
         for row, names in enumerate((LOG_VARIABLES[:half], LOG_VARIABLES[half:])):
@@ -81,10 +96,10 @@ class LoggingWindow(Window[Commands]):
                 yield Label("Variables" if row == 0 else "", classes="label")
                 for name in names:
                     yield Check(name, value=name in chosen, id=f"var-{name}", compact=True)
-        yield Static("", classes="error", id="vars-error")
+        yield Static("", classes="error", id="vars-error", markup=False)
         with Horizontal(id="progress-row"):
             yield ProgressBar(total=100, show_eta=False, id="progress")
-            yield Label("", id="log-state")
+            yield Label("", id="log-state", markup=False)
 
     def compose_buttons(self) -> ComposeResult:
         yield Button("LogOn", id="log_on", variant="success")
@@ -123,8 +138,12 @@ class LoggingWindow(Window[Commands]):
         except ParameterError as exc:
             self.query_one("#points-error", Static).update(exc.reason)
             return None
-        out = {_POINTS: points, _FILE: self.query_one("#file", Input).value.strip(),
-               _VARS: self._variables()}
+        name = self.query_one("#file", Input).value.strip()
+        problem = name_problem(name)
+        if problem is not None:
+            self.query_one("#file-error", Static).update(problem)
+            return None
+        out = {_POINTS: points, _FILE: name, _VARS: self._variables()}
         try:
             self.params.with_values(out)
         except ParameterError as exc:
@@ -160,8 +179,14 @@ class LoggingWindow(Window[Commands]):
         self._warn_if_exists()
 
     def _warn_if_exists(self) -> None:
+        """Say at once what is wrong with the name, or that Save will ask."""
         name = self.query_one("#file", Input).value.strip()
-        if name and self.log_exists(name):
+        if not name:
+            return
+        problem = name_problem(name)
+        if problem is not None:
+            self.query_one("#file-error", Static).update(problem)
+        elif self.log_exists(name):
             self.query_one("#file-error", Static).update("exists: Save asks before overwriting")
 
     # --- actions --------------------------------------------------------------------
@@ -178,11 +203,29 @@ class LoggingWindow(Window[Commands]):
         for n in LOG_VARIABLES:
             self.query_one(f"#var-{n}", Checkbox).value = n in d.get(_VARS)
 
-    def action_log_on(self) -> None:
-        """Apply the settings in the fields, then start logging with them."""
+    @work
+    async def action_log_on(self) -> None:
+        """Apply the settings in the fields, then start logging with them; an
+        unsaved log is saved (the default) or discarded first, as the user says."""
         changes = self.changes()
         if changes is None:
             return
+        log = self.snapshot.log if self.snapshot is not None else None
+        if log is not None and log.unsaved:
+            earlier = log.started_as or log.file
+            name = free_log_name(earlier, self.log_exists)
+            answer = await self.app.push_screen_wait(ChoiceWindow(
+                "LogOn", f"The log ({log.rows} rows) has not been saved.\n"
+                f"Save then LogOn saves it as logs/{name}.log first.",
+                (Choice("save", "Save then LogOn", "success"),
+                 Choice("discard", "Discard then LogOn", "error"),
+                 Choice("cancel", "Cancel"))))
+            if answer == "save":
+                self.submit(LogSave(name))
+            elif answer == "discard":
+                self.submit(LogDiscard())
+            else:
+                return
         if changes:
             self.submit(SetParams(changes))
             self.params = self.params.with_values(changes)
@@ -195,6 +238,10 @@ class LoggingWindow(Window[Commands]):
     async def action_save(self) -> None:
         """Save under the name in the field; ask first if that file exists."""
         name = self.query_one("#file", Input).value.strip()
+        problem = name_problem(name)
+        if problem is not None:
+            self.query_one("#file-error", Static).update(problem)
+            return
         overwrite = False
         if self.log_exists(name):
             question = f"logs/{name}.log exists. Overwrite it?"

@@ -16,6 +16,7 @@ from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
+from textual.content import Content
 from textual.widgets import Button, Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
@@ -52,8 +53,8 @@ class ParFileWindow(Window[Commands]):
             yield Label("Name", classes="label")
             yield Input(self.initial_name, id="name", compact=True, placeholder="e.g. mysetting")
             yield Label(SUFFIX, classes="unit")
-        yield OptionList(*(Option(self._entry(n), id=n) for n in self.names), id="files")
-        yield Static(self.error, id="par-error", classes="error")
+        yield OptionList(*(Option(Content(self._entry(n)), id=n) for n in self.names), id="files")
+        yield Static(self.error, id="par-error", classes="error", markup=False)
 
     def compose_buttons(self) -> ComposeResult:
         yield Button("Load", id="load", variant="primary")

@@ -25,6 +25,21 @@ from quadtank_tui.ui.windows.base import Commands, Window
 _TANK_ROWS = (("Op. Point", "OpPoint"), ("Diameter", "Diameter"), ("Time Const.", "TimeConst"))
 
 
+class TankTable(Static, can_focus=True):
+    """The table of tanks (or pumps); with the focus on it 1-4 and up/down choose
+    one without typing anywhere."""
+
+
+def water_problem(amount: float, tank: int, level: float, full: float) -> str | None:
+    """Why `amount` (normalized) cannot go into `tank` at `level` (None if it can):
+    no more than the free volume up to `full`, no more out than is there."""
+    if amount > 0 and amount > full - level + 1e-9:
+        return f"tank {tank} has room for {max(0.0, full - level):.2f} (level {level:.2f} of {full:.2f})"
+    if amount < 0 and -amount > level + 1e-9:
+        return f"tank {tank} holds only {max(0.0, level):.2f}"
+    return None
+
+
 class _LiveWindow(Window[Commands]):
     snapshot: reactive[Snapshot | None] = reactive(None, always_update=True)
 
@@ -42,10 +57,11 @@ class _LiveWindow(Window[Commands]):
         self._bindings.bind("down", "cycle(1)", show=False)
 
     def compose_body(self) -> ComposeResult:
-        yield Static(id="table")
+        yield TankTable(id="table")
 
     def on_mount(self) -> None:
         self.watch_snapshot(self.snapshot)
+        self.query_one(TankTable).focus()
 
     def action_select(self, n: int) -> None:
         self.selected = n
@@ -85,9 +101,9 @@ class TankWindow(_LiveWindow):
             yield Label("Add water", classes="label")
             yield Input("", id="amount", placeholder="e.g. 0.1", compact=True)
             yield Label("", id="add-unit", classes="unit")
-            yield Static("", classes="error", id="amount-error")
-        yield Label("1-4 or up/down choose the tank; heights are fractions of the sensor range.",
-                    classes="hint")
+            yield Static("", classes="error", id="amount-error", markup=False)
+        yield Label("1-4 or up/down choose the tank, then type the amount; "
+                    "heights are fractions of the sensor range.", classes="hint")
 
     def compose_buttons(self) -> ComposeResult:
         yield Button("Set", id="set", variant="primary")
@@ -96,12 +112,21 @@ class TankWindow(_LiveWindow):
     def on_mount(self) -> None:
         super().on_mount()
         simul = self.snapshot is not None and self.snapshot.operation == "Simul"
-        amount = self.query_one("#amount", Input)
-        amount.disabled = not simul
-        if simul:
-            amount.focus()
-        else:
+        self.query_one("#amount", Input).disabled = not simul
+        if not simul:
             self.query_one("#amount-error", Static).update("only in Simul")
+        self._show_target()
+
+    def action_select(self, n: int) -> None:
+        """Choose tank n; its amount is typed next (a digit chooses, never types)."""
+        super().action_select(n)
+        self._show_target()
+        amount = self.query_one("#amount", Input)
+        if not amount.disabled:
+            amount.focus()
+
+    def _show_target(self) -> None:
+        self.query_one("#add-unit", Label).update(f"into tank {self.selected}")
 
     def table(self, snapshot: Snapshot) -> str:
         p = snapshot.params
@@ -118,7 +143,6 @@ class TankWindow(_LiveWindow):
 
     def on_input_changed(self, event: Input.Changed) -> None:
         self.query_one("#amount-error", Static).update("")
-        self.query_one("#add-unit", Label).update(f"into tank {self.selected}")
 
     def action_set(self) -> None:
         text = self.query_one("#amount", Input).value
@@ -130,6 +154,14 @@ class TankWindow(_LiveWindow):
         except ParameterError as exc:
             self.query_one("#amount-error", Static).update(exc.reason)
             return
+        snap = self.snapshot
+        if snap is not None:
+            plant = snap.params.plant()
+            full = plant.kc * plant.hmax / FULL_SCALE_V
+            problem = water_problem(amount, self.selected, snap.y[self.selected - 1], full)
+            if problem is not None:
+                self.query_one("#amount-error", Static).update(problem)
+                return
         self.dismiss((AddWater(self.selected, amount),) if amount else ())
 
     @on(Input.Submitted)

@@ -55,6 +55,8 @@ class TankSetupWindow(Window[Commands]):
         self.keys = tank_keys(tank)
         #: The setting as edited so far (exact values; the fields show them rounded).
         self.working: SimulationSettings = params.simulation
+        #: Why a field's text is refused, by field name (the analysis waits for them).
+        self.refused: dict[str, str] = {}
 
     # --- layout -------------------------------------------------------------------------
 
@@ -66,7 +68,7 @@ class TankSetupWindow(Window[Commands]):
                 yield Label(label, classes="label")
                 yield Input(fmt(self.params.get(key)), id=f"f-{name}", compact=True, select_on_focus=True)
                 yield Label(unit, classes="unit")
-                yield Static("", classes="error", id=f"e-{name}")
+                yield Static("", classes="error", id=f"e-{name}", markup=False)
         yield Label("", id="outlet", classes="hint")
         yield AnalysisPanel(id="tank-analysis")
 
@@ -90,12 +92,23 @@ class TankSetupWindow(Window[Commands]):
             name = _name(key)
             if key != typing and not self._holds(key):
                 self.query_one(f"#f-{name}", Input).value = fmt(self.value(key))
+                self.refused.pop(name, None)
             self.query_one(f"#row-{name}").set_class(self.value(key) != self.defaults.get(key), "-modified")
         a = outlet(self.working, self.tank)
         a_used = outlet(self.params.simulation, self.tank)
         note = "held fixed" if abs(a - a_used) <= 1e-9 * a_used else f"was {a_used:.4f}"
         self.query_one("#outlet", Label).update(f"Outlet area a{self.tank} = {a:.4f} cm^2 ({note})")
-        self.query_one(AnalysisPanel).params = self.params.with_values(diff(self.params.simulation, self.working))
+        self._analyse()
+
+    def _analyse(self) -> None:
+        """The analysis of the working setting, or why there is none."""
+        panel = self.query_one(AnalysisPanel)
+        if self.refused:
+            name, reason = next(iter(self.refused.items()))
+            text = self.query_one(f"#f-{name}", Input).value
+            panel.refuse(f"{ROWS[name][0]} {text} is refused ({reason})")
+        else:
+            panel.params = self.params.with_values(diff(self.params.simulation, self.working))
 
     def _holds(self, key: str) -> bool:
         """Whether a field's text stands for the working value: as shown (rounded
@@ -114,12 +127,16 @@ class TankSetupWindow(Window[Commands]):
         key = next(k for k in self.keys if _name(k) == name)
         error = self.query_one(f"#e-{name}", Static)
         error.update("")
+        self.refused.pop(name, None)
         if self._holds(key):  # shown by _show, or typed back as it was
+            self._analyse()
             return
         try:
             self.working = edit_by_key(self.working, key, parse_number(key, event.value)).after
         except ParameterError as exc:
             error.update(exc.reason)
+            self.refused[name] = exc.reason
+            self._analyse()
             return
         self._show(typing=key)
 
@@ -134,6 +151,7 @@ class TankSetupWindow(Window[Commands]):
 
     def action_default(self) -> None:
         self.working = self.params.with_values({k: self.defaults.get(k) for k in self.keys}).simulation
+        self.refused.clear()
         for key in self.keys:
             self.query_one(f"#e-{_name(key)}", Static).update("")
         self._show()
