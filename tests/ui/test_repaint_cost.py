@@ -122,3 +122,14 @@ async def test_a_paused_screen_under_a_live_window_writes_nothing(engine: Record
         await ticks(app, pilot, engine, 1.0)
         assert app.screen is not app.main
     assert wire.bytes == 0, f"{wire.bytes} bytes in {len(wire.updates)} updates"
+
+
+async def test_the_screen_ticks_slower_while_paused(engine: Recording) -> None:
+    app = paused_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        app.main._tick()
+        assert app.main._interval == 0.25
+        engine.submit(c.SetState("Run"))
+        app.main._tick()
+        assert app.main._interval == TICK
+        await pilot.pause()

@@ -47,6 +47,8 @@ from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
 _NO_STATS = LoopStats()
 #: How close to the brim (normalized level) counts as overflowing.
 SPILL_MARGIN = 1e-6
+#: The screen's refresh interval while the loop is paused, s (see MainScreen._pace).
+PAUSED_INTERVAL = 0.25
 #: Least wall time between two trend drawings on the timer, s (see _trends_due).
 TREND_MIN_INTERVAL = 0.2
 NO_DAQ = ("Active runs the real rig, and this session has no DAQ: it runs the simulator "
@@ -129,6 +131,9 @@ class MainScreen(CommandSender):
         self.snap: Snapshot = engine.snapshot()
         self._drawn_view: tuple[object, ...] = ()
         self._drawn_t, self._drawn_k, self._drawn_at = 0.0, -1, 0.0
+        #: The live window last given a snapshot, and that snapshot.
+        self._live: object = None
+        self._live_snap: Snapshot = self.snap
         self.window_index = 1  # 5 min
         self.autoscale = True
 
@@ -151,7 +156,8 @@ class MainScreen(CommandSender):
         self._status = self.query_one(StatusLine)
         self._fed = (self.query_one(ControllerBox), self.query_one(ProcessImage), *self.query(ChannelPanel))
         self.refresh_view()
-        self.set_interval(self.refresh_interval, self._tick)
+        self._interval = self.refresh_interval
+        self._timer = self.set_interval(self._interval, self._tick)
         self.call_after_refresh(self.run_worker, _warm_up, thread=True, group="warm-up", exit_on_error=False)
 
     # --- attributes down ------------------------------------------------------------
@@ -161,6 +167,18 @@ class MainScreen(CommandSender):
         # here is seen: skip the work.
         if not any(isinstance(screen, CommandSender) and screen is not self for screen in self.app.screen_stack):
             self.refresh_view(timer=True)
+        self._pace()
+
+    def _pace(self) -> None:
+        """Tick at the refresh interval while the loop runs, at most 4 times a second
+        while it is paused: a paused screen changes only on a command (which redraws
+        at once) or a fault, and each tick costs a wake-up (issue 17: under 2 % of
+        a core when paused)."""
+        interval = self.refresh_interval if self.snap.state == "Run" else max(self.refresh_interval, PAUSED_INTERVAL)
+        if interval != self._interval:
+            self._timer.stop()
+            self._interval = interval
+            self._timer = self.set_interval(interval, self._tick)
 
     def refresh_view(self, *, timer: bool = False) -> None:
         """Show the latest snapshot (status, controller box, image, inputs), and the
@@ -196,8 +214,9 @@ class MainScreen(CommandSender):
         # A live window gets the snapshot only when more than the loop's timing
         # changed (a paused loop's idle ticks): its update repaints the whole
         # screen behind it, 1 MB a second of nothing new at 120x40.
-        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) and (
-                live.snapshot is None or _untimed(live.snapshot) != _untimed(snap)):
+        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) and live.is_mounted and (
+                live is not self._live or _untimed(self._live_snap) != _untimed(snap)):
+            self._live, self._live_snap = live, snap
             try:
                 live.snapshot = snap
             except NoMatches:  # the window is being taken down
