@@ -337,7 +337,7 @@ class ProcessImage(Widget):
         """The valves on the border when the image has no row for them (80x24)."""
         s = self.snapshot
         text = self.caption
-        if s is not None and not has_gamma_row(self.content_size.height):
+        if s is not None and s.params.process is None and not has_gamma_row(self.content_size.height):
             text = " ".join(filter(None, (gamma_text(s.params, 1, False), gamma_text(s.params, 2, False), text)))
         if text != (self.border_subtitle or ""):  # setting it repaints, even unchanged
             self.border_subtitle = text
