@@ -129,22 +129,16 @@ def identified_matrix(path: str | Path) -> Any:
     from quadtank_tui.files.model import ModelFileError, read_model
 
     m = read_model(path)
-    rows = []
-    for y in ("y1", "y2"):
-        row = []
-        for u in ("u1", "u2"):
-            try:
-                g = m.element(y, u)
-            except (KeyError, ValueError):
-                raise ModelFileError(str(path), f"no element {y}/{u}: the 2x2 design needs inputs u1, u2 "
-                                     f"and outputs y1, y2 (the file has {', '.join(m.inputs)} -> "
-                                     f"{', '.join(m.outputs)})") from None
+    rows = m.matrix_2x2()
+    for o, row in enumerate(rows):
+        for i, g in enumerate(row):
             if g is None:
-                raise ModelFileError(str(path), f"element {y}/{u} is null ({u} never moved in the logs): "
-                                     "the 2x2 design needs all four")
-            row.append(g)
-        rows.append(tuple(row))
-    return (rows[0], rows[1])
+                y, u = f"y{o + 1}", f"u{i + 1}"
+                why = (f"{u} never moved in the logs" if y in m.outputs and u in m.inputs
+                       else f"the model has {', '.join(m.inputs)} -> {', '.join(m.outputs)}")
+                raise ModelFileError(str(path), f"no element {y}/{u} ({why}): the 2x2 design needs "
+                                     "all four of u1, u2 -> y1, y2")
+    return ((rows[0][0], rows[0][1]), (rows[1][0], rows[1][1]))
 
 
 def _run_2x2(args: argparse.Namespace) -> int:

@@ -101,7 +101,7 @@ def test_bad_model_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixtur
     cases = [
         (["--model-file", str(missing)], f"{missing}: no such file"),
         (["--model-file", str(not_json)], f"{not_json}: not JSON (line 2"),
-        (["--model-file", str(half)], f"{half}: element y1/u2 is null (u2 never moved"),
+        (["--model-file", str(half)], f"{half}: no element y1/u2 (u2 never moved"),
         (["--model-file", str(whole), "--write-par", "x.par"], "--write-par with --model-file needs --par"),
         (["--model", P1, "--par", str(PARAMS / "minphase.par")], "--model and --par: choose one"),
         ([], "a model is needed"),
