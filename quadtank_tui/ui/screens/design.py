@@ -180,7 +180,11 @@ class DesignScreen(CommandSender):
 
         if model is None:
             return
-        rows = candidates(model)
+        try:
+            rows = candidates(model)
+        except ValueError as exc:  # a model the evaluation cannot simulate: one line, no crash
+            self.app.call_from_thread(self._status, f"[red]loop {loop}: {exc}[/]")
+            return
         self.app.call_from_thread(self._show_table, loop, model, rows)
 
     def _show_table(self, loop: int, model: DelayTF, rows: list) -> None:
