@@ -1,6 +1,7 @@
 """`quadtank design`: PI/PID from a model (typed expression) with Andersson's
-evaluation table, or both diagonal loops of the 2x2 process (`--par`) with the
-MIMO check and a step through the real engine.
+evaluation table, or both diagonal loops of the 2x2 process (`--par`: its physical
+linearization; `--model-file`: an identified model) with the MIMO check and a step
+through the real engine.
 
 Heavy modules (numpy, scipy) are imported inside the handler: building the parser
 must stay cheap for every other command.
@@ -27,12 +28,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "check the 2x2 loop.",
         epilog="Example: quadtank design --model '1.6592*exp(-2.4*s)/(1.07*s+1)^3' --method pi-ms --ms 1.4",
     )
-    src = p.add_mutually_exclusive_group(required=True)
+    src = p.add_mutually_exclusive_group()
     src.add_argument("--model", metavar="EXPR",
                      help="transfer function in s with one exp(-L*s), e.g. '1.66*exp(-2.4*s)/(1.07*s+1)^3'; "
                      "one that starts with a minus needs '=': --model=-0.00651*exp(-2*s)/s")
-    src.add_argument("--par", metavar="FILE",
-                     help="a .par file: design both diagonal loops on its physical linearization")
+    src.add_argument("--model-file", metavar="FILE",
+                     help="a 2x2 model saved by `quadtank identify --save`: design both diagonal loops "
+                     "on its G11 and G22 and check the 2x2 loop with its off-diagonal elements")
+    p.add_argument("--par", metavar="FILE",
+                   help="a .par file: design both diagonal loops on its physical linearization; with "
+                   "--model-file, the base of --write-par and the simulator of the step")
     p.add_argument("--method", choices=METHODS, default=None,
                    help="lambda tuning, Ms-constrained PI or PID (default: pi-ms for --model, "
                    "lambda for --par)")
@@ -50,11 +55,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.par is not None:
+    if args.model is not None and args.par is not None:
+        raise ValueError("--model and --par: choose one (--par designs both loops of the file's process)")
+    if args.model is None and args.par is None and args.model_file is None:
+        raise ValueError("a model is needed: --model EXPR, --model-file FILE or --par FILE")
+    if args.par is not None or args.model_file is not None:
         return _run_2x2(args)
-    for opt in ("write_par",):
-        if getattr(args, opt):
-            raise ValueError("--write-par needs --par (a 2x2 design)")
+    if args.write_par:
+        raise ValueError("--write-par needs --par (a 2x2 design)")
     return _run_siso(args)
 
 
@@ -115,6 +123,24 @@ def format_evaluation(ev: Any) -> str:
     ])
 
 
+def identified_matrix(path: str | Path) -> Any:
+    """G11 G12 / G21 G22 of a saved model, by the names y1 y2 and u1 u2 (V/V, which is
+    also normalized/normalized: the design's units); every element must be there."""
+    from quadtank_tui.files.model import ModelFileError, read_model
+
+    m = read_model(path)
+    rows = m.matrix_2x2()
+    for o, row in enumerate(rows):
+        for i, g in enumerate(row):
+            if g is None:
+                y, u = f"y{o + 1}", f"u{i + 1}"
+                why = (f"{u} never moved in the logs" if y in m.outputs and u in m.inputs
+                       else f"the model has {', '.join(m.inputs)} -> {', '.join(m.outputs)}")
+                raise ModelFileError(str(path), f"no element {y}/{u} ({why}): the 2x2 design needs "
+                                     "all four of u1, u2 -> y1, y2")
+    return ((rows[0][0], rows[0][1]), (rows[1][0], rows[1][1]))
+
+
 def _run_2x2(args: argparse.Namespace) -> int:
     from quadtank_tui.core.design.mimo import design_2x2, format_check, physical_model
     from quadtank_tui.core.design.apply import controller_values
@@ -122,14 +148,21 @@ def _run_2x2(args: argparse.Namespace) -> int:
     from quadtank_tui.files.par import read_par, write_par
 
     if args.evaluate_on:
-        raise ValueError("--evaluate-on is for --model; --par checks the 2x2 loop itself")
-    read = read_par(args.par)
-    params = read.params
-    G = physical_model(params.plant(), params.operating_levels())
+        raise ValueError("--evaluate-on is for --model; --par and --model-file check the 2x2 loop itself")
+    if args.write_par and args.par is None:
+        raise ValueError("--write-par with --model-file needs --par FILE for the other parameters")
+    params = read_par(args.par).params if args.par is not None else None
+    if args.model_file is not None:
+        G = identified_matrix(args.model_file)
+        source = f"{args.model_file}: identified model"
+    else:
+        assert params is not None
+        G = physical_model(params.plant(), params.operating_levels())
+        source = f"{args.par}: physical linearization at its operating levels"
     method = args.method or "lambda"
     chk = design_2x2(G, method, lam=(args.lam, args.lam), ms=args.ms)
     steps = []
-    if not args.no_step and chk.stable:
+    if not args.no_step and chk.stable and args.par is not None:
         duration = 600.0 if chk.lambda11_0 > 0 else 3000.0  # P+'s loop 2 is slow
         steps = [run_step(chk.pid_pair(), par=args.par, loop=i, duration=duration) for i in (1, 2)]
     written = None
@@ -137,11 +170,12 @@ def _run_2x2(args: argparse.Namespace) -> int:
         out = Path(args.write_par)
         if out.suffix.lower() != ".par":
             raise ValueError(f"--write-par {out}: the file name must end in .par")
+        assert params is not None
         written = write_par(out, params.with_values(controller_values(chk.pid_pair())))
     if args.json:
         print(json.dumps(_check_json(chk, steps, written), indent=2))
         return 0
-    print(f"{args.par}: physical linearization at its operating levels, method {method}")
+    print(f"{source}, method {method}")
     print(format_check(chk))
     for s in steps:
         m = s.step

@@ -7,9 +7,9 @@ converted from the loop's normalized units to volts per volt) unless --k1/--k2 g
 transfer functions in s, in volts per volt (Murray-Smith's convention), e.g.
 ``--k1 "5*(1+6.2*s)/s"``.
 
-The expressions are read by commands/icad_expr.py (minimal, until the `design`
-work's parser is merged).  Heavy modules load inside the handler (tests/cli/
-test_cli_startup.py).
+The expressions are read by the design's model parser (core/design/expr.py, through
+commands/icad_controllers.py), without a dead time.  Heavy modules load inside the
+handler (tests/cli/test_cli_startup.py).
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from quadtank_tui.commands.icad_expr import coefficients, controller_from_par, parse_tf, show
+    from quadtank_tui.commands.icad_controllers import coefficients, controller_from_par, controller_tf, show
     from quadtank_tui.core.icad import analyze_icad, format_icad
     from quadtank_tui.files.par import read_par
 
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     ks = []
     for i, (expr, element) in enumerate(((args.k1, params.controllers[0]), (args.k2, params.controllers[3]))):
         scale = plant.inputs[i].full_scale / FULL_SCALE_V
-        ks.append(parse_tf(expr) if expr else controller_from_par(element, family, scale))
+        ks.append(controller_tf(expr, f"--k{i + 1}") if expr else controller_from_par(element, family, scale))
     result = analyze_icad(G, ks[0], ks[1])
     levels = ", ".join(f"{s.name} = {x:g} {s.unit}" for s, x in zip(plant.states, params.process_levels()))
     if args.json:

@@ -66,6 +66,12 @@ class ModelFile:
         """G from `input` to `output` by name (KeyError for a name not in the model)."""
         return self.elements[self.outputs.index(output)][self.inputs.index(input)]
 
+    def matrix_2x2(self) -> list[list[DelayTF | None]]:
+        """[[G11, G12], [G21, G22]] by the names y1 y2 and u1 u2 (what the design's
+        loops use); None for an element that is not in the model."""
+        return [[self.element(y, u) if y in self.outputs and u in self.inputs else None
+                 for u in ("u1", "u2")] for y in ("y1", "y2")]
+
 
 def model_path(log: Path | str) -> Path:
     """`logs/NAME.model.json` for `logs/NAME.log`."""

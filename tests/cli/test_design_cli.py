@@ -81,3 +81,43 @@ def test_p_plus_2x2_writes_a_par_with_k2_negative(tmp_path: Path, capsys: pytest
     assert params.get("CONTROLLER ONE.K") == k1 and params.get("CONTROLLER FOUR.K") == k2
     assert params.get("CONTROLLER FOUR.Ti") == out["loops"][1]["Ti"]
     assert params.get("CONTROL.Structure").value == "Decentralized"
+
+
+def _model_file(path: Path, gains: list) -> Path:  # type: ignore[type-arg]
+    """A 2x2 of first-order elements K/(62 s + 1); a gain 0 is a null element."""
+    path.write_text(json.dumps({"format": "quadtank-model", "version": 1, "method": "oe",
+                                "inputs": ["u1", "u2"], "outputs": ["y1", "y2"],
+                                "elements": [[{"num": [k], "den": [62.0, 1.0], "delay": 0.0} if k else None
+                                              for k in row] for row in gains]}))
+    return path
+
+
+def test_bad_model_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    missing = tmp_path / "none.model.json"
+    not_json = tmp_path / "bad.model.json"
+    not_json.write_text("{\n  oops\n")
+    half = _model_file(tmp_path / "half.model.json", [[2.6, 0], [1.3, 2.6]])
+    whole = _model_file(tmp_path / "whole.model.json", [[2.6, 1.3], [1.3, 2.6]])
+    cases = [
+        (["--model-file", str(missing)], f"{missing}: no such file"),
+        (["--model-file", str(not_json)], f"{not_json}: not JSON (line 2"),
+        (["--model-file", str(half)], f"{half}: no element y1/u2 (u2 never moved"),
+        (["--model-file", str(whole), "--write-par", "x.par"], "--write-par with --model-file needs --par"),
+        (["--model", P1, "--par", str(PARAMS / "minphase.par")], "--model and --par: choose one"),
+        ([], "a model is needed"),
+    ]
+    for argv, words in cases:
+        assert main(["design", *argv]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and words in err and "Traceback" not in err, (argv, err)
+
+
+def test_model_file_without_par_designs_and_checks(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Lambda = T/5 on 2.6/(62 s + 1): Kc = T/(K lambda) = 5/2.6 = 1.923, Ti = T;
+    lambda11(0) = 2.6^2/(2.6^2 - 1.3^2) = 4/3.  No --par: no step on the simulator."""
+    whole = _model_file(tmp_path / "whole.model.json", [[2.6, 1.3], [1.3, 2.6]])
+    assert main(["design", "--model-file", str(whole)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{whole}: identified model, method lambda")
+    assert "lambda11(0) = 1.333" in out and "loop 2 on g22: Kc=1.923, Ti=62 " in out
+    assert "closed loop stable" in out and "nonlinear simulator" not in out

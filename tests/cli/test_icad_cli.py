@@ -1,4 +1,4 @@
-"""`quadtank icad` on the shipped presets; the controller expression reader (issue 14)."""
+"""`quadtank icad` on the shipped presets; its controllers, typed (the design's model parser) or from the .par (issue 14)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from quadtank_tui.cli import main
-from quadtank_tui.commands.icad_expr import ExpressionError, controller_from_par, parse_tf, show
+from quadtank_tui.commands.icad_controllers import ExpressionError, controller_from_par, controller_tf, show
 from quadtank_tui.core.parameters import PLANT_SETTINGS
 
 PARAMS = Path(__file__).resolve().parents[2] / "params"
@@ -51,9 +51,10 @@ def test_table_output(capsys: pytest.CaptureFixture[str]) -> None:
 
 @pytest.mark.parametrize("args, message", [
     (["--par", str(PARAMS / "coupled-cascade.par")], "ICAD needs a 2x2 loop"),
-    (["--par", TITO, "--k1", "5(1+6.2s"], "ends too early"),
+    (["--par", TITO, "--k1", "5(1+6.2s"], "--k1 '5(1+6.2s': expected ')' to close the '(' at column 2, found the end (column 9)"),
     (["--par", TITO, "--k1", "s^2+1"], "improper"),
-    (["--par", TITO, "--k2", "2*x"], "cannot read 'x'"),
+    (["--par", TITO, "--k2", "2*x"], "--k2 '2*x': unknown name 'x'"),
+    (["--par", TITO, "--k2", "exp(-2*s)*5*(1+6.2*s)/s"], "a dead time exp(-2*s) cannot be used"),
     (["--par", "nope.par"], "no such file"),
 ])
 def test_bad_input_is_one_line(capsys: pytest.CaptureFixture[str], args: list[str], message: str) -> None:
@@ -70,16 +71,16 @@ def test_bad_input_is_one_line(capsys: pytest.CaptureFixture[str], args: list[st
     ("1/(1+.5s)^2", [4.0], [1.0, 4.0, 4.0]),
     ("2e-1*s/(s+1e1)", [0.2, 0.0], [1.0, 10.0]),
 ])
-def test_parse_tf(text: str, num: list[float], den: list[float]) -> None:
-    n, d = parse_tf(text)
+def test_controller_tf(text: str, num: list[float], den: list[float]) -> None:
+    n, d = controller_tf(text)
     np.testing.assert_allclose(n, num, rtol=1e-12)
     np.testing.assert_allclose(d, den, rtol=1e-12)
 
 
-@pytest.mark.parametrize("text", ["", "1/0", "(s", "s)", "s^x", "2**s", "1/(s-s)"])
-def test_parse_tf_refuses(text: str) -> None:
+@pytest.mark.parametrize("text", ["", "1/0", "(s", "s)", "s^x", "2**s", "1/(s-s)", "exp(-s)/s"])
+def test_controller_tf_refuses(text: str) -> None:
     with pytest.raises(ExpressionError):
-        parse_tf(text)
+        controller_tf(text)
 
 
 def test_controller_from_par_is_volts_per_volt() -> None:

@@ -113,3 +113,38 @@ def test_step_fit_of_one_pair(logs: dict[str, Path], capsys: pytest.CaptureFixtu
     assert 0 <= e["L"] < 1.0 and e["loss"] < 1e-7
     assert r["zeros"] == [] and r["phase"] == "minimum"
     assert e["num"] == pytest.approx([e["K"]]) and e["den"] == pytest.approx([e["T"], 1.0])
+
+
+@pytest.mark.parametrize("s", ["pminus", "pplus"])
+def test_design_from_the_saved_model(logs: dict[str, Path], capsys: pytest.CaptureFixture[str],
+                                     tmp_path: Path, s: str) -> None:
+    """identify --save, then design --model-file: Kc and Ti within 3 % of the same
+    design on the physical linearization (at P+ loop 2 on g22 with loop 1 closed, K2 < 0);
+    --write-par puts them in a copy of the base .par."""
+    from quadtank_tui.files.par import read_par
+
+    model = tmp_path / f"{s}.model.json"
+    _identify(capsys, str(logs[f"{s}-u1"]), str(logs[f"{s}-u2"]), "--save", str(model))
+    base = ROOT / "params" / f"{PAR[s]}.par"
+    out_par = tmp_path / "designed.par"
+    ident = _design(capsys, "--model-file", str(model), "--par", str(base), "--no-step",
+                    "--write-par", str(out_par))
+    phys = _design(capsys, "--par", str(base), "--no-step")
+    assert ident["stable"] and phys["stable"]
+    assert ident["lambda11_0"] == pytest.approx(phys["lambda11_0"], rel=0.03)
+    for a, b in zip(ident["loops"], phys["loops"]):
+        assert a["designed_on"] == b["designed_on"]
+        assert a["Kc"] == pytest.approx(b["Kc"], rel=0.03) and a["Ti"] == pytest.approx(b["Ti"], rel=0.03)
+    assert (ident["loops"][1]["Kc"] < 0) == (s == "pplus")
+    written = read_par(out_par).params
+    assert written.get("CONTROLLER ONE.K") == ident["loops"][0]["Kc"]
+    assert written.get("CONTROLLER FOUR.Ti") == ident["loops"][1]["Ti"]
+    before = read_par(base).params
+    for key in ("SIMULATION.Valve1", "SIMULATION.OpPoint2", "REFERENCE ONE.Period"):
+        assert written.get(key) == before.get(key)
+
+
+def _design(capsys: pytest.CaptureFixture[str], *args: str) -> dict:  # type: ignore[type-arg]
+    capsys.readouterr()
+    assert main(["design", *args, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)

@@ -117,3 +117,36 @@ async def test_a_bad_log_is_one_line_on_the_screen(app) -> None:  # type: ignore
         status = str(pilot.app.screen.query_one("#identify-status").render())
         assert "no input moves (u1 and u2 are constant)" in status
         assert pilot.app.screen.view is None
+
+
+async def test_d_designs_on_the_identified_model(app) -> None:  # type: ignore[no-untyped-def]
+    """d after a fit: the Design screen's loops start from the fitted G11 and G22,
+    and its 2x2 design uses all four elements (lambda = T/5 at P-: Kc 1.916 and
+    1.762 on the physical linearization; the identified model gives the same within 1 %)."""
+    from textual.widgets import DataTable, Input
+
+    from quadtank_tui.ui.screens.design import DesignScreen
+
+    async with app.run_test(size=(120, 40)) as pilot:
+        await fit_both(pilot)
+        ident = pilot.app.screen.view.ident
+        g11, g22 = ident.system.elements[0][0], ident.system.elements[1][1]
+        await pilot.press("d")
+        await pilot.app.workers.wait_for_complete()
+        await pilot.pause()
+        screen = pilot.app.screen
+        assert isinstance(screen, DesignScreen)
+        assert screen.loops[1].model is g11 and screen.loops[2].model is g22
+        assert screen.query_one("#model-1", Input).value == str(g11)
+        assert screen.source == "the identified model (oe, pminus-u1.log, pminus-u2.log)"
+        assert f"loop 1: 9 candidates on {g11}" in str(screen.query_one("#design-status").render())
+        assert screen.query_one("#design-table", DataTable).row_count == 9
+        await pilot.press("2")
+        await pilot.app.workers.wait_for_complete()
+        await pilot.pause()
+        c1, c2 = screen.loops[1].chosen, screen.loops[2].chosen
+        assert c1.Kc == pytest.approx(1.916, rel=0.01) and c2.Kc == pytest.approx(1.762, rel=0.01)
+        assert "closed loop stable" in str(screen.query_one("#design-mimo").render())
+        await pilot.press("escape")
+        await pilot.pause()
+        assert isinstance(pilot.app.screen, IdentifyScreen)

@@ -62,8 +62,11 @@ def load_size(g: DelayTF) -> float:
 def time_step(g: DelayTF, m: Margins) -> float:
     """Step h: 1/STEPS_PER_RAD of 1/wc, dividing the delay (see simulate)."""
     h = 1.0 / (STEPS_PER_RAD * m.crossover) if math.isfinite(m.crossover) else 0.01
-    if g.delay > 0.0:
+    if g.delay >= 0.5 * h:
         h = g.delay / math.ceil(g.delay / h)
+    # a delay below half a step is not resolved at this step (simulate rounds it to
+    # none); dividing it would shrink h to it: an identified 2e-5 s delay asked for
+    # 9e7 steps
     return h
 
 
@@ -79,7 +82,7 @@ def settled_response(g: DelayTF, c: PID, m: Margins, *, r: float = 0.0, d: float
             break
         horizon *= 2.0
         h = max(h, horizon / 100_000)
-        if g.delay > 0.0:
+        if g.delay >= 0.5 * h:
             h = g.delay / max(1, math.floor(g.delay / h))
     return resp
 

@@ -3,7 +3,8 @@ table in the style of Andersson's section 4.4, checked on the 2x2 process, and
 applied to the running controller matrix.
 
 The models start as the physical linearization of the current setting (g11 and
-g22 at its operating levels) and can be typed over (`1.66*exp(-2.4*s)/(1.07*s+1)^3`).
+g22 at its operating levels), or as an identified model's G11 and G22 when the
+Identify screen opens this one, and can be typed over (`1.66*exp(-2.4*s)/(1.07*s+1)^3`).
 Designing and evaluating nine candidates takes a second or two, so it runs in a
 worker; the process keeps running underneath.  Nothing reaches the engine until
 Apply (A): then one SetParams, bumpless like any parameter change, and a
@@ -13,6 +14,7 @@ notification of what changed.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Sequence
 
 import numpy as np
 from textual import on, work
@@ -69,13 +71,20 @@ class DesignScreen(CommandSender):
         Binding("p", "physical", "Physical models", show=False),
     ]
 
-    def __init__(self, engine: EngineHandle) -> None:
+    def __init__(self, engine: EngineHandle,
+                 identified: Sequence[Sequence[DelayTF | None]] | None = None,
+                 identified_name: str = "the identified model") -> None:
+        """`identified`: [[G11, G12], [G21, G22]] of an identified model (None for a
+        missing element) to start from instead of the physical linearization."""
         super().__init__()
         self.engine = engine
         self.snap: Snapshot = engine.snapshot()
         self.loops = {1: LoopState(), 2: LoopState()}
         self.loop = 1
-        self.G = None  # the physical linearization (2x2 DelayTF), for the 2x2 check
+        self.identified = identified
+        self.identified_name = identified_name
+        self.G = None  # the 2x2 DelayTF matrix of the 2x2 design and check
+        self.source = "the physical linearization"  # what G is, for messages
 
     def compose(self) -> ComposeResult:
         yield Static(id="design-status")
@@ -103,7 +112,10 @@ class DesignScreen(CommandSender):
             table.add_column(label, key=label, width=width)
         self.query_one("#nyquist", PlotextPlot).border_title = "Nyquist L(iω), circle 1/Ms around -1"
         self.query_one("#response", PlotextPlot).border_title = "Load step at the input: y (blue), u (red)"
-        self.action_physical()
+        if self.identified is not None:
+            self.action_identified()
+        else:
+            self.action_physical()
 
     # --- models ----------------------------------------------------------------------
 
@@ -113,17 +125,32 @@ class DesignScreen(CommandSender):
         from quadtank_tui.core.plant import PlantError
 
         p = self.engine.snapshot().params
+        self.source = "the physical linearization"
         try:
             self.G = physical_model(p.plant(), p.operating_levels())
         except PlantError as exc:
             self.G = None
             self._status(f"no physical linearization: {exc}")
             return
-        for i in (1, 2):
-            g = self.G[i - 1][i - 1]
-            self.loops[i] = LoopState(text=str(g), model=g)
-            self.query_one(f"#model-{i}", Input).value = str(g)
+        self._set_models(self.G[0][0], self.G[1][1])
         self._status("models: the physical linearization at the setting's operating levels")
+
+    def action_identified(self) -> None:
+        """Loop i's model is the identified G_ii; the 2x2 check uses all four
+        elements when the model has them."""
+        assert self.identified is not None
+        (g11, g12), (g21, g22) = self.identified
+        self.source = self.identified_name
+        full = None not in (g11, g12, g21, g22)
+        self.G = ((g11, g12), (g21, g22)) if full else None  # type: ignore[assignment]
+        self._set_models(g11, g22)
+        self._status(f"models: G11 and G22 of {self.identified_name}"
+                     + ("" if full else " (G12 or G21 missing: no 2x2 check)"))
+
+    def _set_models(self, g11: DelayTF | None, g22: DelayTF | None) -> None:
+        for i, g in ((1, g11), (2, g22)):
+            self.loops[i] = LoopState(text="" if g is None else str(g), model=g)
+            self.query_one(f"#model-{i}", Input).value = "" if g is None else str(g)
         self.design_loop(self.loop)
 
     @on(Input.Submitted, ".model")
@@ -153,7 +180,11 @@ class DesignScreen(CommandSender):
 
         if model is None:
             return
-        rows = candidates(model)
+        try:
+            rows = candidates(model)
+        except ValueError as exc:  # a model the evaluation cannot simulate: one line, no crash
+            self.app.call_from_thread(self._status, f"[red]loop {loop}: {exc}[/]")
+            return
         self.app.call_from_thread(self._show_table, loop, model, rows)
 
     def _show_table(self, loop: int, model: DelayTF, rows: list) -> None:
@@ -264,9 +295,9 @@ class DesignScreen(CommandSender):
 
     def action_design_2x2(self) -> None:
         if self.G is None:
-            self.notify("no physical linearization of this setting", severity="error")
+            self.notify(f"no 2x2 model: {self.source} lacks an element", severity="error")
             return
-        self._status("designing both loops on the physical linearization ...")
+        self._status(f"designing both loops on {self.source} ...")
         self._compute_2x2()
 
     @work(thread=True, exclusive=True, group="mimo")

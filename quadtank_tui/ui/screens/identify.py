@@ -6,7 +6,7 @@ its structure, fit (in a worker: the screen never freezes; Esc or `c` cancels),
 then see the measured and model outputs overlaid, the residual autocorrelation,
 the coherence or the gain of the spectral estimate against the model's, and the table that sets the identified gains, time constants and
 zeros beside the physical linearization.  `k` keeps the model as JSON next to the
-first log (what design reads).  All numbers come from core/identify; this screen
+first log (what design reads); `d` opens the Design screen on the fitted G11 and G22.  All numbers come from core/identify; this screen
 only renders them.
 """
 
@@ -30,6 +30,7 @@ from textual_plotext import PlotextPlot
 from quadtank_tui.ui.screens.sending import COMPACT_WIDTH
 
 if TYPE_CHECKING:  # the analysis stack loads with the first fit, not with the app
+    from quadtank_tui.engine.handle import EngineHandle
     from quadtank_tui.core.identify.compare import Comparison
     from quadtank_tui.core.identify.experiment import Element, Identification
 
@@ -103,17 +104,21 @@ class IdentifyScreen(Screen[None]):
     BINDINGS = [
         Binding("escape", "back", "Back"),
         Binding("f", "fit", "Fit"),
-        Binding("c", "cancel", "Cancel fit"),
+        Binding("c", "cancel", "Cancel fit", show=False),  # the status says it while fitting
         Binding("m", "method", "Method"),
         Binding("n", "structure", "Structure"),
         Binding("e", "element", "Element"),
         Binding("v", "lower_plot", "Residuals/coherence/gain"),
         Binding("k", "keep", "Keep model"),
+        Binding("d", "design", "Design"),
         Binding("F5", "rescan", "Rescan logs", show=False),
     ]
 
-    def __init__(self, logs_dir: Path | str = "logs", last_log: str = "") -> None:
+    def __init__(self, logs_dir: Path | str = "logs", last_log: str = "",
+                 engine: EngineHandle | None = None) -> None:
+        """`engine`: the running process, for the Design screen (`d`)."""
         super().__init__()
+        self.engine = engine
         self.logs_dir = Path(logs_dir)
         self.last_log = last_log
         self.method = "oe"
@@ -259,7 +264,7 @@ class IdentifyScreen(Screen[None]):
         ident = view.ident
         fits = "  ".join(f"{o} {f:.1f} %" for o, f in ident.fit_percent.items())
         self._status(f"{ident.method}: fit on the validation half {fits}; phase {phase(ident)}."
-                     "  e: next element  v: residuals/coherence/gain  k: keep")
+                     "  e: next element  v: residuals/coherence/gain  k: keep  d: design")
         self._table()
         self._draw()
 
@@ -366,3 +371,24 @@ class IdentifyScreen(Screen[None]):
             return
         self._status(f"Model kept in {path}")
         self.notify(f"Model saved to {path}")
+
+    # --- design -----------------------------------------------------------------------
+
+    def action_design(self) -> None:
+        """The Design screen with the fitted G11 for loop 1 and G22 for loop 2."""
+        from quadtank_tui.files.model import from_identification
+        from quadtank_tui.ui.screens.design import DesignScreen
+
+        if self.view is None:
+            self._status("[red]Nothing to design on yet: fit first (f).[/]")
+            return
+        if self.engine is None:
+            self._status("[red]No process to design for (open Identify from Main).[/]")
+            return
+        ident = self.view.ident
+        G = from_identification(ident).matrix_2x2()
+        if G[0][0] is None or G[1][1] is None:
+            self._status("[red]The Design screen needs G11 and G22: fit logs in which u1 and u2 move.[/]")
+            return
+        name = f"the identified model ({ident.method}, {', '.join(Path(r).name for r in ident.records)})"
+        self.app.push_screen(DesignScreen(self.engine, identified=G, identified_name=name))

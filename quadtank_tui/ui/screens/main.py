@@ -388,7 +388,7 @@ class MainScreen(CommandSender):
         comes back here."""
         from quadtank_tui.ui.screens.identify import IdentifyScreen
 
-        self.app.push_screen(IdentifyScreen(last_log=self.current().log.saved_path))
+        self.app.push_screen(IdentifyScreen(last_log=self.current().log.saved_path, engine=self.engine))
 
     def action_exit(self) -> None:
         """Exit, asking first; an unsaved log is saved by default (Enter), never
