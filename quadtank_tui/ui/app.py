@@ -8,6 +8,7 @@ runs (the CLI does; tests drive a manual-clock engine themselves).
 from __future__ import annotations
 
 import asyncio
+import threading
 import time
 from functools import partial
 from typing import Callable, Iterable
@@ -38,9 +39,18 @@ class QuadTankApp(OrderedKeys):
         self.engine = engine
         self.main = MainScreen(engine, refresh_interval=refresh_interval, wall_clock=wall_clock)
         self._aloop: asyncio.AbstractEventLoop | None = None
+        # An exit asked for before the app's loop runs (the terminal hung up while
+        # the TUI was starting) waits here for on_mount instead of being dropped.
+        self._exit_lock = threading.Lock()
+        self._early_exit: int | None = None
 
     def on_mount(self) -> None:
-        self._aloop = asyncio.get_running_loop()
+        with self._exit_lock:
+            self._aloop = asyncio.get_running_loop()
+            early = self._early_exit
+        if early is not None:
+            self.exit(None, early)
+            return
         self.push_screen(self.main)
         self._check_size()
 
@@ -61,8 +71,12 @@ class QuadTankApp(OrderedKeys):
         """Exit with `return_code`, from any thread (the terminal went away: see
         ui/terminal_watch.py): the orderly exit, without the Exit window's questions;
         an unsaved log stays on disk as the partial file."""
-        aloop = self._aloop
-        if aloop is not None and not aloop.is_closed():
+        with self._exit_lock:
+            aloop = self._aloop
+            if aloop is None:
+                self._early_exit = return_code
+                return
+        if not aloop.is_closed():
             aloop.call_soon_threadsafe(self.exit, None, return_code)
 
     def action_request_exit(self) -> None:

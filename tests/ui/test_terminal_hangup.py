@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import select
 import shutil
 import signal
 import struct
@@ -64,10 +65,19 @@ class Tui:
         self._reader.start()
 
     def _read(self) -> None:
-        while self.master is not None:
+        # Never block in read(): a read in progress holds the master open, so a
+        # close() from another thread would not hang the terminal up until the TUI
+        # next wrote something - and a paused TUI writes nothing.
+        while True:
+            fd = self.master
+            if fd is None:
+                return
             try:
-                data = os.read(self.master, 65536)
-            except OSError:  # EIO: the other side is gone (or the master was closed)
+                ready, _, _ = select.select([fd], [], [], 0.05)
+                if not ready:
+                    continue
+                data = os.read(fd, 65536)
+            except (OSError, ValueError):  # EIO: the other side is gone (or the master was closed)
                 return
             if not data:
                 return
@@ -96,6 +106,7 @@ class Tui:
         """The terminal emulator (sshd, tmux) closes its side."""
         assert self.master is not None
         fd, self.master = self.master, None
+        self._reader.join(timeout=5.0)  # out of select() first: then the close is the last
         os.close(fd)
 
     def kill(self) -> None:
