@@ -94,7 +94,7 @@ def _enum(key: str, enum: type[Enum], value: Any) -> Any:
     try:
         return enum(value)
     except ValueError:
-        allowed = ", ".join(str(m.value) for m in enum)  # type: ignore[attr-defined]
+        allowed = ", ".join(str(m.value) for m in enum)
         raise ParameterError(key, f"must be one of {allowed}; got {value!r}") from None
 
 
@@ -570,8 +570,9 @@ def _from_tree(template: Any, tree: Any, path: tuple[str | int, ...]) -> Any:
             f.name: _from_tree(getattr(template, f.name), tree[f.name], (*path, f.name))
             for f in dataclasses.fields(template)
         }
+        cls: type[Any] = type(template)  # an instance's class (is_dataclass also admits classes)
         try:
-            return type(template)(**kwargs)
+            return cls(**kwargs)
         except ParameterError as exc:
             if "." in exc.field or path not in _SECTION_OF_PATH:
                 raise
