@@ -82,7 +82,7 @@ def linearize(p: PlantParams, h0: Sequence[float]) -> LinearModel:
         [(1 - p.gamma1) * p.k1 / p.A4, 0.0],
     ])
     C = np.array([[p.kc, 0.0, 0.0, 0.0], [0.0, p.kc, 0.0, 0.0]])
-    return LinearModel(A, B, C, np.zeros((2, 2)), h0t, T)  # type: ignore[arg-type]
+    return LinearModel(A, B, C, np.zeros((2, 2)), h0t, T)  # type: ignore[arg-type]  # h0t, T: four each (len checked above)
 
 
 @dataclass(frozen=True)

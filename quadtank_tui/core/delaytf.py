@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import overload
 
 import numpy as np
 
@@ -81,8 +82,13 @@ class DelayTF:
         den = self.den[: len(self.den) - n] if n else self.den
         return self.num[-1] / den[-1] if den[-1] != 0.0 else math.inf
 
-    def freqresp(self, w: np.ndarray | float) -> np.ndarray:
-        """G(i w), w in rad/s, delay exact."""
+    @overload
+    def freqresp(self, w: float) -> complex: ...
+    @overload
+    def freqresp(self, w: np.ndarray) -> np.ndarray: ...
+
+    def freqresp(self, w: np.ndarray | float) -> np.ndarray | complex:
+        """G(i w), w in rad/s, delay exact: a number for a number, an array for an array."""
         s = 1j * np.asarray(w, dtype=float)
         return np.polyval(self.num, s) / np.polyval(self.den, s) * np.exp(-s * self.delay)
 

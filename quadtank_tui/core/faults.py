@@ -147,13 +147,13 @@ def advance(plant: Plant, faults: Faults, x: Sequence[float], u: Sequence[float]
     hi = [s.hi for s in p.states]
     film = 2.5e-4 * max(hi)  # 0.05 mm on a 20 cm tank, as core.plant.H_FILM
 
-    def f(y: Sequence[float]) -> list[float]:
+    def rates(y: Sequence[float]) -> list[float]:
         d = list(p.rhs(y, uu))
         for i, a in leaks:
             d[i] -= orifice_flow(max(y[i], 0.0), a, g, film) / p.area(i)
         return d
 
-    return dopri_advance(f, x, dt, [s.lo for s in p.states], hi, rtol=1e-10, atol=RELATIVE_ATOL * max(hi))
+    return dopri_advance(rates, x, dt, [s.lo for s in p.states], hi, rtol=1e-10, atol=RELATIVE_ATOL * max(hi))
 
 
 def steady_leak_level(q_in: float, outlet: float, leak: float, g: float) -> float:

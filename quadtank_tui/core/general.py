@@ -156,7 +156,7 @@ class General:
         """Manual mode: put the element at rest at the applied input, so the first
         Automatic sample moves only by D times the error's change."""
         self._last = (e, u_applied)
-        self._rematch()
+        self._rematch(e, u_applied)
 
     def set_params(self, params: GeneralParams) -> None:
         """New coefficients (and degree) without a jump in u."""
@@ -183,15 +183,14 @@ class General:
         if self._last is None:
             self.reset()
             return
-        self._rematch()
+        self._rematch(*self._last)
 
-    def _rematch(self) -> None:
+    def _rematch(self, e0: float, u0: float) -> None:
         """Set (x, bias), the state for the next sample, at rest at the last output.
 
         Solves the n rest conditions of the class docstring for x = x(k+1), with
         (e0, u0) the last sample's error and output.
         """
-        e0, u0 = self._last  # type: ignore[misc]
         n = self._p.degree
         if n == 0:
             self._x = np.zeros(0)

@@ -167,10 +167,10 @@ def analyze_icad(G: LinearModel, k1: Rational, k2: Rational, *,
     """The ICAD figures of the loop diag(k1, k2) around the 2x2 plant G."""
     w = np.logspace(math.log10(W_MIN), math.log10(W_MAX), W_POINTS) if w is None else np.asarray(w, float)
     r = channel_responses(G, k1, k2, w)
-    channels = tuple(
-        _margins(lambda x, n=name: channel_responses(G, k1, k2, np.array([x]))[n][0], w, r[name])
-        for name in ("C1", "C2")
-    )
+    def channel(name: str) -> ChannelMargins:
+        return _margins(lambda x: channel_responses(G, k1, k2, np.array([x]))[name][0], w, r[name])
+
+    channels = (channel("C1"), channel("C2"))
     G0 = G.dcgain()
     dist = {}
     for name, values in (("gamma", r["gamma"]), ("gamma_h1", r["gamma"] * r["h1"]),
@@ -180,7 +180,7 @@ def analyze_icad(G: LinearModel, k1: Rational, k2: Rational, *,
         dist[name] = (float(d[i]), float(w[i]))
     return IcadResult(
         w=w, gamma=r["gamma"], h=(r["h1"], r["h2"]), C=(r["C1"], r["C2"]),
-        channels=channels,  # type: ignore[arg-type]
+        channels=channels,
         gamma_at_0=float(G0[0, 1] * G0[1, 0] / (G0[0, 0] * G0[1, 1])),
         distance_to_1=dist,
         closed_loop_poles=closed_loop_poles(G, k1, k2),

@@ -94,7 +94,7 @@ def _enum(key: str, enum: type[Enum], value: Any) -> Any:
     try:
         return enum(value)
     except ValueError:
-        allowed = ", ".join(str(m.value) for m in enum)  # type: ignore[attr-defined]
+        allowed = ", ".join(str(m.value) for m in enum)
         raise ParameterError(key, f"must be one of {allowed}; got {value!r}") from None
 
 
@@ -232,6 +232,7 @@ class SimulationSettings:
         p = setting.params
         h = setting.op.h
         return cls(
+            # Each a tuple of exactly four (one per tank), which tuple() cannot tell mypy.
             diameters=tuple(round(diameter_from_area(p.area(i)), 6) for i in range(4)),  # type: ignore[arg-type]
             op_points=tuple(round(y, 6) for y in levels_to_normalized(h, p)),  # type: ignore[arg-type]
             time_constants=tuple(  # type: ignore[arg-type]
@@ -570,8 +571,9 @@ def _from_tree(template: Any, tree: Any, path: tuple[str | int, ...]) -> Any:
             f.name: _from_tree(getattr(template, f.name), tree[f.name], (*path, f.name))
             for f in dataclasses.fields(template)
         }
+        cls: type[Any] = type(template)  # an instance's class (is_dataclass also admits classes)
         try:
-            return type(template)(**kwargs)
+            return cls(**kwargs)
         except ParameterError as exc:
             if "." in exc.field or path not in _SECTION_OF_PATH:
                 raise
@@ -618,7 +620,7 @@ def from_setting(setting: Setting, pi1: tuple[float, float], pi2: tuple[float, f
     )
     return Parameters(
         tsamp_ms=tsamp_ms,
-        references=refs,  # type: ignore[arg-type]
+        references=refs,  # type: ignore[arg-type]  # one per pump (two); Parameters checks the count
         control=ControlSettings(),
         controllers=(_pi_element(*pi1), _ZERO_ELEMENT, _ZERO_ELEMENT, _pi_element(*pi2)),
         simulation=SimulationSettings.from_setting(setting),
@@ -657,7 +659,7 @@ def from_plant(plant: Plant, levels: Sequence[float], means: Sequence[float], *,
     return dataclasses.replace(
         PRESET,
         tsamp_ms=tsamp_ms,
-        references=refs,  # type: ignore[arg-type]
+        references=refs,  # type: ignore[arg-type]  # one per mean; Parameters checks there are two
         control=ControlSettings(mode=mode),
         controllers=(_ZERO_ELEMENT if pi1 is None else _pi_element(*pi1), _ZERO_ELEMENT, _ZERO_ELEMENT,
                      _ZERO_ELEMENT if pi2 is None else _pi_element(*pi2)),

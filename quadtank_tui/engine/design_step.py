@@ -20,7 +20,7 @@ from quadtank_tui.core.design.apply import controller_values
 from quadtank_tui.core.design.controller import PID
 from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
 from quadtank_tui.core.plant import FULL_SCALE_V, steady_state_inputs
-from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
+from quadtank_tui.engine.commands import CommandResult, SetControlMode, SetParams, SetState
 from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.runner import Engine, build_engine, load_parameters
 from quadtank_tui.files.par import ParStore
@@ -73,6 +73,6 @@ def run_step(pair: Sequence[PID], *, par: str | Path | None = None, loop: int = 
     return StepCheck(loop, m, float(np.max(np.abs(y_other - y_other[0]))), duration)
 
 
-def _must(result) -> None:  # type: ignore[no-untyped-def]
+def _must(result: CommandResult) -> None:
     if not result.ok:
         raise ValueError(result.message)

@@ -14,7 +14,7 @@ from pathlib import Path
 from quadtank_tui.core.parameters import ControlMode, check_file_name
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.backend import ProcessBackend
-from quadtank_tui.engine.commands import LogOn, SetOperation, SetParams, SetState
+from quadtank_tui.engine.commands import CommandResult, LogOn, SetOperation, SetParams, SetState
 from quadtank_tui.engine.experiment import format_summary, run_experiment, summarize
 from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.logsession import LogExists, LogRefused, LogSession
@@ -126,6 +126,6 @@ def _save(session: LogSession, out: Path, before: tuple[int, ...] | None) -> tup
             n += 1
 
 
-def _must(result) -> None:  # type: ignore[no-untyped-def]
+def _must(result: CommandResult) -> None:
     if not result.ok:
         raise ValueError(result.message)

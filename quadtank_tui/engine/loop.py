@@ -349,11 +349,11 @@ class ControlLoop:
                 (new.control.family, new.control.structure) != (self._matrix.family, self._matrix.structure)):
             self._matrix.set_type(new.control.family, new.control.structure)
         self._install_statefb(new, sf_design)
-        for e, (a, b) in zip(ELEMENTS, zip(old.controllers, new.controllers)):
-            if a.pid != b.pid:
-                self._matrix.set_element_params(*e, b.pid)
-            if a.general != b.general:
-                self._matrix.set_element_params(*e, b.general)
+        for ij, (was, now) in zip(ELEMENTS, zip(old.controllers, new.controllers)):
+            if was.pid != now.pid:
+                self._matrix.set_element_params(*ij, now.pid)
+            if was.general != now.general:
+                self._matrix.set_element_params(*ij, now.general)
         if plant is not None:
             self.sim.set_plant(plant, new.process_levels())
         self.params = new

@@ -194,7 +194,7 @@ class SnapshotWriter:
             self._params_seq = self._state.params.write(pickle.dumps(snap.params, protocol=5))
             self._params = snap.params
         # The parameters travel in their own slot; the reader puts them back.
-        record = (self._params_seq, replace(snap, params=None))  # type: ignore[arg-type]
+        record = (self._params_seq, replace(snap, params=None))  # type: ignore[arg-type]  # None only in transit
         self._state.snapshot.write(pickle.dumps(record, protocol=5))
         self._last = self._now()
 

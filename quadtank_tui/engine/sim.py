@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from quadtank_tui.core.plant import (
     FULL_SCALE_V,
-    Levels,
     PlantParams,
     add_water,
     advance,
@@ -40,11 +39,12 @@ class SimBackend(ProcessBackend):
     kind = "Simul"
     description = "simulator"
 
-    def __init__(self, params: PlantParams, levels: Levels) -> None:
+    def __init__(self, params: PlantParams, levels: tuple[float, ...]) -> None:
         self._p = params
         self._plant: Plant | None = None  # None: the quadruple tank of self._p
-        self._op: Levels = tuple(float(x) for x in levels)  # type: ignore[assignment]
-        self._h: Levels = self._op
+        # One level per tank of the plant: 4 for the quadruple tank, 2 for a two-tank rig.
+        self._op: tuple[float, ...] = tuple(float(x) for x in levels)
+        self._h: tuple[float, ...] = self._op
         self._v: tuple[float, ...] = (0.0, 0.0)
         self._faults = fx.Faults()
         self._t = 0.0  # process time, s (sensor drift counts from it)
@@ -54,7 +54,7 @@ class SimBackend(ProcessBackend):
     def for_plant(cls, plant: Plant, levels: tuple[float, ...]) -> SimBackend:
         """Any plant of core.plants, at `levels` (its own length unit)."""
         if isinstance(plant, QuadTank):
-            return cls(plant.params, levels)  # type: ignore[arg-type]
+            return cls(plant.params, levels)
         sim = cls(PlantParams(), (0.0, 0.0, 0.0, 0.0))
         sim.set_plant(plant, levels)
         sim.set_levels(levels)  # the water starts at the operating point whatever the tank count
@@ -96,7 +96,7 @@ class SimBackend(ProcessBackend):
             plant = fx.drift_valves(self.plant, self._faults, dt)
             if plant is not self.plant:
                 self.set_plant(plant)
-            self._h = fx.advance(self.plant, self._faults, self._h, self._v, dt)  # type: ignore[assignment]
+            self._h = fx.advance(self.plant, self._faults, self._h, self._v, dt)
             return
         if self._plant is not None:
             self._h = self._plant.advance(self._h, self._v, dt)
@@ -118,22 +118,22 @@ class SimBackend(ProcessBackend):
         return QuadTank(self._p) if self._plant is None else self._plant
 
     @property
-    def levels_cm(self) -> Levels:
-        """h1..h4, cm."""
+    def levels_cm(self) -> tuple[float, ...]:
+        """h1..h4, cm (a plant of core.plants: its own levels, in its own unit)."""
         return self._h
 
     @property
-    def voltages(self) -> tuple[float, float]:
-        """Pump voltages being applied, V."""
+    def voltages(self) -> tuple[float, ...]:
+        """Pump voltages being applied, V (one per pump of the plant)."""
         return self._v
 
-    def set_params(self, params: PlantParams, operating_levels: Levels | None = None) -> None:
+    def set_params(self, params: PlantParams, operating_levels: tuple[float, ...] | None = None) -> None:
         """New physical constants (a valve turned, a tank or outlet changed) with the
         water where it is; the levels are clipped to a lower tank height."""
         self._p = params
-        self._h = tuple(min(max(x, 0.0), params.hmax) for x in self._h)  # type: ignore[assignment]
+        self._h = tuple(min(max(x, 0.0), params.hmax) for x in self._h)
         if operating_levels is not None:
-            self._op = tuple(float(x) for x in operating_levels)  # type: ignore[assignment]
+            self._op = tuple(float(x) for x in operating_levels)
 
     def set_plant(self, plant: Plant, operating_levels: tuple[float, ...] | None = None) -> None:
         """Another plant (or new constants of it) with the water where it is, when the
@@ -141,14 +141,14 @@ class SimBackend(ProcessBackend):
         n = len(plant.states)
         if isinstance(plant, QuadTank):
             if len(self._h) != 4:
-                self._h = tuple(float(x) for x in (operating_levels or (0.0,) * 4))  # type: ignore[assignment]
+                self._h = tuple(float(x) for x in (operating_levels or (0.0,) * 4))
                 self._v = (0.0, 0.0)
             self._plant = None
-            self.set_params(plant.params, operating_levels)  # type: ignore[arg-type]
+            self.set_params(plant.params, operating_levels)
             return
         if operating_levels is not None:
-            self._op = plant.clip(operating_levels)  # type: ignore[assignment]
-        self._h = plant.clip(self._h) if len(self._h) == n else self._op  # type: ignore[assignment]
+            self._op = plant.clip(operating_levels)
+        self._h = plant.clip(self._h) if len(self._h) == n else self._op
         if len(self._v) != len(plant.inputs):
             self._v = tuple(0.0 for _ in plant.inputs)
         self._plant = plant
@@ -184,19 +184,19 @@ class SimBackend(ProcessBackend):
         gain = self._plant.output(unit)[tank - 1]  # sensor volts per level unit
         h = list(self._h)
         h[tank - 1] += amount * FULL_SCALE_V / gain
-        self._h = self._plant.clip(h)  # type: ignore[assignment]
+        self._h = self._plant.clip(h)
 
-    def set_levels(self, levels: Levels) -> None:
+    def set_levels(self, levels: tuple[float, ...]) -> None:
         """Put the water at `levels` (cm), e.g. a steady state to start from."""
         if self._plant is not None:
-            self._h = self._plant.clip(levels)  # type: ignore[assignment]
+            self._h = self._plant.clip(levels)
             return
-        self._h = tuple(min(max(float(x), 0.0), self._p.hmax) for x in levels)  # type: ignore[assignment]
+        self._h = tuple(min(max(float(x), 0.0), self._p.hmax) for x in levels)
 
     def reset(self) -> None:
         """Back to the operating point with the pumps off (Reset, M2)."""
         if self._plant is not None:
-            self._h = self._plant.clip(self._op)  # type: ignore[assignment]
+            self._h = self._plant.clip(self._op)
         else:
-            self._h = tuple(min(x, self._p.hmax) for x in self._op)  # type: ignore[assignment]
+            self._h = tuple(min(x, self._p.hmax) for x in self._op)
         self._v = tuple(0.0 for _ in self._v)

@@ -41,7 +41,7 @@ import numpy as np
 try:  # POSIX; elsewhere the unique partial names alone keep runs apart
     import fcntl
 except ImportError:  # pragma: no cover
-    fcntl = None  # type: ignore[assignment]
+    fcntl = None  # type: ignore[assignment]  # no module off POSIX: users test for None
 
 from quadtank_tui.core.parameters import LOG_VARIABLES, check_variables
 from quadtank_tui.core.validation import ParameterError

@@ -27,7 +27,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Any
 
 from quadtank_tui.core.delaytf import DelayTF, ModelError
 from quadtank_tui.files.atomic import atomic_write_text
@@ -184,7 +184,7 @@ def _element(file: str, where: str, g: Any) -> DelayTF | None:
         raise ModelFileError(file, f"{where}: {exc}") from None
 
 
-def _coeffs(v: Any) -> Sequence[float]:
+def _coeffs(v: Any) -> tuple[float, ...]:
     if not isinstance(v, list) or not v or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v):
         raise ValueError("num and den must be non-empty lists of numbers")
     return tuple(float(x) for x in v)

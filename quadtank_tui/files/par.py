@@ -145,8 +145,8 @@ def parse_par(data: bytes | str, *, name: str = "<par>", base: Parameters = PRES
     try:
         params = base.with_values(changes)
     except ParameterError as exc:
-        line = where.get(exc.field) or _related_line(exc.field, where)
-        raise ParFileError(name, exc.reason, line, exc.field) from None
+        line_no = where.get(exc.field) or _related_line(exc.field, where)
+        raise ParFileError(name, exc.reason, line_no, exc.field) from None
     # No PLANT section is the quadruple tank, whatever the base: an old file always
     # loads as what it was written for.
     process = _read_plant(plant_entries, plant_lines, name) if plant_lines else None

@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from quadtank_tui.core.delaytf import DelayTF
 
@@ -72,10 +73,10 @@ class PID:
         num, den = self.feedback_tf()
         return DelayTF(tuple(np.polymul(num, g.num)), tuple(np.polymul(den, g.den)), g.delay)
 
-    def freqresp(self, w: np.ndarray) -> np.ndarray:
-        """Gy(i w)."""
+    def freqresp(self, w: npt.ArrayLike) -> np.ndarray:
+        """Gy(i w), one value per frequency (a P controller too: Ti = inf)."""
         s = 1j * np.asarray(w, dtype=float)
-        c = 1.0 + (1.0 / (self.Ti * s) if math.isfinite(self.Ti) else 0.0)
+        c = 1.0 + (1.0 / (self.Ti * s) if math.isfinite(self.Ti) else np.zeros_like(s))
         if self.Td > 0.0:
             c = c + self.Td * s / (1.0 + s * self.Td / self.N)
         return self.Kc * c

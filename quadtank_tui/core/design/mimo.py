@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
+import numpy.typing as npt
 from scipy.signal import tf2ss
 
 from quadtank_tui.core.analysis import analyze
@@ -102,6 +103,7 @@ def _cancel(num: np.ndarray, den: np.ndarray, tol: float = 1e-6) -> tuple[np.nda
 
 def lambda11(G: Matrix, w: float) -> complex:
     """Relative gain of the diagonal pairing at frequency w (rad/s); w = 0 allowed."""
+    g: list[list[complex]]  # static gains are real, a number each either way
     if w == 0.0:
         g = [[G[i][j].static_gain for j in range(2)] for i in range(2)]
     else:
@@ -112,7 +114,7 @@ def lambda11(G: Matrix, w: float) -> complex:
     return complex(g[0][0] * g[1][1] / det)
 
 
-def _ss(num: Sequence[float], den: Sequence[float]) -> tuple[np.ndarray, ...]:
+def _ss(num: npt.ArrayLike, den: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """State space of a proper SISO transfer function (A, B, C, D as 2-D arrays)."""
     A, B, C, D = tf2ss(np.asarray(num, dtype=float), np.asarray(den, dtype=float))
     n = A.shape[0]

@@ -44,7 +44,8 @@ class Response:
         return self.r - self.y
 
 
-def _augmented(g: DelayTF, c: PID) -> tuple[np.ndarray, ...]:
+def _augmented(g: DelayTF, c: PID) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float,
+                                             np.ndarray, np.ndarray, float, np.ndarray]:
     """Continuous z' = A z + Bv v + Bw [r, d]; y = Cy z + Dy v; u = F z + Fv v + Fw [r, d].
 
     z = [process states, integral of e, derivative-filter state]; v is the

@@ -10,7 +10,8 @@ why a cell is empty.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from functools import partial
+from typing import Callable, Sequence
 
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import PID, DesignError
@@ -55,7 +56,7 @@ def candidates(g: DelayTF, *, evaluate_on: DelayTF | None = None,
     target = evaluate_on or g
     rows: list[Candidate] = []
 
-    def add(method: str, par: float, make) -> None:  # type: ignore[no-untyped-def]
+    def add(method: str, par: float, make: Callable[[], PID]) -> None:
         try:
             c = make()
             rows.append(Candidate(method, par, c, evaluate(c, target, setpoint=False)))
@@ -66,13 +67,13 @@ def candidates(g: DelayTF, *, evaluate_on: DelayTF | None = None,
         fo = first_order(g)
         lams = tuple(lambdas) if lambdas is not None else default_lambdas(fo)
         for lam in lams:
-            add("lambda", lam, lambda lam=lam: lambda_pi(fo, lam))
+            add("lambda", lam, partial(lambda_pi, fo, lam))
     except DesignError as exc:
         rows.append(Candidate("lambda", 0.0, None, None, str(exc)))
     for ms in ms_values:
-        add("pi-ms", ms, lambda ms=ms: pi_ms(g, ms))
+        add("pi-ms", ms, partial(pi_ms, g, ms))
     for ms in ms_values:
-        add("pid-ms", ms, lambda ms=ms: pid_ms(g, ms))
+        add("pid-ms", ms, partial(pid_ms, g, ms))
     return rows
 
 

@@ -10,9 +10,8 @@ default.  Kept because it is fast, needs no starting values, and shows the bias.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
-
 import numpy as np
+import numpy.typing as npt
 from scipy import signal
 
 from quadtank_tui.core.delaytf import DelayTF
@@ -38,7 +37,7 @@ class ARXFit:
         return float(self.b.sum() / self.a.sum())
 
 
-def fit_arx(u: Sequence[float], y: Sequence[float], h: float, na: int = 1, nb: int = 1, nk: int = 1,
+def fit_arx(u: npt.ArrayLike, y: npt.ArrayLike, h: float, na: int = 1, nb: int = 1, nk: int = 1,
             u0: float | None = None, y0: float | None = None) -> ARXFit:
     """Least squares on deviations from the rest values (default: the first row)."""
     u = np.asarray(u, dtype=float)

@@ -252,7 +252,8 @@ def _fit_miso(rec: Record, inputs: Sequence[str], o: str, opts: Options) -> dict
     end = k if k else rec.rows
     orders = [opts.order or (1 if i[1:] == o[1:] else 2) for i in inputs]
     mf = fit_oe_miso(U[:end], y[:end], h, orders, opts.zeros, delay=opts.delay, u0=U[0])
-    ym = mf.offset + sum(simulate_oe(g, U[:, j], h, U[0, j], 0.0) for j, g in enumerate(mf.models))
+    ym = mf.offset + sum((simulate_oe(g, U[:, j], h, U[0, j], 0.0) for j, g in enumerate(mf.models)),
+                         np.zeros_like(y))
     out = {}
     for j, (i, g) in enumerate(zip(inputs, mf.models)):
         fp, white, indep = _validate(U[:, j] - U[0, j], y, ym, k)
@@ -288,8 +289,10 @@ def _identify_mimo(records: Sequence[Record], inputs: Sequence[str], outputs: Se
         for b, i in enumerate(inputs):
             # Each element's own share: the output with only input i moving.
             fp, white, indep = _validate(U[:, b] - U[0, b], Y[:, a], Ym[:, a], k)
+            tf = system.elements[a][b]
+            assert tf is not None  # from_state_space fills every element
             elements[(o, i)] = Element(
-                o, i, rec.name, system.elements[a][b], "n4sid",
+                o, i, rec.name, tf, "n4sid",
                 {"states": sf.A.shape[0], "singular_values": sf.singular_values.tolist()},
                 float(sf.loss[a]), fp, white, indep, k, Y[:, a], Ym[:, a], U[:, b])
     fits = {o: fit_percent(Y[k:, a], Ym[k:, a]) for a, o in enumerate(outputs)}

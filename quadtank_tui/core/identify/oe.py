@@ -16,9 +16,10 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import least_squares
 
 from quadtank_tui.core.delaytf import DelayTF
@@ -103,20 +104,20 @@ def _design(du: np.ndarray, h: float, T: Sequence[float], L: float, nz: int) -> 
 
 
 def fit_oe(
-    u: Sequence[float],
-    y: Sequence[float],
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
     h: float,
     order: int = 1,
     zeros: int = 0,
     *,
     delay: bool = True,
     u0: float | None = None,
-    start: dict[str, object] | None = None,
+    start: Mapping[str, Any] | None = None,
 ) -> OEFit:
     """Fit `order` real poles and `zeros` zeros (0 <= zeros < order) to a record
     sampled every `h` s.  `u0` is the input's rest value (default u[0]: the rows
     start at the operating point).  `delay` False keeps L = 0.  `start` may give
-    "T" (a list) and "L"."""
+    "T" (a number or a list, one per pole) and "L": user values, each read with float()."""
     u = np.asarray(u, dtype=float)
     y = np.asarray(y, dtype=float)
     if u.shape != y.shape or u.ndim != 1:
@@ -146,7 +147,7 @@ def fit_oe(
     start = start or {}
     if "T" in start:
         given = start["T"]
-        T0 = [float(x) for x in (given if isinstance(given, (list, tuple)) else [given])]  # type: ignore[union-attr]
+        T0 = [float(x) for x in (given if isinstance(given, (list, tuple)) else [given])]
         if len(T0) != order or not all(x > 0 for x in T0):
             raise IdentificationError(f"starting T needs {order} time constant(s) > 0 s, one per pole")
         candidates = [np.log(T0)]
@@ -162,7 +163,7 @@ def fit_oe(
         candidates = [min((np.r_[c, L] for L in L_grid), key=lambda p: float(np.sum(residual(p) ** 2)))
                       for c in candidates]
     else:
-        L0 = min(float(start.get("L", 0.0)), L_max)  # type: ignore[arg-type]
+        L0 = min(float(start.get("L", 0.0)), L_max)
         candidates = [np.r_[c, L0][: order + delay] for c in candidates]
     lo = [lo_T] * order + ([0.0] if delay else [])
     hi = [hi_T] * order + ([L_max] if delay else [])
@@ -194,8 +195,8 @@ class MISOFit:
     ym: np.ndarray = field(repr=False)
 
 
-def fit_oe_miso(U: np.ndarray, y: Sequence[float], h: float, orders: Sequence[int], zeros: int = 0, *,
-                delay: bool = True, u0: Sequence[float] | None = None) -> MISOFit:
+def fit_oe_miso(U: npt.ArrayLike, y: npt.ArrayLike, h: float, orders: Sequence[int], zeros: int = 0, *,
+                delay: bool = True, u0: npt.ArrayLike | None = None) -> MISOFit:
     """y = sum_j G_j(s) u_j + rest, all G_j fitted at once (output error).  The
     starting values come from two rounds of backfitting (each G_j fitted alone to
     what the others leave unexplained), then one joint least-squares fit."""
@@ -249,7 +250,7 @@ def fit_oe_miso(U: np.ndarray, y: Sequence[float], h: float, orders: Sequence[in
     return MISOFit(tuple(models), float(c[-1]), float(np.mean((y - ym) ** 2)), ym)
 
 
-def simulate_oe(model: OEModel, u: Sequence[float], h: float, u0: float, offset: float) -> np.ndarray:
+def simulate_oe(model: OEModel, u: npt.ArrayLike, h: float, u0: float, offset: float) -> np.ndarray:
     """The model output for input u about the rest values (u0, offset)."""
     du = np.asarray(u, dtype=float) - u0
     return offset + simulate(np.array(model.num), np.array(model.den), h, du, model.L)

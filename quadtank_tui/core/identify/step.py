@@ -22,9 +22,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Callable
 
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import least_squares
 
 from quadtank_tui.core.delaytf import DelayTF
@@ -94,10 +95,11 @@ class StepModel:
         out["L"] = self.L
         return out
 
-    def step_response(self, t: np.ndarray) -> np.ndarray:
+    def step_response(self, t: npt.ArrayLike) -> np.ndarray:
         """Response to a unit step at t = 0 (zero up to and at t = L)."""
-        parts = _basis(self.structure, self.n, np.asarray(t, dtype=float) - self.L, self.T)
-        return sum(c * b for c, b in zip((self.K, self.K * self.Tz), parts))
+        tau = np.asarray(t, dtype=float) - self.L
+        parts = _basis(self.structure, self.n, tau, self.T)
+        return sum((c * b for c, b in zip((self.K, self.K * self.Tz), parts)), np.zeros_like(tau))
 
     def __str__(self) -> str:
         p = self.params()
@@ -115,7 +117,7 @@ def _basis(structure: int, n: int, tau: np.ndarray, T: float) -> list[np.ndarray
     x = tp / T
     e = np.exp(-x)
     if structure in (4, 5):
-        parts = [np.where(pos, tp - T * (1 - e), 0.0)]
+        parts: list[np.ndarray] = [np.where(pos, tp - T * (1 - e), 0.0)]
         if structure == 5:
             parts.append(np.where(pos, 1 - e, 0.0))
         return parts
@@ -141,7 +143,7 @@ class Steps:
     u0: float  # the level before the first step
 
 
-def find_steps(u: Sequence[float], sens: float = STEP_SENS) -> Steps:
+def find_steps(u: npt.ArrayLike, sens: float = STEP_SENS) -> Steps:
     """Andersson's FindSteps (5.6.1): a step starts where two following samples
     differ by more than `sens` (max(u) - min(u)); its size is measured when u has
     settled (a difference below a tenth of that) from the level before."""
@@ -197,7 +199,7 @@ def _superpose(g: np.ndarray, steps: Steps) -> np.ndarray:
 def _design(structure: int, n: int, h: float, size: int, steps: Steps, T: float, L: float) -> np.ndarray:
     """Columns: 1, [t], then each basis part summed over the steps (times A_j)."""
     k = np.arange(size) * h
-    cols = [np.ones(size)]
+    cols: list[np.ndarray] = [np.ones(size)]
     if structure in INTEGRATING:
         cols.append(k)
     for part in _basis(structure, n, k - L, T):
@@ -213,8 +215,8 @@ def _solve(structure: int, n: int, h: float, y: np.ndarray, steps: Steps, T: flo
 
 
 def fit_step(
-    u: Sequence[float],
-    y: Sequence[float],
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
     h: float,
     structure: int = 1,
     n: int | None = None,

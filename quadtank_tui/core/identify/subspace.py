@@ -84,7 +84,8 @@ def fit_subspace(u: np.ndarray, y: np.ndarray, h: float, order: int = 4, block_r
     Y = _hankel(dy, 2 * i, j)
     Up, Uf, Yp, Yf = U[: i * m], U[i * m:], Y[: i * p], Y[i * p:]
     H = np.vstack([Uf, Up, Yp, Yf]) / np.sqrt(j)
-    L = np.linalg.qr(H.T, mode="r").T  # H = L Q^T, L lower triangular
+    # numpy's stubs type every qr() as QRResult; mode="r" returns the array R alone.
+    L = np.linalg.qr(H.T, mode="r").T  # type: ignore[attr-defined]  # H = L Q^T, L lower triangular
     a, b = i * m, i * m + i * (m + p)
     L32 = L[b:, a:b]  # the part of Yf explained by the past, with Uf projected out
     Us, s, _ = np.linalg.svd(L32)

@@ -88,7 +88,7 @@ def _det_zeros(rows: Sequence[Sequence[DelayTF]]) -> tuple[complex, ...]:
     """Zeros of det G for a 2x2 matrix of rational elements, less those that cancel."""
     (g11, g12), (g21, g22) = rows
     P = np.polymul
-    num = np.polysub(P(P(g11.num, g22.num), P(g12.den, g21.den)), P(P(g12.num, g21.num), P(g11.den, g22.den)))
+    num: np.ndarray = np.polysub(P(P(g11.num, g22.num), P(g12.den, g21.den)), P(P(g12.num, g21.num), P(g11.den, g22.den)))
     num = np.trim_zeros(num, "f")
     zeros = list(np.roots(num)) if num.size > 1 else []
     # The poles of det G's denominator, each element's own (np.roots of the product
@@ -111,7 +111,7 @@ def from_elements(elements: Sequence[Sequence[DelayTF | None]]) -> SystemModel:
     zeros: tuple[complex, ...] = ()
     if p == m == 2 and all(g is not None for row in rows for g in row):
         merged = [_merge_row_poles(row) for row in rows]
-        zeros = _det_zeros(merged)  # type: ignore[arg-type]
+        zeros = _det_zeros(merged)  # type: ignore[arg-type]  # no None: every element checked just above
     blocks, cols = [], []
     for o, row in enumerate(rows):
         for i, g in enumerate(row):

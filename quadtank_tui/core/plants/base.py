@@ -199,14 +199,14 @@ class Plant(ABC):
 
     def values(self) -> dict[str, float]:
         """The physical constants by name (what a `.par` file and Setup hold)."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}  # type: ignore[arg-type]
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}  # type: ignore[arg-type]  # every concrete plant is a dataclass
 
     def with_values(self, **changes: float) -> Plant:
         """A copy with some constants changed (validated like the original)."""
         unknown = sorted(set(changes) - set(self.values()))
         if unknown:
             raise PlantError(f"{self.kind} has no constant {', '.join(unknown)}")
-        return dataclasses.replace(self, **changes)  # type: ignore[type-var]
+        return dataclasses.replace(self, **changes)  # type: ignore[type-var]  # a concrete plant: a dataclass
 
     # --- the model ------------------------------------------------------------------------
 

@@ -139,7 +139,7 @@ class CoupledCascade(Plant):
             q = self._q(x1, self.alpha1)
             x2 = head_for_flow(q, self.alpha2, self.g, FILM_CM)
         else:
-            x2 = float(levels[1])  # type: ignore[arg-type]
+            x2 = float(levels[1])  # type: ignore[arg-type]  # not None: exactly one level is given (checked above)
             _check_level("x2", x2, self.hmax)
             q = self._q(x2, self.alpha2)
             x1 = head_for_flow(q, self.alpha1, self.g, FILM_CM)

@@ -36,6 +36,7 @@ from enum import Enum
 from typing import Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from quadtank_tui.core.statefb.design import Design, DesignError
 
@@ -112,7 +113,7 @@ class StateFeedback:
 
     # --- one sample --------------------------------------------------------------------
 
-    def output(self, r: Sequence[float], x: Sequence[float]) -> Output:
+    def output(self, r: npt.ArrayLike, x: npt.ArrayLike) -> Output:
         """The input for this sample (pure): 3.1.7, then the level and pump limits."""
         d, m = self._d, self._d.model
         xv = np.asarray(x, dtype=float)
@@ -127,8 +128,8 @@ class StateFeedback:
         limited = tuple(bool(u[i] != wanted[i]) and not held[i] for i in range(m.m))
         return Output(u, wanted, tuple(held), limited)
 
-    def update(self, r: Sequence[float], x: Sequence[float], out: Output,
-               u_applied: Sequence[float] | None = None) -> None:
+    def update(self, r: npt.ArrayLike, x: npt.ArrayLike, out: Output,
+               u_applied: npt.ArrayLike | None = None) -> None:
         """Automatic: advance x_a after `out` went out (u_applied if something else
         clipped it further, e.g. the DAQ's range)."""
         d = self._d
@@ -144,7 +145,7 @@ class StateFeedback:
             self.x_a = self.x_a - self.l3 * _solve(d.L2, excess)
         self._last_x = xv
 
-    def track(self, x: Sequence[float], u_applied: Sequence[float]) -> None:
+    def track(self, x: npt.ArrayLike, u_applied: npt.ArrayLike) -> None:
         """Manual (or a start): x_a such that this sample's u equals `u_applied`."""
         d = self._d
         xv = np.asarray(x, dtype=float)

@@ -86,8 +86,9 @@ class OperatingModel:
     C: np.ndarray
     x_e: np.ndarray
     u_e: np.ndarray
-    u_min: np.ndarray = field(default=None)  # type: ignore[assignment]
-    u_max: np.ndarray = field(default=None)  # type: ignore[assignment]
+    # None (0 and +inf) is replaced by an array in __post_init__: after it the fields are arrays.
+    u_min: np.ndarray = field(default=None)  # type: ignore[arg-type]  # see above
+    u_max: np.ndarray = field(default=None)  # type: ignore[arg-type]  # see above
 
     def __post_init__(self) -> None:
         A = _matrix("A", self.A)

@@ -42,7 +42,7 @@ def operating_model(plant: PlantParams, s: StateFeedbackParams) -> OperatingMode
                              f"levels ({s.level1:g}, {s.level2:g}) cm need {max(op.v):.3g} V, above {FULL_SCALE_V:g} V")
     C = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0]])  # h1, h2 in cm
     return OperatingModel(lin.A, lin.B, C, np.array(op.h), np.array(op.v),
-                          u_min=[0.0, 0.0], u_max=[FULL_SCALE_V, FULL_SCALE_V])
+                          u_min=np.zeros(2), u_max=np.full(2, FULL_SCALE_V))
 
 
 def level_limits(plant: PlantParams, margin: float) -> tuple[LevelLimit, ...]:

@@ -110,3 +110,13 @@ def test_delay_is_exact_in_the_simulation() -> None:
     assert np.all(resp.y[resp.t < 3.0 - 1e-9] == 0.0)
     k = np.searchsorted(resp.t, 5.0)
     assert resp.y[k] == pytest.approx(1.0 - math.exp(-2.0), rel=1e-6)
+
+
+def test_controller_frequency_response_is_one_value_per_frequency() -> None:
+    """A P controller (Ti = inf) answered Kc alone, not an array: mypy found it."""
+    w = np.array([0.01, 0.1, 1.0])
+    p = PID(2.0, math.inf).freqresp(w)
+    assert p.shape == w.shape
+    np.testing.assert_array_equal(p, [2.0, 2.0, 2.0])
+    pi = PID(2.0, 10.0).freqresp(w)
+    np.testing.assert_allclose(pi, 2.0 * (1.0 + 1.0 / (10.0 * 1j * w)), rtol=1e-15)
