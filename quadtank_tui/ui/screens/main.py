@@ -92,7 +92,7 @@ class MainScreen(CommandSender):
         Binding("d", "design", "Design", show=False, tooltip="The Design screen: PI/PID from a model, evaluated, then Apply"),
         Binding("y", "identify", "Identify", show=False, tooltip="The Identify screen: models from a logged experiment"),
         Binding("F", "faults", "Faults", show=False, tooltip="Simul only: break the simulated process (leaks, clogs, sensors)"),
-        Binding("t", "controller_type", "Type", tooltip="Controller type: PID or General, decentralized or full"),
+        Binding("t", "controller_type", "Type", tooltip="Controller type: PID or General (decentralized or full), or state feedback"),
         Binding("1", "element(0)", "Element 11", show=False, tooltip="Controller element 11 (error 1 to input 1)"),
         Binding("2", "element(1)", "Element 12", show=False, tooltip="Controller element 12 (full matrix only)"),
         Binding("3", "element(2)", "Element 21", show=False, tooltip="Controller element 21 (full matrix only)"),

@@ -104,7 +104,7 @@ class SetupScreen(CommandSender):
         Binding("I", "reference(2)", "Ref 2", show=False, tooltip="Reference 2"),
         Binding("h", "tanks", "Tanks", tooltip="Choose a tank in the process table (arrows, Enter opens it)"),
         Binding("f", "par_files", "Files", tooltip="Load or save a .par file"),
-        Binding("t", "controller_type", "Type", tooltip="Controller type: PID or General, decentralized or full"),
+        Binding("t", "controller_type", "Type", tooltip="Controller type: PID or General (decentralized or full), or state feedback"),
         Binding("1", "element(0)", "Element 11", show=False, tooltip="Element 11 with the PID extras N, Tr, a, b"),
         Binding("2", "element(1)", "Element 12", show=False, tooltip="Element 12 with the PID extras"),
         Binding("3", "element(2)", "Element 21", show=False, tooltip="Element 21 with the PID extras"),
