@@ -17,7 +17,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
-from quadtank_tui.commands import icad
+from quadtank_tui.commands import UsageError, icad, warn
 from quadtank_tui.commands.design import add_parser as add_design_parser
 from quadtank_tui.commands import statefb
 from quadtank_tui.commands import identify as identify_command
@@ -40,10 +40,6 @@ if TYPE_CHECKING:  # the TUI's modules load only when it starts
     from quadtank_tui.engine.process import EngineProcess
     from quadtank_tui.engine.runner import Engine
     from quadtank_tui.ui.app import QuadTankApp
-
-
-class UsageError(Exception):
-    """Bad input from the command line or a file it names; the message says where."""
 
 
 Handler = Callable[[argparse.Namespace], int]
@@ -83,7 +79,7 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
         if args.at == "steady":
             raise UsageError("--at steady needs pump voltages; a .par file gives operating levels only")
         read = read_par(args.par)
-        _warn(read.warnings)
+        warn(read.warnings)
         if read.params.process is not None:  # another rig (core.plants): its generic report
             return _analyze_other_plant(args, read.params)
         params, h0 = read.params.plant(), read.params.operating_levels()
@@ -137,7 +133,7 @@ def _cmd_log_info(args: argparse.Namespace) -> int:
     from quadtank_tui.files.log import format_tsamp, read_log
 
     log = read_log(args.file)
-    _warn(log.warnings)
+    warn(log.warnings)
     tsamp = "unknown" if log.tsamp is None else f"{format_tsamp(log.tsamp)} s"
     duration = "unknown" if log.duration is None else f"{log.duration:g} s"
     print(f"file       {args.file}")
@@ -154,7 +150,7 @@ def _cmd_log_export(args: argparse.Namespace) -> int:
     from quadtank_tui.files.log import read_log
 
     log = read_log(args.file)
-    _warn(log.warnings)
+    warn(log.warnings)
     out = args.out or str(Path(args.file).with_suffix("." + args.to))
     if Path(out).resolve() == Path(args.file).resolve():
         raise UsageError(f"{out}: the export would overwrite the log itself; give --out")
@@ -230,14 +226,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    _warn(result.warnings)
+    warn(result.warnings)
     print(result.text)
     return result.status
-
-
-def _warn(warnings: Sequence[str]) -> None:
-    for w in warnings:
-        print(f"quadtank: warning: {w}", file=sys.stderr)
 
 
 def _add_tui_options(parser: argparse.ArgumentParser) -> None:
@@ -296,7 +287,7 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
     engine, app = build_tui(args)
-    _warn(engine.warnings)
+    warn(engine.warnings)
     watch = TerminalWatch(app.exit_soon, engine.stop)
     engine.start()
     watch.start()

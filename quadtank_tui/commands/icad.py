@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
+from quadtank_tui.commands import warn
 from quadtank_tui.core.plant import FULL_SCALE_V, PlantError
 
 
@@ -42,8 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from quadtank_tui.files.par import read_par
 
     read = read_par(args.par)
-    for w in read.warnings:
-        print(f"quadtank: warning: {w}", file=sys.stderr)
+    warn(read.warnings)
     params = read.params
     plant = params.process_plant()
     if len(plant.inputs) != 2 or len(plant.controlled) != 2:

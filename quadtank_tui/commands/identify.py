@@ -2,25 +2,22 @@
 output-error, subspace or ARX), validated, next to the physical linearization.
 
 Bad input (a missing column, too few rows, a constant input, no step) is one line
-on stderr and exit status 2, through cli.main's handling of ValueError.
+on stderr and exit status 2, through cli.main's handling of UsageError and ValueError.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from quadtank_tui.commands import UsageError, warn
 
 if TYPE_CHECKING:
     from quadtank_tui.core.plant import PlantParams
 
 METHODS = ("step", "oe", "n4sid", "arx")
-
-
-class IdentifyUsageError(ValueError):
-    """A bad option value; the message says which."""
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -77,8 +74,7 @@ def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams, str, 
     from quadtank_tui.files.par import read_par
 
     read = read_par(par)
-    for w in read.warnings:
-        print(f"quadtank: warning: {w}", file=sys.stderr)
+    warn(read.warnings)
     return read.params.plant(), par, (3.0, 3.0)
 
 
@@ -90,11 +86,11 @@ def parse_start(items: list[str] | None) -> dict[str, object] | None:
     for item in items:
         name, eq, value = item.partition("=")
         if not eq or name not in ("T", "L"):
-            raise IdentifyUsageError(f"--start takes T=VALUE and L=VALUE, got {item!r}")
+            raise UsageError(f"--start takes T=VALUE and L=VALUE, got {item!r}")
         try:
             numbers = [float(x) for x in value.split(",")]
         except ValueError:
-            raise IdentifyUsageError(f"--start {name}: not a number in {value!r}") from None
+            raise UsageError(f"--start {name}: not a number in {value!r}") from None
         out[name] = numbers if name == "T" and "," in value else numbers[0]
     return out
 
@@ -107,16 +103,15 @@ def run(args: argparse.Namespace) -> int:
     from quadtank_tui.files.model import from_identification, model_path, write_model
 
     if not 0.0 <= args.validate < 1.0:
-        raise IdentifyUsageError(f"--validate must be a fraction in [0, 1), got {args.validate:g}")
+        raise UsageError(f"--validate must be a fraction in [0, 1), got {args.validate:g}")
     if args.order is not None and args.order < 1:
-        raise IdentifyUsageError(f"--order must be >= 1, got {args.order}")
+        raise UsageError(f"--order must be >= 1, got {args.order}")
     records = []
     for path in args.logs:
         log = read_log(path)
-        for w in log.warnings:
-            print(f"quadtank: warning: {w}", file=sys.stderr)
+        warn(log.warnings)
         if log.tsamp is None:
-            raise IdentifyUsageError(f"{path}: no TSamp in the header: the sampling time is needed")
+            raise UsageError(f"{path}: no TSamp in the header: the sampling time is needed")
         records.append(Record(path, log.tsamp, log.columns()))
     opts = Options(method=args.method, inputs=tuple(args.inputs) if args.inputs else None,
                    outputs=tuple(args.outputs) if args.outputs else None, structure=args.structure,

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from typing import Any
+
+from quadtank_tui.commands import warn
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -44,8 +45,7 @@ def run(args: argparse.Namespace) -> int:
         from quadtank_tui.files.par import read_par
 
         read = read_par(args.par)
-        for w in read.warnings:
-            print(f"quadtank: warning: {w}", file=sys.stderr)
+        warn(read.warnings)
         params, source = read.params, args.par
     changes: dict[str, Any] = {}
     if args.ts is not None:

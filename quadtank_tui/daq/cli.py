@@ -13,6 +13,7 @@ import math
 import sys
 from typing import TYPE_CHECKING, Literal
 
+from quadtank_tui.commands import warn
 from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.daq.config import PRESETS, load_daq_config
 from quadtank_tui.engine.backend import BackendError
@@ -79,8 +80,7 @@ def cmd_rig(args: argparse.Namespace) -> int:
 
     if args.par is not None:
         read = read_par(args.par)
-        for w in read.warnings:
-            print(f"quadtank: warning: {w}", file=sys.stderr)
+        warn(read.warnings)
         params = read.params
     else:
         params = PRESET
