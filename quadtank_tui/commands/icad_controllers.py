@@ -6,6 +6,7 @@ so a typed dead time is refused.
 
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import numpy as np
@@ -36,10 +37,6 @@ def controller_tf(text: str, option: str = "--k1") -> Rational:
     return _monic(np.array(g.num, dtype=float), np.array(g.den, dtype=float))
 
 
-def _add(a: Rational, b: Rational) -> Rational:
-    return np.polyadd(np.polymul(a[0], b[1]), np.polymul(b[0], a[1])), np.polymul(a[1], b[1])
-
-
 def _monic(num: Poly, den: Poly) -> Rational:
     """The same function with a denominator whose leading coefficient is 1."""
     num, den = np.asarray(num, dtype=float), np.trim_zeros(np.asarray(den, dtype=float), "f")
@@ -48,8 +45,10 @@ def _monic(num: Poly, den: Poly) -> Rational:
 
 def controller_from_par(element: object, family: str, scale: float) -> Rational:
     """A controller element of the loop (normalized u per normalized e) as volts per
-    volt: PID K (b-free form) K (1 + 1/(Ti s) + Td s / (1 + Td s / N)), or the
-    General controller's polynomials; times `scale` = pump full scale / 10 V."""
+    volt: PID K (b-free form) K (1 + 1/(Ti s) + Td s / (1 + Td s / N)) (the design's
+    PID.feedback_tf), or the General controller's polynomials; times `scale` = pump
+    full scale / 10 V."""
+    from quadtank_tui.core.design.controller import PID
     from quadtank_tui.core.parameters import ControllerElement
 
     assert isinstance(element, ControllerElement)
@@ -59,12 +58,8 @@ def controller_from_par(element: object, family: str, scale: float) -> Rational:
         den = np.array((1.0, *g.r[: g.degree]), dtype=float)
         return _monic(num * scale, den)
     p = element.pid
-    value: Rational = (np.array([1.0]), np.array([1.0]))
-    if p.integral:
-        value = _add(value, (np.array([1.0]), np.array([p.Ti, 0.0])))
-    if p.derivative and p.Td > 0:
-        value = _add(value, (np.array([p.Td, 0.0]), np.array([p.Td / p.N, 1.0])))
-    return _monic(value[0] * p.K * scale, value[1])
+    num, den = PID(p.K, p.Ti if p.integral else math.inf, p.Td if p.derivative else 0.0, p.N).feedback_tf()
+    return _monic(num * scale, den)
 
 
 def coefficients(k: Rational) -> dict[str, list[float]]:
