@@ -70,6 +70,11 @@ def _num(x: float) -> float | None:
     return None if not math.isfinite(x) else round(float(x), 6)
 
 
+def _evaluation_json(ev: Any) -> dict[str, Any]:
+    """An evaluation's figures for --json: floats rounded to 6 places, inf/nan null."""
+    return {k: (_num(v) if isinstance(v, float) else v) for k, v in ev.to_dict().items()}
+
+
 def _design_siso(g: Any, method: str, lam: float | None, ms: float) -> tuple[Any, str]:
     from quadtank_tui.core.design.lambda_tuning import first_order, lambda_for_tau, lambda_pi
     from quadtank_tui.core.design.optimize import pi_ms, pid_ms
@@ -96,8 +101,7 @@ def _run_siso(args: argparse.Namespace) -> int:
     if args.json:
         out = {"model": str(g), "method": method, "how": how, "Kc": c.Kc, "Ti": c.Ti, "Td": c.Td,
                "evaluated_on": str(target),
-               "evaluation": {k: (_num(v) if isinstance(v, float) else v)
-                              for k, v in ev.to_dict().items()}}
+               "evaluation": _evaluation_json(ev)}
         print(json.dumps(out, indent=2))
         return 0
     print(f"model      {g}")
@@ -193,8 +197,7 @@ def _check_json(chk: Any, steps: list[Any], written: Path | None) -> dict[str, A
         c = d.controller
         loops.append({"loop": d.loop, "designed_on": d.how, "model": str(d.model),
                       "Kc": c.Kc, "Ti": c.Ti, "Td": c.Td,
-                      "evaluation": {k: (_num(v) if isinstance(v, float) else v)
-                                     for k, v in d.evaluation.to_dict().items()},
+                      "evaluation": _evaluation_json(d.evaluation),
                       "lambda11_at_crossover_abs": abs(lw)})
     return {
         "det_G0": chk.det_G0, "lambda11_0": chk.lambda11_0, "stable": chk.stable,
