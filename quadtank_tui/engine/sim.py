@@ -15,17 +15,17 @@ built from PlantParams keeps calling core.plant directly, bit for bit as before.
 
 from __future__ import annotations
 
+import random
+
+from quadtank_tui.core import faults as fx
 from quadtank_tui.core.plant import (
     FULL_SCALE_V,
+    PlantError,
     PlantParams,
     add_water,
     advance,
 )
-import random
-
-from quadtank_tui.core import faults as fx
 from quadtank_tui.core.plants import Plant, QuadTank
-from quadtank_tui.core.plant import PlantError
 from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend
 
 
