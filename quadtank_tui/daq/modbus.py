@@ -64,6 +64,7 @@ class ModbusBackend(ProcessBackend):
         self._client = ModbusTcpClient(config.host, port=config.port, timeout=config.timeout, retries=0)
         self._tanks = [config.tank_register(i) for i in range(1, 5)]
         self._tank_names = [config.channels[t] for t in TANKS]
+        self._plausible = [config.plausible_range(i) for i in range(1, 5)]  # cm, per tank
         self._pumps: list[Output] = [config.pump_output(i) for i in (1, 2)]
         # The requests do not change from sample to sample: planned once here.
         self._reads = _plan_reads(self._tanks, self._tank_names)
@@ -138,8 +139,7 @@ class ModbusBackend(ProcessBackend):
     def _check_plausible(self, volts: Sequence[float], cm: Sequence[float]) -> None:
         """A level no tank can have is a sensor fault (a broken wire at the rail), not
         a level: the controllers and the interlock would act on it."""
-        for tank, (v, h) in enumerate(zip(volts, cm), start=1):
-            lo, hi = self.config.plausible_range(tank)
+        for tank, (v, h, (lo, hi)) in enumerate(zip(volts, cm, self._plausible), start=1):
             if not lo <= h <= hi:
                 raise BackendError(
                     f"sensor fault: tank{tank} ({self._tank_names[tank - 1]}) reads {v:.6g} V = {h:.4g} cm, "

@@ -20,7 +20,8 @@ from quadtank_tui.core.design.apply import controller_values
 from quadtank_tui.core.design.controller import PID
 from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
 from quadtank_tui.core.plant import FULL_SCALE_V, steady_state_inputs
-from quadtank_tui.engine.commands import CommandResult, SetControlMode, SetParams, SetState
+from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
+from quadtank_tui.engine.headless import must
 from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.runner import Engine, build_engine, load_parameters
 from quadtank_tui.files.par import ParStore
@@ -54,13 +55,13 @@ def run_step(pair: Sequence[PID], *, par: str | Path | None = None, loop: int = 
         for i, sec in ((0, "REFERENCE ONE"), (1, "REFERENCE TWO")):
             setup.update({f"{sec}.Mean": v[i] / FULL_SCALE_V, f"{sec}.On": 0})
         for command in (SetControlMode("Manual"), SetParams(setup), SetState("Run")):
-            _must(engine.submit(command).result())
+            must(engine.submit(command).result())
         engine.run_for(SETTLE_BEFORE)
-        _must(engine.submit(SetControlMode("Automatic")).result())
+        must(engine.submit(SetControlMode("Automatic")).result())
         engine.run_for(AUTO_BEFORE_STEP)  # as the sample session: the step 10 s later
         key = f"REFERENCE {'ONE' if loop == 1 else 'TWO'}.Mean"
         mean = engine.snapshot().params.get(key)
-        _must(engine.submit(SetParams({key: mean + STEP})).result())
+        must(engine.submit(SetParams({key: mean + STEP})).result())
         engine.run_for(duration)
         hist = engine.history()
     finally:
@@ -71,8 +72,3 @@ def run_step(pair: Sequence[PID], *, par: str | Path | None = None, loop: int = 
     y_other = hist[f"y{o}"][after]
     m = loop_metrics(t[after], hist[f"y{i}"][after], hist[f"ref{i}"][after])
     return StepCheck(loop, m, float(np.max(np.abs(y_other - y_other[0]))), duration)
-
-
-def _must(result: CommandResult) -> None:
-    if not result.ok:
-        raise ValueError(result.message)

@@ -73,18 +73,18 @@ def run_headless(
     warnings = engine.warnings
     try:
         # The partial file of an interrupted run sits next to OUT, named after it.
-        _must(engine.submit(SetParams({"LOGGING.LogFile": stem})).result())
+        must(engine.submit(SetParams({"LOGGING.LogFile": stem})).result())
         if daq is not None:
-            _must(engine.submit(SetOperation("Active")).result())
+            must(engine.submit(SetOperation("Active")).result())
         if params.control.mode is ControlMode.AUTOMATIC:
             engine.loop.set_initial_mode(ControlMode.AUTOMATIC)
         if script is None or not any(e.action == "log" for e in script.events):
             # Every sample of the run, however many: the writer streams them to disk,
             # so the Logging window's Points limit does not apply.
             points = max(1, math.ceil(duration / params.tsamp - 1e-9))
-            _must(engine.submit(LogOn(points=points)).result())
+            must(engine.submit(LogOn(points=points)).result())
         if script is None:
-            _must(engine.submit(SetState("Run")).result())
+            must(engine.submit(SetState("Run")).result())
         run_experiment(engine, script, duration)
         summary = summarize(engine, duration)
         session = engine.loop.log
@@ -126,6 +126,7 @@ def _save(session: LogSession, out: Path, before: tuple[int, ...] | None) -> tup
             n += 1
 
 
-def _must(result: CommandResult) -> None:
+def must(result: CommandResult) -> None:
+    """A command's result, refused: ValueError with its message (a scripted run stops)."""
     if not result.ok:
         raise ValueError(result.message)

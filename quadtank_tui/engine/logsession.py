@@ -70,8 +70,7 @@ class LogSession:
         if self._writer is not None and self._unsaved:
             rows = self._writer.rows
             kept = self._writer.keep()  # under any name: never left as a silent .partial
-            if kept is not None:
-                warnings.append(f"the unsaved log ({rows} rows) was kept as {kept}")
+            warnings.append(f"the unsaved log ({rows} rows) was kept as {kept}")
         self.close()
         self._writer = LogWriter(log_path(self.logs_dir, settings.log_file), settings.variables, tsamp,
                                  settings.points if points is None else points, created=self._now())

@@ -43,8 +43,8 @@ from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.backend import BackendError, ProcessBackend
 from quadtank_tui.engine.commands import (
-    AddWater, Command, CommandResult, SetFault, LoadPar, LogDiscard, LogOff, LogOn, LogSave, NudgeMean,
-    ResetControllers, SavePar, SetControlMode, SetDefaults, SetOperation, SetParams, SetSpeed,
+    AddWater, Command, CommandResult, LoadPar, LogDiscard, LogOff, LogOn, LogSave, NudgeMean,
+    ResetControllers, SavePar, SetControlMode, SetDefaults, SetFault, SetOperation, SetParams, SetSpeed,
     SetState,
 )
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, History
@@ -52,12 +52,12 @@ from quadtank_tui.engine.jitter import JitterHistogram
 from quadtank_tui.engine.logsession import LogRefused, LogSession
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
+from quadtank_tui.files.log import LogFileError
+from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 
 if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is chosen
     from quadtank_tui.core.statefb.design import Design
     from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
-from quadtank_tui.files.log import LogFileError
-from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 
 MODE_KEY = "CONTROL.Mode"
 MEAN_KEYS = ("REFERENCE ONE.Mean", "REFERENCE TWO.Mean")

@@ -15,17 +15,17 @@ built from PlantParams keeps calling core.plant directly, bit for bit as before.
 
 from __future__ import annotations
 
+import random
+
+from quadtank_tui.core import faults as fx
 from quadtank_tui.core.plant import (
     FULL_SCALE_V,
+    PlantError,
     PlantParams,
     add_water,
     advance,
 )
-import random
-
-from quadtank_tui.core import faults as fx
 from quadtank_tui.core.plants import Plant, QuadTank
-from quadtank_tui.core.plant import PlantError
 from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend
 
 
@@ -93,10 +93,11 @@ class SimBackend(ProcessBackend):
         """Integrate dt seconds with the pump voltages held."""
         self._t += dt
         if self._faults:
-            plant = fx.drift_valves(self.plant, self._faults, dt)
-            if plant is not self.plant:
-                self.set_plant(plant)
-            self._h = fx.advance(self.plant, self._faults, self._h, self._v, dt)
+            plant = self.plant  # built once: for the quadruple tank each `plant` is a new QuadTank
+            drifted = fx.drift_valves(plant, self._faults, dt)
+            if drifted is not plant:
+                self.set_plant(drifted)
+            self._h = fx.advance(drifted, self._faults, self._h, self._v, dt)
             return
         if self._plant is not None:
             self._h = self._plant.advance(self._h, self._v, dt)

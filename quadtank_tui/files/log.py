@@ -284,7 +284,7 @@ class LogWriter:
         fsync_dir(target.parent)
         return target
 
-    def keep(self) -> Path | None:
+    def keep(self) -> Path:
         """Stop and move the partial file to `<name>-recovered[-N].log`: a new log
         replaces this unsaved one, which must not stay a `.partial` nobody hears of."""
         self.stop()
