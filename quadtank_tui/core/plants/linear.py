@@ -95,11 +95,16 @@ class LinearModel:
         """(Phi, Gamma) of the zero-order-hold discretization at sampling time T s."""
         if not T > 0:
             raise ValueError(f"sampling time must be > 0 s, got {T}")
-        from scipy.linalg import expm
+        return zoh(self.A, self.B, T)
 
-        n, m = self.B.shape
-        M = np.zeros((n + m, n + m))
-        M[:n, :n] = self.A * T
-        M[:n, n:] = self.B * T
-        E = expm(M)
-        return E[:n, :n], E[:n, n:]
+
+def zoh(A: np.ndarray, B: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretization of x' = A x + B u over a step T:
+    Phi = e^(AT), Gamma = int_0^T e^(At) dt B, from one matrix exponential."""
+    from scipy.linalg import expm
+
+    n, m = A.shape[0], B.shape[1]
+    M = np.zeros((n + m, n + m))
+    M[:n, :n], M[:n, n:] = A * T, B * T
+    E = expm(M)
+    return E[:n, :n], E[:n, n:]
