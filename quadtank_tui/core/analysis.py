@@ -31,9 +31,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
-import scipy.linalg
 
 from quadtank_tui.core.plant import PlantError, PlantParams, time_constant
+from quadtank_tui.core.plants.linear import finite_zeros
 
 if TYPE_CHECKING:  # python-control (and the matplotlib it loads) costs ~1.3 s to import
     import control
@@ -127,21 +127,10 @@ class Analysis:
 
 
 def transmission_zeros(model: LinearModel) -> tuple[complex, ...]:
-    """Finite transmission zeros, sorted by real part.
-
-    The finite generalized eigenvalues of the Rosenbrock pencil
-    ([[A, B], [C, D]], [[I, 0], [0, 0]]) of this square system.  scipy.linalg
-    instead of python-control: the same numbers (a test compares them) without
-    the 1.3 s import of python-control and matplotlib on every `quadtank analyze`.
-    """
-    n = model.A.shape[0]
-    pencil = np.block([[model.A, model.B], [model.C, model.D]])
-    ident = np.zeros_like(pencil)
-    ident[:n, :n] = np.eye(n)
-    ev = scipy.linalg.eigvals(pencil, ident)
-    z = ev[np.isfinite(ev) & (np.abs(ev) < 1e12)].astype(complex)
-    z = np.where(np.abs(z.imag) < 1e-12 * np.maximum(1.0, np.abs(z.real)), z.real + 0j, z)
-    return tuple(sorted((complex(x) for x in z), key=lambda c: (c.real, c.imag)))
+    """Finite transmission zeros, sorted by real part (core.plants.linear.finite_zeros:
+    the Rosenbrock pencil through scipy.linalg, the same numbers as python-control -
+    a test compares them - without its 1.3 s import on every `quadtank analyze`)."""
+    return tuple(complex(z) for z in finite_zeros(model.A, model.B, model.C, model.D))
 
 
 def relative_gain_array(G0: np.ndarray) -> np.ndarray | None:

@@ -145,7 +145,6 @@ def margins(loop: DelayTF, w: np.ndarray | None = None) -> Margins:
         m = (math.degrees(float(phase(loop, x, roots))) + 180.0 + 180.0) % 360.0 - 180.0
         if m < pm:
             pm, wc = m, x
-    roots = (loop.zeros(), loop.poles())
     ph = phase(loop, w, roots)
     # phase crossings of -180 - k 360 deg where |L| > 1/MAX_GAIN_MARGIN
     k = np.floor((ph + math.pi) / (2.0 * math.pi))

@@ -18,11 +18,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 from scipy.signal import tf2ss
 
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.plants.linear import zoh
 
 #: steps per 1/wc (closed-loop time scale) at least; see module docstring.
 STEPS_PER_RAD = 20.0
@@ -90,15 +90,6 @@ def _augmented(g: DelayTF, c: PID) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     return A, Bv, Bw, Cy, dy, Dyw, F, Fv, Fw
 
 
-def _discretize(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretization of x' = A x + B w over a step h."""
-    n, m = A.shape[0], B.shape[1]
-    M = np.zeros((n + m, n + m))
-    M[:n, :n], M[:n, n:] = A * h, B * h
-    E = expm(M)
-    return E[:n, :n], E[:n, n:]
-
-
 def step_response(g: DelayTF, c: PID, *, r: float = 0.0, d: float = 0.0,
                   horizon: float, h: float) -> Response:
     """Response from rest to a setpoint step r and a load step d at t = 0."""
@@ -116,7 +107,7 @@ def step_response(g: DelayTF, c: PID, *, r: float = 0.0, d: float = 0.0,
             raise ValueError("algebraic loop: the loop gain at infinite frequency is -1")
         Acl = A + np.outer(Bv, F) / (1.0 - Fv)
         Bcl = Bw + np.outer(Bv, Fw) / (1.0 - Fv)
-        Ad, Bd = _discretize(Acl, Bcl, h)
+        Ad, Bd = zoh(Acl, Bcl, h)
         bd = Bd @ w
         z = np.zeros(nz)
         y = np.empty(steps + 1)
@@ -129,7 +120,7 @@ def step_response(g: DelayTF, c: PID, *, r: float = 0.0, d: float = 0.0,
         return Response(np.arange(steps + 1) * h, y, u, r, d)
     # the load passes the delay with u (Y = G (U + V), G with its dead time): it is a
     # step reaching the process at t = L = m h, held exactly from that sample on
-    Ad, Bd = _discretize(A, np.column_stack([Bv, Bw]), h)
+    Ad, Bd = zoh(A, np.column_stack([Bv, Bw]), h)
     bv, br, bd = Bd[:, 0], Bd[:, 1] * r, Bd[:, 2] * d
     fw = float(Fw[0] * r)
     ring = [0.0] * (m + 1)  # u_i in slot i % (m+1); from rest, earlier u are 0

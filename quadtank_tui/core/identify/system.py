@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence
 
-import control
 import numpy as np
 from scipy import linalg, signal
 
@@ -144,6 +143,8 @@ def from_state_space(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> SystemModel
         elements.append(tuple(row))
     zeros: tuple[complex, ...] = ()
     if p == m and p >= 2:
+        import control  # python-control (and matplotlib) take ~1.3 s to import: only here
+
         zeros = _clean(np.asarray(control.zeros(control.ss(A, B, C, np.zeros((p, m)))), dtype=complex))
     return SystemModel(tuple(elements), np.asarray(A, float), np.asarray(B, float), np.asarray(C, float), zeros)
 

@@ -64,19 +64,11 @@ class LinearModel:
     def zeros(self) -> np.ndarray:
         """Finite transmission zeros of a square model, sorted by real part: the finite
         generalized eigenvalues of the Rosenbrock pencil ([[A, B], [C, D]], [[I, 0], [0, 0]])."""
-        n, m = self.B.shape
+        m = self.B.shape[1]
         if self.C.shape[0] != m:
             raise ValueError(f"transmission zeros need as many outputs as inputs ({self.C.shape[0]} vs {m}); "
                              "select the controlled outputs first")
-        from scipy.linalg import eigvals
-
-        M = np.block([[self.A, self.B], [self.C, self.D]])
-        N = np.zeros_like(M)
-        N[:n, :n] = np.eye(n)
-        z = eigvals(M, N)
-        z = z[np.isfinite(z) & (np.abs(z) < 1e12)]
-        z = np.where(np.abs(z.imag) < 1e-12 * np.maximum(1.0, np.abs(z.real)), z.real + 0j, z)
-        return np.array(sorted(z, key=lambda c: (c.real, c.imag)))
+        return finite_zeros(self.A, self.B, self.C, self.D)
 
     def dcgain(self) -> np.ndarray:
         """G(0) = D - C A^-1 B (every plant here is stable, A invertible)."""
@@ -95,11 +87,33 @@ class LinearModel:
         """(Phi, Gamma) of the zero-order-hold discretization at sampling time T s."""
         if not T > 0:
             raise ValueError(f"sampling time must be > 0 s, got {T}")
-        from scipy.linalg import expm
+        return zoh(self.A, self.B, T)
 
-        n, m = self.B.shape
-        M = np.zeros((n + m, n + m))
-        M[:n, :n] = self.A * T
-        M[:n, n:] = self.B * T
-        E = expm(M)
-        return E[:n, :n], E[:n, n:]
+
+def finite_zeros(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """Finite transmission zeros of the square system (A, B, C, D), sorted by real
+    part: the finite generalized eigenvalues of the Rosenbrock pencil
+    ([[A, B], [C, D]], [[I, 0], [0, 0]]); a zero within 1e-12 (relative) of the real
+    axis is made real."""
+    from scipy.linalg import eigvals
+
+    n = A.shape[0]
+    M = np.block([[A, B], [C, D]])
+    N = np.zeros_like(M)
+    N[:n, :n] = np.eye(n)
+    z = eigvals(M, N)
+    z = z[np.isfinite(z) & (np.abs(z) < 1e12)]
+    z = np.where(np.abs(z.imag) < 1e-12 * np.maximum(1.0, np.abs(z.real)), z.real + 0j, z)
+    return np.array(sorted(z, key=lambda c: (c.real, c.imag)))
+
+
+def zoh(A: np.ndarray, B: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretization of x' = A x + B u over a step T:
+    Phi = e^(AT), Gamma = int_0^T e^(At) dt B, from one matrix exponential."""
+    from scipy.linalg import expm
+
+    n, m = A.shape[0], B.shape[1]
+    M = np.zeros((n + m, n + m))
+    M[:n, :n], M[:n, n:] = A * T, B * T
+    E = expm(M)
+    return E[:n, :n], E[:n, n:]

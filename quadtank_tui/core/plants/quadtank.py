@@ -32,6 +32,7 @@ from quadtank_tui.core.plants.base import (
     SteadyStateError,
     TankView,
     Vector,
+    orifice_slope,
 )
 
 _LEVELS = ("h1", "h2", "h3", "h4")
@@ -88,7 +89,8 @@ class _FourTanks(Plant):
         if min(x0) >= qt.H_FILM:
             m = linearize_levels(p, x0)
             return m.A, m.B, [[p.kc if j == i else 0.0 for j in range(4)] for i in range(4)]
-        d = [qt_slope(x0[i], p.outlet(i), p.g) / p.area(i) for i in range(4)]
+        # a level at or below 0 takes the slope at 0 (the outflow law is one-sided)
+        d = [orifice_slope(max(x0[i], 0.0), p.outlet(i), p.g, qt.H_FILM) / p.area(i) for i in range(4)]
         A = [[-d[0], 0.0, d[2] * p.A3 / p.A1, 0.0],
              [0.0, -d[1], 0.0, d[3] * p.A4 / p.A2],
              [0.0, 0.0, -d[2], 0.0],
@@ -114,15 +116,6 @@ class _FourTanks(Plant):
             raise SteadyStateError(f"levels ({levels[0]:g}, {levels[1]:g}) cm need pump voltages "
                                    f"({op.v[0]:.3g}, {op.v[1]:.3g}) V, above the pumps' {self.pump_max:g} V")
         return OperatingPoint(tuple(op.h), tuple(op.v))
-
-
-def qt_slope(h: float, a: float, g: float) -> float:
-    """d(core.plant.outflow)/dh, cm^2/s: a sqrt(g / (2 h)) above the film."""
-    if h >= qt.H_FILM:
-        return a * (g / (2.0 * h)) ** 0.5
-    if h <= 0.0:
-        return a * (2.0 * g) ** 0.5 * 1.5 / qt.H_FILM ** 0.5
-    return a * (2.0 * g) ** 0.5 / qt.H_FILM ** 0.5 * (1.5 - h / qt.H_FILM)
 
 
 @dataclass(frozen=True)

@@ -45,6 +45,7 @@ from typing import Sequence
 import numpy as np
 from scipy import linalg, optimize, signal
 
+from quadtank_tui.core.plants.linear import zoh
 from quadtank_tui.core.statefb.bessel import BESSEL_POLES  # noqa: E402  (re-exported)
 
 #: Placement method of scipy.signal.place_poles (see the module docstring).
@@ -120,15 +121,6 @@ class OperatingModel:
     @property
     def p(self) -> int:
         return self.C.shape[0]
-
-
-def zoh(A: np.ndarray, B: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
-    """Phi = e^(AT), Gamma = int_0^T e^(At) dt B, from one matrix exponential."""
-    n, m = B.shape
-    M = np.zeros((n + m, n + m))
-    M[:n, :n], M[:n, n:] = A, B
-    E = linalg.expm(M * T)
-    return E[:n, :n], E[:n, n:]
 
 
 def augment(Phi: np.ndarray, Gamma: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
