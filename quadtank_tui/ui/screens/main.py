@@ -154,7 +154,10 @@ class MainScreen(CommandSender):
         # The widgets the timer feeds, found once: a DOM query costs milliseconds,
         # at 20 ticks a second most of an idle screen's CPU.
         self._status = self.query_one(StatusLine)
-        self._fed = (self.query_one(ControllerBox), self.query_one(ProcessImage), *self.query(ChannelPanel))
+        self._controller = self.query_one(ControllerBox)
+        self._image = self.query_one(ProcessImage)
+        self._panels = tuple(self.query(ChannelPanel))
+        self._upper, self._lower = self.query_one("#upper", Trend), self.query_one("#lower", Trend)
         self.refresh_view()
         self._interval = self.refresh_interval
         self._timer = self.set_interval(self._interval, self._tick)
@@ -192,12 +195,11 @@ class MainScreen(CommandSender):
             previous, self.snap = self.snap, snap
             status.snapshot = snap
             # Each widget repaints only if what it shows changed.
-            controller, image, *panels = self._fed
-            controller.statefb = snap.statefb
-            controller.params = snap.params
-            image.snapshot = snap
+            self._controller.statefb = snap.statefb
+            self._controller.params = snap.params
+            self._image.snapshot = snap
             self._spill_alarm(snap)
-            for panel in panels:
+            for panel in self._panels:
                 panel.snapshot = snap
             if snap.params.control != previous.params.control:
                 self.refresh_bindings()
@@ -206,8 +208,8 @@ class MainScreen(CommandSender):
             self._drawn_view, self._drawn_t, self._drawn_k = view, snap.t, snap.k
             self._drawn_at = time.monotonic()
             history = self.engine.history(window)
-            for trend, plot_type in ((self.query_one("#upper", Trend), snap.params.plots.upper),
-                                     (self.query_one("#lower", Trend), snap.params.plots.lower)):
+            for trend, plot_type in ((self._upper, snap.params.plots.upper),
+                                     (self._lower, snap.params.plots.lower)):
                 trend.plot_type, trend.window, trend.autoscale = plot_type, window, self.autoscale
                 trend.show(history)
         live = self.app.screen
@@ -226,7 +228,7 @@ class MainScreen(CommandSender):
         """Mark the tanks that overflow on the image, and say so once when a
         tank starts to (the simulator spills silently otherwise)."""
         spilling = spilling_tanks(snap)
-        image = self.query_one(ProcessImage)
+        image = self._image
         started = spilling - image.spilling
         image.spilling = spilling
         if started:
@@ -251,7 +253,7 @@ class MainScreen(CommandSender):
             return False
         if snap.state != "Run":
             return True
-        dot = WINDOWS[self.window_index] / max(1, 2 * self.query_one("#upper", Trend).size.width)
+        dot = WINDOWS[self.window_index] / max(1, 2 * self._upper.size.width)
         return (abs(snap.t - self._drawn_t) >= dot
                 and time.monotonic() - self._drawn_at >= TREND_MIN_INTERVAL)
 
