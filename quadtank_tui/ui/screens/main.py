@@ -131,9 +131,9 @@ class MainScreen(CommandSender):
         self.snap: Snapshot = engine.snapshot()
         self._drawn_view: tuple[object, ...] = ()
         self._drawn_t, self._drawn_k, self._drawn_at = 0.0, -1, 0.0
-        #: The live window last given a snapshot, and that snapshot.
+        #: The live window last given a snapshot, and that snapshot without its timing.
         self._live: object = None
-        self._live_snap: Snapshot = self.snap
+        self._live_snap: Snapshot = _untimed(self.snap)
         self.window_index = 1  # 5 min
         self.autoscale = True
 
@@ -216,13 +216,14 @@ class MainScreen(CommandSender):
         # A live window gets the snapshot only when more than the loop's timing
         # changed (a paused loop's idle ticks): its update repaints the whole
         # screen behind it, 1 MB a second of nothing new at 120x40.
-        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) and live.is_mounted and (
-                live is not self._live or _untimed(self._live_snap) != _untimed(snap)):
-            self._live, self._live_snap = live, snap
-            try:
-                live.snapshot = snap
-            except NoMatches:  # the window is being taken down
-                pass
+        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) and live.is_mounted:
+            untimed = _untimed(snap)
+            if live is not self._live or untimed != self._live_snap:
+                self._live, self._live_snap = live, untimed
+                try:
+                    live.snapshot = snap
+                except NoMatches:  # the window is being taken down
+                    pass
 
     def _spill_alarm(self, snap: Snapshot) -> None:
         """Mark the tanks that overflow on the image, and say so once when a
