@@ -131,9 +131,9 @@ class MainScreen(CommandSender):
         self.snap: Snapshot = engine.snapshot()
         self._drawn_view: tuple[object, ...] = ()
         self._drawn_t, self._drawn_k, self._drawn_at = 0.0, -1, 0.0
-        #: The live window last given a snapshot, and that snapshot.
+        #: The live window last given a snapshot, and that snapshot without its timing.
         self._live: object = None
-        self._live_snap: Snapshot = self.snap
+        self._live_snap: Snapshot = _untimed(self.snap)
         self.window_index = 1  # 5 min
         self.autoscale = True
 
@@ -154,7 +154,10 @@ class MainScreen(CommandSender):
         # The widgets the timer feeds, found once: a DOM query costs milliseconds,
         # at 20 ticks a second most of an idle screen's CPU.
         self._status = self.query_one(StatusLine)
-        self._fed = (self.query_one(ControllerBox), self.query_one(ProcessImage), *self.query(ChannelPanel))
+        self._controller = self.query_one(ControllerBox)
+        self._image = self.query_one(ProcessImage)
+        self._panels = tuple(self.query(ChannelPanel))
+        self._upper, self._lower = self.query_one("#upper", Trend), self.query_one("#lower", Trend)
         self.refresh_view()
         self._interval = self.refresh_interval
         self._timer = self.set_interval(self._interval, self._tick)
@@ -192,12 +195,11 @@ class MainScreen(CommandSender):
             previous, self.snap = self.snap, snap
             status.snapshot = snap
             # Each widget repaints only if what it shows changed.
-            controller, image, *panels = self._fed
-            controller.statefb = snap.statefb
-            controller.params = snap.params
-            image.snapshot = snap
+            self._controller.statefb = snap.statefb
+            self._controller.params = snap.params
+            self._image.snapshot = snap
             self._spill_alarm(snap)
-            for panel in panels:
+            for panel in self._panels:
                 panel.snapshot = snap
             if snap.params.control != previous.params.control:
                 self.refresh_bindings()
@@ -206,27 +208,28 @@ class MainScreen(CommandSender):
             self._drawn_view, self._drawn_t, self._drawn_k = view, snap.t, snap.k
             self._drawn_at = time.monotonic()
             history = self.engine.history(window)
-            for trend, plot_type in ((self.query_one("#upper", Trend), snap.params.plots.upper),
-                                     (self.query_one("#lower", Trend), snap.params.plots.lower)):
+            for trend, plot_type in ((self._upper, snap.params.plots.upper),
+                                     (self._lower, snap.params.plots.lower)):
                 trend.plot_type, trend.window, trend.autoscale = plot_type, window, self.autoscale
                 trend.show(history)
         live = self.app.screen
         # A live window gets the snapshot only when more than the loop's timing
         # changed (a paused loop's idle ticks): its update repaints the whole
         # screen behind it, 1 MB a second of nothing new at 120x40.
-        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) and live.is_mounted and (
-                live is not self._live or _untimed(self._live_snap) != _untimed(snap)):
-            self._live, self._live_snap = live, snap
-            try:
-                live.snapshot = snap
-            except NoMatches:  # the window is being taken down
-                pass
+        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) and live.is_mounted:
+            untimed = _untimed(snap)
+            if live is not self._live or untimed != self._live_snap:
+                self._live, self._live_snap = live, untimed
+                try:
+                    live.snapshot = snap
+                except NoMatches:  # the window is being taken down
+                    pass
 
     def _spill_alarm(self, snap: Snapshot) -> None:
         """Mark the tanks that overflow on the image, and say so once when a
         tank starts to (the simulator spills silently otherwise)."""
         spilling = spilling_tanks(snap)
-        image = self.query_one(ProcessImage)
+        image = self._image
         started = spilling - image.spilling
         image.spilling = spilling
         if started:
@@ -251,7 +254,7 @@ class MainScreen(CommandSender):
             return False
         if snap.state != "Run":
             return True
-        dot = WINDOWS[self.window_index] / max(1, 2 * self.query_one("#upper", Trend).size.width)
+        dot = WINDOWS[self.window_index] / max(1, 2 * self._upper.size.width)
         return (abs(snap.t - self._drawn_t) >= dot
                 and time.monotonic() - self._drawn_at >= TREND_MIN_INTERVAL)
 

@@ -293,8 +293,9 @@ class ChoiceWindow(Window[str | None]):
     """A question with several answers (Exit with an unsaved log: save, discard or
     cancel); the first answer has the focus, so Enter picks it; Esc answers None.
 
-    The answers are buttons whose ids are the answers, so nothing a user typed
-    (a log name in a label) can become an action name."""
+    Unlike other windows' buttons, these are not named after actions: their ids
+    are their positions (choice-0, choice-1, ...), so nothing a user typed (a log
+    name in a label) can become an action name."""
 
     def __init__(self, title: str, question: str, choices: Iterable[Choice]) -> None:
         super().__init__(title)
