@@ -165,6 +165,13 @@ class MainScreen(CommandSender):
 
     # --- attributes down ------------------------------------------------------------
 
+    def on_screen_resume(self) -> None:
+        """Back from Setup, Design or Identify (which this screen does not redraw
+        under): show the process as it is now, not at the next tick - while paused
+        that is up to PAUSED_INTERVAL away, and an Apply made there would not show."""
+        if hasattr(self, "_controller"):  # mounted: the widgets are found
+            self.refresh_view()
+
     def _tick(self) -> None:
         # While the Setup screen (the other CommandSender) covers this one nothing
         # here is seen: skip the work.
