@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from quadtank_tui.core.parameters import ControlMode, check_file_name
+from quadtank_tui.core.parameters import ControlMode
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.backend import ProcessBackend
 from quadtank_tui.engine.commands import CommandResult, LogOn, SetOperation, SetParams, SetState
@@ -20,6 +20,7 @@ from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.logsession import LogExists, LogRefused, LogSession
 from quadtank_tui.engine.runner import ClockKind, build_engine, load_parameters, virtual_epoch
 from quadtank_tui.files.log import SUFFIX, check_log_folder, file_identity
+from quadtank_tui.files.names import check_file_name
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.files.script import Script
 

@@ -13,9 +13,10 @@ from datetime import datetime
 from pathlib import Path
 from typing import Callable, Sequence
 
-from quadtank_tui.core.parameters import LoggingSettings, check_file_name
+from quadtank_tui.core.parameters import LoggingSettings
 from quadtank_tui.engine.snapshot import LogStatus
 from quadtank_tui.files.log import LogWriter, log_path
+from quadtank_tui.files.names import check_file_name
 
 
 class LogRefused(ValueError):

@@ -53,6 +53,7 @@ from quadtank_tui.engine.logsession import LogRefused, LogSession
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
 from quadtank_tui.files.log import LogFileError
+from quadtank_tui.files.names import check_names
 from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 
 if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is chosen
@@ -304,7 +305,7 @@ class ControlLoop:
         return result
 
     def _set_params(self, cmd: SetParams) -> CommandResult:
-        values = dict(cmd.values)
+        values = check_names(cmd.values)  # file and screen names are the files layer's to check
         mode = values.pop(MODE_KEY, None)
         new = self.params.with_values(values)
         if mode is not None:

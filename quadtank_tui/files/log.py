@@ -43,9 +43,9 @@ try:  # POSIX; elsewhere the unique partial names alone keep runs apart
 except ImportError:  # pragma: no cover
     fcntl = None  # type: ignore[assignment]  # no module off POSIX: users test for None
 
-from quadtank_tui.core.parameters import LOG_VARIABLES, check_variables
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.files.atomic import atomic_write_bytes, fsync_dir
+from quadtank_tui.files.names import LOG_VARIABLES, check_variables
 from quadtank_tui.files.regular import read_regular
 from quadtank_tui.files.stamp import format_stamp, parse_stamp
 

@@ -35,13 +35,13 @@ from quadtank_tui.core.parameters import (
     Kind,
     KeySpec,
     Parameters,
-    check_file_name,
     keys_of,
 )
 from quadtank_tui.core.plants.spec import SECTION as PLANT_SECTION
 from quadtank_tui.core.plants.spec import PlantSpec, spec_from_entries
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.files.atomic import atomic_write_text
+from quadtank_tui.files.names import check_file_name, check_names
 from quadtank_tui.files.regular import read_regular
 from quadtank_tui.files.stamp import format_stamp
 
@@ -143,7 +143,7 @@ def parse_par(data: bytes | str, *, name: str = "<par>", base: Parameters = PRES
     if not any_section:
         raise ParFileError(name, "no section found: not a parameter file (empty or truncated?)", 1 if not lines else len(lines))
     try:
-        params = base.with_values(changes)
+        params = base.with_values(check_names(changes))
     except ParameterError as exc:
         line_no = where.get(exc.field) or _related_line(exc.field, where)
         raise ParFileError(name, exc.reason, line_no, exc.field) from None

@@ -38,6 +38,7 @@ import yaml
 
 from quadtank_tui.core.parameters import Kind, spec
 from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.files.names import check_names
 from quadtank_tui.files.yamltext import parse_yaml, read_text
 
 ACTIONS = ("mode", "state", "set", "step", "add_water", "log", "fault")
@@ -192,4 +193,7 @@ def _params(action: str, value: Any, fail: Any) -> Mapping[str, Any]:
             out[k.name] = k.coerce(v)
         except ParameterError as exc:
             raise fail(str(exc)) from None
-    return out
+    try:
+        return check_names(out)  # a log name, log columns, plot types
+    except ParameterError as exc:
+        raise fail(str(exc)) from None

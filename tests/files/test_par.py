@@ -11,9 +11,10 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from quadtank_tui.core.parameters import KEYS, LOG_VARIABLES, PRESET, Kind, KeySpec, Parameters
+from quadtank_tui.core.parameters import KEYS, PRESET, Kind, KeySpec, Parameters
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.files import atomic
+from quadtank_tui.files.names import LOG_VARIABLES, PLOT_TYPES
 from quadtank_tui.files.par import ParFileError, format_number, format_par, parse_par, read_par, write_par
 from quadtank_tui.files.shipped import SHIPPED_STAMP, shipped_settings
 
@@ -109,6 +110,8 @@ def _value_strategy(k: KeySpec) -> st.SearchStrategy[object]:
         return st.booleans()
     if k.kind is Kind.CHOICE:
         return st.sampled_from(k.choices)
+    if k.section == "PLOTS":
+        return st.sampled_from(PLOT_TYPES)
     if k.kind is Kind.NAME:
         return st.from_regex(r"[A-Za-z0-9_][A-Za-z0-9_\-]{0,20}", fullmatch=True)
     return st.lists(st.sampled_from(LOG_VARIABLES), min_size=1, max_size=9, unique=True)

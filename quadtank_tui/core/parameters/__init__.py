@@ -21,7 +21,9 @@ shipped `.par` files look like the original's and hold the values exactly.
 The package, one concern a module: ``constants`` (limits, section names),
 ``checks`` (validation helpers), ``keys`` (the key table and coercion), ``tree``
 (rebuilding the model from plain values), ``settings`` (the dataclasses) and
-``presets`` (the built-in settings).  Import from the package itself.
+``presets`` (the built-in settings).  Import from the package itself.  The names
+of files and screens (log columns, plot types, file names) are checked by
+``quadtank_tui.files.names``, not here.
 
 Example
 -------
@@ -33,13 +35,10 @@ Example
 from __future__ import annotations
 
 from quadtank_tui.core.matrix import Family, Structure
-from quadtank_tui.core.parameters.checks import check_file_name, check_variables
 from quadtank_tui.core.parameters.constants import (
     CONTROLLER_SECTIONS,
-    LOG_VARIABLES,
     MAX_ABS,
     OP_POINT_MIN,
-    PLOT_TYPES,
     POINTS_MAX,
     POINTS_MAX_ORIGINAL,
     REFERENCE_SECTIONS,
@@ -67,10 +66,10 @@ from quadtank_tui.core.parameters.settings import (
 )
 
 __all__ = [
-    "CONTROLLER_SECTIONS", "KEYS", "LOG_VARIABLES", "MAX_ABS", "NAMED_SETTINGS", "OP_POINT_MIN",
-    "PLANT_SETTINGS", "PLOT_TYPES", "POINTS_MAX", "POINTS_MAX_ORIGINAL", "PRESET", "REFERENCE_SECTIONS",
+    "CONTROLLER_SECTIONS", "KEYS", "MAX_ABS", "NAMED_SETTINGS", "OP_POINT_MIN",
+    "PLANT_SETTINGS", "POINTS_MAX", "POINTS_MAX_ORIGINAL", "PRESET", "REFERENCE_SECTIONS",
     "SECTIONS", "STATEFB_SECTION", "TSAMP", "TSAMP_MAX_MS", "TSAMP_MIN_MS",
     "ControlMode", "ControlSettings", "ControllerElement", "Family", "Kind", "KeySpec", "LoggingSettings",
     "Parameters", "PlotSettings", "SimulationSettings", "Structure",
-    "check_file_name", "check_variables", "from_plant", "from_setting", "iter_keys", "keys_of", "spec",
+    "from_plant", "from_setting", "iter_keys", "keys_of", "spec",
 ]

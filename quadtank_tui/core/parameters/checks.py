@@ -4,9 +4,8 @@ naming the key, so a file or a window can say where the bad value is."""
 from __future__ import annotations
 
 from enum import Enum
-from typing import Any, Sequence
+from typing import Any
 
-from quadtank_tui.core.parameters.constants import FILE_NAME, LOG_VARIABLES
 from quadtank_tui.core.signals import Wave, WaveParams
 from quadtank_tui.core.validation import ParameterError, check_number, check_range
 
@@ -33,27 +32,6 @@ def whole(key: str, value: Any) -> int:
 def integer(key: str, value: Any, lo: int, hi: int) -> int:
     """A whole number in [lo, hi]."""
     return int(check_range(key, whole(key, value), lo, hi))
-
-
-def check_file_name(name: Any, key: str = "LogFile") -> str:
-    """A file name (log or parameter file) is a name, not a path: letters, digits,
-    `_`, `-`, `.`; it may not start with a dot or contain `..`, so it cannot leave
-    its folder (`logs/`, `params/`) whatever the user types."""
-    if not isinstance(name, str) or not FILE_NAME.fullmatch(name) or ".." in name:
-        raise ParameterError(
-            key, f"must be a plain file name (letters, digits, _ - .; no folders), got {name!r}"
-        )
-    return name
-
-
-def check_variables(key: str, names: Sequence[str]) -> tuple[str, ...]:
-    """Log columns: a non-empty, repeat-free choice from :data:`LOG_VARIABLES`."""
-    names = tuple(names)
-    bad = [n for n in names if n not in LOG_VARIABLES]
-    if not names or bad or len(set(names)) != len(names):
-        why = f"unknown {' '.join(bad)}" if bad else ("none given" if not names else "a name is repeated")
-        raise ParameterError(key, f"must be distinct names from {' '.join(LOG_VARIABLES)} ({why})")
-    return names
 
 
 def check_period(section: str, ref: WaveParams, tsamp_ms: float) -> None:

@@ -1,12 +1,12 @@
 """Limits and names every part of the parameter model shares.
 
 Kept apart from the dataclasses and the key table so that both can import them
-without importing each other.
+without importing each other.  The names of files and screens (log columns, plot
+types, file names) are not here: they belong to files (quadtank_tui.files.names).
 """
 
 from __future__ import annotations
 
-import re
 from enum import Enum
 
 
@@ -29,15 +29,9 @@ POINTS_MAX = 100_000
 #: positive number used to pass, and 4.9e-324 then failed in plant() with no file,
 #: line or key (its outlet area underflowed to 0).
 OP_POINT_MIN = 0.001
-#: Columns a `.log` may hold, in the order the Logging window lists them.
-LOG_VARIABLES = ("t", "y1", "y2", "y3", "y4", "u1", "u2", "r1", "r2")
-#: Plot types of the two trends (thesis Figure 35).
-PLOT_TYPES = ("u1", "u2", "u1 u2", "y1 ref1", "y2 ref2", "y1 y2 ref1 ref2", "y1 y2 y3 y4")
 #: Largest magnitude accepted for a number without a narrower range (General
 #: coefficients): beyond it a value is a typo or junk, not a controller.
 MAX_ABS = 1e9
-
-FILE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]{0,99}")
 
 # --- section names of the `.par` file ----------------------------------------------
 

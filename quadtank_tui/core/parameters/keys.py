@@ -17,7 +17,6 @@ from quadtank_tui.core.parameters.checks import whole
 from quadtank_tui.core.parameters.constants import (
     CONTROLLER_SECTIONS,
     MAX_ABS,
-    PLOT_TYPES,
     REFERENCE_SECTIONS,
     STATEFB_SECTION,
     ControlMode,
@@ -145,8 +144,9 @@ def _build_keys() -> tuple[KeySpec, ...]:
         KeySpec("LOGGING", "Points", Kind.INTEGER, ("logging", "points")),
         KeySpec("LOGGING", "LogFile", Kind.NAME, ("logging", "log_file")),
         KeySpec("LOGGING", "Variables", Kind.NAMES, ("logging", "variables")),
-        KeySpec("PLOTS", "Upper", Kind.CHOICE, ("plots", "upper"), PLOT_TYPES),
-        KeySpec("PLOTS", "Lower", Kind.CHOICE, ("plots", "lower"), PLOT_TYPES),
+        # The plot types are the screens' (quadtank_tui.files.names.PLOT_TYPES): text here.
+        KeySpec("PLOTS", "Upper", Kind.NAME, ("plots", "upper")),
+        KeySpec("PLOTS", "Lower", Kind.NAME, ("plots", "lower")),
     ]
     sf: tuple[str | int, ...] = ("statefb",)
     keys += [

@@ -8,16 +8,9 @@ from typing import Any, Iterable, Mapping
 
 from quadtank_tui.core.general import GeneralParams
 from quadtank_tui.core.matrix import Family, Structure
-from quadtank_tui.core.parameters.checks import (
-    check_file_name,
-    check_period,
-    check_variables,
-    enum_value,
-    integer,
-)
+from quadtank_tui.core.parameters.checks import check_period, enum_value, integer
 from quadtank_tui.core.parameters.constants import (
     OP_POINT_MIN,
-    PLOT_TYPES,
     POINTS_MAX,
     POINTS_MAX_ORIGINAL,
     REFERENCE_SECTIONS,
@@ -157,7 +150,11 @@ class SimulationSettings:
 @dataclass(frozen=True)
 class LoggingSettings:
     """LOGGING section: how many points LogOn collects, the file name (without
-    `.log`), and the logged columns in order."""
+    `.log`), and the logged columns in order.
+
+    Which names a file name and the columns may be is the files' business
+    (quadtank_tui.files.names.check_names, applied wherever they come in); here
+    they are text."""
 
     points: int = POINTS_MAX_ORIGINAL
     log_file: str = "data"
@@ -165,13 +162,18 @@ class LoggingSettings:
 
     def __post_init__(self) -> None:
         integer("Points", self.points, 1, POINTS_MAX)
-        check_file_name(self.log_file)
-        check_variables("Variables", self.variables)
+        if not isinstance(self.log_file, str) or not self.log_file:
+            raise ParameterError("LogFile", f"must be a file name, got {self.log_file!r}")
+        if not isinstance(self.variables, tuple) or not self.variables or not all(
+                isinstance(v, str) for v in self.variables):
+            raise ParameterError("Variables", f"must be one or more names, got {self.variables!r}")
 
 
 @dataclass(frozen=True)
 class PlotSettings:
-    """PLOTS section: the plot type of the upper and lower trend (thesis Fig. 35)."""
+    """PLOTS section: the plot type of the upper and lower trend (thesis Fig. 35),
+    as text with single spaces; the list of plot types is the screens'
+    (quadtank_tui.files.names.PLOT_TYPES, checked wherever a value comes in)."""
 
     upper: str = "u1 u2"
     lower: str = "y1 y2 ref1 ref2"
@@ -179,10 +181,9 @@ class PlotSettings:
     def __post_init__(self) -> None:
         for attr, key in (("upper", "Upper"), ("lower", "Lower")):
             value = getattr(self, attr)
-            text = " ".join(value.split()) if isinstance(value, str) else value
-            if text not in PLOT_TYPES:
-                raise ParameterError(key, f"must be one of {', '.join(PLOT_TYPES)}; got {value!r}")
-            object.__setattr__(self, attr, text)
+            if not isinstance(value, str) or not value.split():
+                raise ParameterError(key, f"must be a plot type, got {value!r}")
+            object.__setattr__(self, attr, " ".join(value.split()))
 
 
 @dataclass(frozen=True)

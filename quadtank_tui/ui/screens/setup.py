@@ -33,7 +33,8 @@ from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.setup_tables import ControllerTable, ParamTable, ProcessTable, ReferenceTable
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow
-from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, type_modified
+from quadtank_tui.ui.labels import type_modified
+from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow
 from quadtank_tui.ui.windows.statefb import StateFeedbackWindow
 from quadtank_tui.ui.windows.par_files import ParFileWindow
 from quadtank_tui.ui.windows.pid_extras import PIDExtrasWindow

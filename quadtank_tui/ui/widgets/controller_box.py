@@ -21,7 +21,7 @@ from textual.widgets import Static
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Parameters
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fmt
-from quadtank_tui.ui.windows.controller import ELEMENT_NAMES, TYPES, type_index, type_modified
+from quadtank_tui.ui.labels import ELEMENT_NAMES, TYPES, type_index, type_modified
 
 if TYPE_CHECKING:  # scipy behind it: the Main screen starts without the analysis stack
     from quadtank_tui.core.statefb.quadtank import StateFeedbackInfo

@@ -18,7 +18,7 @@ from quadtank_tui.core.parameters import REFERENCE_SECTIONS, Parameters
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fixed, fmt
-from quadtank_tui.ui.windows.signals import channel_label
+from quadtank_tui.ui.labels import channel_label
 
 #: Nudge steps, normalized (0.01 = 0.1 V = 0.2 cm at the sensor).
 NUDGE = 0.01

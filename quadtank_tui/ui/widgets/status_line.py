@@ -21,7 +21,7 @@ from textual.reactive import reactive
 from textual.widget import Widget
 
 from quadtank_tui.engine.snapshot import Snapshot
-from quadtank_tui.ui.windows.logging import log_state
+from quadtank_tui.ui.labels import log_state
 
 #: (key, action, label, is-current test) of the clickable mode words.
 _MODES = (

@@ -10,36 +10,11 @@ from textual.widgets import Button, Input, Label, OptionList
 from textual.widgets.option_list import Option
 
 from quadtank_tui.core.general import MAX_DEGREE
-from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Family, Parameters, Structure
+from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Family, Parameters
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import ResetControllers, SetParams
+from quadtank_tui.ui.labels import ELEMENT_NAMES, TYPES, type_index
 from quadtank_tui.ui.windows.base import Commands, Field, ParamWindow, Window
-
-#: Element index 0..3 -> its name in the matrix (row = input i, column = error j).
-ELEMENT_NAMES = ("11", "12", "21", "22")
-
-#: The four structures and the state feedback (one type on all four levels, whatever
-#: the structure), in the order the Type window lists them.
-TYPES: tuple[tuple[Family, Structure, str], ...] = (
-    (Family.PID, Structure.DECENTRALIZED, "PID decentralized"),
-    (Family.PID, Structure.FULL_MATRIX, "PID full matrix"),
-    (Family.GENERAL, Structure.DECENTRALIZED, "General decentral."),
-    (Family.GENERAL, Structure.FULL_MATRIX, "General full matrix"),
-    (Family.STATE_FEEDBACK, Structure.DECENTRALIZED, "State feedback"),
-)
-
-
-def type_index(p: Parameters) -> int:
-    """The row of TYPES the parameters' family and structure are."""
-    c = p.control
-    return next(n for n, (f, s, _) in enumerate(TYPES)
-                if f is c.family and (s is c.structure or f is Family.STATE_FEEDBACK))
-
-
-def type_modified(p: Parameters, defaults: Parameters) -> bool:
-    """Whether the controller type differs from the default (shown dim italic)."""
-    return p.is_modified("CONTROL.Type", defaults) or p.is_modified("CONTROL.Structure", defaults)
-
 
 def element_ij(index: int) -> tuple[int, int]:
     """Element 0..3 as (i, j), 1-based, as ResetControllers wants it."""

@@ -18,10 +18,12 @@ from textual.containers import Horizontal
 from textual.reactive import reactive
 from textual.widgets import Button, Checkbox, Input, Label, ProgressBar, Static
 
-from quadtank_tui.core.parameters import LOG_VARIABLES, POINTS_MAX, Parameters, check_file_name
+from quadtank_tui.core.parameters import POINTS_MAX, Parameters
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import Command, LogDiscard, LogOff, LogOn, LogSave, SetParams
-from quadtank_tui.engine.snapshot import LogStatus, Snapshot
+from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.files.names import LOG_VARIABLES, check_file_name
+from quadtank_tui.ui.labels import log_state
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Check
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Commands, ConfirmWindow, Window, free_log_name
@@ -42,17 +44,6 @@ def name_problem(name: str) -> str | None:
     except ParameterError as exc:
         return exc.reason
     return None
-
-
-def log_state(log: LogStatus) -> str:
-    """One line on what the logger is doing (the window and the status line)."""
-    if log.active:
-        return f"logging {log.rows}/{log.points}"
-    if log.unsaved:
-        return f"{log.rows} rows not saved"
-    if log.saved_path:
-        return f"saved {log.saved_path}"
-    return "off"
 
 
 class LoggingWindow(Window[Commands]):

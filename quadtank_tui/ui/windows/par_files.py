@@ -20,7 +20,7 @@ from textual.content import Content
 from textual.widgets import Button, Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
-from quadtank_tui.core.parameters import check_file_name
+from quadtank_tui.files.names import check_file_name
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import LoadPar, SavePar
 from quadtank_tui.files.par import RESERVED, SUFFIX

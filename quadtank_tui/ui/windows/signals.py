@@ -8,16 +8,13 @@ from textual.binding import Binding
 from textual.widgets import Label, OptionList
 from textual.widgets.option_list import Option
 
-from quadtank_tui.core.parameters import PLOT_TYPES, REFERENCE_SECTIONS, Parameters
+from quadtank_tui.core.parameters import REFERENCE_SECTIONS, Parameters
 from quadtank_tui.engine.commands import SetParams
+from quadtank_tui.files.names import PLOT_TYPES
+from quadtank_tui.ui.labels import channel_label
 from quadtank_tui.ui.values import fmt
 from quadtank_tui.ui.windows.base import Commands, Field, ParamWindow, Window
 from quadtank_tui.ui.windows.wave import period_unit
-
-
-def channel_label(channel: int, control: str) -> str:
-    """u1/u2 in Manual, ref1/ref2 in Automatic: what the generator drives (M3-M4)."""
-    return f"u{channel}" if control == "Manual" else f"ref{channel}"
 
 
 class InputSignalWindow(ParamWindow):
