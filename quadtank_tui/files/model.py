@@ -31,12 +31,15 @@ from typing import TYPE_CHECKING, Any
 
 from quadtank_tui.core.delaytf import DelayTF, ModelError
 from quadtank_tui.files.atomic import atomic_write_text
+from quadtank_tui.files.regular import read_regular
 
 if TYPE_CHECKING:
     from quadtank_tui.core.identify.experiment import Identification
 
 FORMAT = "quadtank-model"
 VERSION = 1
+#: A model file is a few kilobytes; anything far larger is not one.
+MAX_BYTES = 1_000_000
 SUFFIX = ".model.json"
 
 
@@ -117,11 +120,17 @@ def read_model(path: Path | str) -> ModelFile:
     """Read and check a model file; every problem is one ModelFileError line."""
     name = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        data = read_regular(path, MAX_BYTES)  # a FIFO or a device is refused, never read
     except FileNotFoundError:
         raise ModelFileError(name, "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ModelFileError(name, f"cannot read: {exc}") from None
+    except OSError as exc:
+        raise ModelFileError(name, f"cannot read: {exc.strerror or exc}") from None
+    if len(data) > MAX_BYTES:
+        raise ModelFileError(name, f"larger than {MAX_BYTES} bytes: not a model file")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise ModelFileError(name, "not UTF-8 text: not a model file") from None
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:

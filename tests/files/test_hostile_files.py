@@ -32,6 +32,9 @@ READERS = {
     "log export": ["log", "export", "{}", "--to", "csv", "--out", "{log}.csv"],
     "tui --par": ["--par", "{}"],
     "tui --daq": ["--daq", "{}"],
+    "design --par": ["design", "--par", "{}", "--no-step"],
+    "design --model-file": ["design", "--model-file", "{}", "--no-step"],
+    "icad --par": ["icad", "--par", "{}"],
 }
 YAML_READERS = ("run --script", "run --daq", "daq check", "rig --map")
 DAQ_READERS = ("run --daq", "daq check", "rig --map", "tui --daq")
