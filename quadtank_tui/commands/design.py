@@ -15,6 +15,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from quadtank_tui.commands import warn
+
 METHODS = ("lambda", "pi-ms", "pid-ms")
 
 
@@ -155,7 +157,11 @@ def _run_2x2(args: argparse.Namespace) -> int:
         raise ValueError("--evaluate-on is for --model; --par and --model-file check the 2x2 loop itself")
     if args.write_par and args.par is None:
         raise ValueError("--write-par with --model-file needs --par FILE for the other parameters")
-    params = read_par(args.par).params if args.par is not None else None
+    params = None
+    if args.par is not None:
+        read = read_par(args.par)
+        warn(read.warnings)  # unknown keys or sections: said, as every command that reads a .par does
+        params = read.params
     if args.model_file is not None:
         G = identified_matrix(args.model_file)
         source = f"{args.model_file}: identified model"

@@ -223,7 +223,9 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
     if args.par is not None:
         from quadtank_tui.files.par import read_par
 
-        plant = read_par(args.par).params.plant()
+        read = read_par(args.par)
+        warn(read.warnings)
+        plant = read.params.plant()
     if args.pairs is not None:
         pairs = read_pairs(args.pairs)
     else:

@@ -121,3 +121,14 @@ def test_model_file_without_par_designs_and_checks(tmp_path: Path, capsys: pytes
     assert out.startswith(f"{whole}: identified model, method lambda")
     assert "lambda11(0) = 1.333" in out and "loop 2 on g22: Kc=1.923, Ti=62 " in out
     assert "closed loop stable" in out and "nonlinear simulator" not in out
+
+
+def test_design_par_prints_the_par_warnings_on_stderr(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """An unknown key in the .par is kept and said (as run, analyze and icad say it);
+    design --par used to drop the warning."""
+    par = tmp_path / "mine.par"
+    par.write_text((PARAMS / "minphase.par").read_text() + "\nCONTROL\nFoo 1\n")
+    assert main(["design", "--par", str(par), "--no-step"]) == 0
+    captured = capsys.readouterr()
+    assert f"quadtank: warning: {par}, line" in captured.err and "unknown key 'Foo' in CONTROL" in captured.err
+    assert "closed loop stable" in captured.out
