@@ -124,8 +124,13 @@ def channel_responses(G: LinearModel, k1: Rational, k2: Rational, w: np.ndarray)
 
 
 def _margins(f: Any, w: np.ndarray, c: np.ndarray) -> ChannelMargins:
-    """Crossovers refined by root finding on log|C| and on the unwrapped phase."""
-    mag = np.log(np.abs(c))
+    """Crossovers refined by root finding on log|C| and on the unwrapped phase.
+
+    A channel whose controller is zero (a .par with no PI on that loop, as the
+    shipped desautel-qtp.par) has C = 0: log|C| = -inf never crosses 0, so it has
+    no crossover, which is the answer; numpy is told not to warn about it."""
+    with np.errstate(divide="ignore"):
+        mag = np.log(np.abs(c))
     phase = np.unwrap(np.angle(c))
 
     def phase_at(x: float) -> float:  # the branch of the nearest grid point

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -113,3 +114,17 @@ def test_analyze_table_of_the_two_input_rig(capsys: pytest.CaptureFixture[str]) 
     text = capsys.readouterr().out
     assert "Operating levels (m): H1=0.115  H2=0.071" in text
     assert "RGA at s = 0:" in text
+
+
+def test_a_par_without_controllers_has_no_crossover_and_no_numpy_warning(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """desautel-qtp.par has no PI on either loop (k1 = k2 = 0): both channels are
+    zero, so neither has a crossover; numpy's "divide by zero encountered in log"
+    (log|C| of C = 0) used to reach the user's terminal."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = icad_json(capsys, "--par", str(PARAMS / "desautel-qtp.par"))
+    assert out["crossover"] == [None, None] and out["phase_margin_deg"] == [None, None]
+    assert out["gain_margin"] == [None, None]
+    assert out["closed_loop_stable"] is True
+    assert capsys.readouterr().err == ""
