@@ -52,8 +52,7 @@ def test_analyze_par_warns_about_unknown_keys(tmp_path: Path, capsys: pytest.Cap
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(argv: list[str], message: str, capsys: pytest.CaptureFixture[str],
-                                          monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.chdir(ROOT)
+                                          in_params_copy: Path) -> None:
     argv = [a.replace("PARAMS", "params") for a in argv]
     assert main(argv) == 2
     assert capsys.readouterr().err == message.replace("PARAMS", "params")

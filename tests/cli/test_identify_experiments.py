@@ -5,6 +5,8 @@ identified with `quadtank identify`: the figures the issue asks for."""
 from __future__ import annotations
 
 import json
+import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -27,9 +29,8 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     out = tmp_path_factory.mktemp("identify")
     made = {}
     cwd = Path.cwd()
-    import os
-
-    os.chdir(ROOT)
+    shutil.copytree(ROOT / "params", out / "params")  # run from a copy, never from the checkout
+    os.chdir(out)
     try:
         for s in PAR:
             for e in ("u1", "u2", "mimo"):

@@ -13,8 +13,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_runs_the_sample_session_and_prints_the_summary(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                        monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.chdir(ROOT)  # params/ holds default.par and minphase.par
+                                                        in_params_copy: Path) -> None:
+    # the working directory holds a copy of params/ (default.par, minphase.par)
     out = tmp_path / "a4.log"
     code = main(["run", "--par", "minphase", "--script", "params/sample_session.yaml",
                  "--duration", "1200", "--log", str(out), "--seed", "7"])

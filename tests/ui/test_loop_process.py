@@ -6,6 +6,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import pytest
 from conftest import make_app, write_params
 from textual.pilot import Pilot
 
@@ -14,6 +15,8 @@ from quadtank_tui.engine.process import EngineProcess
 from quadtank_tui.engine.runner import engine_spec
 from quadtank_tui.ui.widgets.controller_box import ElementCell
 from quadtank_tui.ui.widgets.trends import Trend
+
+pytestmark = pytest.mark.wallclock  # the TUI on a real loop process
 
 
 async def wait_until(pilot: Pilot, condition, timeout: float = 20.0) -> None:  # type: ignore[no-untyped-def]

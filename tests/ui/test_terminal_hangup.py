@@ -27,12 +27,13 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and Linux ptys")
+pytestmark = [pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and Linux ptys"),
+              pytest.mark.wallclock]
 
 ROOT = Path(__file__).parents[2]
 #: Seconds the tree may take to go once the terminal is gone (the program's own bound
 #: is about 1 s; the rest is margin for a loaded 2-core machine).
-GONE_WITHIN = 4.0
+GONE_WITHIN = 15.0
 #: Seconds the TUI may take to start (Textual, and a loop process that imports numpy).
 START_WITHIN = 90.0
 
@@ -311,7 +312,7 @@ def test_exit_is_prompt_with_a_hung_device(tmp_path: Path) -> None:
         assert tui.proc.wait(timeout=30) == 0
         took = time.monotonic() - t0
         print(f"Exit with a hung device took {took:.2f} s")
-        assert took < 5.0
+        assert took < 10.0  # it took 20-30 s; room for a loaded machine
         time.sleep(0.2)
         assert b"Traceback" not in tui.output and b"NoMatches" not in tui.output
     finally:

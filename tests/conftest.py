@@ -1,0 +1,38 @@
+"""Fixtures every test folder may use."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: Fixtures that run a real device, link or process: a test using one is on the wall clock.
+WALLCLOCK_FIXTURES = frozenset({"rig", "link_proxy", "device", "silent_device"})
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark `wallclock` every test that uses a real device (tests/daq/conftest.py);
+    modules on the wall clock for other reasons say so with `pytestmark`."""
+    for item in items:
+        if WALLCLOCK_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.wallclock)
+
+
+def copy_params(folder: Path) -> Path:
+    """A private copy of the repository's params/ (and an empty logs/) in `folder`:
+    a test that runs a command the way a user does, from a folder holding params/,
+    neither depends on nor writes into the checkout (issue 18)."""
+    shutil.copytree(ROOT / "params", folder / "params")
+    (folder / "logs").mkdir(exist_ok=True)
+    return folder
+
+
+@pytest.fixture
+def in_params_copy(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """The working directory is a folder with a copy of params/ (see copy_params)."""
+    folder = copy_params(tmp_path / "work")
+    monkeypatch.chdir(folder)
+    return folder
