@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import os
 import signal
 import sys
 import threading
@@ -145,6 +146,16 @@ def _cmd_log_info(args: argparse.Namespace) -> int:
     return 0
 
 
+def _same_file(a: str, b: str) -> bool:
+    """Whether two paths name one file (a link too); a path that cannot be looked
+    up (missing, a symlink loop) is not the log.  Path.resolve() raised RuntimeError
+    on a symlink loop, a traceback instead of an error line."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
 def _cmd_log_export(args: argparse.Namespace) -> int:
     from quadtank_tui.files.export import export_log
     from quadtank_tui.files.log import read_log
@@ -152,7 +163,7 @@ def _cmd_log_export(args: argparse.Namespace) -> int:
     log = read_log(args.file)
     warn(log.warnings)
     out = args.out or str(Path(args.file).with_suffix("." + args.to))
-    if Path(out).resolve() == Path(args.file).resolve():
+    if _same_file(out, args.file):
         raise UsageError(f"{out}: the export would overwrite the log itself; give --out")
     try:
         print(export_log(log, out, args.to, overwrite=args.force))

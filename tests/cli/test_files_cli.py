@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from pathlib import Path
 
 import pytest
@@ -128,3 +129,20 @@ def test_log_export_overwrites_only_with_force(tmp_path: Path, capsys: pytest.Ca
     assert out.read_text() == "my notes\n" and sorted(os.listdir(tmp_path)) == ["mine.csv"]
     assert main(["log", "export", str(THESIS_LOG), "--to", "csv", "--out", str(out), "--force"]) == 0
     assert out.read_text().startswith("y1,y2,u1,u2\n0.62207,")
+
+
+def test_log_export_to_a_symlink_loop_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Found by benchmarks/hardening.py (hostile paths): --out naming a symlink loop
+    raised RuntimeError from Path.resolve(), a traceback; a link to the log itself is
+    still recognised as the log."""
+    log = tmp_path / "a.log"
+    shutil.copy(THESIS_LOG, log)
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)
+    assert main(["log", "export", str(log), "--to", "csv", "--out", str(loop)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("quadtank: error: ") and "loop" in err and err.count("\n") == 1, err
+    link = tmp_path / "link.log"
+    link.symlink_to(log)
+    assert main(["log", "export", str(log), "--to", "csv", "--out", str(link), "--force"]) == 2
+    assert "the export would overwrite the log itself" in capsys.readouterr().err
