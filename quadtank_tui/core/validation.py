@@ -17,13 +17,28 @@ class ParameterError(ValueError):
         self.reason = message
 
 
+def is_finite_number(value: object) -> bool:
+    """A real number (not a bool) that is a finite float: False for NaN, inf and a
+    whole number too large for a float (math.isfinite raises OverflowError on it)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
 def check_number(field: str, value: object) -> float:
     """A finite real number (bool is refused: True is not a gain)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ParameterError(field, f"must be a number, got {value!r}")
-    if not math.isfinite(value):
+    try:
+        x = float(value)
+    except OverflowError:  # a whole number beyond any float (YAML reads 400 digits as an int)
+        raise ParameterError(field, f"must be a finite number, got a whole number of {len(str(abs(value)))} digits") from None
+    if not math.isfinite(x):
         raise ParameterError(field, f"must be a finite number, got {value!r}")
-    return float(value)
+    return x
 
 
 def check_range(

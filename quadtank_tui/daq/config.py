@@ -27,7 +27,6 @@ typo never silently leaves a default in force.
 from __future__ import annotations
 
 import copy
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -35,6 +34,7 @@ from typing import Any, Mapping
 import yaml
 
 from quadtank_tui.core.calibration import SensorCalibration
+from quadtank_tui.core.validation import is_finite_number
 from quadtank_tui.daq.registers import MAX_ADDRESS, TABLES, TYPES, WORD_ORDERS, Register
 from quadtank_tui.files.yamltext import parse_yaml, read_text
 
@@ -238,7 +238,7 @@ class _Validator:
 
     def number(self, key: str, value: Any, lo: float | None = None, hi: float | None = None,
                *, lo_open: bool = False) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if not is_finite_number(value):
             self.fail(key, f"must be a number, got {_show(value)}")
         x = float(value)
         if lo is not None and (x <= lo if lo_open else x < lo):

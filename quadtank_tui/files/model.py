@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from quadtank_tui.core.delaytf import DelayTF, ModelError
+from quadtank_tui.core.validation import is_finite_number
 from quadtank_tui.files.atomic import atomic_write_text
 from quadtank_tui.files.regular import read_regular
 
@@ -148,7 +149,7 @@ def read_model(path: Path | str) -> ModelFile:
     elements = tuple(tuple(_element(name, f"elements[{o}][{i}]", g) for i, g in enumerate(row))
                      for o, row in enumerate(rows))
     ts = data.get("sampling_time")
-    if ts is not None and (not isinstance(ts, (int, float)) or isinstance(ts, bool) or not ts > 0):
+    if ts is not None and (not is_finite_number(ts) or not ts > 0):
         raise ModelFileError(name, f"sampling_time must be a positive number of seconds, got {ts!r}")
     known = {"format", "version", "method", "logs", "sampling_time", "inputs", "outputs",
              "operating_point", "fit_percent", "elements"}
@@ -175,8 +176,8 @@ def _numbers(file: str, data: dict[str, Any], key: str) -> dict[str, float]:
     for k, x in v.items():
         if x is None:
             continue
-        if isinstance(x, bool) or not isinstance(x, (int, float)):
-            raise ModelFileError(file, f"{key}.{k} must be a number, got {x!r}")
+        if not is_finite_number(x):
+            raise ModelFileError(file, f"{key}.{k} must be a finite number, got {str(x)[:40]}")
         out[str(k)] = float(x)
     return out
 
@@ -188,12 +189,15 @@ def _element(file: str, where: str, g: Any) -> DelayTF | None:
         raise ModelFileError(file, f"{where} must be null or {{num, den, delay}}")
     try:
         num, den = _coeffs(g.get("num")), _coeffs(g.get("den"))
-        return DelayTF(num, den, float(g.get("delay", 0.0)))
+        delay = g.get("delay", 0.0)
+        if not is_finite_number(delay):
+            raise ValueError(f"delay must be a finite number of seconds, got {str(delay)[:40]}")
+        return DelayTF(num, den, float(delay))
     except (ModelError, TypeError, ValueError) as exc:
         raise ModelFileError(file, f"{where}: {exc}") from None
 
 
 def _coeffs(v: Any) -> tuple[float, ...]:
-    if not isinstance(v, list) or not v or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v):
-        raise ValueError("num and den must be non-empty lists of numbers")
+    if not isinstance(v, list) or not v or not all(is_finite_number(x) for x in v):
+        raise ValueError("num and den must be non-empty lists of finite numbers")
     return tuple(float(x) for x in v)

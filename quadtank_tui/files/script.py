@@ -29,7 +29,6 @@ later) are checked when the event is applied, with the same naming.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -37,7 +36,7 @@ from typing import Any, Mapping
 import yaml
 
 from quadtank_tui.core.parameters import Kind, spec
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.validation import ParameterError, is_finite_number
 from quadtank_tui.files.names import check_names
 from quadtank_tui.files.yamltext import parse_yaml, read_text
 
@@ -109,7 +108,7 @@ def _event(file: str, item: Any, index: int, line: int) -> Event:
     if "at" not in item:
         raise fail("no 'at' (seconds since the start)")
     at = item["at"]
-    if isinstance(at, bool) or not isinstance(at, (int, float)) or not math.isfinite(at) or at < 0:
+    if not is_finite_number(at) or at < 0:
         raise fail(f"'at' must be a number of seconds >= 0, got {at!r}")
     actions = [k for k in item if k != "at"]
     unknown = [k for k in actions if k not in ACTIONS]
@@ -137,7 +136,7 @@ def _check_value(action: str, value: Any, fail: Any) -> Any:
         tank, amount = value["tank"], value["amount"]
         if isinstance(tank, bool) or tank not in (1, 2, 3, 4):
             raise fail(f"add_water.tank must be 1..4, got {tank!r}")
-        if isinstance(amount, bool) or not isinstance(amount, (int, float)) or not math.isfinite(amount):
+        if not is_finite_number(amount):
             raise fail(f"add_water.amount must be a number, got {amount!r}")
         return (int(tank), float(amount))
     if action == "fault":
@@ -162,7 +161,7 @@ def _fault(value: Any, fail: Any) -> tuple[str, int, float, bool]:
     if isinstance(target, bool) or not isinstance(target, int) or target < 1:
         raise fail(f"fault.target must be a whole number >= 1, got {target!r}")
     x = value.get("value", 0.0)
-    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+    if not is_finite_number(x):
         raise fail(f"fault.value must be a number, got {x!r}")
     on = value.get("on", True)
     on = {"on": True, "off": False}.get(on.strip().lower(), on) if isinstance(on, str) else on

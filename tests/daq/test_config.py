@@ -82,6 +82,7 @@ def test_a_file_overrides_one_key_of_the_preset() -> None:
         ("interlock:\n  limit: 1.5\n", 2, "interlock.limit", "<= 1"),
         ("interlock:\n  enabled: maybe\n", 2, "interlock.enabled", "true or false"),
         ("timeout: 0\n", 1, "timeout", "> 0"),
+        ("timeout: 1" + "0" * 400 + "\n", 1, "timeout", "must be a number"),  # an int no float holds
         ("preset: siemens\n", 1, "preset", "unknown preset"),
     ],
 )

@@ -48,6 +48,18 @@ def test_path_next_to_the_log() -> None:
      ' "elements": [[{"num": [1], "den": [1, 1], "delay": -1}]]}', "elements[0][0]: the delay"),
     ('{"format": "quadtank-model", "version": 1, "inputs": [], "outputs": ["y1"], "elements": []}',
      "inputs must be"),
+    # numbers no float holds (OverflowError, a traceback) and JSON's NaN/Infinity (accepted)
+    ('{"format": "quadtank-model", "version": 1, "inputs": ["u1"], "outputs": ["y1"],'
+     ' "elements": [[{"num": [1' + "0" * 400 + '], "den": [1, 1]}]]}', "lists of finite numbers"),
+    ('{"format": "quadtank-model", "version": 1, "inputs": ["u1"], "outputs": ["y1"],'
+     ' "elements": [[{"num": [1], "den": [NaN, 1]}]]}', "lists of finite numbers"),
+    ('{"format": "quadtank-model", "version": 1, "inputs": ["u1"], "outputs": ["y1"],'
+     ' "elements": [[{"num": [1], "den": [1, 1], "delay": Infinity}]]}', "delay must be a finite number"),
+    ('{"format": "quadtank-model", "version": 1, "inputs": ["u1"], "outputs": ["y1"],'
+     ' "elements": [[{"num": [1], "den": [1, 1]}]], "operating_point": {"u1": 1' + "0" * 400 + '}}',
+     "operating_point.u1 must be a finite number"),
+    ('{"format": "quadtank-model", "version": 1, "inputs": ["u1"], "outputs": ["y1"],'
+     ' "elements": [[{"num": [1], "den": [1, 1]}]], "sampling_time": Infinity}', "sampling_time must be"),
 ])
 def test_bad_files_are_one_clear_line(tmp_path: Path, text: str, reason: str) -> None:
     p = tmp_path / "bad.model.json"

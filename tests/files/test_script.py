@@ -55,3 +55,18 @@ def test_bad_scripts_are_refused_with_where_and_why(text: str, message: str) -> 
 def test_missing_file() -> None:
     with pytest.raises(ScriptError, match="nope.yaml: no such file"):
         read_script("nope.yaml")
+
+
+@pytest.mark.parametrize("text, message", [
+    ('- at: 0\n  set: {"REFERENCE ONE.Mean": 1' + "0" * 400 + "}\n",
+     "REFERENCE ONE.Mean: must be a finite number, got a whole number of 401 digits"),
+    ("- at: 1" + "0" * 400 + "\n  state: Run\n", "'at' must be a number of seconds >= 0"),
+    ("- {at: 0, add_water: {tank: 1, amount: 1" + "0" * 400 + "}}\n", "add_water.amount must be a number"),
+    ("- {at: 0, fault: {kind: leak, target: 1, value: 1" + "0" * 400 + "}}\n", "fault.value must be a number"),
+])
+def test_a_number_too_large_for_a_float_is_refused_not_a_traceback(text: str, message: str) -> None:
+    """Found by benchmarks/hardening.py (700 mutated scripts): YAML reads 400 digits as
+    an int, and math.isfinite raised OverflowError on it."""
+    with pytest.raises(ScriptError) as err:
+        parse_script(text, name="exp.yaml")
+    assert str(err.value).startswith("exp.yaml") and message in str(err.value)
