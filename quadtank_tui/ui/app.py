@@ -92,6 +92,16 @@ class QuadTankApp(OrderedKeys):
             self.screen.dismiss(None)
         else:
             self.push_screen(HelpScreen())
+
+    def action_command_palette(self) -> None:
+        """Textual's palette, once: with one open under Help (ctrl+p, F1, ctrl+p)
+        Textual pushed a second and the app died on the duplicate id (found by
+        benchmarks/hardening.py's random keys)."""
+        from textual.command import CommandPalette
+
+        if not any(isinstance(s, CommandPalette) for s in self.screen_stack):
+            super().action_command_palette()
+
     async def action_quit(self) -> None:
         """Textual's own quit (the palette's "Quit"): the same questions as Exit, so
         an unsaved log is never lost by the back door."""
