@@ -32,8 +32,8 @@ from typing import Any, Sequence
 
 import control
 import numpy as np
-from scipy.optimize import brentq
 
+from quadtank_tui.core.design.frequency import crossings, phase_crossings
 from quadtank_tui.core.plants.linear import LinearModel
 
 #: A SISO controller as (numerator, denominator) coefficients in s, highest power first.
@@ -138,21 +138,12 @@ def _margins(f: Any, w: np.ndarray, c: np.ndarray) -> ChannelMargins:
         p = float(np.angle(f(x)))
         return p + 2 * math.pi * round((ref - p) / (2 * math.pi))
 
-    crossings, margins = [], []
-    for i in np.nonzero(np.sign(mag[:-1]) * np.sign(mag[1:]) < 0)[0]:
-        wc = brentq(lambda x: math.log(abs(f(x))), w[i], w[i + 1], xtol=1e-14, rtol=1e-12)
-        crossings.append(wc)
-        pm = math.degrees(phase_at(wc)) + 180.0
-        margins.append((pm + 180.0) % 360.0 - 180.0)
-    phase_cross, gains = [], []
-    shifted = (phase + math.pi) / (2 * math.pi)  # integer where the phase is -180 (mod 360)
-    for i in np.nonzero(np.floor(shifted[:-1]) != np.floor(shifted[1:]))[0]:
-        k = max(math.floor(shifted[i]), math.floor(shifted[i + 1]))
-        target = 2 * math.pi * k - math.pi
-        wp = brentq(lambda x: phase_at(x) - target, w[i], w[i + 1], xtol=1e-14, rtol=1e-12)
-        phase_cross.append(wp)
-        gains.append(1.0 / abs(f(wp)))
-    return ChannelMargins(tuple(crossings), min(margins) if margins else None,
+    # the searches of core.design.frequency, on this channel's numerical phase
+    gain_cross = crossings(lambda x: math.log(abs(f(x))), w, mag)
+    margins = [((math.degrees(phase_at(wc)) + 180.0) + 180.0) % 360.0 - 180.0 for wc in gain_cross]
+    phase_cross = phase_crossings(phase_at, w, phase)
+    gains = [1.0 / abs(f(wp)) for wp in phase_cross]
+    return ChannelMargins(tuple(gain_cross), min(margins) if margins else None,
                           min(gains) if gains else math.inf, tuple(phase_cross))
 
 

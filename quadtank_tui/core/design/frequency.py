@@ -87,11 +87,25 @@ def sensitivity_peak(loop: DelayTF, w: np.ndarray) -> tuple[float, float]:
     return ms, wm
 
 
-def _crossings(f, w: np.ndarray, values: np.ndarray) -> list[float]:
-    """Roots of f on w where `values` (f on the grid) changes sign."""
+def crossings(f, w: np.ndarray, values: np.ndarray) -> list[float]:
+    """Roots of f on w where `values` (f on the grid) changes sign: with f = log|L|,
+    the gain crossovers (this module's margins and core.icad's channels)."""
     out = []
     for i in np.nonzero(np.sign(values[:-1]) * np.sign(values[1:]) < 0)[0]:
         out.append(brentq(f, w[i], w[i + 1], xtol=1e-14 * w[i], rtol=1e-12))
+    return out
+
+
+def phase_crossings(phase_at, w: np.ndarray, ph: np.ndarray, where: np.ndarray | None = None) -> list[float]:
+    """Frequencies where the continuous phase `ph` (phase_at on the grid, rad)
+    crosses -180 deg - k 360 deg, refined by root finding; `where` (one flag per
+    grid interval) keeps only some intervals."""
+    k = np.floor((ph + math.pi) / (2.0 * math.pi))
+    cross = np.diff(k) != 0
+    out = []
+    for i in np.nonzero(cross if where is None else cross & where)[0]:
+        target = -math.pi + 2.0 * math.pi * max(k[i], k[i + 1])
+        out.append(brentq(lambda v: float(phase_at(v)) - target, w[i], w[i + 1], xtol=1e-14 * w[i]))
     return out
 
 
@@ -139,20 +153,16 @@ def margins(loop: DelayTF, w: np.ndarray | None = None) -> Margins:
         ms = math.inf
     roots = (loop.zeros(), loop.poles())
     mag = np.abs(loop.freqresp(w))
-    gains = _crossings(lambda x: math.log(abs(loop.freqresp(x))), w, np.log(mag))
+    gains = crossings(lambda x: math.log(abs(loop.freqresp(x))), w, np.log(mag))
     pm, wc = math.inf, math.nan
     for x in gains:  # the smallest phase margin counts
         m = (math.degrees(float(phase(loop, x, roots))) + 180.0 + 180.0) % 360.0 - 180.0
         if m < pm:
             pm, wc = m, x
     ph = phase(loop, w, roots)
-    # phase crossings of -180 - k 360 deg where |L| > 1/MAX_GAIN_MARGIN
-    k = np.floor((ph + math.pi) / (2.0 * math.pi))
     am, wp = math.inf, math.nan
-    for i in np.nonzero((np.diff(k) != 0) & (mag[:-1] > 1.0 / MAX_GAIN_MARGIN))[0]:
-        target = -math.pi + 2.0 * math.pi * max(k[i], k[i + 1])
-        x = brentq(lambda v: float(phase(loop, v, roots)) - target, w[i], w[i + 1],
-                   xtol=1e-14 * w[i])
+    # phase crossings of -180 - k 360 deg where |L| > 1/MAX_GAIN_MARGIN
+    for x in phase_crossings(lambda v: phase(loop, v, roots), w, ph, mag[:-1] > 1.0 / MAX_GAIN_MARGIN):
         a = 1.0 / abs(loop.freqresp(x))
         if a < am:
             am, wp = a, x
