@@ -28,47 +28,31 @@ Example
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from quadtank_tui.core.plant import PlantError, PlantParams, time_constant
-from quadtank_tui.core.plants.linear import finite_zeros
-
-if TYPE_CHECKING:  # python-control (and the matplotlib it loads) costs ~1.3 s to import
-    import control
+from quadtank_tui.core.plants.linear import LinearModel, finite_zeros
 
 
-@dataclass(frozen=True)
-class LinearModel:
-    """State-space model in physical units (cm, V) about levels `h0`."""
-
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    D: np.ndarray
-    h0: tuple[float, float, float, float]
-    time_constants: tuple[float, float, float, float]
-
-    def ss(self) -> control.StateSpace:
-        """The python-control state-space object (inputs v1, v2; outputs y1, y2)."""
-        import control
-
-        return control.ss(
-            self.A, self.B, self.C, self.D,
-            inputs=["v1", "v2"], outputs=["y1", "y2"], states=["h1", "h2", "h3", "h4"],
-        )
-
-
-def linearize(p: PlantParams, h0: Sequence[float]) -> LinearModel:
-    """Jacobians of the nonlinear model about levels `h0` (cm); every level must be > 0."""
+def time_constants(p: PlantParams, h0: Sequence[float]) -> tuple[float, float, float, float]:
+    """T_i = (A_i/a_i) sqrt(2 h0_i / g), s, at levels `h0` (cm); every level must be > 0."""
     h0t = tuple(float(x) for x in h0)
     if len(h0t) != 4:
         raise PlantError("an operating point has four levels")
     for i, x in enumerate(h0t):
         if not 0.0 < x <= p.hmax:
             raise PlantError(f"operating level h{i + 1} must be in (0, {p.hmax:g}] cm, got {x:g}")
-    T = tuple(time_constant(p.area(i), p.outlet(i), h0t[i], p.g) for i in range(4))
+    T = [time_constant(p.area(i), p.outlet(i), h0t[i], p.g) for i in range(4)]
+    return (T[0], T[1], T[2], T[3])
+
+
+def linearize(p: PlantParams, h0: Sequence[float]) -> LinearModel:
+    """Jacobians of the nonlinear model about levels `h0` (cm), as the plant family's
+    LinearModel (core.plants.linear: states h1..h4, inputs v1, v2, outputs y1, y2 in
+    volts; x0 = h0); every level must be > 0."""
+    T = time_constants(p, h0)
     A = np.array([
         [-1 / T[0], 0.0, p.A3 / (p.A1 * T[2]), 0.0],
         [0.0, -1 / T[1], 0.0, p.A4 / (p.A2 * T[3])],
@@ -82,7 +66,8 @@ def linearize(p: PlantParams, h0: Sequence[float]) -> LinearModel:
         [(1 - p.gamma1) * p.k1 / p.A4, 0.0],
     ])
     C = np.array([[p.kc, 0.0, 0.0, 0.0], [0.0, p.kc, 0.0, 0.0]])
-    return LinearModel(A, B, C, np.zeros((2, 2)), h0t, T)  # type: ignore[arg-type]  # h0t, T: four each (len checked above)
+    return LinearModel.of(A, B, C, x0=tuple(float(x) for x in h0), u0=(), states=("h1", "h2", "h3", "h4"),
+                          inputs=("v1", "v2"), outputs=("y1", "y2"))
 
 
 @dataclass(frozen=True)
@@ -102,6 +87,7 @@ class Analysis:
     """What the Setup screen and `quadtank analyze` show about a setting."""
 
     model: LinearModel
+    time_constants: tuple[float, float, float, float]
     G: tuple[tuple[TransferElement, TransferElement], tuple[TransferElement, TransferElement]]
     static_gains: np.ndarray
     zeros: tuple[complex, ...]
@@ -109,14 +95,10 @@ class Analysis:
     rga: np.ndarray | None
     gamma_sum: float
 
-    @property
-    def time_constants(self) -> tuple[float, float, float, float]:
-        return self.model.time_constants
-
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: time constants (s), static gains (V/V), zeros [re, im], phase, RGA."""
         return {
-            "operating_levels_cm": list(self.model.h0),
+            "operating_levels_cm": list(self.model.x0),
             "time_constants": list(self.time_constants),
             "static_gains": self.static_gains.tolist(),
             "zeros": [[z.real, z.imag] for z in self.zeros],
@@ -148,7 +130,7 @@ def analyze(p: PlantParams, h0: Sequence[float]) -> Analysis:
     paper counts as nonminimum phase.
     """
     m = linearize(p, h0)
-    T = m.time_constants
+    T = time_constants(p, h0)
     c1, c2 = T[0] * p.kc / p.A1, T[1] * p.kc / p.A2
     G = (
         (TransferElement(p.gamma1 * p.k1 * c1, (T[0],)),
@@ -160,6 +142,7 @@ def analyze(p: PlantParams, h0: Sequence[float]) -> Analysis:
     gsum = p.gamma1 + p.gamma2
     return Analysis(
         model=m,
+        time_constants=T,
         G=G,
         static_gains=G0,
         zeros=transmission_zeros(m),
@@ -175,7 +158,7 @@ def zeros_from_valves(p: PlantParams, h0: Sequence[float]) -> tuple[float, float
     """
     if p.gamma1 <= 0 or p.gamma2 <= 0:
         raise PlantError("the closed form needs gamma1, gamma2 > 0")
-    T = linearize(p, h0).time_constants
+    T = time_constants(p, h0)
     eta = (1 - p.gamma1) * (1 - p.gamma2) / (p.gamma1 * p.gamma2)
     r = np.roots([T[2] * T[3], T[2] + T[3], 1.0 - eta])
     lo, hi = sorted(float(x.real) for x in r)
@@ -185,7 +168,7 @@ def zeros_from_valves(p: PlantParams, h0: Sequence[float]) -> tuple[float, float
 def format_report(title: str, a: Analysis) -> str:
     """A readable table for the terminal (used by `quadtank analyze`)."""
     lines = [title, ""]
-    lines.append("Operating levels (cm):  " + "  ".join(f"h{i+1}={h:.2f}" for i, h in enumerate(a.model.h0)))
+    lines.append("Operating levels (cm):  " + "  ".join(f"h{i+1}={h:.2f}" for i, h in enumerate(a.model.x0)))
     lines.append("Time constants (s):     " + "  ".join(f"T{i+1}={T:.2f}" for i, T in enumerate(a.time_constants)))
     lines.append("")
     lines.append("Transfer matrix G(s) (V/V):")
@@ -212,5 +195,5 @@ def format_report(title: str, a: Analysis) -> str:
 
 __all__ = [
     "Analysis", "LinearModel", "TransferElement", "analyze", "format_report", "linearize",
-    "relative_gain_array", "transmission_zeros", "zeros_from_valves",
+    "relative_gain_array", "time_constants", "transmission_zeros", "zeros_from_valves",
 ]

@@ -123,3 +123,18 @@ def test_pencil_zeros_equal_python_controls(gammas: tuple[float, float]) -> None
     theirs = np.sort_complex(np.asarray(control.zeros(m.ss()), dtype=complex))
     assert len(ours) == len(theirs)
     assert ours == pytest.approx(theirs, rel=1e-9, abs=1e-12)
+
+
+def test_one_linear_model_class_for_the_quadruple_tank_and_the_plant_family() -> None:
+    """analysis.linearize gives core.plants.linear's LinearModel (issue 18 folded the
+    two classes): the same matrices as the plant family's linearization, named
+    signals, x0 the operating levels."""
+    from quadtank_tui.core import analysis
+    from quadtank_tui.core.plants.linear import LinearModel
+
+    m = linearize(P_MINUS.params, P_MINUS.op.h)
+    assert analysis.LinearModel is LinearModel and isinstance(m, LinearModel)
+    assert (m.states, m.inputs, m.outputs) == (("h1", "h2", "h3", "h4"), ("v1", "v2"), ("y1", "y2"))
+    assert m.x0 == tuple(P_MINUS.op.h)
+    assert [-1.0 / m.A[i, i] for i in range(4)] == pytest.approx(analyze(P_MINUS.params, P_MINUS.op.h).time_constants,
+                                                                 rel=1e-12)
