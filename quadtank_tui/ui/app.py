@@ -99,8 +99,10 @@ class QuadTankApp(OrderedKeys):
         benchmarks/hardening.py's random keys)."""
         from textual.command import CommandPalette
 
-        if not any(isinstance(s, CommandPalette) for s in self.screen_stack):
-            super().action_command_palette()
+        from quadtank_tui.ui.palette import Palette
+
+        if self.use_command_palette and not any(isinstance(s, CommandPalette) for s in self.screen_stack):
+            self.push_screen(Palette(id="--command-palette"))
 
     async def action_quit(self) -> None:
         """Textual's own quit (the palette's "Quit"): the same questions as Exit, so

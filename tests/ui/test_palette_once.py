@@ -19,3 +19,28 @@ async def test_ctrl_p_under_help_does_not_open_a_second_palette(engine) -> None:
         for _ in range(3):
             await pilot.press("escape")
         assert app.screen is app.main
+
+
+async def test_a_page_key_before_the_palette_list_is_laid_out_does_nothing(engine) -> None:  # type: ignore[no-untyped-def]
+    """Found by benchmarks/hardening.py's random keys: Textual's palette passed
+    pageup to its option list before the list had laid out its lines and the app
+    ended on `KeyError: 0` (OptionList._move_page).  The state that race leaves
+    (options, no lines) is made here directly."""
+    from textual.command import CommandList
+
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("ctrl+p")
+        await pilot.pause()
+        palette = app.screen
+        assert isinstance(palette, CommandPalette)
+        command_list = palette.query_one(CommandList)
+        command_list.add_option("x")
+        await pilot.pause()
+        command_list.highlighted = 0
+        await pilot.pause()
+        command_list._index_to_line.clear()  # as before the first layout
+        palette._action_command_list("page_up")
+        palette._action_command_list("page_down")
+        await pilot.pause()
+        assert app.is_running and app.screen is palette
