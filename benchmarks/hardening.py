@@ -228,6 +228,30 @@ def alias_bomb(levels: int = 9) -> str:
     return "\n".join(lines) + "\n"
 
 
+REFUSED = object()
+
+
+def read_mutant(t: Tally, data: Any, read: Callable[[Any], Any], error: type[Exception], name: str,
+                suffix: str) -> Any:
+    """`read(data)` judged: its result, REFUSED (a clean refusal that names the file
+    `name`), or None (a failure, recorded with the input)."""
+    t.ran += 1
+    try:
+        with deadline(30):
+            return read(data)
+    except error as exc:
+        if name not in str(exc):
+            t.fail("exit status", f"refusal does not name the file: {exc}", data, suffix)
+            return None
+        t.refused += 1
+        return REFUSED
+    except Hang as exc:
+        t.fail("hang", str(exc), data, suffix)
+    except Exception:
+        t.fail("traceback", traceback.format_exc(), data, suffix)
+    return None
+
+
 # --- .par files ------------------------------------------------------------------------------
 
 def campaign_par(t: Tally, n: int, rng: random.Random, work: Path, cli_every: int) -> None:
@@ -244,24 +268,11 @@ def campaign_par(t: Tally, n: int, rng: random.Random, work: Path, cli_every: in
     for k in range(n):
         text = mutate_lines(rng.choice(sources), rng, extra)
         data = text.encode("utf-8", "surrogateescape")
-        t.ran += 1
-        try:
-            with deadline(30):
-                read = parse_par(data, name="mutant.par")
-        except ParFileError as exc:
-            if not str(exc).startswith("mutant.par"):
-                t.fail("exit status", f"refusal does not name the file: {exc}", data, ".par")
-                continue
-            t.refused += 1
-            accepted = False
-        except Hang as exc:
-            t.fail("hang", str(exc), data, ".par")
+        read = read_mutant(t, data, lambda d: parse_par(d, name="mutant.par"), ParFileError, "mutant.par", ".par")
+        if read is None:
             continue
-        except Exception:
-            t.fail("traceback", traceback.format_exc(), data, ".par")
-            continue
-        else:
-            accepted = True
+        accepted = read is not REFUSED
+        if accepted:
             try:  # every value still valid: rebuild from scratch, write and read back, build the plant
                 p = read.params
                 again = PRESET.with_values(check_names(p.values()))
@@ -289,27 +300,16 @@ def campaign_scripts(t: Tally, n: int, rng: random.Random, work: Path) -> None:
     path = work / "mutant.yaml"
     for k in range(n):
         text = alias_bomb() if rng.random() < 0.01 else mutate_lines(rng.choice(sources), rng, YAML_EXTRA)
-        t.ran += 1
-        try:
-            with deadline(30):
-                script = parse_script(text, name="mutant.yaml")
-        except ScriptError as exc:
-            if not str(exc).startswith("mutant.yaml"):
-                t.fail("exit status", f"refusal does not name the file: {exc}", text, ".yaml")
-                continue
-            t.refused += 1
-            path.write_text(text, encoding="utf-8", errors="surrogateescape")
+        script = read_mutant(t, text, lambda d: parse_script(d, name="mutant.yaml"), ScriptError, "mutant.yaml",
+                             ".yaml")
+        if script is None:
+            continue
+        path.write_text(text, encoding="utf-8", errors="surrogateescape")
+        if script is REFUSED:
             o = call_main(["run", "--script", str(path), "--duration", "1", "--log", str(work / "s.log")], 60)
             judge_cli(t, o, (2,), "quadtank run --script (refused)", text, ".yaml")
             continue
-        except Hang as exc:
-            t.fail("hang", str(exc), text, ".yaml")
-            continue
-        except Exception:
-            t.fail("traceback", traceback.format_exc(), text, ".yaml")
-            continue
         t.accepted += 1
-        path.write_text(text, encoding="utf-8", errors="surrogateescape")
         log = work / f"s{k}.log"
         duration = min(120.0, max((e.at for e in script.events), default=0.0) + 10.0)
         o = call_main(["run", "--par", "minphase", "--script", str(path), "--duration", f"{duration:g}",
@@ -336,24 +336,14 @@ def campaign_daq(t: Tally, n: int, rng: random.Random, work: Path) -> None:
         r = rng.random()
         text = (alias_bomb() if r < 0.02 else "host: " + "[" * 500 + "]" * 500 + "\n" if r < 0.04
                 else mutate_lines(rng.choice(sources), rng, YAML_EXTRA))
-        t.ran += 1
-        try:
-            with deadline(30):
-                cfg = parse_daq_config(text, name="mutant-daq.yaml")
-        except DaqConfigError as exc:
-            if "mutant-daq.yaml" not in str(exc):
-                t.fail("exit status", f"refusal does not name the file: {exc}", text, ".yaml")
-                continue
-            t.refused += 1
+        cfg = read_mutant(t, text, lambda d: parse_daq_config(d, name="mutant-daq.yaml"), DaqConfigError,
+                          "mutant-daq.yaml", ".yaml")
+        if cfg is None:
+            continue
+        if cfg is REFUSED:
             path.write_text(text, encoding="utf-8", errors="surrogateescape")
             o = call_main(["daq", "check", str(path)], timeout=60)
             judge_cli(t, o, (2,), "quadtank daq check (refused)", text, ".yaml")
-            continue
-        except Hang as exc:
-            t.fail("hang", str(exc), text, ".yaml")
-            continue
-        except Exception:
-            t.fail("traceback", traceback.format_exc(), text, ".yaml")
             continue
         try:
             _check_config(cfg)
@@ -418,27 +408,13 @@ def _valid(params: Any) -> str:
 
 async def _burst(pilot: Any, keys: Sequence[str]) -> None:
     """Keys as they arrive over SSH: all queued before the app handles the first
-    (as tests/ui/bursts.py does), then until every key was handled."""
-    import unicodedata
+    (the pilot tests' helper, tests/ui/bursts.py)."""
+    if str(ROOT / "tests" / "ui") not in sys.path:
+        sys.path.insert(0, str(ROOT / "tests" / "ui"))
+    from bursts import burst
 
-    from textual import events
-    from textual.keys import REPLACED_KEYS, _character_to_key, _get_unicode_name_from_key
-
-    app = pilot.app
-    for key in keys:
-        if len(key) == 1 and not key.isalnum():
-            key = _character_to_key(key)
-        try:
-            char: str | None = unicodedata.lookup(_get_unicode_name_from_key(REPLACED_KEYS.get(key, key)))
-        except KeyError:
-            char = key if len(key) == 1 else None
-        if not app.is_running:
-            return
-        app._driver.send_message(events.Key(key, char))
-    for _ in range(400):
-        await pilot.pause()
-        if not getattr(app, "keys_pending", 0) or not app.is_running:
-            break
+    if pilot.app.is_running:
+        await burst(pilot, *keys)
 
 
 async def _keys(t: Tally, n: int, rng: random.Random, work: Path) -> None:
