@@ -1,13 +1,17 @@
-"""Textual's command palette, with one race closed.
+"""Textual's command palette, with two races closed (both found by
+benchmarks/hardening.py's random keys, each ending the app).
 
-Textual 8.2's palette passes page keys to its option list before the list has laid
-out its lines, and OptionList._move_page then fails with KeyError (found by
-benchmarks/hardening.py: random keys, the app ended on `KeyError: 0`).  A page key
-that comes too early does nothing, as it does on an empty list."""
+- Textual 8.2's palette passes page keys to its option list before the list has
+  laid out its lines, and OptionList._move_page fails with `KeyError: 0`: a page key
+  that comes too early does nothing, as it does on an empty list.
+- Its command-gathering worker can start after the palette lost its children (the
+  palette closed by the next keys) and fails with `NoMatches: CommandList`: a
+  palette that is no longer there gathers nothing."""
 
 from __future__ import annotations
 
-from textual.command import CommandPalette
+from textual import work
+from textual.command import CommandList, CommandPalette
 
 
 class Palette(CommandPalette):
@@ -18,3 +22,9 @@ class Palette(CommandPalette):
             super()._action_command_list(action)
         except (KeyError, IndexError):  # the list's lines are not laid out yet
             pass
+
+    @work(exclusive=True, group=CommandPalette._GATHER_COMMANDS_GROUP)
+    async def _gather_commands(self, search_value: str) -> None:
+        if not self.is_attached or not self.query(CommandList):
+            return
+        await CommandPalette._gather_commands.__wrapped__(self, search_value)  # type: ignore[attr-defined]

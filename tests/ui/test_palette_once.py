@@ -44,3 +44,22 @@ async def test_a_page_key_before_the_palette_list_is_laid_out_does_nothing(engin
         palette._action_command_list("page_down")
         await pilot.pause()
         assert app.is_running and app.screen is palette
+
+
+async def test_the_gathering_worker_of_a_palette_without_its_list_does_nothing(engine) -> None:  # type: ignore[no-untyped-def]
+    """Found by benchmarks/hardening.py's random keys (11,724; `ctrl+p` then keys that
+    closed it): Textual's command-gathering worker ran after the palette had lost its
+    list and the app ended on `WorkerFailed: NoMatches: CommandList`."""
+    from textual.command import CommandList
+
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("ctrl+p")
+        await pilot.pause()
+        palette = app.screen
+        assert isinstance(palette, CommandPalette)
+        await palette.query_one(CommandList).remove()
+        worker = palette._gather_commands("x")
+        await worker.wait()
+        await pilot.pause()
+        assert app.is_running and worker.error is None
