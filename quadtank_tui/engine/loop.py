@@ -102,6 +102,9 @@ class ControlLoop:
         self.store = store if store is not None else ParStore(Path("params"))
         self.logs_dir = Path(logs_dir)
         self.sim = SimBackend.for_plant(params.process_plant(), params.process_levels())
+        refused = daq.plant_refused(params.process_plant()) if daq is not None else None
+        if refused is not None:
+            raise ValueError(refused)
         self.daq = daq
         self.backend: ProcessBackend = self.sim
         self.history = History(history_capacity)
@@ -331,6 +334,9 @@ class ControlLoop:
             tustin(e.general.numerator, e.general.denominator, h)
         changed = new.simulation != old.simulation or new.process != old.process
         plant = new.process_plant() if changed else None
+        refused = self.daq.plant_refused(plant) if plant is not None and self.daq is not None else None
+        if refused is not None:
+            raise ParameterError("PLANT.Kind", f"the DAQ is wired for another plant: {refused}")
         sf_design = self._statefb_for(new, old)
         # --- nothing below refuses ---
         if h != old.tsamp:
