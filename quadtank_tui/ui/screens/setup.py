@@ -37,6 +37,7 @@ from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWind
 from quadtank_tui.ui.windows.statefb import StateFeedbackWindow
 from quadtank_tui.ui.windows.par_files import ParFileWindow
 from quadtank_tui.ui.windows.pid_extras import PIDExtrasWindow
+from quadtank_tui.ui.windows.plant_setup import PlantSetupWindow
 from quadtank_tui.ui.windows.sampling import SamplingTimeWindow
 from quadtank_tui.ui.windows.tank_setup import TankSetupWindow
 from quadtank_tui.ui.windows.wave import WaveWindow
@@ -196,8 +197,18 @@ class SetupScreen(CommandSender):
         self.app.push_screen(window(index, p, self.defaults, opener=str(index + 1)), self.send_all)
 
     def action_tank(self, tank: int) -> None:
-        if tank in TANKS:
-            self.app.push_screen(TankSetupWindow(tank, self.current().params, self.defaults), self.send_all)
+        params = self.current().params
+        if params.process is not None:  # another plant: its values in one window
+            self.action_plant()
+        elif tank in TANKS:
+            self.app.push_screen(TankSetupWindow(tank, params, self.defaults), self.send_all)
+
+    def action_plant(self) -> None:
+        """The plant window of a plant other than the quadruple tank (its PLANT
+        section): operating levels and constants."""
+        params = self.current().params
+        if params.process is not None:
+            self.app.push_screen(PlantSetupWindow(params), self.send_all)
 
     def action_pump(self, pump: int) -> None:
         """A click on a pump of the operating-point image: its input is Main's."""
