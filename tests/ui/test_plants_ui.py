@@ -117,24 +117,31 @@ async def test_another_plants_table_opens_its_plant_window(make_engine) -> None:
         assert engine.sent(SetParams) == []
 
 
+async def open_plant_window(pilot, key: str):  # type: ignore[no-untyped-def]
+    """Setup, the process table, Enter: the plant window with the focus in `key`'s field."""
+    from quadtank_tui.ui.windows.plant_setup import PlantSetupWindow
+
+    await pilot.press("S")
+    await pilot.pause()
+    await pilot.press("h", "enter")
+    await pilot.pause()
+    window = pilot.app.screen
+    assert isinstance(window, PlantSetupWindow)
+    window.query_one(f"#f-{[k for k, _, _ in window.rows].index(key)}", Input).focus()
+    await pilot.pause()
+    return window
+
+
 async def test_typing_a_plant_value_sets_it_between_samples(make_engine) -> None:  # type: ignore[no-untyped-def]
     """Desautel's CTP: alpha1 typed as 0.0105; x2 follows at once in the window,
     (alpha1 / alpha2)^2 x1 = 16.9379 cm (2.1.6), and Set sends the one value; the
     running simulation takes the new orifice at the next sample."""
     from quadtank_tui.ui.screens.setup import SetupScreen
-    from quadtank_tui.ui.windows.plant_setup import PlantSetupWindow
 
     engine: Recording = make_engine(PLANT_SETTINGS["coupled-cascade"])
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.press("S")
-        await pilot.pause()
-        await pilot.press("h", "enter")
-        await pilot.pause()
-        window = app.screen
-        assert isinstance(window, PlantSetupWindow)
-        window.query_one("#f-2", Input).focus()  # alpha1 (after the two levels)
-        await pilot.pause()
+        window = await open_plant_window(pilot, "alpha1")
         await pilot.press(*"0.0105")
         await pilot.pause()
         assert window.query_one("#f-1", Input).value == "16.9379"
@@ -150,21 +157,12 @@ async def test_typing_a_plant_value_sets_it_between_samples(make_engine) -> None
 
 
 async def test_a_refused_plant_value_changes_nothing_and_says_why(make_engine) -> None:  # type: ignore[no-untyped-def]
-    from quadtank_tui.ui.windows.plant_setup import PlantSetupWindow
-
     engine: Recording = make_engine(PLANT_SETTINGS["coupled-tito"])
     before = engine.snapshot().params
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.press("S")
-        await pilot.pause()
-        await pilot.press("h", "enter")
-        await pilot.pause()
-        window = app.screen
-        assert isinstance(window, PlantSetupWindow)
+        window = await open_plant_window(pilot, "H3")
         h3 = [k for k, _, _ in window.rows].index("H3")
-        window.query_one(f"#f-{h3}", Input).focus()
-        await pilot.pause()
         await pilot.press(*"0.5", "enter")  # the drain above the brim (0.3 m)
         await pilot.pause()
         assert app.screen is window
