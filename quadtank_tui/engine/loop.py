@@ -344,7 +344,7 @@ class ControlLoop:
         plant = new.process_plant() if changed else None
         refused = _plant_refused(self.daq, plant) if plant is not None else None
         if refused is not None:
-            raise ParameterError("PLANT.Kind", f"the DAQ is wired for another plant: {refused}")
+            raise ParameterError("PLANT.Kind", refused)
         sf_design = self._statefb_for(new, old)
         # --- nothing below refuses ---
         if h != old.tsamp:

@@ -12,7 +12,7 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 
 from quadtank_tui.cli import main
-from quadtank_tui.core.plants import CoupledCascade, QuadTank
+from quadtank_tui.core.plants import CoupledCascade, CoupledTITO, QuadTank
 from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.registers import decode
@@ -72,6 +72,21 @@ def test_the_backend_reads_two_levels_and_drives_one_pump(rig: Callable, tmp_pat
     assert "wired for the coupled-cascade plant" in (backend.plant_refused(QuadTank()) or "")
 
 
+def test_the_two_input_rig_drives_both_pumps(rig: Callable, tmp_path: Path) -> None:
+    """Murray-Smith's rig: two levels in metres (y = Gd H / 10 V), two pumps."""
+    r = rig("--map", str(COUPLED_MAP), "--par", str(TITO_PAR), "--watchdog", "0", "--speed", "0.001")
+    backend = ModbusBackend(load_daq_config(coupled_map(tmp_path, r.port), CoupledTITO()))
+    try:
+        assert backend.read_levels() == pytest.approx((33.33 * 0.115 / 10, 33.33 * 0.071 / 10, 0.0, 0.0), abs=1e-5)
+        backend.write_pumps((0.3, 0.2))
+        dac = load_daq_config(COUPLED_MAP, CoupledTITO()).pump_output(1).register
+        words = holding(r.port, 1000, 4) or []
+        assert (decode(dac, words[:2]), decode(dac, words[2:])) == pytest.approx((3.0, 2.0), abs=1e-6)
+    finally:
+        backend.safe_state()
+        backend.close()
+
+
 def test_daq_check_reads_the_plants_channels(rig: Callable, tmp_path: Path,
                                              capsys: pytest.CaptureFixture[str]) -> None:
     """Two tanks of the two-input rig at Murray-Smith's operating point, in metres."""
@@ -129,3 +144,20 @@ def test_run_daq_with_a_four_tank_map_on_the_cascade_names_the_extra_keys(
     assert capsys.readouterr().err.strip() == (
         f"quadtank: error: {rig_map}:22: calibration.tank3: tank3, tank4, pump2 are extra: a coupled-cascade "
         "plant has 2 level channels (tank1, tank2) and 1 pump channel (pump1)")
+
+
+def test_loading_another_plants_par_under_a_daq_is_refused() -> None:
+    """The TUI on a quadruple-tank rig: params/coupled-cascade.par is refused with the
+    reason, and the parameters in use stay."""
+    from quadtank_tui.engine.commands import LoadPar
+
+    engine = build_engine(ROOT / "params" / "default.par", daq=ModbusBackend(load_daq_config("labjack")),
+                          clock="manual", threaded=False, params_dir=ROOT / "params")
+    before = engine.loop.params
+    result = engine.submit(LoadPar("coupled-cascade")).result()
+    assert not result.ok
+    assert result.message == (
+        "PLANT.Kind: preset labjack: wired for the quadtank plant, but the "
+        "plant in use is coupled-cascade: a coupled-cascade plant has 2 level channels (tank1, tank2) and 1 pump "
+        "channel (pump1); read the configuration for it")
+    assert engine.loop.params == before
