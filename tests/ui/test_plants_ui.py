@@ -156,6 +156,19 @@ async def test_typing_a_plant_value_sets_it_between_samples(make_engine) -> None
         assert engine.snapshot().params.process.levels == pytest.approx((15.0, 15 * (0.0105 / 0.0098811) ** 2))
 
 
+async def test_process_default_puts_the_published_plant_back(make_engine) -> None:  # type: ignore[no-untyped-def]
+    engine: Recording = make_engine(PLANT_SETTINGS["coupled-cascade"])
+    assert engine.submit(SetParams({"PLANT.alpha1": 0.0105, "PLANT.Level1": 12.0})).result().ok
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("S")
+        await pilot.pause()
+        await pilot.press("d")
+        await pilot.pause()
+        engine.run_for(0.2)
+        assert engine.snapshot().params.process == PLANT_SETTINGS["coupled-cascade"].process
+
+
 async def test_a_refused_plant_value_changes_nothing_and_says_why(make_engine) -> None:  # type: ignore[no-untyped-def]
     engine: Recording = make_engine(PLANT_SETTINGS["coupled-tito"])
     before = engine.snapshot().params
