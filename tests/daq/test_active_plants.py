@@ -161,3 +161,18 @@ def test_loading_another_plants_par_under_a_daq_is_refused() -> None:
         "plant in use is coupled-cascade: a coupled-cascade plant has 2 level channels (tank1, tank2) and 1 pump "
         "channel (pump1); read the configuration for it")
     assert engine.loop.params == before
+
+
+def test_the_tui_reads_its_daq_for_the_par_plant() -> None:
+    """`quadtank --par coupled-cascade.par --daq virtual-rig-coupled.yaml`: the loop
+    process gets the backend wired for the cascade and offers Active."""
+    from quadtank_tui.cli import build_parser, build_tui
+
+    args = ["--par", str(CASCADE_PAR), "--daq", str(COUPLED_MAP)]
+    engine, _app = build_tui(build_parser().parse_args(args))
+    try:
+        snap = engine.snapshot()
+        assert snap.active_available and snap.params.process is not None
+        assert snap.params.process.kind == "coupled-cascade"
+    finally:
+        engine.stop()
