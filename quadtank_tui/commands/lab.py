@@ -178,9 +178,13 @@ def cmd_lab_policy(args: argparse.Namespace) -> int:
     text = path.read_text(encoding="utf-8") if lab.source is not None else ""
     new = with_policy(text, policy)
     parse_lab_config(new, name=str(path), source=path)  # what is written must read back
-    if lab.source is None:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, new, encoding="utf-8")
+    try:
+        if lab.source is None:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(path, new, encoding="utf-8")
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot write the lab file: {exc.strerror or exc}; an administrator "
+                         "needs write access to it (or name another file with $QUADTANK_LAB)") from None
     print(f"{path}: unattended policy set")
     print(describe(policy, active=True))
     return 0

@@ -252,3 +252,22 @@ def test_the_tui_ends_when_its_rig_is_taken_over(tmp_path: Path, monkeypatch: py
     assert err.startswith(f"quadtank: stopped (pumps at 0): the rig at 127.0.0.1:{port}/1 was taken over by {ME}")
     assert taker[0].held  # the TUI's release on the way out left the new holder's lock alone
     taker[0].release()
+
+
+def test_a_terminated_run_gives_the_rig_back(rig: Callable, poll: Callable, tmp_path: Path) -> None:
+    """SIGTERM (systemd, kill): pumps at 0, rows kept, and the lock released, not left stale."""
+    r = rig()
+    cfg = config_for(tmp_path, r.port)
+    child = run_in_child(cfg, tmp_path / "first.log")
+    partial = tmp_path / "first.log.partial"
+    try:
+        assert poll(lambda: partial.exists() and read_log(partial).rows >= 3, 20.0)  # under way
+        assert holder_pid(r.port) == child.pid
+        child.terminate()
+        assert child.wait(10) == 143
+    finally:
+        child.kill()
+        child.communicate()
+    lock_file = load_lab_config().locks_dir / f"127.0.0.1_{r.port}_1.lock"
+    assert lock_file.read_text() == ""  # released, not merely stale
+    assert r.dacs() == (0.0, 0.0)

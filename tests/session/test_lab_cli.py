@@ -122,3 +122,21 @@ def test_a_broken_lab_file_is_one_line(lab_file: Path, capsys: pytest.CaptureFix
     assert main(["lab"]) == 2
     assert capsys.readouterr().err == (f"quadtank: error: {lab_file}:3: unattended.grace_minutes: must be a "
                                        "number of minutes 0..1440, got 'soon'\n")
+
+
+def test_an_unwritable_lab_file_is_one_line(tmp_path: Path, lab_file: Path, monkeypatch: pytest.MonkeyPatch,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """An administrator by group who may not write the file itself (root may write anything,
+    so the write is made to fail as the file system would)."""
+    from quadtank_tui.files import atomic
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise PermissionError(13, "Permission denied", str(lab_file))
+
+    monkeypatch.setattr(atomic, "atomic_write_text", refuse)
+    be(monkeypatch, "alice")
+    assert main(["lab", "policy", "--grace", "5"]) == 2
+    assert capsys.readouterr().err == (f"quadtank: error: {lab_file}: cannot write the lab file: Permission denied; "
+                                       "an administrator needs write access to it (or name another file with "
+                                       "$QUADTANK_LAB)\n")
+    assert lab_file.read_text() == LAB
