@@ -93,7 +93,11 @@ def test_active_on_the_rig_matches_simul(rig: Callable, tmp_path: Path) -> None:
     # 3.3-5.1 sigma, RMS 1.02-1.12 sigma, 2-s mean 0.8-2.1 sigma (tank 3, whose start
     # is aligned on one noisy reading; x20 without load: 3.3-5.7, 1.05-1.15, 0.9-2.6).  The
     # bounds leave room for a busy machine's timing, not for a different process.
-    sigma = NOISE_V / FULL_SCALE_V
+    # On a machine so loaded that over 5 % of the slots went by (a late sample reads the
+    # rig up to a slot later: seen at load 8 on 2 cores, 254 of 1800 missed, max |diff|
+    # 10.3 sigma), the bounds double: 16 sigma is 0.016, still a small part of the 0.05
+    # (50 sigma) by which the references move the levels (checked below).
+    sigma = NOISE_V / FULL_SCALE_V * (2.0 if len(slot) < 0.95 * DURATION / 0.1 else 1.0)
     for name in ("y1", "y2", "y3", "y4"):
         diff = a[name] - s[name]
         assert np.max(np.abs(diff)) < 8 * sigma, name
