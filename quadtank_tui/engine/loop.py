@@ -47,6 +47,7 @@ from quadtank_tui.engine.commands import (
     ResetControllers, SavePar, SetControlMode, SetDefaults, SetFault, SetOperation, SetParams, SetSpeed,
     SetState,
 )
+from quadtank_tui.engine.handle import SIGNALS
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, History
 from quadtank_tui.engine.jitter import JitterHistogram
 from quadtank_tui.engine.logsession import LogRefused, LogSession
@@ -270,6 +271,12 @@ class ControlLoop:
             self.on_publish(snap)
         return snap
 
+    @property
+    def missed(self) -> int:
+        """Sampling slots the driver's clock skipped before the last sample (it came
+        late); a real process's loop time passes over them (Engine.run_for)."""
+        return self._missed
+
     def record_timing(self, jitter: float, missed: int, wall: float) -> None:
         """The runner's measurement of the sample about to be done (LoopStats); the
         sample's snapshot carries it."""
@@ -285,6 +292,42 @@ class ControlLoop:
     def set_clock_info(self, realtime: bool, speed: float) -> None:
         self.realtime, self.speed = realtime, speed
         self._publish(replace(self._snapshot, realtime=realtime, speed=speed))
+
+    # --- the driver's hooks: the only ways the outside changes the loop but commands ---------
+
+    def attach_history(self, history: History) -> None:
+        """Keep the ring buffers in `history` from now on (shared memory the UI's
+        process reads), with the rows held so far copied over."""
+        kept = self.history.last()
+        for row in zip(*(kept[name] for name in SIGNALS)):
+            history.append(row)
+        self.history = history
+
+    def subscribe(self, on_publish: Callable[[Snapshot], None] | None) -> None:
+        """Hand every published snapshot to `on_publish` (None: to nobody)."""
+        self.on_publish = on_publish
+
+    def halt(self, reason: str) -> None:
+        """The driver itself failed: Pause, pumps safe, and `reason` shown as the fault."""
+        self.fault = reason
+        self.running = False
+        self._safe(self.backend)
+        self.publish()
+
+    def shut_down(self) -> None:
+        """The end of the run: Pause, both processes' pumps at 0, logging stopped (an
+        unsaved log stays as the partial file), a last snapshot, backends closed."""
+        self.running = False
+        backends = [b for b in (self.sim, self.daq) if b is not None]
+        for backend in backends:
+            self._safe(backend)
+        self.close_log()
+        self.publish()
+        for backend in backends:
+            try:
+                backend.close()
+            except Exception:  # noqa: BLE001 - closing a dead link must not hide the stop
+                pass
 
     # --- commands -----------------------------------------------------------------------
 

@@ -86,9 +86,9 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
         shared = SharedState.attach(shared_path, spec.history_capacity)
         shared.block.unlink()  # mapped on both sides now (and gone if the parent died)
         engine = assemble(spec, daq=daq_factory() if daq_factory is not None else None)
-        engine.loop.history = shared.history
+        engine.loop.attach_history(shared.history)
         writer = SnapshotWriter(shared)
-        engine.loop.on_publish = writer
+        engine.loop.subscribe(writer)
         if setup is not None:
             setup(engine)
         engine.loop.publish()

@@ -100,8 +100,6 @@ class Engine:
         self._stopping = False
         self._stopped = False
         self.crash: str | None = None
-        #: Sampling slots the clock skipped before the last sample (it came late).
-        self.missed = 0
         loop.set_clock_info(clock.realtime, clock.speed)
 
     # --- the EngineHandle read side -------------------------------------------------------
@@ -179,7 +177,6 @@ class Engine:
 
     def _sample(self) -> None:
         timing = self.clock.tick()
-        self.missed = timing.missed
         self.loop.record_timing(timing.jitter, timing.missed, timing.actual)
         self.loop.step()
 
@@ -212,7 +209,7 @@ class Engine:
             h = self.loop.h
             self.step()
             real = self.loop.backend is not self.loop.sim
-            elapsed.add(h, 1 + self.missed if real else 1)
+            elapsed.add(h, 1 + self.loop.missed if real else 1)
         return elapsed.samples
 
     # --- the thread --------------------------------------------------------------------------
@@ -237,8 +234,7 @@ class Engine:
             aloop.run_until_complete(self._main(ready))
         except Exception as exc:  # noqa: BLE001 - last line of defence: pumps safe, say why
             self.crash = f"{type(exc).__name__}: {exc}"
-            self.loop.fault = f"engine stopped: {self.crash}"
-            ControlLoop._safe(self.loop.backend)
+            self.loop.halt(f"engine stopped: {self.crash}")
         finally:
             ready.set()
             self._aloop = None
@@ -289,19 +285,7 @@ class Engine:
                 _, fut = self._pending.popleft()
                 if not fut.done():
                     fut.set_result(CommandResult.refused("the engine has stopped"))
-            loop = self.loop
-            loop.running = False
-            for backend in (loop.sim, loop.daq):
-                if backend is not None:
-                    ControlLoop._safe(backend)
-            loop.close_log()
-            loop.publish()
-            for backend in (loop.sim, loop.daq):
-                if backend is not None:
-                    try:
-                        backend.close()
-                    except Exception:  # noqa: BLE001 - closing a dead link must not hide the stop
-                        pass
+            self.loop.shut_down()
 
     def __enter__(self) -> Engine:
         return self
