@@ -67,7 +67,7 @@ def outside_writes(source: str, filename: str = "<source>") -> list[str]:
             flat.extend(t.elts if isinstance(t, (ast.Tuple, ast.List)) else [t])
         for t in flat:
             if isinstance(t, ast.Attribute) and _is_loop(t.value, names):
-                found.append(f"{filename}:{node.lineno}: {ast.unparse(t)}")
+                found.append(f"{filename}:{getattr(node, 'lineno', 0)}: {ast.unparse(t)}")
     return found
 
 
