@@ -4,8 +4,13 @@ The UI must never delay a sample, so the loop does not share the UI's event loop
 (architecture.md, "Timing"): :meth:`Engine.start` runs it on a private asyncio loop
 in a daemon thread.  Commands come in through :meth:`Engine.submit` (any thread):
 they are queued, the loop thread is woken, and it applies them between samples,
-resolving the returned Future with the CommandResult.  Snapshots and ring buffers
-go out as immutable values and copies.
+resolving the returned Future with the CommandResult (once its file operations,
+which the loop's writer thread does, are done).  Snapshots and ring buffers go out
+as immutable values and copies.
+
+The thread runner is what the TUI's `--loop thread`, the UI tests (an in-process
+engine they can drive and read) and the loop process (engine/process.py runs this
+engine in its child) use.
 
 Without a thread (``threaded=False``: tests and headless runs) the same engine is
 stepped by hand: :meth:`Engine.step` / :meth:`Engine.run_for` wait for each deadline
@@ -17,6 +22,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import functools
 import os
 import sys
 import threading
@@ -73,6 +79,11 @@ class LoopTime:
 
     def reached(self, t: float) -> bool:
         return t - self.seconds <= 1e-6 * self._h
+
+
+def _pass_on(to: Future[CommandResult], began: Future[CommandResult]) -> None:
+    if not to.done():
+        to.set_result(began.result())
 
 
 class Engine:
@@ -134,8 +145,7 @@ class Engine:
             return fut
         if not self.threaded or not self.running:
             with self._lock:
-                fut.set_result(self._apply(command))
-            return fut
+                return self._begin(command)
         self._pending.append((command, fut))
         aloop, wake = self._aloop, self._wake
         if aloop is not None and wake is not None:
@@ -145,13 +155,17 @@ class Engine:
                 pass
         return fut
 
-    def _apply(self, command: Command) -> CommandResult:
+    def _begin(self, command: Command) -> Future[CommandResult]:
+        """Apply `command` to the loop (its file operations may still run: the
+        Future resolves when they are done)."""
         if isinstance(command, SetSpeed):
-            return self._set_speed(command.factor)
-        result = self.loop.apply(command)
+            done: Future[CommandResult] = Future()
+            done.set_result(self._set_speed(command.factor))
+            return done
+        fut = self.loop.begin(command)
         if self.loop.h != self.clock.period:
             self.clock.set_period(self.loop.h)
-        return result
+        return fut
 
     def _set_speed(self, factor: float) -> CommandResult:
         if not isinstance(self.clock, VirtualClock):
@@ -167,11 +181,12 @@ class Engine:
         while self._pending:
             command, fut = self._pending.popleft()
             try:
-                result = self._apply(command)
+                began = self._begin(command)
             except Exception as exc:  # noqa: BLE001 - a bug must not kill the loop
-                result = CommandResult.refused(f"{type(command).__name__} failed: {type(exc).__name__}: {exc}")
-            if not fut.cancelled():
-                fut.set_result(result)
+                began = Future()
+                began.set_result(CommandResult.refused(
+                    f"{type(command).__name__} failed: {type(exc).__name__}: {exc}"))
+            began.add_done_callback(functools.partial(_pass_on, fut))
 
     # --- one sample ------------------------------------------------------------------------
 
@@ -219,6 +234,7 @@ class Engine:
         if self.running or self._stopped:
             return
         self.threaded = True
+        self.loop.use_file_thread()  # no sample waits for the disk
         if self.clock.realtime and sys.getswitchinterval() > REALTIME_SWITCH_INTERVAL:
             sys.setswitchinterval(REALTIME_SWITCH_INTERVAL)
         ready = threading.Event()

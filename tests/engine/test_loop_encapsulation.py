@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import ast
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend
 from quadtank_tui.engine.commands import SetOperation, SetState
 from quadtank_tui.engine.history import History
 from quadtank_tui.engine.loop import ControlLoop
@@ -108,30 +108,7 @@ def test_the_scan_leaves_reads_and_other_objects_alone(line: str) -> None:
     assert outside_writes(line) == []
 
 
-class Rig(ProcessBackend):
-    """A real process that records what was asked of it."""
-
-    kind = "Active"
-    description = "rig"
-
-    def __init__(self) -> None:
-        self.calls: list[str] = []
-
-    def read_levels(self) -> Levels4:
-        return (0.6, 0.6, 0.1, 0.1)
-
-    def write_pumps(self, u: Pair) -> None:
-        self.calls.append(f"pumps {u[0]:g} {u[1]:g}")
-
-    def safe_state(self) -> None:
-        self.calls.append("safe")
-
-    def close(self) -> None:
-        self.calls.append("close")
-
-
-def test_the_drivers_hooks_do_what_the_assignments_did(tmp_path: Path) -> None:
-    rig = Rig()
+def test_the_drivers_hooks_do_what_the_assignments_did(tmp_path: Path, rig: Any) -> None:
     loop = ControlLoop(PRESET, logs_dir=tmp_path, daq=rig)
     published: list[Snapshot] = []
     loop.subscribe(published.append)
