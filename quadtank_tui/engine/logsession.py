@@ -112,6 +112,14 @@ class LogSession:
         self.late_rows = 0
 
         def open_log() -> tuple[str, ...]:
+            try:
+                return start()
+            except BaseException:  # refused: nothing is logging (before the Future says so)
+                self._active = False
+                self._path = None
+                raise
+
+        def start() -> tuple[str, ...]:
             warnings: list[str] = []
             old, self._writer = self._writer, None
             if old is not None and keep_old:
@@ -125,14 +133,7 @@ class LogSession:
             warnings.extend(f"an unsaved earlier log was kept as {p}" for p in self._writer.recovered)
             return tuple(warnings)
 
-        fut = self.files.submit(open_log)
-        fut.add_done_callback(self._opened)
-        return fut
-
-    def _opened(self, fut: Future[tuple[str, ...]]) -> None:
-        if fut.exception() is not None:  # refused: nothing is logging
-            self._active = False
-            self._path = None
+        return self.files.submit(open_log)
 
     def row(self, t: float, y: Sequence[float], u: Sequence[float], r: Sequence[float]) -> None:
         """One sample at process time `t` (the `t` column counts from LogOn)."""
@@ -165,15 +166,16 @@ class LogSession:
         """Hand a row or a comment to the writer; a failure is raised by check()
         (at once when the file operations run inline)."""
         def write() -> None:
-            if self._writer is not None:
+            if self._writer is None:
+                return
+            try:
                 op(self._writer, arg)
+            except Exception as exc:
+                if self._failure is None:
+                    self._failure = (exc, self._writer.rows)
+                raise
 
-        def failed(fut: Future[None]) -> None:
-            exc = fut.exception()
-            if isinstance(exc, Exception) and self._failure is None:
-                self._failure = (exc, self._writer.rows if self._writer is not None else 0)
-
-        self.files.submit(write).add_done_callback(failed)
+        self.files.submit(write)
         self.check()
 
     def off(self) -> Future[None]:
@@ -210,20 +212,18 @@ class LogSession:
         self._active, self._unsaved, self._saved = False, False, str(target)
 
         def save() -> Path:
-            if self._writer is None:
-                raise LogRefused("nothing to save: the log could not be started")
             try:
-                return self._writer.save(target, replace=overwrite)
-            except FileExistsError:
-                raise LogExists(f"{target} exists (save again to overwrite)") from None
-
-        def done(fut: Future[Path]) -> None:
-            if fut.exception() is not None:  # still unsaved: Save again, or Discard
+                if self._writer is None:
+                    raise LogRefused("nothing to save: the log could not be started")
+                try:
+                    return self._writer.save(target, replace=overwrite)
+                except FileExistsError:
+                    raise LogExists(f"{target} exists (save again to overwrite)") from None
+            except BaseException:  # still unsaved (before the Future says so): Save again, or Discard
                 self._unsaved, self._saved = True, saved_before
+                raise
 
-        fut = self.files.submit(save)
-        fut.add_done_callback(done)
-        return fut
+        return self.files.submit(save)
 
     def save(self, name: str, overwrite: bool | Callable[[Path], bool]) -> Path:
         """:meth:`save_later`, waited for (a headless run's end)."""

@@ -12,7 +12,9 @@ does not depend on what the UI does.
   CommandResult back, which resolves the parent's Future.  Before the result is
   sent, the snapshot that shows the command's effect is published.
 - Snapshots and ring buffers come up through shared memory (:mod:`engine.shared`),
-  written without locks: no reader can hold the loop up.
+  written without locks: no reader can hold the loop up.  The log's rows and every
+  save go to the loop's writer thread (:mod:`engine.filework`): no disk holds it up
+  either; a command with file work is answered when that work is done.
 - The child stops the loop, pumps to 0, if the parent goes away (its end of the
   pipe closes: crash, kill, lost SSH session), or on SIGTERM or SIGHUP.  It ignores
   SIGINT: Ctrl-C in a terminal reaches the whole process group, and the parent

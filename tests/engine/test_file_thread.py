@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import errno
 import os
+import signal
 import threading
 import time
 from concurrent.futures import Future
+from datetime import datetime
 from pathlib import Path
 from typing import Any, Callable
 
@@ -16,10 +18,13 @@ import numpy as np
 import pytest
 
 import quadtank_tui.files.log as log_module
+from quadtank_tui.core.parameters import LoggingSettings
 from quadtank_tui.engine.commands import LogOn, LogSave, SavePar, SetOperation, SetParams, SetState
 from quadtank_tui.engine.filework import FileWorker
 from quadtank_tui.engine.headless import run_headless
-from quadtank_tui.engine.runner import Engine
+from quadtank_tui.engine.logsession import LogExists, LogSession
+from quadtank_tui.engine.process import EngineProcess
+from quadtank_tui.engine.runner import Engine, engine_spec
 from quadtank_tui.files.log import read_log
 from quadtank_tui.files.par import read_par
 
@@ -201,3 +206,68 @@ def test_a_real_time_run_whose_disk_fills_on_the_writer_thread_exits_non_zero(
            "the 10 whole rows written are kept" in result.text
     assert "FAULT      simulator: LogFileError:" in result.text
     assert read_log(tmp_path / "full.log").rows == 10
+
+
+def _loop_process(tmp_path: Path) -> EngineProcess:
+    e = EngineProcess(engine_spec(clock="virtual", speed=1000.0, params_dir=tmp_path / "params",
+                                  logs_dir=tmp_path / "logs"))
+    for c in (LogOn(), SetState("Run")):
+        assert e.submit(c).result(timeout=10).ok
+    e.start()
+    return e
+
+
+def _wait_for(condition: Callable[[], bool], timeout: float = 20.0) -> None:
+    end = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.01)
+
+
+def test_the_loop_process_stopping_writes_every_row_it_took(tmp_path: Path) -> None:
+    """The parent goes away: the child's stop drains the writer thread, so the
+    partial file holds exactly the rows the last snapshot counts."""
+    e = _loop_process(tmp_path)
+    try:
+        _wait_for(lambda: e.snapshot().log.rows > 300)
+        e._inbox.close()  # the parent's end of the pipe closes: the child stops, pumps at 0
+        e._proc.join(timeout=20)
+        s = e.snapshot()
+        log = read_log(tmp_path / "logs" / "data.log.partial")
+        assert s.log.unsaved and log.rows == s.log.rows > 300 and log.warnings == ()
+    finally:
+        e.stop()
+
+
+def test_a_loop_process_killed_while_logging_leaves_whole_rows(tmp_path: Path) -> None:
+    e = _loop_process(tmp_path)
+    try:
+        _wait_for(lambda: e.snapshot().log.rows > 300)
+        taken = e.snapshot().log.rows
+        time.sleep(0.2)  # the writer thread is microseconds behind the loop
+        pid = e._proc.pid
+        assert pid is not None
+        os.kill(pid, signal.SIGKILL)
+        _wait_for(lambda: not e.running)
+        log = read_log(tmp_path / "logs" / "data.log.partial")
+        assert log.rows >= taken and log.warnings == ()  # no torn row, nothing taken lost
+    finally:
+        e.stop()
+
+
+def test_a_refused_save_on_the_thread_leaves_the_log_unsaved_before_it_answers(tmp_path: Path) -> None:
+    """`quadtank run` tries `out.log`, then `out-2.log`: the second try must find the
+    log still unsaved, whichever thread finishes first."""
+    files = FileWorker()
+    files.start_thread()
+    session = LogSession(tmp_path, lambda: datetime(2000, 1, 1), files)
+    (tmp_path / "taken.log").write_text("% another run's log\n")
+    for attempt in range(20):
+        session.on(LoggingSettings(points=100, log_file="run", variables=("y1",)), 0.1, 0.0).result(10)
+        session.row(0.0, (0.5, 0.5, 0.1, 0.1), (0.3, 0.3), (0.5, 0.5))
+        with pytest.raises(LogExists, match="taken.log exists"):
+            session.save("taken", False)
+        assert session.status(LoggingSettings()).unsaved
+        saved = session.save(f"mine-{attempt}", False)
+        assert read_log(saved).rows == 1 and not session.status(LoggingSettings()).unsaved
+    assert files.close()
