@@ -131,6 +131,12 @@ class Engine:
         return log_path(self.loop.logs_dir, name).exists()
 
     @property
+    def missed(self) -> int:
+        """Sampling slots the clock skipped before the last sample (the loop's own
+        count, :attr:`ControlLoop.missed`)."""
+        return self.loop.missed
+
+    @property
     def running(self) -> bool:
         """The loop thread is alive."""
         return self._thread is not None and self._thread.is_alive()
@@ -224,7 +230,7 @@ class Engine:
             h = self.loop.h
             self.step()
             real = self.loop.backend is not self.loop.sim
-            elapsed.add(h, 1 + self.loop.missed if real else 1)
+            elapsed.add(h, 1 + self.missed if real else 1)
         return elapsed.samples
 
     # --- the thread --------------------------------------------------------------------------
