@@ -71,8 +71,6 @@ def run_headless(
                           logs_dir=out.parent, threaded=False, history_capacity=capacity,
                           epoch=virtual_epoch(), daq=daq)
     warnings = engine.warnings
-    if clock == "realtime":  # a rig's time: no sample waits for the disk
-        engine.loop.use_file_thread()
     try:
         # The partial file of an interrupted run sits next to OUT, named after it.
         must(engine.submit(SetParams({"LOGGING.LogFile": stem})).result())
@@ -88,7 +86,6 @@ def run_headless(
         if script is None:
             must(engine.submit(SetState("Run")).result())
         run_experiment(engine, script, duration)
-        engine.loop.finish_writes()
         summary = summarize(engine, duration)
         session = engine.loop.log
         rows, error = session.rows, session.error

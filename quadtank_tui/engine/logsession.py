@@ -66,15 +66,25 @@ class LogSession:
 
     @property
     def rows(self) -> int:
+        """Rows of the log (once the writes handed out are done: a run's end)."""
+        self._settle()
         return self._rows
 
     @property
     def error(self) -> str | None:
-        """Why the current log stopped early (a failed write), or None."""
-        failure = self._failure
-        if failure is not None:
-            return _reason(failure[0])
+        """Why the current log stopped early (a failed write), or None (once the
+        writes handed out are done: a run's end)."""
+        self._settle()
         return self._error
+
+    def _settle(self) -> None:
+        """Wait for the file operations, and take in a failed write's outcome."""
+        self.files.drain()
+        failure = self._failure
+        try:
+            self.check()
+        except Exception:  # noqa: BLE001 - now in rows and error; kept for the loop's next step
+            self._failure = failure
 
     def status(self, settings: LoggingSettings) -> LogStatus:
         path = self._path

@@ -112,6 +112,8 @@ class Engine:
         self._stopped = False
         self.crash: str | None = None
         loop.set_clock_info(clock.realtime, clock.speed)
+        if clock.realtime:  # a rig's time, stepped by hand or not: no sample waits for the disk
+            loop.use_file_thread()
 
     # --- the EngineHandle read side -------------------------------------------------------
 
