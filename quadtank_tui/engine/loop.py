@@ -625,6 +625,8 @@ class ControlLoop:
         store, params = self.store, self.params
 
         def save() -> CommandResult:
+            if cmd.defaults:
+                return CommandResult(True, f"saved {store.save_default(params)}")
             # A reserved name skips the "exists" question: store.save refuses it with the reason.
             if store.exists(cmd.name) and not cmd.overwrite and cmd.name.lower() not in RESERVED:
                 return CommandResult.refused(f"{store.path_of(cmd.name)} exists (save again to overwrite)")
