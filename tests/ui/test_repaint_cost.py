@@ -133,3 +133,26 @@ async def test_the_screen_ticks_slower_while_paused(engine: Recording) -> None:
         app.main._tick()
         assert app.main._interval == TICK
         await pilot.pause()
+
+
+@pytest.mark.parametrize("key", ["v", "h", "l"])  # Pump, Tank, Logging: the live windows
+async def test_a_running_screen_under_a_live_window_repaints_what_changed(engine: Recording, key: str) -> None:
+    """Running at Ts = 0.1 s with the wave on (the inputs, the levels and the
+    logging progress change every sample): each sample rewrites the few cells that
+    changed, not the screen: 31-33 KB a sample before (a reactive set on the
+    window repainted all of it, and Textual piled up the regions of the screen
+    behind: screens/behind.py), about 2 KB now (1.5 KB without the window)."""
+    engine.submit(c.SetParams({"REFERENCE ONE.On": True, "REFERENCE ONE.Period": 2.0,
+                               "REFERENCE ONE.Amplitude": 0.2}))
+    engine.submit(c.LogOn())
+    engine.submit(c.SetState("Run"))
+    engine.run_for(10.0)
+    app = paused_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press(key)
+        await ticks(app, pilot, engine, 0.5)
+        wire = Wire(app)
+        await ticks(app, pilot, engine, 1.0)
+        assert app.screen is not app.main
+    per_sample = wire.bytes / 10
+    assert per_sample < 3000, f"{per_sample:.0f} bytes a sample in {len(wire.updates)} updates"

@@ -15,7 +15,7 @@ from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
-from textual.reactive import reactive
+from textual.reactive import var
 from textual.widgets import Button, Checkbox, Input, Label, ProgressBar, Static
 
 from quadtank_tui.core.parameters import LOG_VARIABLES, POINTS_MAX, Parameters, check_file_name
@@ -24,7 +24,9 @@ from quadtank_tui.engine.commands import Command, LogDiscard, LogOff, LogOn, Log
 from quadtank_tui.engine.snapshot import LogStatus, Snapshot
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Check
-from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Commands, ConfirmWindow, Window, free_log_name
+from quadtank_tui.ui.windows.base import (
+    Choice, ChoiceWindow, Commands, ConfirmWindow, Window, free_log_name, show_live,
+)
 
 _POINTS, _FILE, _VARS = "LOGGING.Points", "LOGGING.LogFile", "LOGGING.Variables"
 #: Longest log name: the file system's 255 bytes, less `.log.partial` and room for
@@ -65,7 +67,9 @@ class LoggingWindow(Window[Commands]):
         Binding("ctrl+r", "default", "Default"),
     ]
 
-    snapshot: reactive[Snapshot | None] = reactive(None, always_update=True)
+    # A var, not a reactive: setting a reactive on a screen repaints all of it
+    # (the whole terminal, each sample); the watcher updates only what changed.
+    snapshot: var[Snapshot | None] = var(None, always_update=True)
 
     def __init__(self, snapshot: Snapshot, defaults: Parameters, *,
                  submit: Callable[[Command], Any], log_exists: Callable[[str], bool],
@@ -121,7 +125,7 @@ class LoggingWindow(Window[Commands]):
             return
         log = snapshot.log
         self.query_one(ProgressBar).update(progress=round(100 * log.progress, 1))
-        self.query_one("#log-state", Label).update(log_state(log))
+        show_live(self.query_one("#log-state", Label), log_state(log))
         self.query_one("#log_on", Button).disabled = log.active
         self.query_one("#log_off", Button).disabled = not log.active
         self.query_one("#save", Button).disabled = not log.unsaved
