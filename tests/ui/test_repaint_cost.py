@@ -110,17 +110,23 @@ async def test_the_setup_screen_paused_writes_nothing(engine: Recording) -> None
     assert wire.bytes == 0, wire.updates[:1]
 
 
+async def under_window(engine: Recording, key: str, settle: float) -> Wire:
+    """What a second of ticks writes with the window of `key` open, after `settle` s."""
+    app = paused_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press(key)
+        await ticks(app, pilot, engine, settle)
+        wire = Wire(app)
+        await ticks(app, pilot, engine, 1.0)
+        assert app.screen is not app.main
+    return wire
+
+
 @pytest.mark.parametrize("key", ["v", "h", "l"])  # Pump, Tank, Logging: the live windows
 async def test_a_paused_screen_under_a_live_window_writes_nothing(engine: Recording, key: str) -> None:
     """A live window's update repaints the whole screen behind it (about a
     megabyte a second before, from the paused loop's idle ticks alone)."""
-    app = paused_app(engine)
-    async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.press(key)
-        await ticks(app, pilot, engine, 0.25)
-        wire = Wire(app)
-        await ticks(app, pilot, engine, 1.0)
-        assert app.screen is not app.main
+    wire = await under_window(engine, key, 0.25)
     assert wire.bytes == 0, f"{wire.bytes} bytes in {len(wire.updates)} updates"
 
 
@@ -147,12 +153,6 @@ async def test_a_running_screen_under_a_live_window_repaints_what_changed(engine
     engine.submit(c.LogOn())
     engine.submit(c.SetState("Run"))
     engine.run_for(10.0)
-    app = paused_app(engine)
-    async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.press(key)
-        await ticks(app, pilot, engine, 0.5)
-        wire = Wire(app)
-        await ticks(app, pilot, engine, 1.0)
-        assert app.screen is not app.main
+    wire = await under_window(engine, key, 0.5)
     per_sample = wire.bytes / 10
     assert per_sample < 3000, f"{per_sample:.0f} bytes a sample in {len(wire.updates)} updates"
