@@ -9,6 +9,7 @@ overwrites an existing file.
 
 from __future__ import annotations
 
+from datetime import datetime
 from typing import Any, Callable
 
 from textual import on, work
@@ -22,6 +23,7 @@ from quadtank_tui.core.parameters import LOG_VARIABLES, POINTS_MAX, Parameters, 
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import Command, LogDiscard, LogOff, LogOn, LogSave, SetParams
 from quadtank_tui.engine.snapshot import LogStatus, Snapshot
+from quadtank_tui.ui.log_timing import log_timing
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Check
 from quadtank_tui.ui.windows.base import (
@@ -73,13 +75,14 @@ class LoggingWindow(Window[Commands]):
 
     def __init__(self, snapshot: Snapshot, defaults: Parameters, *,
                  submit: Callable[[Command], Any], log_exists: Callable[[str], bool],
-                 opener: str | None = None) -> None:
+                 opener: str | None = None, now: Callable[[], datetime] = datetime.now) -> None:
         super().__init__("Logging", opener=opener)
         self.set_reactive(LoggingWindow.snapshot, snapshot)
         self.params = snapshot.params
         self.defaults = defaults
         self.submit = submit
         self.log_exists = log_exists
+        self.now = now  # the wall clock the end of the log is told in
 
     def compose_body(self) -> ComposeResult:
         p = self.params
@@ -88,6 +91,7 @@ class LoggingWindow(Window[Commands]):
             yield Input(fmt(p.get(_POINTS)), id="points", compact=True, select_on_focus=True)
             yield Label(f"1..{POINTS_MAX}", classes="unit")
             yield Static("", classes="error", id="points-error", markup=False)
+        yield Static("", id="log-timing", classes="hint", markup=False)
         with Horizontal(classes="field", id="row-file"):
             yield Label("File", classes="label")
             yield Input(p.get(_FILE), id="file", compact=True, select_on_focus=True)
@@ -129,6 +133,17 @@ class LoggingWindow(Window[Commands]):
         self.query_one("#log_on", Button).disabled = log.active
         self.query_one("#log_off", Button).disabled = not log.active
         self.query_one("#save", Button).disabled = not log.unsaved
+        self._show_timing()
+
+    def _show_timing(self) -> None:
+        """How long the Points in the field take, and when the log ends."""
+        if self.snapshot is None:
+            return
+        try:
+            points: int | None = int(parse_number(_POINTS, self.query_one("#points", Input).value))
+        except ParameterError:
+            points = None
+        show_live(self.query_one("#log-timing", Static), log_timing(points, self.snapshot, self.now()))
 
     # --- the settings -------------------------------------------------------------
 
@@ -181,6 +196,7 @@ class LoggingWindow(Window[Commands]):
             self.query_one(wid, Static).update("")
         self._mark_all()
         self._warn_if_exists()
+        self._show_timing()
 
     def _warn_if_exists(self) -> None:
         """Say at once what is wrong with the name, or that Save will ask."""
