@@ -25,7 +25,8 @@ until the status line, process image, input panels and footer have all been
 written), the TUI's CPU seconds by then (the work itself, whatever the machine's
 load), and the Setup screen's first open (`S` typed after the window: until its
 status line is written, and until its analysis panel shows the zeros).  Medians
-of `--runs` runs are printed; figures, not assertions.  On a shared machine the
+of `--runs` runs are printed; figures, not assertions.  The package's bytecode is
+compiled first, as `make run` does.  On a shared machine the
 times include waiting for a core; the CPU shares do not.
 """
 
@@ -270,6 +271,9 @@ def main() -> None:
     ap.add_argument("--states", nargs="+", default=DEFAULT_STATES, choices=list(STATES))
     ap.add_argument("--program", type=Path, default=ROOT / ".venv" / "bin" / "quadtank")
     args = ap.parse_args()
+    # The package's bytecode, as `make run` has it: otherwise every start compiles
+    # the modules again when PYTHONDONTWRITEBYTECODE is set.
+    subprocess.run([sys.executable, "-m", "compileall", "-q", str(ROOT / "quadtank_tui")], check=True)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
