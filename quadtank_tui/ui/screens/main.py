@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from functools import partial
 from typing import Callable
 
 from textual.app import ComposeResult
@@ -20,7 +21,7 @@ from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
 from textual.widgets import Footer
 
-from quadtank_tui.core.parameters import REFERENCE_SECTIONS
+from quadtank_tui.core.parameters import REFERENCE_SECTIONS, SimulationSettings
 from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.engine.commands import (
     LogDiscard, LogSave, NudgeMean, ResetControllers, SetControlMode,
@@ -60,14 +61,14 @@ def _untimed(snap: Snapshot) -> Snapshot:
     return dataclasses.replace(snap, stats=_NO_STATS)
 
 
-def _warm_up() -> None:
+def _warm_up(sim: SimulationSettings) -> None:
     """After the first frame, in a thread: what the Setup screen needs, so it opens
-    at once with its analysis (python-control takes seconds to import), without
-    delaying the first frame."""
+    at once with its analysis of `sim` (scipy takes a second to import on a loaded
+    machine), without delaying the first frame."""
     import quadtank_tui.ui.screens.setup  # noqa: F401
 
     if not analysis_ready():
-        warm_up()
+        warm_up(sim)
 
 
 class MainScreen(CommandSender):
@@ -161,7 +162,8 @@ class MainScreen(CommandSender):
         self.refresh_view()
         self._interval = self.refresh_interval
         self._timer = self.set_interval(self._interval, self._tick)
-        self.call_after_refresh(self.run_worker, _warm_up, thread=True, group="warm-up", exit_on_error=False)
+        self.call_after_refresh(self.run_worker, partial(_warm_up, self.snap.params.simulation), thread=True,
+                                group="warm-up", exit_on_error=False)
 
     # --- attributes down ------------------------------------------------------------
 
