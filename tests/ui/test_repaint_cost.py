@@ -156,3 +156,24 @@ async def test_a_running_screen_under_a_live_window_repaints_what_changed(engine
     wire = await under_window(engine, key, 0.5)
     per_sample = wire.bytes / 10
     assert per_sample < 3000, f"{per_sample:.0f} bytes a sample in {len(wire.updates)} updates"
+
+
+async def test_under_a_live_window_the_window_follows_each_sample_and_main_once_a_second(
+        engine: Recording) -> None:
+    """Main, dimmed behind the window, is redrawn at most once a second (each
+    redraw renders all of it again for the window's screen: 15 % of a core at Ts
+    0.1 s); the Tank window's heights follow every sample."""
+    engine.submit(c.SetState("Run"))
+    app = paused_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("h")
+        window, status = app.screen, app.main._status
+        seen_window, seen_main = set(), set()
+        for _ in range(8):
+            engine.step()
+            app.main._tick()
+            await pilot.pause()
+            seen_window.add(window.snapshot.t)
+            seen_main.add(status.snapshot.t)
+    assert len(seen_window) == 8
+    assert len(seen_main) <= 2, sorted(seen_main)
