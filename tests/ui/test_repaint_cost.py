@@ -177,3 +177,20 @@ async def test_under_a_live_window_the_window_follows_each_sample_and_main_once_
             seen_main.add(status.snapshot.t)
     assert len(seen_window) == 8
     assert len(seen_main) <= 2, sorted(seen_main)
+
+
+async def test_setup_behind_a_window_is_redrawn_at_most_once_a_second(engine: Recording) -> None:
+    engine.submit(c.SetState("Run"))
+    app = paused_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("S")
+        await pilot.press("i")
+        setup = app.screen_stack[-2]
+        drawn = set()
+        for _ in range(8):
+            engine.step()
+            setup._tick()
+            await pilot.pause()
+            drawn.add(setup.snap.t)
+        assert type(app.screen).__name__ == "WaveWindow"
+    assert len(drawn) <= 2, sorted(drawn)

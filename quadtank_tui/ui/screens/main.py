@@ -52,11 +52,6 @@ SPILL_MARGIN = 1e-6
 PAUSED_INTERVAL = 0.25
 #: Least wall time between two trend drawings on the timer, s (see _trends_due).
 TREND_MIN_INTERVAL = 0.2
-#: How often the screen is redrawn while a window covers it, s: it is dimmed, and
-#: each change makes Textual render all of it again under the window (at Ts 0.1 s
-#: a Pump window cost 15 % of a core instead of Main's 6 %).  The live window in
-#: front follows every sample.
-BEHIND_INTERVAL = 1.0
 NO_DAQ = ("Active runs the real rig, and this session has no DAQ: it runs the simulator "
           "only. Start with quadtank --daq CONFIG (see params/daq-*.yaml) to offer Active.")
 
@@ -140,7 +135,6 @@ class MainScreen(CommandSender):
         #: The live window last given a snapshot, and that snapshot without its timing.
         self._live: object = None
         self._live_snap: Snapshot = _untimed(self.snap)
-        self._behind_at = 0.0  # when the screen was last redrawn under a window
         self.window_index = 1  # 5 min
         self.autoscale = True
 
@@ -185,10 +179,9 @@ class MainScreen(CommandSender):
         # here is seen: skip the work.
         if any(isinstance(screen, CommandSender) and screen is not self for screen in self.app.screen_stack):
             pass
-        elif self.app.screen is self or time.monotonic() - self._behind_at >= BEHIND_INTERVAL:
-            self._behind_at = time.monotonic()
+        elif self.redraw_due():
             self.refresh_view(timer=True)
-        else:  # dimmed behind a window: only the live window follows each sample
+        else:  # dimmed behind a window (screens/behind.py): the live window follows each sample
             self._feed_live(self.engine.snapshot())
         self._pace()
 
