@@ -39,11 +39,10 @@ Commands = tuple[Command, ...]
 def show_live(widget: Static, text: str) -> bool:
     """Show `text` in a widget a timer updates; whether it changed.
 
-    Static.update repaints even an unchanged text, and lays the screen out again:
-    in a window that repaints all of the screen behind it (the Pump or Logging
-    window over a running loop wrote 220-400 KB/s at 120x40).  So nothing is done
-    when the text is the same, and the layout is redone only when the text's
-    lines change length (a table's numbers keep their width)."""
+    Static.update repaints even an unchanged text and lays its screen out again
+    (the Pump and Logging windows did, at each sample).  So nothing is done when
+    the text is the same, and the layout is redone only when the text's lines
+    change length (a table's numbers keep their width)."""
     old = widget.content
     if text == old:
         return False
