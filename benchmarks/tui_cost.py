@@ -10,7 +10,9 @@ tmux pane would, and reads everything it writes.  States:
 - paused: as launched (Pause, Ts 0.1 s), nothing on the screen changes;
 - ts1:    Run at Ts = 1 s, x1;
 - ts01:   Run at Ts = 0.1 s, x1;
-- ts01pump (only when asked for): the same with the Pump window open;
+- ts01pump, ts01log (only when asked for): the same with the Pump window or the
+  Logging window open (live windows, updated on the screen's timer);
+- pausedpump (only when asked for): paused with the Pump window open;
 
 (Ts comes from a `--par` file written for the run; `r` is typed to Run.)  After
 `--settle` seconds the next `--seconds` are measured: bytes per second written to
@@ -23,7 +25,8 @@ until the status line, process image, input panels and footer have all been
 written), the TUI's CPU seconds by then (the work itself, whatever the machine's
 load), and the Setup screen's first open (`S` typed after the window: until its
 status line is written, and until its analysis panel shows the zeros).  Medians
-of `--runs` runs are printed; figures, not assertions.  On a shared machine the
+of `--runs` runs are printed; figures, not assertions.  The package's bytecode is
+compiled first, as `make run` does.  On a shared machine the
 times include waiting for a core; the CPU shares do not.
 """
 
@@ -60,10 +63,11 @@ SETUP_ANALYSED = "Zeros"
 ANSI = re.compile(rb"\x1b(\[[0-9;?<>=$]*[ -/]*[@-~]|\][^\x07]*\x07|[PX^_].*?\x1b\\|.)")
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 #: state: (TSamp in ms, the keys typed after the first frame, the keys that go
-#: back to Main before Setup is opened).  ts01pump (not run by default): the Pump
-#: window open over a running screen.
+#: back to Main before Setup is opened).  ts01pump, ts01log, pausedpump (not run by
+#: default): a live window open over a running or paused screen.
 STATES = {"paused": (100, b"", b""), "ts1": (1000, b"r", b""), "ts01": (100, b"r", b""),
-          "ts01pump": (100, b"rv", b"v")}
+          "ts01pump": (100, b"rv", b"v"), "ts01log": (100, b"rl", b"\x1b"),
+          "pausedpump": (100, b"v", b"v")}
 DEFAULT_STATES = ["paused", "ts1", "ts01"]
 
 
@@ -267,6 +271,9 @@ def main() -> None:
     ap.add_argument("--states", nargs="+", default=DEFAULT_STATES, choices=list(STATES))
     ap.add_argument("--program", type=Path, default=ROOT / ".venv" / "bin" / "quadtank")
     args = ap.parse_args()
+    # The package's bytecode, as `make run` has it: otherwise every start compiles
+    # the modules again when PYTHONDONTWRITEBYTECODE is set.
+    subprocess.run([sys.executable, "-m", "compileall", "-q", str(ROOT / "quadtank_tui")], check=True)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)

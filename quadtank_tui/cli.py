@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 
 from quadtank_tui.commands import UsageError, icad, warn
 from quadtank_tui.commands.design import add_parser as add_design_parser
-from quadtank_tui.commands import statefb
+from quadtank_tui.commands import logview, statefb
 from quadtank_tui.commands import identify as identify_command
 from quadtank_tui.commands import lab as lab_command
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
@@ -118,8 +118,9 @@ def _analyze_other_plant(args: argparse.Namespace, params: Parameters) -> int:
 
 
 def _add_log(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("log", help="inspect or export a .log data file",
-                       description="Inspect a .log data file or export it to .mat / .csv.")
+    p = sub.add_parser("log", help="inspect, plot, compare or export .log data files",
+                       description="Inspect a .log data file, plot it in the terminal, compare two "
+                       "runs' step figures, or export it to .mat / .csv.")
     logsub = p.add_subparsers(dest="log_command", metavar="ACTION", required=True)
     info = logsub.add_parser("info", help="variables, TSamp, rows and duration of a log")
     info.add_argument("file", metavar="FILE")
@@ -130,6 +131,7 @@ def _add_log(sub: argparse._SubParsersAction) -> None:
     exp.add_argument("--out", metavar="PATH", help="output file (default: FILE with the format's suffix)")
     exp.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
     exp.set_defaults(handler=_cmd_log_export)
+    logview.add_parsers(logsub)
 
 
 def _cmd_log_info(args: argparse.Namespace) -> int:

@@ -69,3 +69,28 @@ def loop_metrics(t: np.ndarray, y: np.ndarray, r: np.ndarray, *, band: float = 0
     else:
         settling = float(t[k + outside[-1] + 1] - t[k])
     return LoopMetrics(float(e[-1]), iae, step, float(t[k]), overshoot, settling)
+
+
+def rise_time(t: np.ndarray, y: np.ndarray, r: np.ndarray, *, low: float = 0.1, high: float = 0.9,
+              min_step: float = MIN_STEP) -> float | None:
+    """Rise time of the last reference step (the one loop_metrics measures), s:
+    from y first covering `low` of the step to its first covering `high` of it,
+    counted from y just before the step.  None without a step, or when y has not
+    reached `high` by the end of the window.
+
+    >>> t = np.arange(6.0); r = np.array([0, 1, 1, 1, 1, 1.0])
+    >>> rise_time(t, np.array([0, 0, 0.2, 0.6, 0.95, 1.0]), r)
+    2.0
+    """
+    t, y, r = (np.asarray(a, dtype=float) for a in (t, y, r))
+    jumps = np.nonzero(np.abs(np.diff(r)) > min_step)[0]
+    if jumps.size == 0:
+        return None
+    k = int(jumps[-1]) + 1
+    step = float(r[k] - r[k - 1])
+    covered = np.sign(step) * (y[k:] - y[k - 1]) / abs(step)
+    first_low = np.nonzero(covered >= low)[0]
+    first_high = np.nonzero(covered >= high)[0]
+    if first_high.size == 0:
+        return None
+    return float(t[k + first_high[0]] - t[k + first_low[0]])

@@ -18,6 +18,7 @@ from textual.binding import Binding
 from textual.screen import ModalScreen, Screen
 
 from quadtank_tui.engine.handle import EngineHandle
+from quadtank_tui.ui import escape_keys
 from quadtank_tui.ui.keyorder import OrderedKeys
 from quadtank_tui.ui.screens.main import MainScreen
 from quadtank_tui.ui.screens.too_small import TooSmallScreen, too_small
@@ -36,6 +37,7 @@ class QuadTankApp(OrderedKeys):
     def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.05,
                  wall_clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__()
+        escape_keys.install()  # Esc then a key, sent together, is not Alt+key
         self.engine = engine
         self.main = MainScreen(engine, refresh_interval=refresh_interval, wall_clock=wall_clock)
         self._aloop: asyncio.AbstractEventLoop | None = None

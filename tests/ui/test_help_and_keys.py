@@ -188,3 +188,26 @@ async def test_setup_analysis_waits_in_a_worker_until_python_control_is_loaded(
     assert shown[0].startswith("Analysing") or "Zeros" in shown[0]  # the worker may be quick
     assert "Zeros   -0.0580  -0.0172" in shown[1]
     assert analysis_panel.analysis_ready()
+
+
+async def test_main_warm_up_analyses_the_setting_so_setup_opens_without_importing(
+        engine: Recording, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The warm-up after Main's first frame runs the analysis Setup will show (it
+    imports scipy.linalg when it runs): Setup's first open finds it cached.  It
+    used to import the module only, and the first open paid the scipy import
+    (1.1 s on a loaded machine) in the UI thread."""
+    import threading
+
+    monkeypatch.setattr(analysis_panel, "_READY", threading.Event())
+    analysis_panel.analysis_of.cache_clear()
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        await app.workers.wait_for_complete()
+        assert analysis_panel.analysis_ready()
+        assert analysis_panel.analysis_of.cache_info().currsize == 1
+        await pilot.press("S")
+        await pilot.pause()
+        assert "Zeros   -0.0580  -0.0172" in str(app.screen.query_one("#analysis").render())
+    info = analysis_panel.analysis_of.cache_info()
+    assert (info.currsize, info.hits) == (1, 1)

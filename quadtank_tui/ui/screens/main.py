@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from functools import partial
 from typing import Callable
 
 from textual.app import ComposeResult
@@ -20,7 +21,7 @@ from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
 from textual.widgets import Footer
 
-from quadtank_tui.core.parameters import REFERENCE_SECTIONS
+from quadtank_tui.core.parameters import REFERENCE_SECTIONS, SimulationSettings
 from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.engine.commands import (
     LogDiscard, LogSave, NudgeMean, ResetControllers, SetControlMode,
@@ -60,14 +61,14 @@ def _untimed(snap: Snapshot) -> Snapshot:
     return dataclasses.replace(snap, stats=_NO_STATS)
 
 
-def _warm_up() -> None:
+def _warm_up(sim: SimulationSettings) -> None:
     """After the first frame, in a thread: what the Setup screen needs, so it opens
-    at once with its analysis (python-control takes seconds to import), without
-    delaying the first frame."""
+    at once with its analysis of `sim` (scipy takes a second to import on a loaded
+    machine), without delaying the first frame."""
     import quadtank_tui.ui.screens.setup  # noqa: F401
 
     if not analysis_ready():
-        warm_up()
+        warm_up(sim)
 
 
 class MainScreen(CommandSender):
@@ -161,7 +162,8 @@ class MainScreen(CommandSender):
         self.refresh_view()
         self._interval = self.refresh_interval
         self._timer = self.set_interval(self._interval, self._tick)
-        self.call_after_refresh(self.run_worker, _warm_up, thread=True, group="warm-up", exit_on_error=False)
+        self.call_after_refresh(self.run_worker, partial(_warm_up, self.snap.params.simulation), thread=True,
+                                group="warm-up", exit_on_error=False)
 
     # --- attributes down ------------------------------------------------------------
 
@@ -175,8 +177,12 @@ class MainScreen(CommandSender):
     def _tick(self) -> None:
         # While the Setup screen (the other CommandSender) covers this one nothing
         # here is seen: skip the work.
-        if not any(isinstance(screen, CommandSender) and screen is not self for screen in self.app.screen_stack):
+        if any(isinstance(screen, CommandSender) and screen is not self for screen in self.app.screen_stack):
+            pass
+        elif self.redraw_due():
             self.refresh_view(timer=True)
+        else:  # dimmed behind a window (screens/behind.py): the live window follows each sample
+            self._feed_live(self.engine.snapshot())
         self._pace()
 
     def _pace(self) -> None:
@@ -219,10 +225,13 @@ class MainScreen(CommandSender):
                                      (self._lower, snap.params.plots.lower)):
                 trend.plot_type, trend.window, trend.autoscale = plot_type, window, self.autoscale
                 trend.show(history)
+        self._feed_live(snap)
+
+    def _feed_live(self, snap: Snapshot) -> None:
+        """Hand the snapshot to the live window in front (Tank, Pump, Logging)."""
         live = self.app.screen
         # A live window gets the snapshot only when more than the loop's timing
-        # changed (a paused loop's idle ticks): its update repaints the whole
-        # screen behind it, 1 MB a second of nothing new at 120x40.
+        # changed (a paused loop's idle ticks).
         if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) and live.is_mounted:
             untimed = _untimed(snap)
             if live is not self._live or untimed != self._live_snap:

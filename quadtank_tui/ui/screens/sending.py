@@ -13,12 +13,12 @@ from concurrent.futures import Future
 from typing import Callable
 
 from textual.message import Message
-from textual.screen import Screen
 
 from quadtank_tui.engine.commands import Command, CommandResult
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.messages import ActionRequested
+from quadtank_tui.ui.screens.behind import QuietBehind
 from quadtank_tui.ui.windows.base import Commands
 
 #: Below this width or height a screen packs tighter (80x24 terminals).
@@ -42,7 +42,7 @@ class CommandAnswered(Message, bubble=False):
         self.command, self.future, self.on_refused, self.on_done = command, future, on_refused, on_done
 
 
-class CommandSender(Screen[None]):
+class CommandSender(QuietBehind):
     """A screen that sends commands; it has `engine`, `snap` (the snapshot it
     shows) and `refresh_view()`, runs its widgets' ActionRequested and packs
     tighter (`-compact`) on a small terminal."""

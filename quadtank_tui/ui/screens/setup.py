@@ -149,9 +149,13 @@ class SetupScreen(CommandSender):
         self.query_one("#setup-image").border_title = "Operating point"
         self.query_one("#analysis").border_title = "At the operating point"
         self.refresh_view(force=True)
-        self.set_interval(self.refresh_interval, self.refresh_view)
+        self.set_interval(self.refresh_interval, self._tick)
 
     # --- attributes down ----------------------------------------------------------------
+
+    def _tick(self) -> None:
+        if self.redraw_due():  # behind a window: once a second (screens/behind.py)
+            self.refresh_view()
 
     def refresh_view(self, force: bool = False) -> None:
         """Show the latest snapshot; the tables only when the parameters changed."""

@@ -32,11 +32,17 @@ if TYPE_CHECKING:
 _READY = threading.Event()
 
 
-def warm_up() -> None:
+def warm_up(sim: SimulationSettings | None = None) -> None:
     """Import the analysis stack (the Main screen does it in a worker thread after
-    its first frame, so Setup opens at once)."""
-    import quadtank_tui.core.analysis  # noqa: F401
+    its first frame, so Setup opens at once) by analysing `sim` (default: the
+    preset's setting), which also caches the analysis Setup shows first.  The
+    analysis imports scipy.linalg only when it runs: importing the module alone
+    left that second (on a loaded machine) to the Setup screen's first open."""
+    if sim is None:
+        from quadtank_tui.core.parameters import PRESET
 
+        sim = PRESET.simulation
+    analysis_of(sim)
     _READY.set()
 
 
@@ -52,11 +58,12 @@ def analysis_of(sim: SimulationSettings) -> Analysis | str:
     screen never needs it."""
     from quadtank_tui.core.analysis import analyze
 
-    _READY.set()
     try:
         return analyze(sim.plant(), sim.operating_levels())
     except PlantError as exc:
         return str(exc)
+    finally:
+        _READY.set()  # the stack is imported now: later analyses are done at once
 
 
 def zero_text(z: complex) -> str:

@@ -36,6 +36,26 @@ T = TypeVar("T")
 Commands = tuple[Command, ...]
 
 
+def show_live(widget: Static, text: str) -> bool:
+    """Show `text` in a widget a timer updates; whether it changed.
+
+    Static.update repaints even an unchanged text and lays its screen out again
+    (the Pump and Logging windows did, at each sample).  So nothing is done when
+    the text is the same, and the layout is redone only when the text's lines
+    change length (a table's numbers keep their width)."""
+    old = widget.content
+    if text == old:
+        return False
+    same_shape = isinstance(old, str) and _shape(widget, old) == _shape(widget, text)
+    widget.update(text, layout=not same_shape)
+    return True
+
+
+def _shape(widget: Static, text: str) -> tuple[int, ...]:
+    content = Content.from_markup(text) if widget._render_markup else Content(text)
+    return tuple(line.cell_length for line in content.split("\n"))
+
+
 class Window(ModalScreen[T], Generic[T]):
     """A titled modal window with a row of buttons and the closing conventions."""
 

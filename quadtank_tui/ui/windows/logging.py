@@ -9,13 +9,14 @@ overwrites an existing file.
 
 from __future__ import annotations
 
+from datetime import datetime
 from typing import Any, Callable
 
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
-from textual.reactive import reactive
+from textual.reactive import var
 from textual.widgets import Button, Checkbox, Input, Label, ProgressBar, Static
 
 from quadtank_tui.core.parameters import POINTS_MAX, Parameters
@@ -24,9 +25,12 @@ from quadtank_tui.engine.commands import Command, LogDiscard, LogOff, LogOn, Log
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.names import LOG_VARIABLES, check_file_name
 from quadtank_tui.ui.labels import log_state
+from quadtank_tui.ui.log_timing import log_timing
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Check
-from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Commands, ConfirmWindow, Window, free_log_name
+from quadtank_tui.ui.windows.base import (
+    Choice, ChoiceWindow, Commands, ConfirmWindow, Window, free_log_name, show_live,
+)
 
 _POINTS, _FILE, _VARS = "LOGGING.Points", "LOGGING.LogFile", "LOGGING.Variables"
 #: Longest log name: the file system's 255 bytes, less `.log.partial` and room for
@@ -56,17 +60,20 @@ class LoggingWindow(Window[Commands]):
         Binding("ctrl+r", "default", "Default"),
     ]
 
-    snapshot: reactive[Snapshot | None] = reactive(None, always_update=True)
+    # A var, not a reactive: setting a reactive on a screen repaints all of it
+    # (the whole terminal, each sample); the watcher updates only what changed.
+    snapshot: var[Snapshot | None] = var(None, always_update=True)
 
     def __init__(self, snapshot: Snapshot, defaults: Parameters, *,
                  submit: Callable[[Command], Any], log_exists: Callable[[str], bool],
-                 opener: str | None = None) -> None:
+                 opener: str | None = None, now: Callable[[], datetime] = datetime.now) -> None:
         super().__init__("Logging", opener=opener)
         self.set_reactive(LoggingWindow.snapshot, snapshot)
         self.params = snapshot.params
         self.defaults = defaults
         self.submit = submit
         self.log_exists = log_exists
+        self.now = now  # the wall clock the end of the log is told in
 
     def compose_body(self) -> ComposeResult:
         p = self.params
@@ -75,6 +82,7 @@ class LoggingWindow(Window[Commands]):
             yield Input(fmt(p.get(_POINTS)), id="points", compact=True, select_on_focus=True)
             yield Label(f"1..{POINTS_MAX}", classes="unit")
             yield Static("", classes="error", id="points-error", markup=False)
+        yield Static("", id="log-timing", classes="hint", markup=False)
         with Horizontal(classes="field", id="row-file"):
             yield Label("File", classes="label")
             yield Input(p.get(_FILE), id="file", compact=True, select_on_focus=True)
@@ -112,10 +120,21 @@ class LoggingWindow(Window[Commands]):
             return
         log = snapshot.log
         self.query_one(ProgressBar).update(progress=round(100 * log.progress, 1))
-        self.query_one("#log-state", Label).update(log_state(log))
+        show_live(self.query_one("#log-state", Label), log_state(log))
         self.query_one("#log_on", Button).disabled = log.active
         self.query_one("#log_off", Button).disabled = not log.active
         self.query_one("#save", Button).disabled = not log.unsaved
+        self._show_timing()
+
+    def _show_timing(self) -> None:
+        """How long the Points in the field take, and when the log ends."""
+        if self.snapshot is None:
+            return
+        try:
+            points: int | None = int(parse_number(_POINTS, self.query_one("#points", Input).value))
+        except ParameterError:
+            points = None
+        show_live(self.query_one("#log-timing", Static), log_timing(points, self.snapshot, self.now()))
 
     # --- the settings -------------------------------------------------------------
 
@@ -168,6 +187,7 @@ class LoggingWindow(Window[Commands]):
             self.query_one(wid, Static).update("")
         self._mark_all()
         self._warn_if_exists()
+        self._show_timing()
 
     def _warn_if_exists(self) -> None:
         """Say at once what is wrong with the name, or that Save will ask."""

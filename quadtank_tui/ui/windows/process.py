@@ -11,7 +11,7 @@ from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
-from textual.reactive import reactive
+from textual.reactive import var
 from textual.widgets import Button, Input, Label, Static
 
 from quadtank_tui.core.parameters import Parameters
@@ -20,7 +20,7 @@ from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import AddWater
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.values import fixed, fmt, parse_number
-from quadtank_tui.ui.windows.base import Commands, Window
+from quadtank_tui.ui.windows.base import Commands, Window, show_live
 
 _TANK_ROWS = (("Op. Point", "OpPoint"), ("Diameter", "Diameter"), ("Time Const.", "TimeConst"))
 
@@ -41,7 +41,9 @@ def water_problem(amount: float, tank: int, level: float, full: float) -> str | 
 
 
 class _LiveWindow(Window[Commands]):
-    snapshot: reactive[Snapshot | None] = reactive(None, always_update=True)
+    # A var, not a reactive: setting a reactive on a screen repaints all of it
+    # (the whole terminal, each sample); the watcher updates only what changed.
+    snapshot: var[Snapshot | None] = var(None, always_update=True)
 
     def __init__(self, title: str, snapshot: Snapshot, defaults: Parameters, selected: int, *,
                  count: int, opener: str | None = None) -> None:
@@ -72,7 +74,7 @@ class _LiveWindow(Window[Commands]):
 
     def watch_snapshot(self, snapshot: Snapshot | None) -> None:
         if snapshot is not None and self.is_mounted and self.is_attached:
-            self.query_one("#table", Static).update(self.table(snapshot))
+            show_live(self.query_one("#table", Static), self.table(snapshot))
 
     def table(self, snapshot: Snapshot) -> str:
         raise NotImplementedError

@@ -1,0 +1,197 @@
+"""`quadtank log plot` and `quadtank log compare`: old runs in a terminal.
+
+plot draws chosen columns of a `.log` against time with plotext, the y axis laid
+out as the live trends lay it out (round values, each label on the row whose
+value it names: ui/widgets/trends.py `y_axis`) and the time axis in round
+seconds.  compare prints both loops' step figures of two logs side by side: the
+last reference step, rise time, overshoot, settling time, IAE and final error
+(core/metrics.py, the figures the headless run prints).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import shutil
+import sys
+from typing import TYPE_CHECKING, Sequence
+
+from quadtank_tui.commands import UsageError, warn
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from quadtank_tui.files.log import LogData
+
+#: The plot's default size when the terminal's is unknown (a pipe).
+DEFAULT_SIZE = (100, 25)
+#: Columns between two time ticks, about.
+TICK_SPACING = 14
+
+
+def add_parsers(logsub: argparse._SubParsersAction) -> None:
+    """`plot` and `compare` under `quadtank log`."""
+    plot = logsub.add_parser("plot", help="draw a log's signals against time in the terminal")
+    plot.add_argument("file", metavar="FILE")
+    plot.add_argument("--vars", nargs="+", metavar="NAME",
+                      help="the columns to draw (default: all but t)")
+    plot.add_argument("--width", type=int, metavar="W", help="columns (default: the terminal's)")
+    plot.add_argument("--height", type=int, metavar="H", help="rows (default: 25)")
+    plot.set_defaults(handler=cmd_plot)
+    compare = logsub.add_parser("compare", help="both loops' step figures of two logs side by side")
+    compare.add_argument("first", metavar="A.log")
+    compare.add_argument("second", metavar="B.log")
+    compare.set_defaults(handler=cmd_compare)
+
+
+def _read(path: str) -> LogData:
+    from quadtank_tui.files.log import read_log
+
+    log = read_log(path)
+    warn(log.warnings)
+    return log
+
+
+def times(log: LogData, path: str) -> np.ndarray:
+    """Each row's time, s: the `t` column if logged, else row x TSamp."""
+    import numpy as np
+
+    if "t" in log.variables:
+        return log["t"]
+    if log.tsamp is None:
+        raise UsageError(f"{path}: neither a t column nor a TSamp in the header: the times are unknown")
+    return np.arange(log.rows) * log.tsamp
+
+
+# --- plot -----------------------------------------------------------------------------------
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    log = _read(args.file)
+    names = tuple(args.vars) if args.vars else tuple(n for n in log.variables if n != "t")
+    missing = [n for n in names if n not in log.variables]
+    if missing:
+        raise UsageError(f"{args.file}: no column {' '.join(missing)} (logged: {' '.join(log.variables)})")
+    if not names:
+        raise UsageError(f"{args.file}: nothing to draw but t")
+    if log.rows < 2:
+        raise UsageError(f"{args.file}: {log.rows} row(s): a plot needs two")
+    size = shutil.get_terminal_size(DEFAULT_SIZE)
+    width = args.width or size.columns
+    height = args.height or DEFAULT_SIZE[1]
+    if width < 30 or height < 8:
+        raise UsageError(f"a plot needs at least 30 x 8 characters, got {width} x {height}")
+    colour = sys.stdout.isatty() and not os.environ.get("NO_COLOR")
+    print(render_plot(log, times(log, args.file), names, width, height, colour=colour, title=args.file))
+    return 0
+
+
+def render_plot(log: LogData, t: np.ndarray, names: Sequence[str], width: int, height: int, *,
+                colour: bool, title: str) -> str:
+    """A title line naming each curve in its colour, then the plot, `height` rows."""
+    import plotext as plt
+
+    from quadtank_tui.ui.widgets.trends import AXIS_ROWS, COLORS, y_axis
+
+    palette = [COLORS.get(n, c) for n, c in zip(names, _SPARE_COLOURS)]
+    plt.clear_figure()
+    plt.limitsize(False, False)  # the size asked, not capped at the terminal's
+    plt.plotsize(width, height - 1)
+    for name, c in zip(names, palette):
+        plt.plot(t.tolist(), log[name].tolist(), marker="braille", color=c)
+    values = [float(v) for n in names for v in (log[n].min(), log[n].max())]
+    axis = y_axis(min(values), max(values), height - 1 - AXIS_ROWS)
+    plt.ylim(axis.lo, axis.hi)
+    plt.yticks(list(axis.ticks), list(axis.labels))
+    t0, t1 = float(t[0]), float(t[-1])
+    plt.xlim(t0, t1)
+    ticks = time_ticks(t0, t1, width)
+    plt.xticks(ticks, [f"{v:g}" for v in ticks])
+    if not colour:
+        plt.theme("clear")
+    drawing = plt.build() if colour else plt.uncolorize(plt.build())
+    plt.clear_figure()
+    lines = [line.rstrip() for line in drawing.splitlines()]
+    while lines and not lines[-1]:
+        lines.pop()
+    legend = "  ".join(_in_colour(n, c, colour) for n, c in zip(names, palette))
+    return "\n".join([f"{title}  {legend}  (t in s)", *lines])
+
+
+#: Colours for columns the trends have none for.
+_SPARE_COLOURS = ("blue", "red", "green", "orange", "cyan", "magenta", "yellow", "white", "gray")
+
+
+def _in_colour(text: str, colour_name: str, colour: bool) -> str:
+    if not colour:
+        return text
+    import plotext as plt
+
+    return str(plt.colorize(text, colour_name))
+
+
+def time_ticks(t0: float, t1: float, width: int) -> list[float]:
+    """Round times (multiples of 1, 2, 2.5 or 5 x 10^n s) about TICK_SPACING
+    columns apart, within t0..t1."""
+    span = max(t1 - t0, 1e-9)
+    wanted = max(2, width // TICK_SPACING)
+    exponent = math.floor(math.log10(span / wanted))
+    for step in (m * 10.0 ** e for e in (exponent, exponent + 1) for m in (1, 2, 2.5, 5)):
+        if span / step <= wanted:
+            break
+    first = math.ceil(t0 / step - 1e-9)
+    return [round(k * step, 9) for k in range(first, math.floor(t1 / step + 1e-9) + 1)]
+
+
+# --- compare --------------------------------------------------------------------------------
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    logs = [(path, _read(path)) for path in (args.first, args.second)]
+    print(compare_text(logs))
+    return 0
+
+
+def _seconds(x: float | None, missing: str = "-") -> str:
+    if x is None:
+        return missing
+    return f"{x:.0f} s" if abs(x) >= 100 else f"{x:.3g} s"
+
+
+def loop_column(log: LogData, path: str, loop: int) -> list[str]:
+    """The figures of loop `loop` (y and r of that number) of one log, as cells."""
+    from quadtank_tui.core.metrics import loop_metrics, rise_time
+
+    y, r = f"y{loop}", f"r{loop}"
+    if y not in log.variables or r not in log.variables:
+        absent = " and ".join(n for n in (y, r) if n not in log.variables)
+        return [f"{absent} not logged"] + ["-"] * 5
+    t = times(log, path)
+    m = loop_metrics(t, log[y], log[r])
+    if m.step is None:
+        step = "none"
+    else:
+        step = f"{m.step:+.3f} at {_seconds(m.step_time)}"
+    over = "-" if m.overshoot is None else f"{m.overshoot:.1f} %"
+    settling = "-" if m.step is None else _seconds(m.settling_time, "not settled")
+    rise = "-" if m.step is None else _seconds(rise_time(t, log[y], log[r]), "not reached")
+    final = round(m.final_error, 5) + 0.0  # no "-0.00000"
+    return [step, rise, over, settling, f"{m.iae:.3f}", f"{final:+.5f}"]
+
+
+ROWS = ("last step", "rise 10-90 %", "overshoot", "settling 2 %", "IAE", "final error")
+
+
+def compare_text(logs: Sequence[tuple[str, LogData]]) -> str:
+    """The two logs' figures, one column each."""
+    from quadtank_tui.files.log import format_tsamp
+
+    table: list[list[str]] = [["", *(path for path, _ in logs)]]
+    table.append(["rows x TSamp", *(f"{log.rows} x " + ("?" if log.tsamp is None else f"{format_tsamp(log.tsamp)} s")
+                                    for _, log in logs)])
+    for loop in (1, 2):
+        table.append([f"loop {loop} (y{loop}, r{loop})", *([""] * len(logs))])
+        columns = [loop_column(log, path, loop) for path, log in logs]
+        for i, label in enumerate(ROWS):
+            table.append([f"  {label}", *(col[i] for col in columns)])
+    widths = [max(len(row[c]) for row in table) for c in range(len(table[0]))]
+    return "\n".join("   ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in table)

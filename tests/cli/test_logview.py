@@ -1,0 +1,120 @@
+"""`quadtank log plot` and `quadtank log compare` on logs of headless runs."""
+
+from __future__ import annotations
+
+import re
+from datetime import datetime
+from pathlib import Path
+
+import pytest
+
+from quadtank_tui.cli import main
+from quadtank_tui.engine.headless import run_headless
+from quadtank_tui.files.log import format_header, format_row
+from quadtank_tui.files.script import parse_script
+
+ROOT = Path(__file__).parents[2]
+SESSION = (ROOT / "params" / "sample_session.yaml").read_text()
+
+
+def session_log(folder: Path, name: str, k1: float) -> Path:
+    """The thesis's sample session (step of reference one by +0.1 at 610 s) with
+    the references logged, and loop 1's gain K = k1."""
+    text = SESSION.replace('"LOGGING.Variables": y1 y2 u1 u2', '"LOGGING.Variables": t y1 y2 u1 u2 r1 r2')
+    text = text.replace('"CONTROLLER ONE.K": 3.0', f'"CONTROLLER ONE.K": {k1}')
+    out = folder / "logs" / f"{name}.log"
+    result = run_headless(par=str(ROOT / "params" / "minphase.par"), script=parse_script(text, name=name),
+                          duration=1200.0, out=out, params_dir=folder / "params")
+    assert result.status == 0, result.text
+    return out
+
+
+def test_compare_prints_both_runs_step_figures_side_by_side(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    session_log(Path("."), "k3", 3.0)
+    session_log(Path("."), "k6", 6.0)
+    capsys.readouterr()
+    assert main(["log", "compare", "logs/k3.log", "logs/k6.log"]) == 0
+    # The figures the headless run's summary gives for the same runs (5.1 %, 53 s
+    # and 4.1 %, 34 s); the step comes 10 s after LogOn.
+    assert capsys.readouterr().out == (
+        "                  logs/k3.log      logs/k6.log\n"
+        "rows x TSamp      600 x 1 s        600 x 1 s\n"
+        "loop 1 (y1, r1)\n"
+        "  last step       +0.100 at 10 s   +0.100 at 10 s\n"
+        "  rise 10-90 %    13 s             6 s\n"
+        "  overshoot       5.1 %            4.1 %\n"
+        "  settling 2 %    53 s             34 s\n"
+        "  IAE             0.817            0.459\n"
+        "  final error     +0.00000         +0.00000\n"
+        "loop 2 (y2, r2)\n"
+        "  last step       none             none\n"
+        "  rise 10-90 %    -                -\n"
+        "  overshoot       -                -\n"
+        "  settling 2 %    -                -\n"
+        "  IAE             0.389            0.389\n"
+        "  final error     +0.00000         +0.00000\n")
+
+
+def test_compare_says_which_loop_was_not_logged(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "plain.log"
+    log.write_text(format_header(("y1", "y2", "u1", "u2"), 1.0, datetime(2026, 1, 5))
+                   + "".join(format_row((0.5, 0.5, 0.3, 0.3)) for _ in range(5)))
+    assert main(["log", "compare", str(log), str(log)]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"^  last step\s+r1 not logged\s+r1 not logged$", out, re.M), out
+
+
+#: A y label and the rest of its row in plotext's text.
+_ROW = re.compile(r"^\s*(-?\d+(?:\.\d+)?)?\s*[┤│](.*)$")
+
+
+def read_level(plot: str) -> tuple[float, float]:
+    """The value of the one horizontal curve of `plot`, read as a person reads it:
+    from the labels of the rows around it; and the value of half a row."""
+    rows = [(_ROW.match(line), line) for line in plot.splitlines()]
+    labels = {i: float(m.group(1)) for i, (m, _) in enumerate(rows) if m and m.group(1)}
+    curve = [i for i, (m, _) in enumerate(rows) if m and any(0x2801 <= ord(ch) <= 0x28FF for ch in m.group(2))]
+    assert len(curve) == 1 and len(labels) >= 2, plot
+    (top, v_top), (bottom, v_bottom) = min(labels.items()), max(labels.items())
+    per_row = (v_bottom - v_top) / (bottom - top)
+    return v_top + (curve[0] - top) * per_row, abs(per_row) / 2
+
+
+@pytest.mark.parametrize("size", [(80, 20), (120, 40), (61, 13)])
+def test_plot_reads_back_a_known_level(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                       size: tuple[int, int]) -> None:
+    log = tmp_path / "level.log"
+    log.write_text(format_header(("t", "y1", "u1"), 0.5, datetime(2026, 1, 5))
+                   + "".join(format_row((0.5 * k, 0.437, 0.3 + 0.001 * k)) for k in range(240)))
+    assert main(["log", "plot", str(log), "--vars", "y1", "--width", str(size[0]),
+                 "--height", str(size[1])]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    assert lines[0] == f"{log}  y1  (t in s)" and len(lines) == size[1]
+    assert "\x1b" not in out  # not a terminal: no colour codes
+    value, half_row = read_level(out)
+    assert abs(value - 0.437) <= half_row, out
+    labels = [float(m.group(1)) for m, _ in ((_ROW.match(x), x) for x in lines) if m and m.group(1)]
+    assert all(abs(v * 1000 - round(v * 1000)) < 1e-9 for v in labels), labels  # round numbers
+    ticks = [float(x) for x in lines[-1].split()]
+    assert ticks[0] == 0 and all(v == round(v) for v in ticks), ticks  # round seconds
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["log", "plot", "LOG", "--vars", "y1", "y9"], "LOG: no column y9 (logged: t y1 u1)"),
+    (["log", "plot", "BAD"], "BAD, line 3: 2 values where the header declares 1 (y1)"),
+    (["log", "compare", "LOG", "MISSING"], "MISSING: no such file"),
+])
+def test_bad_logs_are_one_line_naming_file_and_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                    argv: list[str], message: str) -> None:
+    paths = {"LOG": tmp_path / "ok.log", "BAD": tmp_path / "bad.log", "MISSING": tmp_path / "none.log"}
+    paths["LOG"].write_text(format_header(("t", "y1", "u1"), 1.0, datetime(2026, 1, 5)) + format_row((0, 1, 2)))
+    paths["BAD"].write_text("% Logged variables: y1   TSamp: 1s\n1\n2 3\n")
+    argv = [str(paths.get(a, a)) for a in argv]
+    assert main(argv) == 2
+    expected = message
+    for key, path in paths.items():
+        expected = expected.replace(key, str(path))
+    assert capsys.readouterr().err.splitlines()[-1] == f"quadtank: error: {expected}"
