@@ -122,6 +122,11 @@ class Engine:
         return log_path(self.loop.logs_dir, name).exists()
 
     @property
+    def logs_dir(self) -> Path:
+        """The folder logs are saved in (the ghost run's window lists it)."""
+        return Path(self.loop.logs_dir)
+
+    @property
     def running(self) -> bool:
         """The loop thread is alive."""
         return self._thread is not None and self._thread.is_alive()
