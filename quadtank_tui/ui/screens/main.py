@@ -11,6 +11,7 @@ logic lives here.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from typing import Callable
 
@@ -114,10 +115,10 @@ class MainScreen(CommandSender):
         Binding("z", "time_window", "Time window", show=False, tooltip="Trend time window: 2, 5, 10, 30 min"),
         Binding("Z", "autoscale", "Autoscale", show=False, tooltip="Trends autoscaled or full scale"),
         Binding("u", "units", "Units", show=False, tooltip="Trends normalized or in the plant's units (levels cm, pumps V)"),
-        Binding("left", "scroll_trends(1)", "Back", show=False,
+        Binding("left", "scroll_trends(1)", "Trends back", show=False,
                 tooltip="Paused: scroll the trends back through the history (half a window)"),
-        Binding("right", "scroll_trends(-1)", "Forward", show=False, tooltip="Paused: scroll the trends forward"),
-        Binding("end", "scroll_trends(0)", "Live", show=False, tooltip="Trends back to the newest samples"),
+        Binding("right", "scroll_trends(-1)", "Trends forward", show=False, tooltip="Paused: scroll the trends forward"),
+        Binding("end", "scroll_trends(0)", "Trends live", show=False, tooltip="Trends back to the newest samples"),
         Binding("b", "ghost", "Ghost", show=False,
                 tooltip="Draw a saved .log dimmed behind the trends (the last one by default)"),
         Binding("B", "clear_ghost", "Clear ghost", show=False, tooltip="Remove the ghost run from the trends"),
@@ -411,7 +412,8 @@ class MainScreen(CommandSender):
         kept = self.engine.history()["t"]
         most = float(kept[-1] - kept[0]) if len(kept) else 0.0
         offset = 0.0 if not direction else self.trend_offset + direction * step
-        self.trend_offset = min(max(0.0, offset), max(0.0, step * (most // step)))
+        # Not so far back that nothing is left in view.
+        self.trend_offset = min(max(0.0, offset), max(0.0, step * math.floor(most / step - 1e-6)))
         self.refresh_view()
 
     def action_ghost(self) -> None:

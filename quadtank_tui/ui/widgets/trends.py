@@ -156,8 +156,8 @@ def x_axis(window: float, columns: int, end: float = 0.0) -> XAxis:
     k): the columns then show exactly the labels' times.  The span (columns x
     per_column) is the window or a little more (at most one label gap in k).
     The limits are laid out as in `y_axis`, so plotext's dot for a time falls in
-    the column its tick is on.  `end` must be a multiple of the tick (see
-    `scroll_step`)."""
+    the column its tick is on.  `end` is moved to the nearest column's time
+    (`scroll_step` keeps it on a label)."""
     columns = max(2, columns)
     gap = max(MIN_TICK_COLUMNS, min(WIDE_TICK_COLUMNS, columns // 6))
     tick, k = TIME_STEPS[-1], 1
@@ -167,6 +167,7 @@ def x_axis(window: float, columns: int, end: float = 0.0) -> XAxis:
             break
     k = max(1, k)
     per_column = tick / k
+    end = round(end / per_column) * per_column  # on a column: the labels stay on theirs
     first = end - (columns - 1) * per_column
     lo = first - per_column * (XDOTS - 1) / (2 * XDOTS)
     hi = lo + per_column * (XDOTS * columns - 1) / XDOTS
@@ -383,14 +384,17 @@ class Trend(PlotextPlot):
         factor = view.scale(view.names[0]).factor
         if not view.autoscale:
             return 0.0, factor
+        # The time range in view, at the columns of the last drawing (the y labels'
+        # width decides them: the same at the same size).
+        span = x_axis(view.window, self.columns, -view.offset)
+        lo, hi = span.first, -view.offset
         parts = []
         if history is not None and len(history["t"]):
             t = history["t"]
-            x = t - t[-1]
-            pick = visible(x, -view.offset - 1.5 * view.window, -view.offset)
+            pick = visible(t - t[-1], lo, hi)
             parts += [history[n][pick] * view.scale(n).factor for n in view.names]
         for gx, gy in ghost.values():
-            parts.append(gy[visible(gx, -view.offset - 1.5 * view.window, -view.offset)])
+            parts.append(gy[visible(gx, lo, hi)])
         values = np.concatenate(parts) if parts else np.zeros(0)
         if not len(values):
             return 0.0, factor
