@@ -154,6 +154,23 @@ async def test_no_color_writes_no_colour_and_tells_the_curves_apart_by_marker(
     assert len(u1_rows) == 1 and len(u2_rows) == 1 and u2_rows[0] < u1_rows[0]
 
 
+async def test_a_legend_never_wraps_into_the_plot(engine: Recording, monkeypatch: pytest.MonkeyPatch) -> None:
+    """NO_COLOR at 80x24, four signals and their markers: 40 characters in 38
+    wrapped the last value onto the plot's first row, and every row shifted."""
+    monkeypatch.setenv("NO_COLOR", "1")
+    app = await running_app(engine, (80, 24))
+    async with app.run_test(size=(80, 24)) as pilot:
+        app.main.refresh_view()
+        await pilot.pause()
+        lower = app.main.query_one("#lower", Trend)
+        lines = lower.render().plain.splitlines()
+        width, height = lower.size.width, lower.size.height
+    assert len(lines) == height and all(len(line) <= width for line in lines)
+    legend = lines[0]
+    assert [e[:3] for e in legend.split()[::2]] == ["*y1", "+y2", "or1", "xr2"], legend
+    assert re.match(r"^\s*0\.\d+┤", lines[1]), lines[1]  # the plot starts on the second row
+
+
 # --- 2. units --------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("size", [(80, 24), (100, 30), (120, 40)])

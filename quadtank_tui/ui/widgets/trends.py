@@ -232,6 +232,25 @@ def physical_scales(params: Parameters) -> dict[str, Scale]:
 # --- the widget ----------------------------------------------------------------------
 
 @dataclass(frozen=True)
+class LegendForm:
+    """One way of writing the legend: two spaces between entries or one, ref1 or
+    r1, the unit, the ghost's name, values without their leading zero and
+    markers without a space (NO_COLOR at 80x24)."""
+
+    wide: bool = False
+    short: bool = False
+    unit: bool = True
+    ghost: bool = True
+    tight: bool = False
+
+
+#: The forms tried in turn until one fits the row.
+LEGEND_FORMS = (LegendForm(wide=True), LegendForm(), LegendForm(short=True),
+                LegendForm(short=True, ghost=False), LegendForm(short=True, ghost=False, unit=False),
+                LegendForm(short=True, ghost=False, unit=False, tight=True))
+
+
+@dataclass(frozen=True)
 class TrendView:
     """What a trend shows, besides the samples.
 
@@ -403,28 +422,36 @@ class Trend(PlotextPlot):
     def _legend(self, names: list[str], styles: Mapping[str, TraceStyle],
                 latest: Mapping[str, float], width: int) -> Text:
         """Each signal's name and value at the view's right edge, in its colour (or
-        after its marker without colour); shorter forms when the row is narrow."""
+        after its marker without colour); shorter forms while the row is too
+        narrow, and never wider than the row (a wrapped legend would push the plot
+        down a row)."""
         view = self.view
         unit = view.unit
         decimals = 3 if not unit else 2
         ghost = f"ghost {view.ghost.name}" if view.ghost is not None else ""
-        for short, gap, with_unit, with_ghost in ((False, "  ", True, True), (False, " ", True, True),
-                                                  (True, " ", True, True), (True, " ", True, False),
-                                                  (True, " ", False, False)):
-            parts: list[tuple[str, str]] = []
+        parts: list[tuple[str, str]] = []
+        gap = " "
+        for form in LEGEND_FORMS:
+            gap = "  " if form.wide else " "
+            parts = []
             for name in names:
-                label = name.replace("ref", "r") if short else name
-                value = f" {latest[name]:.{decimals}f}" if name in latest else ""
-                marker = "" if styles[name].color is not None else f"{styles[name].marker} "
-                parts.append((f"{marker}{label}{value}", styles[name].rich))
-            if with_unit and unit:
+                label = name.replace("ref", "r") if form.short else name
+                value = f"{latest[name]:.{decimals}f}" if name in latest else ""
+                if form.tight and value.startswith("0."):
+                    value = value[1:]  # .614
+                style = styles[name]
+                marker = "" if style.color is not None else style.marker + ("" if form.tight else " ")
+                parts.append((f"{marker}{label} {value}".rstrip(), style.rich))
+            if form.unit and unit:
                 parts.append((unit, ""))
-            if with_ghost and ghost:
+            if form.ghost and ghost:
                 parts.append((ghost, "dim"))
             if sum(len(p) for p, _ in parts) + len(gap) * (len(parts) - 1) <= width:
                 break
         text = Text(no_wrap=True, overflow="crop")
         for n, (part, style) in enumerate(parts):
+            if text.cell_len + len(gap) * bool(n) + len(part) > width:
+                break  # whole entries only: a cut value would read as another
             if n:
                 text.append(gap)
             text.append(part, style)
