@@ -385,3 +385,23 @@ async def test_a_bad_ghost_log_is_named_and_nothing_breaks(engine: Recording) ->
         message = list(app._notifications)[-1].message
         assert "bad.log" in message and "line 5" in message, message
         assert app.main.ghost.run is None and app.screen is app.main
+
+
+def test_the_ghost_follows_each_new_logon(engine: Recording) -> None:
+    """LogOn at 40 s, saved, LogOn again at 300 s: the ghost moves to the second."""
+    from dataclasses import replace
+
+    from quadtank_tui.engine.snapshot import LogStatus
+    from quadtank_tui.ui.ghost import GhostControl
+
+    ghost = GhostControl(None)  # type: ignore[arg-type]  # follow() needs no screen
+    snap = engine.snapshot()  # Ts = 0.1 s
+    for t, log in ((10.0, LogStatus()), (45.0, LogStatus(active=True, rows=50)),
+                   (90.0, LogStatus(active=True, rows=500)), (100.0, LogStatus(rows=600)),
+                   (200.0, LogStatus())):
+        ghost.follow(replace(snap, t=t, log=log))
+        assert ghost.start == (0.0 if t == 10.0 else 40.0), t
+    ghost.follow(replace(snap, t=301.0, log=LogStatus(active=True, rows=10)))
+    assert ghost.start == pytest.approx(300.0)
+    ghost.follow(replace(snap, t=302.0, log=LogStatus(active=True, rows=20)))
+    assert ghost.start == pytest.approx(300.0)

@@ -46,12 +46,9 @@ class GhostControl:
         `rows` samples before the snapshot's time (which is that of the next
         sample)."""
         log = snap.log
-        if log.rows and (self._logon is None or log.rows < self._rows):
+        if log.rows and (self._rows == 0 or log.rows < self._rows):  # a new log
             self._logon = snap.t - log.rows * snap.params.tsamp
-        if log.active or log.rows:
-            self._rows = log.rows
-        else:
-            self._rows = 0
+        self._rows = log.rows
 
     def folder(self) -> Path:
         return Path(getattr(self.screen.engine, "logs_dir", "logs"))
