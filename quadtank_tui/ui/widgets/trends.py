@@ -385,6 +385,10 @@ class Trend(PlotextPlot):
                     latest[name] = float(y[-1])
                     plt.plot(x[pick][keep].tolist(), y[keep].tolist(), marker=styles[name].marker,
                              **_color(styles[name].color))
+        if not latest and not ghost:
+            # plotext draws no axes without data: one point left of the plot (not
+            # drawn) gives an empty trend its labelled axes, as at start-up.
+            plt.plot([xaxis.lo - 10 * xaxis.per_column], [yaxis.ticks[0] if yaxis.ticks else yaxis.lo])
         legend = self._legend(names, styles, latest, width)
         return Text("\n").join([legend, Text.from_ansi(plt.build())])
 
