@@ -32,6 +32,7 @@ import threading
 from concurrent.futures import Future
 from dataclasses import replace
 from multiprocessing.connection import wait
+from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import numpy as np
@@ -253,6 +254,11 @@ class EngineProcess:
 
     def log_exists(self, name: str) -> bool:
         return log_path(self._logs_dir, name).exists()
+
+    @property
+    def logs_dir(self) -> Path:
+        """The folder logs are saved in (the ghost run's window lists it)."""
+        return Path(self._logs_dir)
 
     @property
     def running(self) -> bool:

@@ -133,6 +133,11 @@ class Engine:
         return log_path(self.loop.logs_dir, name).exists()
 
     @property
+    def logs_dir(self) -> Path:
+        """The folder logs are saved in (the ghost run's window lists it)."""
+        return Path(self.loop.logs_dir)
+
+    @property
     def missed(self) -> int:
         """Sampling slots the clock skipped before the last sample (the loop's own
         count, :attr:`ControlLoop.missed`)."""

@@ -8,6 +8,7 @@ runs (the CLI does; tests drive a manual-clock engine themselves).
 from __future__ import annotations
 
 import asyncio
+import os
 import threading
 import time
 from functools import partial
@@ -36,7 +37,9 @@ class QuadTankApp(OrderedKeys):
 
     def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.05,
                  wall_clock: Callable[[], float] = time.monotonic) -> None:
-        super().__init__()
+        # NO_COLOR (no-color.org): Textual then strips every colour (its NoColor
+        # filter) only with native ANSI colours; otherwise it paints in greys.
+        super().__init__(ansi_color=True if "NO_COLOR" in os.environ else None)
         escape_keys.install()  # Esc then a key, sent together, is not Alt+key
         self.engine = engine
         self.main = MainScreen(engine, refresh_interval=refresh_interval, wall_clock=wall_clock)

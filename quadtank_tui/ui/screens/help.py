@@ -20,6 +20,7 @@ from textual.widgets import Static
 from rich.table import Table
 from rich.text import Text
 
+from quadtank_tui.ui.ghost.window import GhostWindow
 from quadtank_tui.ui.windows.base import ConfirmWindow, Window
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
 from quadtank_tui.ui.windows.logging import LoggingWindow
@@ -55,6 +56,7 @@ WINDOWS: tuple[tuple[str, str, type[Window]], ...] = (  # type: ignore[type-arg]
     ("Tank (add water in Simul)", "Main h", TankWindow),
     ("Pumps", "Main v", PumpWindow),
     ("Logging", "Main l", LoggingWindow),
+    ("Ghost run (a saved .log behind the trends)", "Main b", GhostWindow),
     ("Sampling time", "Setup s", SamplingTimeWindow),
     ("Tank setup", "Setup h, arrows, Enter", TankSetupWindow),
     ("Parameter files", "Setup f", ParFileWindow),

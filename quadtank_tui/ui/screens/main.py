@@ -11,6 +11,7 @@ logic lives here.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from functools import partial
 from typing import Callable
@@ -36,7 +37,8 @@ from quadtank_tui.ui.widgets.controller_box import ControllerBox, element_used
 from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.status_line import StatusLine
-from quadtank_tui.ui.widgets.trends import WINDOWS, Trend
+from quadtank_tui.ui.widgets.trends import WINDOWS, Scale, Trend, TrendView, physical_scales, scroll_step
+from quadtank_tui.ui.ghost import GhostControl
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, ConfirmWindow, free_log_name
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
 from quadtank_tui.ui.windows.faults import FaultWindow
@@ -112,7 +114,15 @@ class MainScreen(CommandSender):
         Binding("g", "plot_type('upper')", "Upper plot", show=False, tooltip="What the upper trend shows"),
         Binding("G", "plot_type('lower')", "Lower plot", show=False, tooltip="What the lower trend shows"),
         Binding("z", "time_window", "Time window", show=False, tooltip="Trend time window: 2, 5, 10, 30 min"),
-        Binding("Z", "autoscale", "Autoscale", show=False, tooltip="Trends autoscaled or 0..1"),
+        Binding("Z", "autoscale", "Autoscale", show=False, tooltip="Trends autoscaled or full scale"),
+        Binding("u", "units", "Units", show=False, tooltip="Trends normalized or in the plant's units (levels cm, pumps V)"),
+        Binding("left", "scroll_trends(1)", "Trends back", show=False,
+                tooltip="Paused: scroll the trends back through the history (half a window)"),
+        Binding("right", "scroll_trends(-1)", "Trends forward", show=False, tooltip="Paused: scroll the trends forward"),
+        Binding("end", "scroll_trends(0)", "Trends live", show=False, tooltip="Trends back to the newest samples"),
+        Binding("b", "ghost", "Ghost", show=False,
+                tooltip="Draw a saved .log dimmed behind the trends (the last one by default)"),
+        Binding("B", "clear_ghost", "Clear ghost", show=False, tooltip="Remove the ghost run from the trends"),
         Binding("plus", "speed(1)", "Faster", show=False,
                 tooltip="Simul: next speed of 1, 2, 5 ... 1000 x real time"),
         Binding("minus", "speed(-1)", "Slower", show=False, tooltip="Simul: previous speed step"),
@@ -137,6 +147,11 @@ class MainScreen(CommandSender):
         self._live_snap: Snapshot = _untimed(self.snap)
         self.window_index = 1  # 5 min
         self.autoscale = True
+        #: Trends in the plant's units (else normalized); how far back they show, s.
+        self.physical = False
+        self.trend_offset = 0.0
+        self._scales: tuple[object, tuple[tuple[str, Scale], ...]] = (None, ())
+        self.ghost = GhostControl(self)
 
     def compose(self) -> ComposeResult:
         yield StatusLine(id="status")
@@ -216,15 +231,21 @@ class MainScreen(CommandSender):
                 panel.snapshot = snap
             if snap.params.control != previous.params.control:
                 self.refresh_bindings()
-        view = (window, self.autoscale, self.size, snap.params.plots, snap.state, snap.control)
+        if snap.state == "Run":
+            self.trend_offset = 0.0  # scrolling back is for a paused trend
+        self.ghost.follow(snap)
+        view = (window, self.autoscale, self.size, snap.params.plots, snap.state, snap.control,
+                self.physical, self.trend_offset, self.ghost.run, self.ghost.start)
         if self._trends_due(snap, view, timer):
             self._drawn_view, self._drawn_t, self._drawn_k = view, snap.t, snap.k
             self._drawn_at = time.monotonic()
-            history = self.engine.history(window)
+            # Beyond the window: the time axis may show a little more (x_axis).
+            history = self.engine.history(1.5 * window + self.trend_offset)
+            scales = self._trend_scales(snap) if self.physical else ()
             for trend, plot_type in ((self._upper, snap.params.plots.upper),
                                      (self._lower, snap.params.plots.lower)):
-                trend.plot_type, trend.window, trend.autoscale = plot_type, window, self.autoscale
-                trend.show(history)
+                trend.show(history, TrendView(plot_type, window, self.autoscale, self.trend_offset,
+                                              scales, self.ghost.run, self.ghost.start))
         self._feed_live(snap)
 
     def _feed_live(self, snap: Snapshot) -> None:
@@ -377,6 +398,38 @@ class MainScreen(CommandSender):
     def action_autoscale(self) -> None:
         self.autoscale = not self.autoscale
         self.refresh_view()
+
+    def action_units(self) -> None:
+        self.physical = not self.physical
+        self.refresh_view()
+
+    def _trend_scales(self, snap: Snapshot) -> tuple[tuple[str, Scale], ...]:
+        """The plant's units per signal, worked out again only when the
+        parameters change."""
+        if self._scales[0] != snap.params:
+            self._scales = (snap.params, tuple(physical_scales(snap.params).items()))
+        return self._scales[1]
+
+    def action_scroll_trends(self, direction: int) -> None:
+        """Left/right: half a window back/forward through the history kept (paused
+        only: running, the trends follow the newest sample); End: live again."""
+        if direction and self.current().state == "Run":
+            self.notify("Pause first (p): a running trend follows the newest sample.", timeout=4)
+            return
+        window = WINDOWS[self.window_index]
+        step = scroll_step(window, self._upper.columns)
+        kept = self.engine.history()["t"]
+        most = float(kept[-1] - kept[0]) if len(kept) else 0.0
+        offset = 0.0 if not direction else self.trend_offset + direction * step
+        # Not so far back that nothing is left in view.
+        self.trend_offset = min(max(0.0, offset), max(0.0, step * math.floor(most / step - 1e-6)))
+        self.refresh_view()
+
+    def action_ghost(self) -> None:
+        self.ghost.choose()
+
+    def action_clear_ghost(self) -> None:
+        self.ghost.clear()
 
     # --- logging (M8) and exit (M9) ---------------------------------------------------
 

@@ -6,12 +6,19 @@ control loop.  The screen hands down the history once per refresh and only when
 a new sample arrived, so a paused process costs nothing over SSH; `show` itself
 redraws only when the newest sample or the view differs from the last drawing.
 
-The y axis is laid out here, not by plotext (issue 17.1): plotext puts a tick at
+Both axes are laid out here, not by plotext (issue 17.1): plotext puts a tick at
 `round((rows - 1) f)` but draws a value at braille dot `round((4 rows - 1) f)`,
 so a label could sit a row away from the curve it names, and two labels could
 fall on one row (0.3000 lost at 80x24).  `y_axis` picks a round value per row
 and the limits that put every row's value exactly under the dots of that row,
-so each label names the row it is on, at every size.
+so each label names the row it is on, at every size; `x_axis` does the same for
+the columns, in seconds relative to the newest sample (-60 -40 -20 0).
+
+The first row is the legend: each signal's value at the right edge of the view,
+in the colour its curve has (trend_style.py: one table for both, RGB, a dark and
+a light set; marker characters instead under NO_COLOR).  Levels and inputs are
+shown normalized or in the plant's units (cm, V); a paused trend scrolls back
+through the history; a logged run can be drawn dimmed behind the live curves.
 """
 
 from __future__ import annotations
@@ -22,21 +29,21 @@ from typing import Iterator, Mapping
 
 import numpy as np
 from rich.console import RenderableType
+from rich.text import Text
 from textual import events
-from textual.reactive import reactive
+from textual.color import Color
 from textual_plotext import PlotextPlot
 
+from quadtank_tui.core.parameters import Parameters
+from quadtank_tui.files.ghost import LoggedRun
 from quadtank_tui.ui.messages import ActionRequested
+from quadtank_tui.ui.widgets.trend_style import TraceStyle, trace_styles
 
 #: Time windows the `z` key cycles through, s.
 WINDOWS = (120.0, 300.0, 600.0, 1800.0)
-#: Fixed colours per signal, the same in both trends.
-COLORS = {"y1": "blue", "y2": "red", "y3": "green", "y4": "orange",
-          "u1": "blue", "u2": "red", "ref1": "cyan", "ref2": "magenta"}
-
-
-#: Rows plotext keeps below and above the canvas (the two x axes and the tick labels).
-AXIS_ROWS = 3
+#: Rows plotext keeps below the canvas (the x axis and its labels; the row above
+#: the canvas holds the legend instead of a frame line).
+AXIS_ROWS = 2
 #: Dots per row of the braille marker.
 DOTS = 4
 
@@ -68,7 +75,7 @@ MIN_SPAN = 0.02
 REACH = 0.25
 
 
-def y_axis(lo_data: float, hi_data: float, rows: int) -> YAxis:
+def y_axis(lo_data: float, hi_data: float, rows: int, *, min_span: float = MIN_SPAN) -> YAxis:
     """Round values per row covering lo_data..hi_data on `rows` rows.
 
     plotext draws value v at dot floor(0.5 + (4 rows - 1)(v - lo)/(hi - lo)); with
@@ -77,9 +84,9 @@ def y_axis(lo_data: float, hi_data: float, rows: int) -> YAxis:
     row i too (its rounding stays within 3/8 of a row).  Labels go on the rows
     whose values are multiples of a round label step."""
     rows = max(2, rows)
-    if hi_data - lo_data < MIN_SPAN:
+    if hi_data - lo_data < min_span:
         mid = (hi_data + lo_data) / 2
-        lo_data, hi_data = mid - MIN_SPAN / 2, mid + MIN_SPAN / 2
+        lo_data, hi_data = mid - min_span / 2, mid + min_span / 2
     for step in _nice_steps((hi_data - lo_data) / (rows - 1 + 2 * REACH)):
         lowest = math.ceil(hi_data / step - (rows - 1) - REACH - 1e-9)
         highest = math.floor(lo_data / step + REACH + 1e-9)
@@ -110,6 +117,71 @@ def _label_every(step: float, rows: int) -> int:
     return 100
 
 
+# --- the time axis ---------------------------------------------------------------------
+
+#: Round tick spacings of the time axis, s.
+TIME_STEPS = (1, 2, 5, 10, 15, 20, 30, 60, 120, 300, 600, 900, 1200, 1800, 3600, 7200)
+#: Least columns between two time labels ("-1200" and a gap), and what a wide plot
+#: keeps (a label every 10 columns or more: about one per 30 s at 120x40, 5 min).
+MIN_TICK_COLUMNS = 6
+WIDE_TICK_COLUMNS = 10
+#: Dots per column of the braille marker.
+XDOTS = 2
+
+
+@dataclass(frozen=True)
+class XAxis:
+    """plotext limits and labelled ticks for `columns` columns whose right-most
+    one shows `end` (s relative to the newest sample): column j (from the left)
+    shows end - (columns - 1 - j) per_column."""
+
+    lo: float
+    hi: float
+    per_column: float
+    tick: float
+    ticks: tuple[float, ...]
+    labels: tuple[str, ...]
+
+    @property
+    def first(self) -> float:
+        """The value of the left-most column."""
+        return self.lo + self.per_column * (XDOTS - 1) / (2 * XDOTS)
+
+
+def x_axis(window: float, columns: int, end: float = 0.0) -> XAxis:
+    """Seconds relative to the newest sample, labelled at round steps (-60 -40
+    -20 0) that fall on the columns whose times they name, at every width.
+
+    A label every `tick` seconds, `k` whole columns apart (so per_column = tick /
+    k): the columns then show exactly the labels' times.  The span (columns x
+    per_column) is the window or a little more (at most one label gap in k).
+    The limits are laid out as in `y_axis`, so plotext's dot for a time falls in
+    the column its tick is on.  `end` is moved to the nearest column's time
+    (`scroll_step` keeps it on a label)."""
+    columns = max(2, columns)
+    gap = max(MIN_TICK_COLUMNS, min(WIDE_TICK_COLUMNS, columns // 6))
+    tick, k = TIME_STEPS[-1], 1
+    for tick in TIME_STEPS:
+        k = math.floor(tick * columns / window + 1e-9)
+        if k >= gap:
+            break
+    k = max(1, k)
+    per_column = tick / k
+    end = round(end / per_column) * per_column  # on a column: the labels stay on theirs
+    first = end - (columns - 1) * per_column
+    lo = first - per_column * (XDOTS - 1) / (2 * XDOTS)
+    hi = lo + per_column * (XDOTS * columns - 1) / XDOTS
+    ticks = [tick * n for n in range(math.ceil(first / tick - 1e-9), math.floor(end / tick + 1e-9) + 1)]
+    return XAxis(lo, hi, per_column, float(tick), tuple(ticks), tuple(f"{v:g}" for v in ticks))
+
+
+def scroll_step(window: float, columns: int) -> float:
+    """How far one press of left/right moves a paused trend, s: about half the
+    window, a whole number of labels (so the labels stay round)."""
+    tick = x_axis(window, columns).tick
+    return max(tick, math.floor(window / 2 / tick + 1e-9) * tick)
+
+
 def decimate(n: int, columns: int) -> slice:
     """A stride that keeps about one point per column and always ends on the
     newest sample.  plotext joins the points at braille resolution anyway, and its
@@ -119,70 +191,280 @@ def decimate(n: int, columns: int) -> slice:
     return slice((n - 1) % step, None, step)
 
 
-class Trend(PlotextPlot):
-    """One trend: its plot type ("y1 y2 ref1 ref2"), the window and autoscale."""
+def visible(t: np.ndarray, lo: float, hi: float) -> slice:
+    """The samples of sorted times `t` from one before `lo` to `hi` (the line
+    into the plot's left edge is drawn too)."""
+    a = max(0, int(np.searchsorted(t, lo, side="left")) - 1)
+    return slice(a, int(np.searchsorted(t, hi, side="right")))
 
-    plot_type: reactive[str] = reactive("u1 u2")
-    window: reactive[float] = reactive(300.0)
-    autoscale: reactive[bool] = reactive(True)
+
+# --- units ---------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Scale:
+    """A signal in the unit shown: value = normalized x factor."""
+
+    factor: float = 1.0
+    unit: str = ""
+
+
+NORMALIZED = Scale()
+
+
+def physical_scales(params: Parameters) -> dict[str, Scale]:
+    """Per signal, normalized -> the plant's own units: levels (and their
+    references) in the tanks' unit (cm for the quadruple tank: 1.0 is the sensor
+    range), pump inputs in V.  A signal the plant does not have stays normalized."""
+    plant = params.process_plant()
+    states, inputs = plant.states, plant.inputs
+    out: dict[str, Scale] = {}
+    for i in range(4):
+        if i < len(states):
+            out[f"y{i + 1}"] = Scale(states[i].full_scale, states[i].unit)
+    for i in range(2):
+        if i < len(states):
+            out[f"ref{i + 1}"] = Scale(states[i].full_scale, states[i].unit)
+        if i < len(inputs):
+            out[f"u{i + 1}"] = Scale(inputs[i].full_scale, inputs[i].unit)
+    return out
+
+
+# --- the widget ----------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class LegendForm:
+    """One way of writing the legend: two spaces between entries or one, ref1 or
+    r1, the unit, the ghost's name, values without their leading zero and
+    markers without a space (NO_COLOR at 80x24)."""
+
+    wide: bool = False
+    short: bool = False
+    unit: bool = True
+    ghost: bool = True
+    tight: bool = False
+
+
+#: The forms tried in turn until one fits the row.
+LEGEND_FORMS = (LegendForm(wide=True), LegendForm(), LegendForm(short=True),
+                LegendForm(short=True, ghost=False), LegendForm(short=True, ghost=False, unit=False),
+                LegendForm(short=True, ghost=False, unit=False, tight=True))
+
+
+@dataclass(frozen=True)
+class TrendView:
+    """What a trend shows, besides the samples.
+
+    offset : the view ends this many seconds before the newest sample (0: live)
+    scales : per signal, the unit shown (empty: normalized)
+    ghost, ghost_start : a logged run drawn dimmed behind the signals, its first
+        row at process time ghost_start
+    """
+
+    plot_type: str = "u1 u2"
+    window: float = 300.0
+    autoscale: bool = True
+    offset: float = 0.0
+    scales: tuple[tuple[str, Scale], ...] = ()
+    ghost: LoggedRun | None = None
+    ghost_start: float = 0.0
+
+    @property
+    def names(self) -> list[str]:
+        return self.plot_type.split()
+
+    def scale(self, name: str) -> Scale:
+        return dict(self.scales).get(name, NORMALIZED)
+
+    @property
+    def unit(self) -> str:
+        """The y axis's unit ("" normalized)."""
+        return self.scale(self.names[0]).unit if self.scales else ""
+
+
+class Trend(PlotextPlot):
+    """One trend: the legend row (each signal's latest value in its colour), then
+    the plot, relative time on x."""
 
     def __init__(self, which: str, **kwargs: object) -> None:
         super().__init__(**kwargs)  # type: ignore[arg-type]
         self.which = which
+        self.view = TrendView()
         self._history: Mapping[str, np.ndarray] | None = None
         self._drawn: tuple[object, ...] = ()
-        self._y_range = (0.0, 1.0)
+        self._columns = 0
+        self._title()
+
+    @property
+    def plot_type(self) -> str:
+        return self.view.plot_type
+
+    @property
+    def columns(self) -> int:
+        """The plot's columns of data at the last drawing (an estimate before)."""
+        return self._columns or max(2, self.size.width - 7)
 
     def _title(self) -> None:
+        v = self.view
         key = "g" if self.which == "upper" else "G"
-        scale = "auto" if self.autoscale else "0..1"
-        # The legend is the title, in the curves' colours: plotext's own legend
-        # sits on the left of the plot, where a strip chart's data starts.
-        self.border_title = " ".join(f"[{COLORS[n]}]{n}[/]" for n in self.plot_type.split())
-        self.border_subtitle = f"t in s · {key} type · z {self.window / 60:g} min · Z {scale}"
+        scale = "auto" if v.autoscale else "full"
+        unit = v.unit or "norm"
+        # The title says what is in view; the subtitle the keys that change it (34
+        # characters: it fits a trend at 80x24).
+        if v.offset > 0 and self._history is not None and len(self._history["t"]):
+            end = float(self._history["t"][-1]) - v.offset
+            title = f"viewing t = {max(0.0, end - v.window):.0f}-{end:.0f} s, End to return"
+        else:
+            title = "live, t in s"
+        if v.ghost is not None:
+            title += f" · ghost {v.ghost.name}"
+        self.border_title = title
+        keys = f"{key} type · z {v.window / 60:g} min · Z {scale} · u {unit}"
+        self.border_subtitle = keys if len(keys) <= 34 else keys.replace(" type", "", 1)
 
-    def watch_plot_type(self) -> None:
-        self._title()
-
-    def watch_window(self) -> None:
-        self._title()
-
-    def watch_autoscale(self) -> None:
-        self._title()
-
-    def show(self, history: Mapping[str, np.ndarray]) -> None:
-        """Redraw from the last `window` seconds of every signal, if the newest
-        sample or the view changed since the last drawing."""
+    def show(self, history: Mapping[str, np.ndarray], view: TrendView | None = None) -> None:
+        """Redraw from `history` as `view` says, if the newest sample or the view
+        changed since the last drawing."""
+        view = view or self.view
         t = history["t"]
-        drawn = (len(t), float(t[-1]) if len(t) else None, self.plot_type, self.window, self.autoscale)
+        drawn = (len(t), float(t[-1]) if len(t) else None, view)
         if drawn == self._drawn:
             return
         self._drawn = drawn
-        self._history = history
-        plt = self.plt
-        plt.clear_data()
-        t_end = float(t[-1]) if len(t) else 0.0
-        lo_t = float(max(0, math.floor(t_end - self.window)))  # whole seconds: round ticks
-        plt.xlim(lo_t, max(lo_t + self.window, t_end))
-        names = self.plot_type.split()
-        if len(t):
-            pick = decimate(len(t), max(1, self.size.width))
-            for name in names:
-                plt.plot(t[pick].tolist(), history[name][pick].tolist(),
-                         color=COLORS[name], marker="braille")
-        if self.autoscale and len(t):
-            values = np.concatenate([history[n] for n in names])
-            self._y_range = (float(values.min()), float(values.max()))  # y_axis leaves the margin
-        else:
-            self._y_range = (0.0, 1.0)
+        self._history, self.view = history, view
+        self._title()
         self.refresh()
 
+    # --- drawing ---------------------------------------------------------------------
+
+    def _styles(self, names: list[str]) -> dict[str, TraceStyle]:
+        surface = self.app.theme_variables.get("surface", "#1e1e1e")
+        return trace_styles(names, dark=self.app.current_theme.dark, no_color=self.app.no_color,
+                            background=Color.parse(surface).rgb)
+
     def render(self) -> RenderableType:
-        # The y axis is laid out for the rows there are now (a resize re-renders).
-        axis = y_axis(*self._y_range, self.size.height - AXIS_ROWS)
-        self.plt.ylim(axis.lo, axis.hi)
-        self.plt.yticks(list(axis.ticks), list(axis.labels))
-        return super().render()
+        width, height = self.size.width, self.size.height
+        view, history = self.view, self._history
+        names = view.names
+        styles = self._styles(names)
+        t = history["t"] if history is not None else np.zeros(0)
+        t_new = float(t[-1]) if len(t) else 0.0
+        ghost = self._ghost_curves(t_new)
+        plt = self.plt
+        plt.clear_data()
+        plot_height = max(1, height - 1)  # the legend takes the first row
+        plt.plotsize(width, plot_height)
+        plt._set_size(width, plot_height)
+        plt.theme("clear" if self.app.no_color else self._get_plotext_theme_name(self.app.theme))
+        plt.xaxes(True, False)  # no frame line on top: the legend row is there
+
+        # y first: the labels' width decides the columns left for the data.
+        rows = plot_height - AXIS_ROWS
+        yaxis = y_axis(*self._y_range(view, history, ghost), rows,
+                       min_span=MIN_SPAN * view.scale(names[0]).factor)
+        columns = self._columns = max(2, width - max(map(len, yaxis.labels), default=0) - 2)
+        xaxis = x_axis(view.window, columns, -view.offset)
+        x_lo, x_hi = xaxis.first - xaxis.per_column, -view.offset
+        plt.ylim(yaxis.lo, yaxis.hi)
+        plt.yticks(list(yaxis.ticks), list(yaxis.labels))
+        plt.xlim(xaxis.lo, xaxis.hi)
+        plt.xticks(list(xaxis.ticks), list(xaxis.labels))
+
+        for name, (gx, gy) in ghost.items():  # first: the live curves draw over it
+            pick = visible(gx, x_lo, x_hi)
+            keep = decimate(len(gx[pick]), XDOTS * columns)
+            plt.plot(gx[pick][keep].tolist(), gy[pick][keep].tolist(), marker=styles[name].ghost_marker,
+                     **_color(styles[name].ghost_color))
+        latest: dict[str, float] = {}
+        if history is not None and len(t):
+            x = t - t_new
+            pick = visible(x, x_lo, x_hi)
+            keep = decimate(len(x[pick]), XDOTS * columns)
+            for name in names:
+                y = history[name][pick] * view.scale(name).factor
+                if len(y):
+                    latest[name] = float(y[-1])
+                    plt.plot(x[pick][keep].tolist(), y[keep].tolist(), marker=styles[name].marker,
+                             **_color(styles[name].color))
+        if not latest and not ghost:
+            # plotext draws no axes without data: one point left of the plot (not
+            # drawn) gives an empty trend its labelled axes, as at start-up.
+            plt.plot([xaxis.lo - 10 * xaxis.per_column], [yaxis.ticks[0] if yaxis.ticks else yaxis.lo])
+        legend = self._legend(names, styles, latest, width)
+        return Text("\n").join([legend, Text.from_ansi(plt.build())])
+
+    def _ghost_curves(self, t_new: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """The ghost's signals of this plot as (time relative to the newest sample,
+        value in the unit shown)."""
+        run, view = self.view.ghost, self.view
+        if run is None:
+            return {}
+        x = run.t + view.ghost_start - t_new
+        return {n: (x, run.signals[n] * view.scale(n).factor) for n in view.names if n in run.signals}
+
+    def _y_range(self, view: TrendView, history: Mapping[str, np.ndarray] | None,
+                 ghost: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> tuple[float, float]:
+        """What the y axis must hold: the data in view (autoscale), else 0..full scale."""
+        factor = view.scale(view.names[0]).factor
+        if not view.autoscale:
+            return 0.0, factor
+        # The time range in view, at the columns of the last drawing (the y labels'
+        # width decides them: the same at the same size).
+        span = x_axis(view.window, self.columns, -view.offset)
+        lo, hi = span.first, -view.offset
+        parts = []
+        if history is not None and len(history["t"]):
+            t = history["t"]
+            pick = visible(t - t[-1], lo, hi)
+            parts += [history[n][pick] * view.scale(n).factor for n in view.names]
+        for gx, gy in ghost.values():
+            parts.append(gy[visible(gx, lo, hi)])
+        values = np.concatenate(parts) if parts else np.zeros(0)
+        if not len(values):
+            return 0.0, factor
+        return float(values.min()), float(values.max())
+
+    def _legend(self, names: list[str], styles: Mapping[str, TraceStyle],
+                latest: Mapping[str, float], width: int) -> Text:
+        """Each signal's name and value at the view's right edge, in its colour (or
+        after its marker without colour); shorter forms while the row is too
+        narrow, and never wider than the row (a wrapped legend would push the plot
+        down a row)."""
+        view = self.view
+        unit = view.unit
+        decimals = 3 if not unit else 2
+        ghost = f"ghost {view.ghost.name}" if view.ghost is not None else ""
+        parts: list[tuple[str, str]] = []
+        gap = " "
+        for form in LEGEND_FORMS:
+            gap = "  " if form.wide else " "
+            parts = []
+            for name in names:
+                label = name.replace("ref", "r") if form.short else name
+                value = f"{latest[name]:.{decimals}f}" if name in latest else ""
+                if form.tight and value.startswith("0."):
+                    value = value[1:]  # .614
+                style = styles[name]
+                marker = "" if style.color is not None else style.marker + ("" if form.tight else " ")
+                parts.append((f"{marker}{label} {value}".rstrip(), style.rich))
+            if form.unit and unit:
+                parts.append((unit, ""))
+            if form.ghost and ghost:
+                parts.append((ghost, "dim"))
+            if sum(len(p) for p, _ in parts) + len(gap) * (len(parts) - 1) <= width:
+                break
+        text = Text(no_wrap=True, overflow="crop")
+        for n, (part, style) in enumerate(parts):
+            if text.cell_len + len(gap) * bool(n) + len(part) > width:
+                break  # whole entries only: a cut value would read as another
+            if n:
+                text.append(gap)
+            text.append(part, style)
+        return text
 
     def on_click(self, event: events.Click) -> None:
         self.post_message(ActionRequested(f"plot_type({self.which!r})"))
+
+
+def _color(rgb: tuple[int, int, int] | None) -> dict[str, object]:
+    """plotext's colour argument: an RGB tuple, or none (the default foreground)."""
+    return {} if rgb is None else {"color": rgb}

@@ -1,0 +1,93 @@
+"""Old runs as ghost traces (issue 17): a saved `.log` drawn dimmed in the trends
+behind the live signals, so a student compares today's controller with
+yesterday's.
+
+`GhostControl` is the Main screen's part: it opens the window, reads the file in
+a worker (files/ghost.py does the reading), and works out where the ghost's
+first row goes: at the current log's LogOn (until there is one, where the
+process was when it was loaded) or at a chosen process time.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.files.ghost import LoggedRun, load_run, logs_newest_first
+from quadtank_tui.files.log import LogFileError
+from quadtank_tui.ui.ghost.window import GhostChoice, GhostWindow
+
+if TYPE_CHECKING:
+    from quadtank_tui.ui.screens.main import MainScreen
+
+
+class GhostControl:
+    """The ghost run of the Main screen's trends."""
+
+    def __init__(self, screen: MainScreen) -> None:
+        self.screen = screen
+        self.run: LoggedRun | None = None
+        #: Process time of the ghost's first row when chosen, else None: at LogOn.
+        self.at: float | None = None
+        self._loaded_at = 0.0
+        self._logon: float | None = None
+        self._rows = 0
+
+    @property
+    def start(self) -> float:
+        """Process time of the ghost's first row, s."""
+        if self.at is not None:
+            return self.at
+        return self._logon if self._logon is not None else self._loaded_at
+
+    def follow(self, snap: Snapshot) -> None:
+        """Keep the LogOn time of the current log: its first row was logged
+        `rows` samples before the snapshot's time (which is that of the next
+        sample)."""
+        log = snap.log
+        if log.rows and (self._rows == 0 or log.rows < self._rows):  # a new log
+            self._logon = snap.t - log.rows * snap.params.tsamp
+        self._rows = log.rows
+
+    def folder(self) -> Path:
+        return Path(getattr(self.screen.engine, "logs_dir", "logs"))
+
+    def choose(self) -> None:
+        now = self.screen.current().t
+        window = GhostWindow(logs_newest_first(self.folder()), at=self.at, now=now, opener="b")
+        self.screen.app.push_screen(window, self._chosen)
+
+    def _chosen(self, choice: GhostChoice | None) -> None:
+        if choice is None:
+            return
+        self.screen.run_worker(lambda: self._load(choice), thread=True, group="ghost",
+                               exclusive=True, exit_on_error=False)
+
+    def _load(self, choice: GhostChoice) -> None:
+        """In a worker thread: read the file, then hand it to the screen."""
+        try:
+            run = load_run(choice.path)
+        except LogFileError as exc:
+            self.screen.app.call_from_thread(self.screen.notify, f"Ghost run: {exc}",
+                                             severity="error", timeout=8)
+            return
+        self.screen.app.call_from_thread(self.loaded, run, choice.at)
+
+    def loaded(self, run: LoggedRun, at: float | None) -> None:
+        self.run, self.at = run, at
+        self._loaded_at = self.screen.current().t
+        if at is not None:
+            where = f"from t = {at:g} s"
+        elif self._logon is not None:
+            where = f"from the LogOn at t = {self._logon:g} s"
+        else:
+            where = f"from now (t = {self._loaded_at:g} s) until a LogOn"
+        self.screen.notify(f"Ghost run {run.name} ({len(run.t)} rows) drawn dimmed {where}; B clears it.",
+                           timeout=5)
+        self.screen.refresh_view()
+
+    def clear(self) -> None:
+        if self.run is not None:
+            self.run = None
+            self.screen.refresh_view()

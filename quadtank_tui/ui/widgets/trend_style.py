@@ -1,0 +1,79 @@
+"""How the trends tell their signals apart: one colour per signal, the same in
+the legend and in the plot, for a dark and a light theme; marker characters
+instead when the user asked for no colour (NO_COLOR).
+
+The colours are given as RGB, not as terminal colour names: plotext turned
+"blue" into one ANSI code and Rich markup into another, so y1 was blue in the
+title and purple in the plot (issue 17).  Every colour keeps a contrast of at
+least 3:1 (WCAG's figure for graphics) against the theme's plot background;
+tests/ui/test_trend_view.py checks it on Textual's dark and light themes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+RGB = tuple[int, int, int]
+
+#: Per signal, on a dark background: light, saturated colours.  Loop 1's input
+#: and level share a hue, loop 2's too (the plots never mix levels and inputs).
+DARK: dict[str, RGB] = {
+    "y1": (90, 160, 255), "y2": (255, 110, 110), "y3": (110, 220, 110), "y4": (255, 185, 80),
+    "u1": (90, 160, 255), "u2": (255, 110, 110),
+    "ref1": (80, 225, 225), "ref2": (235, 130, 235),
+}
+#: The same hues, darker, for a light background.
+LIGHT: dict[str, RGB] = {
+    "y1": (0, 85, 200), "y2": (200, 30, 30), "y3": (30, 120, 40), "y4": (170, 85, 0),
+    "u1": (0, 85, 200), "u2": (200, 30, 30),
+    "ref1": (0, 125, 135), "ref2": (145, 35, 165),
+}
+#: Without colour, each trace of a plot draws with its own character (in the
+#: order of the plot type: "y1 y2 ref1 ref2" -> * + o x) and a ghost with dots.
+MARKERS = ("*", "+", "o", "x")
+GHOST_MARKER = "·"
+#: How far a ghost's colour goes towards the background (0 = the trace's own).
+GHOST_FADE = 0.6
+
+
+@dataclass(frozen=True)
+class TraceStyle:
+    """How one signal is drawn: `color` None means no colour at all."""
+
+    color: RGB | None
+    marker: str
+    ghost_color: RGB | None
+    ghost_marker: str
+
+    @property
+    def rich(self) -> str:
+        """The Rich style of the legend entry: exactly the plot's colour."""
+        return "" if self.color is None else "rgb({},{},{})".format(*self.color)
+
+
+def blend(a: RGB, b: RGB, f: float) -> RGB:
+    """`a` moved the fraction `f` of the way to `b`."""
+    return tuple(round(x + (y - x) * f) for x, y in zip(a, b))  # type: ignore[return-value]
+
+
+def trace_styles(names: list[str], *, dark: bool, no_color: bool, background: RGB) -> dict[str, TraceStyle]:
+    """The style of each signal of one plot."""
+    if no_color:
+        return {n: TraceStyle(None, MARKERS[i % len(MARKERS)], None, GHOST_MARKER) for i, n in enumerate(names)}
+    table = DARK if dark else LIGHT
+    return {n: TraceStyle(table[n], "braille", blend(table[n], background, GHOST_FADE), "braille")
+            for n in names}
+
+
+def _luminance(c: RGB) -> float:
+    def channel(v: int) -> float:
+        s = v / 255
+        return s / 12.92 if s <= 0.03928 else ((s + 0.055) / 1.055) ** 2.4
+    r, g, b = (channel(v) for v in c)
+    return 0.2126 * r + 0.7152 * g + 0.0722 * b
+
+
+def contrast(a: RGB, b: RGB) -> float:
+    """WCAG contrast ratio of two colours (1 to 21)."""
+    la, lb = sorted((_luminance(a), _luminance(b)), reverse=True)
+    return (la + 0.05) / (lb + 0.05)
