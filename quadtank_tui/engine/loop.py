@@ -15,8 +15,8 @@ One sample (Run)::
     Manual:    u = sat(w), r = y,         C.track(r, y, u)    (bumpless later)
     write u; log a row; history; snapshot; let h seconds of process time pass
 
-C is the PID/General matrix on y1, y2, or the state feedback (core.statefb) on all
-four levels; while the state feedback runs, the matrix tracks u so that switching
+C is the PID/General matrix on y1, y2, or the state feedback (core.statefb) on every
+level of the plant; while the state feedback runs, the matrix tracks u so that switching
 back to its family is bumpless too.
 
 Pause: a simulation freezes (no time passes, nothing is logged); a real process gets
@@ -57,11 +57,36 @@ from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 
 if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is chosen
     from quadtank_tui.core.statefb.design import Design
+    from quadtank_tui.core.statefb.plants import PlantStateFeedback
     from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+
+    AnyStateFeedback = QuadTankStateFeedback | PlantStateFeedback
 
 MODE_KEY = "CONTROL.Mode"
 MEAN_KEYS = ("REFERENCE ONE.Mean", "REFERENCE TWO.Mean")
 _FAMILY_KEYS = ("CONTROL.Type", "CONTROL.Structure")
+
+
+def _new_statefb(p: Parameters) -> AnyStateFeedback:
+    """The state feedback `p` asks for, on its plant (ParameterError: no such design)."""
+    if p.process is None:
+        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+
+        return QuadTankStateFeedback(p.plant(), p.statefb, p.tsamp)
+    from quadtank_tui.core.statefb.plants import PlantStateFeedback
+
+    return PlantStateFeedback(p.process_plant(), p.process_levels(), p.statefb, p.tsamp)
+
+
+def _statefb_design(p: Parameters) -> Design:
+    """A new design for the state feedback running on `p`'s plant."""
+    if p.process is None:
+        from quadtank_tui.core.statefb.quadtank import design_for
+
+        return design_for(p.plant(), p.statefb, p.tsamp)
+    from quadtank_tui.core.statefb.plants import design_for as plant_design
+
+    return plant_design(p.process_plant(), p.process_levels(), p.statefb, p.tsamp)
 
 
 def _matrix_for(p: Parameters) -> ControllerMatrix:
@@ -110,13 +135,11 @@ class ControlLoop:
         self._gens = (Generator(params.references[0], params.tsamp),
                       Generator(params.references[1], params.tsamp))
         self._matrix = _matrix_for(params)
-        self._sf: QuadTankStateFeedback | None = None
+        self._sf: AnyStateFeedback | None = None
         sf_refused = None
         if params.control.family is Family.STATE_FEEDBACK:
-            from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
-
             try:
-                self._sf = QuadTankStateFeedback(params.plant(), params.statefb, params.tsamp)
+                self._sf = _new_statefb(params)
             except ParameterError as exc:  # a file asked for a design there is none of
                 sf_refused = f"State feedback: {exc}; the PID controllers are in force"
                 params = self.params = params.with_value("CONTROL.Type", Family.PID.value)
@@ -162,7 +185,7 @@ class ControlLoop:
         return self._matrix
 
     @property
-    def statefb(self) -> QuadTankStateFeedback | None:
+    def statefb(self) -> AnyStateFeedback | None:
         """The state-feedback controller while it is the type in force."""
         return self._sf
 
@@ -358,34 +381,35 @@ class ControlLoop:
             self.sim.set_plant(plant, new.process_levels())
         self.params = new
 
-    def _statefb_for(self, new: Parameters, old: Parameters) -> QuadTankStateFeedback | Design | None:
+    def _statefb_for(self, new: Parameters, old: Parameters) -> AnyStateFeedback | Design | None:
         """What the state feedback needs for `new`, designed (or refused) before anything
-        moves: a new controller (switched to it), a new design for the one running, or
-        None (nothing to do)."""
+        moves: a new controller (switched to it, or another plant's), a new design for
+        the one running, or None (nothing to do)."""
         if new.control.family is not Family.STATE_FEEDBACK:
             return None
-        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback, design_for
-
-        if new.process is not None:
-            raise ParameterError("CONTROL.Type", "the state feedback runs on the quadruple tank only "
-                                 f"for now; this setting's plant is {new.process.kind}")
-        if self._sf is None:
-            return QuadTankStateFeedback(new.plant(), new.statefb, new.tsamp)
-        if (new.statefb, new.simulation, new.tsamp) == (old.statefb, old.simulation, old.tsamp):
+        if self._sf is None or _plant_shape(new) != _plant_shape(old):
+            return _new_statefb(new)
+        if (new.statefb, new.simulation, new.process, new.tsamp) == (
+                old.statefb, old.simulation, old.process, old.tsamp):
             return None
-        return design_for(new.plant(), new.statefb, new.tsamp)
+        return _statefb_design(new)
 
-    def _install_statefb(self, new: Parameters, change: QuadTankStateFeedback | Design | None) -> None:
+    def _install_statefb(self, new: Parameters, change: AnyStateFeedback | Design | None) -> None:
         """Switch to, redesign (between samples, bumpless) or drop the state feedback."""
         if new.control.family is not Family.STATE_FEEDBACK:
             self._sf = None
             return
-        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+        from quadtank_tui.core.statefb.design import Design
+        from quadtank_tui.core.statefb.plants import PlantStateFeedback
 
-        if isinstance(change, QuadTankStateFeedback):
+        if change is None:
+            return
+        if not isinstance(change, Design):
             self._sf = change
             self._sf.track(self._y, self._u)  # start where the pumps are (3.1.10)
-        elif change is not None and self._sf is not None:
+        elif isinstance(self._sf, PlantStateFeedback):
+            self._sf.configure(new.process_plant(), new.process_levels(), new.statefb, change)
+        elif self._sf is not None:
             self._sf.configure(new.plant(), new.statefb, change)
 
     def _switch_mode(self, mode: ControlMode, *, adjust_means: bool = True) -> None:
@@ -560,6 +584,11 @@ class ControlLoop:
         self.sim.set_levels(levels_cm)
         self._y = self.sim.read_levels()
         self._r = (self._y[0], self._y[1])
+
+
+def _plant_shape(p: Parameters) -> str:
+    """The plant kind: a state feedback is made anew, not redesigned, when it changes."""
+    return "quadtank" if p.process is None else p.process.kind
 
 
 _HANDLERS: Mapping[type, Callable[[ControlLoop, Any], CommandResult]] = {
