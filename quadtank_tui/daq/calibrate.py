@@ -35,6 +35,7 @@ from quadtank_tui.core.calibration import (
     fit_quadtank_outlets,
     fit_sensor,
 )
+from quadtank_tui.core.calibration_run import SettleRule, SettleWindow
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams, area_from_diameter, time_constant
 from quadtank_tui.core.plants import CoupledCascade, Plant, QuadTank
@@ -131,13 +132,12 @@ def settle(sensors: RawSensors, u: tuple[float, float], rule: Settle, *,
     last window.  CalibrationError after the timeout (the pumps stay where they are:
     the caller stops them)."""
     start = now()
-    recent: list[tuple[float, float, float, float]] = []
+    window = SettleWindow(SettleRule(rule.window, rule.tol, rule.timeout))
     while True:
         sensors.write_pumps(u)  # every read: the rig's watchdog sees the link alive
-        recent = (recent + [sensors.read_raw_volts()])[-rule.window:]
-        if len(recent) == rule.window and all(
-                max(r[i] for r in recent) - min(r[i] for r in recent) <= rule.tol for i in range(4)):
-            return tuple(sum(r[i] for r in recent) / rule.window for i in range(4))  # type: ignore[return-value]
+        mean = window.add(sensors.read_raw_volts())
+        if mean is not None:
+            return mean  # type: ignore[return-value]  # four sensors in, four means out
         if now() - start > rule.timeout:
             raise CalibrationError(f"the sensors did not settle within {rule.timeout:g} s at "
                                    f"{u[0] * FULL_SCALE_V:g} V / {u[1] * FULL_SCALE_V:g} V")

@@ -34,18 +34,20 @@ from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Mapping
 
+from quadtank_tui.core.calibration import CalibrationError
+from quadtank_tui.core.calibration_run import CalibrationRun, CalibrationStatus, SettleRule
 from quadtank_tui.core.faults import Fault
 from quadtank_tui.core.general import tustin
 from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, Family, saturate
 from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plant import FULL_SCALE_V, PlantError
 from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.backend import BackendError, ProcessBackend
 from quadtank_tui.engine.commands import (
-    AddWater, Command, CommandResult, LoadPar, LogDiscard, LogOff, LogOn, LogSave, NudgeMean,
-    ResetControllers, SavePar, SetControlMode, SetDefaults, SetFault, SetOperation, SetParams, SetSpeed,
-    SetState,
+    AddWater, CalibrationHeights, CancelCalibration, Command, CommandResult, LoadPar, LogDiscard, LogOff,
+    LogOn, LogSave, NudgeMean, ResetControllers, SavePar, SetControlMode, SetDefaults, SetFault, SetOperation,
+    SetParams, SetSpeed, SetState, StartCalibration,
 )
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, History
 from quadtank_tui.engine.jitter import JitterHistogram
@@ -144,6 +146,9 @@ class ControlLoop:
                 sf_refused = f"State feedback: {exc}; the PID controllers are in force"
                 params = self.params = params.with_value("CONTROL.Type", Family.PID.value)
         self.running = False
+        #: The calibration procedure on the rig (StartCalibration), and where its result goes.
+        self._cal: CalibrationRun | None = None
+        self._cal_files = ("", "")
         #: Process time at which Automatic began (None in Manual): the window the
         #: headless summary measures the loops over.
         self.automatic_since: float | None = None
@@ -200,14 +205,32 @@ class ControlLoop:
         missed = self._missed if self._sampled_last and self.backend is not self.sim else 0
         self._sampled_last = False
         try:
-            if self.running:
+            if self._cal is not None and self._cal.active:
+                self._calibration_tick()
+            elif self.running:
                 self._sample(missed)
                 self._sampled_last = True
             else:
                 self._y = self.backend.read_levels()  # a paused rig still shows its levels
         except Exception as exc:  # noqa: BLE001 - any fault: pumps safe, Pause, say why
             self._fail(exc)
+            if self._cal is not None and self._cal.active:
+                self._cal.fail(f"stopped: {self.fault}")
         return self.publish()
+
+    def _calibration_tick(self) -> None:
+        """One sample of the calibration: the pumps held (every sample, so a rig's
+        watchdog sees the link alive), the raw sensors read while settling."""
+        cal, daq = self._cal, self.backend
+        assert cal is not None
+        v = cal.pumps()
+        self._u = (v[0] / FULL_SCALE_V, v[1] / FULL_SCALE_V)
+        daq.write_pumps(self._u)
+        volts = daq.read_raw_volts()  # type: ignore[attr-defined]  # checked at StartCalibration
+        self._y = daq.levels_from_volts(volts)  # type: ignore[attr-defined]
+        if cal.feed(volts) not in ("settling", "heights"):
+            self._safe(daq)  # timed out: pumps at 0
+            self._u = (0.0, 0.0)
 
     def _sample(self, missed: int = 0) -> None:
         """One sample; `missed` sampling slots of a real process went by since the last."""
@@ -279,6 +302,8 @@ class ControlLoop:
             log=self.log.status(self.params.logging),
             stats=self.stats, fault=self.fault,
             statefb=self._sf.info if self._sf is not None else None,
+            calibration=(CalibrationStatus.of(self._cal, daq_file=self._cal_files[0], par_dir=self._cal_files[1])
+                         if self._cal is not None else None),
             alarms=tuple(getattr(self.backend, "alarms", ()) or ()),
             faults=self.sim.faults.labels() if self.backend is self.sim else "",
         )
@@ -435,6 +460,8 @@ class ControlLoop:
         return self._set_params(SetParams({k: self.defaults.get(k) for k in keys}))
 
     def _set_state(self, cmd: SetState) -> CommandResult:
+        if self._cal is not None and self._cal.active and cmd.state == "Run":
+            return CommandResult.refused("a calibration is holding the pumps: finish or cancel it first")
         if cmd.state == "Run":
             self.running = True
             self.fault = None
@@ -452,6 +479,7 @@ class ControlLoop:
         """Reset (M2): every state cleared, the simulation at its operating point,
         then Pause.  A log being taken stops (its rows are kept until Save)."""
         self.running = False
+        self._cancel_calibration(CancelCalibration())
         self._safe(self.backend)
         self._matrix.reset()
         if self._sf is not None:
@@ -480,6 +508,7 @@ class ControlLoop:
         else:
             return CommandResult.refused(f"operation must be Simul or Active, got {cmd.operation!r}")
         if target is not self.backend:
+            self._cal = None  # a calibration belongs to the rig it ran on
             self._safe(self.backend)
             self.running = False
             self.backend = target
@@ -571,6 +600,53 @@ class ControlLoop:
         path = self.store.save(cmd.name, self.params)
         return CommandResult(True, f"saved {path}")
 
+    # --- calibration on the rig (Desautel 2.3) ---------------------------------------------
+
+    def _start_calibration(self, cmd: StartCalibration) -> CommandResult:
+        """Pause the control loop and start holding the pumps (refused in Simul: the
+        simulation's sensors need no calibration, and a rig without raw reads)."""
+        daq = self.backend
+        if daq is self.sim or not hasattr(daq, "read_raw_volts"):
+            return CommandResult.refused("calibration runs on the rig: switch to Active first "
+                                         "(the simulation's sensors are exact)")
+        if self._cal is not None and self._cal.active:
+            return CommandResult.refused("a calibration is running: cancel it first")
+        try:
+            run = CalibrationRun(tuple(cmd.volts), SettleRule(cmd.window, cmd.tol, cmd.timeout), self.h,
+                                 tanks=len(self.params.process_plant().states))
+        except CalibrationError as exc:
+            return CommandResult.refused(str(exc))
+        self.running = False
+        self._cal = run
+        config = getattr(daq, "config", None)
+        source = str(getattr(config, "source", ""))
+        self._cal_files = (source if Path(source).is_file() else "", str(self.store.folder))
+        return CommandResult(True)
+
+    def _calibration_heights(self, cmd: CalibrationHeights) -> CommandResult:
+        if self._cal is None:
+            return CommandResult.refused("no calibration is running")
+        try:
+            self._cal.heights(tuple(cmd.levels))
+        except (CalibrationError, TypeError, ValueError) as exc:
+            return CommandResult.refused(str(exc))
+        if not self._cal.active:  # done: pumps at 0
+            self._safe(self.backend)
+            self._u = (0.0, 0.0)
+        return CommandResult(True)
+
+    def _cancel_calibration(self, cmd: CancelCalibration) -> CommandResult:
+        """Pumps at 0 while it runs; afterwards, forget it (the window closed)."""
+        if self._cal is None:
+            return CommandResult(True)
+        if self._cal.active:
+            self._cal.cancel()
+            self._safe(self.backend)
+            self._u = (0.0, 0.0)
+        else:
+            self._cal = None
+        return CommandResult(True)
+
     def _set_speed(self, cmd: SetSpeed) -> CommandResult:
         return CommandResult.refused("the speed belongs to the engine's clock, not the loop")
 
@@ -600,4 +676,6 @@ _HANDLERS: Mapping[type, Callable[[ControlLoop, Any], CommandResult]] = {
     LogOn: ControlLoop._log_on, LogOff: ControlLoop._log_off, LogSave: ControlLoop._log_save,
     LogDiscard: ControlLoop._log_discard, LoadPar: ControlLoop._load_par,
     SavePar: ControlLoop._save_par, SetSpeed: ControlLoop._set_speed,
+    StartCalibration: ControlLoop._start_calibration, CalibrationHeights: ControlLoop._calibration_heights,
+    CancelCalibration: ControlLoop._cancel_calibration,
 }
