@@ -218,13 +218,16 @@ def par_values(params: Parameters, r: Result) -> dict[str, str]:
     return {f"PLANT.{name}": f"{a:.5g}" for name, a in zip(r.outlet_names, r.outlets.coefficients)}
 
 
-def format_result(r: Result, plant: PlantParams | Plant | None = None) -> str:
+def format_result(r: Result, plant: PlantParams | Plant | None = None, *, config_lines: bool = True) -> str:
+    """The fits as text: per sensor, the lines for the DAQ configuration (unless not
+    `config_lines`), the outlets next to the plant's."""
     lines = []
     for i, cal in r.sensors.items():
         lines.append(f"tank {i}  gain {cal.gain:.4f} cm/V  offset {cal.offset:+.4f} cm  "
                      f"rms residual {cal.rms:.3f} cm")
-    lines.append("for the DAQ configuration's calibration section:")
-    lines += [f"  tank{i}: {{gain: {cal.gain:.4f}, offset: {cal.offset:.4f}}}" for i, cal in r.sensors.items()]
+    if config_lines:
+        lines.append("for the DAQ configuration's calibration section:")
+        lines += [f"  tank{i}: {{gain: {cal.gain:.4f}, offset: {cal.offset:.4f}}}" for i, cal in r.sensors.items()]
     if r.outlets is not None:
         known = _known_outlets(plant)
         flow = "cm^3/s" if r.outlet_unit else "cm/s"

@@ -143,11 +143,12 @@ class SetSpeed:
 class StartCalibration:
     """Active only: the steady-state calibration on the rig (Desautel 2.3).  The
     control loop pauses; both pumps are held at each of `volts` (V) until every
-    sensor stays within `tol` V over `window` samples (at most `timeout` s), then
-    the engine waits for the heights read on the scales (CalibrationHeights)."""
+    sensor stays within `tol` V for `window` seconds (one read a sample; at most
+    `timeout` s), then the engine waits for the heights read on the scales
+    (CalibrationHeights)."""
 
     volts: tuple[float, ...]
-    window: int = 30
+    window: float = 60.0
     tol: float = 0.004
     timeout: float = 3600.0
 

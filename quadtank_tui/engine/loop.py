@@ -612,7 +612,10 @@ class ControlLoop:
         if self._cal is not None and self._cal.active:
             return CommandResult.refused("a calibration is running: cancel it first")
         try:
-            run = CalibrationRun(tuple(cmd.volts), SettleRule(cmd.window, cmd.tol, cmd.timeout), self.h,
+            if not (isinstance(cmd.window, (int, float)) and math.isfinite(cmd.window) and cmd.window > 0):
+                raise CalibrationError(f"the settling window must be a time > 0 s, got {cmd.window!r}")
+            reads = max(2, round(cmd.window / self.h))
+            run = CalibrationRun(tuple(cmd.volts), SettleRule(reads, cmd.tol, cmd.timeout), self.h,
                                  tanks=len(self.params.process_plant().states))
         except CalibrationError as exc:
             return CommandResult.refused(str(exc))

@@ -54,7 +54,7 @@ def active(rig: Callable, tmp_path: Path):  # type: ignore[no-untyped-def]
 
 def test_the_engine_runs_the_procedure_and_the_pairs_recover_the_rig_sensors(active) -> None:  # type: ignore[no-untyped-def]
     engine, r, params = active
-    ok(engine, StartCalibration((2.0, 2.5, 3.0), window=20, tol=0.0003, timeout=3600.0))
+    ok(engine, StartCalibration((2.0, 2.5, 3.0), window=2.0, tol=0.0003, timeout=3600.0))
     refused = engine.submit(SetState("Run")).result()
     assert not refused.ok and "calibration" in refused.message
     for v in (2.0, 2.5, 3.0):
@@ -77,7 +77,7 @@ def test_the_engine_runs_the_procedure_and_the_pairs_recover_the_rig_sensors(act
 
 def test_cancel_puts_the_pumps_to_0_and_simul_refuses(active, poll: Callable) -> None:  # type: ignore[no-untyped-def]
     engine, r, _ = active
-    ok(engine, StartCalibration((4.0,), window=20, tol=1e-9))
+    ok(engine, StartCalibration((4.0,), window=2.0, tol=1e-9))
     for _ in range(5):
         engine.step()
     assert poll(lambda: r.dacs() == (4.0, 4.0), 2.0)
