@@ -75,10 +75,10 @@ class SettleWindow:
 
 
 class CalibrationRun:
-    """The procedure at `volts` (each held on both pumps), one read per sample of
-    `h` seconds."""
+    """The procedure at `volts` (each held on every pump of the plant), one read per
+    sample of `h` seconds, `tanks` sensors."""
 
-    def __init__(self, volts: Sequence[float], rule: SettleRule, h: float, tanks: int = 4) -> None:
+    def __init__(self, volts: Sequence[float], rule: SettleRule, h: float, tanks: int = 4, pumps: int = 2) -> None:
         if not volts:
             raise CalibrationError("give at least one pump voltage (two or more for a gain and an offset)")
         if any(not (isinstance(v, (int, float)) and 0.0 <= v <= 10.0) for v in volts):
@@ -87,6 +87,8 @@ class CalibrationRun:
         self.rule = rule
         self.h = float(h)
         self.tanks = tanks
+        #: Pumps the plant has: a one-pump rig's u2 stays 0 (and is not in the pairs).
+        self.pumps_used = pumps
         self.step = 0
         self.phase = SETTLING
         self.elapsed = 0.0
@@ -134,7 +136,7 @@ class CalibrationRun:
         if len(h) != self.tanks or not all(math.isfinite(x) and x >= 0 for x in h):
             raise CalibrationError(f"give {self.tanks} heights >= 0 cm, one per tank")
         v = self.volts[self.step]
-        row = {"u1": v, "u2": v, **{f"volts{i + 1}": self.settled[i] for i in range(self.tanks)},
+        row = {**{f"u{j + 1}": v for j in range(self.pumps_used)}, **{f"volts{i + 1}": self.settled[i] for i in range(self.tanks)},
                **{f"level{i + 1}": h[i] for i in range(self.tanks)}}
         for k, x in row.items():
             self.columns.setdefault(k, []).append(x)

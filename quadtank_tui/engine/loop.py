@@ -224,7 +224,9 @@ class ControlLoop:
         cal, daq = self._cal, self.backend
         assert cal is not None
         v = cal.pumps()
-        self._u = (v[0] / FULL_SCALE_V, v[1] / FULL_SCALE_V)
+        scales = [s.full_scale for s in self.params.process_plant().inputs] + [FULL_SCALE_V, FULL_SCALE_V]
+        u = [v[i] / scales[i] if i < cal.pumps_used else 0.0 for i in range(2)]
+        self._u = (u[0], u[1])
         daq.write_pumps(self._u)
         volts = daq.read_raw_volts()  # type: ignore[attr-defined]  # checked at StartCalibration
         self._y = daq.levels_from_volts(volts)  # type: ignore[attr-defined]
@@ -615,8 +617,9 @@ class ControlLoop:
             if not (isinstance(cmd.window, (int, float)) and math.isfinite(cmd.window) and cmd.window > 0):
                 raise CalibrationError(f"the settling window must be a time > 0 s, got {cmd.window!r}")
             reads = max(2, round(cmd.window / self.h))
+            plant = self.params.process_plant()
             run = CalibrationRun(tuple(cmd.volts), SettleRule(reads, cmd.tol, cmd.timeout), self.h,
-                                 tanks=len(self.params.process_plant().states))
+                                 tanks=len(plant.states), pumps=len(plant.inputs))
         except CalibrationError as exc:
             return CommandResult.refused(str(exc))
         self.running = False

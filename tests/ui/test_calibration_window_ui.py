@@ -9,7 +9,9 @@ from typing import Any, Callable
 
 from conftest import Recording, make_app, open_setup
 
-from quadtank_tui.core.parameters import PRESET
+import pytest
+
+from quadtank_tui.core.parameters import PLANT_SETTINGS, PRESET, Parameters
 from quadtank_tui.engine.commands import SetOperation
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.ui.windows.calibration import CalibrationWindow
@@ -26,15 +28,17 @@ class BenchRig(SimBackend):
 
     def read_raw_volts(self) -> tuple[float, float, float, float]:
         self.elapse(0.1)
-        h = self.levels_cm
-        return (SENSOR * h[0] + OFFSET, SENSOR * h[1] + OFFSET, SENSOR * h[2] + OFFSET, SENSOR * h[3] + OFFSET)
+        v = [SENSOR * h + OFFSET for h in self.levels_cm] + [0.0, 0.0]  # a two-tank rig: 2 sensors
+        return (v[0], v[1], v[2], v[3])
 
     def levels_from_volts(self, volts: Any) -> tuple[float, float, float, float]:
         return self.read_levels()
 
 
-def bench_engine(make_engine: Callable[..., Recording]) -> Recording:
-    engine = make_engine(PRESET, daq=BenchRig(PRESET.plant(), PRESET.operating_levels()))
+def bench_engine(make_engine: Callable[..., Recording], params: Parameters = PRESET) -> Recording:
+    rig = BenchRig(PRESET.plant(), PRESET.operating_levels())
+    rig.set_plant(params.process_plant(), params.process_levels())
+    engine = make_engine(params, daq=rig)
     assert engine.submit(SetOperation("Active")).result().ok
     return engine
 
@@ -51,13 +55,13 @@ async def _settle(pilot: Any, engine: Recording, phase: str) -> CalibrationWindo
     raise AssertionError(window.status)
 
 
-async def _start(pilot: Any, engine: Recording) -> CalibrationWindow:
+async def _start(pilot: Any, engine: Recording, volts: str = "2 3") -> CalibrationWindow:
     await open_setup(pilot)
     await pilot.press("c")
     await pilot.pause()
     window = pilot.app.screen
     assert isinstance(window, CalibrationWindow)
-    window.query_one("#cal-volts").value = "2 3"
+    window.query_one("#cal-volts").value = volts
     window.query_one("#cal-window").value = "10"
     await pilot.click("#start")
     return await _settle(pilot, engine, "heights")
@@ -80,15 +84,20 @@ def test_calibration_window_asks_for_the_heights(snap_compare, make_engine: Call
     assert snap_compare(make_app(engine), terminal_size=(100, 34), run_before=run_before)
 
 
-def test_calibration_window_shows_the_fit(snap_compare, make_engine: Callable[..., Recording]) -> None:
-    engine = bench_engine(make_engine)
+@pytest.mark.parametrize("plant, volts", [("quadtank", (2.0, 3.0)), ("coupled-cascade", (5.0, 7.0))])
+def test_calibration_window_shows_the_fit(snap_compare, make_engine: Callable[..., Recording],
+                                          plant: str, volts: tuple[float, float]) -> None:
+    """The quadruple tank's outlet areas, the cascade's alpha1, alpha2 (Desautel's
+    Table 1 voltages 5 and 7 V, the pump at 22 V full scale) next to the file's."""
+    engine = bench_engine(make_engine, PRESET if plant == "quadtank" else PLANT_SETTINGS[plant])
     rig = engine.loop.daq
 
     async def run_before(pilot: Any) -> None:
-        window = await _start(pilot, engine)
-        for v in (2.0, 3.0):
-            if v == 3.0:
+        window = await _start(pilot, engine, " ".join(map(str, volts)))
+        for v in volts:
+            if v == volts[1]:
                 window = await _settle(pilot, engine, "heights")
+            assert rig.voltages[0] == pytest.approx(v)
             for i, h in enumerate(rig.levels_cm, start=1):  # what the scales show now
                 window.query_one(f"#cal-h{i}").value = f"{h:.3f}"
             await pilot.click("#record")

@@ -83,6 +83,7 @@ def _coupled(name: str, levels: tuple[float, float] | None = None) -> Parameters
 
 CASCADE_SF = _coupled("coupled-cascade")
 TITO_SF = _coupled("coupled-tito", (0.15, 0.10))
+QTP_SF = _coupled("desautel-qtp")
 
 
 def test_main_with_state_feedback_on_the_cascade_120x40(snap_compare, make_engine: Callable[..., Recording]) -> None:
@@ -94,15 +95,23 @@ def test_main_with_state_feedback_on_the_two_input_rig_120x40(
     assert snap_compare(make_app(make_engine(TITO_SF)), terminal_size=(120, 40))
 
 
+def test_main_with_state_feedback_on_desautels_qtp_120x40(snap_compare, make_engine: Callable[..., Recording]) -> None:
+    assert snap_compare(make_app(make_engine(QTP_SF)), terminal_size=(120, 40))
+
+
 def test_state_feedback_window_on_the_cascade(snap_compare, make_engine: Callable[..., Recording]) -> None:
     assert snap_compare(make_app(make_engine(CASCADE_SF)), terminal_size=(80, 24), press=["1"])
 
 
-@pytest.mark.parametrize("params, gains", [(CASCADE_SF, ("2.12 9.98", "0.132")), (TITO_SF, None)])
+def test_state_feedback_window_on_the_two_input_rig(snap_compare, make_engine: Callable[..., Recording]) -> None:
+    assert snap_compare(make_app(make_engine(TITO_SF)), terminal_size=(80, 24), press=["1"])
+
+
+@pytest.mark.parametrize("params, gains", [(CASCADE_SF, ("2.12 9.98", "0.132")), (TITO_SF, None), (QTP_SF, None)])
 async def test_the_box_shows_the_coupled_tanks_design(make_engine: Any, params: Parameters,
                                                         gains: tuple[str, str] | None) -> None:
     """Desautel's CTP at Ts 20 s: L1 = [2.1179 9.9757], L2 = 0.13191 in the box; the
-    two-input rig: two rows of each, four poles (two pairs shown once)."""
+    two-input rig and the QTP: two rows of each, 4 or 6 poles (two pairs shown once)."""
     engine = make_engine(params)
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
@@ -115,7 +124,8 @@ async def test_the_box_shows_the_coupled_tanks_design(make_engine: Any, params: 
             assert f"L1 {gains[0]}" in text and f"L2 {gains[1]}" in text, text
             assert "0.9753" in text and "0.9802±0.0185i" in text, text
         else:
-            assert len(info.L1) == len(info.L2) == 2 and len(info.poles_z) == 4
+            n = len(params.process_levels()) + 2  # the levels and two integrators
+            assert len(info.L1) == len(info.L2) == 2 and len(info.poles_z) == n
             assert text.count("±") == 2, text
         await pilot.press("1")
         await pilot.pause()

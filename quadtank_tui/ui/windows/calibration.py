@@ -87,7 +87,7 @@ class CalibrationWindow(Window[Commands]):
         with Horizontal(classes="field"):
             yield Label("Pumps", classes="label")
             yield Input("2 2.5 3 3.5", id="cal-volts", compact=True)
-            yield Label("V, each on both", classes="unit")
+            yield Label("V, held on every pump", classes="unit")
         with Horizontal(classes="field"):
             yield Label("Settled", classes="label")
             yield Input("60", id="cal-window", compact=True)
