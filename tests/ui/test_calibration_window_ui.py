@@ -17,17 +17,19 @@ from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.ui.windows.calibration import CalibrationWindow
 
 SENSOR, OFFSET = 0.45, 0.1
+TSAMP = 1.0  # s
 
 
 class BenchRig(SimBackend):
     """The simulator as a rig with raw sensor volts V = 0.45 h + 0.1; its time moves
-    one sample (0.1 s) per read, as a real rig's passes by itself."""
+    one sample (TSamp 1 s here, so the tanks settle in few reads) per read, as a
+    real rig's passes by itself."""
 
     kind = "Active"
     description = "bench rig"
 
     def read_raw_volts(self) -> tuple[float, float, float, float]:
-        self.elapse(0.1)
+        self.elapse(TSAMP)
         v = [SENSOR * h + OFFSET for h in self.levels_cm] + [0.0, 0.0]  # a two-tank rig: 2 sensors
         return (v[0], v[1], v[2], v[3])
 
@@ -36,6 +38,7 @@ class BenchRig(SimBackend):
 
 
 def bench_engine(make_engine: Callable[..., Recording], params: Parameters = PRESET) -> Recording:
+    params = params.with_values({"SAMPLING TIME.TSamp": TSAMP * 1000})
     rig = BenchRig(PRESET.plant(), PRESET.operating_levels())
     rig.set_plant(params.process_plant(), params.process_levels())
     engine = make_engine(params, daq=rig)
@@ -46,8 +49,8 @@ def bench_engine(make_engine: Callable[..., Recording], params: Parameters = PRE
 async def _settle(pilot: Any, engine: Recording, phase: str) -> CalibrationWindow:
     window = pilot.app.screen
     assert isinstance(window, CalibrationWindow)
-    for _ in range(200):
-        engine.step(50)
+    for _ in range(100):
+        engine.step(40)
         pilot.app.screen_stack[-2].refresh_view()
         await pilot.pause()
         if window.status is not None and window.status.phase == phase:
