@@ -127,3 +127,12 @@ async def test_simul_says_why_and_starts_nothing(make_engine: Callable[..., Reco
         assert "Active" in str(app.screen.query_one("#cal-simul").render())
         assert not app.screen.query("#start")
     assert engine.snapshot().calibration is None
+
+
+def test_the_par_to_write_is_a_plain_name_and_not_a_reserved_one() -> None:
+    """default.par is the administrators' to save (lab rules): the window refuses it."""
+    from quadtank_tui.ui.windows.calibration import par_name_problem
+
+    assert par_name_problem("") == par_name_problem("lab") == ""
+    assert "reserved" in par_name_problem("default") and "reserved" in par_name_problem("Preset")
+    assert "plain file name" in par_name_problem("../etc/x")

@@ -24,8 +24,11 @@ from textual.reactive import reactive
 from textual.widgets import Button, Input, Label, Static
 
 from quadtank_tui.core.calibration_run import DONE, HEIGHTS, SETTLING, CalibrationStatus
+from quadtank_tui.core.parameters import check_file_name
+from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import CalibrationHeights, CancelCalibration, Command, StartCalibration
 from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.files.par import RESERVED
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow, Window
 
 SIMUL_TEXT = ("Calibration runs on the rig, in Active mode (start with --daq CONFIG, then A on Main): "
@@ -62,6 +65,21 @@ def pairs_text(s: CalibrationStatus | None) -> str:
         levels = " ".join(f"{cols[f'level{i}'][k]:.2f}" for i in range(1, s.tanks + 1))
         rows.append(f"{cols['u1'][k]:g} V: {volts} V  {levels} cm")
     return "\n".join(rows)
+
+
+def par_name_problem(name: str) -> str:
+    """Why the calibration cannot be written into `name`.par ("" when it can): a
+    plain name of an existing file in the parameter folder, not a reserved one
+    (default.par is the administrators' to save)."""
+    if not name:
+        return ""
+    if name.lower() in RESERVED:
+        return f"Into .par: {RESERVED[name.lower()]}"
+    try:
+        check_file_name(name, "Into .par")
+    except ParameterError as exc:
+        return f"Into .par: {exc.reason}"
+    return ""
 
 
 class CalibrationWindow(Window[Commands]):
@@ -195,7 +213,11 @@ class CalibrationWindow(Window[Commands]):
         s = self.status
         if self.result is None or s is None:
             return
-        name = self.query_one("#cal-par", Input).value.strip()
+        name = self.query_one("#cal-par", Input).value.strip().removesuffix(".par")
+        problem = par_name_problem(name)
+        if problem:
+            self.show_message(problem)
+            return
         par = Path(s.par_dir) / f"{name}.par" if name else None
         try:
             planned = await asyncio.to_thread(plan_writes, self.result, s.daq_file or None, par)
