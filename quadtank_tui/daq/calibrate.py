@@ -31,10 +31,14 @@ from quadtank_tui.core.calibration import (
     CalibrationError,
     OutletFit,
     SensorCalibration,
+    fit_cascade_outlets,
     fit_quadtank_outlets,
     fit_sensor,
 )
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams
+from quadtank_tui.core.calibration_run import SettleRule, SettleWindow
+from quadtank_tui.core.parameters import Parameters
+from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams, area_from_diameter, time_constant
+from quadtank_tui.core.plants import CoupledCascade, Plant, QuadTank
 
 COLUMNS = ("u1", "u2", *(f"volts{i}" for i in range(1, 5)), *(f"level{i}" for i in range(1, 5)))
 
@@ -128,13 +132,12 @@ def settle(sensors: RawSensors, u: tuple[float, float], rule: Settle, *,
     last window.  CalibrationError after the timeout (the pumps stay where they are:
     the caller stops them)."""
     start = now()
-    recent: list[tuple[float, float, float, float]] = []
+    window = SettleWindow(SettleRule(rule.window, rule.tol, rule.timeout))
     while True:
         sensors.write_pumps(u)  # every read: the rig's watchdog sees the link alive
-        recent = (recent + [sensors.read_raw_volts()])[-rule.window:]
-        if len(recent) == rule.window and all(
-                max(r[i] for r in recent) - min(r[i] for r in recent) <= rule.tol for i in range(4)):
-            return tuple(sum(r[i] for r in recent) / rule.window for i in range(4))  # type: ignore[return-value]
+        mean = window.add(sensors.read_raw_volts())
+        if mean is not None:
+            return mean  # type: ignore[return-value]  # four sensors in, four means out
         if now() - start > rule.timeout:
             raise CalibrationError(f"the sensors did not settle within {rule.timeout:g} s at "
                                    f"{u[0] * FULL_SCALE_V:g} V / {u[1] * FULL_SCALE_V:g} V")
@@ -168,39 +171,82 @@ def run_procedure(sensors: RawSensors, pump_volts: Sequence[tuple[float, float]]
 
 @dataclass(frozen=True)
 class Result:
-    """The fits: each tank's sensor calibration, the outlet areas when the plant is given."""
+    """The fits: each tank's sensor calibration, and the plant's outlet coefficients
+    (named `outlet_names`, in `outlet_unit`) when the plant is given."""
 
     sensors: dict[int, SensorCalibration]
     outlets: OutletFit | None
+    outlet_names: tuple[str, ...] = ()
+    outlet_unit: str = ""
 
 
-def fit_pairs(pairs: Pairs, plant: PlantParams | None = None) -> Result:
-    """Gain and offset per tank (2.3.2-2.3.3); outlet areas a1..a4 from the scale
-    levels and the pump voltages when `plant` (pumps, valves) is given."""
+def fit_pairs(pairs: Pairs, plant: PlantParams | Plant | None = None) -> Result:
+    """Gain and offset per tank (2.3.2-2.3.3); with the plant, its outlets from the
+    scale levels and the pump voltages: the quadruple tank's areas a1..a4 (its pumps
+    and valves known), the cascade's alpha1, alpha2 (Desautel 2.3.1, beta1 known)."""
     c = pairs.columns
     sensors = {i: fit_sensor(c[f"volts{i}"], c[f"level{i}"]) for i in pairs.tanks()}
-    outlets = None
-    needed = ("u1", "u2", "level1", "level2", "level3", "level4")
-    if plant is not None and all(k in c for k in needed):
-        outlets = fit_quadtank_outlets(
+    if isinstance(plant, QuadTank):
+        plant = plant.params
+    if isinstance(plant, PlantParams) and all(k in c for k in ("u1", "u2", *(f"level{i}" for i in range(1, 5)))):
+        fit = fit_quadtank_outlets(
             list(zip(c["u1"], c["u2"])), list(zip(*(c[f"level{i}"] for i in range(1, 5)))),
             (plant.k1, plant.k2), (plant.gamma1, plant.gamma2), g=plant.g)
-    return Result(sensors, outlets)
+        return Result(sensors, fit, ("a1", "a2", "a3", "a4"), "cm^2")
+    if isinstance(plant, CoupledCascade) and all(k in c for k in ("u1", "level1", "level2")):
+        fit = fit_cascade_outlets(c["u1"], c["level1"], c["level2"], plant.beta1, plant.g)
+        return Result(sensors, fit, ("alpha1", "alpha2"), "")
+    return Result(sensors, None)
 
 
-def format_result(r: Result, plant: PlantParams | None = None) -> str:
+def par_values(params: Parameters, r: Result) -> dict[str, str]:
+    """The `.par` entries the outlet fit sets, as the file writes them: the quadruple
+    tank's TimeConst1..4 (its outlets at the file's diameters and operating levels,
+    a = A sqrt(2 h0 / g) / T), the cascade's PLANT alpha1, alpha2 (five digits, as
+    Desautel gives them)."""
+    if r.outlets is None:
+        return {}
+    if r.outlet_names[0] == "a1":
+        if params.process is not None:
+            raise CalibrationError(f"the outlet areas are the quadruple tank's, the file's plant is "
+                                   f"{params.process.kind}")
+        sim = params.simulation
+        h0 = sim.operating_levels()
+        return {f"SIMULATION.TimeConst{i + 1}": "%f" % time_constant(
+                    area_from_diameter(sim.diameters[i]), a, h0[i], PlantParams.g)
+                for i, a in enumerate(r.outlets.coefficients)}
+    return {f"PLANT.{name}": f"{a:.5g}" for name, a in zip(r.outlet_names, r.outlets.coefficients)}
+
+
+def format_result(r: Result, plant: PlantParams | Plant | None = None, *, config_lines: bool = True) -> str:
+    """The fits as text: per sensor, the lines for the DAQ configuration (unless not
+    `config_lines`), the outlets next to the plant's."""
     lines = []
     for i, cal in r.sensors.items():
         lines.append(f"tank {i}  gain {cal.gain:.4f} cm/V  offset {cal.offset:+.4f} cm  "
                      f"rms residual {cal.rms:.3f} cm")
-    lines.append("for the DAQ configuration's calibration section:")
-    lines += [f"  tank{i}: {{gain: {cal.gain:.4f}, offset: {cal.offset:.4f}}}" for i, cal in r.sensors.items()]
+    if config_lines:
+        lines.append("for the DAQ configuration's calibration section:")
+        lines += [f"  tank{i}: {{gain: {cal.gain:.4f}, offset: {cal.offset:.4f}}}" for i, cal in r.sensors.items()]
     if r.outlets is not None:
-        lines.append(f"outlet areas from the scale levels (flow rms {r.outlets.rms:.3g} cm^3/s):")
-        for i, a in enumerate(r.outlets.coefficients, start=1):
-            known = f"   (.par: {plant.outlet(i - 1):.4f})" if plant is not None else ""
-            lines.append(f"  a{i} {a:.4f} cm^2{known}")
+        known = _known_outlets(plant)
+        flow = "cm^3/s" if r.outlet_unit else "cm/s"
+        lines.append(f"outlets from the scale levels (flow rms {r.outlets.rms:.3g} {flow}):")
+        for i, (name, a) in enumerate(zip(r.outlet_names, r.outlets.coefficients)):
+            was = f"   (.par: {known[i]:.{4 if r.outlet_unit else 7}f})" if known else ""
+            value = f"{a:.4f} {r.outlet_unit}" if r.outlet_unit else f"{a:.7f}"
+            lines.append(f"  {name} {value}{was}")
     return "\n".join(lines)
+
+
+def _known_outlets(plant: PlantParams | Plant | None) -> tuple[float, ...]:
+    if isinstance(plant, QuadTank):
+        plant = plant.params
+    if isinstance(plant, PlantParams):
+        return tuple(plant.outlet(i) for i in range(4))
+    if isinstance(plant, CoupledCascade):
+        return (plant.alpha1, plant.alpha2)
+    return ()
 
 
 _TANK_LINE = r"^([ \t]*)tank{i}:[ \t]*\{{[^}}\n]*\}}[ \t]*(#[^\n]*)?$"
@@ -227,3 +273,58 @@ def with_calibration(text: str, sensors: dict[int, SensorCalibration]) -> str:
         assert section is not None
         text = text[: section.end()] + f"\n  tank{i}: {value}" + text[section.end():]
     return text
+
+
+@dataclass(frozen=True)
+class Planned:
+    """One file a calibration changes: its text before and after."""
+
+    path: Path
+    old: str
+    new: str
+
+    def diff(self) -> str:
+        from quadtank_tui.files.par_edit import text_diff
+
+        return text_diff(self.old, self.new, str(self.path))
+
+
+def plan_writes(r: Result, daq_file: Path | str | None, par_file: Path | str | None) -> list[Planned]:
+    """What writing `r` changes: the sensors into the DAQ configuration file, the
+    outlets into the `.par` (when fitted).  Each new text is checked by its reader
+    first, so a file it would refuse is never planned; files that would not change
+    are left out.  CalibrationError (or the reader's error) says why not."""
+    from quadtank_tui.daq.config import parse_daq_config
+    from quadtank_tui.files.par import parse_par
+    from quadtank_tui.files.par_edit import with_par_values
+
+    out = []
+    if daq_file is not None and r.sensors:
+        old = _read(daq_file)
+        new = with_calibration(old, r.sensors)
+        parse_daq_config(new, name=str(daq_file))
+        out.append(Planned(Path(daq_file), old, new))
+    if par_file is not None and r.outlets is not None:
+        old = _read(par_file)
+        values = par_values(parse_par(old, name=str(par_file)).params, r)
+        new = with_par_values(old, values, str(par_file))
+        parse_par(new, name=str(par_file))
+        out.append(Planned(Path(par_file), old, new))
+    return [p for p in out if p.new != p.old]
+
+
+def commit(planned: Sequence[Planned]) -> None:
+    """Write each planned file atomically (an interrupted write leaves it as it was)."""
+    from quadtank_tui.files.atomic import atomic_write_text
+
+    for p in planned:
+        atomic_write_text(p.path, p.new, encoding="utf-8")
+
+
+def _read(path: Path | str) -> str:
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise CalibrationError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise CalibrationError(f"{path}: not a text file") from None

@@ -23,6 +23,7 @@ from quadtank_tui.engine.backend import BackendError
 # command does, stays cheap.
 if TYPE_CHECKING:  # pymodbus is imported only when a DAQ is used
     from quadtank_tui.core.plants import Plant
+    from quadtank_tui.daq.calibrate import Result
     from quadtank_tui.daq.modbus import ModbusBackend
 
 
@@ -164,10 +165,12 @@ def add_daq_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument("--tol", metavar="V", type=float, default=0.004, help="settling band, volts (default 0.004)")
     cal.add_argument("--timeout", metavar="S", type=float, default=3600.0,
                      help="give up after S seconds at one voltage (default 3600)")
-    cal.add_argument("--write", metavar="CONFIG_FILE",
-                     help="put the fitted gains and offsets into this DAQ configuration file "
-                     "(asks first; comments are kept)")
-    cal.add_argument("--yes", action="store_true", help="with --write: do not ask")
+    cal.add_argument("--write", metavar="CONFIG_FILE", nargs="?", const="",
+                     help="write the result: the gains and offsets into this DAQ configuration file "
+                     "(default: CONFIG), the outlets (a1..a4 as TimeConst1..4, or the cascade's alpha1, "
+                     "alpha2) into the --par file; prints what changes and asks first (comments are kept)")
+    cal.add_argument("--yes", action="store_true",
+                     help="with --write: write without asking (scripts; without a terminal --write needs it)")
     cal.set_defaults(handler=cmd_daq_calibrate)
 
 
@@ -231,7 +234,7 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
 
         read = read_par(args.par)
         warn(read.warnings)
-        plant = read.params.plant()
+        plant = read.params.process_plant()
     if args.pairs is not None:
         pairs = read_pairs(args.pairs)
     else:
@@ -261,33 +264,43 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
     result = fit_pairs(pairs, plant)
     print(format_result(result, plant))
     if args.write is not None:
-        _write_calibration(args.write, result.sensors, ask=not args.yes)
+        return _write_calibration(result, args.write or _daq_file(args.config), args.par, yes=args.yes)
     return 0
 
 
-def _write_calibration(path: str, sensors: dict, *, ask: bool) -> None:
-    """Into the DAQ file, checked by the configuration reader first (a file it would
-    refuse is not written), atomically."""
+def _daq_file(config: str | None) -> str | None:
+    """CONFIG when it is a file (a preset name is not one to write into)."""
     from pathlib import Path
 
-    from quadtank_tui.daq.calibrate import with_calibration
-    from quadtank_tui.daq.config import parse_daq_config
-    from quadtank_tui.files.atomic import atomic_write_text
+    return config if config is not None and Path(config).is_file() else None
 
-    try:
-        old = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    new = with_calibration(old, sensors)
-    parse_daq_config(new, name=path)
-    if ask:
-        print(f"write the calibration of tank {', '.join(map(str, sensors))} into {path}? [y/N] ",
-              end="", file=sys.stderr, flush=True)
+
+def _write_calibration(result: Result, daq_file: str | None, par_file: str | None, *, yes: bool) -> int:
+    """Print what changes, ask (a terminal; --yes skips it), then write atomically.
+    Without a terminal and without --yes nothing is written (exit 1)."""
+    from quadtank_tui.daq.calibrate import commit, plan_writes
+
+    if daq_file is None and par_file is None:
+        raise ValueError("--write: give the DAQ configuration file to write (--write FILE) and/or --par FILE")
+    planned = plan_writes(result, daq_file, par_file)
+    if not planned:
+        print("nothing to write: the files already hold this calibration", file=sys.stderr)
+        return 0
+    for p in planned:
+        print(p.diff(), end="")
+    names = " and ".join(str(p.path) for p in planned)
+    if not yes:
+        if not sys.stdin.isatty():
+            print(f"quadtank: not written: no terminal to ask whether to change {names}; "
+                  "add --yes to write without asking", file=sys.stderr)
+            return 1
+        print(f"write this into {names}? [y/N] ", end="", file=sys.stderr, flush=True)
         if sys.stdin.readline().strip().lower() not in ("y", "yes"):
-            print(f"{path} left as it was", file=sys.stderr)
-            return
-    atomic_write_text(path, new, encoding="utf-8")
-    print(f"calibration written into {path}", file=sys.stderr)
+            print(f"{names} left as they were", file=sys.stderr)
+            return 0
+    commit(planned)
+    print(f"calibration written into {names}", file=sys.stderr)
+    return 0
 
 
 def _ask_heights(volts: tuple[float, float], settled: tuple[float, ...]) -> list[float]:

@@ -142,9 +142,36 @@ class SetSpeed:
     factor: float
 
 
+@dataclass(frozen=True)
+class StartCalibration:
+    """Active only: the steady-state calibration on the rig (Desautel 2.3).  The
+    control loop pauses; both pumps are held at each of `volts` (V) until every
+    sensor stays within `tol` V for `window` seconds (one read a sample; at most
+    `timeout` s), then the engine waits for the heights read on the scales
+    (CalibrationHeights)."""
+
+    volts: tuple[float, ...]
+    window: float = 60.0
+    tol: float = 0.004
+    timeout: float = 3600.0
+
+
+@dataclass(frozen=True)
+class CalibrationHeights:
+    """The heights (cm) read on the tanks' scales for the settled state shown."""
+
+    levels: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class CancelCalibration:
+    """Stop the calibration, pumps at 0; when it has ended, forget its status."""
+
+
 Command = Union[
     SetParams, SetDefaults, SetOperation, SetState, SetControlMode, NudgeMean, AddWater,
     SetFault, ResetControllers, LogOn, LogOff, LogSave, LogDiscard, LoadPar, SavePar, SetSpeed,
+    StartCalibration, CalibrationHeights, CancelCalibration,
 ]
 
 

@@ -23,8 +23,8 @@ One sample (Run)::
     Manual:    u = sat(w), r = y,         C.track(r, y, u)    (bumpless later)
     write u; log a row; history; snapshot; let h seconds of process time pass
 
-C is the PID/General matrix on y1, y2, or the state feedback (core.statefb) on all
-four levels; while the state feedback runs, the matrix tracks u so that switching
+C is the PID/General matrix on y1, y2, or the state feedback (core.statefb) on every
+level of the plant; while the state feedback runs, the matrix tracks u so that switching
 back to its family is bumpless too.
 
 Pause: a simulation freezes (no time passes, nothing is logged); a real process gets
@@ -43,20 +43,22 @@ from pathlib import Path
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Callable, Mapping, TypeVar
 
+from quadtank_tui.core.calibration import CalibrationError
+from quadtank_tui.core.calibration_run import CalibrationRun, CalibrationStatus, SettleRule
 from quadtank_tui.core.faults import Fault
 from quadtank_tui.core.general import tustin
 from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, Family, saturate
 from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plant import FULL_SCALE_V, PlantError
 from quadtank_tui.core.plants import Plant
 from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
 from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.backend import BackendError, ProcessBackend
 from quadtank_tui.engine.commands import (
-    AddWater, Command, CommandResult, LoadPar, LogDiscard, LogOff, LogOn, LogSave, NudgeMean,
-    ResetControllers, SavePar, SetControlMode, SetDefaults, SetFault, SetOperation, SetParams, SetSpeed,
-    SetState,
+    AddWater, CalibrationHeights, CancelCalibration, Command, CommandResult, LoadPar, LogDiscard, LogOff,
+    LogOn, LogSave, NudgeMean, ResetControllers, SavePar, SetControlMode, SetDefaults, SetFault, SetOperation,
+    SetParams, SetSpeed, SetState, StartCalibration,
 )
 from quadtank_tui.engine.filework import FileWorker
 from quadtank_tui.engine.handle import SIGNALS
@@ -71,13 +73,38 @@ from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 
 if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is chosen
     from quadtank_tui.core.statefb.design import Design
+    from quadtank_tui.core.statefb.plants import PlantStateFeedback
     from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+
+    AnyStateFeedback = QuadTankStateFeedback | PlantStateFeedback
 
 T = TypeVar("T")
 
 MODE_KEY = "CONTROL.Mode"
 MEAN_KEYS = ("REFERENCE ONE.Mean", "REFERENCE TWO.Mean")
 _FAMILY_KEYS = ("CONTROL.Type", "CONTROL.Structure")
+
+
+def _new_statefb(p: Parameters) -> AnyStateFeedback:
+    """The state feedback `p` asks for, on its plant (ParameterError: no such design)."""
+    if p.process is None:
+        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+
+        return QuadTankStateFeedback(p.plant(), p.statefb, p.tsamp)
+    from quadtank_tui.core.statefb.plants import PlantStateFeedback
+
+    return PlantStateFeedback(p.process_plant(), p.process_levels(), p.statefb, p.tsamp)
+
+
+def _statefb_design(p: Parameters) -> Design:
+    """A new design for the state feedback running on `p`'s plant."""
+    if p.process is None:
+        from quadtank_tui.core.statefb.quadtank import design_for
+
+        return design_for(p.plant(), p.statefb, p.tsamp)
+    from quadtank_tui.core.statefb.plants import design_for as plant_design
+
+    return plant_design(p.process_plant(), p.process_levels(), p.statefb, p.tsamp)
 
 
 def _matrix_for(p: Parameters) -> ControllerMatrix:
@@ -129,17 +156,18 @@ class ControlLoop:
         self._gens = (Generator(params.references[0], params.tsamp),
                       Generator(params.references[1], params.tsamp))
         self._matrix = _matrix_for(params)
-        self._sf: QuadTankStateFeedback | None = None
+        self._sf: AnyStateFeedback | None = None
         sf_refused = None
         if params.control.family is Family.STATE_FEEDBACK:
-            from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
-
             try:
-                self._sf = QuadTankStateFeedback(params.plant(), params.statefb, params.tsamp)
+                self._sf = _new_statefb(params)
             except ParameterError as exc:  # a file asked for a design there is none of
                 sf_refused = f"State feedback: {exc}; the PID controllers are in force"
                 params = self.params = params.with_value("CONTROL.Type", Family.PID.value)
         self.running = False
+        #: The calibration procedure on the rig (StartCalibration), and where its result goes.
+        self._cal: CalibrationRun | None = None
+        self._cal_files = ("", "")
         #: Process time at which Automatic began (None in Manual): the window the
         #: headless summary measures the loops over.
         self.automatic_since: float | None = None
@@ -183,7 +211,7 @@ class ControlLoop:
         return self._matrix
 
     @property
-    def statefb(self) -> QuadTankStateFeedback | None:
+    def statefb(self) -> AnyStateFeedback | None:
         """The state-feedback controller while it is the type in force."""
         return self._sf
 
@@ -199,14 +227,34 @@ class ControlLoop:
         self._sampled_last = False
         try:
             self.log.check()  # a write the file worker failed (disk full): fault now
-            if self.running:
+            if self._cal is not None and self._cal.active:
+                self._calibration_tick()
+            elif self.running:
                 self._sample(missed)
                 self._sampled_last = True
             else:
                 self._y = self.backend.read_levels()  # a paused rig still shows its levels
         except Exception as exc:  # noqa: BLE001 - any fault: pumps safe, Pause, say why
             self._fail(exc)
+            if self._cal is not None and self._cal.active:
+                self._cal.fail(f"stopped: {self.fault}")
         return self.publish()
+
+    def _calibration_tick(self) -> None:
+        """One sample of the calibration: the pumps held (every sample, so a rig's
+        watchdog sees the link alive), the raw sensors read while settling."""
+        cal, daq = self._cal, self.backend
+        assert cal is not None
+        v = cal.pumps()
+        scales = [s.full_scale for s in self.params.process_plant().inputs] + [FULL_SCALE_V, FULL_SCALE_V]
+        u = [v[i] / scales[i] if i < cal.pumps_used else 0.0 for i in range(2)]
+        self._u = (u[0], u[1])
+        daq.write_pumps(self._u)
+        volts = daq.read_raw_volts()  # type: ignore[attr-defined]  # checked at StartCalibration
+        self._y = daq.levels_from_volts(volts)  # type: ignore[attr-defined]
+        if cal.feed(volts) not in ("settling", "heights"):
+            self._safe(daq)  # timed out: pumps at 0
+            self._u = (0.0, 0.0)
 
     def _sample(self, missed: int = 0) -> None:
         """One sample; `missed` sampling slots of a real process went by since the last."""
@@ -278,6 +326,8 @@ class ControlLoop:
             log=self.log.status(self.params.logging),
             stats=self.stats, fault=self.fault,
             statefb=self._sf.info if self._sf is not None else None,
+            calibration=(CalibrationStatus.of(self._cal, daq_file=self._cal_files[0], par_dir=self._cal_files[1])
+                         if self._cal is not None else None),
             alarms=tuple(getattr(self.backend, "alarms", ()) or ()),
             faults=self.sim.faults.labels() if self.backend is self.sim else "",
         )
@@ -455,34 +505,35 @@ class ControlLoop:
             self.sim.set_plant(plant, new.process_levels())
         self.params = new
 
-    def _statefb_for(self, new: Parameters, old: Parameters) -> QuadTankStateFeedback | Design | None:
+    def _statefb_for(self, new: Parameters, old: Parameters) -> AnyStateFeedback | Design | None:
         """What the state feedback needs for `new`, designed (or refused) before anything
-        moves: a new controller (switched to it), a new design for the one running, or
-        None (nothing to do)."""
+        moves: a new controller (switched to it, or another plant's), a new design for
+        the one running, or None (nothing to do)."""
         if new.control.family is not Family.STATE_FEEDBACK:
             return None
-        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback, design_for
-
-        if new.process is not None:
-            raise ParameterError("CONTROL.Type", "the state feedback runs on the quadruple tank only "
-                                 f"for now; this setting's plant is {new.process.kind}")
-        if self._sf is None:
-            return QuadTankStateFeedback(new.plant(), new.statefb, new.tsamp)
-        if (new.statefb, new.simulation, new.tsamp) == (old.statefb, old.simulation, old.tsamp):
+        if self._sf is None or _plant_shape(new) != _plant_shape(old):
+            return _new_statefb(new)
+        if (new.statefb, new.simulation, new.process, new.tsamp) == (
+                old.statefb, old.simulation, old.process, old.tsamp):
             return None
-        return design_for(new.plant(), new.statefb, new.tsamp)
+        return _statefb_design(new)
 
-    def _install_statefb(self, new: Parameters, change: QuadTankStateFeedback | Design | None) -> None:
+    def _install_statefb(self, new: Parameters, change: AnyStateFeedback | Design | None) -> None:
         """Switch to, redesign (between samples, bumpless) or drop the state feedback."""
         if new.control.family is not Family.STATE_FEEDBACK:
             self._sf = None
             return
-        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+        from quadtank_tui.core.statefb.design import Design
+        from quadtank_tui.core.statefb.plants import PlantStateFeedback
 
-        if isinstance(change, QuadTankStateFeedback):
+        if change is None:
+            return
+        if not isinstance(change, Design):
             self._sf = change
             self._sf.track(self._y, self._u)  # start where the pumps are (3.1.10)
-        elif change is not None and self._sf is not None:
+        elif isinstance(self._sf, PlantStateFeedback):
+            self._sf.configure(new.process_plant(), new.process_levels(), new.statefb, change)
+        elif self._sf is not None:
             self._sf.configure(new.plant(), new.statefb, change)
 
     def _switch_mode(self, mode: ControlMode, *, adjust_means: bool = True) -> None:
@@ -508,6 +559,8 @@ class ControlLoop:
         return self._set_params(SetParams({k: self.defaults.get(k) for k in keys}))
 
     def _set_state(self, cmd: SetState) -> CommandResult:
+        if self._cal is not None and self._cal.active and cmd.state == "Run":
+            return CommandResult.refused("a calibration is holding the pumps: finish or cancel it first")
         if cmd.state == "Run":
             self.running = True
             self.fault = None
@@ -525,6 +578,7 @@ class ControlLoop:
         """Reset (M2): every state cleared, the simulation at its operating point,
         then Pause.  A log being taken stops (its rows are kept until Save)."""
         self.running = False
+        self._cancel_calibration(CancelCalibration())
         self._safe(self.backend)
         self._matrix.reset()
         if self._sf is not None:
@@ -553,6 +607,7 @@ class ControlLoop:
         else:
             return CommandResult.refused(f"operation must be Simul or Active, got {cmd.operation!r}")
         if target is not self.backend:
+            self._cal = None  # a calibration belongs to the rig it ran on
             self._safe(self.backend)
             self.running = False
             self.backend = target
@@ -649,6 +704,57 @@ class ControlLoop:
 
         return _then(self.files.submit(save), lambda result: result)
 
+    # --- calibration on the rig (Desautel 2.3) ---------------------------------------------
+
+    def _start_calibration(self, cmd: StartCalibration) -> CommandResult:
+        """Pause the control loop and start holding the pumps (refused in Simul: the
+        simulation's sensors need no calibration, and a rig without raw reads)."""
+        daq = self.backend
+        if daq is self.sim or not hasattr(daq, "read_raw_volts"):
+            return CommandResult.refused("calibration runs on the rig: switch to Active first "
+                                         "(the simulation's sensors are exact)")
+        if self._cal is not None and self._cal.active:
+            return CommandResult.refused("a calibration is running: cancel it first")
+        try:
+            if not (isinstance(cmd.window, (int, float)) and math.isfinite(cmd.window) and cmd.window > 0):
+                raise CalibrationError(f"the settling window must be a time > 0 s, got {cmd.window!r}")
+            reads = max(2, round(cmd.window / self.h))
+            plant = self.params.process_plant()
+            run = CalibrationRun(tuple(cmd.volts), SettleRule(reads, cmd.tol, cmd.timeout), self.h,
+                                 tanks=len(plant.states), pumps=len(plant.inputs))
+        except CalibrationError as exc:
+            return CommandResult.refused(str(exc))
+        self.running = False
+        self._cal = run
+        config = getattr(daq, "config", None)
+        source = str(getattr(config, "source", ""))
+        self._cal_files = (source if Path(source).is_file() else "", str(self.store.folder))
+        return CommandResult(True)
+
+    def _calibration_heights(self, cmd: CalibrationHeights) -> CommandResult:
+        if self._cal is None:
+            return CommandResult.refused("no calibration is running")
+        try:
+            self._cal.heights(tuple(cmd.levels))
+        except (CalibrationError, TypeError, ValueError) as exc:
+            return CommandResult.refused(str(exc))
+        if not self._cal.active:  # done: pumps at 0
+            self._safe(self.backend)
+            self._u = (0.0, 0.0)
+        return CommandResult(True)
+
+    def _cancel_calibration(self, cmd: CancelCalibration) -> CommandResult:
+        """Pumps at 0 while it runs; afterwards, forget it (the window closed)."""
+        if self._cal is None:
+            return CommandResult(True)
+        if self._cal.active:
+            self._cal.cancel()
+            self._safe(self.backend)
+            self._u = (0.0, 0.0)
+        else:
+            self._cal = None
+        return CommandResult(True)
+
     def _set_speed(self, cmd: SetSpeed) -> CommandResult:
         return CommandResult.refused("the speed belongs to the engine's clock, not the loop")
 
@@ -662,6 +768,11 @@ class ControlLoop:
         self.sim.set_levels(levels_cm)
         self._y = self.sim.read_levels()
         self._r = (self._y[0], self._y[1])
+
+
+def _plant_shape(p: Parameters) -> str:
+    """The plant kind: a state feedback is made anew, not redesigned, when it changes."""
+    return "quadtank" if p.process is None else p.process.kind
 
 
 def _plant_refused(daq: ProcessBackend | None, plant: Plant) -> str | None:
@@ -712,4 +823,6 @@ _HANDLERS: Mapping[type, Callable[[ControlLoop, Any], CommandResult | Future[Com
     LogOn: ControlLoop._log_on, LogOff: ControlLoop._log_off, LogSave: ControlLoop._log_save,
     LogDiscard: ControlLoop._log_discard, LoadPar: ControlLoop._load_par,
     SavePar: ControlLoop._save_par, SetSpeed: ControlLoop._set_speed,
+    StartCalibration: ControlLoop._start_calibration, CalibrationHeights: ControlLoop._calibration_heights,
+    CancelCalibration: ControlLoop._cancel_calibration,
 }

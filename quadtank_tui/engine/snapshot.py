@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from quadtank_tui.core.calibration_run import CalibrationStatus
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.backend import Levels4, Pair
 
@@ -81,3 +82,5 @@ class Snapshot:
     faults: str = ""           # injected faults acting on the simulation (core.faults), for the status line
     #: The state feedback's gains, poles and delta while it is the controller type.
     statefb: StateFeedbackInfo | None = None
+    #: The calibration procedure on the rig, while one runs or its last result is shown.
+    calibration: CalibrationStatus | None = None

@@ -79,8 +79,10 @@ def test_on_the_virtual_rig_it_recovers_the_sensor_gain_and_offset(
     volts = (2.0, 2.5, 3.0)
     heights = [steady_state_levels((v, v), params.plant()) for v in volts]
     monkeypatch.setattr("sys.stdin", io.StringIO("".join(" ".join(f"{x:.6f}" for x in h) + "\n" for h in heights)))
+    par_before, config_before = par.read_text(), config.read_text()
     assert main(["daq", "calibrate", str(config), "--volts", *map(str, volts), "--par", str(par),
-                 "--poll", "0.01", "--window", "20", "--tol", "0.0003", "--timeout", "30"]) == 0
+                 "--poll", "0.01", "--window", "20", "--tol", "0.0003", "--timeout", "30",
+                 "--write", "--yes"]) == 0
     out = capsys.readouterr().out
     assert r.dacs() == (0.0, 0.0)  # the pumps were stopped at the end
     fits = [ln.split() for ln in out.splitlines() if ln.startswith("tank ")]
@@ -89,6 +91,25 @@ def test_on_the_virtual_rig_it_recovers_the_sensor_gain_and_offset(
         assert float(f[3]) == pytest.approx(1 / 0.45, rel=2e-3), out
         assert float(f[6]) == pytest.approx(-0.1 / 0.45, abs=0.02), out
     assert "u1 u2 volts1 volts2 volts3 volts4 level1 level2 level3 level4" in out
+    # --write with no file: CONFIG itself gets the sensors, the .par the outlets
+    from quadtank_tui.daq.config import load_daq_config
+    from quadtank_tui.files.par import read_par
+
+    for i, (cal, f) in enumerate(zip(load_daq_config(config).sensors, fits)):
+        assert (cal.gain, cal.offset) == pytest.approx((float(f[3]), float(f[6])), abs=1e-4), i
+    changed = [(a, b) for a, b in zip(config_before.splitlines(), config.read_text().splitlines()) if a != b]
+    assert [a.split(":")[0].strip() for a, _ in changed] == ["tank1", "tank2", "tank3", "tank4"]
+    written = read_par(par).params.simulation.time_constants
+    changed = [(a, b) for a, b in zip(par_before.splitlines(), par.read_text().splitlines()) if a != b]
+    assert {a.split()[0] for a, _ in changed} <= {f"TimeConst{i}" for i in range(1, 5)}, changed
+    assert written == pytest.approx(params.simulation.time_constants, rel=5e-3)  # the rig is the file's plant
+
+
+class Terminal(io.StringIO):
+    """Typed answers on a terminal (the prompt is asked only on one)."""
+
+    def isatty(self) -> bool:
+        return True
 
 
 def test_write_puts_the_fit_into_the_daq_file_keeping_its_comments(
@@ -100,10 +121,10 @@ def test_write_puts_the_fit_into_the_daq_file_keeping_its_comments(
     config = tmp_path / "rig.yaml"
     original = (ROOT / "params" / "virtual-rig.yaml").read_text()
     config.write_text(original)
-    monkeypatch.setattr("sys.stdin", io.StringIO("n\n"))
+    monkeypatch.setattr("sys.stdin", Terminal("n\n"))
     assert main(["daq", "calibrate", "--pairs", str(pairs), "--write", str(config)]) == 0
-    assert config.read_text() == original and "left as it was" in capsys.readouterr().err
-    monkeypatch.setattr("sys.stdin", io.StringIO("y\n"))
+    assert config.read_text() == original and "left as they were" in capsys.readouterr().err
+    monkeypatch.setattr("sys.stdin", Terminal("y\n"))
     assert main(["daq", "calibrate", "--pairs", str(pairs), "--write", str(config)]) == 0
     text = config.read_text()
     assert "  tank1: {gain: 5.43096, offset: 0.238976}\n  tank2: {gain: 5.55574, offset: 1.54193}\n" in text
@@ -111,6 +132,82 @@ def test_write_puts_the_fit_into_the_daq_file_keeping_its_comments(
         "tank2: {gain: 5.55574, offset: 1.54193}", "tank2: {gain: 2.0, offset: 0.0}") == original
     sensors = load_daq_config(config).sensors
     assert (sensors[0].gain, sensors[1].offset, sensors[2].gain) == (5.43096, 1.54193, 2.0)
+
+
+def _cascade_par(tmp_path: Path) -> tuple[Path, str]:
+    """The shipped cascade file with outlets of a rig not yet calibrated."""
+    text = (ROOT / "params" / "coupled-cascade.par").read_text()
+    text = text.replace("alpha1 0.0097909\n", "alpha1 0.0095\n").replace("alpha2 0.0098811\n", "alpha2 0.0101\n")
+    path = tmp_path / "ctp.par"
+    path.write_text(text)
+    return path, text
+
+
+def test_write_puts_his_alphas_into_the_par_and_the_fit_into_the_daq_file(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """Table 1 on the cascade: the .par gets Desautel's alpha1 0.0097909, alpha2
+    0.0098811 (2.3.1), every other line as it was; the diff is printed first."""
+    pairs = tmp_path / "table1.txt"
+    pairs.write_text(TABLE_1)
+    par, par_text = _cascade_par(tmp_path)
+    config = tmp_path / "rig.yaml"
+    daq_text = (ROOT / "params" / "virtual-rig.yaml").read_text()
+    config.write_text(daq_text)
+    monkeypatch.setattr("sys.stdin", io.StringIO(""))
+    assert main(["daq", "calibrate", "--pairs", str(pairs), "--par", str(par), "--write", str(config),
+                 "--yes"]) == 0
+    out = capsys.readouterr().out
+    assert "  alpha1 0.0097909   (.par: 0.0095000)\n  alpha2 0.0098811   (.par: 0.0101000)\n" in out
+    assert f"--- {par}\n+++ {par} (calibrated)\n" in out
+    assert "-alpha1 0.0095\n-alpha2 0.0101\n+alpha1 0.0097909\n+alpha2 0.0098811\n" in out
+    assert par.read_text() == par_text.replace("alpha1 0.0095\n", "alpha1 0.0097909\n").replace(
+        "alpha2 0.0101\n", "alpha2 0.0098811\n")
+    assert config.read_text() == daq_text.replace(
+        "tank1: {gain: 2.0, offset: 0.0}", "tank1: {gain: 5.43096, offset: 0.238976}").replace(
+        "tank2: {gain: 2.0, offset: 0.0}", "tank2: {gain: 5.55574, offset: 1.54193}")
+
+
+def test_write_without_a_terminal_needs_yes_and_changes_nothing(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    pairs = tmp_path / "table1.txt"
+    pairs.write_text(TABLE_1)
+    par, par_text = _cascade_par(tmp_path)
+    monkeypatch.setattr("sys.stdin", io.StringIO("y\n"))  # a pipe: not asked, even saying y
+    assert main(["daq", "calibrate", "--pairs", str(pairs), "--par", str(par), "--write"]) == 1
+    err = capsys.readouterr().err
+    assert "not written: no terminal to ask" in err and "--yes" in err, err
+    assert par.read_text() == par_text
+
+
+def test_write_puts_the_quadruple_tanks_outlets_into_its_time_constants(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Pairs settled on the preset's plant written into a file whose TimeConst1 is off:
+    it comes back as the preset's 62.703390 s (a1 at the file's diameter and level)."""
+    p = PRESET.plant()
+    rows = ["u1 u2 volts1 volts2 volts3 volts4 level1 level2 level3 level4"]
+    for v in (2.0, 2.5, 3.0):
+        h = steady_state_levels((v, v), p)  # written to 12 digits: the fit is exact
+        rows.append(" ".join(f"{x:.12g}" for x in (v, v, *(p.kc * x for x in h), *h)))
+    table = tmp_path / "pairs.txt"
+    table.write_text("\n".join(rows) + "\n")
+    par = write_par(tmp_path / "off.par", PRESET.with_values({"SIMULATION.TimeConst1": 70.0}))
+    before = par.read_text()
+    assert "TimeConst1 70.000000\n" in before
+    assert main(["daq", "calibrate", "--pairs", str(table), "--par", str(par), "--write", "--yes"]) == 0
+    assert par.read_text() == before.replace("TimeConst1 70.000000\n", "TimeConst1 62.703390\n")
+    out = capsys.readouterr().out
+    assert "-TimeConst1 70.000000\n+TimeConst1 62.703390\n" in out, out
+
+
+def test_writing_what_the_files_hold_writes_nothing(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    pairs = tmp_path / "table1.txt"
+    pairs.write_text(TABLE_1)
+    par = tmp_path / "ctp.par"
+    par.write_text((ROOT / "params" / "coupled-cascade.par").read_text())
+    monkeypatch.setattr("sys.stdin", io.StringIO(""))
+    assert main(["daq", "calibrate", "--pairs", str(pairs), "--par", str(par), "--write"]) == 0
+    assert "nothing to write" in capsys.readouterr().err
 
 
 def test_a_daq_file_without_a_calibration_section_gets_one() -> None:

@@ -3,6 +3,7 @@
 design.py      ZOH model, integrator augmentation, Bessel poles, placement, delta, margins
 controller.py  the running controller: u = u_e + L2 x_a - L1 w and the smart integrator
 quadtank.py    the quadruple tank's linear model, operating point and level limits
+plants.py      the same for the other plants of core.plants (the coupled tanks)
 settings.py    the STATE FEEDBACK parameters; bessel.py  Table 8
 
 Import from the modules: the package imports nothing, so that the parameter model

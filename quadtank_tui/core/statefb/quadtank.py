@@ -60,7 +60,11 @@ def level_limits(plant: PlantParams, margin: float) -> tuple[LevelLimit, ...]:
 def design_for(plant: PlantParams, s: StateFeedbackParams, h: float) -> Design:
     """The design these settings ask for at sampling time h (s); ParameterError names
     the key to change when there is none."""
-    model = operating_model(plant, s)
+    return design_with(operating_model(plant, s), s, h)
+
+
+def design_with(model: OperatingModel, s: StateFeedbackParams, h: float) -> Design:
+    """The design of `model` with these settings; ParameterError names the key."""
     try:
         return design(model, h, settling_time=s.settling_time, poles=s.pole_values(), use_zeros=s.use_zeros)
     except DesignError as exc:
@@ -93,7 +97,59 @@ def info_of(d: Design, limited: str = "") -> StateFeedbackInfo:
         tuple(float(x) for x in d.model.x_e), tuple(float(u) for u in d.model.u_e), limited)
 
 
-class QuadTankStateFeedback:
+class NormalizedStateFeedback:
+    """A state feedback the loop steps in its normalized units (r, y, u in 0..1):
+    a plant's adapter says how they convert to the design's (`_levels`, `_refs`,
+    `_volts`, `_normalized`) and keeps `_ctrl`, `settings` and `info`."""
+
+    _ctrl: StateFeedback
+    settings: StateFeedbackParams
+    info: StateFeedbackInfo
+
+    def _levels(self, y: Sequence[float]) -> np.ndarray:
+        raise NotImplementedError
+
+    def _refs(self, r: Sequence[float]) -> np.ndarray:
+        raise NotImplementedError
+
+    def _volts(self, u: Sequence[float]) -> np.ndarray:
+        raise NotImplementedError
+
+    def _normalized(self, volts: np.ndarray) -> Pair:
+        raise NotImplementedError
+
+    def _set_limits(self, settings: StateFeedbackParams, limits: Sequence[LevelLimit]) -> None:
+        self.settings = settings
+        self._ctrl.set_limits(l3=settings.l3, anti_windup=_aw(settings), level_limits=limits)
+
+    def compute(self, r: Sequence[float], y: Sequence[float]) -> Pair:
+        """Pump inputs (normalized) for references r1, r2 and levels y1..y4."""
+        return self._normalized(self._ctrl.output(self._refs(r), self._levels(y)).u)
+
+    def update(self, r: Sequence[float], y: Sequence[float], u_applied: Sequence[float]) -> None:
+        """Automatic: advance the integrators after u went out."""
+        rc, x = self._refs(r), self._levels(y)
+        out = self._ctrl.output(rc, x)
+        self._ctrl.update(rc, x, out, self._volts(u_applied))
+        limited = "level" if any(out.level_held) else "pump" if any(out.pump_limited) else ""
+        if limited != self.info.limited:
+            self.info = _with_limited(self.info, limited)
+
+    def track(self, y: Sequence[float], u_applied: Sequence[float]) -> None:
+        """Manual, or the switch to this type: start where the pumps are (3.1.10)."""
+        self._ctrl.track(self._levels(y), self._volts(u_applied))
+        if self.info.limited:
+            self.info = _with_limited(self.info, "")
+
+    def reset(self) -> None:
+        self._ctrl.reset()
+
+    @property
+    def controller(self) -> StateFeedback:
+        return self._ctrl
+
+
+class QuadTankStateFeedback(NormalizedStateFeedback):
     """The controller type "State feedback" for the loop (normalized r, y, u)."""
 
     def __init__(self, plant: PlantParams, settings: StateFeedbackParams, h: float) -> None:
@@ -109,43 +165,24 @@ class QuadTankStateFeedback:
         the sampling time to make it at.  Refuses before changing anything."""
         if not isinstance(d, Design):
             d = design_for(plant, settings, d)
-        self._plant, self.settings = plant, settings
+        self._plant = plant
         self._ctrl.redesign(d)
-        self._ctrl.set_limits(l3=settings.l3, anti_windup=_aw(settings),
-                              level_limits=level_limits(plant, settings.level_margin))
+        self._set_limits(settings, level_limits(plant, settings.level_margin))
         self.info = info_of(d)
 
-    # --- one sample, normalized ------------------------------------------------------
+    # --- normalized units: y = kc h / 10, u = V / 10 -----------------------------------
 
-    def _cm(self, y: Sequence[float]) -> np.ndarray:
+    def _levels(self, y: Sequence[float]) -> np.ndarray:
         return np.asarray(y, dtype=float) * FULL_SCALE_V / self._plant.kc
 
-    def compute(self, r: Sequence[float], y: Sequence[float]) -> Pair:
-        """Pump inputs (normalized, within 0..1) for references r1, r2 and levels y1..y4."""
-        out = self._ctrl.output(self._cm(r), self._cm(y))
-        return (float(out.u[0]) / FULL_SCALE_V, float(out.u[1]) / FULL_SCALE_V)
+    def _refs(self, r: Sequence[float]) -> np.ndarray:
+        return self._levels(r)
 
-    def update(self, r: Sequence[float], y: Sequence[float], u_applied: Sequence[float]) -> None:
-        """Automatic: advance the integrators after u went out."""
-        rc, x = self._cm(r), self._cm(y)
-        out = self._ctrl.output(rc, x)
-        self._ctrl.update(rc, x, out, np.asarray(u_applied, dtype=float) * FULL_SCALE_V)
-        limited = "level" if any(out.level_held) else "pump" if any(out.pump_limited) else ""
-        if limited != self.info.limited:
-            self.info = _with_limited(self.info, limited)
+    def _volts(self, u: Sequence[float]) -> np.ndarray:
+        return np.asarray(u, dtype=float) * FULL_SCALE_V
 
-    def track(self, y: Sequence[float], u_applied: Sequence[float]) -> None:
-        """Manual, or the switch to this type: start where the pumps are (3.1.10)."""
-        self._ctrl.track(self._cm(y), np.asarray(u_applied, dtype=float) * FULL_SCALE_V)
-        if self.info.limited:
-            self.info = _with_limited(self.info, "")
-
-    def reset(self) -> None:
-        self._ctrl.reset()
-
-    @property
-    def controller(self) -> StateFeedback:
-        return self._ctrl
+    def _normalized(self, volts: np.ndarray) -> Pair:
+        return (float(volts[0]) / FULL_SCALE_V, float(volts[1]) / FULL_SCALE_V)
 
 
 def _aw(s: StateFeedbackParams) -> AntiWindup:

@@ -36,6 +36,7 @@ from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.setup_tables import ControllerTable, ParamTable, ProcessTable, ReferenceTable
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow
 from quadtank_tui.ui.labels import type_modified
+from quadtank_tui.ui.windows.calibration import CalibrationWindow
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow
 from quadtank_tui.ui.windows.statefb import StateFeedbackWindow
 from quadtank_tui.ui.windows.par_files import ParFileWindow
@@ -108,6 +109,8 @@ class SetupScreen(CommandSender):
         Binding("I", "reference(2)", "Ref 2", show=False, tooltip="Reference 2"),
         Binding("h", "tanks", "Tanks", tooltip="Choose a tank in the process table (arrows, Enter opens it)"),
         Binding("f", "par_files", "Files", tooltip="Load or save a .par file"),
+        Binding("c", "calibration", "Calibrate", show=False,
+                tooltip="Calibrate the level sensors and the outlets on the rig (Active; Desautel 2.3)"),
         Binding("t", "controller_type", "Type", tooltip="Controller type: PID or General (decentralized or full), or state feedback"),
         Binding("1", "element(0)", "Element 11", show=False, tooltip="Element 11 with the PID extras N, Tr, a, b"),
         Binding("2", "element(1)", "Element 12", show=False, tooltip="Element 12 with the PID extras"),
@@ -164,6 +167,10 @@ class SetupScreen(CommandSender):
         status = self.status_text(snap)
         if force or status != self.status_text(previous):  # Static.update repaints, even unchanged
             self.query_one("#setup-status", Static).update(status)
+        live = self.app.screen
+        if isinstance(live, CalibrationWindow) and live.is_mounted and (
+                (snap.calibration, snap.u) != (previous.calibration, previous.u) or live.snapshot is None):
+            live.snapshot = snap
         p = snap.params
         if force or p != previous.params:
             self.query_one(SamplingLine).show(p, self.defaults)
@@ -202,6 +209,10 @@ class SetupScreen(CommandSender):
         window = {"PID": PIDExtrasWindow, "State feedback": StateFeedbackWindow}.get(p.control.family.value,
                                                                                    GeneralWindow)
         self.app.push_screen(window(index, p, self.defaults, opener=str(index + 1)), self.send_all)
+
+    def action_calibration(self) -> None:
+        """The calibration on the rig (in Simul the window says why it is not available)."""
+        self.app.push_screen(CalibrationWindow(self.current(), submit=self.send, opener="c"))
 
     def action_tank(self, tank: int) -> None:
         params = self.current().params

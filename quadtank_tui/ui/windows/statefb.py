@@ -8,7 +8,7 @@ placed poles and delta are in the Controller box.
 from __future__ import annotations
 
 from textual.app import ComposeResult
-from textual.widgets import Button
+from textual.widgets import Button, Input, Label
 
 from quadtank_tui.core.parameters import STATEFB_SECTION, Parameters
 from quadtank_tui.engine.commands import ResetControllers
@@ -33,6 +33,20 @@ class StateFeedbackWindow(ParamWindow):
     def __init__(self, index: int, params: Parameters, defaults: Parameters, *,
                  opener: str | None = None) -> None:
         super().__init__("Controller - State feedback", params, defaults, FIELDS, opener=opener)
+
+    def compose_body(self) -> ComposeResult:
+        yield from super().compose_body()
+        if self.params.process is not None:
+            yield Label(f"A {self.params.process.kind} plant is linearized at its operating levels "
+                        "(Setup); At h1, At h2 are the quadruple tank's.", classes="hint")
+
+    def on_mount(self) -> None:
+        super().on_mount()
+        if self.params.process is not None:  # another plant: its PLANT levels are the point
+            for i, f in enumerate(FIELDS):
+                if f.key.endswith((".Level1", ".Level2")):
+                    self.query_one(f"#row-{i}").set_class(True, "-unused")
+                    self.query_one(f"#f-{i}", Input).disabled = True
 
     def compose_buttons(self) -> ComposeResult:
         yield from super().compose_buttons()
