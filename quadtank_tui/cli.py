@@ -21,6 +21,7 @@ from quadtank_tui.commands import UsageError, icad, warn
 from quadtank_tui.commands.design import add_parser as add_design_parser
 from quadtank_tui.commands import statefb
 from quadtank_tui.commands import identify as identify_command
+from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
 from quadtank_tui.daq.cli import (
     add_daq_option, add_daq_parser, add_rig_parser, open_daq, run_clock,
@@ -243,9 +244,13 @@ def _add_tui_options(parser: argparse.ArgumentParser) -> None:
                      help="simulated seconds per wall second at start (1..1000; keys + and - change it)")
     tui.add_argument("--refresh", metavar="SECONDS", type=float, default=0.05,
                      help="screen refresh interval (default 0.05; raise it on a slow link)")
-    tui.add_argument("--loop", choices=("process", "thread"), default="process",
+    tui.add_argument("--loop", choices=("process", "thread"), default=None,
                      help="where the control loop runs: its own process (default; the screen "
-                     "cannot delay a sample) or a thread of this one (for debugging)")
+                     "cannot delay a sample) or a thread of this one (for debugging); "
+                     "either implies --no-session")
+    tui.add_argument("--no-session", action="store_true",
+                     help="run the loop for this terminal only (it stops when the TUI ends) instead "
+                     "of in a lab session that outlives the terminal (see quadtank sessions)")
 
 
 def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTankApp]:
@@ -286,6 +291,8 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     terminal is put back and the loop stopped with the pumps at 0."""
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
+    if not args.no_session and args.loop is None:
+        return sessions_command.cmd_tui_session(args)
     engine, app = build_tui(args)
     warn(engine.warnings)
     watch = TerminalWatch(app.exit_soon, engine.stop)
@@ -322,6 +329,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_design_parser(sub)
     statefb.add_parser(sub)
     identify_command.add_parser(sub)
+    sessions_command.add_parsers(sub)
     return parser
 
 

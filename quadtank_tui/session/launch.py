@@ -1,0 +1,173 @@
+"""Starting a session process detached from the terminal, and its `main`.
+
+The launcher (the `quadtank` the user typed) reads and checks the files first, so a
+bad `.par` is refused in the terminal with the usual message; then it starts
+``python -m quadtank_tui.session.launch`` in a new session (no controlling terminal:
+a hang-up, a closed tmux window, Ctrl-C in the launcher's terminal never reach it),
+hands it the checked engine spec on its stdin (our own child: a pickle is fine
+there, never on the socket), and waits on a pipe for "ready" with the session's
+record, or "failed" with why.  The session's stdout and stderr go to
+`<runtime>/<id>.out`, removed at a clean stop if empty.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import asdict, dataclass, replace
+from datetime import datetime
+from pathlib import Path
+
+from quadtank_tui.engine.runner import EngineSpec
+from quadtank_tui.session.protocol import SessionInfo
+from quadtank_tui.session.runtime import runtime_dir
+
+#: Seconds a session may take to start (a fresh interpreter importing numpy).
+START_TIMEOUT = 60.0
+
+
+class SessionStartError(OSError):
+    """The session process did not start; the message says why."""
+
+
+@dataclass(frozen=True)
+class SessionSpec:
+    """What a session process is started with."""
+
+    engine: EngineSpec
+    runtime: str
+    daq_config: str | None = None
+    headless: bool = False
+
+
+def start_session(spec: SessionSpec, *, timeout: float = START_TIMEOUT) -> SessionInfo:
+    """Start a detached session process; its record once it listens."""
+    r, w = os.pipe()
+    try:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "quadtank_tui.session.launch", str(w)],
+            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            pass_fds=(w,), start_new_session=True, close_fds=True,
+        )
+    except OSError:
+        os.close(r)
+        os.close(w)
+        raise
+    os.close(w)
+    # Reap it whenever it ends, so a session that stops while we run is no zombie.
+    threading.Thread(target=proc.wait, name="quadtank-session-reaper", daemon=True).start()
+    try:
+        assert proc.stdin is not None
+        proc.stdin.write(pickle.dumps(spec))
+        proc.stdin.close()
+        reply = _read_reply(r, timeout)
+    except BrokenPipeError:
+        reply = b""
+    finally:
+        os.close(r)
+    if reply.startswith(b"ready "):
+        return SessionInfo(**json.loads(reply[6:]))
+    if reply.startswith(b"failed "):
+        raise SessionStartError(reply[7:].decode(errors="replace").strip())
+    if proc.poll() is None:
+        proc.kill()
+    raise SessionStartError(f"the session process did not start (exit code {proc.poll()})")
+
+
+def _read_reply(fd: int, timeout: float) -> bytes:
+    import select
+
+    out = b""
+    end = time.monotonic() + timeout
+    while True:
+        left = end - time.monotonic()
+        if left <= 0:
+            return out
+        ready, _, _ = select.select([fd], [], [], left)
+        if not ready:
+            return out
+        chunk = os.read(fd, 65536)
+        if not chunk:
+            return out
+        out += chunk
+
+
+# --- the session process -----------------------------------------------------------------------
+
+
+def session_main(ready_fd: int) -> int:
+    """Build the engine, listen, say ready, serve until stopped."""
+    from quadtank_tui.engine.runner import assemble
+    from quadtank_tui.session.host import Access, SessionHost
+    from quadtank_tui.session.runtime import claim_id, remove_files, socket_path, user_name, write_record
+    from quadtank_tui.session.server import listen
+
+    spec: SessionSpec = pickle.loads(sys.stdin.buffer.read())
+    ready = os.fdopen(ready_fd, "wb", buffering=0)
+    runtime = runtime_dir(Path(spec.runtime))
+    uid = os.getuid()
+    sid = claim_id(runtime, user_name(uid))
+    out_path = runtime / f"{sid}.out"
+    try:
+        _redirect_stdio(out_path)
+        daq = None
+        if spec.daq_config is not None:
+            from quadtank_tui.daq.cli import open_daq
+
+            daq = open_daq(spec.daq_config)
+        engine = assemble(spec.engine, daq=daq, threaded=False)
+        sock_path = socket_path(runtime, sid)
+        listener = listen(str(sock_path))
+        params = spec.engine.params
+        plant = params.process.kind if params.process is not None else "quadtank"
+        info = SessionInfo(id=sid, owner=user_name(uid), uid=uid, pid=os.getpid(),
+                           started=datetime.now().isoformat(timespec="seconds"), plant=plant,
+                           socket=str(sock_path), cwd=os.getcwd(), daq=spec.daq_config or "",
+                           headless=spec.headless)
+        host = SessionHost(engine, listener, info, runtime=runtime, access=Access(uid))
+        host.install_signal_handlers()
+        write_record(runtime, info)
+    except BaseException as exc:  # noqa: BLE001 - the launcher says why
+        remove_files(runtime, sid)
+        _remove_if_empty(out_path)
+        ready.write(f"failed {type(exc).__name__}: {exc}".encode())
+        ready.close()
+        return 1
+    ready.write(b"ready " + json.dumps(asdict(replace(info))).encode())
+    ready.close()
+    reason = host.serve()
+    print(f"{datetime.now():%Y-%m-%d %H:%M:%S} session {sid} stopped: {reason}", flush=True)
+    _remove_if_empty(out_path)
+    return 0
+
+
+def _redirect_stdio(out_path: Path) -> None:
+    fd = os.open(out_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    null = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(null, 0)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    os.close(fd)
+    os.close(null)
+
+
+def _remove_if_empty(path: Path) -> None:
+    try:
+        if path.stat().st_size == 0 or _only_the_stop_line(path):
+            path.unlink()
+    except OSError:
+        pass
+
+
+def _only_the_stop_line(path: Path) -> bool:
+    lines = path.read_text(errors="replace").splitlines()
+    return len(lines) == 1 and " stopped: " in lines[0]
+
+
+if __name__ == "__main__":  # pragma: no cover - the session process
+    raise SystemExit(session_main(int(sys.argv[1])))
