@@ -1,0 +1,212 @@
+"""The lab configuration: a small YAML file an administrator keeps (by default
+/etc/quadtank/lab.yaml) that says who administers the lab, where the sessions'
+sockets and the DAQ locks live, and what an unattended Active session does.
+
+```yaml
+admin_group: teachers        # members may save default.par, set the policy, take over
+share_group: lab             # may connect to others' sessions (omit: owner + admins only)
+runtime_dir: /run/quadtank   # sockets, session records, locks/ (default /tmp/quadtank-sessions)
+defaults: /opt/quadtank/params   # the folder of the lab's default.par (default: params)
+unattended:
+  keep_while_logging: true
+  grace_minutes: 10
+```
+
+Every key is optional.  The file is read like the DAQ configurations (size and
+alias limits, files.yamltext); an unknown key, a wrong type or a value out of range
+is refused with the file, the line and the key.  No file: the defaults.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import yaml
+
+from quadtank_tui.files.yamltext import parse_yaml, read_text
+from quadtank_tui.session.policy import MAX_GRACE_MINUTES, UnattendedPolicy
+
+#: The lab file read when neither a path nor $QUADTANK_LAB is given.
+SYSTEM_LAB_FILE = Path("/etc/quadtank/lab.yaml")
+#: The runtime folder when neither the lab file nor $QUADTANK_RUNTIME names one.
+DEFAULT_RUNTIME_DIR = Path("/tmp/quadtank-sessions")
+#: Where default.par lives unless the lab file says `defaults:` (the app's params/).
+DEFAULT_PARAMS_DIR = Path("params")
+
+KEYS = ("admin_group", "share_group", "runtime_dir", "defaults", "unattended")
+POLICY_KEYS = ("keep_while_logging", "grace_minutes")
+
+
+class LabConfigError(ValueError):
+    """A lab configuration refused; the message names the file, line and key."""
+
+    def __init__(self, file: str, reason: str, *, key: str | None = None, line: int | None = None) -> None:
+        where = file if line is None else f"{file}:{line}"
+        super().__init__(f"{where}: {key}: {reason}" if key else f"{where}: {reason}")
+        self.file, self.key, self.line, self.reason = file, key, line, reason
+
+
+@dataclass(frozen=True)
+class LabConfig:
+    """The lab's rules in force; see the module docstring for each key."""
+
+    admin_group: str | None = None
+    runtime_dir: Path = DEFAULT_RUNTIME_DIR
+    share_group: str | None = None
+    unattended: UnattendedPolicy = field(default_factory=UnattendedPolicy)
+    #: the file it was read from (None: the defaults, no file)
+    source: Path | None = None
+    #: the folder holding the lab's default.par
+    params_dir: Path = DEFAULT_PARAMS_DIR
+
+    @property
+    def locks_dir(self) -> Path:
+        """Where the DAQ locks are (one file per device)."""
+        return self.runtime_dir / "locks"
+
+    @property
+    def default_par(self) -> Path:
+        return self.params_dir / "default.par"
+
+
+def lab_file_path(path: Path | str | None = None) -> tuple[Path, bool]:
+    """(the lab file to read, whether it was named explicitly): `path`, else
+    $QUADTANK_LAB, else /etc/quadtank/lab.yaml.  A file named explicitly must
+    exist; the system one may be absent (then the defaults hold)."""
+    if path is not None:
+        return Path(path), True
+    env = os.environ.get("QUADTANK_LAB")
+    if env:
+        return Path(env), True
+    return SYSTEM_LAB_FILE, False
+
+
+def default_runtime_dir() -> Path:
+    env = os.environ.get("QUADTANK_RUNTIME")
+    return Path(env) if env else DEFAULT_RUNTIME_DIR
+
+
+def load_lab_config(path: Path | str | None = None) -> LabConfig:
+    """The lab configuration in force (see lab_file_path); LabConfigError for a
+    bad file, or an explicitly named one that is missing."""
+    file, explicit = lab_file_path(path)
+    if not explicit and not file.exists():
+        return LabConfig(runtime_dir=default_runtime_dir())
+    return parse_lab_config(read_text(file, _error), name=str(file), source=file)
+
+
+def _error(name: str, message: str, line: int | None) -> LabConfigError:
+    return LabConfigError(name, message, line=line)
+
+
+def parse_lab_config(text: str, *, name: str = "<lab config>", source: Path | None = None) -> LabConfig:
+    """Validate the YAML `text` (named `name` in errors)."""
+    node, data = parse_yaml(text, name, _error)
+    lines = _key_lines(node)
+
+    def fail(key: str, reason: str) -> LabConfigError:
+        return LabConfigError(name, reason, key=key, line=lines.get(key, lines.get(key.split(".")[0])))
+
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise LabConfigError(name, "must be a mapping of keys (admin_group: ..., runtime_dir: ...)", line=1)
+    _known(data, "", KEYS, fail)
+    base = source.parent if source is not None else Path.cwd()
+    policy = data.get("unattended", {})
+    if policy is None:
+        policy = {}
+    if not isinstance(policy, dict):
+        raise fail("unattended", f"must be a mapping (keep_while_logging: ..., grace_minutes: ...), got {_show(policy)}")
+    _known(policy, "unattended.", POLICY_KEYS, fail)
+    keep = policy.get("keep_while_logging", True)
+    if not isinstance(keep, bool):
+        raise fail("unattended.keep_while_logging", f"must be true or false, got {_show(keep)}")
+    grace = policy.get("grace_minutes", 10.0)
+    if isinstance(grace, bool) or not isinstance(grace, (int, float)) or not 0 <= grace <= MAX_GRACE_MINUTES:
+        raise fail("unattended.grace_minutes", f"must be a number of minutes 0..{MAX_GRACE_MINUTES:g}, "
+                   f"got {_show(grace)}")
+    runtime = _path(data, "runtime_dir", base, fail)
+    params = _path(data, "defaults", base, fail)
+    return LabConfig(
+        admin_group=_group(data, "admin_group", fail),
+        runtime_dir=runtime if runtime is not None else default_runtime_dir(),
+        share_group=_group(data, "share_group", fail),
+        unattended=UnattendedPolicy(keep, float(grace)),
+        source=source,
+        params_dir=params if params is not None else DEFAULT_PARAMS_DIR,
+    )
+
+
+def _known(m: Mapping[Any, Any], prefix: str, allowed: tuple[str, ...], fail: Any) -> None:
+    for k in m:
+        if not isinstance(k, str) or k not in allowed:
+            raise fail(f"{prefix}{k}", f"unknown key; expected one of {', '.join(allowed)}")
+
+
+def _group(data: Mapping[str, Any], key: str, fail: Any) -> str | None:
+    value = data.get(key)
+    if value is None:
+        return None
+    if not isinstance(value, str) or not value.strip() or any(c.isspace() or c == ":" for c in value):
+        raise fail(key, f"must be the name of an operating-system group, got {_show(value)}")
+    return value
+
+
+def _path(data: Mapping[str, Any], key: str, base: Path, fail: Any) -> Path | None:
+    """A folder named in the file; relative ones are taken from the file's folder."""
+    value = data.get(key)
+    if value is None:
+        return None
+    if not isinstance(value, str) or not value.strip() or "\0" in value:
+        raise fail(key, f"must be a folder path, got {_show(value)}")
+    p = Path(value).expanduser()
+    return p if p.is_absolute() else base / p
+
+
+def _key_lines(node: yaml.Node | None, prefix: str = "") -> dict[str, int]:
+    """Dotted key -> 1-based line of that key (yaml's marks)."""
+    out: dict[str, int] = {}
+    if isinstance(node, yaml.MappingNode):
+        for k, val in node.value:
+            if isinstance(k, yaml.ScalarNode):
+                out[f"{prefix}{k.value}"] = k.start_mark.line + 1
+                out.update(_key_lines(val, f"{prefix}{k.value}."))
+    return out
+
+
+def _show(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+# --- the runtime folder -------------------------------------------------------------------
+
+def ensure_shared_dir(folder: Path) -> Path:
+    """Create `folder` like /tmp (mode 1777: every user may create entries, nobody
+    may remove another's), or check an existing one is a real folder, not a link
+    someone planted.  OSError naming the folder otherwise."""
+    try:
+        folder.mkdir(parents=True, exist_ok=False)
+    except FileExistsError:
+        pass
+    else:
+        try:
+            os.chmod(folder, 0o1777)
+        except PermissionError:
+            pass
+    st = os.lstat(folder)
+    if not stat.S_ISDIR(st.st_mode):
+        raise NotADirectoryError(f"{folder}: the lab's runtime folder is not a folder (a link or a file)")
+    return folder
+
+
+def ensure_runtime_dir(lab: LabConfig) -> Path:
+    """The runtime folder and its locks/ folder, created 1777 sticky if missing."""
+    ensure_shared_dir(lab.runtime_dir)
+    ensure_shared_dir(lab.locks_dir)
+    return lab.runtime_dir
