@@ -84,7 +84,7 @@ class SessionClient:
         self.info: SessionInfo = w.info
         self.role: Role = w.role
         self.controller = w.controller
-        self.policy = w.policy
+        self._policy = (w.policy_simul, w.policy_active)
         self.clients = w.info.clients
         self._defaults = w.defaults
         self._params: Parameters = w.snapshot.params
@@ -168,6 +168,11 @@ class SessionClient:
             self._sock.sendall(encode(message))
 
     # --- the session's side ----------------------------------------------------------------------
+
+    @property
+    def policy(self) -> str:
+        """What the session will do once no operator is attached (its lab's policy)."""
+        return self._policy[self._snap.operation == "Active"]
 
     @property
     def gone(self) -> bool:

@@ -34,6 +34,9 @@ from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.session.protocol import (
     Ended, Hello, Refused, Result, Role, Roster, SessionInfo, StopSession, Submit, Update, Welcome, encode,
 )
+from quadtank_tui.session.lab import LabConfig
+from quadtank_tui.session.policy import UnattendedPolicy, describe, unattended_action
+from quadtank_tui.session.roles import group_id, groups_of, is_administrator, who_administers
 from quadtank_tui.session.runtime import remove_files, write_record
 from quadtank_tui.session.server import Connection, Server
 
@@ -60,6 +63,14 @@ class Access:
         self._may_connect = may_connect
         self.admin_words = admin_words
 
+    @classmethod
+    def for_lab(cls, owner_uid: int, lab: LabConfig) -> Access:
+        """The lab's rules: its administrators; its share group may observe."""
+        share = group_id(lab.share_group) if lab.share_group else None
+        return cls(owner_uid, is_admin=lambda uid: is_administrator(uid, lab),
+                   may_connect=(lambda uid: share in groups_of(uid)) if share is not None else None,
+                   admin_words=who_administers(lab))
+
     def may_connect(self, uid: int) -> bool:
         if uid == self.owner_uid or self.is_admin(uid):
             return True
@@ -73,14 +84,13 @@ class SessionHost:
     """Drives `engine` and serves `listener` until stopped.
 
     info : the session's record (id, owner, ...); kept up to date on disk in `runtime`
-    unattended : called about once a second while no operator is attached with
-        (snapshot, seconds since the last one left); returns "keep" or "pause"
+    policy : what the session does while no operator is attached (the lab's
+        unattended policy: an Active session pauses, pumps at 0, when it says so)
     """
 
     def __init__(self, engine: Engine, listener: socket.socket, info: SessionInfo, *, runtime: Path,
                  access: Access, peer_of: Callable[[socket.socket], Any] | None = None,
-                 unattended: Callable[[Snapshot, float], str] | None = None, policy_text: str = "",
-                 wall: Callable[[], float] = time.time) -> None:
+                 policy: UnattendedPolicy | None = None, wall: Callable[[], float] = time.time) -> None:
         self.engine = engine
         self.info = info
         self.runtime = runtime
@@ -88,8 +98,9 @@ class SessionHost:
         self.selector = selectors.DefaultSelector()
         kwargs = {} if peer_of is None else {"peer_of": peer_of}
         self.server = Server(listener, self.selector, self._on_message, self._on_gone, **kwargs)
-        self._unattended = unattended
-        self.policy_text = policy_text
+        self.policy = policy if policy is not None else UnattendedPolicy()
+        self._log_ended: float | None = None  # when a log ended while nobody operated
+        self._was_logging = False
         self._wall = wall
         self._operator: Connection | None = None
         self._operator_left = time.monotonic()  # a session starts unattended until its launcher attaches
@@ -231,7 +242,8 @@ class SessionHost:
         rows, _, _ = loop.history.since(0)
         welcome = Welcome(self._info(), role, self.engine.snapshot(), loop.defaults, rows,
                           loop.history.capacity, str(loop.store.folder.resolve()),
-                          str(loop.logs_dir.resolve()), self._controller(), self.policy_text)
+                          str(loop.logs_dir.resolve()), self._controller(),
+                          describe(self.policy, active=False), describe(self.policy, active=True))
         self.server.send(conn, encode(welcome))
         self._roster_changed()
 
@@ -262,6 +274,7 @@ class SessionHost:
         if conn is self._operator:
             self._operator = None
             self._operator_left = time.monotonic()
+            self._log_ended = None
         if conn.role is not None:
             self._roster_changed()
 
@@ -311,16 +324,23 @@ class SessionHost:
 
     def _housekeeping(self) -> None:
         now = time.monotonic()
+        snap = self.engine.snapshot()
+        if self._was_logging and not snap.log.active and self._operator is None:
+            self._log_ended = now
+        self._was_logging = snap.log.active
         if now - self._last_policy < 1.0:
             return
         self._last_policy = now
         self._write_record()
-        if self._operator is None and self._unattended is not None:
-            snap = self.engine.snapshot()
-            if snap.state == "Run" and self._unattended(snap, now - self._operator_left) == "pause":
-                self.engine.submit(SetState("Pause"))
-                self.info = dataclasses.replace(self.info, note=f"paused by the unattended policy at "
-                                                f"{datetime.now():%H:%M:%S}")
+        if self._operator is None and snap.state == "Run":
+            action = unattended_action(
+                self.policy, active=snap.operation == "Active", logging=snap.log.active,
+                seconds_unattended=now - self._operator_left,
+                seconds_since_log=None if self._log_ended is None else now - self._log_ended)
+            if action == "pause":
+                self.engine.submit(SetState("Pause"))  # a real process: pumps at 0
+                self.info = dataclasses.replace(self.info, note=f"paused unattended at {datetime.now():%H:%M:%S} "
+                                                "(the lab's policy)")
                 self._publish(force=True)
                 self._write_record(force=True)
 

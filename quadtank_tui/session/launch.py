@@ -101,18 +101,23 @@ def _read_reply(fd: int, timeout: float) -> bytes:
 
 
 def session_main(ready_fd: int) -> int:
-    """Build the engine, listen, say ready, serve until stopped."""
+    """Build the engine, take the DAQ's lock, listen, say ready, serve until stopped."""
     from quadtank_tui.engine.runner import assemble
     from quadtank_tui.session.host import Access, SessionHost
-    from quadtank_tui.session.runtime import claim_id, remove_files, socket_path, user_name, write_record
+    from quadtank_tui.session.lab import load_lab_config
+    from quadtank_tui.session.lock import DaqLock, device_key
+    from quadtank_tui.session.roles import group_id, user_name
+    from quadtank_tui.session.runtime import claim_id, remove_files, socket_path, write_record
     from quadtank_tui.session.server import listen
 
     spec: SessionSpec = pickle.loads(sys.stdin.buffer.read())
     ready = os.fdopen(ready_fd, "wb", buffering=0)
-    runtime = runtime_dir(Path(spec.runtime))
+    lab = replace(load_lab_config(), runtime_dir=Path(spec.runtime))
+    runtime = runtime_dir(lab.runtime_dir)
     uid = os.getuid()
     sid = claim_id(runtime, user_name(uid))
     out_path = runtime / f"{sid}.out"
+    lock: DaqLock | None = None
     try:
         _redirect_stdio(out_path)
         daq = None
@@ -120,27 +125,39 @@ def session_main(ready_fd: int) -> int:
             from quadtank_tui.daq.cli import open_daq
 
             daq = open_daq(spec.daq_config)
+            assert daq is not None
+            c = daq.config
+            lock = DaqLock.acquire(device_key(c.host, c.port, c.device_id), lab, session=sid)
         engine = assemble(spec.engine, daq=daq, threaded=False)
         sock_path = socket_path(runtime, sid)
-        listener = listen(str(sock_path))
+        # The share group (else the admin group) may connect; the session checks who.
+        group = lab.share_group or lab.admin_group
+        listener = listen(str(sock_path), group_id(group) if group else None)
         params = spec.engine.params
         plant = params.process.kind if params.process is not None else "quadtank"
         info = SessionInfo(id=sid, owner=user_name(uid), uid=uid, pid=os.getpid(),
                            started=datetime.now().isoformat(timespec="seconds"), plant=plant,
                            socket=str(sock_path), cwd=os.getcwd(), daq=spec.daq_config or "",
                            headless=spec.headless)
-        host = SessionHost(engine, listener, info, runtime=runtime, access=Access(uid))
+        host = SessionHost(engine, listener, info, runtime=runtime, access=Access.for_lab(uid, lab),
+                           policy=lab.unattended)
         host.install_signal_handlers()
         write_record(runtime, info)
     except BaseException as exc:  # noqa: BLE001 - the launcher says why
+        if lock is not None:
+            lock.release()
         remove_files(runtime, sid)
         _remove_if_empty(out_path)
-        ready.write(f"failed {type(exc).__name__}: {exc}".encode())
+        ready.write(f"failed {exc}".encode())
         ready.close()
         return 1
-    ready.write(b"ready " + json.dumps(asdict(replace(info))).encode())
+    ready.write(b"ready " + json.dumps(asdict(info)).encode())
     ready.close()
-    reason = host.serve()
+    try:
+        reason = host.serve()
+    finally:
+        if lock is not None:
+            lock.release()  # after the pumps went to 0
     print(f"{datetime.now():%Y-%m-%d %H:%M:%S} session {sid} stopped: {reason}", flush=True)
     _remove_if_empty(out_path)
     return 0

@@ -105,7 +105,10 @@ class Welcome:
     params_dir: str
     logs_dir: str
     controller: str
-    policy: str = ""           # what the session does when its operator leaves
+    #: What the session does when its operator leaves, in Simul and in Active
+    #: (session.policy.describe).
+    policy_simul: str = ""
+    policy_active: str = ""
 
 
 @dataclass(frozen=True)

@@ -13,37 +13,21 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import pwd
-import stat
 import tempfile
 from pathlib import Path
 
 from quadtank_tui.session.protocol import SessionInfo
-
-DEFAULT_RUNTIME = Path("/tmp/quadtank-sessions")
-
 
 class NoSession(LookupError):
     """No session matches what was asked; the message says what there is."""
 
 
 def runtime_dir(configured: Path | None = None) -> Path:
-    """The runtime folder, created sticky and world-writable (1777) if missing."""
-    path = configured or Path(os.environ.get("QUADTANK_RUNTIME") or DEFAULT_RUNTIME)
-    if not path.is_dir():
-        path.mkdir(parents=True, exist_ok=True)
-        try:
-            path.chmod(0o1777)
-        except PermissionError:
-            pass  # someone else's: it is theirs to set
-    return path
+    """The runtime folder (`configured`, else the lab configuration's), created
+    sticky and world-writable (1777) if missing."""
+    from quadtank_tui.session.lab import ensure_shared_dir, load_lab_config
 
-
-def user_name(uid: int) -> str:
-    try:
-        return pwd.getpwuid(uid).pw_name
-    except KeyError:
-        return str(uid)
+    return ensure_shared_dir(configured or load_lab_config().runtime_dir)
 
 
 def pid_alive(pid: int) -> bool:
@@ -159,10 +143,3 @@ def find_session(runtime: Path, wanted: str | None, uid: int) -> SessionInfo:
     if len(mine) > 1:
         raise NoSession(f"you have {len(mine)} sessions ({', '.join(i.id for i in mine)}): name one")
     return mine[0]
-
-
-def secure_socket_mode(path: Path, mode: int = 0o600) -> None:
-    """The socket's owner alone may connect (unless the lab shares it)."""
-    os.chmod(path, mode)
-    if stat.S_IMODE(os.stat(path).st_mode) != mode:  # pragma: no cover - a filesystem that ignores modes
-        raise PermissionError(f"{path}: cannot set mode {mode:o}")

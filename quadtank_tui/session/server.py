@@ -15,38 +15,20 @@ from __future__ import annotations
 import os
 import selectors
 import socket
-import struct
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from quadtank_tui.session.protocol import CLIENT_MESSAGES, MAX_CLIENT_LINE, LineReader, ProtocolError, decode
-from quadtank_tui.session.runtime import user_name
+from quadtank_tui.session.roles import Peer, peer_of as kernel_peer
 
 #: Bytes queued for one client before it is dropped as too slow.
 MAX_BACKLOG = 64 << 20
 
 
-@dataclass(frozen=True)
-class PeerCred:
-    """Who is at the other end of a Unix socket, as the kernel says."""
-
-    pid: int
-    uid: int
-    gid: int
-    user: str
-
-
-def peer_cred(sock: socket.socket) -> PeerCred:
-    """SO_PEERCRED (Linux)."""
-    raw = sock.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, struct.calcsize("3i"))
-    pid, uid, gid = struct.unpack("3i", raw)
-    return PeerCred(pid, uid, gid, user_name(uid))
-
-
 @dataclass(eq=False)
 class Connection:
     sock: socket.socket
-    peer: Any                      # PeerCred (or the lab's roles.Peer): .pid .uid .user
+    peer: Peer
     reader: LineReader = field(default_factory=lambda: LineReader(MAX_CLIENT_LINE))
     out: bytearray = field(default_factory=bytearray)
     role: str | None = None        # None until its Hello was accepted
@@ -67,7 +49,7 @@ class Server:
 
     def __init__(self, listener: socket.socket, selector: selectors.BaseSelector,
                  on_message: Callable[[Connection, Any], None], on_gone: Callable[[Connection], None], *,
-                 peer_of: Callable[[socket.socket], Any] = peer_cred) -> None:
+                 peer_of: Callable[[socket.socket], Peer] = kernel_peer) -> None:
         self.listener = listener
         self.selector = selector
         self.connections: list[Connection] = []
@@ -186,16 +168,21 @@ class Server:
         self.listener.close()
 
 
-def listen(path: str, mode: int = 0o600) -> socket.socket:
-    """A Unix socket at `path` only its owner may connect to (the mode is set before
-    anyone can connect: it is bound under a umask that allows nobody else)."""
+def listen(path: str, group: int | None = None) -> socket.socket:
+    """A Unix socket at `path` only its owner may connect to (bound under a umask
+    that allows nobody else, so no one can connect before the mode is right); with
+    `group` (a group id: the lab's share or admin group), that group's members too."""
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     old = os.umask(0o177)
     try:
         sock.bind(path)
     finally:
         os.umask(old)
-    if mode != 0o600:
-        os.chmod(path, mode)
+    if group is not None:
+        try:
+            os.chown(path, -1, group)
+            os.chmod(path, 0o660)
+        except OSError:
+            pass  # not a member of that group: the socket stays the owner's alone
     sock.listen(16)
     return sock

@@ -15,12 +15,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from sessionkit import STUDENT, TEACHER, ThreadSession
+from sessionkit import STUDENT, TEACHER, Rig, ThreadSession
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.engine.handle import SIGNALS
 from quadtank_tui.files.log import read_log
 from quadtank_tui.session.client import SessionClient, SessionError, stop_session_at
+from quadtank_tui.session.policy import UnattendedPolicy, describe
 from quadtank_tui.session.protocol import (
     Hello, ProtocolError, Submit, Welcome, decode, encode,
 )
@@ -194,19 +195,34 @@ def test_the_record_lists_the_session(thread_session) -> None:
         assert record["state"] == "Run" and record["operator"] == "alice" and record["operation"] == "Simul"
 
 
-def test_unattended_policy_pauses_when_nobody_operates(thread_session) -> None:
-    calls = []
-
-    def policy(snap, seconds):  # type: ignore[no-untyped-def]
-        calls.append(seconds)
-        return "pause" if seconds > 0.5 else "keep"
-
-    s = thread_session(unattended=policy, policy_text="pauses after 0.5 s unattended")
+def test_unattended_active_session_keeps_logging_then_pauses_pumps_at_0(thread_session) -> None:
+    """The lab's policy (keep while logging, then a grace of 0.6 s): detached mid-log,
+    the Active session logs every row, then pauses with the pumps at 0."""
+    rig = Rig()
+    policy = UnattendedPolicy(keep_while_logging=True, grace_minutes=0.01)
+    s = thread_session(speed=200.0, daq=rig, policy=policy)
     with SessionClient(s.path) as a:
-        assert a.policy == "pauses after 0.5 s unattended"
+        ok(a, c.SetOperation("Active"))
+        assert a.policy == describe(policy, active=True) and "0.01 minutes" in a.policy
+        ok(a, c.SetParams({"REFERENCE ONE.Mean": 0.4}))
         ok(a, c.SetState("Run"))
-    wait_for(lambda: s.engine.snapshot().state == "Pause", timeout=10, what="the policy's pause")
-    assert calls and "unattended policy" in json.loads((s.runtime / "alice-1.json").read_text())["note"]
+        ok(a, c.LogOn(points=3000))  # 300 s at 0.1 s: 1.5 s of wall time at x200
+    wait_for(lambda: s.engine.snapshot().log.rows > 1000, what="rows while detached")
+    assert s.engine.snapshot().state == "Run" and rig.pumps != (0.0, 0.0)
+    wait_for(lambda: s.engine.snapshot().state == "Pause", timeout=20, what="the policy's pause")
+    snap = s.engine.snapshot()
+    assert snap.log.rows == 3000 and rig.pumps == (0.0, 0.0) and rig.safe_states >= 1
+    assert "unattended" in json.loads((s.runtime / "alice-1.json").read_text())["note"]
+
+
+def test_unattended_simul_session_keeps_running(thread_session) -> None:
+    s = thread_session(speed=200.0, policy=UnattendedPolicy(keep_while_logging=False, grace_minutes=0.0))
+    with SessionClient(s.path) as a:
+        assert a.policy == describe(UnattendedPolicy(), active=False)
+        ok(a, c.SetState("Run"))
+    k = s.engine.snapshot().k
+    time.sleep(1.5)  # the policy is looked at every second
+    assert s.engine.snapshot().state == "Run" and s.engine.snapshot().k > k
 
 
 def test_garbage_drops_the_client_not_the_session(thread_session) -> None:

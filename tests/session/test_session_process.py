@@ -139,3 +139,26 @@ def test_a_hang_up_ends_the_client_never_the_session(tmp_path: Path, shell: bool
         tui.kill()
         for info in list_sessions(runtime):
             os.kill(info.pid, signal.SIGTERM)
+
+
+def test_a_second_session_on_the_same_daq_is_refused_with_the_holders_name(tmp_path: Path,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """The session process holds the rig's lock (the link itself opens on the first
+    Active sample: no rig needs to run here); a second one is refused, naming the
+    holder; once the first stops, the rig is free."""
+    from quadtank_tui.session.client import stop_session_at
+    from quadtank_tui.session.launch import SessionStartError
+
+    runtime = tmp_path / "run"
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
+    config = str(ROOT / "params" / "virtual-rig.yaml")
+    first = _start(tmp_path, runtime, daq_config=config)
+    try:
+        with pytest.raises(SessionStartError, match=rf"the rig at 127\.0\.0\.1:5020/\d+ is driven by "
+                           rf"{first.owner} \(pid {first.pid}, session {first.id}\) since \d\d:\d\d"):
+            _start(tmp_path, runtime, daq_config=config)
+        assert [i.id for i in list_sessions(runtime)] == [first.id]
+    finally:
+        stop_session_at(first.socket)
+    second = _start(tmp_path, runtime, daq_config=config)
+    stop_session_at(second.socket)
