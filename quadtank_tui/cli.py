@@ -179,6 +179,9 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     pace.add_argument("--realtime", action="store_true", help="keep the sampling time in wall time")
     pace.add_argument("--speed", metavar="X", type=float, help="virtual time at X times real time (1..1000)")
     add_daq_option(p)
+    p.add_argument("--detach", action="store_true",
+                   help="run it as a lab session and return at once: quadtank attach SESSION watches it, "
+                   "quadtank stop SESSION ends it early (the summary goes to the session's output file)")
     p.set_defaults(handler=_cmd_run)
 
 
@@ -220,6 +223,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     script = read_script(args.script) if args.script else None
     clock, daq = run_clock(realtime=args.realtime, speed=args.speed,
                            config=args.daq or getattr(args, "daq_global", None))
+    if args.detach:
+        return sessions_command.start_detached_run(args, script, clock)
     previous = {sig: signal.signal(sig, _terminate) for sig in (RIG_STOP_SIGNALS if daq else STOP_SIGNALS)}
     try:
         result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),

@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING
 from quadtank_tui.commands import UsageError, warn
 
 if TYPE_CHECKING:
+    from quadtank_tui.engine.runner import ClockKind
+    from quadtank_tui.files.script import Script
     from quadtank_tui.session.client import SessionClient
     from quadtank_tui.session.protocol import SessionInfo
 
@@ -165,6 +167,25 @@ def start_for(args: argparse.Namespace, runtime: Path) -> SessionInfo:
     spec = engine_spec(args.tui_par, clock="realtime" if daq is not None else "virtual", speed=args.tui_speed)
     warn(spec.warnings)
     return start_session(SessionSpec(spec, str(runtime), args.daq_global and str(Path(args.daq_global).resolve())))
+
+
+def start_detached_run(args: argparse.Namespace, script: Script | None, clock: ClockKind) -> int:
+    """`quadtank run ... --detach`: the run in a session process; returns at once."""
+    from quadtank_tui.engine.runner import load_parameters
+    from quadtank_tui.files.par import ParStore
+    from quadtank_tui.session.launch import HeadlessArgs, SessionSpec, start_session
+
+    _, warnings = load_parameters(args.par, ParStore("params"))  # a bad .par is refused here
+    warn(warnings)
+    config = args.daq or getattr(args, "daq_global", None)
+    run = HeadlessArgs(args.par, script, args.duration, str(Path(args.log).resolve()), args.seed, clock,
+                       args.speed, str(Path("params").resolve()))
+    runtime = _runtime()
+    info = start_session(SessionSpec(None, str(runtime), config and str(Path(config).resolve()), run))
+    print(f"session {info.id} runs the experiment ({args.duration:g} s) and will save {run.out}; "
+          f"quadtank attach {info.id} watches it, quadtank stop {info.id} ends it early; "
+          f"its summary goes to {runtime / (info.id + '.out')}")
+    return 0
 
 
 def run_tui_on(client: SessionClient, refresh: float) -> int:

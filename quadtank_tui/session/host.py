@@ -38,6 +38,7 @@ from quadtank_tui.session.lab import LabConfig
 from quadtank_tui.session.policy import UnattendedPolicy, describe, unattended_action
 from quadtank_tui.session.roles import group_id, groups_of, is_administrator, who_administers
 from quadtank_tui.session.runtime import remove_files, write_record
+from quadtank_tui.session.scripted import ScriptedRun
 from quadtank_tui.session.server import Connection, Server
 
 #: Least wall time between two updates to the clients, s (a 1000x virtual clock
@@ -86,11 +87,14 @@ class SessionHost:
     info : the session's record (id, owner, ...); kept up to date on disk in `runtime`
     policy : what the session does while no operator is attached (the lab's
         unattended policy: an Active session pauses, pumps at 0, when it says so)
+    scripted : a headless run (`quadtank run --detach`): its script drives the
+        loop, every client observes, the session ends when the run is over
     """
 
     def __init__(self, engine: Engine, listener: socket.socket, info: SessionInfo, *, runtime: Path,
                  access: Access, peer_of: Callable[[socket.socket], Any] | None = None,
-                 policy: UnattendedPolicy | None = None, wall: Callable[[], float] = time.time) -> None:
+                 policy: UnattendedPolicy | None = None, scripted: ScriptedRun | None = None,
+                 wall: Callable[[], float] = time.time) -> None:
         self.engine = engine
         self.info = info
         self.runtime = runtime
@@ -99,6 +103,7 @@ class SessionHost:
         kwargs = {} if peer_of is None else {"peer_of": peer_of}
         self.server = Server(listener, self.selector, self._on_message, self._on_gone, **kwargs)
         self.policy = policy if policy is not None else UnattendedPolicy()
+        self.scripted = scripted
         self._log_ended: float | None = None  # when a log ended while nobody operated
         self._was_logging = False
         self._wall = wall
@@ -124,7 +129,7 @@ class SessionHost:
     def serve(self) -> str:
         """Run until stopped; returns why it stopped.  The engine is stopped (pumps at
         0, log kept) and the socket and record removed before this returns."""
-        engine, clock = self.engine, self.engine.clock
+        clock = self.engine.clock
         self._write_record(force=True)
         try:
             while self._stop_reason is None:
@@ -139,7 +144,7 @@ class SessionHost:
                     continue  # woken by a client: look at the deadline again
                 if delay > 0:
                     time.sleep(delay)
-                engine.step()
+                self._sample()
                 self._publish()
                 self._housekeeping()
         except Exception as exc:  # noqa: BLE001 - stop in order and say why
@@ -147,6 +152,19 @@ class SessionHost:
         finally:
             self._shutdown()
         return self._stop_reason or "stopped"
+
+    def _sample(self) -> None:
+        if self.scripted is None:
+            self.engine.step()
+            return
+        try:
+            over = self.scripted.step()
+        except ValueError as exc:  # a refused command of the script (ScriptError names file and line)
+            self.request_stop(f"the script stopped: {exc}")
+            return
+        if over:
+            self._publish(force=True)
+            self.request_stop(self.scripted.finish())
 
     def _serve_io(self, timeout: float) -> None:
         for key, mask in self.selector.select(timeout):
@@ -218,6 +236,8 @@ class SessionHost:
             conn.role = "control"
             return
         role = hello.role
+        if self.scripted is not None:
+            role = "observer"  # the script is the operator
         if role == "operator":
             current = self._operator
             if current is not None and current is not conn:
@@ -279,6 +299,8 @@ class SessionHost:
             self._roster_changed()
 
     def _controller(self) -> str:
+        if self.scripted is not None:
+            return f"the script of quadtank run controls session {self.info.id}"
         op = self._operator
         return f"{op.name} controls session {self.info.id}" if op is not None else \
             f"nobody controls session {self.info.id}"
@@ -332,7 +354,7 @@ class SessionHost:
             return
         self._last_policy = now
         self._write_record()
-        if self._operator is None and snap.state == "Run":
+        if self._operator is None and snap.state == "Run" and self.scripted is None:
             action = unattended_action(
                 self.policy, active=snap.operation == "Active", logging=snap.log.active,
                 seconds_unattended=now - self._operator_left,

@@ -23,7 +23,8 @@ from dataclasses import asdict, dataclass, replace
 from datetime import datetime
 from pathlib import Path
 
-from quadtank_tui.engine.runner import EngineSpec
+from quadtank_tui.engine.runner import ClockKind, EngineSpec
+from quadtank_tui.files.script import Script
 from quadtank_tui.session.protocol import SessionInfo
 from quadtank_tui.session.runtime import runtime_dir
 
@@ -36,13 +37,28 @@ class SessionStartError(OSError):
 
 
 @dataclass(frozen=True)
-class SessionSpec:
-    """What a session process is started with."""
+class HeadlessArgs:
+    """`quadtank run ... --detach`: the run's options, checked by the launcher."""
 
-    engine: EngineSpec
+    par: str | None
+    script: Script | None
+    duration: float
+    out: str
+    seed: int | None
+    clock: ClockKind
+    speed: float | None
+    params_dir: str = "params"
+
+
+@dataclass(frozen=True)
+class SessionSpec:
+    """What a session process is started with: an engine for the TUI, or a
+    headless run (`run`)."""
+
+    engine: EngineSpec | None
     runtime: str
     daq_config: str | None = None
-    headless: bool = False
+    run: HeadlessArgs | None = None
 
 
 def start_session(spec: SessionSpec, *, timeout: float = START_TIMEOUT) -> SessionInfo:
@@ -128,19 +144,31 @@ def session_main(ready_fd: int) -> int:
             assert daq is not None
             c = daq.config
             lock = DaqLock.acquire(device_key(c.host, c.port, c.device_id), lab, session=sid)
-        engine = assemble(spec.engine, daq=daq, threaded=False)
+        scripted = None
+        if spec.run is not None:
+            from quadtank_tui.engine.headless import prepare_headless
+            from quadtank_tui.session.scripted import ScriptedRun
+
+            r = spec.run
+            prepared = prepare_headless(par=r.par, script=r.script, duration=r.duration, out=Path(r.out),
+                                        seed=r.seed, clock=r.clock, speed=r.speed,
+                                        params_dir=Path(r.params_dir), daq=daq)
+            engine, scripted = prepared.engine, ScriptedRun(prepared)
+        else:
+            assert spec.engine is not None
+            engine = assemble(spec.engine, daq=daq, threaded=False)
         sock_path = socket_path(runtime, sid)
         # The share group (else the admin group) may connect; the session checks who.
         group = lab.share_group or lab.admin_group
         listener = listen(str(sock_path), group_id(group) if group else None)
-        params = spec.engine.params
+        params = engine.loop.params
         plant = params.process.kind if params.process is not None else "quadtank"
         info = SessionInfo(id=sid, owner=user_name(uid), uid=uid, pid=os.getpid(),
                            started=datetime.now().isoformat(timespec="seconds"), plant=plant,
                            socket=str(sock_path), cwd=os.getcwd(), daq=spec.daq_config or "",
-                           headless=spec.headless)
+                           headless=scripted is not None)
         host = SessionHost(engine, listener, info, runtime=runtime, access=Access.for_lab(uid, lab),
-                           policy=lab.unattended)
+                           policy=lab.unattended, scripted=scripted)
         host.install_signal_handlers()
         write_record(runtime, info)
     except BaseException as exc:  # noqa: BLE001 - the launcher says why

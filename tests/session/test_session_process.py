@@ -162,3 +162,35 @@ def test_a_second_session_on_the_same_daq_is_refused_with_the_holders_name(tmp_p
         stop_session_at(first.socket)
     second = _start(tmp_path, runtime, daq_config=config)
     stop_session_at(second.socket)
+
+
+def test_run_detach_is_a_session_one_watches_until_the_run_is_over(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """`quadtank run ... --detach` returns at once; a client attaching to the session
+    watches it read-only (the script is the operator); at the end the log has every
+    sample of the duration and the session is gone, leaving only its summary."""
+    from quadtank_tui.files.log import read_log
+
+    runtime = tmp_path / "run"
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "logs" / "detached.log"
+    assert main(["run", "--duration", "200", "--log", str(out), "--speed", "100", "--seed", "3", "--detach"]) == 0
+    said = capsys.readouterr().out
+    (info,) = list_sessions(runtime)
+    assert f"session {info.id} runs the experiment" in said and info.headless
+    with SessionClient(info.socket) as watcher:  # asked to operate: observes
+        assert watcher.role == "observer" and "the script" in watcher.controller
+        refused = watcher.submit(c.SetState("Pause")).result(5)
+        assert not refused.ok and "read-only" in refused.message
+        assert watcher.wait_gone(30)
+        assert watcher.ended is not None and f"the run is over; its log is {out}" in watcher.ended
+        assert len(watcher.history()["t"]) == 2000  # every sample, watched from wherever it was at attach
+    log = read_log(out)
+    assert log.rows == 2000
+    for _ in range(100):
+        if not pid_alive(info.pid):
+            break
+        time.sleep(0.02)
+    assert [p.name for p in runtime.iterdir()] == [f"{info.id}.out"]
+    assert f"log        {out} (2000 rows)" in (runtime / f"{info.id}.out").read_text()
