@@ -138,7 +138,7 @@ def cmd_tui_session(args: argparse.Namespace) -> int:
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
     runtime = _runtime()
     try:
-        info = find_session(runtime, None, os.getuid())
+        info = find_session(runtime, None, os.getuid(), interactive=True)
     except NoSession as exc:
         if "name one" in str(exc):
             raise UsageError(f"{exc} with quadtank attach SESSION") from None

@@ -127,9 +127,9 @@ def list_sessions(runtime: Path, *, prune: bool = True) -> list[SessionInfo]:
     return out
 
 
-def find_session(runtime: Path, wanted: str | None, uid: int) -> SessionInfo:
-    """The session named `wanted`, or (None) the caller's only one; NoSession says
-    what there is otherwise."""
+def find_session(runtime: Path, wanted: str | None, uid: int, *, interactive: bool = False) -> SessionInfo:
+    """The session named `wanted`, or (None) the caller's only one (`interactive`:
+    not counting headless runs); NoSession says what there is otherwise."""
     sessions = list_sessions(runtime)
     if wanted is not None:
         for info in sessions:
@@ -137,7 +137,7 @@ def find_session(runtime: Path, wanted: str | None, uid: int) -> SessionInfo:
                 return info
         known = ", ".join(i.id for i in sessions) or "none"
         raise NoSession(f"no session {wanted!r} (sessions: {known})")
-    mine = [i for i in sessions if i.uid == uid]
+    mine = [i for i in sessions if i.uid == uid and not (interactive and i.headless)]
     if not mine:
         raise NoSession("you have no running session")
     if len(mine) > 1:

@@ -194,3 +194,25 @@ def test_run_detach_is_a_session_one_watches_until_the_run_is_over(tmp_path: Pat
         time.sleep(0.02)
     assert [p.name for p in runtime.iterdir()] == [f"{info.id}.out"]
     assert f"log        {out} (2000 rows)" in (runtime / f"{info.id}.out").read_text()
+
+
+def test_sigterm_stops_the_session_in_order(tmp_path: Path) -> None:
+    """SIGTERM (a shutdown, `kill`): the session stops as `quadtank stop` does - the
+    clients are told why, the log is kept, nothing is left in the runtime folder."""
+    runtime = tmp_path / "run"
+    info = _start(tmp_path, runtime)
+    with SessionClient(info.socket) as client:
+        assert client.submit(c.SetState("Run")).result(5).ok
+        assert client.submit(c.LogOn(points=100000)).result(5).ok
+        time.sleep(0.3)
+        os.kill(info.pid, signal.SIGTERM)
+        assert client.wait_gone(5)
+        assert client.ended == "SIGTERM"
+        assert "ended: SIGTERM" in (client.snapshot().fault or "")
+    for _ in range(100):
+        if not pid_alive(info.pid):
+            break
+        time.sleep(0.02)
+    assert not pid_alive(info.pid)
+    assert sorted(p.name for p in runtime.iterdir()) == []
+    assert list((tmp_path / "logs").glob("*.partial"))
