@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-import quadtank_tui.core.parameters as parameters
+import quadtank_tui.core.parameters.settings as parameter_settings
 import quadtank_tui.engine.headless as headless
 import quadtank_tui.files.log as log_module
 from quadtank_tui.cli import main
@@ -89,7 +89,7 @@ def test_without_a_script_every_sample_is_logged_beyond_the_points_limit(
     """The README's promise: a run without a script logs every sample.  With the
     Logging window's limit lowered to 5,000 (it is 100,000: 8 h at 50 ms is 576,000
     samples; 11 s to run), a 6,000-sample run still logs 6,000 rows."""
-    monkeypatch.setattr(parameters, "POINTS_MAX", 5000)
+    monkeypatch.setattr(parameter_settings, "POINTS_MAX", 5000)
     monkeypatch.setattr(headless, "POINTS_MAX", 5000, raising=False)
     assert main(["run", "--duration", "600", "--log", str(tmp_path / "all.log")]) == 0
     assert read_log(tmp_path / "all.log").rows == 6000

@@ -1,0 +1,284 @@
+"""The settings dataclasses: one frozen, validated object per `.par` section and
+:class:`Parameters`, which composes them and gives access by "SECTION.Key"."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Iterable, Mapping
+
+from quadtank_tui.core.general import GeneralParams
+from quadtank_tui.core.matrix import Family, Structure
+from quadtank_tui.core.parameters.checks import (
+    check_file_name,
+    check_period,
+    check_variables,
+    enum_value,
+    integer,
+)
+from quadtank_tui.core.parameters.constants import (
+    OP_POINT_MIN,
+    PLOT_TYPES,
+    POINTS_MAX,
+    POINTS_MAX_ORIGINAL,
+    REFERENCE_SECTIONS,
+    TSAMP,
+    TSAMP_MAX_MS,
+    TSAMP_MIN_MS,
+    ControlMode,
+)
+from quadtank_tui.core.parameters.keys import KEYS, spec
+from quadtank_tui.core.parameters.tree import from_tree, set_leaf, to_tree, walk
+from quadtank_tui.core.pid import PIDParams
+from quadtank_tui.core.plant import (
+    FULL_SCALE_V,
+    Levels,
+    PlantParams,
+    Setting,
+    area_from_diameter,
+    diameter_from_area,
+    levels_to_normalized,
+    outlet_from_time_constant,
+    time_constant,
+)
+from quadtank_tui.core.plants import Plant, QuadTank
+from quadtank_tui.core.plants.spec import PlantSpec
+from quadtank_tui.core.signals import WaveParams
+from quadtank_tui.core.statefb.settings import StateFeedbackParams
+from quadtank_tui.core.validation import ParameterError, check_range
+
+
+def _preset() -> Parameters:
+    """The built-in values, the default of every comparison (imported when first
+    needed: the presets are built from these classes)."""
+    from quadtank_tui.core.parameters.presets import PRESET
+
+    return PRESET
+
+
+@dataclass(frozen=True)
+class ControlSettings:
+    """CONTROL section: mode and the controller matrix's type."""
+
+    mode: ControlMode = ControlMode.MANUAL
+    family: Family = Family.PID
+    structure: Structure = Structure.DECENTRALIZED
+
+    def __post_init__(self) -> None:
+        for attr, key, enum in (("mode", "Mode", ControlMode), ("family", "Type", Family),
+                                ("structure", "Structure", Structure)):
+            object.__setattr__(self, attr, enum_value(key, enum, getattr(self, attr)))
+
+
+@dataclass(frozen=True)
+class ControllerElement:
+    """One element of the 2x2 matrix: it keeps both families' parameters, so
+    switching the type and back restores what was set (as the original did)."""
+
+    pid: PIDParams = PIDParams()
+    general: GeneralParams = GeneralParams()
+
+
+@dataclass(frozen=True)
+class SimulationSettings:
+    """SIMULATION section, as the Setup screen shows it.
+
+    diameters : tank inner diameters, cm
+    op_points : operating levels, normalized (fraction of the 10 V sensor range)
+    time_constants : linearized time constants at the operating levels, s
+    valves : gamma1, gamma2, fraction of each pump's flow to its lower tank
+    pumps : k1, k2, cm^3/(V s)
+    sensor : kc, V/cm; the sensor range 10 V / kc is the tank height
+
+    The outlet areas are not stored: they follow from the other three values of a
+    tank (control.md), which keeps them consistent however they were edited.
+    """
+
+    diameters: tuple[float, float, float, float]
+    op_points: tuple[float, float, float, float]
+    time_constants: tuple[float, float, float, float]
+    valves: tuple[float, float]
+    pumps: tuple[float, float]
+    sensor: float
+
+    def __post_init__(self) -> None:
+        if not (len(self.diameters) == len(self.op_points) == len(self.time_constants) == 4):
+            raise ParameterError("Diameter1", "four tanks are needed")
+        for i in range(4):
+            check_range(f"Diameter{i + 1}", self.diameters[i], 0.5, 100.0)
+            check_range(f"OpPoint{i + 1}", self.op_points[i], OP_POINT_MIN, 1.0)
+            check_range(f"TimeConst{i + 1}", self.time_constants[i], 1.0, 1e5)
+        for i in range(2):
+            check_range(f"Valve{i + 1}", self.valves[i], 0.0, 1.0)
+            check_range(f"Pump{i + 1}", self.pumps[i], 0.0, 100.0, lo_open=True)
+        check_range("Sensor", self.sensor, 0.05, 10.0)
+
+    def operating_levels(self) -> Levels:
+        """Operating levels in cm: h0 = OpPoint * 10 V / kc."""
+        h = [op * FULL_SCALE_V / self.sensor for op in self.op_points]
+        return (h[0], h[1], h[2], h[3])
+
+    def plant(self) -> PlantParams:
+        """The physical constants these settings describe.
+
+        A_i = pi d_i^2 / 4 and a_i = A_i sqrt(2 h0_i / g) / T_i; the tank height is
+        the sensor range.  The ranges above guarantee a_i < A_i (T >= 1 s,
+        h0 <= 200 cm), so this never fails for a validated model.
+        """
+        g = PlantParams.g
+        h0 = self.operating_levels()
+        areas = [area_from_diameter(d) for d in self.diameters]
+        outlets = [outlet_from_time_constant(areas[i], self.time_constants[i], h0[i], g) for i in range(4)]
+        return PlantParams(
+            A1=areas[0], A2=areas[1], A3=areas[2], A4=areas[3],
+            a1=outlets[0], a2=outlets[1], a3=outlets[2], a4=outlets[3],
+            k1=self.pumps[0], k2=self.pumps[1],
+            gamma1=self.valves[0], gamma2=self.valves[1],
+            kc=self.sensor, g=g, hmax=FULL_SCALE_V / self.sensor,
+        )
+
+    @classmethod
+    def from_setting(cls, setting: Setting) -> SimulationSettings:
+        """The Setup-screen view of a physical setting, rounded to six decimals."""
+        p = setting.params
+        h = setting.op.h
+        return cls(
+            # Each a tuple of exactly four (one per tank), which tuple() cannot tell mypy.
+            diameters=tuple(round(diameter_from_area(p.area(i)), 6) for i in range(4)),  # type: ignore[arg-type]
+            op_points=tuple(round(y, 6) for y in levels_to_normalized(h, p)),  # type: ignore[arg-type]
+            time_constants=tuple(  # type: ignore[arg-type]
+                round(time_constant(p.area(i), p.outlet(i), h[i], p.g), 6) for i in range(4)
+            ),
+            valves=(p.gamma1, p.gamma2),
+            pumps=(p.k1, p.k2),
+            sensor=p.kc,
+        )
+
+
+@dataclass(frozen=True)
+class LoggingSettings:
+    """LOGGING section: how many points LogOn collects, the file name (without
+    `.log`), and the logged columns in order."""
+
+    points: int = POINTS_MAX_ORIGINAL
+    log_file: str = "data"
+    variables: tuple[str, ...] = ("y1", "y2", "u1", "u2")
+
+    def __post_init__(self) -> None:
+        integer("Points", self.points, 1, POINTS_MAX)
+        check_file_name(self.log_file)
+        check_variables("Variables", self.variables)
+
+
+@dataclass(frozen=True)
+class PlotSettings:
+    """PLOTS section: the plot type of the upper and lower trend (thesis Fig. 35)."""
+
+    upper: str = "u1 u2"
+    lower: str = "y1 y2 ref1 ref2"
+
+    def __post_init__(self) -> None:
+        for attr, key in (("upper", "Upper"), ("lower", "Lower")):
+            value = getattr(self, attr)
+            text = " ".join(value.split()) if isinstance(value, str) else value
+            if text not in PLOT_TYPES:
+                raise ParameterError(key, f"must be one of {', '.join(PLOT_TYPES)}; got {value!r}")
+            object.__setattr__(self, attr, text)
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """Every parameter of the interface (one `.par` file's worth).
+
+    tsamp_ms : sampling time of controllers and simulation, ms (kept in the file's
+        unit so a saved value reloads exactly; :attr:`tsamp` gives seconds)
+    references : generators 1 and 2 (u1/u2 in Manual, ref1/ref2 in Automatic)
+    controllers : elements 11, 12, 21, 22 (CONTROLLER ONE..FOUR)
+    statefb : the state-feedback controller's settings (STATE FEEDBACK; files
+        without the section get the defaults)
+    extra : unknown `(section, key, value)` entries read from a file, kept so that
+        saving writes them back; they have no effect
+    process : the plant when it is not the quadruple tank of the SIMULATION section
+        (a `.par` file's PLANT section; None for every file written before it)
+    """
+
+    tsamp_ms: float
+    references: tuple[WaveParams, WaveParams]
+    control: ControlSettings
+    controllers: tuple[ControllerElement, ControllerElement, ControllerElement, ControllerElement]
+    simulation: SimulationSettings
+    logging: LoggingSettings = LoggingSettings()
+    plots: PlotSettings = PlotSettings()
+    statefb: StateFeedbackParams = StateFeedbackParams()
+    extra: tuple[tuple[str, str, str], ...] = ()
+    process: PlantSpec | None = None
+
+    def __post_init__(self) -> None:
+        check_range(TSAMP, self.tsamp_ms, TSAMP_MIN_MS, TSAMP_MAX_MS)
+        if len(self.references) != 2:
+            raise ParameterError("REFERENCE ONE", f"two references are needed, got {len(self.references)}")
+        if len(self.controllers) != 4:
+            raise ParameterError("CONTROLLER ONE", f"four controller elements are needed, got {len(self.controllers)}")
+        for section, ref in zip(REFERENCE_SECTIONS, self.references):
+            check_period(section, ref, self.tsamp_ms)
+
+    @property
+    def tsamp(self) -> float:
+        """Sampling time, s."""
+        return self.tsamp_ms / 1000.0
+
+    # --- generic access by "SECTION.Key" ----------------------------------------
+
+    def get(self, key: str) -> Any:
+        """The value of parameter `key` ("SECTION.Key"); KeyError if unknown."""
+        return walk(self, spec(key).path)
+
+    def values(self) -> dict[str, Any]:
+        """Every parameter by key, in file order."""
+        return {k.name: walk(self, k.path) for k in KEYS}
+
+    def with_value(self, key: str, value: Any) -> Parameters:
+        """A copy with one parameter changed (validated; ParameterError names `key`)."""
+        return self.with_values({key: value})
+
+    def with_values(self, changes: Mapping[str, Any]) -> Parameters:
+        """A copy with several parameters changed at once.
+
+        Applied together, then validated together: a pair of values that is only
+        valid jointly (a sampling time and a period) can be set in one call.
+        """
+        tree = to_tree(self)
+        for key, value in changes.items():
+            k = spec(key)
+            set_leaf(tree, k.path, k.coerce(value))
+        return from_tree(self, tree, ())
+
+    def with_defaults(self, keys: Iterable[str], default: Parameters | None = None) -> Parameters:
+        """A copy with `keys` back at their default values (a window's Default
+        button: e.g. ``p.with_defaults(k.name for k in keys_of("CONTROLLER ONE"))``)."""
+        base = _preset() if default is None else default
+        return self.with_values({key: base.get(key) for key in keys})
+
+    def modified_keys(self, default: Parameters | None = None) -> frozenset[str]:
+        """Keys whose value differs from `default` (the built-in preset if None)."""
+        base = (_preset() if default is None else default).values()
+        return frozenset(k for k, v in self.values().items() if v != base[k])
+
+    def is_modified(self, key: str, default: Parameters | None = None) -> bool:
+        """Whether `key` differs from its default (the UI greys modified values)."""
+        return self.get(key) != (_preset() if default is None else default).get(key)
+
+    def plant(self) -> PlantParams:
+        """Physical constants of the simulated process (see SimulationSettings.plant)."""
+        return self.simulation.plant()
+
+    def operating_levels(self) -> Levels:
+        """Operating levels, cm."""
+        return self.simulation.operating_levels()
+
+    def process_plant(self) -> Plant:
+        """The plant in use, through the plant interface (core.plants)."""
+        return QuadTank(self.plant()) if self.process is None else self.process.plant()
+
+    def process_levels(self) -> tuple[float, ...]:
+        """Operating levels of the plant in use, in its own length unit."""
+        return tuple(self.operating_levels()) if self.process is None else self.process.levels
