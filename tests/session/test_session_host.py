@@ -280,3 +280,24 @@ def _read_until(sock: socket.socket, tag: str) -> dict:  # type: ignore[type-arg
             if tag == "Welcome":
                 assert isinstance(decode(line), Welcome)
             return obj
+
+
+@pytest.mark.parametrize("par, values", [
+    ("default", {"CONTROL.Type": "State feedback"}),  # complex poles, the lazily known StateFeedbackInfo
+    ("coupled-tito", {}),  # another plant (PLANT section: PlantSpec)
+])
+def test_snapshots_round_trip_exactly(par: str, values: dict, tmp_path: Path) -> None:  # type: ignore[type-arg]
+    from quadtank_tui.engine.runner import build_engine
+    from quadtank_tui.session.protocol import Update
+
+    root = Path(__file__).parents[2] / "params"
+    engine = build_engine(str(root / f"{par}.par"), clock="manual", params_dir=root, logs_dir=tmp_path)
+    if values:
+        assert engine.submit(c.SetParams(values)).result().ok
+    assert engine.submit(c.SetState("Run")).result().ok
+    snap = engine.step(20)
+    rows = np.column_stack([engine.history()[n] for n in SIGNALS])
+    back = decode(encode(Update(snap, rows)))
+    assert back.snapshot == snap and (back.snapshot.statefb is not None) == (par == "default")
+    np.testing.assert_array_equal(back.rows, rows)
+    engine.stop()
