@@ -210,8 +210,8 @@ def run_tui_on(client: SessionClient, refresh: float) -> int:
     elif client.gone and not client.stop_on_close and client.ended is not None:
         _say(f"quadtank: session {sid} ended: {client.ended}")
     else:
-        _say(f"quadtank: detached from session {sid}; it keeps running ({client.policy or 'no policy'}). "
-             f"quadtank attach {sid} comes back to it, quadtank stop {sid} stops it")
+        _say(f"quadtank: detached from session {sid}: quadtank attach {sid} comes back to it, "
+             f"quadtank stop {sid} stops it. {client.policy}")
     return app.return_code or watch.status
 
 

@@ -432,10 +432,10 @@ class MainScreen(CommandSender):
                                                "It keeps running.", yes="Exit"),
                                  lambda yes: self.app.exit() if yes else None)
             return
-        policy = engine.policy or "it keeps running until stopped"  # type: ignore[attr-defined]
+        policy = engine.policy  # type: ignore[attr-defined]  # the lab's unattended policy, one sentence
         question = (f"Session {sid} can run on without this screen.\n"
-                    f"Detach: {policy}; quadtank attach {sid} comes back to it.\n"
-                    "Stop: the pumps at 0, logging stopped, the session ended.")
+                    f"Detach: it runs on; quadtank attach {sid} comes back to it. {policy}\n"
+                    "Stop: the pumps at 0, logging stopped (its rows kept), the session ended.")
         choices = (Choice("detach", "Detach", "success"), Choice("stop", "Stop the session", "error"),
                    Choice("cancel", "Cancel"))
 
