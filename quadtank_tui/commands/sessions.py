@@ -35,7 +35,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     a.add_argument("session", metavar="SESSION", nargs="?", help="a session id (see quadtank sessions)")
     a.add_argument("--observe", action="store_true", help="watch read-only: every command is refused")
     a.add_argument("--take-over", action="store_true",
-                   help="administrators: take the operator's place (the operator becomes an observer)")
+                   help="take the operator's place: from your own other screen (a link that died unnoticed), "
+                   "or anyone's as an administrator (the operator becomes an observer)")
     a.add_argument("--refresh", metavar="SECONDS", type=float, default=0.05, dest="attach_refresh",
                    help="screen refresh interval (default 0.05)")
     a.set_defaults(handler=cmd_attach)

@@ -241,11 +241,16 @@ class SessionHost:
         if role == "operator":
             current = self._operator
             if current is not None and current is not conn:
+                # The operator's own user may take over from its other client (a screen
+                # left on a link that died unnoticed); otherwise only an administrator.
+                own = peer.uid == current.peer.uid
                 if not hello.take_over:
+                    hint = (f"`quadtank attach --take-over {self.info.id}` takes it from your other client"
+                            if own else f"`quadtank attach --observe {self.info.id}` watches it")
                     self._refuse(conn, f"session {self.info.id} is operated by {current.name} since "
-                                 f"{_hhmm(current.since)}; `quadtank attach --observe {self.info.id}` watches it")
+                                 f"{_hhmm(current.since)}; {hint}")
                     return
-                if not self.access.is_admin(peer.uid):
+                if not own and not self.access.is_admin(peer.uid):
                     self._refuse(conn, f"taking over session {self.info.id} needs an administrator "
                                  f"({self.access.admin_words}); you are {peer.user}")
                     return

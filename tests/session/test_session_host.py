@@ -138,8 +138,22 @@ def test_an_observer_is_refused_every_command_and_sees_who_controls(thread_sessi
 def test_a_second_operator_is_refused(thread_session) -> None:
     s = thread_session()
     with SessionClient(s.path):
+        s.peers.queue = [TEACHER]  # may connect (an administrator), asks to operate without --take-over
         with pytest.raises(SessionError, match=r"alice-1 is operated by alice \(pid \d+\) since \d\d:\d\d.*--observe"):
             SessionClient(s.path)
+        with pytest.raises(SessionError, match=r"is operated by alice .*--take-over alice-1. takes it from your "
+                           "other client"):
+            SessionClient(s.path)  # alice again, from another terminal
+
+
+def test_the_operators_own_user_may_take_over_from_its_other_client(thread_session) -> None:
+    """A screen left on an SSH link that died unnoticed holds the operator's place:
+    its user takes it back with --take-over (no administrator needed)."""
+    s = thread_session()
+    with SessionClient(s.path) as stale, SessionClient(s.path, take_over=True) as fresh:
+        assert fresh.role == "operator"
+        wait_for(lambda: stale.role == "observer")
+        ok(fresh, c.SetState("Run"))
 
 
 def test_a_student_cannot_take_over_nor_stop_an_administrator_can(thread_session) -> None:
