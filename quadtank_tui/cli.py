@@ -22,6 +22,7 @@ from quadtank_tui.commands.design import add_parser as add_design_parser
 from quadtank_tui.commands import statefb
 from quadtank_tui.commands import identify as identify_command
 from quadtank_tui.commands import sessions as sessions_command
+from quadtank_tui.commands import lab as lab_command
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
 from quadtank_tui.daq.cli import (
     add_daq_option, add_daq_parser, add_rig_parser, open_daq, run_clock,
@@ -182,6 +183,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--detach", action="store_true",
                    help="run it as a lab session and return at once: quadtank attach SESSION watches it, "
                    "quadtank stop SESSION ends it early (the summary goes to the session's output file)")
+    lab_command.add_take_over_option(p, dest="take_over")
     p.set_defaults(handler=_cmd_run)
 
 
@@ -245,6 +247,7 @@ def _add_tui_options(parser: argparse.ArgumentParser) -> None:
                      help="parameters: a .par file or a name in params/ "
                      "(default: params/default.par, else the built-in values)")
     add_daq_option(tui, dest="daq_global")  # type: ignore[arg-type]
+    lab_command.add_take_over_option(tui, dest="take_over_global")
     tui.add_argument("--speed", metavar="X", type=float, default=1.0, dest="tui_speed",
                      help="simulated seconds per wall second at start (1..1000; keys + and - change it)")
     tui.add_argument("--refresh", metavar="SECONDS", type=float, default=0.05,
@@ -301,6 +304,9 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     engine, app = build_tui(args)
     warn(engine.warnings)
     watch = TerminalWatch(app.exit_soon, engine.stop)
+    hold = getattr(args, "daq_hold", None)  # the rig's lock (main takes it): lost, the TUI ends
+    if hold is not None:
+        hold.watch(lambda why: app.exit_soon(1))
     engine.start()
     watch.start()
     try:
@@ -314,6 +320,8 @@ def _cmd_tui(args: argparse.Namespace) -> int:
         slow.cancel()
     if watch.reason is not None:
         _say(f"quadtank: stopped: {watch.reason}")
+    if hold is not None and hold.lost_reason is not None:
+        _say(f"quadtank: stopped (pumps at 0): {hold.lost_reason}")
     return app.return_code or watch.status
 
 
@@ -335,6 +343,7 @@ def build_parser() -> argparse.ArgumentParser:
     statefb.add_parser(sub)
     identify_command.add_parser(sub)
     sessions_command.add_parsers(sub)
+    lab_command.add_parser(sub)
     return parser
 
 
@@ -345,18 +354,67 @@ def main(argv: Sequence[str] | None = None) -> int:
     if handler is None:
         handler = _cmd_tui
     try:
-        return handler(args)
+        return _holding_the_daq(handler, args)
     except (UsageError, PlantError, OSError, ValueError) as exc:
         _say(f"quadtank: error: {exc}")
         return 2
     except KeyboardInterrupt:
         _say("quadtank: interrupted")
         return 130
+    except TakenOver:
+        _say(f"quadtank: stopped (pumps at 0, rows kept): {args.daq_hold.lost_reason}")
+        return 1
     except Terminated as exc:
         why = ": a run on a rig is not suspended, its pumps would run on unwatched" \
             if exc.signum == signal.SIGTSTP else ""
         _say(f"quadtank: stopped by {exc}{why}")
         return 128 + exc.signum  # the shell's convention: 143 SIGTERM, 129 SIGHUP
+
+
+def _driven_daq(args: argparse.Namespace) -> str | None:
+    """The DAQ configuration of the rig this command drives (writes pumps to), if any:
+    the TUI and `run` with --daq, `daq calibrate` on a rig; `daq check` only reads."""
+    if args.command is None:
+        return args.daq_global
+    if args.command == "run":
+        return args.daq or args.daq_global
+    if args.command == "daq" and args.daq_command == "calibrate" and args.pairs is None:
+        return args.config
+    return None
+
+
+class TakenOver(BaseException):
+    """An administrator took the rig over (--take-over): a headless command unwinds
+    as from Ctrl-C (pumps at 0, rows kept).  A BaseException, like Terminated."""
+
+
+def _taken_over(signum: int, frame: object) -> None:
+    raise TakenOver()
+
+
+#: The signal the lock's watch thread sends the main thread when the rig is taken
+#: over: a real signal interrupts a sleep between samples (up to TSamp, 10 s).
+TAKEN_OVER_SIGNAL = signal.SIGUSR1
+
+
+def _holding_the_daq(handler: Handler, args: argparse.Namespace) -> int:
+    """Run `handler` holding the lock of the rig it drives (refused, exit 2, if another
+    program drives it).  A headless command whose rig is taken over is interrupted
+    (TakenOver); the TUI watches its lock itself (args.daq_hold)."""
+    take_over = getattr(args, "take_over", False) or args.take_over_global
+    with lab_command.hold_daq(_driven_daq(args), take_over=take_over) as hold:
+        args.daq_hold = hold
+        if hold is None or handler is _cmd_tui:
+            return handler(args)
+        previous = signal.signal(TAKEN_OVER_SIGNAL, _taken_over)
+        main_thread = threading.main_thread().ident
+        assert main_thread is not None
+        hold.watch(lambda why: signal.pthread_kill(main_thread, TAKEN_OVER_SIGNAL))
+        try:
+            return handler(args)
+        finally:
+            hold.stop_watch()  # before the handler goes: a late signal would end the process
+            signal.signal(TAKEN_OVER_SIGNAL, previous)
 
 
 def _say(line: str) -> None:

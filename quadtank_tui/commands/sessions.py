@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 from quadtank_tui.commands import UsageError, warn
 
 if TYPE_CHECKING:
+    from quadtank_tui.session.lock import DaqLock
     from quadtank_tui.engine.runner import ClockKind
     from quadtank_tui.files.script import Script
     from quadtank_tui.session.client import SessionClient
@@ -167,7 +168,18 @@ def start_for(args: argparse.Namespace, runtime: Path) -> SessionInfo:
     daq = open_daq(args.daq_global)  # the configuration is checked here, in any case
     spec = engine_spec(args.tui_par, clock="realtime" if daq is not None else "virtual", speed=args.tui_speed)
     warn(spec.warnings)
-    return start_session(SessionSpec(spec, str(runtime), args.daq_global and str(Path(args.daq_global).resolve())))
+    return start_session(SessionSpec(spec, str(runtime), args.daq_global and str(Path(args.daq_global).resolve())),
+                         lock=_held_lock(args))
+
+
+def _held_lock(args: argparse.Namespace) -> DaqLock | None:
+    """The rig's lock `quadtank` took for this command (cli.main), to hand over to
+    the session (which watches it from then on: this process stops watching)."""
+    hold = getattr(args, "daq_hold", None)
+    if hold is None:
+        return None
+    hold.stop_watch()
+    return hold.lock
 
 
 def start_detached_run(args: argparse.Namespace, script: Script | None, clock: ClockKind) -> int:
@@ -182,7 +194,8 @@ def start_detached_run(args: argparse.Namespace, script: Script | None, clock: C
     run = HeadlessArgs(args.par, script, args.duration, str(Path(args.log).resolve()), args.seed, clock,
                        args.speed, str(Path("params").resolve()))
     runtime = _runtime()
-    info = start_session(SessionSpec(None, str(runtime), config and str(Path(config).resolve()), run))
+    info = start_session(SessionSpec(None, str(runtime), config and str(Path(config).resolve()), run),
+                         lock=_held_lock(args))
     print(f"session {info.id} runs the experiment ({args.duration:g} s) and will save {run.out}; "
           f"quadtank attach {info.id} watches it, quadtank stop {info.id} ends it early; "
           f"its summary goes to {runtime / (info.id + '.out')}")

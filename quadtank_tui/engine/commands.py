@@ -130,6 +130,9 @@ class SavePar:
 
     name: str
     overwrite: bool = False
+    #: write `default.par` (the name is then ignored): an administrator's save, the
+    #: sender checked the role (session.roles.require_administrator)
+    defaults: bool = False
 
 
 @dataclass(frozen=True)

@@ -541,6 +541,8 @@ class ControlLoop:
         return CommandResult(True, f"loaded {cmd.name}", warnings=tuple(read.warnings))
 
     def _save_par(self, cmd: SavePar) -> CommandResult:
+        if cmd.defaults:
+            return CommandResult(True, f"saved {self.store.save_default(self.params)}")
         # A reserved name skips the "exists" question: store.save refuses it with the reason.
         if self.store.exists(cmd.name) and not cmd.overwrite and cmd.name.lower() not in RESERVED:
             return CommandResult.refused(f"{self.store.path_of(cmd.name)} exists (save again to overwrite)")

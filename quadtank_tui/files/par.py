@@ -327,6 +327,13 @@ class ParStore:
         self.folder.mkdir(parents=True, exist_ok=True)
         return write_par(path, params, created=created)
 
+    def save_default(self, params: Parameters, *, created: datetime | None = None) -> Path:
+        """Replace `default.par`, everyone's defaults (atomically).  Only for an
+        administrator: the caller checked the role (session.roles), since this
+        layer knows nothing of users."""
+        self.folder.mkdir(parents=True, exist_ok=True)
+        return write_par(self.folder / f"default{SUFFIX}", params, created=created)
+
 
 def _stem(name: str) -> str:
     name = name.strip()

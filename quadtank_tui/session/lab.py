@@ -20,6 +20,7 @@ is refused with the file, the line and the key.  No file: the defaults.
 from __future__ import annotations
 
 import os
+import re
 import stat
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -182,6 +183,26 @@ def _key_lines(node: yaml.Node | None, prefix: str = "") -> dict[str, int]:
 def _show(value: Any) -> str:
     text = repr(value)
     return text if len(text) <= 40 else text[:37] + "..."
+
+
+def with_policy(text: str, policy: UnattendedPolicy) -> str:
+    """The lab file's `text` with its `unattended:` block replaced by `policy` (or
+    the block added at the end); the rest of the file, comments included, as it was."""
+    block = [
+        "unattended:\n",
+        f"  keep_while_logging: {'true' if policy.keep_while_logging else 'false'}\n",
+        f"  grace_minutes: {policy.grace_minutes:g}\n",
+    ]
+    lines = text.splitlines(keepends=True)
+    start = next((i for i, line in enumerate(lines) if re.match(r"unattended\s*:", line)), None)
+    if start is None:
+        return text + ("\n" if text and not text.endswith("\n") else "") + "".join(block)
+    end = start + 1
+    while end < len(lines) and (lines[end][:1] in (" ", "\t") or not lines[end].strip()):
+        end += 1
+    while end > start + 1 and not lines[end - 1].strip():
+        end -= 1  # blank lines after the block stay
+    return "".join(lines[:start] + block + lines[end:])
 
 
 # --- the runtime folder -------------------------------------------------------------------

@@ -25,6 +25,7 @@ from pathlib import Path
 
 from quadtank_tui.engine.runner import ClockKind, EngineSpec
 from quadtank_tui.files.script import Script
+from quadtank_tui.session.lock import DaqLock
 from quadtank_tui.session.protocol import SessionInfo
 from quadtank_tui.session.runtime import runtime_dir
 
@@ -61,8 +62,11 @@ class SessionSpec:
     run: HeadlessArgs | None = None
 
 
-def start_session(spec: SessionSpec, *, timeout: float = START_TIMEOUT) -> SessionInfo:
-    """Start a detached session process; its record once it listens."""
+def start_session(spec: SessionSpec, *, lock: DaqLock | None = None,
+                  timeout: float = START_TIMEOUT) -> SessionInfo:
+    """Start a detached session process; its record once it listens.  `lock`: the
+    rig's lock this launcher took (`quadtank --daq`), handed to the session process,
+    which holds it from then on."""
     r, w = os.pipe()
     try:
         proc = subprocess.Popen(
@@ -75,6 +79,13 @@ def start_session(spec: SessionSpec, *, timeout: float = START_TIMEOUT) -> Sessi
         os.close(w)
         raise
     os.close(w)
+    if lock is not None:
+        try:
+            lock.transfer(proc.pid)  # before the process looks: it adopts the lock
+        except OSError:
+            proc.kill()
+            os.close(r)
+            raise
     # Reap it whenever it ends, so a session that stops while we run is no zombie.
     threading.Thread(target=proc.wait, name="quadtank-session-reaper", daemon=True).start()
     try:
@@ -170,6 +181,10 @@ def session_main(ready_fd: int) -> int:
         host = SessionHost(engine, listener, info, runtime=runtime, access=Access.for_lab(uid, lab),
                            policy=lab.unattended, scripted=scripted)
         host.install_signal_handlers()
+        if lock is not None:  # an administrator may take the rig over: then stop, pumps at 0
+            from quadtank_tui.session.lockwatch import LockWatch
+
+            LockWatch(lock, lambda why: host.request_stop(f"the rig was taken over: {why}")).start()
         write_record(runtime, info)
     except BaseException as exc:  # noqa: BLE001 - the launcher says why
         if lock is not None:

@@ -100,13 +100,23 @@ class _Record:
         return DaqLockHeld(device, self.user, self.uid, self.pid, self.since, self.session)
 
 
-def process_start(pid: int) -> int | None:
-    """The start time of `pid` in clock ticks since boot (/proc), None where unknown."""
+def _proc_stat(pid: int) -> list[bytes] | None:
+    """The fields of /proc/<pid>/stat after the command name (state first), None
+    where there is no such file."""
     try:
         with open(f"/proc/{pid}/stat", "rb") as f:
             data = f.read()
-        return int(data[data.rindex(b")") + 2:].split()[19])
-    except (OSError, ValueError, IndexError):
+        return data[data.rindex(b")") + 2:].split()
+    except (OSError, ValueError):
+        return None
+
+
+def process_start(pid: int) -> int | None:
+    """The start time of `pid` in clock ticks since boot (/proc), None where unknown."""
+    fields = _proc_stat(pid)
+    try:
+        return None if fields is None else int(fields[19])
+    except (ValueError, IndexError):
         return None
 
 
@@ -121,6 +131,11 @@ def pid_alive(pid: int, start: int | None = None) -> bool:
         return False
     except PermissionError:
         pass
+    fields = _proc_stat(pid)
+    if fields is None:
+        return True  # no /proc: the kill probe has the last word
+    if fields[:1] == [b"Z"]:
+        return False  # exited, not yet reaped by its parent: it holds nothing
     if start is not None:
         now = process_start(pid)
         return now is None or now == start
@@ -244,20 +259,36 @@ class DaqLock:
         self._record = new
         self._released = True
 
-    @property
-    def held(self) -> bool:
-        """Whether the file still names this lock (an administrator may have taken it over)."""
-        if self._released:
-            return False
+    def _current(self) -> _Record | None:
+        """The record in the file now (under a shared flock: a writer truncates, then
+        writes, and an unlocked reader could see the empty file in between)."""
         try:
             fd = _open(self.path, create=False)
         except FileNotFoundError:
-            return False
+            return None
         try:
-            current = _read(fd)
+            fcntl.flock(fd, fcntl.LOCK_SH)
+            return _read(fd)
         finally:
             os.close(fd)
-        return current is not None and current.token == self._record.token
+
+    @property
+    def held(self) -> bool:
+        """Whether the file still names this lock (an administrator may have taken it over)."""
+        return self.lost() is None
+
+    def lost(self) -> str | None:
+        """None while the file names this lock; else why not, for the user (who took
+        it over and when).  A released or transferred lock is not ours either."""
+        if self._released:
+            return "the lock was released"
+        current = self._current()
+        if current is not None and current.token == self._record.token:
+            return None
+        if current is None:
+            return f"the lock of the rig at {self.device} was removed"
+        return (f"the rig at {self.device} was taken over by {current.user} (pid {current.pid}) "
+                f"at {datetime.now():%H:%M:%S}")
 
     def __enter__(self) -> DaqLock:
         return self

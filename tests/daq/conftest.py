@@ -99,6 +99,14 @@ class RigProcess:
                 self.proc.wait(timeout=10)
 
 
+@pytest.fixture(autouse=True)
+def _lab_of_its_own(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Every test its own lab runtime folder (the DAQ locks) and no lab file named:
+    never the machine's /tmp/quadtank-sessions, nor another test's locks."""
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(tmp_path_factory.mktemp("lab-runtime")))
+    monkeypatch.delenv("QUADTANK_LAB", raising=False)
+
+
 @pytest.fixture
 def rig() -> Iterator[Callable[..., RigProcess]]:
     """Start rigs with `rig(*args, port=0, full_cli=False)`; all stopped after the test."""

@@ -197,3 +197,44 @@ def test_broken_record_counts_as_free(lab: LabConfig) -> None:
     lock_path(DEVICE, lab).write_text("{not json")
     with DaqLock.acquire(DEVICE, lab) as lock:
         assert lock.held
+
+
+def test_lost_says_who_took_it(lab: LabConfig) -> None:
+    first = DaqLock.acquire(DEVICE, lab)
+    assert first.lost() is None
+    second = DaqLock.acquire(DEVICE, lab, take_over=True)
+    reason = first.lost()
+    assert reason is not None and reason.startswith(
+        f"the rig at {DEVICE} was taken over by {current_user().user} (pid {os.getpid()}) at ")
+    second.release()
+    assert second.lost() == "the lock was released"
+
+
+def test_lock_watch_calls_back_once_when_taken_over(lab: LabConfig) -> None:
+    import threading
+
+    from quadtank_tui.session.lockwatch import LockWatch
+
+    lock = DaqLock.acquire(DEVICE, lab)
+    calls: list[str] = []
+    called = threading.Event()
+    watch = LockWatch(lock, lambda why: (calls.append(why), called.set()), interval=0.01).start()
+    assert not called.wait(0.1)  # still ours: no call
+    DaqLock.acquire(DEVICE, lab, take_over=True)
+    assert called.wait(5.0)
+    watch.stop()
+    assert len(calls) == 1 and "was taken over by" in calls[0] and watch.reason == calls[0]
+
+
+def test_an_exited_unreaped_holder_is_not_alive(lab: LabConfig) -> None:
+    """A holder that exited but whose parent has not reaped it yet (a zombie)."""
+    child = hold_in_child(lab)
+    os.kill(child.pid, signal.SIGKILL)
+    for _ in range(200):
+        with open(f"/proc/{child.pid}/stat", "rb") as f:
+            if b") Z " in f.read():
+                break
+        import time
+        time.sleep(0.01)
+    assert holder_of(DEVICE, lab) is None
+    child.wait()

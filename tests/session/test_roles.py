@@ -138,3 +138,22 @@ def test_peer_of_a_connecting_child_is_the_child(tmp_path: Path) -> None:
         server.close()
         os.waitpid(pid, 0)
     assert (peer.pid, peer.uid, peer.gid) == (pid, ME, os.getgid())
+
+
+def test_the_real_lookups_for_a_system_user() -> None:
+    """No stand-ins: the operating system's own user and group databases."""
+    import grp
+    import pwd
+
+    try:
+        nobody = pwd.getpwnam("nobody")
+        group = grp.getgrgid(nobody.pw_gid).gr_name
+    except KeyError:
+        pytest.skip("no user 'nobody' on this machine")
+    assert roles.user_name(nobody.pw_uid) == "nobody"
+    assert nobody.pw_gid in roles.groups_of(nobody.pw_uid)
+    assert roles.group_id(group) == nobody.pw_gid
+    assert is_administrator(nobody.pw_uid, LabConfig(admin_group=group))
+    assert not is_administrator(nobody.pw_uid, LabConfig(admin_group=grp.getgrgid(0).gr_name))
+    assert roles.group_id("no-such-group-here") is None and roles.groups_of(2**31 - 2) == set()
+    assert roles.user_name(2**31 - 2) == str(2**31 - 2)

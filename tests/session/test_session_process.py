@@ -213,3 +213,37 @@ def test_sigterm_stops_the_session_in_order(tmp_path: Path) -> None:
     assert not pid_alive(info.pid)
     assert sorted(p.name for p in runtime.iterdir()) == []
     assert list((tmp_path / "logs").glob("*.partial"))
+
+
+def test_the_launchers_rig_lock_passes_to_the_session(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """`quadtank run --daq C --detach`: the command takes the rig's lock as every
+    rig command does, then hands it to the session process (transfer), which holds
+    it until it stops; meanwhile a second command on the rig is refused, naming the
+    session."""
+    from quadtank_tui.session.client import stop_session_at
+    from quadtank_tui.session.lab import load_lab_config
+    from quadtank_tui.session.lock import device_key, holder_of
+
+    runtime = tmp_path / "run"
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
+    monkeypatch.chdir(tmp_path)
+    config = str(ROOT / "params" / "virtual-rig.yaml")
+    run = ["run", "--duration", "600", "--log", str(tmp_path / "logs" / "rig.log"), "--daq", config, "--detach"]
+    assert main(run) == 0
+    (info,) = list_sessions(runtime)
+    device = device_key("127.0.0.1", 5020, 1)
+    try:
+        held = holder_of(device, load_lab_config())
+        assert held is not None and held.pid == info.pid and held.session == info.id
+        capsys.readouterr()
+        assert main(run) == 2
+        err = capsys.readouterr().err
+        assert f"is driven by {info.owner} (pid {info.pid}, session {info.id})" in err
+    finally:
+        stop_session_at(info.socket)
+    for _ in range(100):
+        if not pid_alive(info.pid):
+            break
+        time.sleep(0.02)
+    assert holder_of(device, load_lab_config()) is None

@@ -224,20 +224,67 @@ async def test_save_change_load_restores(app) -> None:  # type: ignore[no-untype
         assert Path("params/mysetting.par").read_text() == before
 
 
-async def test_saving_as_default_is_refused(app) -> None:  # type: ignore[no-untyped-def]
+@pytest.fixture
+def lab_user(monkeypatch: pytest.MonkeyPatch, tmp_path: Path):  # type: ignore[no-untyped-def]
+    """Be `user` (uid 50001 alice, a teacher; 50002 bob, a student) to the lab's
+    role checks, with a lab file naming the group `teachers`."""
+    from quadtank_tui.session import roles
+
+    lab = tmp_path / "lab.yaml"
+    lab.write_text("admin_group: teachers\n")
+    monkeypatch.setenv("QUADTANK_LAB", str(lab))
+    monkeypatch.setattr(roles, "group_id", {"teachers": 60001}.get)
+    monkeypatch.setattr(roles, "groups_of", lambda uid: {60001} if uid == 50001 else {60002})
+    monkeypatch.setattr(roles, "user_name", {50001: "alice", 50002: "bob"}.get)
+
+    def be(user: str) -> None:
+        uid = {"alice": 50001, "bob": 50002}[user]
+        monkeypatch.setattr(roles, "current_user", lambda: roles.Peer(uid, 60002, 4242, user))
+    return be
+
+
+async def test_saving_as_default_is_refused(app, lab_user) -> None:  # type: ignore[no-untyped-def]
+    lab_user("bob")  # a student
     async with app.run_test(size=(120, 40)) as pilot:
         await open_setup(pilot)
         before = Path("params/default.par").read_bytes()
         _change(app, {"SIMULATION.Valve2": 0.34})
-        for name in ("default", "preset", "Default.par"):
+        for name, why in (("default", "Not saved: saving default.par needs an administrator (member of group "
+                           "teachers); you are bob."),
+                          ("Default.par", "needs an administrator"),
+                          ("preset", "Not saved: 'preset' is reserved")):
             await _par(pilot, name, "ctrl+s")
             window = app.screen
             assert isinstance(window, ParFileWindow)
-            assert "reserved" in str(window.query_one("#par-error", Static).render())
+            assert why in str(window.query_one("#par-error", Static).render())
             await pilot.press("escape")
             await pilot.pause()
         assert Path("params/default.par").read_bytes() == before
         assert not Path("params/preset.par").exists()
+
+
+async def test_an_administrator_saves_default_par_after_asking(app, lab_user) -> None:  # type: ignore[no-untyped-def]
+    from quadtank_tui.files.par import read_par
+
+    lab_user("alice")  # a teacher
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_setup(pilot)
+        before = Path("params/default.par").read_bytes()
+        _change(app, {"SIMULATION.Valve2": 0.34})
+        await _par(pilot, "default", "ctrl+s")
+        assert app.screen.__class__.__name__ == "ConfirmWindow"
+        await pilot.press("n")  # not this time
+        await pilot.pause()
+        assert "default.par is kept as it was" in str(app.screen.query_one("#par-error", Static).render())
+        assert Path("params/default.par").read_bytes() == before
+        await pilot.press("ctrl+s", "y")
+        await pilot.pause()
+        for _ in range(50):  # the loop writes it
+            if Path("params/default.par").read_bytes() != before:
+                break
+            await pilot.pause(0.05)
+        assert isinstance(app.screen, SetupScreen)
+        assert read_par("params/default.par").params.simulation.valves == (0.7, 0.34)
 
 
 async def test_loading_a_broken_file_names_file_line_key_and_changes_nothing(app) -> None:  # type: ignore[no-untyped-def]

@@ -2,8 +2,10 @@
 by name in `params/` (`.par` is added).
 
 `default` and `preset` are reserved: they load the defaults file and the built-in
-values and cannot be written by a save (the defaults are an administrator's
-business, as in the original).  Saving over an existing file asks first.  The
+values.  `preset` is never written; `default.par`, everyone's defaults, only by an
+administrator of the lab (session.roles: a group the lab file names, or write
+access to the defaults), after asking; anyone else is told who may.  Saving over an
+existing file asks first.  The
 window only decides what to ask for; the screen sends it, and when the engine
 refuses a file (a broken line, a value out of range) the screen opens the window
 again with the engine's message, which names the file, the line and the key, and
@@ -27,7 +29,19 @@ from quadtank_tui.files.par import RESERVED, SUFFIX
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow, Window
 
 #: What the reserved names stand for, shown in the list.
-RESERVED_NOTES = {"default": "the defaults (load only)", "preset": "the built-in values (load only)"}
+RESERVED_NOTES = {"default": "the defaults (admins save)", "preset": "the built-in values (load only)"}
+
+
+def why_not_administrator(what: str) -> str | None:
+    """None if this user administers the lab; else the reason, naming who may."""
+    from quadtank_tui.session import roles
+    from quadtank_tui.session.lab import LabConfigError, load_lab_config
+
+    try:
+        roles.require_administrator(roles.current_user().uid, load_lab_config(), what)
+    except (LabConfigError, roles.NotPermitted) as exc:
+        return str(exc)
+    return None
 
 
 def stem(name: str) -> str:
@@ -102,6 +116,9 @@ class ParFileWindow(Window[Commands]):
         name = self.chosen()
         if name is None:
             return
+        if name.lower() == "default":
+            self._save_defaults()
+            return
         if name.lower() in RESERVED:
             self.say(f"Not saved: {RESERVED[name.lower()]}.")
             return
@@ -118,6 +135,24 @@ class ParFileWindow(Window[Commands]):
         self.app.push_screen(
             ConfirmWindow("Overwrite?", f"params/{name}{SUFFIX} exists. Replace it with the parameters in use?",
                           yes="Overwrite"),
+            answered,
+        )
+
+    def _save_defaults(self) -> None:
+        why = why_not_administrator("saving default.par")
+        if why is not None:
+            self.say(f"Not saved: {why}.")
+            return
+
+        def answered(yes: bool | None) -> None:
+            if yes:
+                self.dismiss((SavePar("default", overwrite=True, defaults=True),))
+            else:
+                self.say(f"Not saved: default{SUFFIX} is kept as it was.")
+
+        self.app.push_screen(
+            ConfirmWindow("Replace the defaults?", f"default{SUFFIX} holds the defaults every user starts "
+                          "with. Replace it with the parameters in use?", yes="Replace"),
             answered,
         )
 

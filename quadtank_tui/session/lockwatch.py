@@ -1,0 +1,45 @@
+"""Noticing that a DAQ lock was taken over: an administrator may take a rig from a
+program left running (`--take-over`); that program must then stop driving it
+(pumps to 0) within a second or so, and say why.  A thread polls the lock file
+(a few hundred bytes, once a second) and calls back once."""
+
+from __future__ import annotations
+
+import threading
+from typing import Callable
+
+from quadtank_tui.session.lock import DaqLock
+
+#: Seconds between looks at the lock file.
+INTERVAL = 0.5
+
+
+class LockWatch:
+    """Calls `on_lost(reason)` once, from its own thread, when `lock` is no longer
+    this program's; `reason` says who took it (DaqLock.lost)."""
+
+    def __init__(self, lock: DaqLock, on_lost: Callable[[str], None], *, interval: float = INTERVAL) -> None:
+        self._lock, self._on_lost, self._interval = lock, on_lost, interval
+        self._stop = threading.Event()
+        self.reason: str | None = None
+        self._thread = threading.Thread(target=self._run, name="quadtank-lock-watch", daemon=True)
+
+    def start(self) -> LockWatch:
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
+            self._thread.join(timeout=2.0)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self._interval):
+            try:
+                reason = self._lock.lost()
+            except OSError:  # the file unreadable for a moment: look again
+                continue
+            if reason is not None and not self._stop.is_set():
+                self.reason = reason
+                self._on_lost(reason)
+                return
