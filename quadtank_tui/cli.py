@@ -39,6 +39,7 @@ EXPORT_FORMATS = ("mat", "csv")
 
 if TYPE_CHECKING:  # the TUI's modules load only when it starts
     from quadtank_tui.core.parameters import Parameters
+    from quadtank_tui.core.plants import Plant
     from quadtank_tui.engine.process import EngineProcess
     from quadtank_tui.engine.runner import Engine
     from quadtank_tui.ui.app import QuadTankApp
@@ -223,8 +224,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.seed is not None and args.seed < 0:
         raise UsageError(f"--seed must be >= 0, got {args.seed}")
     script = read_script(args.script) if args.script else None
-    clock, daq = run_clock(realtime=args.realtime, speed=args.speed,
-                           config=args.daq or getattr(args, "daq_global", None))
+    daq_config = args.daq or getattr(args, "daq_global", None)
+    clock, daq = run_clock(realtime=args.realtime, speed=args.speed, config=daq_config,
+                           plant=_plant_in_use(args.par) if daq_config else None)
     if args.detach:
         return sessions_command.start_detached_run(args, script, clock)
     previous = {sig: signal.signal(sig, _terminate) for sig in (RIG_STOP_SIGNALS if daq else STOP_SIGNALS)}
@@ -237,6 +239,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
     warn(result.warnings)
     print(result.text)
     return result.status
+
+
+def _plant_in_use(par: str | None) -> Plant:
+    """The plant of the parameters a run starts from (`--par`, else the defaults):
+    the DAQ configuration is read for its channels."""
+    from quadtank_tui.engine.runner import load_parameters
+    from quadtank_tui.files.par import ParStore
+
+    return load_parameters(par, ParStore(Path("params")))[0].process_plant()
 
 
 def _add_tui_options(parser: argparse.ArgumentParser) -> None:
@@ -274,7 +285,8 @@ def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTan
         raise UsageError(f"--speed must be 1..1000, got {args.tui_speed:g}")
     if not 0.01 <= args.refresh <= 5.0:
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
-    daq = open_daq(args.daq_global)  # the configuration is checked here, in any case
+    # the configuration is checked here, in any case, for the plant of the parameters
+    daq = open_daq(args.daq_global, _plant_in_use(args.tui_par) if args.daq_global else None)
     clock = "realtime" if daq is not None else "virtual"
     engine: Engine | EngineProcess
     if args.loop == "thread":

@@ -165,8 +165,9 @@ def start_for(args: argparse.Namespace, runtime: Path) -> SessionInfo:
     from quadtank_tui.engine.runner import engine_spec
     from quadtank_tui.session.launch import SessionSpec, start_session
 
-    daq = open_daq(args.daq_global)  # the configuration is checked here, in any case
-    spec = engine_spec(args.tui_par, clock="realtime" if daq is not None else "virtual", speed=args.tui_speed)
+    spec = engine_spec(args.tui_par, clock="realtime" if args.daq_global else "virtual", speed=args.tui_speed)
+    # The DAQ configuration is checked here, for the plant of the parameters.
+    open_daq(args.daq_global, spec.params.process_plant() if args.daq_global else None)
     warn(spec.warnings)
     return start_session(SessionSpec(spec, str(runtime), args.daq_global and str(Path(args.daq_global).resolve())),
                          lock=_held_lock(args))

@@ -22,6 +22,7 @@ from quadtank_tui.engine.backend import BackendError
 # preset parameters: numpy), so building the parser, which every `quadtank`
 # command does, stays cheap.
 if TYPE_CHECKING:  # pymodbus is imported only when a DAQ is used
+    from quadtank_tui.core.plants import Plant
     from quadtank_tui.daq.modbus import ModbusBackend
 
 
@@ -39,7 +40,8 @@ def add_rig_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--port", type=int, default=5020, help="TCP port (default 5020; 0 picks a free one)")
     p.add_argument("--map", default="labjack", metavar="NAME|FILE",
                    help=f"register map and wiring: a preset ({', '.join(PRESETS)}) or a DAQ "
-                   "configuration file (default labjack)")
+                   "configuration file (default labjack), read for the plant of --par: a "
+                   "two-tank plant serves two level inputs")
     p.add_argument("--speed", type=float, default=1.0, help="process seconds per wall second (default 1)")
     p.add_argument("--noise", type=float, default=0.0, metavar="SIGMA",
                    help="sensor noise, standard deviation in volts (default 0)")
@@ -84,7 +86,8 @@ def cmd_rig(args: argparse.Namespace) -> int:
         params = read.params
     else:
         params = PRESET
-    config = load_daq_config(args.map)
+    plant = params.plant() if params.process is None else params.process_plant()
+    config = load_daq_config(args.map, params.process_plant())
     if not (args.speed > 0 and math.isfinite(args.speed)):
         raise ValueError(f"--speed must be a number > 0, got {args.speed}")
     if not math.isfinite(args.offset):
@@ -99,7 +102,6 @@ def cmd_rig(args: argparse.Namespace) -> int:
         print(f"quadtank rig: warning: binding {args.host}: the rig is reachable from the network",
               file=sys.stderr)
     faults = [parse_fault(text) for text in args.fault]
-    plant = params.plant() if params.process is None else params.process_plant()
     rig = VirtualRig(
         config, plant, params.process_levels(),
         speed=args.speed, watchdog=args.watchdog,
@@ -132,8 +134,10 @@ def add_daq_parser(sub: argparse._SubParsersAction) -> None:
                        "configuration (nothing is written), or fit a level sensor's gain and "
                        "offset from steady-state pairs (Desautel 2.3).")
     daqsub = p.add_subparsers(dest="daq_command", metavar="ACTION", required=True)
-    check = daqsub.add_parser("check", help="read the four sensors once; writes nothing")
+    check = daqsub.add_parser("check", help="read the level sensors once; writes nothing")
     check.add_argument("config", metavar="CONFIG", help="a DAQ configuration file or preset name")
+    check.add_argument("--par", metavar="FILE", help="a .par file: the plant whose channels are read "
+                       "(its PLANT section; default the quadruple tank, four levels)")
     check.set_defaults(handler=cmd_daq_check)
     fit = daqsub.add_parser("fit", help="least-squares gain and offset from VOLTS:CM pairs")
     fit.add_argument("pairs", metavar="VOLTS:CM", nargs="+",
@@ -171,7 +175,7 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
     """Read-only on purpose: checking a link must never move a pump."""
     from quadtank_tui.daq.modbus import ModbusBackend
 
-    config = load_daq_config(args.config)
+    config = load_daq_config(args.config, _par_plant(args.par))
     backend = ModbusBackend(config)
     try:
         volts = backend.read_raw_volts()
@@ -180,18 +184,20 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
         return 1
     finally:
         backend.close()
-    print(f"{backend.description}  (device id {config.device_id}, timeout {config.timeout:g} s)")
+    print(f"{backend.description}  (device id {config.device_id}, timeout {config.timeout:g} s; "
+          f"{config.plant.kind}: {len(config.tanks)} level, {len(config.pump_channels)} pump channels)")
     faults = 0
-    for i in range(4):
-        ch = config.channels[f"tank{i + 1}"]
+    unit = config.plant.unit
+    for i, tank in enumerate(config.tanks):
+        ch = config.channels[tank]
         level = config.sensors[i].level(volts[i])
-        y = config.sensor_gain * level / FULL_SCALE_V
+        y = config.sensor_gains[i] * level / FULL_SCALE_V
         lo, hi = config.plausible_range(i + 1)
-        mark = "" if lo <= level <= hi else f"  SENSOR FAULT: outside its plausible {lo:g}..{hi:g} cm"
+        mark = "" if lo <= level <= hi else f"  SENSOR FAULT: outside its plausible {lo:g}..{hi:g} {unit}"
         faults += bool(mark)
-        print(f"tank {i + 1}  {ch:>6}  {volts[i]:8.4f} V  {level:7.2f} cm  y = {y:.4f}{mark}")
+        print(f"tank {i + 1}  {ch:>6}  {volts[i]:8.4f} V  {level:7.{2 if unit == 'cm' else 4}f} {unit}  y = {y:.4f}{mark}")
     if not faults:
-        backend.interlock.update(backend.levels_from_volts(volts))
+        backend.interlock.update(backend.height_fractions(volts))
     for alarm in backend.alarms:
         print(alarm)
     return 1 if faults else 0
@@ -324,23 +330,33 @@ def add_daq_option(parser: argparse.ArgumentParser, *, dest: str = "daq") -> Non
     parser.add_argument("--daq", metavar="CONFIG", dest=dest, help=DAQ_HELP)
 
 
-def open_daq(config: str | None) -> ModbusBackend | None:
-    """The Modbus backend a `--daq CONFIG` asks for (None without one).  The file is
-    read and checked now, so a bad one stops the program before anything runs; the
-    link is opened on the first sample."""
+def _par_plant(par: str | None) -> Plant | None:
+    """The plant of a .par file's PLANT section (None: the quadruple tank)."""
+    if par is None:
+        return None
+    from quadtank_tui.files.par import read_par
+
+    return read_par(par).params.process_plant()
+
+
+def open_daq(config: str | None, plant: Plant | None = None) -> ModbusBackend | None:
+    """The Modbus backend a `--daq CONFIG` asks for (None without one), wired for
+    `plant` (the quadruple tank when None).  The file is read and checked now, so a
+    bad one stops the program before anything runs; the link is opened on the
+    first sample."""
     if config is None:
         return None
     from quadtank_tui.daq.modbus import ModbusBackend  # pymodbus only when asked for
 
-    return ModbusBackend(load_daq_config(config))
+    return ModbusBackend(load_daq_config(config, plant))
 
 
-def run_clock(*, realtime: bool, speed: float | None,
-              config: str | None) -> tuple[Literal["realtime", "virtual", "manual"], ModbusBackend | None]:
+def run_clock(*, realtime: bool, speed: float | None, config: str | None,
+              plant: Plant | None = None) -> tuple[Literal["realtime", "virtual", "manual"], ModbusBackend | None]:
     """The clock and the DAQ backend of `quadtank [--daq C] run [--daq C]`.  A real
     process is never run unpaced: with a DAQ the run is real time, unless --speed
     gives the virtual rig's speed factor."""
-    daq = open_daq(config)
+    daq = open_daq(config, plant)
     if realtime or (daq is not None and speed is None):
         return "realtime", daq
     return ("virtual" if speed is not None else "manual"), daq

@@ -18,6 +18,16 @@ One YAML file (examples: `params/daq-labjack.yaml`, `params/virtual-rig.yaml`) s
   fault (a broken wire reads the rail, -10.5 V), not a level; by default the tank
   from `margin` x its height below the bottom to as much above the top.
 
+The channels follow the plant in use (:class:`PlantChannels`, from the `.par`'s
+PLANT section; the quadruple tank without one): one level channel per tank
+(tank1..tankN) and one pump channel per pump (pump1..pumpM), so a two-tank rig has
+tank1, tank2 and no tank3/tank4.  The preset's channels beyond the plant's are
+dropped; a file that names a channel the plant does not have (or leaves one out,
+with `preset: none`) is refused with the extra or missing keys listed.  For a plant
+other than the quadruple tank the preset's sensor calibration gives way to the
+plant's own sensor gains (kc1, kc2 of the cascade, Gd of the two-input rig) and
+tank height, in the plant's length unit.
+
 Every file starts from a preset (`preset: labjack`, the default; `preset: none` for
 a complete file of your own) and overrides keys.  Unknown keys, wrong types and
 out-of-range values are refused with the file, the line and the dotted key, so a
@@ -28,18 +38,26 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 import yaml
 
 from quadtank_tui.core.calibration import SensorCalibration
+from quadtank_tui.daq.interlock import QUADTANK_FEEDERS
 from quadtank_tui.daq.registers import MAX_ADDRESS, TABLES, TYPES, WORD_ORDERS, Register
 from quadtank_tui.files.yamltext import parse_yaml, read_text
 
+if TYPE_CHECKING:  # core.plants loads numpy; reading a configuration does not need it
+    from quadtank_tui.core.plants import Plant
+
+#: The channel names of the quadruple tank, the largest plant (four levels, two pumps).
 TANKS = ("tank1", "tank2", "tank3", "tank4")
 PUMPS = ("pump1", "pump2")
+#: A key naming a level or pump channel (tank7 too: it is refused as extra, not unknown).
+CHANNEL_KEY = re.compile(r"(tank|pump)\d+")
 
 #: LabJack T-series (T4/T7/T8) Modbus map, zero-based, big-endian, one overlapping
 #: map served on function codes 3 and 4: AIN#(0:13) from address 0 and DAC#(0:1) from
@@ -69,6 +87,63 @@ LABJACK: dict[str, Any] = {
 }
 
 PRESETS: dict[str, dict[str, Any]] = {"labjack": LABJACK}
+
+
+@dataclass(frozen=True)
+class PlantChannels:
+    """What a DAQ configuration wires for one plant: its level channels
+    (tank1..tankN), its pump channels (pump1..pumpM), and, for a plant other than
+    the quadruple tank, the defaults its sensors and tanks give (per tank sensor
+    gain, V per level unit; the tank height; the length unit)."""
+
+    kind: str
+    title: str
+    tanks: tuple[str, ...]
+    pumps: tuple[str, ...]
+    sensor_gains: tuple[float, ...]
+    height: float
+    unit: str
+    #: per tank, the pumps (0-based) the interlock cuts when it is overfull
+    feeders: tuple[tuple[int, ...], ...] = QUADTANK_FEEDERS
+
+    @classmethod
+    def of(cls, plant: Plant) -> PlantChannels:
+        n = len(plant.states)
+        gains = tuple(plant.output([1.0 if j == i else 0.0 for j in range(n)])[i] for i in range(n))
+        return cls(kind=plant.kind, title=plant.title, tanks=tuple(f"tank{i + 1}" for i in range(n)),
+                   pumps=tuple(f"pump{i + 1}" for i in range(len(plant.inputs))),
+                   sensor_gains=gains, height=max(s.hi for s in plant.states), unit=plant.states[0].unit,
+                   feeders=_feeders(plant))
+
+    @property
+    def keeps_preset(self) -> bool:
+        """The quadruple tank keeps the preset's calibration and height as they were."""
+        return self.kind == "quadtank"
+
+    def describe(self) -> str:
+        """e.g. "a coupled-cascade plant has 2 level channels (tank1, tank2) and 1 pump channel (pump1)"."""
+        def count(names: tuple[str, ...], what: str) -> str:
+            return f"{len(names)} {what} channel{'s' if len(names) != 1 else ''} ({', '.join(names)})"
+        return f"a {self.kind} plant has {count(self.tanks, 'level')} and {count(self.pumps, 'pump')}"
+
+
+def _feeders(plant: Plant) -> tuple[tuple[int, ...], ...]:
+    """Per tank, the pumps pouring into it; for a tank no pump pours into, those of
+    the tanks draining into it (the lower tank of the cascade: the one pump)."""
+    lay = plant.layout()
+    direct = [sorted({p.input for p in lay.pumps for tank, _ in p.feeds if tank == i})
+              for i in range(len(plant.states))]
+    out = []
+    for i, pumps in enumerate(direct):
+        if not pumps:
+            pumps = sorted({p for pipe in lay.pipes if pipe.target == i for p in direct[pipe.source]})
+        out.append(tuple(pumps))
+    return tuple(out)
+
+
+#: The quadruple tank's channels: what a configuration wires when no plant is given
+#: (the sensor gain and height are the preset's; the quadruple tank keeps them).
+QUADTANK_CHANNELS = PlantChannels("quadtank", "quadruple tank (Johansson)", TANKS, PUMPS, (0.5,) * 4, 20.0, "cm")
 
 #: Default plausible range: this fraction of the tank height below 0 cm and above
 #: the top (-2..22 cm for 20 cm tanks), room for a sensor's offset and noise.
@@ -103,14 +178,18 @@ class DaqConfig:
     timeout: float
     inputs: Mapping[str, Register]
     outputs: Mapping[str, Output]
-    #: tank1..tank4 -> input name; pump1, pump2 -> output name
+    #: tank1..tankN -> input name; pump1..pumpM -> output name (the plant's channels)
     channels: Mapping[str, str]
     #: per tank: level (cm) from volts
-    sensors: tuple[SensorCalibration, SensorCalibration, SensorCalibration, SensorCalibration]
+    sensors: tuple[SensorCalibration, ...]
     #: per pump: pump volts from output volts
-    pumps: tuple[SensorCalibration, SensorCalibration]
+    pumps: tuple[SensorCalibration, ...]
     #: kc (V/cm) of the normalized units: y = sensor_gain * level / 10
     sensor_gain: float = 0.5
+    #: the plant these channels are wired for
+    plant: PlantChannels = QUADTANK_CHANNELS
+    #: kc of each tank (all sensor_gain unless the plant's or the file's differ)
+    sensor_gains: tuple[float, ...] = ()
     interlock_enabled: bool = True
     interlock_limit: float = 0.95
     tank_height: float = 20.0
@@ -120,21 +199,43 @@ class DaqConfig:
     plausible: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     source: str = field(default="<preset>", compare=False)
 
+    def __post_init__(self) -> None:
+        if not self.sensor_gains:
+            object.__setattr__(self, "sensor_gains", (self.sensor_gain,) * len(self.plant.tanks))
+
+    @property
+    def tanks(self) -> tuple[str, ...]:
+        """The level channels wired (tank1..tankN of the plant)."""
+        return self.plant.tanks
+
+    @property
+    def pump_channels(self) -> tuple[str, ...]:
+        """The pump channels wired (pump1..pumpM of the plant)."""
+        return self.plant.pumps
+
     def tank_register(self, tank: int) -> Register:
-        """The input register of tank 1..4."""
-        return self.inputs[self.channels[TANKS[tank - 1]]]
+        """The input register of tank 1..N."""
+        return self.inputs[self.channels[self.tanks[tank - 1]]]
 
     def plausible_range(self, tank: int) -> tuple[float, float]:
-        """(low, high) cm a level of tank 1..4 can really read; outside: a sensor fault."""
-        own = self.plausible.get(TANKS[tank - 1])
+        """(low, high) cm a level of tank 1..N can really read; outside: a sensor fault."""
+        own = self.plausible.get(self.tanks[tank - 1])
         if own is not None:
             return own
         margin = self.plausible_margin * self.tank_height
         return (-margin, self.tank_height + margin)
 
     def pump_output(self, pump: int) -> Output:
-        """The output of pump 1..2."""
-        return self.outputs[self.channels[PUMPS[pump - 1]]]
+        """The output of pump 1..M."""
+        return self.outputs[self.channels[self.pump_channels[pump - 1]]]
+
+    def check_plant(self, plant: Plant) -> None:
+        """DaqConfigError unless these channels are wired for `plant`'s kind (the
+        configuration was read for another plant than the one now in use)."""
+        if plant.kind != self.plant.kind:
+            wanted = PlantChannels.of(plant)
+            raise DaqConfigError(self.source, f"wired for the {self.plant.kind} plant, but the plant in use is "
+                                 f"{plant.kind}: {wanted.describe()}; read the configuration for it")
 
 
 # --- reading -------------------------------------------------------------------------
@@ -143,19 +244,22 @@ def _error(name: str, message: str, line: int | None) -> DaqConfigError:
     return DaqConfigError(name, message, line=line)
 
 
-def load_daq_config(path: Path | str) -> DaqConfig:
-    """Read and validate a DAQ configuration file, or a preset name (`labjack`)."""
+def load_daq_config(path: Path | str, plant: Plant | None = None) -> DaqConfig:
+    """Read and validate a DAQ configuration file, or a preset name (`labjack`), for
+    the channels of `plant` (the quadruple tank when None)."""
     text_path = str(path)
     if text_path in PRESETS:
-        return parse_daq_config(yaml.safe_dump({"preset": text_path}), name=f"preset {text_path}")
-    return parse_daq_config(read_text(path, _error), name=text_path)
+        return parse_daq_config(yaml.safe_dump({"preset": text_path}), name=f"preset {text_path}", plant=plant)
+    return parse_daq_config(read_text(path, _error), name=text_path, plant=plant)
 
 
-def parse_daq_config(text: str, *, name: str = "<daq config>") -> DaqConfig:
-    """Validate the YAML `text` (named `name` in errors) over its preset."""
+def parse_daq_config(text: str, *, name: str = "<daq config>", plant: Plant | None = None) -> DaqConfig:
+    """Validate the YAML `text` (named `name` in errors) over its preset, for the
+    channels of `plant` (the quadruple tank when None)."""
+    wiring = QUADTANK_CHANNELS if plant is None else PlantChannels.of(plant)
     node, data = parse_yaml(text, name, _error)
     lines = _key_lines(node)
-    v = _Validator(name, lines)
+    v = _Validator(name, lines, wiring)
     if data is None:
         data = {}
     if not isinstance(data, dict):
@@ -169,8 +273,32 @@ def parse_daq_config(text: str, *, name: str = "<daq config>") -> DaqConfig:
         base = copy.deepcopy(PRESETS[preset_name])
     else:
         v.fail("preset", f"unknown preset {preset_name!r}; known: {', '.join([*PRESETS, 'none'])}")
-    merged = _merge(base, {k: val for k, val in data.items() if k != "preset"})
+    v.no_extra_channels(data)
+    merged = _merge(_for_plant(base, wiring), {k: val for k, val in data.items() if k != "preset"})
     return v.config(merged)
+
+
+def _for_plant(preset: dict[str, Any], wiring: PlantChannels) -> dict[str, Any]:
+    """The preset's mapping with only the plant's channels; for another plant than
+    the quadruple tank its sensor calibration and tank height give way to the
+    plant's (ideal sensors: level = volts / kc_i)."""
+    out = copy.deepcopy(preset)
+    names = set(wiring.tanks + wiring.pumps)
+    for section in ("channels", "calibration", "plausible"):
+        if isinstance(out.get(section), dict):
+            out[section] = {k: val for k, val in out[section].items()
+                            if not CHANNEL_KEY.fullmatch(str(k)) or k in names}
+    if wiring.keeps_preset:
+        return out
+    cal = out.get("calibration")
+    if isinstance(cal, dict):
+        cal.pop("sensor_gain", None)
+        for tank in wiring.tanks:
+            cal.pop(tank, None)
+    lock = out.get("interlock")
+    if isinstance(lock, dict):
+        lock.pop("tank_height", None)
+    return out
 
 
 def _key_lines(node: yaml.Node | None, prefix: str = "") -> dict[str, int]:
@@ -209,9 +337,23 @@ def _merge(base: dict[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
 class _Validator:
     """Turns the merged mapping into a DaqConfig, failing with file, line and key."""
 
-    def __init__(self, name: str, lines: Mapping[str, int]) -> None:
+    def __init__(self, name: str, lines: Mapping[str, int], wiring: PlantChannels = QUADTANK_CHANNELS) -> None:
         self.name = name
         self.lines = lines
+        self.wiring = wiring
+
+    def no_extra_channels(self, data: Mapping[str, Any]) -> None:
+        """The file's own channel keys (channels, calibration, plausible) the plant
+        does not have: refused, all of them named (a 4-level map for a 2-tank plant)."""
+        names = set(self.wiring.tanks + self.wiring.pumps)
+        for section in ("channels", "calibration", "plausible"):
+            m = data.get(section)
+            if not isinstance(m, dict):
+                continue
+            extra = [str(k) for k in m if CHANNEL_KEY.fullmatch(str(k)) and k not in names]
+            if extra:
+                are = "is extra" if len(extra) == 1 else "are extra"
+                self.fail(f"{section}.{extra[0]}", f"{', '.join(extra)} {are}: {self.wiring.describe()}")
 
     def fail(self, key: str, reason: str) -> Any:
         line = self.lines.get(key)
@@ -235,6 +377,12 @@ class _Validator:
         if sub not in m:
             self.fail(f"{key}.{sub}" if key else sub, "missing")
         return m[sub]
+
+    def require_channels(self, m: Mapping[str, Any]) -> None:
+        """Every channel of the plant wired; the missing ones named together."""
+        missing = [ch for ch in self.wiring.tanks + self.wiring.pumps if ch not in m]
+        if missing:
+            self.fail(f"channels.{missing[0]}", f"{', '.join(missing)} missing: {self.wiring.describe()}")
 
     def number(self, key: str, value: Any, lo: float | None = None, hi: float | None = None,
                *, lo_open: bool = False) -> float:
@@ -308,39 +456,56 @@ class _Validator:
         for n, r in self.mapping("outputs", self.require(d, "", "outputs")).items():
             reg, m = self.register(f"outputs.{n}", r, output=True)
             outputs[n] = Output(reg, self.limits(f"outputs.{n}.limits", m.get("limits", [0.0, 10.0])))
-        channels = self._channels(self.mapping("channels", self.require(d, "", "channels"), TANKS + PUMPS),
-                                  inputs, outputs)
-        cal = self.mapping("calibration", d.get("calibration", {}), ("sensor_gain",) + TANKS + PUMPS)
-        sensor_gain = self.number("calibration.sensor_gain", cal.get("sensor_gain", 0.5), 0.0, 10.0, lo_open=True)
-        sensors = tuple(self.calibration(f"calibration.{t}", cal.get(t, {"gain": 1.0 / sensor_gain}))
-                        for t in TANKS)
-        pumps = tuple(self.calibration(f"calibration.{p}", cal.get(p, {"gain": 1.0})) for p in PUMPS)
+        tanks, pump_names = self.wiring.tanks, self.wiring.pumps
+        wired = self.mapping("channels", self.require(d, "", "channels"), tanks + pump_names)
+        self.require_channels(wired)
+        channels = self._channels(wired, inputs, outputs)
+        cal = self.mapping("calibration", d.get("calibration", {}), ("sensor_gain",) + tanks + pump_names)
+        gains = self.sensor_gains(cal)
+        sensors = tuple(self.calibration(f"calibration.{t}", cal.get(t, {"gain": 1.0 / kc}))
+                        for t, kc in zip(tanks, gains))
+        pumps = tuple(self.calibration(f"calibration.{p}", cal.get(p, {"gain": 1.0})) for p in pump_names)
         lock = self.mapping("interlock", d.get("interlock", {}), ("enabled", "limit", "tank_height"))
         enabled = lock.get("enabled", True)
         if not isinstance(enabled, bool):
             self.fail("interlock.enabled", f"must be true or false, got {_show(enabled)}")
         limit = self.number("interlock.limit", lock.get("limit", 0.95), 0.0, 1.0, lo_open=True)
-        height = self.number("interlock.tank_height", lock.get("tank_height", 20.0), 0.0, 1000.0, lo_open=True)
-        margin, plausible = self.plausible(self.mapping("plausible", d.get("plausible", {}), ("margin",) + TANKS))
+        default_height = 20.0 if self.wiring.keeps_preset else self.wiring.height
+        height = self.number("interlock.tank_height", lock.get("tank_height", default_height), 0.0, 1000.0,
+                             lo_open=True)
+        margin, plausible = self.plausible(self.mapping("plausible", d.get("plausible", {}), ("margin",) + tanks))
         self._no_overlap(inputs, outputs)
         return DaqConfig(
             host=host.strip(), port=port, device_id=device_id, timeout=timeout,
             inputs=inputs, outputs=outputs, channels=channels,
-            sensors=sensors, pumps=pumps,  # type: ignore[arg-type]
-            sensor_gain=sensor_gain, interlock_enabled=enabled, interlock_limit=limit,
+            sensors=sensors, pumps=pumps, sensor_gain=gains[0], plant=self.wiring, sensor_gains=gains,
+            interlock_enabled=enabled, interlock_limit=limit,
             tank_height=height, plausible_margin=margin, plausible=plausible, source=self.name,
         )
+
+    def sensor_gains(self, cal: Mapping[str, Any]) -> tuple[float, ...]:
+        """kc of each tank: `sensor_gain` a number (every tank) or a list (one per
+        tank); by default 0.5 V/cm for the quadruple tank, the plant's own otherwise."""
+        key = "calibration.sensor_gain"
+        n = len(self.wiring.tanks)
+        value = cal.get("sensor_gain", 0.5 if self.wiring.keeps_preset else list(self.wiring.sensor_gains))
+        if isinstance(value, list):
+            if len(value) != n:
+                self.fail(key, f"must be one number or a list of {n} (one per level channel), got {_show(value)}")
+            return tuple(self.number(f"{key}.{i}", x, 0.0, 1000.0, lo_open=True) for i, x in enumerate(value))
+        return (self.number(key, value, 0.0, 10.0 if self.wiring.keeps_preset else 1000.0, lo_open=True),) * n
 
     def plausible(self, m: Mapping[str, Any]) -> tuple[float, dict[str, tuple[float, float]]]:
         """`plausible:` - the default margin and the tanks' own ranges (cm)."""
         margin = self.number("plausible.margin", m.get("margin", PLAUSIBLE_MARGIN), 0.0, 1.0)
-        ranges = {tank: self.limits(f"plausible.{tank}", m[tank], "cm", 1000.0) for tank in TANKS if tank in m}
+        ranges = {tank: self.limits(f"plausible.{tank}", m[tank], self.wiring.unit, 1000.0)
+                  for tank in self.wiring.tanks if tank in m}
         return margin, ranges
 
     def _channels(self, m: Mapping[str, Any], inputs: Mapping[str, Register],
                   outputs: Mapping[str, Output]) -> dict[str, str]:
         out: dict[str, str] = {}
-        for names, table, kind in ((TANKS, inputs, "inputs"), (PUMPS, outputs, "outputs")):
+        for names, table, kind in ((self.wiring.tanks, inputs, "inputs"), (self.wiring.pumps, outputs, "outputs")):
             seen: dict[str, str] = {}
             for ch in names:
                 ref = self.require(m, "channels", ch)

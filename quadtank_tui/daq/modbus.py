@@ -1,8 +1,9 @@
 """Active mode over Modbus TCP: a LabJack T-series, a PLC, or the virtual rig.
 
-Each sample the engine calls `read_levels` (one request for the four inputs when
-the map lets them be read together) and `write_pumps` (one request for both outputs
-likewise).  A request that fails at once (a stale connection after the device
+Each sample the engine calls `read_levels` (one request for the level inputs when
+the map lets them be read together) and `write_pumps` (one request for the pump
+outputs likewise).  The channels are the plant's (config.PlantChannels): a two-tank
+rig reads two inputs (y3, y4 are 0) and a one-pump rig writes one output.  A request that fails at once (a stale connection after the device
 restarted, a refused connect, an exception answer) is tried once more; one that
 waited out the timeout is not - the device had its whole `timeout` to answer, and
 a second wait would only double the time a hung device holds the loop.  The
@@ -22,16 +23,19 @@ from __future__ import annotations
 import logging
 import math
 import time
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
 from quadtank_tui.core.plant import FULL_SCALE_V
-from quadtank_tui.daq.config import PUMPS, TANKS, DaqConfig, Output
+from quadtank_tui.daq.config import DaqConfig, DaqConfigError, Output
 from quadtank_tui.daq.interlock import Interlock
 from quadtank_tui.daq.registers import Register, block, decode, encode
 from quadtank_tui.engine.backend import BackendError, Levels4, Pair, ProcessBackend
+
+if TYPE_CHECKING:
+    from quadtank_tui.core.plants import Plant
 
 # pymodbus logs link errors at ERROR level; with no handler of the application's,
 # Python's last-resort handler would print them over the TUI.  The reason reaches
@@ -49,9 +53,10 @@ EXCEPTION_CODES = {
 class ModbusBackend(ProcessBackend):
     """The rig behind a Modbus TCP server, in the engine's normalized units.
 
-    y_i = kc * level_i / 10 with level_i = gain_i * volts_i + offset_i (cm) and kc the
-    configuration's `sensor_gain`; pump volts = 10 u_i, written as
-    (pump volts - offset) / gain clipped to the output's limits.
+    y_i = kc_i * level_i / 10 with level_i = gain_i * volts_i + offset_i (cm) and kc_i
+    the configuration's sensor gain of tank i; pump volts = 10 u_i, written as
+    (pump volts - offset) / gain clipped to the output's limits.  Only the plant's
+    channels are read and written.
     """
 
     kind = "Active"
@@ -62,26 +67,28 @@ class ModbusBackend(ProcessBackend):
         # `timeout` bounds the connect and each answer; the client's own retries are
         # off: this class retries once itself, so the worst case is known.
         self._client = ModbusTcpClient(config.host, port=config.port, timeout=config.timeout, retries=0)
-        self._tanks = [config.tank_register(i) for i in range(1, 5)]
-        self._tank_names = [config.channels[t] for t in TANKS]
-        self._plausible = [config.plausible_range(i) for i in range(1, 5)]  # cm, per tank
-        self._pumps: list[Output] = [config.pump_output(i) for i in (1, 2)]
+        n = len(config.tanks)
+        self._tanks = [config.tank_register(i) for i in range(1, n + 1)]
+        self._tank_names = [config.channels[t] for t in config.tanks]
+        self._plausible = [config.plausible_range(i) for i in range(1, n + 1)]  # cm, per tank
+        self._pumps: list[Output] = [config.pump_output(i) for i in range(1, len(config.pump_channels) + 1)]
         # The requests do not change from sample to sample: planned once here.
         self._reads = _plan_reads(self._tanks, self._tank_names)
         pump_regs = [o.register for o in self._pumps]
-        pump_names = [config.channels[p] for p in PUMPS]
+        pump_names = [config.channels[p] for p in config.pump_channels]
         #: "write of DAC0 (holding register 1000-1001)" per pump, and for both at once
         #: when they are adjacent (one request), else None
         self._write_labels = [f"write of {_label([n], 'holding', r.address, r.count)}"
                               for n, r in zip(pump_names, pump_regs)]
         self._write_both: str | None = None
-        if pump_regs[0].address + pump_regs[0].count == pump_regs[1].address:
+        if len(pump_regs) == 2 and pump_regs[0].address + pump_regs[0].count == pump_regs[1].address:
             count = pump_regs[0].count + pump_regs[1].count
             self._write_both = f"write of {_label(pump_names, 'holding', pump_regs[0].address, count)}"
-        #: normalized level of a full tank (the interlock's scale)
-        self.full_scale = config.sensor_gain * config.tank_height / FULL_SCALE_V
+        #: the interlock sees each level as a fraction of the tank height
+        self.full_scale = 1.0
         self.interlock = Interlock.for_height(
             config.interlock_limit, self.full_scale, enabled=config.interlock_enabled,
+            feeders=config.plant.feeders,
         )
         #: the pump inputs last written, after the interlock (normalized)
         self.applied: Pair = (0.0, 0.0)
@@ -96,22 +103,27 @@ class ModbusBackend(ProcessBackend):
     # --- ProcessBackend --------------------------------------------------------------
 
     def read_levels(self) -> Levels4:
-        levels = self.levels_from_volts(self._read_volts())
-        self.interlock.update(levels)
+        volts = self._read_volts()
+        levels = self.levels_from_volts(volts)
+        self.interlock.update(self.height_fractions(volts))
         return levels
 
     def levels_from_volts(self, volts: Sequence[float]) -> Levels4:
-        """The normalized levels of four sensor voltages; BackendError for a reading
-        outside its tank's plausible range."""
-        kc = self.config.sensor_gain
+        """The normalized levels of the sensor voltages (0 for a tank the plant does
+        not have); BackendError for a reading outside its tank's plausible range."""
         cm = [cal.level(v) for cal, v in zip(self.config.sensors, volts)]
         self._check_plausible(volts, cm)
-        y = [kc * h / FULL_SCALE_V for h in cm]
+        y = [kc * h / FULL_SCALE_V for kc, h in zip(self.config.sensor_gains, cm)]
+        y += [0.0] * (4 - len(y))
         return (y[0], y[1], y[2], y[3])
+
+    def height_fractions(self, volts: Sequence[float]) -> list[float]:
+        """Each level as a fraction of the tank height (what the interlock compares)."""
+        return [cal.level(v) / self.config.tank_height for cal, v in zip(self.config.sensors, volts)]
 
     def write_pumps(self, u: Pair) -> None:
         applied = self.interlock.cut(u)
-        self._write_volts([self._output_volts(i, applied[i]) for i in (0, 1)])
+        self._write_volts([self._output_volts(i, applied[i]) for i in range(len(self._pumps))])
         self.applied = applied
 
     def safe_state(self) -> None:
@@ -119,7 +131,7 @@ class ModbusBackend(ProcessBackend):
         must not keep the other pump running); each tried as `_request` tries;
         never raises."""
         errors: list[str] = []
-        for i in (0, 1):
+        for i in range(len(self._pumps)):
             try:
                 self._write_one(i, self._output_volts(i, 0.0))
             except BackendError as exc:
@@ -129,6 +141,14 @@ class ModbusBackend(ProcessBackend):
         if not errors:
             self.applied = (0.0, 0.0)
         self.safe_state_error = "; ".join(errors)
+
+    def plant_refused(self, plant: Plant) -> str | None:
+        """The channels are the plant's the configuration was read for."""
+        try:
+            self.config.check_plant(plant)
+        except DaqConfigError as exc:
+            return str(exc)
+        return None
 
     def close(self) -> None:
         try:
@@ -147,10 +167,10 @@ class ModbusBackend(ProcessBackend):
 
     # --- registers ---------------------------------------------------------------------
 
-    def read_raw_volts(self) -> tuple[float, float, float, float]:
-        """The four sensor voltages before calibration (for calibrating, B9)."""
-        v = self._read_volts()
-        return (v[0], v[1], v[2], v[3])
+    def read_raw_volts(self) -> tuple[float, ...]:
+        """The sensor voltages before calibration, one per level channel (for
+        calibrating, B9)."""
+        return tuple(self._read_volts())
 
     def _output_volts(self, pump: int, u: float) -> float:
         cal = self.config.pumps[pump]
@@ -158,7 +178,7 @@ class ModbusBackend(ProcessBackend):
         return min(hi, max(lo, cal.volts(FULL_SCALE_V * u)))
 
     def _read_volts(self) -> list[float]:
-        """The four tanks' input voltages, in as few requests as the map allows."""
+        """The tanks' input voltages, in as few requests as the map allows."""
         words: dict[tuple[str, int], int] = {}
         for table, first, count, what in self._reads:
             got = self._request(what, lambda: self._read(table, first, count))
@@ -189,7 +209,7 @@ class ModbusBackend(ProcessBackend):
             values = encode(first, volts[0]) + encode(second, volts[1])
             self._request(self._write_both, lambda: self._write(first.address, values))
             return
-        for i in (0, 1):
+        for i in range(len(self._pumps)):
             self._write_one(i, volts[i])
 
     def _write_one(self, pump: int, volts: float) -> None:

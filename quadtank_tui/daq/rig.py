@@ -8,7 +8,9 @@ it has a watchdog: when no write has come for `watchdog` s it sets its pumps (an
 their registers) to 0, so a program that dies cannot leave the pumps running.
 
 The register layout and the wiring are those of a DAQ configuration (`--map`, the
-LabJack preset by default), so `quadtank --daq params/virtual-rig.yaml` reaches it
+LabJack preset by default), read for the plant it serves: a two-tank plant serves
+two level inputs and one pump output per pump (the registers of the channels it
+does not have do not exist), so `quadtank --daq params/virtual-rig.yaml` reaches it
 exactly as it would reach the hardware.  Time is injected (`clock`), so the
 model-side behaviour is testable without sleeping.
 """
@@ -27,7 +29,7 @@ from typing import Callable, Sequence, TextIO
 from quadtank_tui.core import faults as fx
 from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams, advance
 from quadtank_tui.core.plants import Plant, QuadTank
-from quadtank_tui.daq.config import PUMPS, TANKS, DaqConfig
+from quadtank_tui.daq.config import DaqConfig
 from quadtank_tui.daq.registers import decode, encode
 from quadtank_tui.daq.server import IllegalAddress, ModbusTcpServer
 
@@ -73,6 +75,7 @@ class VirtualRig:
         #: The process through the plant interface; `plant` stays the quadruple tank's
         #: constants (None for another plant: core.plants).
         self.process: Plant = QuadTank(plant) if isinstance(plant, PlantParams) else plant
+        config.check_plant(self.process)  # DaqConfigError: the map is another plant's
         self.plant = self.process.params if isinstance(self.process, QuadTank) else None
         #: Faults injected at the rig (`quadtank rig --fault`): the Active path sees them.
         self.faults = fx.Faults()
@@ -83,8 +86,8 @@ class VirtualRig:
         self.clock = clock
         self.report = report
         self._rng = random.Random(sensors.seed)
-        self._tanks = [config.tank_register(i) for i in range(1, 5)]
-        self._outputs = [config.pump_output(i).register for i in (1, 2)]
+        self._tanks = [config.tank_register(i) for i in range(1, len(config.tanks) + 1)]
+        self._outputs = [config.pump_output(i).register for i in range(1, len(config.pump_channels) + 1)]
         self._out_words: dict[int, int] = {}
         self._stop_pumps()  # pumps and their registers at 0
         self._now = clock()
@@ -97,7 +100,7 @@ class VirtualRig:
     def tick(self) -> None:
         """Bring the process up to the clock (and apply the watchdog on the way)."""
         now = self.clock()
-        if self.watchdog > 0 and self.pump_volts != (0.0, 0.0):
+        if self.watchdog > 0 and any(self.pump_volts):
             deadline = self.last_write + self.watchdog
             if deadline <= now:
                 self._advance_to(max(deadline, self._now))
@@ -119,18 +122,17 @@ class VirtualRig:
         self._now = wall
 
     def _stop_pumps(self) -> None:
-        self.pump_volts = (0.0, 0.0)
+        self.pump_volts: tuple[float, ...] = tuple(0.0 for _ in self._outputs)
         for reg in self._outputs:
             self._out_words.update(zip(reg.span, encode(reg, 0.0)))
 
     # --- the registers ----------------------------------------------------------------
 
-    def sensor_volts(self) -> tuple[float, float, float, float]:
-        """One reading of the four sensors (tanks 1..4), noise drawn afresh."""
+    def sensor_volts(self) -> tuple[float, ...]:
+        """One reading of the plant's sensors (tanks 1..N), noise drawn afresh."""
         s = self.sensors
         out = []
-        true = list(self.process.output(self.h))[:4]
-        true += [0.0] * (4 - len(true))  # a two-tank rig: nothing on tank 3, 4's inputs
+        true = list(self.process.output(self.h))
         if self.faults:
             gauss = [self._rng.gauss(0.0, 1.0) for _ in true]
             true = [10.0 * y for y in fx.measure([v / 10.0 for v in true], self.faults, self.t, gauss)]
@@ -141,7 +143,7 @@ class VirtualRig:
             if s.lsb > 0:
                 v = round(v / s.lsb) * s.lsb
             out.append(min(AIN_RANGE[1], max(AIN_RANGE[0], v)))
-        return (out[0], out[1], out[2], out[3])
+        return tuple(out)
 
     def read(self, address: int, count: int) -> list[int]:
         self.tick()
@@ -164,12 +166,12 @@ class VirtualRig:
             dac = decode(reg, [self._out_words[a] for a in reg.span])
             pump = self.config.pumps[i].level(dac) if math.isfinite(dac) else 0.0
             volts.append(min(PUMP_RANGE[1], max(PUMP_RANGE[0], pump)))
-        self.pump_volts = (volts[0], volts[1])
+        self.pump_volts = tuple(volts)
         self.last_write = self._now
 
     def set_fault(self, fault: fx.Fault) -> fx.Fault:
         """Switch a fault on now (FaultError if the plant cannot have it)."""
-        reading = [v / 10.0 for v in list(self.process.output(self.h))[:4]]
+        reading = [v / 10.0 for v in self.process.output(self.h)]
         began = fx.switched(fault, self.process, self.t, reading)
         self.faults = self.faults.on(began)
         return began
@@ -179,15 +181,17 @@ class VirtualRig:
         h = " ".join(f"{x:5.3g}" if self.plant is None else f"{x:5.2f}" for x in self.h)
         unit = self.process.states[0].unit
         faults = f"  faults: {self.faults.labels()}" if self.faults else ""
-        return f"t={self.t:8.1f} s  h=[{h}] {unit}  pumps=[{self.pump_volts[0]:.2f} {self.pump_volts[1]:.2f}] V{faults}"
+        pumps = " ".join(f"{v:.2f}" for v in self.pump_volts)
+        return f"t={self.t:8.1f} s  h=[{h}] {unit}  pumps=[{pumps}] V{faults}"
 
 
 # --- running it ------------------------------------------------------------------------
 
 def describe(config: DaqConfig) -> str:
     """The wiring the rig serves, e.g. "tank1=AIN0@input:0 ... pump2=DAC1@holding:1002"."""
-    parts = [f"{t}={config.channels[t]}@{config.tank_register(i + 1).address}" for i, t in enumerate(TANKS)]
-    parts += [f"{p}={config.channels[p]}@{config.pump_output(i + 1).register.address}" for i, p in enumerate(PUMPS)]
+    parts = [f"{t}={config.channels[t]}@{config.tank_register(i + 1).address}" for i, t in enumerate(config.tanks)]
+    parts += [f"{p}={config.channels[p]}@{config.pump_output(i + 1).register.address}"
+              for i, p in enumerate(config.pump_channels)]
     return " ".join(parts)
 
 

@@ -8,6 +8,10 @@ engine never knows which one it talks to beyond `kind`.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from quadtank_tui.core.plants import Plant
 
 Levels4 = tuple[float, float, float, float]
 Pair = tuple[float, float]
@@ -46,6 +50,11 @@ class ProcessBackend(ABC):
     @abstractmethod
     def safe_state(self) -> None:
         """Pumps to 0; must not raise."""
+
+    def plant_refused(self, plant: Plant) -> str | None:
+        """Why this process cannot be `plant` (a DAQ wired for another rig), or None.
+        The simulator becomes any plant."""
+        return None
 
     def elapse(self, dt: float) -> None:
         """Let `dt` s of process time pass (only the simulator acts on it)."""

@@ -39,6 +39,8 @@ from quadtank_tui.core.general import tustin
 from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, Family, saturate
 from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
 from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants import Plant
+from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
 from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.backend import BackendError, ProcessBackend
@@ -102,6 +104,9 @@ class ControlLoop:
         self.store = store if store is not None else ParStore(Path("params"))
         self.logs_dir = Path(logs_dir)
         self.sim = SimBackend.for_plant(params.process_plant(), params.process_levels())
+        refused = _plant_refused(daq, params.process_plant())
+        if refused is not None:
+            raise ValueError(refused)
         self.daq = daq
         self.backend: ProcessBackend = self.sim
         self.history = History(history_capacity)
@@ -306,7 +311,13 @@ class ControlLoop:
     def _set_params(self, cmd: SetParams) -> CommandResult:
         values = dict(cmd.values)
         mode = values.pop(MODE_KEY, None)
+        plant_values = {k: values.pop(k) for k in list(values) if k.startswith(PLANT_PREFIX)}
         new = self.params.with_values(values)
+        if plant_values:  # "PLANT.alpha1": the plant in use (core.plants.spec), all or none too
+            if new.process is None:
+                key = next(iter(plant_values))
+                raise ParameterError(key, "the quadruple tank's values are set in SIMULATION (its Tank windows)")
+            new = replace(new, process=new.process.with_values(plant_values))
         if mode is not None:
             target = self.params.with_value(MODE_KEY, mode).control.mode  # validates
         self._install(new)
@@ -331,6 +342,9 @@ class ControlLoop:
             tustin(e.general.numerator, e.general.denominator, h)
         changed = new.simulation != old.simulation or new.process != old.process
         plant = new.process_plant() if changed else None
+        refused = _plant_refused(self.daq, plant) if plant is not None else None
+        if refused is not None:
+            raise ParameterError("PLANT.Kind", refused)
         sf_design = self._statefb_for(new, old)
         # --- nothing below refuses ---
         if h != old.tsamp:
@@ -562,6 +576,13 @@ class ControlLoop:
         self.sim.set_levels(levels_cm)
         self._y = self.sim.read_levels()
         self._r = (self._y[0], self._y[1])
+
+
+def _plant_refused(daq: ProcessBackend | None, plant: Plant) -> str | None:
+    """Why the DAQ cannot be `plant` (wired for another rig), or None; a backend
+    without the question (a test's stand-in) takes any plant."""
+    ask = getattr(daq, "plant_refused", None)
+    return ask(plant) if ask is not None else None
 
 
 _HANDLERS: Mapping[type, Callable[[ControlLoop, Any], CommandResult]] = {

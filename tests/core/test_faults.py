@@ -74,6 +74,17 @@ def test_weak_pump_is_a_lower_voltage() -> None:
     assert x == pytest.approx(qt.steady_state_levels((1.5, 3.0), qt.P_MINUS.params), abs=1e-6)
 
 
+def test_half_a_pump_quarters_the_cascade_levels() -> None:
+    """JuliaHub's Dyad example halves one pump: the inflow beta u / 2 leaves through
+    each orifice, head ~ flow^2, so both steady levels drop to a quarter (15 cm ->
+    3.75 cm, 14.727 -> 3.682 cm)."""
+    p = CoupledCascade()
+    op = p.steady_inputs((15.0, None))
+    x = settle(p, Faults().on(Fault("weak_pump", 1, 0.5)), op.x, op.u, 6000.0)
+    assert x == pytest.approx((15.0 / 4, op.x[1] / 4), abs=1e-6)
+    assert x[1] == pytest.approx(3.681848, abs=1e-6)
+
+
 def test_valve_drift_moves_gamma() -> None:
     p = QuadTank(qt.P_MINUS.params)
     f = Faults().on(Fault("valve_drift", 1, -0.001))

@@ -134,7 +134,8 @@ def test_plausible_ranges_default_from_the_tank_height_or_come_from_the_file() -
 
 @pytest.mark.parametrize("text, message", [
     ("plausible:\n  tank2: [5, 1]\n", "f.yaml:2: plausible.tank2: low (5) must be below high (1)"),
-    ("plausible:\n  tank5: [0, 20]\n", "f.yaml:2: plausible.tank5: unknown key; expected one of margin, tank1, tank2, tank3, tank4"),
+    ("plausible:\n  tank5: [0, 20]\n", "f.yaml:2: plausible.tank5: tank5 is extra: a quadtank plant has 4 level channels "
+     "(tank1, tank2, tank3, tank4) and 2 pump channels (pump1, pump2)"),
     ("plausible:\n  margin: 2\n", "f.yaml:2: plausible.margin: must be <= 1, got 2"),
     ("plausible:\n  tank1: 20\n", "f.yaml:2: plausible.tank1: must be [low, high] in cm, got 20"),
     ("plausible:\n  tank1: [0, .nan]\n", "f.yaml:2: plausible.tank1.1: must be a number, got nan"),

@@ -10,9 +10,10 @@ from quadtank_tui.core.faults import Fault
 from quadtank_tui.core.plant import P_MINUS, steady_state_levels
 from quadtank_tui.core.plants import CoupledCascade, QuadTank
 from quadtank_tui.daq.cli import parse_fault
-from quadtank_tui.daq.config import load_daq_config
+from quadtank_tui.daq.config import DaqConfigError, load_daq_config
 from quadtank_tui.daq.registers import decode, encode
-from quadtank_tui.daq.rig import VirtualRig
+from quadtank_tui.daq.rig import VirtualRig, describe
+from quadtank_tui.daq.server import IllegalAddress
 
 CONFIG = load_daq_config("labjack")
 
@@ -36,18 +37,34 @@ def write_volts(rig: VirtualRig, v1: float, v2: float) -> None:
 
 
 def test_cascade_on_the_rig() -> None:
-    """Sensor volts kc_i x_i (0 V on tank 3, 4's inputs); the DAQ's 0..10 V span the
-    Quanser amplifier's 0..22 V."""
+    """Sensor volts kc_i x_i on the two level inputs the cascade has (tank 3, 4's
+    registers do not exist); one pump output; the DAQ's 0..10 V span the Quanser
+    amplifier's 0..22 V."""
     clock = FakeClock()
     p = CoupledCascade()
-    rig = VirtualRig(CONFIG, p, (15.0, 14.7), clock=clock, watchdog=0)
-    v = read_volts(rig)
-    assert v[:2] == pytest.approx([15.0 * p.kc1, 14.7 * p.kc2], abs=1e-5) and v[2:] == [0.0, 0.0]
-    write_volts(rig, 5.0, 0.0)
+    config = load_daq_config("labjack", p)
+    rig = VirtualRig(config, p, (15.0, 14.7), clock=clock, watchdog=0)
+    words = rig.read(0, 4)
+    v = [decode(config.inputs[f"AIN{i}"], words[2 * i:2 * i + 2]) for i in range(2)]
+    assert v == pytest.approx([15.0 * p.kc1, 14.7 * p.kc2], abs=1e-5)
+    with pytest.raises(IllegalAddress):
+        rig.read(4, 2)  # AIN2: no tank 3 on this rig
+    dac = config.outputs["DAC0"].register
+    with pytest.raises(IllegalAddress):
+        rig.write(1002, encode(dac, 1.0))  # DAC1: no pump 2
+    rig.write(dac.address, encode(dac, 5.0))
+    assert rig.pump_volts == (5.0,)
     clock.now += 30.0
     rig.tick()
     assert rig.h == pytest.approx(p.advance((15.0, 14.7), (11.0,), 30.0), abs=1e-9)
-    assert "cm" in rig.status() and rig.plant is None
+    assert "cm" in rig.status() and rig.plant is None and "pumps=[5.00] V" in rig.status()
+    assert describe(config) == "tank1=AIN0@0 tank2=AIN1@2 pump1=DAC0@1000"
+
+
+def test_a_quadruple_tank_map_is_refused_for_the_cascade() -> None:
+    with pytest.raises(DaqConfigError, match="wired for the quadtank plant, but the plant in use is "
+                       r"coupled-cascade: a coupled-cascade plant has 2 level channels \(tank1, tank2\)"):
+        VirtualRig(CONFIG, CoupledCascade(), (15.0, 14.7), watchdog=0)
 
 
 def test_a_leak_at_the_rig() -> None:

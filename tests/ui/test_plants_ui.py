@@ -8,10 +8,13 @@ import dataclasses
 import pytest
 from conftest import Recording, make_app
 
+from textual.widgets import Input, Static
+
 from quadtank_tui.core.parameters import PLANT_SETTINGS
+from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.engine.loop import ControlLoop
 from quadtank_tui.ui.screens.setup import operating_point_view
-from quadtank_tui.ui.widgets.analysis_panel import diagonal_pi, plant_lines
+from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel, diagonal_pi, plant_lines
 from quadtank_tui.ui.widgets.process_image import draw
 
 
@@ -96,8 +99,9 @@ def test_fault_window_80x24(snap_compare, engine: Recording) -> None:  # type: i
     assert snap_compare(make_app(engine), terminal_size=(80, 24), press=["F"])
 
 
-async def test_another_plants_table_opens_no_tank_window(make_engine) -> None:  # type: ignore[no-untyped-def]
-    from quadtank_tui.ui.screens.setup import SetupScreen
+async def test_another_plants_table_opens_its_plant_window(make_engine) -> None:  # type: ignore[no-untyped-def]
+    """Enter on the process table (any row) opens the plant window, not a tank's."""
+    from quadtank_tui.ui.windows.plant_setup import PlantSetupWindow
 
     engine: Recording = make_engine(PLANT_SETTINGS["coupled-tito"])
     app = make_app(engine)
@@ -106,4 +110,96 @@ async def test_another_plants_table_opens_no_tank_window(make_engine) -> None:  
         await pilot.pause()
         await pilot.press("h", "down", "enter")
         await pilot.pause()
+        assert isinstance(app.screen, PlantSetupWindow)
+        assert [k for k, _, _ in app.screen.rows][:4] == ["Level1", "Level2", "A1", "A2"]
+        await pilot.press("escape")
+        await pilot.pause()
+        assert engine.sent(SetParams) == []
+
+
+async def open_plant_window(pilot, key: str):  # type: ignore[no-untyped-def]
+    """Setup, the process table, Enter: the plant window with the focus in `key`'s field."""
+    from quadtank_tui.ui.windows.plant_setup import PlantSetupWindow
+
+    await pilot.press("S")
+    await pilot.pause()
+    await pilot.press("h", "enter")
+    await pilot.pause()
+    window = pilot.app.screen
+    assert isinstance(window, PlantSetupWindow)
+    window.query_one(f"#f-{[k for k, _, _ in window.rows].index(key)}", Input).focus()
+    await pilot.pause()
+    return window
+
+
+async def test_typing_a_plant_value_sets_it_between_samples(make_engine) -> None:  # type: ignore[no-untyped-def]
+    """Desautel's CTP: alpha1 typed as 0.0105; x2 follows at once in the window,
+    (alpha1 / alpha2)^2 x1 = 16.9379 cm (2.1.6), and Set sends the one value; the
+    running simulation takes the new orifice at the next sample."""
+    from quadtank_tui.ui.screens.setup import SetupScreen
+
+    engine: Recording = make_engine(PLANT_SETTINGS["coupled-cascade"])
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        window = await open_plant_window(pilot, "alpha1")
+        await pilot.press(*"0.0105")
+        await pilot.pause()
+        assert window.query_one("#f-1", Input).value == "16.9379"
+        assert window.query_one("#row-2").has_class("-modified")
+        assert engine.sent(SetParams) == []  # nothing before Set
+        await pilot.press("enter")
+        await pilot.pause()
         assert isinstance(app.screen, SetupScreen)
+        assert engine.sent(SetParams) == [SetParams({"PLANT.alpha1": 0.0105})]
+        engine.run_for(0.2)
+        assert engine.loop.sim.plant.values()["alpha1"] == 0.0105
+        assert engine.snapshot().params.process.levels == pytest.approx((15.0, 15 * (0.0105 / 0.0098811) ** 2))
+
+
+async def test_process_default_puts_the_published_plant_back(make_engine) -> None:  # type: ignore[no-untyped-def]
+    engine: Recording = make_engine(PLANT_SETTINGS["coupled-cascade"])
+    assert engine.submit(SetParams({"PLANT.alpha1": 0.0105, "PLANT.Level1": 12.0})).result().ok
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("S")
+        await pilot.pause()
+        await pilot.press("d")
+        await pilot.pause()
+        engine.run_for(0.2)
+        assert engine.snapshot().params.process == PLANT_SETTINGS["coupled-cascade"].process
+
+
+async def test_a_refused_plant_value_changes_nothing_and_says_why(make_engine) -> None:  # type: ignore[no-untyped-def]
+    engine: Recording = make_engine(PLANT_SETTINGS["coupled-tito"])
+    before = engine.snapshot().params
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        window = await open_plant_window(pilot, "H3")
+        h3 = [k for k, _, _ in window.rows].index("H3")
+        await pilot.press(*"0.5", "enter")  # the drain above the brim (0.3 m)
+        await pilot.pause()
+        assert app.screen is window
+        assert str(window.query_one(f"#e-{h3}", Static).render()) == "H3 must be in [0, hmax), got 0.5"
+        assert "refused" in str(window.query_one(AnalysisPanel).render())
+        await pilot.click("#default")  # the published values back
+        await pilot.pause()
+        assert window.query_one(f"#f-{h3}", Input).value == "0.03"
+        await pilot.press("escape")
+        await pilot.pause()
+        assert engine.sent(SetParams) == [] and engine.snapshot().params == before
+
+
+@pytest.mark.parametrize("name", ["coupled-cascade", "desautel-qtp"])
+def test_setup_with_another_plant_120x40(snap_compare, make_engine, name: str) -> None:  # type: ignore[no-untyped-def]
+    engine: Recording = make_engine(PLANT_SETTINGS[name])
+    assert snap_compare(make_app(engine), terminal_size=(120, 40), press=["S"])
+
+
+def test_main_with_desautels_quadruple_tank_80x24(snap_compare, make_engine) -> None:  # type: ignore[no-untyped-def]
+    engine: Recording = make_engine(PLANT_SETTINGS["desautel-qtp"])
+    assert snap_compare(make_app(engine), terminal_size=(80, 24))
+
+
+def test_plant_window_80x24(snap_compare, make_engine) -> None:  # type: ignore[no-untyped-def]
+    engine: Recording = make_engine(PLANT_SETTINGS["coupled-tito"])
+    assert snap_compare(make_app(engine), terminal_size=(80, 24), press=["S", "h", "enter"])

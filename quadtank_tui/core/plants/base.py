@@ -181,6 +181,9 @@ class Plant(ABC):
 
     # --- what a fault acts on (core.faults) ---------------------------------------------
 
+    #: The unit of each constant (what Setup's plant window shows next to it).
+    units: ClassVar[dict[str, str]] = {}
+
     #: Name of the constant that sets each tank's outlet (its drain, or the orifice it
     #: empties through): a clogged outlet scales it.
     outlet_names: ClassVar[tuple[str, ...]] = ()

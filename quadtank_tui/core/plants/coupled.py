@@ -79,6 +79,9 @@ class CoupledCascade(Plant):
 
     kind = "coupled-cascade"
     title = "coupled tanks, cascade (Quanser, Desautel)"
+    units: ClassVar[dict[str, str]] = {
+        "alpha1": "orifice coef.", "alpha2": "orifice coef.", "beta1": "cm/(V s)", "g": "cm/s²",
+        "hmax": "cm", "kc1": "V/cm", "kc2": "V/cm", "vmax": "V"}
     outlet_names = ("alpha1", "alpha2")
     #: The loop controls the lower tank (Desautel: c = [0 1]).
     controlled: ClassVar[tuple[int, ...]] = (1,)
@@ -176,6 +179,10 @@ class CoupledTITO(Plant):
 
     kind = "coupled-tito"
     title = "coupled tanks, two inputs (Murray-Smith)"
+    units: ClassVar[dict[str, str]] = {
+        "A1": "m²", "A2": "m²", "a1": "m² orifice", "a2": "m² drain", "Cd1": "discharge coef.",
+        "Cd2": "discharge coef.", "H3": "m, drain height", "g": "m/s²", "Gp": "m³/(s V)", "Gd": "V/m",
+        "hmax": "m", "qmax": "m³/s"}
     controlled: ClassVar[tuple[int, ...]] = (0, 1)
     #: Tank 1 empties through the orifice into tank 2, tank 2 through the drain.
     outlet_names = ("a1", "a2")
@@ -187,8 +194,9 @@ class CoupledTITO(Plant):
         _positive(self, ("A1", "A2", "a1", "a2", "Cd1", "Cd2", "g", "Gp", "Gd", "hmax", "qmax"))
         if not 0.0 <= self.H3 < self.hmax:
             raise PlantError(f"H3 must be in [0, hmax), got {self.H3}")
-        if self.a1 >= self.A1 or self.a2 >= self.A2:
-            raise PlantError("an orifice must be smaller than the tank's cross-section")
+        for a, area in (("a1", "A1"), ("a2", "A2")):
+            if getattr(self, a) >= getattr(self, area):
+                raise PlantError(f"{a} must be smaller than the tank's cross-section {area} = {getattr(self, area):g}")
 
     @property
     def vmax(self) -> float:

@@ -18,7 +18,7 @@ it reuses the tested model and stepping.  Areas only scale volumes, never levels
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
-from typing import Any, Sequence
+from typing import Any, ClassVar, Sequence
 
 from quadtank_tui.core import plant as qt
 from quadtank_tui.core.plant import FULL_SCALE_V, PlantError, PlantParams
@@ -172,6 +172,9 @@ class DesautelQTP(_FourTanks):
 
     kind = "desautel-qtp"
     title = "quadruple tank (Quanser, Desautel)"
+    units: ClassVar[dict[str, str]] = {
+        **{f"alpha{i}": "a/A" for i in range(1, 5)}, **{f"beta{i}": "cm/(V s)" for i in range(1, 5)},
+        "g": "cm/s²", "hmax": "cm", "kc": "V/cm", "vmax": "V"}
     outlet_names = ("alpha1", "alpha2", "alpha3", "alpha4")
 
     def __post_init__(self) -> None:

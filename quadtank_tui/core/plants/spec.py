@@ -13,12 +13,16 @@ unit::
     Level2 14.727394
 
 A refused value raises ParameterError naming "PLANT.<key>".
+
+The same keys, "PLANT.alpha1", "PLANT.Level1", ..., change the plant in use while
+it runs (Setup's plant window, a script's `set:`): :meth:`PlantSpec.with_values`
+applies them all or none.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 from quadtank_tui.core.plant import PlantError
 from quadtank_tui.core.plants import KINDS, Plant, make_plant
@@ -26,6 +30,8 @@ from quadtank_tui.core.validation import ParameterError, check_number
 
 SECTION = "PLANT"
 KIND_KEY = "Kind"
+#: What a parameter key of the plant in use starts with ("PLANT.alpha1").
+PREFIX = SECTION + "."
 
 
 def level_key(i: int) -> str:
@@ -71,6 +77,53 @@ class PlantSpec:
 
     def plant(self) -> Plant:
         return make_plant(self.kind, dict(self.values))
+
+    def get(self, key: str) -> float:
+        """A constant or an operating level by its key (without "PLANT.")."""
+        found = dict(self.entries()).get(key)
+        if found is None or key == KIND_KEY:
+            raise ParameterError(f"{SECTION}.{key}", f"a {self.kind} plant has no value {key!r}")
+        return float(found)
+
+    def with_values(self, changes: Mapping[str, float]) -> PlantSpec:
+        """A copy with constants and operating levels changed by key ("alpha1",
+        "Level1"; "PLANT." in front is allowed), validated together: all or none,
+        ParameterError naming the key otherwise."""
+        values = dict(self.values)
+        levels = list(self.levels)
+        level_keys = [level_key(i) for i in range(len(levels))]
+        for raw, value in changes.items():
+            key = raw.removeprefix(PREFIX)
+            number = check_number(f"{SECTION}.{key}", value)
+            if key in values:
+                values[key] = number
+            elif key in level_keys:
+                levels[level_keys.index(key)] = number
+            else:
+                raise ParameterError(f"{SECTION}.{key}", f"a {self.kind} plant has no value {key!r} "
+                                     f"(it has {', '.join(values)}, {', '.join(level_keys)})")
+        given = {raw.removeprefix(PREFIX) for raw in changes}
+        spec = PlantSpec(self.kind, tuple(values.items()), tuple(levels))
+        return spec.with_following_levels() if not given & set(level_keys[spec.free_levels:]) else spec
+
+    @property
+    def free_levels(self) -> int:
+        """How many operating levels are chosen (one per pump: x1 of the cascade,
+        h1, h2 of a quadruple tank); the others follow from them at steady state."""
+        return len(self.plant().inputs)
+
+    def with_following_levels(self) -> PlantSpec:
+        """The levels beyond the chosen ones set to the steady state the chosen ones
+        give (x2 = (alpha1 / alpha2)^2 x1 on the cascade, Desautel 2.1.6); unchanged
+        when there is none (the pumps cannot hold the chosen levels)."""
+        k = self.free_levels
+        if k >= len(self.levels):
+            return self
+        try:
+            x = self.plant().steady_inputs(list(self.levels[:k]) + [None] * (len(self.levels) - k)).x
+        except PlantError:
+            return self
+        return PlantSpec(self.kind, self.values, self.levels[:k] + tuple(float(v) for v in x[k:]))
 
     def entries(self) -> list[tuple[str, float | str]]:
         """(key, value) in file order."""

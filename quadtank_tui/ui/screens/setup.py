@@ -20,10 +20,12 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import Footer, Static
 
-from quadtank_tui.core.parameters import TSAMP, Parameters, keys_of
+from quadtank_tui.core.parameters import PLANT_SETTINGS, TSAMP, Parameters, keys_of
 from quadtank_tui.core.plant import FULL_SCALE_V, PlantError, steady_state_inputs
+from quadtank_tui.core.plants.spec import KIND_KEY
+from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
 from quadtank_tui.core.setup_relations import TANKS
-from quadtank_tui.engine.commands import LoadPar, SavePar, SetDefaults
+from quadtank_tui.engine.commands import LoadPar, SavePar, SetDefaults, SetParams
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.messages import ActionRequested
@@ -37,6 +39,7 @@ from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWind
 from quadtank_tui.ui.windows.statefb import StateFeedbackWindow
 from quadtank_tui.ui.windows.par_files import ParFileWindow
 from quadtank_tui.ui.windows.pid_extras import PIDExtrasWindow
+from quadtank_tui.ui.windows.plant_setup import PlantSetupWindow
 from quadtank_tui.ui.windows.sampling import SamplingTimeWindow
 from quadtank_tui.ui.windows.tank_setup import TankSetupWindow
 from quadtank_tui.ui.windows.wave import WaveWindow
@@ -196,8 +199,18 @@ class SetupScreen(CommandSender):
         self.app.push_screen(window(index, p, self.defaults, opener=str(index + 1)), self.send_all)
 
     def action_tank(self, tank: int) -> None:
-        if tank in TANKS:
-            self.app.push_screen(TankSetupWindow(tank, self.current().params, self.defaults), self.send_all)
+        params = self.current().params
+        if params.process is not None:  # another plant: its values in one window
+            self.action_plant()
+        elif tank in TANKS:
+            self.app.push_screen(TankSetupWindow(tank, params, self.defaults), self.send_all)
+
+    def action_plant(self) -> None:
+        """The plant window of a plant other than the quadruple tank (its PLANT
+        section): operating levels and constants."""
+        params = self.current().params
+        if params.process is not None:
+            self.app.push_screen(PlantSetupWindow(params), self.send_all)
 
     def action_pump(self, pump: int) -> None:
         """A click on a pump of the operating-point image: its input is Main's."""
@@ -228,8 +241,15 @@ class SetupScreen(CommandSender):
     # --- defaults (S6) ------------------------------------------------------------------------
 
     def action_process_default(self) -> None:
-        """The process image's Default: every tank and valve back to the defaults."""
-        self.send(SetDefaults(SIMULATION_KEYS))
+        """The process image's Default: every tank and valve back to the defaults;
+        another plant's values back to the published ones (its shipped preset)."""
+        process = self.current().params.process
+        if process is None:
+            self.send(SetDefaults(SIMULATION_KEYS))
+            return
+        shipped = PLANT_SETTINGS.get(process.kind)
+        if shipped is not None and shipped.process is not None:
+            self.send(SetParams({PLANT_PREFIX + k: v for k, v in shipped.process.entries() if k != KIND_KEY}))
 
     def action_default_all(self) -> None:
         """Reread `default.par` for every parameter (asks first: it throws away the

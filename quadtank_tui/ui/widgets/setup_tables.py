@@ -168,8 +168,8 @@ class ProcessTable(ParamTable):
         if params is None or not self.is_mounted or params.process is None:
             super().watch_params(params)
             return
-        # another plant (a PLANT section): its constants and operating levels, read-only
-        # here (the .par file holds them; core.plants.spec)
+        # another plant (a PLANT section): its constants and operating levels (Enter
+        # opens the plant window that edits them; core.plants.spec)
         plant = params.process_plant()
         rows = [(f"{s.name} op.", f"{x:.4g} {s.unit}") for s, x in zip(plant.states, params.process_levels())]
         rows += [(name, f"{value:.6g}") for name, value in plant.values().items()]
@@ -185,8 +185,9 @@ class ProcessTable(ParamTable):
             self.add_row(Text(a, style="bold"), Text(va), Text(b, style="bold"), Text(vb), key=str(n // 2))
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
-        # Textual also runs ParamTable's handler (every class in the MRO): only stop it
-        # for another plant, whose constants have no tank window (edit its .par).
+        # Textual also runs ParamTable's handler (every class in the MRO): for another
+        # plant, whose values have one window, ask for it here and stop that one.
         if self.params is not None and self.params.process is not None:
             event.stop()
             event.prevent_default()
+            self.post_message(ActionRequested("plant"))
