@@ -152,14 +152,14 @@ def session_main(ready_fd: int) -> int:
             from quadtank_tui.daq.cli import open_daq
 
             if spec.engine is not None:
-                plant = spec.engine.params.process_plant()
+                wired = spec.engine.params.process_plant()
             else:  # the DAQ is wired for the plant of the run's parameters
                 from quadtank_tui.engine.runner import load_parameters
                 from quadtank_tui.files.par import ParStore
 
                 assert spec.run is not None
-                plant = load_parameters(spec.run.par, ParStore(spec.run.params_dir))[0].process_plant()
-            daq = open_daq(spec.daq_config, plant)
+                wired = load_parameters(spec.run.par, ParStore(spec.run.params_dir))[0].process_plant()
+            daq = open_daq(spec.daq_config, wired)
             assert daq is not None
             c = daq.config
             lock = DaqLock.acquire(device_key(c.host, c.port, c.device_id), lab, session=sid)
