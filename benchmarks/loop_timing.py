@@ -1,7 +1,7 @@
 """Loop timing: the real-time clock at 50 ms and 10 ms while the same process renders.
 
     .venv/bin/python benchmarks/loop_timing.py [--seconds 60] [--runner process|thread|both]
-                                               [--switch-interval MS]
+                                               [--switch-interval MS] [--log]
 
 For each period the engine (real-time clock, simulator, PI in Automatic) runs for
 `--seconds`, in its own process as the TUI runs it (`process`) and on a thread of
@@ -15,7 +15,9 @@ never rests, the worst case for the GIL).  Prints p50 / p99 / max of |jitter|
 
 The 10 ms clock is below the interface's 50 ms minimum sampling time: it stresses
 the scheduler only (the simulator still advances the 50 ms sampling time per
-sample).  Figures are printed, not asserted.
+sample).  `--log` logs every sample to a `.log` in a temporary folder meanwhile (the
+disk's part: rows written as they come, fsynced each second).  Figures are printed,
+not asserted.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import plotext
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState  # noqa: E402
+from quadtank_tui.engine.commands import LogOn, SetControlMode, SetParams, SetState  # noqa: E402
 from quadtank_tui.engine.process import EngineProcess  # noqa: E402
 from quadtank_tui.engine.runner import REALTIME_SWITCH_INTERVAL, Engine, build_engine, engine_spec  # noqa: E402
 
@@ -62,25 +64,28 @@ def ui_work(stop: threading.Event, frames: list[float], points: int) -> None:
             next_frame = time.monotonic()
 
 
-def prepare(period: float, engine: Engine) -> None:
-    """Simulator, PI in Automatic on a moving reference, clock at `period` (run in the
-    loop's own process when it has one, so it must be a module-level function)."""
+def prepare(period: float, log: bool, engine: Engine) -> None:
+    """Simulator, PI in Automatic on a moving reference, clock at `period`, logging
+    if `log` (run in the loop's own process when it has one, so it must be a
+    module-level function)."""
     engine.submit(SetParams({"SAMPLING TIME.TSamp": 50, "REFERENCE ONE.On": 1,
                              "REFERENCE ONE.Amplitude": 0.05, "REFERENCE ONE.Period": 20}))
     engine.submit(SetState("Run"))
     engine.submit(SetControlMode("Automatic"))
+    if log:
+        engine.submit(LogOn(points=10**7))
     engine.clock.set_period(period)  # after the last command (commands resync it to TSamp)
 
 
-def measure(runner: str, period: float, seconds: float, points: int) -> dict[str, float]:
+def measure(runner: str, period: float, seconds: float, points: int, log: bool = False) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as tmp:
         dirs = {"params_dir": Path(tmp), "logs_dir": Path(tmp)}
         engine: Engine | EngineProcess
         if runner == "process":
-            engine = EngineProcess(engine_spec(clock="realtime", **dirs), setup=functools.partial(prepare, period))
+            engine = EngineProcess(engine_spec(clock="realtime", **dirs), setup=functools.partial(prepare, period, log))
         else:
             engine = build_engine(clock="realtime", **dirs)
-            prepare(period, engine)
+            prepare(period, log, engine)
         stop = threading.Event()
         frames: list[float] = []
         ui = threading.Thread(target=ui_work, args=(stop, frames, points), daemon=True)
@@ -110,9 +115,12 @@ def main() -> None:
     ap.add_argument("--runner", choices=("process", "thread", "both"), default="both",
                     help="the loop in its own process (what the TUI uses), in a thread of "
                     "this one, or both (default)")
+    ap.add_argument("--log", action="store_true", help="log every sample to a temporary .log meanwhile")
     args = ap.parse_args()
     print(f"real-time clock, {args.seconds:g} s per run; UI load: another thread of this process "
           f"building plotext charts of 4 series at up to {UI_HZ:g} Hz")
+    if args.log:
+        print("logging every sample to a .log in a temporary folder")
     print("jitter = |actual - scheduled sample start|, percentiles as the engine reports them "
           "(upper bin edges, <= 4.7 % high)")
     loads = (("no UI thread", 0), ("UI 4 x 200 (decimated)", 200), ("UI 4 x 5000 (full)", POINTS))
@@ -122,7 +130,7 @@ def main() -> None:
             for label, points in loads:
                 if args.switch_interval is not None:
                     sys.setswitchinterval(args.switch_interval / 1000.0)
-                r = measure(runner, period, args.seconds, points)
+                r = measure(runner, period, args.seconds, points, args.log)
                 ui = f"{r['frames']} frames, {r['frame_ms']:.0f} ms each" if points else "-"
                 print(f"{runner:7s} {period * 1000:3.0f} ms  {label:24s} samples {r['samples']:5d}  "
                       f"jitter p50 {r['p50']:6.3f}  p99 {r['p99']:7.3f}  max {r['max']:7.3f} ms  "

@@ -5,7 +5,15 @@ matrix, the process backends and the logger, and does exactly one sample per
 :meth:`ControlLoop.step`.  It knows nothing of threads or wall time; the runner
 (engine/runner.py) calls it on its own thread at the times a clock gives, and the
 tests call it directly.  Everything the outside may change goes through
-:meth:`ControlLoop.apply`, which validates first and changes nothing if it refuses.
+:meth:`ControlLoop.apply` (or :meth:`ControlLoop.begin`), which validates first and
+changes nothing if it refuses; a driver's own needs (a shared history, a publisher,
+its crash, the end of the run) have methods too: no other module assigns to a
+ControlLoop's attributes (tests/engine/test_loop_encapsulation.py).
+
+The loop never touches the disk itself: log rows, LogOn/Save/Discard and `.par`
+saves go to its :class:`FileWorker`, inline until :meth:`ControlLoop.use_file_thread`
+(a real-time driver calls it), then on a writer thread, so a slow disk delays no
+sample.  A write that fails there faults the loop at its next step.
 
 One sample (Run)::
 
@@ -32,7 +40,8 @@ import math
 from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Mapping
+from concurrent.futures import Future
+from typing import TYPE_CHECKING, Any, Callable, Mapping, TypeVar
 
 from quadtank_tui.core.faults import Fault
 from quadtank_tui.core.general import tustin
@@ -49,6 +58,8 @@ from quadtank_tui.engine.commands import (
     ResetControllers, SavePar, SetControlMode, SetDefaults, SetFault, SetOperation, SetParams, SetSpeed,
     SetState,
 )
+from quadtank_tui.engine.filework import FileWorker
+from quadtank_tui.engine.handle import SIGNALS
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, History
 from quadtank_tui.engine.jitter import JitterHistogram
 from quadtank_tui.engine.logsession import LogRefused, LogSession
@@ -60,6 +71,8 @@ from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is chosen
     from quadtank_tui.core.statefb.design import Design
     from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+
+T = TypeVar("T")
 
 MODE_KEY = "CONTROL.Mode"
 MEAN_KEYS = ("REFERENCE ONE.Mean", "REFERENCE TWO.Mean")
@@ -137,7 +150,9 @@ class ControlLoop:
         self._u = (0.0, 0.0)
         self._w = (self._gens[0].value(), self._gens[1].value())
         self._r = (self._y[0], self._y[1])
-        self.log = LogSession(self.logs_dir, now)
+        #: Where the disk work goes (inline until use_file_thread()).
+        self.files = FileWorker()
+        self.log = LogSession(self.logs_dir, now, self.files)
         # Timing, filled in by the runner (the loop itself has no clock).
         self.realtime = False
         self.speed = math.inf
@@ -182,6 +197,7 @@ class ControlLoop:
         missed = self._missed if self._sampled_last and self.backend is not self.sim else 0
         self._sampled_last = False
         try:
+            self.log.check()  # a write the file worker failed (disk full): fault now
             if self.running:
                 self._sample(missed)
                 self._sampled_last = True
@@ -275,6 +291,12 @@ class ControlLoop:
             self.on_publish(snap)
         return snap
 
+    @property
+    def missed(self) -> int:
+        """Sampling slots the driver's clock skipped before the last sample (it came
+        late); a real process's loop time passes over them (Engine.run_for)."""
+        return self._missed
+
     def record_timing(self, jitter: float, missed: int, wall: float) -> None:
         """The runner's measurement of the sample about to be done (LoopStats); the
         sample's snapshot carries it."""
@@ -291,22 +313,82 @@ class ControlLoop:
         self.realtime, self.speed = realtime, speed
         self._publish(replace(self._snapshot, realtime=realtime, speed=speed))
 
+    # --- the driver's hooks: the only ways the outside changes the loop but commands ---------
+
+    def attach_history(self, history: History) -> None:
+        """Keep the ring buffers in `history` from now on (shared memory the UI's
+        process reads), with the rows held so far copied over."""
+        kept = self.history.last()
+        for row in zip(*(kept[name] for name in SIGNALS)):
+            history.append(row)
+        self.history = history
+
+    def subscribe(self, on_publish: Callable[[Snapshot], None] | None) -> None:
+        """Hand every published snapshot to `on_publish` (None: to nobody)."""
+        self.on_publish = on_publish
+
+    def halt(self, reason: str) -> None:
+        """The driver itself failed: Pause, pumps safe, and `reason` shown as the fault."""
+        self.fault = reason
+        self.running = False
+        self._safe(self.backend)
+        self.publish()
+
+    def shut_down(self) -> None:
+        """The end of the run: Pause, both processes' pumps at 0, logging stopped (an
+        unsaved log stays as the partial file), a last snapshot, backends closed."""
+        self.running = False
+        backends = [b for b in (self.sim, self.daq) if b is not None]
+        for backend in backends:
+            self._safe(backend)
+        self.close_log()
+        self.files.close()  # the rows still queued reach the file first
+        self.publish()
+        for backend in backends:
+            try:
+                backend.close()
+            except Exception:  # noqa: BLE001 - closing a dead link must not hide the stop
+                pass
+
     # --- commands -----------------------------------------------------------------------
 
     def apply(self, command: Command) -> CommandResult:
-        """Apply one command between samples; a refusal changes nothing."""
+        """Apply one command between samples; a refusal changes nothing.  Waits for
+        the command's file operations (see :meth:`begin`)."""
+        return self.begin(command).result()
+
+    def begin(self, command: Command) -> Future[CommandResult]:
+        """Apply one command between samples, as :meth:`apply`, but leave its file
+        operations (LogOn, LogSave, SavePar, ...) to the file worker: the loop's
+        state changes now, the Future resolves when the disk is done.  With the
+        file thread on (:meth:`use_file_thread`) a slow disk never delays a sample."""
         handler = _HANDLERS.get(type(command))
         if handler is None:
-            return CommandResult.refused(f"unknown command {type(command).__name__}")
+            return _done(CommandResult.refused(f"unknown command {type(command).__name__}"))
         try:
             result = handler(self, command)
-        except (ParameterError, KeyError, PlantError, ParFileError, LogFileError, LogRefused, ValueError) as exc:
-            message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
-            return CommandResult.refused(str(message))
-        except OSError as exc:
-            return CommandResult.refused(f"{getattr(exc, 'filename', '') or ''} {exc.strerror or exc}".strip())
+        except Exception as exc:
+            refusal = _refusal(exc)
+            if refusal is None:
+                raise
+            return _done(refusal)
         self.publish()
-        return result
+        return result if isinstance(result, Future) else _done(result)
+
+    def use_file_thread(self) -> None:
+        """Run the file operations (log rows, saves) on a writer thread from now on,
+        off the sampling path: what a real-time driver calls before sampling."""
+        self.files.start_thread()
+
+    def finish_writes(self, timeout: float | None = None) -> None:
+        """Wait for the file operations handed out so far; one that failed (disk full)
+        faults the run now, as the next sample would have."""
+        self.files.drain(timeout)
+        try:
+            self.log.check()
+        except Exception as exc:  # noqa: BLE001 - the same path as a sample's fault
+            self._fail(exc)
+            self.publish()
 
     def _set_params(self, cmd: SetParams) -> CommandResult:
         values = dict(cmd.values)
@@ -526,21 +608,19 @@ class ControlLoop:
 
     # --- logging --------------------------------------------------------------------------
 
-    def _log_on(self, cmd: LogOn) -> CommandResult:
-        warnings = self.log.on(self.params.logging, self.h, self.t, cmd.points)
-        return CommandResult(True, warnings=warnings)
+    def _log_on(self, cmd: LogOn) -> Future[CommandResult]:
+        return _then(self.log.on(self.params.logging, self.h, self.t, cmd.points),
+                     lambda warnings: CommandResult(True, warnings=warnings))
 
-    def _log_off(self, cmd: LogOff) -> CommandResult:
-        self.log.off()
-        return CommandResult(True)
+    def _log_off(self, cmd: LogOff) -> Future[CommandResult]:
+        return _then(self.log.off(), lambda _: CommandResult(True))
 
-    def _log_save(self, cmd: LogSave) -> CommandResult:
-        saved = self.log.save(cmd.name or self.params.logging.log_file, cmd.overwrite)
-        return CommandResult(True, f"saved {saved}")
+    def _log_save(self, cmd: LogSave) -> Future[CommandResult]:
+        return _then(self.log.save_later(cmd.name or self.params.logging.log_file, cmd.overwrite),
+                     lambda saved: CommandResult(True, f"saved {saved}"))
 
-    def _log_discard(self, cmd: LogDiscard) -> CommandResult:
-        self.log.discard()
-        return CommandResult(True)
+    def _log_discard(self, cmd: LogDiscard) -> Future[CommandResult]:
+        return _then(self.log.discard(), lambda _: CommandResult(True))
 
     def close_log(self) -> None:
         """Exit: stop logging; an unsaved log stays on disk as the partial file
@@ -554,14 +634,19 @@ class ControlLoop:
         self._install(read.params)
         return CommandResult(True, f"loaded {cmd.name}", warnings=tuple(read.warnings))
 
-    def _save_par(self, cmd: SavePar) -> CommandResult:
-        if cmd.defaults:
-            return CommandResult(True, f"saved {self.store.save_default(self.params)}")
-        # A reserved name skips the "exists" question: store.save refuses it with the reason.
-        if self.store.exists(cmd.name) and not cmd.overwrite and cmd.name.lower() not in RESERVED:
-            return CommandResult.refused(f"{self.store.path_of(cmd.name)} exists (save again to overwrite)")
-        path = self.store.save(cmd.name, self.params)
-        return CommandResult(True, f"saved {path}")
+    def _save_par(self, cmd: SavePar) -> Future[CommandResult]:
+        """The parameters in force now, written by the file worker."""
+        store, params = self.store, self.params
+
+        def save() -> CommandResult:
+            if cmd.defaults:
+                return CommandResult(True, f"saved {store.save_default(params)}")
+            # A reserved name skips the "exists" question: store.save refuses it with the reason.
+            if store.exists(cmd.name) and not cmd.overwrite and cmd.name.lower() not in RESERVED:
+                return CommandResult.refused(f"{store.path_of(cmd.name)} exists (save again to overwrite)")
+            return CommandResult(True, f"saved {store.save(cmd.name, params)}")
+
+        return _then(self.files.submit(save), lambda result: result)
 
     def _set_speed(self, cmd: SetSpeed) -> CommandResult:
         return CommandResult.refused("the speed belongs to the engine's clock, not the loop")
@@ -585,7 +670,39 @@ def _plant_refused(daq: ProcessBackend | None, plant: Plant) -> str | None:
     return ask(plant) if ask is not None else None
 
 
-_HANDLERS: Mapping[type, Callable[[ControlLoop, Any], CommandResult]] = {
+def _refusal(exc: Exception) -> CommandResult | None:
+    """The refusal an exception of a command stands for (None: a bug, not a refusal)."""
+    if isinstance(exc, (ParameterError, KeyError, PlantError, ParFileError, LogFileError, LogRefused, ValueError)):
+        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+        return CommandResult.refused(str(message))
+    if isinstance(exc, OSError):
+        return CommandResult.refused(f"{getattr(exc, 'filename', '') or ''} {exc.strerror or exc}".strip())
+    return None
+
+
+def _done(result: CommandResult) -> Future[CommandResult]:
+    fut: Future[CommandResult] = Future()
+    fut.set_result(result)
+    return fut
+
+
+def _then(fut: Future[T], make: Callable[[T], CommandResult]) -> Future[CommandResult]:
+    """The CommandResult of a file operation: `make(value)`, or the refusal its
+    exception stands for."""
+    out: Future[CommandResult] = Future()
+
+    def done(f: Future[T]) -> None:
+        try:
+            result = make(f.result())
+        except Exception as exc:  # noqa: BLE001 - every outcome resolves the command
+            result = _refusal(exc) or CommandResult.refused(f"{type(exc).__name__}: {exc}")
+        out.set_result(result)
+
+    fut.add_done_callback(done)
+    return out
+
+
+_HANDLERS: Mapping[type, Callable[[ControlLoop, Any], CommandResult | Future[CommandResult]]] = {
     SetParams: ControlLoop._set_params, SetDefaults: ControlLoop._set_defaults,
     SetOperation: ControlLoop._set_operation, SetState: ControlLoop._set_state,
     SetControlMode: ControlLoop._set_control_mode, NudgeMean: ControlLoop._nudge,

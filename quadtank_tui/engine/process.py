@@ -8,11 +8,13 @@ does not depend on what the UI does.
 
 - The parent reads files and checks them (``runner.engine_spec``), so a bad `.par` is
   refused with the same message as in-process, before any process starts.
-- Commands go down a pipe; the child applies each between samples and sends the
+- Commands go down a pipe as typed messages (:mod:`engine.messages`); the child applies each between samples and sends the
   CommandResult back, which resolves the parent's Future.  Before the result is
   sent, the snapshot that shows the command's effect is published.
 - Snapshots and ring buffers come up through shared memory (:mod:`engine.shared`),
-  written without locks: no reader can hold the loop up.
+  written without locks: no reader can hold the loop up.  The log's rows and every
+  save go to the loop's writer thread (:mod:`engine.filework`): no disk holds it up
+  either; a command with file work is answered when that work is done.
 - The child stops the loop, pumps to 0, if the parent goes away (its end of the
   pipe closes: crash, kill, lost SSH session), or on SIGTERM or SIGHUP.  It ignores
   SIGINT: Ctrl-C in a terminal reaches the whole process group, and the parent
@@ -37,6 +39,9 @@ import numpy as np
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.backend import ProcessBackend
 from quadtank_tui.engine.commands import Command, CommandResult
+from quadtank_tui.engine.messages import (
+    Failed, FromLoop, MessageError, Ready, Result, Start, Stop, Stopped, Submit, from_loop, to_loop,
+)
 from quadtank_tui.engine.runner import Engine, EngineSpec, assemble
 from quadtank_tui.engine.shared import SharedState, SnapshotReader, SnapshotWriter
 from quadtank_tui.engine.snapshot import Snapshot
@@ -86,17 +91,17 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
         shared = SharedState.attach(shared_path, spec.history_capacity)
         shared.block.unlink()  # mapped on both sides now (and gone if the parent died)
         engine = assemble(spec, daq=daq_factory() if daq_factory is not None else None)
-        engine.loop.history = shared.history
+        engine.loop.attach_history(shared.history)
         writer = SnapshotWriter(shared)
-        engine.loop.on_publish = writer
+        engine.loop.subscribe(writer)
         if setup is not None:
             setup(engine)
         engine.loop.publish()
         writer.flush()
-        outbox.send(("ready", engine.loop.defaults))
+        outbox.send(Ready(engine.loop.defaults))
     except BaseException as exc:  # noqa: BLE001 - tell the parent why, whatever it was
         try:
-            outbox.send(("failed", f"{type(exc).__name__}: {exc}"))
+            outbox.send(Failed(f"{type(exc).__name__}: {exc}"))
         except (OSError, ValueError):
             pass
         if engine is not None:
@@ -105,7 +110,7 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
     crash: str | None = None
     send_lock = threading.Lock()
 
-    def send(message: tuple[Any, ...]) -> None:
+    def send(message: FromLoop) -> None:
         with send_lock:
             outbox.send(message)
 
@@ -114,7 +119,7 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
         # effect goes out before the result.
         writer.flush()
         try:
-            send(("result", command_id, fut.result()))
+            send(Result(command_id, fut.result()))
         except (OSError, ValueError):
             pass  # the parent is gone; the main thread sees it too
 
@@ -126,14 +131,13 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
             if stop.reason is not None:
                 break
             try:
-                message = inbox.recv()
+                message = to_loop(inbox.recv())
             except (EOFError, OSError):
                 break  # the parent is gone: stop, pumps at 0
-            kind = message[0]
-            if kind == "start":
+            if isinstance(message, Start):
                 engine.start()
-            elif kind == "command":
-                engine.submit(message[2]).add_done_callback(functools.partial(answer, message[1]))
+            elif isinstance(message, Submit):
+                engine.submit(message.command).add_done_callback(functools.partial(answer, message.id))
             else:
                 break
     except Exception as exc:  # noqa: BLE001 - stop in order and say why
@@ -142,7 +146,7 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
         engine.stop()  # commands still queued are refused: the user asked to stop
         writer.flush()
         try:
-            send(("stopped", engine.crash or crash))
+            send(Stopped(engine.crash or crash))
         except (OSError, ValueError):
             pass
 
@@ -198,26 +202,27 @@ class EngineProcess:
             reply = self._receive_first()
         finally:
             self._shared.block.unlink()  # both processes have it mapped (or the child failed)
-        if reply[0] != "ready":
+        if not isinstance(reply, Ready):
             self._proc.join(timeout=STOP_TIMEOUT)
             self._release()
-            raise EngineProcessError(f"the control loop process did not start: {reply[1]}")
-        self._defaults: Parameters = reply[1]
+            why = reply.reason if isinstance(reply, Failed) else f"it answered {type(reply).__name__}"
+            raise EngineProcessError(f"the control loop process did not start: {why}")
+        self._defaults: Parameters = reply.defaults
         snap = self._reader.read()
         assert snap is not None  # the child published before it said ready
         self._snap: Snapshot = snap
         self._listener = threading.Thread(target=self._listen, name="quadtank-loop-results", daemon=True)
         self._listener.start()
 
-    def _receive_first(self) -> tuple[Any, ...]:
+    def _receive_first(self) -> FromLoop:
         if not self._outbox.poll(START_TIMEOUT):
             self._proc.kill()
-            return ("failed", f"no answer within {START_TIMEOUT:g} s")
+            return Failed(f"no answer within {START_TIMEOUT:g} s")
         try:
-            return self._outbox.recv()
+            return from_loop(self._outbox.recv())
         except (EOFError, OSError):
             self._proc.join(timeout=STOP_TIMEOUT)
-            return ("failed", f"it exited with code {self._proc.exitcode}")
+            return Failed(f"it exited with code {self._proc.exitcode}")
 
     # --- the EngineHandle read side ------------------------------------------------------------
 
@@ -266,7 +271,7 @@ class EngineProcess:
             self._next_id += 1
             self._futures[self._next_id] = fut
             try:
-                self._inbox.send(("command", self._next_id, command))
+                self._inbox.send(Submit(self._next_id, command))
             except (OSError, ValueError) as exc:
                 self._futures.pop(self._next_id, None)
                 fut.set_result(CommandResult.refused(f"the control loop process is gone ({exc})"))
@@ -276,16 +281,18 @@ class EngineProcess:
         """Results up from the child until its end of the pipe closes."""
         while True:
             try:
-                message = self._outbox.recv()
+                message = from_loop(self._outbox.recv())
             except (EOFError, OSError):
                 break
-            if message[0] == "result":
+            except MessageError:
+                continue  # not ours to act on (a bug in the child): its next message may be
+            if isinstance(message, Result):
                 with self._send_lock:
-                    fut = self._futures.pop(message[1], None)
+                    fut = self._futures.pop(message.id, None)
                 if fut is not None and not fut.done():
-                    fut.set_result(message[2])
-            elif message[0] == "stopped":
-                self.crash = message[1]
+                    fut.set_result(message.result)
+            elif isinstance(message, Stopped):
+                self.crash = message.crash
         with self._send_lock:
             self._gone.set()
             unexpected = not self._stopping
@@ -320,7 +327,7 @@ class EngineProcess:
                 return
             self._started = True
             try:
-                self._inbox.send(("start",))
+                self._inbox.send(Start())
             except (OSError, ValueError):
                 pass  # gone: the listener has seen it or will
 
@@ -332,7 +339,7 @@ class EngineProcess:
         with self._send_lock:
             self._stopping = True
             try:
-                self._inbox.send(("stop",))
+                self._inbox.send(Stop())
             except (OSError, ValueError):
                 pass
         self._listener.join(timeout=STOP_TIMEOUT)

@@ -4,8 +4,13 @@ The UI must never delay a sample, so the loop does not share the UI's event loop
 (architecture.md, "Timing"): :meth:`Engine.start` runs it on a private asyncio loop
 in a daemon thread.  Commands come in through :meth:`Engine.submit` (any thread):
 they are queued, the loop thread is woken, and it applies them between samples,
-resolving the returned Future with the CommandResult.  Snapshots and ring buffers
-go out as immutable values and copies.
+resolving the returned Future with the CommandResult (once its file operations,
+which the loop's writer thread does, are done).  Snapshots and ring buffers go out
+as immutable values and copies.
+
+The thread runner is what the TUI's `--loop thread`, the UI tests (an in-process
+engine they can drive and read) and the loop process (engine/process.py runs this
+engine in its child) use.
 
 Without a thread (``threaded=False``: tests and headless runs) the same engine is
 stepped by hand: :meth:`Engine.step` / :meth:`Engine.run_for` wait for each deadline
@@ -17,6 +22,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import functools
 import os
 import sys
 import threading
@@ -75,6 +81,11 @@ class LoopTime:
         return t - self.seconds <= 1e-6 * self._h
 
 
+def _pass_on(to: Future[CommandResult], began: Future[CommandResult]) -> None:
+    if not to.done():
+        to.set_result(began.result())
+
+
 class Engine:
     """Implements :class:`quadtank_tui.engine.handle.EngineHandle`."""
 
@@ -100,9 +111,9 @@ class Engine:
         self._stopping = False
         self._stopped = False
         self.crash: str | None = None
-        #: Sampling slots the clock skipped before the last sample (it came late).
-        self.missed = 0
         loop.set_clock_info(clock.realtime, clock.speed)
+        if clock.realtime:  # a rig's time, stepped by hand or not: no sample waits for the disk
+            loop.use_file_thread()
 
     # --- the EngineHandle read side -------------------------------------------------------
 
@@ -122,6 +133,12 @@ class Engine:
         return log_path(self.loop.logs_dir, name).exists()
 
     @property
+    def missed(self) -> int:
+        """Sampling slots the clock skipped before the last sample (the loop's own
+        count, :attr:`ControlLoop.missed`)."""
+        return self.loop.missed
+
+    @property
     def running(self) -> bool:
         """The loop thread is alive."""
         return self._thread is not None and self._thread.is_alive()
@@ -136,8 +153,7 @@ class Engine:
             return fut
         if not self.threaded or not self.running:
             with self._lock:
-                fut.set_result(self._apply(command))
-            return fut
+                return self._begin(command)
         self._pending.append((command, fut))
         aloop, wake = self._aloop, self._wake
         if aloop is not None and wake is not None:
@@ -147,13 +163,17 @@ class Engine:
                 pass
         return fut
 
-    def _apply(self, command: Command) -> CommandResult:
+    def _begin(self, command: Command) -> Future[CommandResult]:
+        """Apply `command` to the loop (its file operations may still run: the
+        Future resolves when they are done)."""
         if isinstance(command, SetSpeed):
-            return self._set_speed(command.factor)
-        result = self.loop.apply(command)
+            done: Future[CommandResult] = Future()
+            done.set_result(self._set_speed(command.factor))
+            return done
+        fut = self.loop.begin(command)
         if self.loop.h != self.clock.period:
             self.clock.set_period(self.loop.h)
-        return result
+        return fut
 
     def _set_speed(self, factor: float) -> CommandResult:
         if not isinstance(self.clock, VirtualClock):
@@ -169,17 +189,17 @@ class Engine:
         while self._pending:
             command, fut = self._pending.popleft()
             try:
-                result = self._apply(command)
+                began = self._begin(command)
             except Exception as exc:  # noqa: BLE001 - a bug must not kill the loop
-                result = CommandResult.refused(f"{type(command).__name__} failed: {type(exc).__name__}: {exc}")
-            if not fut.cancelled():
-                fut.set_result(result)
+                began = Future()
+                began.set_result(CommandResult.refused(
+                    f"{type(command).__name__} failed: {type(exc).__name__}: {exc}"))
+            began.add_done_callback(functools.partial(_pass_on, fut))
 
     # --- one sample ------------------------------------------------------------------------
 
     def _sample(self) -> None:
         timing = self.clock.tick()
-        self.missed = timing.missed
         self.loop.record_timing(timing.jitter, timing.missed, timing.actual)
         self.loop.step()
 
@@ -222,6 +242,7 @@ class Engine:
         if self.running or self._stopped:
             return
         self.threaded = True
+        self.loop.use_file_thread()  # no sample waits for the disk
         if self.clock.realtime and sys.getswitchinterval() > REALTIME_SWITCH_INTERVAL:
             sys.setswitchinterval(REALTIME_SWITCH_INTERVAL)
         ready = threading.Event()
@@ -237,8 +258,7 @@ class Engine:
             aloop.run_until_complete(self._main(ready))
         except Exception as exc:  # noqa: BLE001 - last line of defence: pumps safe, say why
             self.crash = f"{type(exc).__name__}: {exc}"
-            self.loop.fault = f"engine stopped: {self.crash}"
-            ControlLoop._safe(self.loop.backend)
+            self.loop.halt(f"engine stopped: {self.crash}")
         finally:
             ready.set()
             self._aloop = None
@@ -289,19 +309,7 @@ class Engine:
                 _, fut = self._pending.popleft()
                 if not fut.done():
                     fut.set_result(CommandResult.refused("the engine has stopped"))
-            loop = self.loop
-            loop.running = False
-            for backend in (loop.sim, loop.daq):
-                if backend is not None:
-                    ControlLoop._safe(backend)
-            loop.close_log()
-            loop.publish()
-            for backend in (loop.sim, loop.daq):
-                if backend is not None:
-                    try:
-                        backend.close()
-                    except Exception:  # noqa: BLE001 - closing a dead link must not hide the stop
-                        pass
+            self.loop.shut_down()
 
     def __enter__(self) -> Engine:
         return self

@@ -7,6 +7,7 @@ from typing import Callable
 
 import pytest
 
+from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend
 from quadtank_tui.engine.runner import Engine, build_engine
 
 
@@ -25,3 +26,31 @@ def make_engine(tmp_path: Path) -> Callable[..., Engine]:
     yield make
     for engine in made:
         engine.stop()
+
+
+class RecordingRig(ProcessBackend):
+    """A real process (Active) at fixed levels that records what it is told:
+    "pumps u1 u2", "safe", "close"."""
+
+    kind = "Active"
+    description = "rig"
+
+    def __init__(self) -> None:
+        self.calls: list[str] = []
+
+    def read_levels(self) -> Levels4:
+        return (0.6, 0.6, 0.1, 0.1)
+
+    def write_pumps(self, u: Pair) -> None:
+        self.calls.append(f"pumps {u[0]:g} {u[1]:g}")
+
+    def safe_state(self) -> None:
+        self.calls.append("safe")
+
+    def close(self) -> None:
+        self.calls.append("close")
+
+
+@pytest.fixture
+def rig() -> RecordingRig:
+    return RecordingRig()
