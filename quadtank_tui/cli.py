@@ -22,6 +22,7 @@ from quadtank_tui.commands import UsageError, icad, warn
 from quadtank_tui.commands.design import add_parser as add_design_parser
 from quadtank_tui.commands import logview, statefb
 from quadtank_tui.commands import identify as identify_command
+from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.commands import lab as lab_command
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
 from quadtank_tui.daq.cli import (
@@ -193,6 +194,9 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     pace.add_argument("--realtime", action="store_true", help="keep the sampling time in wall time")
     pace.add_argument("--speed", metavar="X", type=float, help="virtual time at X times real time (1..1000)")
     add_daq_option(p)
+    p.add_argument("--detach", action="store_true",
+                   help="run it as a lab session and return at once: quadtank attach SESSION watches it, "
+                   "quadtank stop SESSION ends it early (the summary goes to the session's output file)")
     lab_command.add_take_over_option(p, dest="take_over")
     p.set_defaults(handler=_cmd_run)
 
@@ -236,6 +240,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     daq_config = args.daq or getattr(args, "daq_global", None)
     clock, daq = run_clock(realtime=args.realtime, speed=args.speed, config=daq_config,
                            plant=_plant_in_use(args.par) if daq_config else None)
+    if args.detach:
+        return sessions_command.start_detached_run(args, script, clock)
     previous = {sig: signal.signal(sig, _terminate) for sig in (RIG_STOP_SIGNALS if daq else STOP_SIGNALS)}
     try:
         result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
@@ -270,9 +276,13 @@ def _add_tui_options(parser: argparse.ArgumentParser) -> None:
                      help="simulated seconds per wall second at start (1..1000; keys + and - change it)")
     tui.add_argument("--refresh", metavar="SECONDS", type=float, default=0.05,
                      help="screen refresh interval (default 0.05; raise it on a slow link)")
-    tui.add_argument("--loop", choices=("process", "thread"), default="process",
+    tui.add_argument("--loop", choices=("process", "thread"), default=None,
                      help="where the control loop runs: its own process (default; the screen "
-                     "cannot delay a sample) or a thread of this one (for debugging)")
+                     "cannot delay a sample) or a thread of this one (for debugging); "
+                     "either implies --no-session")
+    tui.add_argument("--no-session", action="store_true",
+                     help="run the loop for this terminal only (it stops when the TUI ends) instead "
+                     "of in a lab session that outlives the terminal (see quadtank sessions)")
 
 
 def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTankApp]:
@@ -314,6 +324,8 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     terminal is put back and the loop stopped with the pumps at 0."""
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
+    if not args.no_session and args.loop is None:
+        return sessions_command.cmd_tui_session(args)
     engine, app = build_tui(args)
     warn(engine.warnings)
     watch = TerminalWatch(app.exit_soon, engine.stop)
@@ -355,6 +367,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_design_parser(sub)
     statefb.add_parser(sub)
     identify_command.add_parser(sub)
+    sessions_command.add_parsers(sub)
     lab_command.add_parser(sub)
     return parser
 

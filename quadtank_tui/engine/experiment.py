@@ -65,12 +65,14 @@ def run_experiment(engine: Engine, script: Script | None, duration: float) -> in
         raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
     events = collections.deque(script.events if script else ())
     name = script.file if script else ""
+    return engine.run_for(duration, before=lambda elapsed: apply_due(engine, events, elapsed, name))
 
-    def apply_due(elapsed: LoopTime) -> None:
-        while events and elapsed.reached(events[0].at):
-            _apply(engine, events.popleft(), name)
 
-    return engine.run_for(duration, before=apply_due)
+def apply_due(engine: Engine, events: collections.deque[Event], elapsed: LoopTime, name: str) -> None:
+    """Apply (and drop) the script's events due at `elapsed` loop time; a refused
+    command is the script's error, naming its file and line."""
+    while events and elapsed.reached(events[0].at):
+        _apply(engine, events.popleft(), name)
 
 
 def _apply(engine: Engine, event: Event, name: str) -> None:

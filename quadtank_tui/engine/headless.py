@@ -18,7 +18,7 @@ from quadtank_tui.engine.commands import CommandResult, LogOn, SetOperation, Set
 from quadtank_tui.engine.experiment import format_summary, run_experiment, summarize
 from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.logsession import LogExists, LogRefused, LogSession
-from quadtank_tui.engine.runner import ClockKind, build_engine, load_parameters, virtual_epoch
+from quadtank_tui.engine.runner import ClockKind, Engine, build_engine, load_parameters, virtual_epoch
 from quadtank_tui.files.log import SUFFIX, check_log_folder, file_identity
 from quadtank_tui.files.names import check_file_name
 from quadtank_tui.files.par import ParStore
@@ -54,6 +54,41 @@ def run_headless(
     references (controllers at rest).  With `daq` the run is in Active on that
     process (the clock must then be paced: real time, or the rig's speed factor);
     a link fault pauses it and the status is 1."""
+    run = prepare_headless(par=par, script=script, duration=duration, out=out, seed=seed, clock=clock,
+                           speed=speed, params_dir=params_dir, daq=daq)
+    try:
+        run_experiment(run.engine, script, duration)
+        return finish_headless(run)
+    finally:
+        run.engine.stop()
+
+
+@dataclass(frozen=True)
+class HeadlessRun:
+    """A headless run ready to sample: its engine (no thread; the caller drives it
+    and stops it) and what `finish_headless` needs."""
+
+    engine: Engine
+    script: Script | None
+    duration: float
+    out: Path
+    before: tuple[int, ...] | None
+
+
+def prepare_headless(
+    *,
+    par: str | None,
+    script: Script | None,
+    duration: float,
+    out: Path,
+    seed: int | None = None,
+    clock: ClockKind = "manual",
+    speed: float | None = None,
+    params_dir: Path = Path("params"),
+    daq: ProcessBackend | None = None,
+) -> HeadlessRun:
+    """The engine of `run_headless`, set up (log file, Active, Automatic, LogOn,
+    Run as the run asks) and not yet sampled; a session process drives it too."""
     stem = out.name.removesuffix(SUFFIX)
     name = stem + SUFFIX
     try:
@@ -71,7 +106,6 @@ def run_headless(
     engine = build_engine(par, clock=clock, speed=speed, seed=seed, params_dir=params_dir,
                           logs_dir=out.parent, threaded=False, history_capacity=capacity,
                           epoch=virtual_epoch(), daq=daq)
-    warnings = engine.warnings
     try:
         # The partial file of an interrupted run sits next to OUT, named after it.
         must(engine.submit(SetParams({"LOGGING.LogFile": stem})).result())
@@ -86,27 +120,33 @@ def run_headless(
             must(engine.submit(LogOn(points=points)).result())
         if script is None:
             must(engine.submit(SetState("Run")).result())
-        run_experiment(engine, script, duration)
-        summary = summarize(engine, duration)
-        session = engine.loop.log
-        rows, error = session.rows, session.error
-        try:
-            saved, moved = _save(session, out, before)
-        except (LogRefused, OSError) as exc:
-            text = format_summary(summary) + f"\nno log written: {exc}"
-            return HeadlessResult(1, text, warnings, None)
-        text = format_summary(summary) + f"\nlog        {saved} ({rows} rows)"
-        if moved:
-            warnings = (*warnings, f"{out} was written by another run meanwhile: this run's log is {saved}")
-        if session.late_rows:
-            text += (f"\nlate       {session.late_rows} of the {rows} rows came late, each after a '% late:' "
-                     "line in the log: the device or this computer is too slow for the sampling time")
-        if error:
-            text += f"\nLOG FAULT  {error}"
-        status = 1 if summary.fault or error else 0
-        return HeadlessResult(status, text, warnings, saved)
-    finally:
+    except BaseException:
         engine.stop()
+        raise
+    return HeadlessRun(engine, script, duration, out, before)
+
+
+def finish_headless(run: HeadlessRun) -> HeadlessResult:
+    """After the run: the summary, and the log saved as `run.out`."""
+    engine, out, warnings = run.engine, run.out, run.engine.warnings
+    summary = summarize(engine, run.duration)
+    session = engine.loop.log
+    rows, error = session.rows, session.error
+    try:
+        saved, moved = _save(session, out, run.before)
+    except (LogRefused, OSError) as exc:
+        text = format_summary(summary) + f"\nno log written: {exc}"
+        return HeadlessResult(1, text, warnings, None)
+    text = format_summary(summary) + f"\nlog        {saved} ({rows} rows)"
+    if moved:
+        warnings = (*warnings, f"{out} was written by another run meanwhile: this run's log is {saved}")
+    if session.late_rows:
+        text += (f"\nlate       {session.late_rows} of the {rows} rows came late, each after a '% late:' "
+                 "line in the log: the device or this computer is too slow for the sampling time")
+    if error:
+        text += f"\nLOG FAULT  {error}"
+    status = 1 if summary.fault or error else 0
+    return HeadlessResult(status, text, warnings, saved)
 
 
 def _save(session: LogSession, out: Path, before: tuple[int, ...] | None) -> tuple[Path, bool]:

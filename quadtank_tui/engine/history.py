@@ -80,6 +80,30 @@ class History:
         self._buf[total % self.capacity] = row
         self._hdr[_TOTAL] = total + 1  # published only once the row is whole
 
+    def extend(self, rows: np.ndarray) -> None:
+        """Many samples at once (a client catching up with its session), oldest first;
+        rows beyond the capacity push the oldest out, as one append each would."""
+        rows = np.asarray(rows, dtype=float).reshape(-1, len(SIGNALS))[-self.capacity:]
+        total, n = int(self._hdr[_TOTAL]), len(rows)
+        if n == 0:
+            return
+        self._hdr[_BEGUN] = total + n
+        idx = (total + np.arange(n)) % self.capacity
+        self._buf[idx] = rows
+        self._hdr[_TOTAL] = total + n
+
+    def since(self, index: int) -> tuple[np.ndarray, int, int]:
+        """(rows with absolute index >= `index` still kept, rows ever written, clear
+        generation): what a session sends its clients after each publication.  For
+        the writer's own thread (no concurrent append)."""
+        total, start, gen = int(self._hdr[_TOTAL]), int(self._hdr[_START]), int(self._hdr[_GEN])
+        lo = max(index, start, total - self.capacity)
+        if lo >= total:
+            return self._buf[:0].copy(), total, gen
+        a, b = lo % self.capacity, total % self.capacity
+        rows = self._buf[a:b].copy() if a < b else np.concatenate((self._buf[a:], self._buf[:b]))
+        return rows, total, gen
+
     def clear(self) -> None:
         hdr = self._hdr
         hdr[_GEN] += 1

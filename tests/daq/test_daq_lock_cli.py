@@ -245,7 +245,7 @@ def test_the_tui_ends_when_its_rig_is_taken_over(tmp_path: Path, monkeypatch: py
 
     thread = threading.Thread(target=take)
     thread.start()
-    assert main(["--daq", str(config_for(tmp_path, port))]) == 1
+    assert main(["--no-session", "--daq", str(config_for(tmp_path, port))]) == 1
     thread.join()
     assert engine.stopped >= 1
     err = capsys.readouterr().err

@@ -44,15 +44,16 @@ MOUSE_OFF = (b"\x1b[?1000l", b"\x1b[?1003l", b"\x1b[?1006l")
 class Tui:
     """`quadtank` (or `code` run by python) on a pty; `output` collects what it draws."""
 
-    def __init__(self, tmp_path: Path, *, shell: bool = False, code: str | None = None) -> None:
+    def __init__(self, tmp_path: Path, *, shell: bool = False, code: str | None = None,
+                 args: tuple[str, ...] = ("--no-session",), env: dict[str, str] | None = None) -> None:
         (tmp_path / "params").mkdir()
         shutil.copy(ROOT / "params" / "default.par", tmp_path / "params" / "default.par")
         master, slave = os.openpty()
         fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))
-        argv = [sys.executable, "-m", "quadtank_tui"] if code is None else [sys.executable, "-c", code]
+        argv = [sys.executable, "-m", "quadtank_tui", *args] if code is None else [sys.executable, "-c", code]
         if shell:  # make's part: the session leader, which keeps SIGHUP and waits for its child
             argv = ["/bin/sh", "-c", 'trap ":" HUP; "$@"; exit $?', "sh", *argv]
-        env = {**os.environ, "TERM": "xterm-256color", "COLUMNS": "120", "LINES": "40"}
+        env = {**os.environ, "TERM": "xterm-256color", "COLUMNS": "120", "LINES": "40", **(env or {})}
         env.pop("TEXTUAL", None)
         self.proc = subprocess.Popen(
             argv, stdin=slave, stdout=slave, stderr=slave, cwd=tmp_path, env=env, close_fds=True,
@@ -219,7 +220,7 @@ def test_a_crash_exits_non_zero_and_gives_the_terminal_back(tmp_path: Path) -> N
     code = ("import sys; import quadtank_tui.ui.app as a\n"
             "def boom(self): raise RuntimeError('boom')\n"
             "a.QuadTankApp.on_mount = boom\n"
-            "from quadtank_tui.cli import main; sys.exit(main([]))\n")
+            "from quadtank_tui.cli import main; sys.exit(main(['--no-session']))\n")
     tui = Tui(tmp_path, code=code)
     try:
         assert tui.proc.wait(timeout=START_WITHIN) == 1
@@ -291,7 +292,7 @@ def test_exit_is_prompt_with_a_hung_device(tmp_path: Path) -> None:
     config = tmp_path / "hung.yaml"
     config.write_text((ROOT / "params" / "virtual-rig.yaml").read_text()
                       .replace("port: 5020", f"port: {port}").replace("timeout: 0.2", "timeout: 0.5"))
-    code = f"import sys; from quadtank_tui.cli import main; sys.exit(main(['--daq', {str(config)!r}]))"
+    code = f"import sys; from quadtank_tui.cli import main; sys.exit(main(['--no-session', '--daq', {str(config)!r}]))"
     tui = Tui(tmp_path, code=code)
     try:
         tui.wait_started()

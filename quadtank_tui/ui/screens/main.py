@@ -20,7 +20,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
-from textual.widgets import Footer
+from textual.widgets import Footer, Static
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS, SimulationSettings
 from quadtank_tui.core.plant import FULL_SCALE_V
@@ -146,6 +146,7 @@ class MainScreen(CommandSender):
         self._live: object = None
         self._live_snap: Snapshot = _untimed(self.snap)
         self.window_index = 1  # 5 min
+        self._banner: str | None = None
         self.autoscale = True
         #: Trends in the plant's units (else normalized); how far back they show, s.
         self.physical = False
@@ -164,7 +165,14 @@ class MainScreen(CommandSender):
         with Horizontal(id="trends"):
             yield Trend("upper", id="upper")
             yield Trend("lower", id="lower")
+        banner = self._session_banner()
+        if banner is not None:  # a client of a lab session: whose it is, who drives it
+            yield Static(banner, id="session-bar", markup=False)
         yield Footer()
+
+    def _session_banner(self) -> str | None:
+        banner = getattr(self.engine, "session_banner", None)
+        return banner() if callable(banner) else None
 
     def on_mount(self) -> None:
         # The widgets the timer feeds, found once: a DOM query costs milliseconds,
@@ -231,6 +239,13 @@ class MainScreen(CommandSender):
                 panel.snapshot = snap
             if snap.params.control != previous.params.control:
                 self.refresh_bindings()
+        banner = self._session_banner()
+        if banner is not None and banner != self._banner:
+            self._banner = banner
+            try:
+                self.query_one("#session-bar", Static).update(banner)
+            except NoMatches:
+                pass
         if snap.state == "Run":
             self.trend_offset = 0.0  # scrolling back is for a paused trend
         self.ghost.follow(snap)
@@ -464,11 +479,51 @@ class MainScreen(CommandSender):
 
     def action_exit(self) -> None:
         """Exit, asking first; an unsaved log is saved by default (Enter), never
-        thrown away without a second choice."""
+        thrown away without a second choice.  On a lab session: detach (it keeps
+        running, as its policy says) or stop it."""
+        if self._session_banner() is not None:
+            self._exit_session()
+            return
+        self._exit_stopping(confirm=True)
+
+    def _exit_session(self) -> None:
+        engine = self.engine
+        sid = engine.info.id  # type: ignore[attr-defined]  # a session client (session/client.py)
+        if engine.role != "operator":  # type: ignore[attr-defined]
+            self.app.push_screen(ConfirmWindow("Exit", f"Stop watching session {sid} and exit?\n"
+                                               "It keeps running.", yes="Exit"),
+                                 lambda yes: self.app.exit() if yes else None)
+            return
+        policy = engine.policy  # type: ignore[attr-defined]  # the lab's unattended policy, one sentence
+        question = (f"Session {sid} can run on without this screen.\n"
+                    f"Detach: it runs on; quadtank attach {sid} comes back to it. {policy}\n"
+                    "Stop: the pumps at 0, logging stopped (its rows kept), the session ended.")
+        choices = (Choice("detach", "Detach", "success"), Choice("stop", "Stop the session", "error"),
+                   Choice("cancel", "Cancel"))
+
+        def answered(answer: str | None) -> None:
+            if answer == "detach":
+                self.app.exit()
+            elif answer == "stop":
+                self._exit_stopping(confirm=False, leave=stop_and_exit)
+
+        def stop_and_exit() -> None:
+            engine.stop_on_close = True  # type: ignore[attr-defined]  # the CLI stops it once the app is down
+            self.app.exit()
+
+        self.app.push_screen(ChoiceWindow("Exit", question, choices), answered)
+
+    def _exit_stopping(self, *, confirm: bool, leave: Callable[[], object] | None = None) -> None:
+        """Exit stopping the loop: asks about an unsaved log (and, if `confirm`,
+        whether to stop at all); `leave` exits (default: the app's exit)."""
+        leave = leave or self.app.exit
         log = self.current().log
         if not log.unsaved:
+            if not confirm:
+                leave()
+                return
             self.app.push_screen(ConfirmWindow("Exit", "Stop the loop and exit?", yes="Exit"),
-                                 lambda yes: self.app.exit() if yes else None)
+                                 lambda yes: leave() if yes else None)
             return
         earlier = log.started_as or log.file
         name = free_log_name(earlier, self.engine.log_exists)
@@ -480,9 +535,9 @@ class MainScreen(CommandSender):
 
         def answered(answer: str | None) -> None:
             if answer == "save":
-                self.send(LogSave(name), on_done=self.app.exit)
+                self.send(LogSave(name), on_done=leave)
             elif answer == "discard":
-                self.send(LogDiscard(), on_done=self.app.exit)
+                self.send(LogDiscard(), on_done=leave)
 
         self.app.push_screen(ChoiceWindow("Exit", question, choices), answered)
 

@@ -1,0 +1,237 @@
+"""`quadtank` on a session, and `quadtank sessions | attach | stop`.
+
+`quadtank` attaches to the caller's running session, else starts one (detached:
+it survives the terminal) and attaches to it; the TUI is a client.  Its Exit asks
+whether to stop the session or detach; losing the terminal detaches (within a
+second) and never stops the session.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import threading
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from quadtank_tui.commands import UsageError, warn
+
+if TYPE_CHECKING:
+    from quadtank_tui.session.lock import DaqLock
+    from quadtank_tui.engine.runner import ClockKind
+    from quadtank_tui.files.script import Script
+    from quadtank_tui.session.client import SessionClient
+    from quadtank_tui.session.protocol import SessionInfo
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("sessions", help="list the lab sessions on this machine",
+                       description="The running sessions: id, owner, started, plant, Simul/Active, "
+                       "Run/Pause, logging progress, attached clients.")
+    p.add_argument("--json", action="store_true", help="one JSON object per session, a list")
+    p.set_defaults(handler=cmd_sessions)
+    a = sub.add_parser("attach", help="attach the TUI to a running session",
+                       description="Attach the TUI to SESSION (default: your only running session).")
+    a.add_argument("session", metavar="SESSION", nargs="?", help="a session id (see quadtank sessions)")
+    a.add_argument("--observe", action="store_true", help="watch read-only: every command is refused")
+    a.add_argument("--take-over", action="store_true",
+                   help="take the operator's place: from your own other screen (a link that died unnoticed), "
+                   "or anyone's as an administrator (the operator becomes an observer)")
+    a.add_argument("--refresh", metavar="SECONDS", type=float, default=0.05, dest="attach_refresh",
+                   help="screen refresh interval (default 0.05)")
+    a.set_defaults(handler=cmd_attach)
+    s = sub.add_parser("stop", help="stop a session: pumps at 0, log kept",
+                       description="Stop SESSION: the pumps at 0, logging stopped with its rows kept "
+                       "(an unsaved log stays in the partial file), the process gone.")
+    s.add_argument("session", metavar="SESSION", help="a session id (see quadtank sessions)")
+    s.set_defaults(handler=cmd_stop)
+
+
+def _runtime() -> Path:
+    from quadtank_tui.session.runtime import runtime_dir
+
+    return runtime_dir()
+
+
+# --- quadtank sessions ---------------------------------------------------------------------------
+
+
+def cmd_sessions(args: argparse.Namespace) -> int:
+    import json
+    from dataclasses import asdict
+
+    from quadtank_tui.session.runtime import list_sessions
+
+    sessions = list_sessions(_runtime())
+    if args.json:
+        print(json.dumps([asdict(i) for i in sessions], indent=2))
+        return 0
+    if not sessions:
+        print("no sessions")
+        return 0
+    print(format_table(sessions))
+    return 0
+
+
+def format_table(sessions: list[SessionInfo]) -> str:
+    head = ("ID", "OWNER", "STARTED", "PLANT", "OPERATION", "STATE", "LOGGING", "CLIENTS")
+    rows = [head]
+    for i in sessions:
+        clients = f"{i.clients}" + (f" ({i.operator} operates)" if i.operator else "")
+        state = i.state + (f" - {i.note}" if i.note else "")
+        rows.append((i.id, i.owner, i.started.replace("T", " "), i.plant + (" (headless)" if i.headless else ""),
+                     i.operation, state, i.logging, clients))
+    widths = [max(len(r[c]) for r in rows) for c in range(len(head))]
+    return "\n".join("  ".join(v.ljust(w) for v, w in zip(r, widths)).rstrip() for r in rows)
+
+
+# --- quadtank stop -------------------------------------------------------------------------------
+
+
+def cmd_stop(args: argparse.Namespace) -> int:
+    from quadtank_tui.session.client import SessionError, stop_session_at
+    from quadtank_tui.session.runtime import NoSession, find_session, pid_alive
+
+    try:
+        info = find_session(_runtime(), args.session, os.getuid())
+        reason = stop_session_at(info.socket)
+    except (NoSession, SessionError) as exc:
+        raise UsageError(str(exc)) from None
+    for _ in range(200):  # the process ends right after it said so
+        if not pid_alive(info.pid):
+            break
+        threading.Event().wait(0.05)
+    print(f"session {info.id} stopped ({reason}): pumps at 0, logging stopped, its rows kept in {info.cwd}")
+    return 0
+
+
+# --- the TUI on a session ------------------------------------------------------------------------
+
+
+def cmd_attach(args: argparse.Namespace) -> int:
+    from quadtank_tui.session.client import SessionError
+    from quadtank_tui.session.runtime import NoSession, find_session
+
+    if not 0.01 <= args.attach_refresh <= 5.0:
+        raise UsageError(f"--refresh must be 0.01..5 s, got {args.attach_refresh:g}")
+    try:
+        info = find_session(_runtime(), args.session, os.getuid())
+        client = _connect(info, "observer" if args.observe else "operator", take_over=args.take_over)
+    except (NoSession, SessionError) as exc:
+        raise UsageError(str(exc)) from None
+    return run_tui_on(client, args.attach_refresh)
+
+
+def _connect(info: SessionInfo, role: str, *, take_over: bool = False) -> SessionClient:
+    from quadtank_tui.session.client import SessionClient
+
+    return SessionClient(info.socket, role=role, take_over=take_over)  # type: ignore[arg-type]
+
+
+def cmd_tui_session(args: argparse.Namespace) -> int:
+    """`quadtank` with sessions: attach to the caller's running session, else start one."""
+    from quadtank_tui.session.client import SessionError
+    from quadtank_tui.session.runtime import NoSession, find_session
+
+    if not 1.0 <= args.tui_speed <= 1000.0:
+        raise UsageError(f"--speed must be 1..1000, got {args.tui_speed:g}")
+    if not 0.01 <= args.refresh <= 5.0:
+        raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
+    runtime = _runtime()
+    try:
+        info = find_session(runtime, None, os.getuid(), interactive=True)
+    except NoSession as exc:
+        if "name one" in str(exc):
+            raise UsageError(f"{exc} with quadtank attach SESSION") from None
+        info = None
+    try:
+        if info is not None:
+            if args.tui_par or args.daq_global:
+                warn([f"attached to your running session {info.id}: --par / --daq apply to a new session "
+                      f"only (quadtank stop {info.id} first)"])
+            client = _connect(info, "operator")
+        else:
+            info = start_for(args, runtime)
+            client = _connect(info, "operator")
+    except SessionError as exc:
+        raise UsageError(str(exc)) from None
+    return run_tui_on(client, args.refresh)
+
+
+def start_for(args: argparse.Namespace, runtime: Path) -> SessionInfo:
+    """A new session with the TUI's options (files read and checked here first)."""
+    from quadtank_tui.daq.cli import open_daq
+    from quadtank_tui.engine.runner import engine_spec
+    from quadtank_tui.session.launch import SessionSpec, start_session
+
+    spec = engine_spec(args.tui_par, clock="realtime" if args.daq_global else "virtual", speed=args.tui_speed)
+    # The DAQ configuration is checked here, for the plant of the parameters.
+    open_daq(args.daq_global, spec.params.process_plant() if args.daq_global else None)
+    warn(spec.warnings)
+    return start_session(SessionSpec(spec, str(runtime), args.daq_global and str(Path(args.daq_global).resolve())),
+                         lock=_held_lock(args))
+
+
+def _held_lock(args: argparse.Namespace) -> DaqLock | None:
+    """The rig's lock `quadtank` took for this command (cli.main), to hand over to
+    the session (which watches it from then on: this process stops watching)."""
+    hold = getattr(args, "daq_hold", None)
+    if hold is None:
+        return None
+    hold.stop_watch()
+    return hold.lock
+
+
+def start_detached_run(args: argparse.Namespace, script: Script | None, clock: ClockKind) -> int:
+    """`quadtank run ... --detach`: the run in a session process; returns at once."""
+    from quadtank_tui.engine.runner import load_parameters
+    from quadtank_tui.files.par import ParStore
+    from quadtank_tui.session.launch import HeadlessArgs, SessionSpec, start_session
+
+    _, warnings = load_parameters(args.par, ParStore("params"))  # a bad .par is refused here
+    warn(warnings)
+    config = args.daq or getattr(args, "daq_global", None)
+    run = HeadlessArgs(args.par, script, args.duration, str(Path(args.log).resolve()), args.seed, clock,
+                       args.speed, str(Path("params").resolve()))
+    runtime = _runtime()
+    info = start_session(SessionSpec(None, str(runtime), config and str(Path(config).resolve()), run),
+                         lock=_held_lock(args))
+    print(f"session {info.id} runs the experiment ({args.duration:g} s) and will save {run.out}; "
+          f"quadtank attach {info.id} watches it, quadtank stop {info.id} ends it early; "
+          f"its summary goes to {runtime / (info.id + '.out')}")
+    return 0
+
+
+def run_tui_on(client: SessionClient, refresh: float) -> int:
+    """The TUI on `client` until Exit or the terminal goes; then detach (or stop the
+    session, if Exit chose that)."""
+    from quadtank_tui.ui.app import build_app
+    from quadtank_tui.ui.terminal_watch import TerminalWatch
+
+    app = build_app(client, refresh_interval=refresh)
+    watch = TerminalWatch(app.exit_soon, client.close)
+    watch.start()
+    try:
+        app.run()
+    finally:
+        watch.close()
+        client.close()  # detaches; stops the session if Exit chose that
+    sid = client.info.id
+    if watch.reason is not None:
+        _say(f"quadtank: detached from session {sid}: {watch.reason}; it keeps running")
+    elif client.stop_on_close:
+        _say(f"quadtank: session {sid} stopped" + ("" if client.ended else " (it did not confirm)"))
+    elif client.gone and not client.stop_on_close and client.ended is not None:
+        _say(f"quadtank: session {sid} ended: {client.ended}")
+    else:
+        _say(f"quadtank: detached from session {sid}: quadtank attach {sid} comes back to it, "
+             f"quadtank stop {sid} stops it. {client.policy}")
+    return app.return_code or watch.status
+
+
+def _say(line: str) -> None:
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except OSError:
+        pass

@@ -1,0 +1,317 @@
+"""A TUI's (or a script's) handle on a session: the EngineHandle over its socket.
+
+On attach the session sends everything at once - its whole ring buffer, the
+snapshot, the defaults - so the trends are complete (nothing sampled while no client
+was attached is missing) and the screen is live at once.  Then a reader thread
+appends each update's rows to a private copy of the ring buffer and keeps the newest
+snapshot; `snapshot()` and `history()` read those, never the socket.
+
+Closing a client never stops the session (that is `stop_session`, or the Exit
+window's "Stop the session").  If the session process dies without saying so (a
+SIGKILL), the snapshot says so, the commands are refused, and - for an operator of
+an Active session whose DAQ configuration it can read - the pumps are commanded to
+0 over a link of its own, as the loop process's parent does; the rig's watchdog is
+the last line.
+"""
+
+from __future__ import annotations
+
+import itertools
+import socket
+import threading
+from concurrent.futures import Future
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from quadtank_tui.core.parameters import Parameters
+from quadtank_tui.engine.commands import Command, CommandResult
+from quadtank_tui.engine.history import History
+from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.files.log import log_path
+from quadtank_tui.files.par import ParStore
+from quadtank_tui.session.protocol import (
+    MAX_SESSION_LINE, Ended, Hello, LineReader, ProtocolError, Refused, Result, Role, Roster, SessionInfo,
+    StopSession, Submit, Update, Welcome, decode, encode,
+)
+
+#: Seconds to connect and receive the Welcome (the whole history: 2.6 MB).
+ATTACH_TIMEOUT = 10.0
+#: Seconds `stop_session` waits for the session to stop (pumps at 0, log closed).
+STOP_TIMEOUT = 15.0
+
+
+class SessionError(OSError):
+    """The session could not be reached, or refused us; the message says why."""
+
+
+class SessionClient:
+    """Implements :class:`quadtank_tui.engine.handle.EngineHandle` on a session.
+
+    path : the session's socket;  role : "operator" (drive it) or "observer"
+    take_over : an administrator takes the operator's place
+    """
+
+    def __init__(self, path: str | Path, *, role: Role = "operator", take_over: bool = False,
+                 client: str = "tui", timeout: float = ATTACH_TIMEOUT) -> None:
+        self.warnings: tuple[str, ...] = ()
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        sock.settimeout(timeout)
+        try:
+            sock.connect(str(path))
+        except OSError as exc:
+            sock.close()
+            raise SessionError(f"cannot reach the session at {path}: {exc.strerror or exc}") from None
+        self._sock = sock
+        self._reader = LineReader(MAX_SESSION_LINE)
+        self._pending: list[bytes] = []
+        try:
+            sock.sendall(encode(Hello(role, client, take_over)))
+            first = self._receive_first()
+        except (OSError, ProtocolError) as exc:
+            sock.close()
+            raise SessionError(f"the session at {path} did not answer: {exc}") from None
+        if isinstance(first, Refused):
+            sock.close()
+            raise SessionError(first.reason)
+        if not isinstance(first, Welcome):
+            sock.close()
+            raise SessionError(f"the session at {path} answered {type(first).__name__}, not Welcome")
+        sock.settimeout(None)
+        w = first
+        self.info: SessionInfo = w.info
+        self.role: Role = w.role
+        self.controller = w.controller
+        self._policy = (w.policy_simul, w.policy_active)
+        self.clients = w.info.clients
+        self._defaults = w.defaults
+        self._params: Parameters = w.snapshot.params
+        self._snap: Snapshot = w.snapshot
+        self._history = History(w.capacity)
+        self._history.extend(w.history)
+        self._store = ParStore(w.params_dir)
+        self._logs_dir = Path(w.logs_dir)
+        self._ids = itertools.count(1)
+        self._futures: dict[int, Future[CommandResult]] = {}
+        self._lock = threading.Lock()
+        self._send_lock = threading.Lock()
+        self._gone = threading.Event()
+        self._closing = False
+        self.ended: str | None = None       # the session's own reason, when it stopped in order
+        self.rescue: str | None = None
+        #: What Exit chose: stop the session when this client closes (else detach).
+        self.stop_on_close = False
+        self._thread = threading.Thread(target=self._listen, name="quadtank-session-client", daemon=True)
+        self._thread.start()
+
+    def _receive_first(self) -> Any:
+        while True:
+            data = self._sock.recv(1 << 20)
+            if not data:
+                raise ProtocolError("it closed the connection")
+            lines = self._reader.feed(data)
+            if lines:
+                self._pending = lines[1:]
+                return decode(lines[0])
+
+    # --- EngineHandle ------------------------------------------------------------------------
+
+    def snapshot(self) -> Snapshot:
+        snap = self._snap
+        if self._gone.is_set() and not self._closing:
+            if self.ended is not None:
+                why = f"session {self.info.id} ended: {self.ended}"
+            else:
+                pumps = f"; {self.rescue}" if self.rescue else \
+                    ("; the rig's watchdog puts its pumps at 0" if snap.operation == "Active" else "")
+                why = (f"the session process {self.info.id} (pid {self.info.pid}) stopped unexpectedly"
+                       f"{pumps}; its log so far is in {self._logs_dir}")
+            return replace(snap, state="Pause", fault=why)
+        return snap
+
+    def history(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
+        return self._history.last(seconds)
+
+    def defaults(self) -> Parameters:
+        return self._defaults
+
+    def par_names(self) -> list[str]:
+        return self._store.names()
+
+    def log_exists(self, name: str) -> bool:
+        return log_path(self._logs_dir, name).exists()
+
+    def submit(self, command: Command) -> Future[CommandResult]:
+        fut: Future[CommandResult] = Future()
+        if self.role != "operator":
+            fut.set_result(CommandResult.refused(f"read-only: you observe session {self.info.id}; "
+                                                 f"{self.controller}"))
+            return fut
+        with self._lock:
+            if self._gone.is_set():
+                fut.set_result(CommandResult.refused(f"session {self.info.id} is gone"))
+                return fut
+            cid = next(self._ids)
+            self._futures[cid] = fut
+        try:
+            self._send(Submit(cid, command))
+        except OSError as exc:
+            with self._lock:
+                self._futures.pop(cid, None)
+            fut.set_result(CommandResult.refused(f"session {self.info.id} is gone ({exc})"))
+        return fut
+
+    def _send(self, message: Any) -> None:
+        with self._send_lock:
+            self._sock.sendall(encode(message))
+
+    # --- the session's side ----------------------------------------------------------------------
+
+    @property
+    def policy(self) -> str:
+        """What the session will do once no operator is attached (its lab's policy)."""
+        return self._policy[self._snap.operation == "Active"]
+
+    @property
+    def gone(self) -> bool:
+        """The connection is closed (the session ended, died, or we detached)."""
+        return self._gone.is_set()
+
+    def wait_gone(self, timeout: float | None = None) -> bool:
+        return self._gone.wait(timeout)
+
+    def session_banner(self) -> str:
+        """One line for the screen: whose session this is and who drives it."""
+        you = "you operate it" if self.role == "operator" else "read-only: you observe it"
+        return f"session {self.info.id} of {self.info.owner}: {self.controller}; {you}"
+
+    def _listen(self) -> None:
+        lines = self._pending
+        try:
+            while True:
+                for line in lines:
+                    self._handle(decode(line))
+                data = self._sock.recv(1 << 20)
+                if not data:
+                    break
+                lines = self._reader.feed(data)
+        except (OSError, ProtocolError):
+            pass
+        with self._lock:
+            self._gone.set()
+            waiting, self._futures = list(self._futures.values()), {}
+        for fut in waiting:
+            if not fut.done():
+                fut.set_result(CommandResult.refused(f"session {self.info.id} is gone"))
+        if self.ended is None and not self._closing:
+            self._pumps_to_zero()
+
+    def _handle(self, message: Any) -> None:
+        if isinstance(message, Update):
+            if message.cleared:
+                self._history.clear()
+            if len(message.rows):
+                self._history.extend(message.rows)
+            snap = message.snapshot
+            if snap.params is None:
+                snap = replace(snap, params=self._params)
+            else:
+                self._params = snap.params
+            self._snap = snap
+        elif isinstance(message, Result):
+            with self._lock:
+                fut = self._futures.pop(message.id, None)
+            if fut is not None and not fut.done():
+                fut.set_result(message.result)
+        elif isinstance(message, Roster):
+            self.controller, self.clients, self.role = message.controller, message.clients, message.role
+        elif isinstance(message, Ended):
+            self.ended = message.reason
+
+    def _pumps_to_zero(self) -> None:
+        """The session died: an operator of an Active session puts the rig's pumps at 0."""
+        if self.role != "operator" or self._snap.operation != "Active" or not self.info.daq:
+            return
+        try:
+            from quadtank_tui.daq.cli import open_daq
+
+            backend = open_daq(self.info.daq)
+            assert backend is not None
+            try:
+                backend.safe_state()
+            finally:
+                backend.close()
+            self.rescue = "the pumps were commanded to 0 from this client"
+        except Exception as exc:  # noqa: BLE001 - say it; the rig's watchdog is the last line
+            self.rescue = f"the pumps could NOT be commanded to 0 ({type(exc).__name__}: {exc})"
+
+    # --- lifetime --------------------------------------------------------------------------------
+
+    def stop_session(self, timeout: float = STOP_TIMEOUT) -> bool:
+        """Ask the session to stop (pumps at 0, log kept) and wait for it; False if it
+        refused or did not stop in time."""
+        try:
+            self._send(StopSession())
+        except OSError:
+            return self._gone.is_set()
+        return self._gone.wait(timeout) and self.ended is not None
+
+    def start(self) -> None:
+        """The session samples already (EngineHandle users call start())."""
+
+    def stop(self) -> None:
+        """Leave the session: detach, or stop it if Exit chose so (`stop_on_close`)."""
+        self.close()
+
+    def close(self) -> None:
+        """Detach (or stop the session if `stop_on_close`); idempotent."""
+        if self.stop_on_close and not self._gone.is_set():
+            self.stop_session()
+        self._closing = True
+        try:
+            self._sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        self._thread.join(timeout=2.0)
+        try:
+            self._sock.close()
+        except OSError:
+            pass
+
+    def __enter__(self) -> SessionClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def stop_session_at(path: str | Path, timeout: float = STOP_TIMEOUT) -> str:
+    """Ask the session at `path` to stop (pumps at 0, log kept) without attaching;
+    returns its reason once it has stopped.  SessionError if it refused (not its
+    owner nor an administrator) or did not stop within `timeout`."""
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    sock.settimeout(timeout)
+    try:
+        sock.connect(str(path))
+        sock.sendall(encode(Hello("control", "stop")) + encode(StopSession()))
+        reader = LineReader(MAX_SESSION_LINE)
+        while True:
+            data = sock.recv(1 << 20)
+            if not data:
+                raise SessionError(f"the session at {path} hung up without saying it stopped")
+            for line in reader.feed(data):
+                message = decode(line)
+                if isinstance(message, Refused):
+                    raise SessionError(message.reason)
+                if isinstance(message, Ended):
+                    return message.reason
+    except socket.timeout:
+        raise SessionError(f"the session at {path} did not stop within {timeout:g} s") from None
+    except (OSError, ProtocolError) as exc:
+        if isinstance(exc, SessionError):
+            raise
+        raise SessionError(f"cannot reach the session at {path}: {exc}") from None
+    finally:
+        sock.close()

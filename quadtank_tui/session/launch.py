@@ -1,0 +1,241 @@
+"""Starting a session process detached from the terminal, and its `main`.
+
+The launcher (the `quadtank` the user typed) reads and checks the files first, so a
+bad `.par` is refused in the terminal with the usual message; then it starts
+``python -m quadtank_tui.session.launch`` in a new session (no controlling terminal:
+a hang-up, a closed tmux window, Ctrl-C in the launcher's terminal never reach it),
+hands it the checked engine spec on its stdin (our own child: a pickle is fine
+there, never on the socket), and waits on a pipe for "ready" with the session's
+record, or "failed" with why.  The session's stdout and stderr go to
+`<runtime>/<id>.out`, removed at a clean stop if empty.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import asdict, dataclass, replace
+from datetime import datetime
+from pathlib import Path
+
+from quadtank_tui.engine.runner import ClockKind, EngineSpec
+from quadtank_tui.files.script import Script
+from quadtank_tui.session.lock import DaqLock
+from quadtank_tui.session.protocol import SessionInfo
+from quadtank_tui.session.runtime import runtime_dir
+
+#: Seconds a session may take to start (a fresh interpreter importing numpy).
+START_TIMEOUT = 60.0
+
+
+class SessionStartError(OSError):
+    """The session process did not start; the message says why."""
+
+
+@dataclass(frozen=True)
+class HeadlessArgs:
+    """`quadtank run ... --detach`: the run's options, checked by the launcher."""
+
+    par: str | None
+    script: Script | None
+    duration: float
+    out: str
+    seed: int | None
+    clock: ClockKind
+    speed: float | None
+    params_dir: str = "params"
+
+
+@dataclass(frozen=True)
+class SessionSpec:
+    """What a session process is started with: an engine for the TUI, or a
+    headless run (`run`)."""
+
+    engine: EngineSpec | None
+    runtime: str
+    daq_config: str | None = None
+    run: HeadlessArgs | None = None
+
+
+def start_session(spec: SessionSpec, *, lock: DaqLock | None = None,
+                  timeout: float = START_TIMEOUT) -> SessionInfo:
+    """Start a detached session process; its record once it listens.  `lock`: the
+    rig's lock this launcher took (`quadtank --daq`), handed to the session process,
+    which holds it from then on."""
+    r, w = os.pipe()
+    try:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "quadtank_tui.session.launch", str(w)],
+            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            pass_fds=(w,), start_new_session=True, close_fds=True,
+        )
+    except OSError:
+        os.close(r)
+        os.close(w)
+        raise
+    os.close(w)
+    if lock is not None:
+        try:
+            lock.transfer(proc.pid)  # before the process looks: it adopts the lock
+        except OSError:
+            proc.kill()
+            os.close(r)
+            raise
+    # Reap it whenever it ends, so a session that stops while we run is no zombie.
+    threading.Thread(target=proc.wait, name="quadtank-session-reaper", daemon=True).start()
+    try:
+        assert proc.stdin is not None
+        proc.stdin.write(pickle.dumps(spec))
+        proc.stdin.close()
+        reply = _read_reply(r, timeout)
+    except BrokenPipeError:
+        reply = b""
+    finally:
+        os.close(r)
+    if reply.startswith(b"ready "):
+        return SessionInfo(**json.loads(reply[6:]))
+    if reply.startswith(b"failed "):
+        raise SessionStartError(reply[7:].decode(errors="replace").strip())
+    if proc.poll() is None:
+        proc.kill()
+    raise SessionStartError(f"the session process did not start (exit code {proc.poll()})")
+
+
+def _read_reply(fd: int, timeout: float) -> bytes:
+    import select
+
+    out = b""
+    end = time.monotonic() + timeout
+    while True:
+        left = end - time.monotonic()
+        if left <= 0:
+            return out
+        ready, _, _ = select.select([fd], [], [], left)
+        if not ready:
+            return out
+        chunk = os.read(fd, 65536)
+        if not chunk:
+            return out
+        out += chunk
+
+
+# --- the session process -----------------------------------------------------------------------
+
+
+def session_main(ready_fd: int) -> int:
+    """Build the engine, take the DAQ's lock, listen, say ready, serve until stopped."""
+    from quadtank_tui.engine.runner import assemble
+    from quadtank_tui.session.host import Access, SessionHost
+    from quadtank_tui.session.lab import load_lab_config
+    from quadtank_tui.session.lock import DaqLock, device_key
+    from quadtank_tui.session.roles import group_id, user_name
+    from quadtank_tui.session.runtime import claim_id, remove_files, socket_path, write_record
+    from quadtank_tui.session.server import listen
+
+    spec: SessionSpec = pickle.loads(sys.stdin.buffer.read())
+    ready = os.fdopen(ready_fd, "wb", buffering=0)
+    lab = replace(load_lab_config(), runtime_dir=Path(spec.runtime))
+    runtime = runtime_dir(lab.runtime_dir)
+    uid = os.getuid()
+    sid = claim_id(runtime, user_name(uid))
+    out_path = runtime / f"{sid}.out"
+    lock: DaqLock | None = None
+    try:
+        _redirect_stdio(out_path)
+        daq = None
+        if spec.daq_config is not None:
+            from quadtank_tui.daq.cli import open_daq
+
+            if spec.engine is not None:
+                wired = spec.engine.params.process_plant()
+            else:  # the DAQ is wired for the plant of the run's parameters
+                from quadtank_tui.engine.runner import load_parameters
+                from quadtank_tui.files.par import ParStore
+
+                assert spec.run is not None
+                wired = load_parameters(spec.run.par, ParStore(spec.run.params_dir))[0].process_plant()
+            daq = open_daq(spec.daq_config, wired)
+            assert daq is not None
+            c = daq.config
+            lock = DaqLock.acquire(device_key(c.host, c.port, c.device_id), lab, session=sid)
+        scripted = None
+        if spec.run is not None:
+            from quadtank_tui.engine.headless import prepare_headless
+            from quadtank_tui.session.scripted import ScriptedRun
+
+            r = spec.run
+            prepared = prepare_headless(par=r.par, script=r.script, duration=r.duration, out=Path(r.out),
+                                        seed=r.seed, clock=r.clock, speed=r.speed,
+                                        params_dir=Path(r.params_dir), daq=daq)
+            engine, scripted = prepared.engine, ScriptedRun(prepared)
+        else:
+            assert spec.engine is not None
+            engine = assemble(spec.engine, daq=daq, threaded=False)
+        sock_path = socket_path(runtime, sid)
+        # The share group (else the admin group) may connect; the session checks who.
+        group = lab.share_group or lab.admin_group
+        listener = listen(str(sock_path), group_id(group) if group else None)
+        params = engine.loop.params
+        plant = params.process.kind if params.process is not None else "quadtank"
+        info = SessionInfo(id=sid, owner=user_name(uid), uid=uid, pid=os.getpid(),
+                           started=datetime.now().isoformat(timespec="seconds"), plant=plant,
+                           socket=str(sock_path), cwd=os.getcwd(), daq=spec.daq_config or "",
+                           headless=scripted is not None)
+        host = SessionHost(engine, listener, info, runtime=runtime, access=Access.for_lab(uid, lab),
+                           policy=lab.unattended, scripted=scripted)
+        host.install_signal_handlers()
+        if lock is not None:  # an administrator may take the rig over: then stop, pumps at 0
+            from quadtank_tui.session.lockwatch import LockWatch
+
+            LockWatch(lock, lambda why: host.request_stop(f"the rig was taken over: {why}")).start()
+        write_record(runtime, info)
+    except BaseException as exc:  # noqa: BLE001 - the launcher says why
+        if lock is not None:
+            lock.release()
+        remove_files(runtime, sid)
+        _remove_if_empty(out_path)
+        ready.write(f"failed {exc}".encode())
+        ready.close()
+        return 1
+    ready.write(b"ready " + json.dumps(asdict(info)).encode())
+    ready.close()
+    try:
+        reason = host.serve()
+    finally:
+        if lock is not None:
+            lock.release()  # after the pumps went to 0
+    print(f"{datetime.now():%Y-%m-%d %H:%M:%S} session {sid} stopped: {reason}", flush=True)
+    _remove_if_empty(out_path)
+    return 0
+
+
+def _redirect_stdio(out_path: Path) -> None:
+    fd = os.open(out_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    null = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(null, 0)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    os.close(fd)
+    os.close(null)
+
+
+def _remove_if_empty(path: Path) -> None:
+    try:
+        if path.stat().st_size == 0 or _only_the_stop_line(path):
+            path.unlink()
+    except OSError:
+        pass
+
+
+def _only_the_stop_line(path: Path) -> bool:
+    lines = path.read_text(errors="replace").splitlines()
+    return len(lines) == 1 and " stopped: " in lines[0]
+
+
+if __name__ == "__main__":  # pragma: no cover - the session process
+    raise SystemExit(session_main(int(sys.argv[1])))

@@ -1,0 +1,63 @@
+"""An Active session on the virtual rig (a real Modbus link on loopback): the pumps
+at 0 when the session stops in order, and when it is killed (SIGKILL: it cannot
+stop in order, so its operator's client commands the pumps to 0 over a link of its
+own, as the TUI did for its loop process; the rig's watchdog is off here)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from pathlib import Path
+from typing import Callable
+
+import pytest
+
+from quadtank_tui.engine.commands import SetOperation, SetParams, SetState
+from quadtank_tui.engine.runner import engine_spec
+from quadtank_tui.session.client import SessionClient, stop_session_at
+from quadtank_tui.session.launch import SessionSpec, start_session
+
+ROOT = Path(__file__).parents[2]
+
+
+def _active_session(rig: Callable, tmp_path: Path):  # type: ignore[no-untyped-def]
+    r = rig("--speed", "1", "--watchdog", "0")
+    config = tmp_path / "rig.yaml"
+    config.write_text((ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {r.port}"))
+    spec = engine_spec(clock="realtime", params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
+    info = start_session(SessionSpec(spec, str(tmp_path / "run"), str(config)))
+    client = SessionClient(info.socket)
+    for command in (SetOperation("Active"), SetParams({"REFERENCE ONE.Mean": 0.4}), SetState("Run")):
+        assert client.submit(command).result(timeout=10).ok
+    deadline = time.monotonic() + 20
+    while r.dacs()[0] == 0.0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert r.dacs()[0] == pytest.approx(4.0, abs=1e-4)
+    return r, info, client
+
+
+def test_stopping_an_active_session_puts_the_pumps_at_0(rig: Callable, tmp_path: Path) -> None:
+    r, info, client = _active_session(rig, tmp_path)
+    try:
+        assert client.snapshot().operation == "Active"
+        assert stop_session_at(info.socket).startswith("stopped by ")
+        assert r.dacs() == (0.0, 0.0)
+    finally:
+        client.close()
+
+
+def test_a_killed_active_session_gets_its_pumps_to_0_from_the_client(rig: Callable, tmp_path: Path) -> None:
+    r, info, client = _active_session(rig, tmp_path)
+    try:
+        os.kill(info.pid, signal.SIGKILL)
+        assert client.wait_gone(5)
+        deadline = time.monotonic() + 20
+        while client.rescue is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        fault = client.snapshot().fault or ""
+        assert f"the session process {info.id} (pid {info.pid}) stopped unexpectedly" in fault
+        assert "the pumps were commanded to 0 from this client" in fault
+        assert r.dacs() == (0.0, 0.0)
+    finally:
+        client.close()

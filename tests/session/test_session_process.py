@@ -1,0 +1,249 @@
+"""Real session processes: what is promised about processes holds for processes.
+
+- The session process SIGKILLed: an attached client says so within a second and
+  refuses commands; listing the sessions removes its stale record and socket.
+- `quadtank stop SESSION` leaves no process, socket, record or shared-memory file.
+- `quadtank` in a pseudo-terminal that hangs up (directly, and under a shell that
+  keeps SIGHUP as `make run` does): the TUI is gone within a second or so, the
+  session runs on, and a new `quadtank` attaches to it with its whole history.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from quadtank_tui.cli import main
+from quadtank_tui.engine import commands as c
+from quadtank_tui.engine.runner import engine_spec
+from quadtank_tui.session.client import SessionClient
+from quadtank_tui.session.launch import SessionSpec, start_session
+from quadtank_tui.session.runtime import list_sessions, pid_alive
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and Linux ptys")
+
+ROOT = Path(__file__).parents[2]
+
+
+def _hangup_kit():  # type: ignore[no-untyped-def]
+    """The pty harness of tests/ui/test_terminal_hangup.py (one copy of it)."""
+    spec = importlib.util.spec_from_file_location("hangup_kit", ROOT / "tests" / "ui" / "test_terminal_hangup.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _start(tmp_path: Path, runtime: Path, **kwargs: object):  # type: ignore[no-untyped-def]
+    spec = engine_spec(clock="virtual", speed=100.0, params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
+    return start_session(SessionSpec(spec, str(runtime), **kwargs))  # type: ignore[arg-type]
+
+
+def test_a_killed_session_is_reported_by_its_client(tmp_path: Path) -> None:
+    runtime = tmp_path / "run"
+    info = _start(tmp_path, runtime)
+    client = SessionClient(info.socket)
+    try:
+        assert client.submit(c.SetState("Run")).result(5).ok
+        time.sleep(0.2)
+        t0 = time.monotonic()
+        os.kill(info.pid, signal.SIGKILL)
+        assert client.wait_gone(1.0)
+        took = time.monotonic() - t0
+        fault = client.snapshot().fault or ""
+        assert f"the session process {info.id} (pid {info.pid}) stopped unexpectedly" in fault
+        assert client.snapshot().state == "Pause"
+        refused = client.submit(c.SetState("Run")).result(1)
+        assert not refused.ok and "gone" in refused.message
+        print(f"the client saw the SIGKILL after {took * 1000:.0f} ms")
+    finally:
+        client.close()
+    for _ in range(100):
+        if not pid_alive(info.pid):
+            break
+        time.sleep(0.02)
+    assert list_sessions(runtime) == []  # the stale record is removed when listed
+    assert sorted(p.name for p in runtime.iterdir() if not p.name.endswith(".out")) == []
+
+
+def test_quadtank_stop_leaves_nothing_behind(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    runtime = tmp_path / "run"
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
+    info = _start(tmp_path, runtime)
+    # The session's trends travel on its socket: it maps no shared memory at all
+    # (/dev/shm is the machine's: other programs' blocks are none of our business).
+    assert _hangup_kit()._shared_blocks([info.pid]) == set()
+    with SessionClient(info.socket) as client:
+        assert client.submit(c.SetState("Run")).result(5).ok
+        assert client.submit(c.LogOn(points=100000)).result(5).ok
+        deadline = time.monotonic() + 20
+        while client.snapshot().log.rows < 20 and time.monotonic() < deadline:
+            time.sleep(0.02)
+    deadline = time.monotonic() + 5
+    while main(["sessions"]) == 0 and "1 (" in (table := capsys.readouterr().out) and time.monotonic() < deadline:
+        time.sleep(0.05)  # the record follows the detach at once; wait for the session to see it
+    assert info.id in table and "Run" in table and "%" in table and f"({info.owner} operates)" not in table
+    assert main(["stop", info.id]) == 0
+    out = capsys.readouterr().out
+    assert f"session {info.id} stopped (stopped by " in out
+    assert not pid_alive(info.pid)
+    assert sorted(p.name for p in runtime.iterdir()) == []  # no socket, record, output
+    partial = list((tmp_path / "logs").glob("*.partial"))
+    assert partial, "the unsaved log is kept"
+    assert main(["stop", info.id]) == 2  # nothing left to stop: one line, status 2
+
+
+def test_a_bad_session_start_says_why(tmp_path: Path) -> None:
+    from quadtank_tui.session.launch import SessionStartError
+
+    with pytest.raises(SessionStartError, match="no-such.yaml"):
+        _start(tmp_path, tmp_path / "run", daq_config=str(tmp_path / "no-such.yaml"))
+    assert list_sessions(tmp_path / "run") == []
+
+
+@pytest.mark.parametrize("shell", [False, True], ids=["direct", "under a shell that keeps SIGHUP (make run)"])
+def test_a_hang_up_ends_the_client_never_the_session(tmp_path: Path, shell: bool) -> None:
+    kit = _hangup_kit()
+    runtime = tmp_path / "run"
+    env = {"QUADTANK_RUNTIME": str(runtime)}
+    tui = kit.Tui(tmp_path, shell=shell, args=("--speed", "50"), env=env)
+    try:
+        pid = tui.wait_started()
+        sessions = list_sessions(runtime)
+        assert len(sessions) == 1
+        session = sessions[0]
+        assert tui.master is not None
+        os.write(tui.master, b"r")  # Run
+        time.sleep(0.5)
+        tui.hang_up()
+        took = kit._wait_gone([pid], kit.GONE_WITHIN)
+        print(f"hang-up ({'shell' if shell else 'direct'}): the client was gone {took:.2f} s after")
+        assert took < kit.GONE_WITHIN
+        assert pid_alive(session.pid)  # the session runs on
+        time.sleep(0.3)
+        with SessionClient(session.socket, role="observer") as watcher:
+            snap = watcher.snapshot()
+            assert snap.state == "Run" and snap.k > 0
+            assert len(watcher.history()["t"]) == snap.k  # nothing missed
+    finally:
+        tui.kill()
+        for info in list_sessions(runtime):
+            os.kill(info.pid, signal.SIGTERM)
+
+
+def test_a_second_session_on_the_same_daq_is_refused_with_the_holders_name(tmp_path: Path,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """The session process holds the rig's lock (the link itself opens on the first
+    Active sample: no rig needs to run here); a second one is refused, naming the
+    holder; once the first stops, the rig is free."""
+    from quadtank_tui.session.client import stop_session_at
+    from quadtank_tui.session.launch import SessionStartError
+
+    runtime = tmp_path / "run"
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
+    config = str(ROOT / "params" / "virtual-rig.yaml")
+    first = _start(tmp_path, runtime, daq_config=config)
+    try:
+        with pytest.raises(SessionStartError, match=rf"the rig at 127\.0\.0\.1:5020/\d+ is driven by "
+                           rf"{first.owner} \(pid {first.pid}, session {first.id}\) since \d\d:\d\d"):
+            _start(tmp_path, runtime, daq_config=config)
+        assert [i.id for i in list_sessions(runtime)] == [first.id]
+    finally:
+        stop_session_at(first.socket)
+    second = _start(tmp_path, runtime, daq_config=config)
+    stop_session_at(second.socket)
+
+
+def test_run_detach_is_a_session_one_watches_until_the_run_is_over(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """`quadtank run ... --detach` returns at once; a client attaching to the session
+    watches it read-only (the script is the operator); at the end the log has every
+    sample of the duration and the session is gone, leaving only its summary."""
+    from quadtank_tui.files.log import read_log
+
+    runtime = tmp_path / "run"
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "logs" / "detached.log"
+    assert main(["run", "--duration", "200", "--log", str(out), "--speed", "100", "--seed", "3", "--detach"]) == 0
+    said = capsys.readouterr().out
+    (info,) = list_sessions(runtime)
+    assert f"session {info.id} runs the experiment" in said and info.headless
+    with SessionClient(info.socket) as watcher:  # asked to operate: observes
+        assert watcher.role == "observer" and "the script" in watcher.controller
+        refused = watcher.submit(c.SetState("Pause")).result(5)
+        assert not refused.ok and "read-only" in refused.message
+        assert watcher.wait_gone(30)
+        assert watcher.ended is not None and f"the run is over; its log is {out}" in watcher.ended
+        assert len(watcher.history()["t"]) == 2000  # every sample, watched from wherever it was at attach
+    log = read_log(out)
+    assert log.rows == 2000
+    for _ in range(100):
+        if not pid_alive(info.pid):
+            break
+        time.sleep(0.02)
+    assert [p.name for p in runtime.iterdir()] == [f"{info.id}.out"]
+    assert f"log        {out} (2000 rows)" in (runtime / f"{info.id}.out").read_text()
+
+
+def test_sigterm_stops_the_session_in_order(tmp_path: Path) -> None:
+    """SIGTERM (a shutdown, `kill`): the session stops as `quadtank stop` does - the
+    clients are told why, the log is kept, nothing is left in the runtime folder."""
+    runtime = tmp_path / "run"
+    info = _start(tmp_path, runtime)
+    with SessionClient(info.socket) as client:
+        assert client.submit(c.SetState("Run")).result(5).ok
+        assert client.submit(c.LogOn(points=100000)).result(5).ok
+        time.sleep(0.3)
+        os.kill(info.pid, signal.SIGTERM)
+        assert client.wait_gone(5)
+        assert client.ended == "SIGTERM"
+        assert "ended: SIGTERM" in (client.snapshot().fault or "")
+    for _ in range(100):
+        if not pid_alive(info.pid):
+            break
+        time.sleep(0.02)
+    assert not pid_alive(info.pid)
+    assert sorted(p.name for p in runtime.iterdir()) == []
+    assert list((tmp_path / "logs").glob("*.partial"))
+
+
+def test_the_launchers_rig_lock_passes_to_the_session(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """`quadtank run --daq C --detach`: the command takes the rig's lock as every
+    rig command does, then hands it to the session process (transfer), which holds
+    it until it stops; meanwhile a second command on the rig is refused, naming the
+    session."""
+    from quadtank_tui.session.client import stop_session_at
+    from quadtank_tui.session.lab import load_lab_config
+    from quadtank_tui.session.lock import device_key, holder_of
+
+    runtime = tmp_path / "run"
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
+    monkeypatch.chdir(tmp_path)
+    config = str(ROOT / "params" / "virtual-rig.yaml")
+    run = ["run", "--duration", "600", "--log", str(tmp_path / "logs" / "rig.log"), "--daq", config, "--detach"]
+    assert main(run) == 0
+    (info,) = list_sessions(runtime)
+    device = device_key("127.0.0.1", 5020, 1)
+    try:
+        held = holder_of(device, load_lab_config())
+        assert held is not None and held.pid == info.pid and held.session == info.id
+        capsys.readouterr()
+        assert main(run) == 2
+        err = capsys.readouterr().err
+        assert f"is driven by {info.owner} (pid {info.pid}, session {info.id})" in err
+    finally:
+        stop_session_at(info.socket)
+    for _ in range(100):
+        if not pid_alive(info.pid):
+            break
+        time.sleep(0.02)
+    assert holder_of(device, load_lab_config()) is None

@@ -1,0 +1,58 @@
+"""The TUI on a session client: the footer line says whose session it is and who
+controls it; Exit asks Detach or Stop (an observer only leaves); a refused command
+of an observer is shown, and nothing changes in the session."""
+
+from __future__ import annotations
+
+from sessionkit import ThreadSession
+from textual.widgets import Static
+
+from quadtank_tui.engine import commands as c
+from quadtank_tui.session.client import SessionClient
+from quadtank_tui.ui.app import build_app
+from quadtank_tui.ui.windows.base import ChoiceWindow, ConfirmWindow
+
+
+async def test_exit_asks_detach_or_stop_and_stop_is_remembered(thread_session) -> None:
+    s: ThreadSession = thread_session()
+    client = SessionClient(s.path)
+    app = build_app(client, refresh_interval=0.05)
+    async with app.run_test(size=(120, 40)) as pilot:
+        bar = app.main.query_one("#session-bar", Static)
+        assert "session alice-1 of alice" in str(bar.render()) and "you operate it" in str(bar.render())
+        await pilot.press("q")
+        await pilot.pause()
+        assert isinstance(app.screen, ChoiceWindow)
+        assert "Detach:" in app.screen.question and "keeps running" in app.screen.question
+        await pilot.press("escape")  # Cancel: nothing chosen
+        await pilot.pause()
+        assert not client.stop_on_close
+        await pilot.press("q")
+        await pilot.pause()
+        await pilot.click("#choice-1")  # "Stop the session"
+        await pilot.pause()
+    assert client.stop_on_close
+    client.close()  # what the CLI does after the app: stops the session
+    s.thread.join(10)
+    assert s.reason == "stopped by alice"
+
+
+async def test_an_observer_sees_who_controls_and_its_keys_change_nothing(thread_session) -> None:
+    s: ThreadSession = thread_session()
+    operator = SessionClient(s.path)
+    observer = SessionClient(s.path, role="observer")
+    app = build_app(observer, refresh_interval=0.05)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        text = str(app.main.query_one("#session-bar", Static).render())
+        assert "alice (pid" in text and "controls session alice-1" in text and "read-only" in text
+        await pilot.press("r")  # Run: refused
+        await pilot.pause(0.3)
+        assert s.engine.snapshot().state == "Pause"
+        assert any("read-only" in str(n.message) for n in app._notifications)
+        await pilot.press("q")
+        await pilot.pause()
+        assert isinstance(app.screen, ConfirmWindow)
+    observer.close()
+    assert operator.submit(c.SetState("Run")).result(5).ok
+    operator.close()
