@@ -91,9 +91,12 @@ def render_plot(log: LogData, t: np.ndarray, names: Sequence[str], width: int, h
     """A title line naming each curve in its colour, then the plot, `height` rows."""
     import plotext as plt
 
-    from quadtank_tui.ui.widgets.trends import AXIS_ROWS, COLORS, y_axis
+    from quadtank_tui.ui.widgets.trend_style import DARK
+    from quadtank_tui.ui.widgets.trends import AXIS_ROWS, y_axis
 
-    palette = [COLORS.get(n, c) for n, c in zip(names, _SPARE_COLOURS)]
+    # The trends' own colours (as on a dark terminal), so a curve has the same
+    # colour here as on Main.
+    palette: list[str | tuple[int, int, int]] = [DARK.get(n, c) for n, c in zip(names, _SPARE_COLOURS)]
     plt.clear_figure()
     plt.limitsize(False, False)  # the size asked, not capped at the terminal's
     plt.plotsize(width, height - 1)
@@ -122,7 +125,7 @@ def render_plot(log: LogData, t: np.ndarray, names: Sequence[str], width: int, h
 _SPARE_COLOURS = ("blue", "red", "green", "orange", "cyan", "magenta", "yellow", "white", "gray")
 
 
-def _in_colour(text: str, colour_name: str, colour: bool) -> str:
+def _in_colour(text: str, colour_name: str | tuple[int, int, int], colour: bool) -> str:
     if not colour:
         return text
     import plotext as plt

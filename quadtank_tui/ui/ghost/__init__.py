@@ -11,21 +11,39 @@ process was when it was loaded) or at a chosen process time.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
+
+from textual.app import App
 
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.ghost import LoggedRun, load_run, logs_newest_first
 from quadtank_tui.files.log import LogFileError
 from quadtank_tui.ui.ghost.window import GhostChoice, GhostWindow
 
-if TYPE_CHECKING:
-    from quadtank_tui.ui.screens.main import MainScreen
+class GhostHost(Protocol):
+    """What the ghost needs of the screen it draws on (the Main screen): named
+    here rather than imported, so ui/ghost does not depend on ui/screens, which
+    depends on it."""
+
+    engine: object
+
+    @property
+    def app(self) -> App[Any]: ...
+
+    def current(self) -> Snapshot: ...
+
+    def refresh_view(self) -> None: ...
+
+    def notify(self, message: str, *, severity: Any = ..., timeout: float | None = ...) -> None: ...
+
+    def run_worker(self, work: Any, *, thread: bool = ..., group: str = ..., exclusive: bool = ...,
+                   exit_on_error: bool = ...) -> Any: ...
 
 
 class GhostControl:
     """The ghost run of the Main screen's trends."""
 
-    def __init__(self, screen: MainScreen) -> None:
+    def __init__(self, screen: GhostHost) -> None:
         self.screen = screen
         self.run: LoggedRun | None = None
         #: Process time of the ghost's first row when chosen, else None: at LogOn.
