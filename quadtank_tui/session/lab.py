@@ -124,10 +124,10 @@ def parse_lab_config(text: str, *, name: str = "<lab config>", source: Path | No
     if not isinstance(policy, dict):
         raise fail("unattended", f"must be a mapping (keep_while_logging: ..., grace_minutes: ...), got {_show(policy)}")
     _known(policy, "unattended.", POLICY_KEYS, fail)
-    keep = policy.get("keep_while_logging", True)
+    keep = policy.get("keep_while_logging", UnattendedPolicy.keep_while_logging)
     if not isinstance(keep, bool):
         raise fail("unattended.keep_while_logging", f"must be true or false, got {_show(keep)}")
-    grace = policy.get("grace_minutes", 10.0)
+    grace = policy.get("grace_minutes", UnattendedPolicy.grace_minutes)
     if isinstance(grace, bool) or not isinstance(grace, (int, float)) or not 0 <= grace <= MAX_GRACE_MINUTES:
         raise fail("unattended.grace_minutes", f"must be a number of minutes 0..{MAX_GRACE_MINUTES:g}, "
                    f"got {_show(grace)}")

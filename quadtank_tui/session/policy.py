@@ -2,9 +2,11 @@
 session process acts on, and the sentence shown when one detaches.
 
 A Simul session always keeps running (nothing physical can go wrong).  An Active
-one drives real pumps with nobody watching the screen: by default it keeps running
-while its log is being written (an hour's identification experiment survives a
-dropped link) and for a grace period after, then pauses with the pumps at 0.
+one drives real pumps with nobody watching the screen: without a policy from an
+administrator it pauses with the pumps at 0 as soon as the last client leaves
+(issue 16: "Active without policy: pumps at 0").  A lab that wants an hour's
+identification experiment to survive a dropped link sets keep_while_logging and a
+grace period in its lab file (`quadtank lab policy`).
 """
 
 from __future__ import annotations
@@ -28,8 +30,8 @@ class UnattendedPolicy:
     from the end of the log when the log kept it running longer).
     """
 
-    keep_while_logging: bool = True
-    grace_minutes: float = 10.0
+    keep_while_logging: bool = False
+    grace_minutes: float = 0.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.keep_while_logging, bool):

@@ -92,7 +92,7 @@ def test_the_policy_block_is_added_where_there_is_none(tmp_path: Path, monkeypat
     be(monkeypatch, "alice")
     assert main(["lab", "policy", "--keep-while-logging", "yes"]) == 0
     assert lab_file.read_text() == ("admin_group: teachers\nunattended:\n  keep_while_logging: true\n"
-                                    "  grace_minutes: 10\n")
+                                    "  grace_minutes: 0\n")  # the grace of the default policy
 
 
 def test_a_student_may_not(lab_file: Path, monkeypatch: pytest.MonkeyPatch,

@@ -6,7 +6,7 @@ import pytest
 
 from quadtank_tui.session.policy import UnattendedPolicy, describe, unattended_action
 
-DEFAULT = UnattendedPolicy()  # keep while logging, then 10 minutes
+DEFAULT = UnattendedPolicy(keep_while_logging=True, grace_minutes=10)  # the README's example
 STRICT = UnattendedPolicy(keep_while_logging=False, grace_minutes=0)
 GRACE_ONLY = UnattendedPolicy(keep_while_logging=False, grace_minutes=5)
 
@@ -37,6 +37,13 @@ def test_unattended_action(policy: UnattendedPolicy, active: bool, logging: bool
                            since_log: float | None, expected: str) -> None:
     assert unattended_action(policy, active=active, logging=logging, seconds_unattended=unattended,
                              seconds_since_log=since_log) == expected
+
+
+def test_without_a_policy_an_unattended_active_session_pauses_at_once() -> None:
+    assert UnattendedPolicy() == STRICT
+    assert unattended_action(UnattendedPolicy(), active=True, logging=True, seconds_unattended=0.0) == "pause"
+    assert describe(UnattendedPolicy(), active=True) == (
+        "Unattended, an Active session pauses with the pumps at 0 as soon as the last client leaves.")
 
 
 def test_describe_says_what_the_table_does() -> None:

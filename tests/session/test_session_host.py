@@ -229,6 +229,23 @@ def test_unattended_active_session_keeps_logging_then_pauses_pumps_at_0(thread_s
     assert "unattended" in json.loads((s.runtime / "alice-1.json").read_text())["note"]
 
 
+def test_unattended_active_session_without_a_policy_pauses_pumps_at_0(thread_session) -> None:
+    """No lab policy: the client leaves mid-log and the Active session pauses with
+    the pumps at 0 (its rows kept), at the next look at the policy."""
+    rig = Rig()
+    s = thread_session(speed=200.0, daq=rig)
+    with SessionClient(s.path) as a:
+        ok(a, c.SetOperation("Active"))
+        assert a.policy == "Unattended, an Active session pauses with the pumps at 0 as soon as the last client leaves."
+        ok(a, c.SetParams({"REFERENCE ONE.Mean": 0.4}))
+        ok(a, c.SetState("Run"))
+        ok(a, c.LogOn(points=100000))
+        wait_for(lambda: rig.pumps != (0.0, 0.0), what="pumps on")
+    wait_for(lambda: s.engine.snapshot().state == "Pause", timeout=5, what="the pause without a policy")
+    snap = s.engine.snapshot()
+    assert rig.pumps == (0.0, 0.0) and snap.log.rows > 0
+
+
 def test_unattended_simul_session_keeps_running(thread_session) -> None:
     s = thread_session(speed=200.0, policy=UnattendedPolicy(keep_while_logging=False, grace_minutes=0.0))
     with SessionClient(s.path) as a:
