@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import fcntl
+import json
 import os
 import re
 import select
@@ -140,10 +141,24 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / CLK_TCK
 
 
-def loop_process(parent: int, timeout: float = 10.0) -> int | None:
-    """The loop process: the parent's child started by multiprocessing's spawn."""
+def session_records(runtime: Path) -> list[dict]:
+    """The session records in a runtime folder (issue 16: the loop runs in a session)."""
+    out = []
+    for path in sorted(runtime.glob("*.json")):
+        try:
+            out.append(json.loads(path.read_text()))
+        except (OSError, ValueError):
+            continue
+    return out
+
+
+def loop_process(parent: int, runtime: Path, timeout: float = 10.0) -> int | None:
+    """The loop process: the session process named in the runtime folder, else (with
+    --no-session) the parent's child started by multiprocessing's spawn."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:
+        for record in session_records(runtime):
+            return int(record["pid"])
         for entry in Path("/proc").iterdir():
             if not entry.name.isdigit():
                 continue
@@ -184,6 +199,10 @@ def one_run(program: Path, size: tuple[int, int], state: str, settle: float, sec
     env = dict(os.environ, TERM="xterm-256color", COLORTERM="truecolor", COLUMNS=str(size[0]),
                LINES=str(size[1]))
     env.pop("NO_COLOR", None)
+    # Each run starts its own session in its own runtime folder, stopped at the end:
+    # a session outlives its TUI, and a later run would attach to it.
+    runtime = Path(tempfile.mkdtemp(prefix="rt-", dir=folder))
+    env["QUADTANK_RUNTIME"] = str(runtime)
     term.start()
     t0 = time.monotonic()
     proc = subprocess.Popen([str(program), "--par", str(par_file(folder, tsamp))], cwd=folder,
@@ -195,7 +214,7 @@ def one_run(program: Path, size: tuple[int, int], state: str, settle: float, sec
         shown = term.wait_for(FIRST_FRAME, 0, 30.0)
         first = (shown - t0) if shown is not None else nan
         first_cpu = cpu_seconds(proc.pid)
-        loop_pid = loop_process(proc.pid)
+        loop_pid = loop_process(proc.pid, runtime)
         for key in keys:
             term.type(bytes([key]))
             time.sleep(0.2)
@@ -234,6 +253,9 @@ def one_run(program: Path, size: tuple[int, int], state: str, settle: float, sec
                 pass
             proc.wait()
         term.close()
+        for record in session_records(runtime):
+            subprocess.run([str(program), "stop", str(record["id"])], env=env, cwd=folder,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=30)
 
 
 @dataclass
