@@ -32,13 +32,12 @@ import threading
 from concurrent.futures import Future
 from dataclasses import replace
 from multiprocessing.connection import wait
-from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable
 
-import numpy as np
 
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.backend import ProcessBackend
+from quadtank_tui.engine.client_side import HeldLocally
 from quadtank_tui.engine.commands import Command, CommandResult
 from quadtank_tui.engine.messages import (
     Failed, FromLoop, MessageError, Ready, Result, Start, Stop, Stopped, Submit, from_loop, to_loop,
@@ -46,7 +45,6 @@ from quadtank_tui.engine.messages import (
 from quadtank_tui.engine.runner import Engine, EngineSpec, assemble
 from quadtank_tui.engine.shared import SharedState, SnapshotReader, SnapshotWriter
 from quadtank_tui.engine.snapshot import Snapshot
-from quadtank_tui.files.log import log_path
 from quadtank_tui.files.par import ParStore
 
 #: How long the child may take to import and build its engine.
@@ -152,7 +150,7 @@ def _child_main(spec: EngineSpec, shared_path: str, inbox: Any, outbox: Any,
             pass
 
 
-class EngineProcess:
+class EngineProcess(HeldLocally):
     """Implements :class:`quadtank_tui.engine.handle.EngineHandle` with the loop in a
     child process: ``EngineProcess(engine_spec(...))`` is ``build_engine(...)``'s
     engine, built ready to read (start-up state, not running); :meth:`start` starts
@@ -242,23 +240,6 @@ class EngineProcess:
             return replace(snap, state="Pause", fault=f"the control loop process stopped unexpectedly "
                            f"({why}){pumps}; restart the program")
         return snap
-
-    def history(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
-        return self._history.last(seconds)
-
-    def defaults(self) -> Parameters:
-        return self._defaults
-
-    def par_names(self) -> list[str]:
-        return self._store.names()
-
-    def log_exists(self, name: str) -> bool:
-        return log_path(self._logs_dir, name).exists()
-
-    @property
-    def logs_dir(self) -> Path:
-        """The folder logs are saved in (the ghost run's window lists it)."""
-        return Path(self._logs_dir)
 
     @property
     def running(self) -> bool:

@@ -22,15 +22,14 @@ import threading
 from concurrent.futures import Future
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
-import numpy as np
 
 from quadtank_tui.core.parameters import Parameters
+from quadtank_tui.engine.client_side import HeldLocally
 from quadtank_tui.engine.commands import Command, CommandResult
 from quadtank_tui.engine.history import History
 from quadtank_tui.engine.snapshot import Snapshot
-from quadtank_tui.files.log import log_path
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.session.protocol import (
     MAX_SESSION_LINE, Ended, Hello, LineReader, ProtocolError, Refused, Result, Role, Roster, SessionInfo,
@@ -47,7 +46,7 @@ class SessionError(OSError):
     """The session could not be reached, or refused us; the message says why."""
 
 
-class SessionClient:
+class SessionClient(HeldLocally):
     """Implements :class:`quadtank_tui.engine.handle.EngineHandle` on a session.
 
     path : the session's socket;  role : "operator" (drive it) or "observer"
@@ -130,18 +129,6 @@ class SessionClient:
                        f"{pumps}; its log so far is in {self._logs_dir}")
             return replace(snap, state="Pause", fault=why)
         return snap
-
-    def history(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
-        return self._history.last(seconds)
-
-    def defaults(self) -> Parameters:
-        return self._defaults
-
-    def par_names(self) -> list[str]:
-        return self._store.names()
-
-    def log_exists(self, name: str) -> bool:
-        return log_path(self._logs_dir, name).exists()
 
     def submit(self, command: Command) -> Future[CommandResult]:
         fut: Future[CommandResult] = Future()
