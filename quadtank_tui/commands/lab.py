@@ -25,6 +25,7 @@ from quadtank_tui.commands import UsageError
 if TYPE_CHECKING:
     from quadtank_tui.session.lock import DaqLock
     from quadtank_tui.session.lockwatch import LockWatch
+    from quadtank_tui.session.riglock import RigLock
 
 #: Seconds a take-over waits for the previous holder to stop driving the rig
 #: (its LockWatch notices within 0.5 s; its loop then puts the pumps at 0).
@@ -34,7 +35,7 @@ TAKE_OVER_WAIT = 10.0
 class DaqHold:
     """A DAQ lock held by this program, and the watch that notices a take-over."""
 
-    def __init__(self, lock: DaqLock) -> None:
+    def __init__(self, lock: DaqLock | RigLock) -> None:
         self.lock = lock
         self._watch: LockWatch | None = None
 
@@ -78,20 +79,21 @@ def hold_daq(config: str | None, *, take_over: bool = False, say: Callable[[str]
     from quadtank_tui.daq.config import load_daq_config
     from quadtank_tui.session import roles
     from quadtank_tui.session.lab import load_lab_config
-    from quadtank_tui.session.lock import DaqLock, DaqLockHeld, device_key, pid_alive
+    from quadtank_tui.session.lock import DaqLockHeld, pid_alive
+    from quadtank_tui.session.riglock import RigLock
 
     daq = load_daq_config(config)  # a bad file is reported here, before anything else
     lab = load_lab_config()
-    device = device_key(daq.host, daq.port, daq.device_id)
-    try:
-        lock = DaqLock.acquire(device, lab)
+    try:  # under every address the host resolves to (a name that does not: refused)
+        lock = RigLock.acquire(daq.host, daq.port, daq.device_id, lab)
     except DaqLockHeld as held:
+        device = held.device
         if not take_over:
             raise UsageError(f"{held}; ask them to stop it, or an administrator may take it over "
                              "(--take-over)") from None
         me = roles.current_user()
         roles.require_administrator(me.uid, lab, f"taking over the rig at {device} from {held.holder}")
-        lock = DaqLock.acquire(device, lab, take_over=True)
+        lock = RigLock.acquire(daq.host, daq.port, daq.device_id, lab, take_over=True)
         (say or _say)(f"quadtank: took the rig at {device} over from {held.holder} (pid {held.pid}); "
                       "waiting for that program to stop ...")
         deadline = time.monotonic() + TAKE_OVER_WAIT

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 from quadtank_tui.commands import UsageError, warn
 
 if TYPE_CHECKING:
-    from quadtank_tui.session.lock import DaqLock
+    from quadtank_tui.session.riglock import RigLock
     from quadtank_tui.engine.runner import ClockKind
     from quadtank_tui.files.script import Script
     from quadtank_tui.session.client import SessionClient
@@ -173,7 +173,7 @@ def start_for(args: argparse.Namespace, runtime: Path) -> SessionInfo:
                          lock=_held_lock(args))
 
 
-def _held_lock(args: argparse.Namespace) -> DaqLock | None:
+def _held_lock(args: argparse.Namespace) -> RigLock | None:
     """The rig's lock `quadtank` took for this command (cli.main), to hand over to
     the session (which watches it from then on: this process stops watching)."""
     hold = getattr(args, "daq_hold", None)

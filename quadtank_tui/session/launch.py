@@ -25,7 +25,7 @@ from pathlib import Path
 
 from quadtank_tui.engine.runner import ClockKind, EngineSpec
 from quadtank_tui.files.script import Script
-from quadtank_tui.session.lock import DaqLock
+from quadtank_tui.session.riglock import RigLock
 from quadtank_tui.session.protocol import SessionInfo
 from quadtank_tui.session.runtime import runtime_dir
 
@@ -62,7 +62,7 @@ class SessionSpec:
     run: HeadlessArgs | None = None
 
 
-def start_session(spec: SessionSpec, *, lock: DaqLock | None = None,
+def start_session(spec: SessionSpec, *, lock: RigLock | None = None,
                   timeout: float = START_TIMEOUT) -> SessionInfo:
     """Start a detached session process; its record once it listens.  `lock`: the
     rig's lock this launcher took (`quadtank --daq`), handed to the session process,
@@ -132,7 +132,6 @@ def session_main(ready_fd: int) -> int:
     from quadtank_tui.engine.runner import assemble
     from quadtank_tui.session.host import Access, SessionHost
     from quadtank_tui.session.lab import load_lab_config
-    from quadtank_tui.session.lock import DaqLock, device_key
     from quadtank_tui.session.roles import group_id, user_name
     from quadtank_tui.session.runtime import claim_id, remove_files, socket_path, write_record
     from quadtank_tui.session.server import listen
@@ -144,7 +143,7 @@ def session_main(ready_fd: int) -> int:
     uid = os.getuid()
     sid = claim_id(runtime, user_name(uid))
     out_path = runtime / f"{sid}.out"
-    lock: DaqLock | None = None
+    lock: RigLock | None = None
     try:
         _redirect_stdio(out_path)
         daq = None
@@ -162,7 +161,7 @@ def session_main(ready_fd: int) -> int:
             daq = open_daq(spec.daq_config, wired)
             assert daq is not None
             c = daq.config
-            lock = DaqLock.acquire(device_key(c.host, c.port, c.device_id), lab, session=sid)
+            lock = RigLock.acquire(c.host, c.port, c.device_id, lab, session=sid)  # adopts the launcher's
         scripted = None
         if spec.run is not None:
             from quadtank_tui.engine.headless import prepare_headless

@@ -6,9 +6,13 @@ program left running (`--take-over`); that program must then stop driving it
 from __future__ import annotations
 
 import threading
-from typing import Callable
+from typing import Callable, Protocol
 
-from quadtank_tui.session.lock import DaqLock
+
+class Watched(Protocol):
+    """A lock that says why it is no longer ours (session.lock.DaqLock, session.riglock.RigLock)."""
+
+    def lost(self) -> str | None: ...
 
 #: Seconds between looks at the lock file.
 INTERVAL = 0.5
@@ -18,7 +22,7 @@ class LockWatch:
     """Calls `on_lost(reason)` once, from its own thread, when `lock` is no longer
     this program's; `reason` says who took it (DaqLock.lost)."""
 
-    def __init__(self, lock: DaqLock, on_lost: Callable[[str], None], *, interval: float = INTERVAL) -> None:
+    def __init__(self, lock: Watched, on_lost: Callable[[str], None], *, interval: float = INTERVAL) -> None:
         self._lock, self._on_lost, self._interval = lock, on_lost, interval
         self._stop = threading.Event()
         self.reason: str | None = None

@@ -271,3 +271,38 @@ def test_a_terminated_run_gives_the_rig_back(rig: Callable, poll: Callable, tmp_
     lock_file = load_lab_config().locks_dir / f"127.0.0.1_{r.port}_1.lock"
     assert lock_file.read_text() == ""  # released, not merely stale
     assert r.dacs() == (0.0, 0.0)
+
+
+def test_one_rig_under_two_names_is_refused(rig: Callable, poll: Callable, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """A run drives the virtual rig as `localhost`: the same rig typed `127.0.0.1` or
+    `::1` is refused naming it (one lock for the loopback family), and a host name
+    that does not resolve is refused before anything is locked or written."""
+    r = rig()
+    named = config_for(tmp_path, r.port)
+    named.write_text(named.read_text().replace("host: 127.0.0.1", "host: localhost"))
+    child = run_in_child(named, tmp_path / "first.log")
+    try:
+        assert poll(lambda: holder_pid(r.port) == child.pid, 20.0)
+        held = holder_of(device_key("127.0.0.1", r.port, 1), load_lab_config())
+        assert held is not None
+        since = held.since
+        for host, shown in (("127.0.0.1", f"127.0.0.1:{r.port}/1"),
+                            ("::1", f"[::1]:{r.port}/1 (127.0.0.1:{r.port}/1)"),
+                            ("no-such-rig.invalid", None)):
+            cfg = tmp_path / f"as-{host}.yaml"
+            cfg.write_text(named.read_text().replace("host: localhost", f"host: '{host}'"))
+            out = tmp_path / "second.log"
+            assert main(["run", "--daq", str(cfg), "--duration", "1", "--log", str(out), "--par", PAR]) == 2
+            err = capsys.readouterr().err
+            if shown is None:
+                assert err.startswith("quadtank: error: the rig's host 'no-such-rig.invalid' does not resolve (")
+            else:
+                assert err == (f"quadtank: error: the rig at {shown} is driven by {ME} (pid {child.pid}) "
+                               f"since {since:%H:%M}; ask them to stop it, or an administrator may take it over "
+                               "(--take-over)\n")
+            assert not out.exists() and holder_pid(r.port) == child.pid
+        assert child.poll() is None  # the first run drives on
+    finally:
+        child.kill()
+        child.communicate()
