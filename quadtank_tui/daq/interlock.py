@@ -16,6 +16,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Sequence
 
+from quadtank_tui.engine.backend import InterlockHold
+
 #: Which pump (0-based) feeds each tank 1..4 of the quadruple tank.
 FEEDER = (0, 1, 1, 0)
 #: The same as the pumps (0-based) each tank's trip cuts.
@@ -64,9 +66,14 @@ class Interlock:
 
     def alarms(self, full_scale: float) -> tuple[str, ...]:
         """One line per tripped tank, e.g. "interlock: tank 1 above 95 % of its height, pump 1 cut"."""
+        return tuple(hold.alarm for hold in self.holds(full_scale))
+
+    def holds(self, full_scale: float) -> tuple[InterlockHold, ...]:
+        """Per tripped tank, the pumps its trip cuts (1-based) and its alarm line."""
         pct = 100.0 * self.limit / full_scale
         return tuple(
-            f"interlock: tank {i + 1} above {pct:.0f} % of its height, {_pumps(self.feeders[i])} cut"
+            InterlockHold(i + 1, tuple(p + 1 for p in self.feeders[i]),
+                          f"interlock: tank {i + 1} above {pct:.0f} % of its height, {_pumps(self.feeders[i])} cut")
             for i in sorted(self.tripped)
         )
 

@@ -32,7 +32,7 @@ from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.daq.config import DaqConfig, DaqConfigError, Output
 from quadtank_tui.daq.interlock import Interlock
 from quadtank_tui.daq.registers import Register, block, decode, encode
-from quadtank_tui.engine.backend import BackendError, Levels4, Pair, ProcessBackend
+from quadtank_tui.engine.backend import BackendError, InterlockHold, Levels4, Pair, ProcessBackend
 
 if TYPE_CHECKING:
     from quadtank_tui.core.plants import Plant
@@ -125,6 +125,12 @@ class ModbusBackend(ProcessBackend):
         applied = self.interlock.cut(u)
         self._write_volts([self._output_volts(i, applied[i]) for i in range(len(self._pumps))])
         self.applied = applied
+
+    def written(self, requested: Pair) -> Pair:
+        return self.applied
+
+    def interlock_holds(self) -> tuple[InterlockHold, ...]:
+        return self.interlock.holds(self.full_scale)
 
     def safe_state(self) -> None:
         """Each output to the value that stops its pump, separately (one bad output

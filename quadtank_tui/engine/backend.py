@@ -8,6 +8,7 @@ engine never knows which one it talks to beyond `kind`.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -20,6 +21,16 @@ Pair = tuple[float, float]
 class BackendError(Exception):
     """An I/O fault of the process link; the message is shown to the user as the
     reason the engine paused (e.g. "read of AIN0 timed out after 2 tries")."""
+
+
+@dataclass(frozen=True)
+class InterlockHold:
+    """One tank above its level limit at a write, and the pumps (1-based) its trip
+    held at 0 whatever the controller asked; `alarm` is the line the user sees."""
+
+    tank: int
+    pumps: tuple[int, ...]
+    alarm: str
 
 
 class ProcessBackend(ABC):
@@ -50,6 +61,17 @@ class ProcessBackend(ABC):
     @abstractmethod
     def safe_state(self) -> None:
         """Pumps to 0; must not raise."""
+
+    def written(self, requested: Pair) -> Pair:
+        """The pump inputs the last `write_pumps(requested)` really wrote: what the
+        log, the trends and the controllers' anti-windup must see (an interlock may
+        have cut some to 0)."""
+        return requested
+
+    def interlock_holds(self) -> tuple[InterlockHold, ...]:
+        """The tanks whose interlock trip held pumps at 0 at the last write (none
+        without an interlock)."""
+        return ()
 
     def plant_refused(self, plant: Plant) -> str | None:
         """Why this process cannot be `plant` (a DAQ wired for another rig), or None.

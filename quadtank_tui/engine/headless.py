@@ -24,6 +24,11 @@ from quadtank_tui.files.names import check_file_name
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.files.script import Script
 
+#: The exit status of a run that ran to its end but whose interlock held a pump at
+#: 0 (an overfull tank): not 0, so a lab's script notices; 1 stays a fault (the
+#: link, the log), 2 bad input.
+INTERLOCK_ACTED = 3
+
 #: The ring buffers of a long headless run hold the whole run for the summary, up to
 #: this many samples (9 signals x 8 bytes x 2e6 = 144 MB at most).
 MAX_HISTORY = 2_000_000
@@ -53,7 +58,9 @@ def run_headless(
     whole duration, in Run.  A `.par` in Automatic starts in Automatic with its
     references (controllers at rest).  With `daq` the run is in Active on that
     process (the clock must then be paced: real time, or the rig's speed factor);
-    a link fault pauses it and the status is 1."""
+    a link fault pauses it and the status is 1; a run whose interlock held a pump
+    at 0 ends with INTERLOCK_ACTED (3) and the summary says which tank, which
+    pumps, how many samples and when."""
     run = prepare_headless(par=par, script=script, duration=duration, out=out, seed=seed, clock=clock,
                            speed=speed, params_dir=params_dir, daq=daq)
     try:
@@ -135,7 +142,8 @@ def finish_headless(run: HeadlessRun) -> HeadlessResult:
     try:
         saved, moved = _save(session, out, run.before)
     except (LogRefused, OSError) as exc:
-        text = format_summary(summary) + f"\nno log written: {exc}"
+        text = "\n".join([format_summary(summary), f"no log written: {exc}",
+                          *engine.loop.interlock.lines(engine.loop.h)])
         return HeadlessResult(1, text, warnings, None)
     text = format_summary(summary) + f"\nlog        {saved} ({rows} rows)"
     if moved:
@@ -145,7 +153,10 @@ def finish_headless(run: HeadlessRun) -> HeadlessResult:
                  "line in the log: the device or this computer is too slow for the sampling time")
     if error:
         text += f"\nLOG FAULT  {error}"
-    status = 1 if summary.fault or error else 0
+    held = engine.loop.interlock.lines(engine.loop.h)
+    if held:
+        text += "\n" + "\n".join(held)
+    status = 1 if summary.fault or error else INTERLOCK_ACTED if held else 0
     return HeadlessResult(status, text, warnings, saved)
 
 

@@ -54,7 +54,7 @@ from quadtank_tui.core.plants import Plant
 from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
 from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
-from quadtank_tui.engine.backend import BackendError, ProcessBackend
+from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend
 from quadtank_tui.engine.commands import (
     AddWater, CalibrationHeights, CancelCalibration, Command, CommandResult, LoadPar, LogDiscard, LogOff,
     LogOn, LogSave, NudgeMean, ResetControllers, SavePar, SetControlMode, SetDefaults, SetFault, SetOperation,
@@ -65,6 +65,7 @@ from quadtank_tui.engine.handle import SIGNALS
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, History
 from quadtank_tui.engine.jitter import JitterHistogram
 from quadtank_tui.engine.logsession import LogRefused, LogSession
+from quadtank_tui.engine.safety import InterlockRecord
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
 from quadtank_tui.files.log import LogFileError
@@ -171,6 +172,8 @@ class ControlLoop:
         #: Process time at which Automatic began (None in Manual): the window the
         #: headless summary measures the loops over.
         self.automatic_since: float | None = None
+        #: What the rig's interlock held at 0 over the run (the headless summary says it).
+        self.interlock = InterlockRecord()
         self.k = 0
         self.t = 0.0
         self._fixed_h = True  # t = k h until the sampling time changes (no drift in t)
@@ -267,8 +270,7 @@ class ControlLoop:
         m, sf = self._matrix, self._sf
         if self.params.control.mode is ControlMode.AUTOMATIC:
             r = w
-            u = saturate(sf.compute(r, y) if sf is not None else m.compute(r, y12))
-            self.backend.write_pumps(u)
+            u = self._write(saturate(sf.compute(r, y) if sf is not None else m.compute(r, y12)))
             if sf is not None:
                 sf.update(r, y, u)
                 m.track(r, y12, u)
@@ -276,8 +278,7 @@ class ControlLoop:
                 m.update(r, y12, u)
         else:
             r = y12
-            u = saturate(w)
-            self.backend.write_pumps(u)
+            u = self._write(saturate(w))
             m.track(r, y12, u)
             if sf is not None:
                 sf.track(y, u)
@@ -292,6 +293,20 @@ class ControlLoop:
         self._gens[1].advance()
         self.k += 1
         self.t = self.k * self.h if self._fixed_h else self.t + self.h
+
+    def _write(self, u: Pair) -> Pair:
+        """Write `u` to the pumps; the inputs really written, which the log, the
+        trends and the controllers see (an interlock may have held some at 0: the
+        record counts it and the log says when a trip begins and ends)."""
+        self.backend.write_pumps(u)
+        written = self.backend.written(u)
+        holds = self.backend.interlock_holds()
+        began, released = self.interlock.note(self.t, holds)
+        for hold in began:
+            self.log.comment(self.t, hold.alarm)
+        for tank in released:
+            self.log.comment(self.t, f"interlock: tank {tank} released, its pumps follow the controller again")
+        return written
 
     def _skip(self, missed: int) -> None:
         """A real process does not wait for a late loop: the `missed` sampling slots
