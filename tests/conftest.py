@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import shutil
+import time
 from pathlib import Path
+from typing import Callable
 
 import pytest
 
@@ -19,6 +21,21 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if WALLCLOCK_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.wallclock)
+
+
+def poll(condition: Callable[[], bool], timeout: float, every: float = 0.05) -> bool:
+    """True as soon as `condition()` holds; False after `timeout` s of trying."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(every)
+    return condition()
+
+
+@pytest.fixture(name="poll")
+def poll_fixture() -> Callable[..., bool]:
+    return poll
 
 
 def copy_params(folder: Path) -> Path:

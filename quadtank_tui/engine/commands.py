@@ -9,7 +9,10 @@ that says why (the UI shows it next to the field or as a notification).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal, Mapping, Union
+from typing import TYPE_CHECKING, Any, Literal, Mapping, Union
+
+if TYPE_CHECKING:
+    from quadtank_tui.core.parameters import Parameters
 
 Operation = Literal["Simul", "Active"]
 State = Literal["Run", "Pause", "Reset"]
@@ -173,6 +176,17 @@ Command = Union[
     SetFault, ResetControllers, LogOn, LogOff, LogSave, LogDiscard, LoadPar, SavePar, SetSpeed,
     StartCalibration, CalibrationHeights, CancelCalibration,
 ]
+
+
+@dataclass(frozen=True)
+class InstallPar:
+    """A LoadPar whose file was read and checked off the loop's thread
+    (engine/parload.py): the loop only installs `params`.  Internal to the engine
+    and the session: not a Command, never accepted from a client."""
+
+    name: str
+    params: Parameters
+    warnings: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

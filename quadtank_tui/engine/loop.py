@@ -56,7 +56,7 @@ from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend
 from quadtank_tui.engine.commands import (
-    AddWater, CalibrationHeights, CancelCalibration, Command, CommandResult, LoadPar, LogDiscard, LogOff,
+    AddWater, CalibrationHeights, CancelCalibration, Command, CommandResult, InstallPar, LoadPar, LogDiscard, LogOff,
     LogOn, LogSave, NudgeMean, ResetControllers, SavePar, SetControlMode, SetDefaults, SetFault, SetOperation,
     SetParams, SetSpeed, SetState, StartCalibration,
 )
@@ -418,12 +418,12 @@ class ControlLoop:
 
     # --- commands -----------------------------------------------------------------------
 
-    def apply(self, command: Command) -> CommandResult:
+    def apply(self, command: Command | InstallPar) -> CommandResult:
         """Apply one command between samples; a refusal changes nothing.  Waits for
         the command's file operations (see :meth:`begin`)."""
         return self.begin(command).result()
 
-    def begin(self, command: Command) -> Future[CommandResult]:
+    def begin(self, command: Command | InstallPar) -> Future[CommandResult]:
         """Apply one command between samples, as :meth:`apply`, but leave its file
         operations (LogOn, LogSave, SavePar, ...) to the file worker: the loop's
         state changes now, the Future resolves when the disk is done.  With the
@@ -701,9 +701,15 @@ class ControlLoop:
     # --- parameter files --------------------------------------------------------------------
 
     def _load_par(self, cmd: LoadPar) -> CommandResult:
-        read = self.store.load(cmd.name)
-        self._install(read.params)
-        return CommandResult(True, f"loaded {cmd.name}", warnings=tuple(read.warnings))
+        """The file read here, on the loop's thread: only where nothing samples
+        meanwhile (a manual or headless engine); a running engine or a session reads
+        it on a thread of its own (engine/parload.py) and hands over InstallPar."""
+        prepared = prepare_load(self.store, cmd)
+        return prepared if isinstance(prepared, CommandResult) else self._install_par(prepared)
+
+    def _install_par(self, cmd: InstallPar) -> CommandResult:
+        self._install(cmd.params)
+        return CommandResult(True, f"loaded {cmd.name}", warnings=cmd.warnings)
 
     def _save_par(self, cmd: SavePar) -> Future[CommandResult]:
         """The parameters in force now, written by the file worker."""
@@ -797,6 +803,16 @@ def _plant_refused(daq: ProcessBackend | None, plant: Plant) -> str | None:
     return ask(plant) if ask is not None else None
 
 
+def prepare_load(store: ParStore, cmd: LoadPar) -> InstallPar | CommandResult:
+    """Read and check the `.par` a LoadPar names (no loop state touched: any thread);
+    its refusal (file:line and why) if it cannot be loaded."""
+    try:
+        read = store.load(cmd.name)
+    except Exception as exc:  # noqa: BLE001 - as begin() and Engine._drain would say it
+        return _refusal(exc) or CommandResult.refused(f"LoadPar failed: {type(exc).__name__}: {exc}")
+    return InstallPar(cmd.name, read.params, tuple(read.warnings))
+
+
 def _refusal(exc: Exception) -> CommandResult | None:
     """The refusal an exception of a command stands for (None: a bug, not a refusal)."""
     if isinstance(exc, (ParameterError, KeyError, PlantError, ParFileError, LogFileError, LogRefused, ValueError)):
@@ -836,7 +852,7 @@ _HANDLERS: Mapping[type, Callable[[ControlLoop, Any], CommandResult | Future[Com
     AddWater: ControlLoop._add_water, SetFault: ControlLoop._set_fault,
     ResetControllers: ControlLoop._reset_controllers,
     LogOn: ControlLoop._log_on, LogOff: ControlLoop._log_off, LogSave: ControlLoop._log_save,
-    LogDiscard: ControlLoop._log_discard, LoadPar: ControlLoop._load_par,
+    LogDiscard: ControlLoop._log_discard, LoadPar: ControlLoop._load_par, InstallPar: ControlLoop._install_par,
     SavePar: ControlLoop._save_par, SetSpeed: ControlLoop._set_speed,
     StartCalibration: ControlLoop._start_calibration, CalibrationHeights: ControlLoop._calibration_heights,
     CancelCalibration: ControlLoop._cancel_calibration,

@@ -38,9 +38,10 @@ import numpy as np
 from quadtank_tui.core.parameters import Parameters, REFERENCE_SECTIONS
 from quadtank_tui.engine.backend import ProcessBackend
 from quadtank_tui.engine.clock import Clock, ManualClock, RealTimeClock, VirtualClock
-from quadtank_tui.engine.commands import Command, CommandResult, SetSpeed
+from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, LoadPar, SetSpeed
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, check_capacity
 from quadtank_tui.engine.loop import ControlLoop
+from quadtank_tui.engine.parload import ParReading
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log import log_path
 from quadtank_tui.files.par import ParRead, ParStore, read_par
@@ -103,7 +104,8 @@ class Engine:
         self.threaded = threaded
         self.warnings = warnings
         self._sleep = sleep
-        self._pending: collections.deque[tuple[Command, Future[CommandResult]]] = collections.deque()
+        self._pending: collections.deque[tuple[Command | InstallPar | ParReading, Future[CommandResult]]] = \
+            collections.deque()
         self._lock = threading.Lock()  # guards the loop in no-thread mode
         self._thread: threading.Thread | None = None
         self._aloop: asyncio.AbstractEventLoop | None = None
@@ -150,7 +152,7 @@ class Engine:
 
     # --- the one write door ------------------------------------------------------------
 
-    def submit(self, command: Command) -> Future[CommandResult]:
+    def submit(self, command: Command | InstallPar) -> Future[CommandResult]:
         """Queue `command` (threaded) or apply it now (no thread); thread-safe."""
         fut: Future[CommandResult] = Future()
         if self._stopped:
@@ -159,16 +161,23 @@ class Engine:
         if not self.threaded or not self.running:
             with self._lock:
                 return self._begin(command)
-        self._pending.append((command, fut))
+        if isinstance(command, LoadPar):  # the file is read off this thread and the loop's
+            self._pending.append((ParReading.start(self.loop.store, command, self._wake_up), fut))
+        else:
+            self._pending.append((command, fut))
+        self._wake_up()
+        return fut
+
+    def _wake_up(self) -> None:
+        """Have the loop's thread look at the commands now (from any thread)."""
         aloop, wake = self._aloop, self._wake
         if aloop is not None and wake is not None:
             try:
                 aloop.call_soon_threadsafe(wake.set)
             except RuntimeError:  # the loop closed in between: stop() drains below
                 pass
-        return fut
 
-    def _begin(self, command: Command) -> Future[CommandResult]:
+    def _begin(self, command: Command | InstallPar) -> Future[CommandResult]:
         """Apply `command` to the loop (its file operations may still run: the
         Future resolves when they are done)."""
         if isinstance(command, SetSpeed):
@@ -192,7 +201,18 @@ class Engine:
 
     def _drain(self) -> None:
         while self._pending:
-            command, fut = self._pending.popleft()
+            command, fut = self._pending[0]
+            if isinstance(command, ParReading):
+                if not command.done:
+                    return  # the commands behind it wait their turn; the samples do not
+                prepared = command.future.result()
+                if isinstance(prepared, CommandResult):  # the file's refusal
+                    self._pending.popleft()
+                    if not fut.done():
+                        fut.set_result(prepared)
+                    continue
+                command = prepared
+            self._pending.popleft()
             try:
                 began = self._begin(command)
             except Exception as exc:  # noqa: BLE001 - a bug must not kill the loop

@@ -18,6 +18,7 @@ The socket and the record are removed; the clients are told why.
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import os
 import selectors
@@ -28,7 +29,8 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any, Callable
 
-from quadtank_tui.engine.commands import Command, CommandResult, SetState
+from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, LoadPar, SetState
+from quadtank_tui.engine.parload import ParReading
 from quadtank_tui.engine.runner import Engine
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.session.protocol import (
@@ -114,6 +116,8 @@ class SessionHost:
         os.set_blocking(self._wake_r, False)
         os.set_blocking(self._wake_w, False)
         self.selector.register(self._wake_r, selectors.EVENT_READ, self._woken)
+        #: Commands waiting behind a LoadPar whose file is being read (engine/parload.py).
+        self._waiting: collections.deque[tuple[Connection, int, Command | ParReading]] = collections.deque()
         # What the clients have been sent: history rows up to `_sent_total` of
         # clear generation `_sent_gen`, and the parameters of the last update.
         self._sent_total, self._sent_gen = 0, 0
@@ -174,10 +178,7 @@ class SessionHost:
         """From any thread or a signal handler: stop at the next turn."""
         if self._stop_reason is None:
             self._stop_reason = reason
-        try:
-            os.write(self._wake_w, b"!")
-        except OSError:
-            pass
+        self._wake()
 
     def install_signal_handlers(self) -> None:
         """SIGTERM, SIGHUP, SIGINT stop the session in order (main thread only)."""
@@ -190,6 +191,7 @@ class SessionHost:
                 pass
         except BlockingIOError:
             pass
+        self._apply_waiting()
 
     # --- publishing ------------------------------------------------------------------------
 
@@ -278,15 +280,47 @@ class SessionHost:
     def _submit(self, conn: Connection, cid: int, command: Command) -> None:
         if conn.role != "operator":
             who = self._operator.name if self._operator is not None else "nobody"
-            result = CommandResult.refused(f"read-only: you observe session {self.info.id}; {who} controls it")
+            self._answer(conn, cid, CommandResult.refused(
+                f"read-only: you observe session {self.info.id}; {who} controls it"))
+            return
+        if isinstance(command, LoadPar):  # the file is read on a thread of its own: samples go on
+            self._waiting.append((conn, cid, ParReading.start(self.engine.loop.store, command, self._wake)))
+        elif self._waiting:  # behind a LoadPar: in order
+            self._waiting.append((conn, cid, command))
         else:
-            try:
-                result = self.engine.submit(command).result()
-            except Exception as exc:  # noqa: BLE001 - a bug must not end the session
-                result = CommandResult.refused(f"{type(command).__name__} failed: {type(exc).__name__}: {exc}")
+            self._answer(conn, cid, self._apply(command))
+
+    def _apply(self, command: Command | InstallPar) -> CommandResult:
+        try:
+            return self.engine.submit(command).result()
+        except Exception as exc:  # noqa: BLE001 - a bug must not end the session
+            return CommandResult.refused(f"{type(command).__name__} failed: {type(exc).__name__}: {exc}")
+
+    def _answer(self, conn: Connection, cid: int, result: CommandResult) -> None:
         self._publish(force=True)  # the effect before the answer
         self.server.send(conn, encode(Result(cid, result)))
         self._write_record()
+
+    def _apply_waiting(self) -> None:
+        """The commands behind a LoadPar whose file has been read, in order."""
+        while self._waiting:
+            conn, cid, command = self._waiting[0]
+            if isinstance(command, ParReading):
+                if not command.done:
+                    return
+                prepared = command.future.result()
+                self._waiting.popleft()
+                self._answer(conn, cid, prepared if isinstance(prepared, CommandResult) else self._apply(prepared))
+            else:
+                self._waiting.popleft()
+                self._answer(conn, cid, self._apply(command))
+
+    def _wake(self) -> None:
+        """Wake the driver's select (from any thread)."""
+        try:
+            os.write(self._wake_w, b"!")
+        except OSError:
+            pass
 
     def _stop_asked(self, conn: Connection) -> None:
         if not self.access.may_stop(conn.peer.uid):

@@ -122,21 +122,6 @@ def rig() -> Iterator[Callable[..., RigProcess]]:
         r.stop()
 
 
-def poll(condition: Callable[[], bool], timeout: float, every: float = 0.05) -> bool:
-    """True as soon as `condition()` holds; False after `timeout` s of trying."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(every)
-    return condition()
-
-
-@pytest.fixture(name="poll")
-def poll_fixture() -> Callable[..., bool]:
-    return poll
-
-
 class LinkProxy:
     """A TCP relay between the program and a rig whose cable can be "cut": while
     cut, it accepts and holds connections but forwards nothing (a switch that died,
