@@ -399,8 +399,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _driven_daq(args: argparse.Namespace) -> str | None:
     """The DAQ configuration of the rig this command drives (writes pumps to), if any:
     the TUI and `run` with --daq, `daq calibrate` on a rig; `daq check` only reads."""
-    if args.command is None:
-        return args.daq_global
+    if args.command is None:  # the TUI; on a rig your own session drives, it attaches to that session
+        session = not args.no_session and args.loop is None
+        return None if session and sessions_command.own_session_on_rig(args.daq_global) else args.daq_global
     if args.command == "run":
         return args.daq or args.daq_global
     if args.command == "daq" and args.daq_command == "calibrate" and args.pairs is None:

@@ -138,6 +138,9 @@ def cmd_tui_session(args: argparse.Namespace) -> int:
         raise UsageError(f"--speed must be 1..1000, got {args.tui_speed:g}")
     if not 0.01 <= args.refresh <= 5.0:
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
+    attached = attach_to_own_rig_session(args)
+    if attached is not None:
+        return attached
     runtime = _runtime()
     try:
         info = find_session(runtime, None, os.getuid(), interactive=True)
@@ -154,6 +157,53 @@ def cmd_tui_session(args: argparse.Namespace) -> int:
         else:
             info = start_for(args, runtime)
             client = _connect(info, "operator")
+    except SessionError as exc:
+        raise UsageError(str(exc)) from None
+    return run_tui_on(client, args.refresh)
+
+
+def own_session_on_rig(config: str | None) -> tuple[SessionInfo, str] | None:
+    """The caller's running session that drives the rig the DAQ configuration
+    `config` names (it holds the rig's lock), and the rig's lock key; None when the
+    rig is free, someone else's, or the file or host is bad (the lock's own path
+    then says so)."""
+    if config is None:
+        return None
+    from quadtank_tui.daq.config import load_daq_config
+    from quadtank_tui.session.lab import load_lab_config
+    from quadtank_tui.session.lock import holder_of
+    from quadtank_tui.session.riglock import rig_devices
+    from quadtank_tui.session.runtime import list_sessions
+
+    try:
+        daq = load_daq_config(config)
+        lab = load_lab_config()
+        devices = rig_devices(daq.host, daq.port, daq.device_id)
+    except (ValueError, OSError):
+        return None
+    for device in devices:
+        held = holder_of(device, lab)
+        if held is None or held.uid != os.getuid() or held.session is None:
+            continue
+        for info in list_sessions(_runtime()):
+            if info.id == held.session and info.pid == held.pid:
+                return info, device
+    return None
+
+
+def attach_to_own_rig_session(args: argparse.Namespace) -> int | None:
+    """`quadtank --daq C` while the caller's own session drives that rig: attach to
+    it, saying so (its exit status), instead of refusing; None otherwise."""
+    from quadtank_tui.session.client import SessionError
+
+    own = own_session_on_rig(args.daq_global)
+    if own is None:
+        return None
+    info, device = own
+    _say(f"quadtank: the rig at {device} is driven by your session {info.id}: attaching to it"
+         + (" (--par applies to a new session only)" if args.tui_par else ""))
+    try:
+        client = _connect(info, "operator")
     except SessionError as exc:
         raise UsageError(str(exc)) from None
     return run_tui_on(client, args.refresh)
