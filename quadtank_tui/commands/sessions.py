@@ -9,13 +9,14 @@ second) and never stops the session.
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import sys
 import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from quadtank_tui.commands import UsageError, warn
+from quadtank_tui.commands import UsageError, pause_gc, warn
 
 if TYPE_CHECKING:
     from quadtank_tui.session.launch import SessionSpec
@@ -116,6 +117,7 @@ def cmd_attach(args: argparse.Namespace) -> int:
 
     if not 0.01 <= args.attach_refresh <= 5.0:
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.attach_refresh:g}")
+    pause_gc()
     try:
         info = find_session(_runtime(), args.session, os.getuid())
         client = _connect(info, "observer" if args.observe else "operator", take_over=args.take_over)
@@ -138,6 +140,7 @@ def cmd_tui_session(args: argparse.Namespace) -> int:
         raise UsageError(f"--speed must be 1..1000, got {args.tui_speed:g}")
     if not 0.01 <= args.refresh <= 5.0:
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
+    pause_gc()
     runtime = _runtime()
     try:
         info = find_session(runtime, None, os.getuid(), interactive=True)
@@ -228,7 +231,7 @@ def run_tui_on(client: SessionClient, refresh: float) -> int:
     from quadtank_tui.ui.app import build_app
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
-    app = build_app(client, refresh_interval=refresh)
+    app = build_app(client, refresh_interval=refresh, resume_gc=not gc.isenabled())
     watch = TerminalWatch(app.exit_soon, client.close)
     watch.start()
     try:

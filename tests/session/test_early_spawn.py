@@ -6,6 +6,7 @@ the UI, leaves no session and no process behind; a good start still attaches.
 
 from __future__ import annotations
 
+import gc
 import select
 import sys
 import time
@@ -53,6 +54,7 @@ def test_a_refused_par_ends_the_spawned_process_without_a_session(
     bad = tmp_path / "bad.par"
     bad.write_text("this is not a parameter file\n")
     assert main(["--par", str(bad)]) == 2
+    assert gc.isenabled()  # paused for the TUI's start that never came (commands.pause_gc)
     err = capsys.readouterr().err
     assert err.startswith("quadtank: error: ") and "bad.par" in err
     assert len(spawned) == 1
