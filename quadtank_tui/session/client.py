@@ -119,16 +119,20 @@ class SessionClient(HeldLocally):
 
     def snapshot(self) -> Snapshot:
         snap = self._snap
-        if self._gone.is_set() and not self._closing:
-            if self.ended is not None:
-                why = f"session {self.info.id} ended: {self.ended}"
-            else:
-                pumps = f"; {self.rescue}" if self.rescue else \
-                    ("; the rig's watchdog puts its pumps at 0" if snap.operation == "Active" else "")
-                why = (f"the session process {self.info.id} (pid {self.info.pid}) stopped unexpectedly"
-                       f"{pumps}; its log so far is in {self._logs_dir}")
-            return replace(snap, state="Pause", fault=why)
-        return snap
+        why = self._gone_reason()
+        return snap if why is None else replace(snap, state="Pause", fault=why)
+
+    def _gone_reason(self) -> str | None:
+        """Why the session is no longer there (None while it is, or after we left)."""
+        if not self._gone.is_set() or self._closing:
+            return None
+        if self.ended is not None:
+            return f"session {self.info.id} ended: {self.ended}"
+        snap = self._snap
+        pumps = f"; {self.rescue}" if self.rescue else \
+            ("; the rig's watchdog puts its pumps at 0" if snap.operation == "Active" else "")
+        return (f"the session process {self.info.id} (pid {self.info.pid}) stopped unexpectedly"
+                f"{pumps}; its log so far is in {self._logs_dir}")
 
     def submit(self, command: Command) -> Future[CommandResult]:
         fut: Future[CommandResult] = Future()
@@ -170,7 +174,11 @@ class SessionClient(HeldLocally):
         return self._gone.wait(timeout)
 
     def session_banner(self) -> str:
-        """One line for the screen: whose session this is and who drives it."""
+        """One line for the screen: whose session this is and who drives it - or,
+        once it is gone, why (the status line's fault is cut on a narrow screen)."""
+        why = self._gone_reason()
+        if why is not None:
+            return f"{why}; the screen shows its last state, q leaves"
         you = "you operate it" if self.role == "operator" else "read-only: you observe it"
         return f"session {self.info.id} of {self.info.owner}: {self.controller}; {you}"
 
