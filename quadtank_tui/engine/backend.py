@@ -49,6 +49,9 @@ class ProcessBackend(ABC):
     kind: str = "Simul"
     #: One line for the status bar, e.g. "simulator" or "modbus 127.0.0.1:5020".
     description: str = ""
+    #: Why the last `safe_state` could not be confirmed ("" when it was): the
+    #: pumps may still run, and only the rig's own watchdog will stop them.
+    safe_state_error: str = ""
 
     @abstractmethod
     def read_levels(self) -> Levels4:

@@ -143,7 +143,7 @@ def finish_headless(run: HeadlessRun) -> HeadlessResult:
         saved, moved = _save(session, out, run.before)
     except (LogRefused, OSError) as exc:
         text = "\n".join([format_summary(summary), f"no log written: {exc}",
-                          *engine.loop.interlock.lines(engine.loop.h)])
+                          *engine.loop.interlock.lines(engine.loop.h), *filter(None, [_unsafe(engine)])])
         return HeadlessResult(1, text, warnings, None)
     text = format_summary(summary) + f"\nlog        {saved} ({rows} rows)"
     if moved:
@@ -156,8 +156,19 @@ def finish_headless(run: HeadlessRun) -> HeadlessResult:
     held = engine.loop.interlock.lines(engine.loop.h)
     if held:
         text += "\n" + "\n".join(held)
-    status = 1 if summary.fault or error else INTERLOCK_ACTED if held else 0
+    unsafe = _unsafe(engine)
+    if unsafe:
+        text += "\n" + unsafe
+    status = 1 if summary.fault or error or unsafe else INTERLOCK_ACTED if held else 0
     return HeadlessResult(status, text, warnings, saved)
+
+
+def _unsafe(engine: Engine) -> str:
+    """A line if the rig's pumps could not be confirmed at 0 after a fault ("" if they were)."""
+    daq = engine.loop.daq
+    if daq is None or not daq.safe_state_error:
+        return ""
+    return (f"PUMPS      NOT confirmed at 0 (only the rig's watchdog stops them now): {daq.safe_state_error}")
 
 
 def _save(session: LogSession, out: Path, before: tuple[int, ...] | None) -> tuple[Path, bool]:

@@ -123,3 +123,37 @@ def test_a_detached_runs_summary_says_it_too(overflowing: tuple[RigHere, Path], 
     assert reason == f"the run is over; its log is {out}; the interlock held pumps at 0 (see its output)"
     assert re.search(r"^INTERLOCK  tank 1 above 95 % of its height: pump 1 held at 0 in \d+ samples",
                      printed.getvalue(), re.M)
+
+
+class CutCable(RigHere):
+    """The link dies after `good` writes: every request fails from then on."""
+
+    def __init__(self, config: DaqConfig, levels_cm: tuple[float, float, float, float], good: int) -> None:
+        super().__init__(config, levels_cm)
+        self.good = good
+
+    def _read(self, table: str, first: int, count: int) -> list[int]:
+        if len(self.pump1_volts) >= self.good:
+            raise OSError("cable cut")
+        return super()._read(table, first, count)
+
+    def _write(self, address: int, values: list[int]) -> list[int]:
+        if len(self.pump1_volts) >= self.good:
+            raise OSError("cable cut")
+        return super()._write(address, values)
+
+
+def test_pumps_not_confirmed_at_0_are_said_and_the_run_exits_1(tmp_path: Path) -> None:
+    """After a fault the loop commands the pumps to 0; when that cannot be confirmed
+    (the link is gone) the summary says so, beside the fault."""
+    config = load_daq_config(ROOT / "params" / "virtual-rig.yaml", read_par(PAR).params.process_plant())
+    backend = CutCable(config, (5.0, 5.0, 2.0, 2.0), good=20)
+    result = run_headless(par=str(PAR), script=None, duration=5.0, out=tmp_path / "cut.log", clock="manual",
+                          daq=backend)
+    assert result.status == 1
+    lines = result.text.splitlines()
+    assert any(line.startswith("FAULT      modbus 127.0.0.1:5020: OSError: cable cut") for line in lines), lines
+    assert lines[-1] == ("PUMPS      NOT confirmed at 0 (only the rig's watchdog stops them now): "
+                         "OSError: cable cut; OSError: cable cut")
+    assert read_log(tmp_path / "cut.log").rows == 20
+    assert backend.rig.pump_volts == (3.0, 3.0)  # indeed still running, as the line says
