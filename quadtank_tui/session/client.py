@@ -62,7 +62,7 @@ class SessionClient(HeldLocally):
             sock.connect(str(path))
         except OSError as exc:
             sock.close()
-            raise SessionError(f"cannot reach the session at {path}: {exc.strerror or exc}") from None
+            raise _unreachable(path, exc) from None
         self._sock = sock
         self._reader = LineReader(MAX_SESSION_LINE)
         self._pending: list[bytes] = []
@@ -307,6 +307,28 @@ def stop_session_at(path: str | Path, timeout: float = STOP_TIMEOUT) -> str:
     except (OSError, ProtocolError) as exc:
         if isinstance(exc, SessionError):
             raise
-        raise SessionError(f"cannot reach the session at {path}: {exc}") from None
+        raise _unreachable(path, exc) from None
     finally:
         sock.close()
+
+
+def _unreachable(path: str | Path, exc: Exception) -> SessionError:
+    """Why a session's socket could not be reached; refused by its mode: whose it is
+    and which group may connect, as the user would ask an administrator."""
+    if isinstance(exc, PermissionError):
+        import grp
+        import os
+
+        from quadtank_tui.session.roles import user_name
+
+        try:
+            st = os.stat(path)
+            group = grp.getgrgid(st.st_gid).gr_name if st.st_mode & 0o060 else None
+        except (OSError, KeyError):
+            pass
+        else:
+            who = f"its owner ({user_name(st.st_uid)})" + (f" and members of group {group}" if group else "")
+            return SessionError(f"the session at {path} admits {who} only; you are {user_name(os.getuid())} "
+                                "(the lab file's share_group says who may watch others' sessions)")
+    reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+    return SessionError(f"cannot reach the session at {path}: {reason}")

@@ -207,7 +207,7 @@ def session_main(ready_fd: int) -> int:
     from quadtank_tui.session.host import Access, SessionHost
     from quadtank_tui.session.lab import load_lab_config
     from quadtank_tui.session.riglock import RigLock
-    from quadtank_tui.session.roles import group_id, user_name
+    from quadtank_tui.session.roles import user_name
     from quadtank_tui.session.runtime import claim_id, remove_files, runtime_dir, socket_path, write_record
     from quadtank_tui.session.server import listen
 
@@ -254,9 +254,10 @@ def session_main(ready_fd: int) -> int:
             assert spec.engine is not None
             engine = assemble(spec.engine, daq=daq, threaded=False)
         sock_path = socket_path(runtime, sid)
-        # The share group (else the admin group) may connect; the session checks who.
-        group = lab.share_group or lab.admin_group
-        listener = listen(str(sock_path), group_id(group) if group else None)
+        # Every local user may connect and the session checks each one (Access):
+        # a mode of 0660 with the share or admin group shut out a teacher outside
+        # that group, and the group could not be set at all by an owner outside it.
+        listener = listen(str(sock_path), anyone=True)
         params = engine.loop.params
         plant = params.process.kind if params.process is not None else "quadtank"
         info = SessionInfo(id=sid, owner=user_name(uid), uid=uid, pid=os.getpid(),
