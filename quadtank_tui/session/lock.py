@@ -1,6 +1,7 @@
 """One program at a time drives a given DAQ: a lock file per device in the lab's
-runtime folder (`runtime_dir/locks/<host>_<port>_<unit>.lock`) that names its
-holder, so the second program says who to ask instead of fighting over the pumps.
+runtime folder (`runtime_dir/locks/<address>_<port>_<unit>.lock`, the host resolved
+first: session/riglock.py) that names its holder, so the second program says who
+to ask instead of fighting over the pumps.
 
 The file holds one JSON record: user, uid, pid (and the pid's start time, so a
 recycled pid is not taken for the holder), since, session, and a token.  Every
