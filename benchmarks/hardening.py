@@ -4,6 +4,7 @@ the real code paths, each case judged, every failure kept with its input.
     .venv/bin/python benchmarks/hardening.py                 # small counts, a few minutes
     .venv/bin/python benchmarks/hardening.py --issue         # the issue's counts
     .venv/bin/python benchmarks/hardening.py --only par,scripts --par 5009 --seed 3
+    .venv/bin/python benchmarks/hardening.py --replay /tmp/hardening-xyz/keys-0001.txt
 
 Campaigns (each prints: cases run, accepted, refused cleanly, failures):
   keys     random keys through the TUI (Textual's pilot, the real app on a manual-clock engine)
@@ -417,37 +418,98 @@ async def _burst(pilot: Any, keys: Sequence[str]) -> None:
         await burst(pilot, *keys)
 
 
+#: A trail line that is no burst of keys: the engine run on for that many seconds.
+RUN_FOR = "!run_for "
+
+
+async def _session(app: Any, engine: Any, bursts: Iterator[list[str] | float], trail: list[str]) -> None:
+    """One app session: each burst of keys pressed at once, each float the engine
+    run on for that long; every step written to `trail` (one line each) first, so a
+    failing session's trail replays it (`--replay`).  Notifications shown, as a
+    terminal shows them (the pilot hides them by default, and a toast's text is
+    read as markup only when it renders)."""
+    async with app.run_test(size=(120, 40), notifications=True) as pilot:
+        for step in bursts:
+            if not app.is_running:
+                break
+            if isinstance(step, float):
+                trail.append(f"{RUN_FOR}{step:g}")
+                engine.run_for(step)
+            else:
+                trail.append(" ".join(step))
+                await asyncio.wait_for(_burst(pilot, step), timeout=60)
+
+
+async def _judged(t: Tally, engine: Any, trail: list[str], session: Any) -> None:
+    """Await a session and judge it: a hang, a traceback, or the values it left."""
+    try:
+        await session
+    except asyncio.TimeoutError:
+        t.fail("hang", f"a burst took over 60 s (after {len(trail)} bursts)", "\n".join(trail))
+        return
+    except Exception:
+        t.fail("traceback", traceback.format_exc(), "\n".join(trail))
+        return
+    finally:
+        engine.stop()
+    why = _valid(engine.snapshot().params)
+    if why:
+        t.fail("invalid value accepted", why, "\n".join(trail))
+    else:
+        t.accepted += 1  # a session that ended cleanly
+
+
 async def _keys(t: Tally, n: int, rng: random.Random, work: Path) -> None:
     from quadtank_tui.ui.app import build_app
 
     left = n
     session = 0
+    start = time.monotonic()
+
+    def bursts(app: Any) -> Iterator[list[str] | float]:
+        nonlocal left
+        pressed = 0
+        while left > 0 and app.is_running and pressed < 1500:
+            chunk = [rng.choice(KEYS) for _ in range(min(left, rng.randint(1, 12)))]
+            pressed += len(chunk)
+            left -= len(chunk)
+            t.ran += len(chunk)
+            yield chunk
+            if rng.random() < 0.05:
+                yield rng.choice((0.1, 1.0, 10.0))
+
     while left > 0:
         session += 1
         engine = _engine(work / f"keys{session}")
         app = build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)
-        pressed: list[str] = []
-        try:
-            async with app.run_test(size=(120, 40)) as pilot:
-                while left > 0 and app.is_running and len(pressed) < 1500:
-                    chunk = [rng.choice(KEYS) for _ in range(min(left, rng.randint(1, 12)))]
-                    pressed.extend(chunk)
-                    left -= len(chunk)
-                    t.ran += len(chunk)
-                    await asyncio.wait_for(_burst(pilot, chunk), timeout=60)
-                    if rng.random() < 0.05:
-                        engine.run_for(rng.choice((0.1, 1.0, 10.0)))
-            why = _valid(engine.snapshot().params)
-            if why:
-                t.fail("invalid value accepted", why, "\n".join(pressed))
-            else:
-                t.accepted += 1  # a session that ended cleanly
-        except asyncio.TimeoutError:
-            t.fail("hang", f"a key took over 60 s (after {len(pressed)} keys)", "\n".join(pressed))
-        except Exception:
-            t.fail("traceback", traceback.format_exc(), "\n".join(pressed))
-        finally:
-            engine.stop()
+        trail: list[str] = []
+        failed = len(t.failures)
+        await _judged(t, engine, trail, _session(app, engine, bursts(app), trail))
+        print(f"  keys: session {session}, {t.ran}/{n} keys, {time.monotonic() - start:.0f} s"
+              + (f", FAILED: {t.failures[-1].kind}" if len(t.failures) > failed else ""),
+              file=sys.stderr, flush=True)
+
+
+def replay_keys(path: Path, work: Path, out: Path) -> Tally:
+    """A saved trail of the keys campaign (one burst a line, `!run_for S` lines)
+    replayed on a fresh app and engine, judged as the campaign judges it."""
+    from quadtank_tui.ui.app import build_app
+
+    steps: list[list[str] | float] = []
+    for line in path.read_text().splitlines():
+        if line.startswith(RUN_FOR):
+            steps.append(float(line[len(RUN_FOR):]))
+        elif line.strip():
+            steps.append(line.split())
+    t = Tally("replay", out)
+    t.ran = sum(len(s) for s in steps if isinstance(s, list))
+    start = time.monotonic()
+    engine = _engine(work / "replay")
+    app = build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)
+    trail: list[str] = []
+    asyncio.run(_judged(t, engine, trail, _session(app, engine, iter(steps), trail)))
+    t.seconds = time.monotonic() - start
+    return t
 
 
 FIELD_VALUES = [v for v in JUNK if v.strip()] + ["x" * 300, "[/x]" * 3, "-1e-300", "0.00000001", "100000"]
@@ -463,7 +525,7 @@ async def _fields(t: Tally, n: int, rng: random.Random, work: Path) -> None:
     done = 0
     trail: list[str] = []
     try:
-        async with app.run_test(size=(120, 40)) as pilot:
+        async with app.run_test(size=(120, 40), notifications=True) as pilot:
             while done < n:
                 for opener in WINDOWS:
                     for key in opener:
@@ -766,6 +828,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--cli-every", type=int, default=10, metavar="K",
                    help="also run `quadtank analyze --par` on every K-th .par mutant (0: never)")
     p.add_argument("--out", help="folder for the failing inputs (default: a new temporary folder)")
+    p.add_argument("--replay", metavar="FILE", help="replay a failing session of the keys campaign (its saved "
+                   "keys-NNNN.txt: a burst a line) and print what became of it")
     return p.parse_args(argv)
 
 
@@ -778,6 +842,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     work_root = Path(tempfile.mkdtemp(prefix="hardening-work-"))
     os.environ.setdefault("NO_COLOR", "1")
+    if args.replay:
+        t = replay_keys(Path(args.replay), work_root, out)
+        shutil.rmtree(work_root, ignore_errors=True)
+        print(t.line())
+        for f in t.failures:
+            print(f"    {f.kind}: {f.detail}")
+        return 1 if t.failures else 0
     tallies = []
     for name in chosen:
         rng = random.Random(f"{args.seed}-{name}")
