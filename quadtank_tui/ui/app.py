@@ -85,8 +85,9 @@ class QuadTankApp(OrderedKeys):
             aloop.call_soon_threadsafe(self.exit, None, return_code)
 
     def action_request_exit(self) -> None:
-        # From Main or Setup (the original had Exit on both), not over a window.
-        if not isinstance(self.screen, ModalScreen):
+        # From Main or Setup (the original had Exit on both), not over a window;
+        # and from a terminal too small to show them (too_small.py).
+        if not isinstance(self.screen, ModalScreen) or isinstance(self.screen, TooSmallScreen):
             self.main.action_exit()
 
     def action_help(self) -> None:
