@@ -55,7 +55,7 @@ CAMPAIGNS = ("keys", "fields", "par", "scripts", "daq", "kills", "devices", "pat
 
 @dataclasses.dataclass
 class Failure:
-    kind: str      # traceback | hang | exit status | invalid value accepted | lost row
+    kind: str      # traceback | hang | exit status | invalid value accepted | lost row | wrong state
     detail: str
     saved: Path | None
 
@@ -418,13 +418,20 @@ async def _burst(pilot: Any, keys: Sequence[str]) -> None:
         await burst(pilot, *keys)
 
 
-#: A trail line that is no burst of keys: the engine run on for that many seconds.
+#: Trail lines that are no burst of keys: the engine run on for that many seconds;
+#: the terminal resized (columns x rows).
 RUN_FOR = "!run_for "
+RESIZE = "!size "
+#: Terminal sizes a session moves between: the 80x24 minimum, below it (the
+#: "too small" sentence), and larger.
+SIZES = ((120, 40), (120, 40), (100, 30), (80, 24), (70, 20))
+Step = list[str] | float | tuple[int, int]
 
 
-async def _session(app: Any, engine: Any, bursts: Iterator[list[str] | float], trail: list[str]) -> None:
+async def _session(app: Any, engine: Any, bursts: Iterator[Step], trail: list[str]) -> None:
     """One app session: each burst of keys pressed at once, each float the engine
-    run on for that long; every step written to `trail` (one line each) first, so a
+    run on for that long, each pair a new terminal size; every step written to
+    `trail` (one line each) first, so a
     failing session's trail replays it (`--replay`).  Notifications shown, as a
     terminal shows them (the pilot hides them by default, and a toast's text is
     read as markup only when it renders)."""
@@ -435,9 +442,40 @@ async def _session(app: Any, engine: Any, bursts: Iterator[list[str] | float], t
             if isinstance(step, float):
                 trail.append(f"{RUN_FOR}{step:g}")
                 engine.run_for(step)
+            elif isinstance(step, tuple):
+                trail.append(f"{RESIZE}{step[0]}x{step[1]}")
+                await asyncio.wait_for(pilot.resize_terminal(*step), timeout=60)
+                await asyncio.wait_for(_burst(pilot, []), timeout=60)
             else:
                 trail.append(" ".join(step))
                 await asyncio.wait_for(_burst(pilot, step), timeout=60)
+            if app.is_running and (wrong := _screen_problem(app)):
+                raise WrongState(wrong)
+
+
+class WrongState(Exception):
+    """The screens left in a state no key sequence should leave them in."""
+
+
+def _screen_problem(app: Any) -> str:
+    """'' if the screen stack is one a user can be in once the keys are handled;
+    else what is wrong with it."""
+    from textual.command import CommandPalette
+
+    from quadtank_tui.ui.screens.help import HelpScreen
+    from quadtank_tui.ui.screens.too_small import TooSmallScreen, too_small
+
+    stack = app.screen_stack
+    names = [type(s).__name__ for s in stack]
+    if app.main not in stack:
+        return f"no Main screen in {names}"
+    if len(stack) > 8 or len({id(s) for s in stack}) != len(stack):
+        return f"screens piled up: {names}"
+    if sum(isinstance(s, (CommandPalette, HelpScreen)) for s in stack) > 2:
+        return f"more than one palette or help: {names}"
+    if isinstance(app.screen, TooSmallScreen) and not too_small(*app.size):
+        return f"'terminal too small' on a {app.size[0]}x{app.size[1]} terminal: {names}"
+    return ""
 
 
 async def _judged(t: Tally, engine: Any, trail: list[str], session: Any) -> None:
@@ -446,6 +484,9 @@ async def _judged(t: Tally, engine: Any, trail: list[str], session: Any) -> None
         await session
     except asyncio.TimeoutError:
         t.fail("hang", f"a burst took over 60 s (after {len(trail)} bursts)", "\n".join(trail))
+        return
+    except WrongState as exc:
+        t.fail("wrong state", f"after {len(trail)} bursts: {exc}", "\n".join(trail))
         return
     except Exception:
         t.fail("traceback", traceback.format_exc(), "\n".join(trail))
@@ -466,7 +507,7 @@ async def _keys(t: Tally, n: int, rng: random.Random, work: Path) -> None:
     session = 0
     start = time.monotonic()
 
-    def bursts(app: Any) -> Iterator[list[str] | float]:
+    def bursts(app: Any) -> Iterator[Step]:
         nonlocal left
         pressed = 0
         while left > 0 and app.is_running and pressed < 1500:
@@ -477,6 +518,8 @@ async def _keys(t: Tally, n: int, rng: random.Random, work: Path) -> None:
             yield chunk
             if rng.random() < 0.05:
                 yield rng.choice((0.1, 1.0, 10.0))
+            if rng.random() < 0.03:
+                yield rng.choice(SIZES)
 
     while left > 0:
         session += 1
@@ -491,14 +534,18 @@ async def _keys(t: Tally, n: int, rng: random.Random, work: Path) -> None:
 
 
 def replay_keys(path: Path, work: Path, out: Path) -> Tally:
-    """A saved trail of the keys campaign (one burst a line, `!run_for S` lines)
+    """A saved trail of the keys campaign (one burst a line, `!run_for S` and
+    `!size WxH` lines)
     replayed on a fresh app and engine, judged as the campaign judges it."""
     from quadtank_tui.ui.app import build_app
 
-    steps: list[list[str] | float] = []
+    steps: list[Step] = []
     for line in path.read_text().splitlines():
         if line.startswith(RUN_FOR):
             steps.append(float(line[len(RUN_FOR):]))
+        elif line.startswith(RESIZE):
+            w, h = line[len(RESIZE):].split("x")
+            steps.append((int(w), int(h)))
         elif line.strip():
             steps.append(line.split())
     t = Tally("replay", out)
