@@ -51,3 +51,25 @@ async def test_closed_while_still_small_the_sentence_comes_back(engine: Recordin
         assert isinstance(app.screen, TooSmallScreen)
         await resize(pilot, 80, 24)
         assert app.screen is app.main
+
+
+async def test_the_sentence_is_shown_once_and_exit_asked_once(engine: Recording) -> None:
+    """Found by benchmarks/hardening.py's keys at changing sizes: Help over the
+    sentence, the terminal still smaller: a second sentence was pushed over Help;
+    Exit asked, Help, a small terminal, ctrl+q: a second Exit question (the
+    stack grew to Main, Exit, Help, sentence, Exit, palette, sentence, Help)."""
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        await pilot.press("ctrl+q", "f1")
+        await resize(pilot, 70, 20)
+        await pilot.press("ctrl+q")  # under Help the Exit question is open already
+        await pilot.press("f1")  # Help over the sentence: still readable, clipped
+        await resize(pilot, 72, 22)
+        kinds = [type(s) for s in app.screen_stack]
+        assert kinds.count(TooSmallScreen) == 1 and kinds.count(ConfirmWindow) == 1, kinds
+        await resize(pilot, 120, 40)
+        for _ in range(3):
+            await pilot.press("escape")
+            await pilot.pause()
+        assert app.screen is app.main, app.screen_stack
