@@ -42,7 +42,7 @@ import threading
 import time
 import traceback
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any, AsyncIterator, Callable, Iterator, Sequence
 
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS = ROOT / "params"
@@ -69,6 +69,9 @@ class Tally:
     refused: int = 0
     failures: list[Failure] = dataclasses.field(default_factory=list)
     seconds: float = 0.0
+    #: The pilot's wait for the screen ran out in a process the machine starved
+    #: (keys campaign): no failure of the program, counted and said.
+    starved: list[str] = dataclasses.field(default_factory=list)
 
     def fail(self, kind: str, detail: str, data: bytes | str | None = None, suffix: str = ".txt") -> None:
         saved = None
@@ -80,7 +83,8 @@ class Tally:
 
     def line(self) -> str:
         return (f"{self.name:8s} {self.ran:7d} cases  {self.accepted:6d} accepted  {self.refused:6d} refused cleanly"
-                f"  {len(self.failures):4d} failures  {self.seconds:7.1f} s")
+                f"  {len(self.failures):4d} failures  {self.seconds:7.1f} s"
+                + (f"  ({len(self.starved)} starved waits)" if self.starved else ""))
 
 
 class Hang(Exception):
@@ -407,15 +411,65 @@ def _valid(params: Any) -> str:
         return f"{type(exc).__name__}: {exc}"
 
 
-async def _burst(pilot: Any, keys: Sequence[str]) -> None:
+async def _burst(pilot: Any, keys: Sequence[str], starved: list[str]) -> None:
     """Keys as they arrive over SSH: all queued before the app handles the first
-    (the pilot tests' helper, tests/ui/bursts.py)."""
+    (the pilot tests' helper, tests/ui/bursts.py).  If the pilot's wait for the
+    screen runs out (WaitForScreenTimeout, 30 s), what it was is found out: a wait
+    that ends in a process the machine starved is noted in `starved` and the
+    session goes on; one in which the app computed, or that never ends, fails."""
+    from textual.pilot import WaitForScreenTimeout
+
     if str(ROOT / "tests" / "ui") not in sys.path:
         sys.path.insert(0, str(ROOT / "tests" / "ui"))
     from bursts import burst
 
-    if pilot.app.is_running:
-        await burst(pilot, *keys)
+    while pilot.app.is_running:
+        wall, cpu = time.monotonic(), time.process_time()
+        try:
+            await burst(pilot, *keys)
+            return
+        except WaitForScreenTimeout:
+            starved.append(await _why_timed_out(pilot, wall, cpu))
+            keys = ()  # sent: wait for the rest of them to be handled
+
+
+class ScreenHang(Exception):
+    """The screen never handled what was posted to it: a real hang."""
+
+
+class ScreenBusy(Exception):
+    """The screen took over 30 s to handle its messages and the process computed
+    most of that time: the program, not the machine."""
+
+
+async def _why_timed_out(pilot: Any, wall: float, cpu: float, more: float = 120.0) -> str:
+    """After a WaitForScreenTimeout: wait up to `more` seconds for the screen to
+    become idle, and tell a starved process (it got little CPU: the machine's
+    load) from a busy one (ScreenBusy) and from a hang (ScreenHang), naming the
+    widgets that held messages when the wait ran out."""
+    from textual.pilot import WaitForScreenTimeout
+
+    app = pilot.app
+    try:
+        nodes = [app, *app.screen.walk_children(with_self=True)]
+    except Exception:  # no screen: the app is closing
+        nodes = [app]
+    holding = ", ".join(f"{type(n).__name__}#{n.id or ''} ({n._message_queue.qsize()})" for n in nodes
+                        if not n._message_queue.empty()) or "none"
+    idle = False
+    deadline = time.monotonic() + more
+    while not idle and time.monotonic() < deadline and app.is_running:
+        try:
+            idle = await pilot._wait_for_screen(timeout=10.0)
+        except WaitForScreenTimeout:
+            pass
+    took, used = time.monotonic() - wall, time.process_time() - cpu
+    said = f"holding messages: {holding}; {took:.0f} s of wall time, {used:.1f} s of CPU"
+    if not idle and app.is_running:
+        raise ScreenHang(f"the screen never became idle; {said}")
+    if used > 0.5 * took:
+        raise ScreenBusy(f"the app computed through the wait; {said}")
+    return f"starved: idle again; {said}"
 
 
 #: Trail lines that are no burst of keys: the engine run on for that many seconds;
@@ -428,14 +482,14 @@ SIZES = ((120, 40), (120, 40), (100, 30), (80, 24), (70, 20))
 Step = list[str] | float | tuple[int, int]
 
 
-async def _session(app: Any, engine: Any, bursts: Iterator[Step], trail: list[str]) -> None:
+async def _session(app: Any, engine: Any, bursts: Iterator[Step], trail: list[str], starved: list[str]) -> None:
     """One app session: each burst of keys pressed at once, each float the engine
     run on for that long, each pair a new terminal size; every step written to
     `trail` (one line each) first, so a
     failing session's trail replays it (`--replay`).  Notifications shown, as a
     terminal shows them (the pilot hides them by default, and a toast's text is
     read as markup only when it renders)."""
-    async with app.run_test(size=(120, 40), notifications=True) as pilot:
+    async with _app_running(app) as pilot:
         for step in bursts:
             if not app.is_running:
                 break
@@ -445,12 +499,33 @@ async def _session(app: Any, engine: Any, bursts: Iterator[Step], trail: list[st
             elif isinstance(step, tuple):
                 trail.append(f"{RESIZE}{step[0]}x{step[1]}")
                 await asyncio.wait_for(pilot.resize_terminal(*step), timeout=60)
-                await asyncio.wait_for(_burst(pilot, []), timeout=60)
+                await asyncio.wait_for(_burst(pilot, [], starved), timeout=300)
             else:
                 trail.append(" ".join(step))
-                await asyncio.wait_for(_burst(pilot, step), timeout=60)
+                await asyncio.wait_for(_burst(pilot, step, starved), timeout=300)
             if app.is_running and (wrong := _screen_problem(app)):
                 raise WrongState(wrong)
+
+
+@contextlib.asynccontextmanager
+async def _app_running(app: Any, close_within: float = 60.0) -> AsyncIterator[Any]:
+    """`app.run_test()` at 120x40 with notifications shown, except that an app
+    that does not close within `close_within` seconds (its loop hangs: the
+    failure is already recorded) is left behind instead of hanging the campaign."""
+    test = app.run_test(size=(120, 40), notifications=True)
+    pilot = await test.__aenter__()
+    try:
+        yield pilot
+    except BaseException as exc:
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(close_within):  # in this task: run_test resets its context here
+                await test.__aexit__(type(exc), exc, exc.__traceback__)
+        raise
+    try:
+        async with asyncio.timeout(close_within):
+            await test.__aexit__(None, None, None)
+    except TimeoutError:
+        raise ScreenHang(f"the app did not close within {close_within:g} s") from None
 
 
 class WrongState(Exception):
@@ -471,8 +546,11 @@ def _screen_problem(app: Any) -> str:
         return f"no Main screen in {names}"
     if len(stack) > 8 or len({id(s) for s in stack}) != len(stack):
         return f"screens piled up: {names}"
-    if sum(isinstance(s, (CommandPalette, HelpScreen)) for s in stack) > 2:
-        return f"more than one palette or help: {names}"
+    # Help, the palette over it, Help again (F1 there) is allowed; no more.
+    if sum(isinstance(s, CommandPalette) for s in stack) > 1 or sum(isinstance(s, HelpScreen) for s in stack) > 2:
+        return f"palette or help piled up: {names}"
+    if sum(isinstance(s, TooSmallScreen) for s in stack) > 1:
+        return f"'terminal too small' twice: {names}"
     if isinstance(app.screen, TooSmallScreen) and not too_small(*app.size):
         return f"'terminal too small' on a {app.size[0]}x{app.size[1]} terminal: {names}"
     return ""
@@ -483,7 +561,13 @@ async def _judged(t: Tally, engine: Any, trail: list[str], session: Any) -> None
     try:
         await session
     except asyncio.TimeoutError:
-        t.fail("hang", f"a burst took over 60 s (after {len(trail)} bursts)", "\n".join(trail))
+        t.fail("hang", f"a burst took over 300 s (after {len(trail)} bursts)", "\n".join(trail))
+        return
+    except ScreenHang as exc:
+        t.fail("hang", f"after {len(trail)} bursts: {exc}", "\n".join(trail))
+        return
+    except ScreenBusy as exc:
+        t.fail("slow", f"after {len(trail)} bursts: {exc}", "\n".join(trail))
         return
     except WrongState as exc:
         t.fail("wrong state", f"after {len(trail)} bursts: {exc}", "\n".join(trail))
@@ -527,7 +611,7 @@ async def _keys(t: Tally, n: int, rng: random.Random, work: Path) -> None:
         app = build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)
         trail: list[str] = []
         failed = len(t.failures)
-        await _judged(t, engine, trail, _session(app, engine, bursts(app), trail))
+        await _judged(t, engine, trail, _session(app, engine, bursts(app), trail, t.starved))
         print(f"  keys: session {session}, {t.ran}/{n} keys, {time.monotonic() - start:.0f} s"
               + (f", FAILED: {t.failures[-1].kind}" if len(t.failures) > failed else ""),
               file=sys.stderr, flush=True)
@@ -554,7 +638,7 @@ def replay_keys(path: Path, work: Path, out: Path) -> Tally:
     engine = _engine(work / "replay")
     app = build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)
     trail: list[str] = []
-    asyncio.run(_judged(t, engine, trail, _session(app, engine, iter(steps), trail)))
+    asyncio.run(_judged(t, engine, trail, _session(app, engine, iter(steps), trail, t.starved)))
     t.seconds = time.monotonic() - start
     return t
 
@@ -895,6 +979,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(t.line())
         for f in t.failures:
             print(f"    {f.kind}: {f.detail}")
+        for note in t.starved:
+            print(f"    {note}")
         return 1 if t.failures else 0
     tallies = []
     for name in chosen:
@@ -935,6 +1021,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                   + (f"  [{f.saved}]" if f.saved else ""), flush=True)
         if len(t.failures) > 20:
             print(f"    ... {len(t.failures) - 20} more under {out}", flush=True)
+        for note in t.starved:
+            print(f"    {note}", flush=True)
     shutil.rmtree(work_root, ignore_errors=True)
     total = sum(len(t.failures) for t in tallies)
     print(f"seed {args.seed}: {sum(t.ran for t in tallies)} cases, {total} failures, "
