@@ -4,7 +4,7 @@ the real code paths, each case judged, every failure kept with its input.
     .venv/bin/python benchmarks/hardening.py                 # small counts, a few minutes
     .venv/bin/python benchmarks/hardening.py --issue         # the issue's counts
     .venv/bin/python benchmarks/hardening.py --only par,scripts --par 5009 --seed 3
-    .venv/bin/python benchmarks/hardening.py --replay /tmp/hardening-xyz/keys-0001.txt
+    .venv/bin/python benchmarks/hardening.py --replay /tmp/hardening-xyz/keys-0001.txt --shrink
 
 Campaigns (each prints: cases run, accepted, refused cleanly, failures):
   keys     random keys through the TUI (Textual's pilot, the real app on a manual-clock engine)
@@ -617,14 +617,10 @@ async def _keys(t: Tally, n: int, rng: random.Random, work: Path) -> None:
               file=sys.stderr, flush=True)
 
 
-def replay_keys(path: Path, work: Path, out: Path) -> Tally:
-    """A saved trail of the keys campaign (one burst a line, `!run_for S` and
-    `!size WxH` lines)
-    replayed on a fresh app and engine, judged as the campaign judges it."""
-    from quadtank_tui.ui.app import build_app
-
+def _steps(lines: Sequence[str]) -> list[Step]:
+    """A trail's lines as steps: a burst of keys a line, `!run_for S`, `!size WxH`."""
     steps: list[Step] = []
-    for line in path.read_text().splitlines():
+    for line in lines:
         if line.startswith(RUN_FOR):
             steps.append(float(line[len(RUN_FOR):]))
         elif line.startswith(RESIZE):
@@ -632,15 +628,64 @@ def replay_keys(path: Path, work: Path, out: Path) -> Tally:
             steps.append((int(w), int(h)))
         elif line.strip():
             steps.append(line.split())
+    return steps
+
+
+def replay_keys(lines: Sequence[str], work: Path, out: Path) -> Tally:
+    """A saved trail of the keys campaign replayed on a fresh app and engine,
+    judged as the campaign judges it."""
+    from quadtank_tui.ui.app import build_app
+
+    steps = _steps(lines)
     t = Tally("replay", out)
     t.ran = sum(len(s) for s in steps if isinstance(s, list))
     start = time.monotonic()
-    engine = _engine(work / "replay")
+    engine = _engine(Path(tempfile.mkdtemp(prefix="replay-", dir=work)))
     app = build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)
     trail: list[str] = []
     asyncio.run(_judged(t, engine, trail, _session(app, engine, iter(steps), trail, t.starved)))
     t.seconds = time.monotonic() - start
     return t
+
+
+def _signature(t: Tally) -> str | None:
+    """What a replay's first failure was, without its numbers (None: it passed)."""
+    if not t.failures:
+        return None
+    f = t.failures[0]
+    last = f.detail.splitlines()[-1] if f.detail else ""
+    return f"{f.kind}: " + re.sub(r"\d+", "N", re.sub(r"^after \d+ bursts: ", "", last))[:120]
+
+
+def shrink_keys(lines: list[str], work: Path) -> tuple[list[str], str | None]:
+    """The shortest trail found that fails as `lines` fails: whole lines dropped
+    (halves, quarters, ... one at a time), then single keys.  A failure that
+    depends on timing may not come back each time: what is kept always failed."""
+    def fails(candidate: list[str]) -> bool:
+        return _signature(replay_keys(candidate, work, work)) == want
+
+    want = _signature(replay_keys(lines, work, work))
+    if want is None:
+        return lines, None
+    parts = 2
+    while len(lines) > 1:
+        size = -(-len(lines) // parts)
+        for i in range(0, len(lines), size):
+            if fails(candidate := lines[:i] + lines[i + size:]):
+                lines, parts = candidate, max(2, parts - 1)
+                break
+        else:
+            if size == 1:
+                break
+            parts = min(len(lines), 2 * parts)
+    for i in range(len(lines)):
+        if lines[i].startswith("!"):
+            continue
+        for j in reversed(range(len(lines[i].split()))):
+            keys = lines[i].split()
+            if len(keys) > 1 and fails(candidate := [*lines[:i], " ".join(keys[:j] + keys[j + 1:]), *lines[i + 1:]]):
+                lines = candidate
+    return lines, want
 
 
 FIELD_VALUES = [v for v in JUNK if v.strip()] + ["x" * 300, "[/x]" * 3, "-1e-300", "0.00000001", "100000"]
@@ -961,6 +1006,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--out", help="folder for the failing inputs (default: a new temporary folder)")
     p.add_argument("--replay", metavar="FILE", help="replay a failing session of the keys campaign (its saved "
                    "keys-NNNN.txt: a burst a line) and print what became of it")
+    p.add_argument("--shrink", action="store_true", help="with --replay: cut the trail down to the fewest lines "
+                   "and keys that still fail the same way (tens of replays: minutes)")
     return p.parse_args(argv)
 
 
@@ -973,8 +1020,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     work_root = Path(tempfile.mkdtemp(prefix="hardening-work-"))
     os.environ.setdefault("NO_COLOR", "1")
+    if args.replay and args.shrink:
+        lines, why = shrink_keys(Path(args.replay).read_text().splitlines(), work_root)
+        shutil.rmtree(work_root, ignore_errors=True)
+        if why is None:
+            print("the trail did not fail again: nothing to shrink")
+            return 0
+        (out / "shrunk.txt").write_text("\n".join(lines) + "\n")
+        print(f"{why}\n{sum(len(s) for s in _steps(lines) if isinstance(s, list))} keys, "
+              f"saved as {out / 'shrunk.txt'}:\n" + "\n".join(lines))
+        return 1
     if args.replay:
-        t = replay_keys(Path(args.replay), work_root, out)
+        t = replay_keys(Path(args.replay).read_text().splitlines(), work_root, out)
         shutil.rmtree(work_root, ignore_errors=True)
         print(t.line())
         for f in t.failures:
