@@ -11,7 +11,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import pytest
 from textual.widgets import SelectionList, Static
 from textual.widgets._toast import Toast
 
@@ -49,10 +48,8 @@ async def test_a_ghost_log_with_markup_in_a_row_is_named_not_a_crash(engine: Rec
         assert any("odd.log" in s and "'0.6 0.6 0.3 [/x]'" in s for s in shown), shown
 
 
-async def test_identify_lists_log_names_and_file_errors_as_they_are(engine: Recording,
-                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+async def test_identify_lists_log_names_and_file_errors_as_they_are(engine: Recording) -> None:
     logs = Path(engine.loop.logs_dir)
-    monkeypatch.chdir(logs.parent)  # Identify lists ./logs
     hostile_row(logs / "a[b]x.log")
     app = make_app(engine)
     async with app.run_test(size=(120, 40), notifications=True) as pilot:
