@@ -23,10 +23,13 @@ from quadtank_tui.daq.config import DaqConfig, load_daq_config
 from quadtank_tui.daq.registers import Register, decode, encode
 from quadtank_tui.daq.server import IllegalAddress, ModbusTcpServer
 
-ROOT = Path(__file__).parents[2]
-VIRTUAL_RIG = ROOT / "params" / "virtual-rig.yaml"
-DAC = Register("holding", 1000, "float32", "big")  # the LabJack map virtual-rig.yaml uses
+# The tests import daqkit's helpers by name (pytest's importlib mode does not put
+# the test folder on sys.path).
+sys.path.insert(0, str(Path(__file__).parent))
 
+from daqkit import LINK_TIMEOUT, VIRTUAL_RIG  # noqa: E402
+
+DAC = Register("holding", 1000, "float32", "big")  # the LabJack map virtual-rig.yaml uses
 
 class RigProcess:
     """`quadtank rig ...` running; `lines` collects its stdout."""
@@ -41,7 +44,7 @@ class RigProcess:
         self.lines: queue.Queue[str] = queue.Queue()
         self.seen: list[str] = []
         threading.Thread(target=self._pump, daemon=True).start()
-        first = self.wait_for("serving on", timeout=20.0)
+        first = self.wait_for("serving on", timeout=60.0)
         self.port = int(first.split("serving on ")[1].split()[0].rsplit(":", 1)[1])
 
     def _pump(self) -> None:
@@ -69,8 +72,8 @@ class RigProcess:
         raise AssertionError(f"rig did not print {text!r} within {timeout} s; got {self.seen}")
 
     def config(self, **changes: object) -> DaqConfig:
-        """The virtual-rig configuration pointed at this rig."""
-        options: dict[str, object] = {"host": "127.0.0.1", "port": self.port, **changes}
+        """The virtual-rig configuration pointed at this rig (LINK_TIMEOUT unless given)."""
+        options: dict[str, object] = {"host": "127.0.0.1", "port": self.port, "timeout": LINK_TIMEOUT, **changes}
         return dataclasses.replace(load_daq_config(VIRTUAL_RIG), **options)  # type: ignore[arg-type]
 
     def dacs(self) -> tuple[float, float]:
@@ -248,7 +251,7 @@ class Device:
         self._thread.start()
 
     def config(self, **changes: object) -> DaqConfig:
-        options: dict[str, object] = {"host": "127.0.0.1", "port": self.port, **changes}
+        options: dict[str, object] = {"host": "127.0.0.1", "port": self.port, "timeout": LINK_TIMEOUT, **changes}
         return dataclasses.replace(load_daq_config(VIRTUAL_RIG), **options)  # type: ignore[arg-type]
 
     def close(self) -> None:
