@@ -14,7 +14,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Any, Callable, Iterator
 
 import pytest
 from pymodbus.client import ModbusTcpClient
@@ -100,14 +100,6 @@ class RigProcess:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait(timeout=10)
-
-
-@pytest.fixture(autouse=True)
-def _lab_of_its_own(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytest.TempPathFactory) -> None:
-    """Every test its own lab runtime folder (the DAQ locks) and no lab file named:
-    never the machine's /tmp/quadtank-sessions, nor another test's locks."""
-    monkeypatch.setenv("QUADTANK_RUNTIME", str(tmp_path_factory.mktemp("lab-runtime")))
-    monkeypatch.delenv("QUADTANK_LAB", raising=False)
 
 
 @pytest.fixture
@@ -238,12 +230,14 @@ class FixedBank:
 
 class Device:
     """A Modbus TCP device in this process (our server on a thread of its own) over a
-    FixedBank; `reply_delay` s before each answer."""
+    FixedBank, or over `bank` (a VirtualRig on a clock of the test's); `reply_delay` s
+    before each answer."""
 
-    def __init__(self, volts: tuple[float, float, float, float], reply_delay: float = 0.0) -> None:
+    def __init__(self, volts: tuple[float, float, float, float], reply_delay: float = 0.0,
+                 bank: Any = None) -> None:
         import asyncio
 
-        self.bank = FixedBank(volts)
+        self.bank = FixedBank(volts) if bank is None else bank
         self._loop = asyncio.new_event_loop()
         self._server = ModbusTcpServer(self.bank, reply_delay=reply_delay)
         self.port = self._loop.run_until_complete(self._server.start("127.0.0.1", 0))[1]
@@ -265,11 +259,11 @@ class Device:
 
 @pytest.fixture
 def device() -> Iterator[Callable[..., Device]]:
-    """Start in-process devices with `device(volts, reply_delay=0.0)`; closed after."""
+    """Start in-process devices with `device(volts, reply_delay=0.0, bank=None)`; closed after."""
     made: list[Device] = []
 
-    def make(volts: tuple[float, float, float, float], reply_delay: float = 0.0) -> Device:
-        d = Device(volts, reply_delay)
+    def make(volts: tuple[float, float, float, float], reply_delay: float = 0.0, bank: Any = None) -> Device:
+        d = Device(volts, reply_delay, bank)
         made.append(d)
         return d
 
