@@ -109,7 +109,7 @@ def test_active_on_the_rig_matches_simul(device: Callable, tmp_path: Path) -> No
     s = read_log(tmp_path / "simul.log").columns()
     assert len(s["y1"]) == len(a["y1"]) == int(DURATION / H)
     np.testing.assert_allclose(a["t"], s["t"], atol=1e-9)  # the same slots, every one
-    # Measured (seed 3; the same numbers on every run and machine): max |diff| 3.2-5.3
+    # Measured (seed 3; the same numbers on every run): max |diff| 3.2-5.3
     # sigma, RMS 1.00-1.12 sigma, 2-s mean 0.7-2.3 sigma (tank 3, whose start is aligned
     # on one noisy reading).  In real time these were 3.3-10.3, 1.02-2.0 and 0.8-2.6
     # and the bounds 8, 1.5 and 4 (doubled when slots went by); a rig whose clock ran
