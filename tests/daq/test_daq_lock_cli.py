@@ -25,7 +25,7 @@ from quadtank_tui.files.log import read_log
 from quadtank_tui.session import roles
 from quadtank_tui.session.lab import load_lab_config
 from quadtank_tui.session.lock import DaqLock, device_key, holder_of
-from daqkit import rig_yaml
+from daqkit import missed_before_the_last_row, missed_slots, rig_yaml
 
 ROOT = Path(__file__).parents[2]
 PAR = str(ROOT / "params" / "default.par")
@@ -120,17 +120,9 @@ def test_calibrate_from_pairs_takes_no_lock(tmp_path: Path, holding: Callable,
 def logged_its_ten_slots(log: Path) -> bool:
     """Whether a `--realtime --duration 1` run at TSamp 0.1 s logged its ten sampling
     slots: a row each, except the slots a busy machine let go by, which the log notes
-    ('% late: the next row was sampled 0.3 s after ...': two slots went by).  On an
-    idle machine that is ten rows; the run ends once ten slots have passed, so a
-    last row that came late may carry the count past ten by its own missed slots."""
-    rows, missed = read_log(log).rows, []
-    for line in log.read_text().splitlines():
-        if line.startswith("% late: the next row was sampled "):
-            gap = float(line.split("sampled ")[1].split(" s")[0])
-            missed.append(round(gap / 0.1) - 1)
-    covered = rows + sum(missed)
-    last = missed[-1] if missed and log.read_text().rstrip("\n").splitlines()[-2].startswith("% late:") else 0
-    return rows >= 1 and covered - last <= 10 <= covered
+    (on an idle machine, ten rows)."""
+    rows, covered = read_log(log).rows, read_log(log).rows + sum(missed_slots(log, 0.1))
+    return rows >= 1 and covered - missed_before_the_last_row(log, 0.1) <= 10 <= covered
 
 
 def run_in_child(cfg: Path, log: Path) -> subprocess.Popen[str]:
