@@ -317,8 +317,10 @@ class MainScreen(CommandSender):
         snap = self.snap
         if action == "speed" and (snap.operation != "Simul" or snap.realtime or snap.speed == float("inf")):
             return None
-        if action == "element" and parameters and not element_used(snap.params, int(parameters[0])):  # type: ignore[call-overload]
-            return None
+        if action == "element" and parameters:
+            n = parameters[0]  # Textual types action arguments as objects: element(n) has an int
+            if isinstance(n, int) and not element_used(snap.params, n):
+                return None
         return True
 
     # --- modes (M1-M3) ------------------------------------------------------------------
@@ -513,7 +515,7 @@ class MainScreen(CommandSender):
 
         self.app.push_screen(ChoiceWindow("Exit", question, choices), answered)
 
-    def _exit_stopping(self, *, confirm: bool, leave: Callable[[], object] | None = None) -> None:
+    def _exit_stopping(self, *, confirm: bool, leave: Callable[[], None] | None = None) -> None:
         """Exit stopping the loop: asks about an unsaved log (and, if `confirm`,
         whether to stop at all); `leave` exits (default: the app's exit)."""
         leave = leave or self.app.exit

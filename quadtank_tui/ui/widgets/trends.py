@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterator, Mapping
+from typing import Any, Iterator, Mapping
 
 import numpy as np
 from rich.console import RenderableType
@@ -285,8 +285,8 @@ class Trend(PlotextPlot):
     """One trend: the legend row (each signal's latest value in its colour), then
     the plot, relative time on x."""
 
-    def __init__(self, which: str, **kwargs: object) -> None:
-        super().__init__(**kwargs)  # type: ignore[arg-type]
+    def __init__(self, which: str, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
         self.which = which
         self.view = TrendView()
         self._history: Mapping[str, np.ndarray] | None = None
@@ -373,7 +373,7 @@ class Trend(PlotextPlot):
             pick = visible(gx, x_lo, x_hi)
             keep = decimate(len(gx[pick]), XDOTS * columns)
             plt.plot(gx[pick][keep].tolist(), gy[pick][keep].tolist(), marker=styles[name].ghost_marker,
-                     **_color(styles[name].ghost_color))
+                     color=styles[name].ghost_color)
         latest: dict[str, float] = {}
         if history is not None and len(t):
             x = t - t_new
@@ -384,7 +384,7 @@ class Trend(PlotextPlot):
                 if len(y):
                     latest[name] = float(y[-1])
                     plt.plot(x[pick][keep].tolist(), y[keep].tolist(), marker=styles[name].marker,
-                             **_color(styles[name].color))
+                             color=styles[name].color)  # None: plotext's default foreground
         if not latest and not ghost:
             # plotext draws no axes without data: one point left of the plot (not
             # drawn) gives an empty trend its labelled axes, as at start-up.
@@ -453,18 +453,13 @@ class Trend(PlotextPlot):
             if sum(len(p) for p, _ in parts) + len(gap) * (len(parts) - 1) <= width:
                 break
         text = Text(no_wrap=True, overflow="crop")
-        for n, (part, style) in enumerate(parts):
+        for n, (part, rich_style) in enumerate(parts):
             if text.cell_len + len(gap) * bool(n) + len(part) > width:
                 break  # whole entries only: a cut value would read as another
             if n:
                 text.append(gap)
-            text.append(part, style)
+            text.append(part, rich_style)
         return text
 
     def on_click(self, event: events.Click) -> None:
         self.post_message(ActionRequested(f"plot_type({self.which!r})"))
-
-
-def _color(rgb: tuple[int, int, int] | None) -> dict[str, object]:
-    """plotext's colour argument: an RGB tuple, or none (the default foreground)."""
-    return {} if rgb is None else {"color": rgb}
