@@ -37,6 +37,7 @@ from quadtank_tui.ui.widgets.controller_box import ControllerBox, element_used
 from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.status_line import StatusLine
+from quadtank_tui.ui.widgets.trend_clock import ClockMap
 from quadtank_tui.ui.widgets.trends import WINDOWS, Scale, Trend, TrendView, physical_scales, scroll_step
 from quadtank_tui.ui.ghost import GhostControl
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, ConfirmWindow, free_log_name
@@ -116,6 +117,8 @@ class MainScreen(CommandSender):
         Binding("z", "time_window", "Time window", show=False, tooltip="Trend time window: 2, 5, 10, 30 min"),
         Binding("Z", "autoscale", "Autoscale", show=False, tooltip="Trends autoscaled or full scale"),
         Binding("u", "units", "Units", show=False, tooltip="Trends normalized or in the plant's units (levels cm, pumps V)"),
+        Binding("c", "clock_axis", "Clock", show=False,
+                tooltip="Trends' time axis in s before now or at the clock times the samples were taken"),
         Binding("left", "scroll_trends(1)", "Trends back", show=False,
                 tooltip="Paused: scroll the trends back through the history (half a window)"),
         Binding("right", "scroll_trends(-1)", "Trends forward", show=False, tooltip="Paused: scroll the trends forward"),
@@ -151,6 +154,12 @@ class MainScreen(CommandSender):
         #: Trends in the plant's units (else normalized); how far back they show, s.
         self.physical = False
         self.trend_offset = 0.0
+        #: The trends' time axis in clock time (else s before now); the clock of each
+        #: sample as it arrived, and where the wall clock comes from (epoch s).
+        self.clock_axis = False
+        self.clock_map = ClockMap()
+        self.epoch_clock: Callable[[], float] = time.time
+        self._clock_k = -1  # the sample count at the last look (-1: none yet)
         self._scales: tuple[object, tuple[tuple[str, Scale], ...]] = (None, ())
         self.ghost = GhostControl(self)
 
@@ -249,8 +258,9 @@ class MainScreen(CommandSender):
         if snap.state == "Run":
             self.trend_offset = 0.0  # scrolling back is for a paused trend
         self.ghost.follow(snap)
+        self._note_clock(snap, status.age)
         view = (window, self.autoscale, self.size, snap.params.plots, snap.state, snap.control,
-                self.physical, self.trend_offset, self.ghost.run, self.ghost.start)
+                self.physical, self.trend_offset, self.ghost.run, self.ghost.start, self.clock_axis)
         if self._trends_due(snap, view, timer):
             self._drawn_view, self._drawn_t, self._drawn_k = view, snap.t, snap.k
             self._drawn_at = time.monotonic()
@@ -260,8 +270,26 @@ class MainScreen(CommandSender):
             for trend, plot_type in ((self._upper, snap.params.plots.upper),
                                      (self._lower, snap.params.plots.lower)):
                 trend.show(history, TrendView(plot_type, window, self.autoscale, self.trend_offset,
-                                              scales, self.ghost.run, self.ghost.start))
+                                              scales, self.ghost.run, self.ghost.start,
+                                              self.clock_map if self.clock_axis else None))
         self._feed_live(snap)
+
+    def _note_clock(self, snap: Snapshot, age: float) -> None:
+        """The wall clock of the newest sample (the one before snap.t, which is the
+        next sample's time), `age` seconds ago, for the clock axis.  Seen from the
+        first sample on (k was 0 at the last look), the run's start is known too: the
+        samples in between went at the speed of the snapshot."""
+        watched_start, self._clock_k = self._clock_k == 0, snap.k
+        if snap.k <= 0:
+            return
+        t = max(0.0, snap.t - snap.params.tsamp)
+        wall = self.epoch_clock() - (age if age < 60 else 0.0)  # minutes: a stalled loop, or clocks apart
+        if watched_start and t > 0:  # (after a Reset: the map starts again)
+            self.clock_map.note(0.0, wall - (t / snap.speed if 0 < snap.speed < math.inf else 0.0))
+        if snap.state == "Run" or snap.realtime:
+            self.clock_map.note(t, wall)
+        else:  # a paused simulation takes no samples: the newest one stands
+            self.clock_map.stand(t, wall)
 
     def _feed_live(self, snap: Snapshot) -> None:
         """Hand the snapshot to the live window in front (Tank, Pump, Logging)."""
@@ -418,6 +446,10 @@ class MainScreen(CommandSender):
 
     def action_units(self) -> None:
         self.physical = not self.physical
+        self.refresh_view()
+
+    def action_clock_axis(self) -> None:
+        self.clock_axis = not self.clock_axis
         self.refresh_view()
 
     def _trend_scales(self, snap: Snapshot) -> tuple[tuple[str, Scale], ...]:
