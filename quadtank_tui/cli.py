@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import gc
 import json
 import os
 import signal
@@ -18,7 +19,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
-from quadtank_tui.commands import UsageError, icad, warn
+from quadtank_tui.commands import UsageError, icad, pause_gc, warn
 from quadtank_tui.commands.design import add_parser as add_design_parser
 from quadtank_tui.commands import logview, statefb
 from quadtank_tui.commands import identify as identify_command
@@ -315,7 +316,7 @@ def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTan
             starting = pool.submit(EngineProcess, spec, daq_factory=factory)
             from quadtank_tui.ui.app import build_app
             engine = starting.result()
-    return engine, build_app(engine, refresh_interval=args.refresh)
+    return engine, build_app(engine, refresh_interval=args.refresh, resume_gc=not gc.isenabled())
 
 
 def _cmd_tui(args: argparse.Namespace) -> int:
@@ -326,6 +327,7 @@ def _cmd_tui(args: argparse.Namespace) -> int:
 
     if not args.no_session and args.loop is None:
         return sessions_command.cmd_tui_session(args)
+    pause_gc()
     engine, app = build_tui(args)
     warn(engine.warnings)
     watch = TerminalWatch(app.exit_soon, engine.stop)
@@ -394,6 +396,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             if exc.signum == signal.SIGTSTP else ""
         _say(f"quadtank: stopped by {exc}{why}")
         return 128 + exc.signum  # the shell's convention: 143 SIGTERM, 129 SIGHUP
+    finally:
+        gc.enable()  # paused for a TUI's start (pause_gc) that may not have got that far
 
 
 def _driven_daq(args: argparse.Namespace) -> str | None:

@@ -16,3 +16,14 @@ def warn(warnings: Iterable[str]) -> None:
     """Each warning of a file read (`.par`, `.log`) as one line on stderr."""
     for w in warnings:
         print(f"quadtank: warning: {w}", file=sys.stderr)
+
+
+def pause_gc() -> None:
+    """For a TUI's start-up, before the UI is imported: the start allocates a great
+    many objects that live as long as the program (modules, classes, the screen's
+    widgets), and the cyclic collector would scan them over and over, about 40 ms of
+    the first frame (benchmarks/tui_cost.py).  The app built with `resume_gc=True`
+    turns it back on after its first frame (ui.app.resume_gc)."""
+    import gc
+
+    gc.disable()

@@ -9,20 +9,22 @@ second) and never stops the session.
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import sys
 import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from quadtank_tui.commands import UsageError, warn
+from quadtank_tui.commands import UsageError, pause_gc, warn
 
 if TYPE_CHECKING:
+    from quadtank_tui.session.launch import SessionSpec
     from quadtank_tui.session.lock import DaqLock
     from quadtank_tui.engine.runner import ClockKind
     from quadtank_tui.files.script import Script
     from quadtank_tui.session.client import SessionClient
-    from quadtank_tui.session.protocol import SessionInfo
+    from quadtank_tui.session.info import SessionInfo
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -115,6 +117,7 @@ def cmd_attach(args: argparse.Namespace) -> int:
 
     if not 0.01 <= args.attach_refresh <= 5.0:
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.attach_refresh:g}")
+    pause_gc()
     try:
         info = find_session(_runtime(), args.session, os.getuid())
         client = _connect(info, "observer" if args.observe else "operator", take_over=args.take_over)
@@ -131,13 +134,13 @@ def _connect(info: SessionInfo, role: str, *, take_over: bool = False) -> Sessio
 
 def cmd_tui_session(args: argparse.Namespace) -> int:
     """`quadtank` with sessions: attach to the caller's running session, else start one."""
-    from quadtank_tui.session.client import SessionError
     from quadtank_tui.session.runtime import NoSession, find_session
 
     if not 1.0 <= args.tui_speed <= 1000.0:
         raise UsageError(f"--speed must be 1..1000, got {args.tui_speed:g}")
     if not 0.01 <= args.refresh <= 5.0:
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
+    pause_gc()
     runtime = _runtime()
     try:
         info = find_session(runtime, None, os.getuid(), interactive=True)
@@ -145,32 +148,51 @@ def cmd_tui_session(args: argparse.Namespace) -> int:
         if "name one" in str(exc):
             raise UsageError(f"{exc} with quadtank attach SESSION") from None
         info = None
+    if info is not None:
+        if args.tui_par or args.daq_global:
+            warn([f"attached to your running session {info.id}: --par / --daq apply to a new session "
+                  f"only (quadtank stop {info.id} first)"])
+    else:
+        info = _start_while_loading_the_ui(args, runtime)
+    from quadtank_tui.session.client import SessionError
+
     try:
-        if info is not None:
-            if args.tui_par or args.daq_global:
-                warn([f"attached to your running session {info.id}: --par / --daq apply to a new session "
-                      f"only (quadtank stop {info.id} first)"])
-            client = _connect(info, "operator")
-        else:
-            info = start_for(args, runtime)
-            client = _connect(info, "operator")
+        client = _connect(info, "operator")
     except SessionError as exc:
         raise UsageError(str(exc)) from None
     return run_tui_on(client, args.refresh)
 
 
-def start_for(args: argparse.Namespace, runtime: Path) -> SessionInfo:
-    """A new session with the TUI's options (files read and checked here first)."""
+def _start_while_loading_the_ui(args: argparse.Namespace, runtime: Path) -> SessionInfo:
+    """A new session, started so that its boot (a fresh interpreter, numpy, the
+    engine: about 0.3 s) and this process's work (checking the files, loading the
+    UI: about 0.35 s) overlap instead of adding up before the first frame
+    (benchmarks/tui_cost.py): the process is spawned first, then handed the checked
+    spec.  Refused files end it unseen; so does any failure here before it is ready."""
+    from quadtank_tui.session.launch import Spawned
+
+    spawned = Spawned()
+    try:
+        spawned.hand_over(_checked_spec(args, runtime), lock=_held_lock(args))
+        import quadtank_tui.ui.app  # noqa: F401  (used by run_tui_on, loaded meanwhile)
+        return spawned.wait_ready()
+    except BaseException:
+        spawned.cancel()
+        raise
+
+
+def _checked_spec(args: argparse.Namespace, runtime: Path) -> SessionSpec:
+    """The session spec for the TUI's options; a bad .par or DAQ file is refused here,
+    in the terminal, with the usual message."""
     from quadtank_tui.daq.cli import open_daq
     from quadtank_tui.engine.runner import engine_spec
-    from quadtank_tui.session.launch import SessionSpec, start_session
+    from quadtank_tui.session.launch import SessionSpec
 
     spec = engine_spec(args.tui_par, clock="realtime" if args.daq_global else "virtual", speed=args.tui_speed)
     # The DAQ configuration is checked here, for the plant of the parameters.
     open_daq(args.daq_global, spec.params.process_plant() if args.daq_global else None)
     warn(spec.warnings)
-    return start_session(SessionSpec(spec, str(runtime), args.daq_global and str(Path(args.daq_global).resolve())),
-                         lock=_held_lock(args))
+    return SessionSpec(spec, str(runtime), args.daq_global and str(Path(args.daq_global).resolve()))
 
 
 def _held_lock(args: argparse.Namespace) -> DaqLock | None:
@@ -209,7 +231,7 @@ def run_tui_on(client: SessionClient, refresh: float) -> int:
     from quadtank_tui.ui.app import build_app
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
-    app = build_app(client, refresh_interval=refresh)
+    app = build_app(client, refresh_interval=refresh, resume_gc=not gc.isenabled())
     watch = TerminalWatch(app.exit_soon, client.close)
     watch.start()
     try:

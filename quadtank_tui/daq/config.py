@@ -37,18 +37,18 @@ typo never silently leaves a default in force.
 from __future__ import annotations
 
 import copy
+import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
-import yaml
 
 from quadtank_tui.core.calibration import SensorCalibration
 from quadtank_tui.core.validation import is_finite_number
 from quadtank_tui.daq.interlock import QUADTANK_FEEDERS
 from quadtank_tui.daq.registers import MAX_ADDRESS, TABLES, TYPES, WORD_ORDERS, Register
-from quadtank_tui.files.yamltext import parse_yaml, read_text
+from quadtank_tui.files.yamltext import key_lines, parse_yaml, read_text
 
 if TYPE_CHECKING:  # core.plants loads numpy; reading a configuration does not need it
     from quadtank_tui.core.plants import Plant
@@ -249,7 +249,7 @@ def load_daq_config(path: Path | str, plant: Plant | None = None) -> DaqConfig:
     the channels of `plant` (the quadruple tank when None)."""
     text_path = str(path)
     if text_path in PRESETS:
-        return parse_daq_config(yaml.safe_dump({"preset": text_path}), name=f"preset {text_path}", plant=plant)
+        return parse_daq_config(f"preset: {json.dumps(text_path)}\n", name=f"preset {text_path}", plant=plant)
     return parse_daq_config(read_text(path, _error), name=text_path, plant=plant)
 
 
@@ -258,7 +258,7 @@ def parse_daq_config(text: str, *, name: str = "<daq config>", plant: Plant | No
     channels of `plant` (the quadruple tank when None)."""
     wiring = QUADTANK_CHANNELS if plant is None else PlantChannels.of(plant)
     node, data = parse_yaml(text, name, _error)
-    lines = _key_lines(node)
+    lines = key_lines(node)
     v = _Validator(name, lines, wiring)
     if data is None:
         data = {}
@@ -298,22 +298,6 @@ def _for_plant(preset: dict[str, Any], wiring: PlantChannels) -> dict[str, Any]:
     lock = out.get("interlock")
     if isinstance(lock, dict):
         lock.pop("tank_height", None)
-    return out
-
-
-def _key_lines(node: yaml.Node | None, prefix: str = "") -> dict[str, int]:
-    """Dotted key -> 1-based line of that key in the file (yaml's marks)."""
-    out: dict[str, int] = {}
-    if isinstance(node, yaml.MappingNode):
-        for k, val in node.value:
-            key = f"{prefix}{k.value}" if isinstance(k, yaml.ScalarNode) else prefix.rstrip(".")
-            out[key] = k.start_mark.line + 1
-            out.update(_key_lines(val, key + "."))
-    elif isinstance(node, yaml.SequenceNode):
-        for i, item in enumerate(node.value):
-            key = f"{prefix}{i}"
-            out[key] = item.start_mark.line + 1
-            out.update(_key_lines(item, key + "."))
     return out
 
 

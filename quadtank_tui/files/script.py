@@ -33,7 +33,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
-import yaml
 
 from quadtank_tui.core.parameters import Kind, spec
 from quadtank_tui.core.validation import ParameterError, is_finite_number
@@ -92,6 +91,8 @@ def parse_script(text: str, *, name: str = "<script>") -> Script:
     node, data = parse_yaml(text, name, _error)
     if data is None:
         return Script(name, ())
+    import yaml
+
     if not isinstance(data, list) or not isinstance(node, yaml.SequenceNode):
         raise ScriptError(name, "a script is a list of events (- at: SECONDS, then one action)")
     events = [_event(name, item, i + 1, n.start_mark.line + 1)

@@ -12,13 +12,15 @@ read as a number (YAML 1.1 wants `1.0e+3`); a UTF-8 byte-order mark is skipped.
 
 from __future__ import annotations
 
+import functools
 import re
 from pathlib import Path
-from typing import Any, Callable
-
-import yaml
+from typing import TYPE_CHECKING, Any, Callable
 
 from quadtank_tui.files.regular import read_regular
+
+if TYPE_CHECKING:  # loaded when a file is parsed: the TUI's first frame needs none
+    import yaml
 
 #: Builds the reader's own error from (file name, message, line or None).
 ErrorFactory = Callable[[str, str, "int | None"], Exception]
@@ -31,15 +33,20 @@ MAX_DEPTH = 32
 MAX_NODES = 200_000
 
 
-class _Loader(yaml.SafeLoader):
+@functools.cache
+def _loader() -> type[yaml.SafeLoader]:
     """SafeLoader that also reads `1e3`, `-2.5E-4` as floats."""
+    import yaml
 
+    class Loader(yaml.SafeLoader):
+        pass
 
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
-    list("-+0123456789."),
-)
+    Loader.add_implicit_resolver(
+        "tag:yaml.org,2002:float",
+        re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+        list("-+0123456789."),
+    )
+    return Loader
 
 
 def read_text(path: Path | str, error: ErrorFactory) -> str:
@@ -62,10 +69,12 @@ def read_text(path: Path | str, error: ErrorFactory) -> str:
 def parse_yaml(text: str, name: str, error: ErrorFactory) -> tuple[Any, Any]:
     """(node tree, data) of `text`; invalid or hostile YAML raises `error` with
     the line."""
+    import yaml
+
     text = text.removeprefix("\ufeff")
     try:
         _check_size(text, name, error)
-        loader = _Loader(text)
+        loader = _loader()(text)
         try:
             node = loader.get_single_node()
             data = None if node is None else loader.construct_document(node)
@@ -82,10 +91,12 @@ def parse_yaml(text: str, name: str, error: ErrorFactory) -> tuple[Any, Any]:
 def _check_size(text: str, name: str, error: ErrorFactory) -> None:
     """Refuse, from the events alone, a document nested deeper than MAX_DEPTH or
     larger than MAX_NODES values with its aliases expanded."""
+    import yaml
+
     total = 0
     open_: list[tuple[str | None, int]] = []  # (anchor, total at its start)
     sizes: dict[str, int] = {}  # anchor -> values it expands to
-    for event in yaml.parse(text, Loader=_Loader):
+    for event in yaml.parse(text, Loader=_loader()):
         if isinstance(event, yaml.AliasEvent):
             total += sizes.get(event.anchor, 1)
         elif isinstance(event, yaml.ScalarEvent):
@@ -104,3 +115,22 @@ def _check_size(text: str, name: str, error: ErrorFactory) -> None:
         if total > MAX_NODES:
             raise error(name, f"more than {MAX_NODES} values once its aliases (*name) are expanded",
                         event.start_mark.line + 1)
+
+
+def key_lines(node: yaml.Node | None, prefix: str = "") -> dict[str, int]:
+    """Dotted key (`a.b`, `list.0.c`) -> 1-based line of that key in the file (the
+    node tree's marks), for messages that name the line of a bad value."""
+    import yaml
+
+    out: dict[str, int] = {}
+    if isinstance(node, yaml.MappingNode):
+        for k, val in node.value:
+            key = f"{prefix}{k.value}" if isinstance(k, yaml.ScalarNode) else prefix.rstrip(".")
+            out[key] = k.start_mark.line + 1
+            out.update(key_lines(val, key + "."))
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            key = f"{prefix}{i}"
+            out[key] = item.start_mark.line + 1
+            out.update(key_lines(item, key + "."))
+    return out

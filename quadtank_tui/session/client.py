@@ -62,7 +62,7 @@ class SessionClient(HeldLocally):
             sock.connect(str(path))
         except OSError as exc:
             sock.close()
-            raise SessionError(f"cannot reach the session at {path}: {exc.strerror or exc}") from None
+            raise _unreachable(path, exc) from None
         self._sock = sock
         self._reader = LineReader(MAX_SESSION_LINE)
         self._pending: list[bytes] = []
@@ -119,16 +119,20 @@ class SessionClient(HeldLocally):
 
     def snapshot(self) -> Snapshot:
         snap = self._snap
-        if self._gone.is_set() and not self._closing:
-            if self.ended is not None:
-                why = f"session {self.info.id} ended: {self.ended}"
-            else:
-                pumps = f"; {self.rescue}" if self.rescue else \
-                    ("; the rig's watchdog puts its pumps at 0" if snap.operation == "Active" else "")
-                why = (f"the session process {self.info.id} (pid {self.info.pid}) stopped unexpectedly"
-                       f"{pumps}; its log so far is in {self._logs_dir}")
-            return replace(snap, state="Pause", fault=why)
-        return snap
+        why = self._gone_reason()
+        return snap if why is None else replace(snap, state="Pause", fault=why)
+
+    def _gone_reason(self) -> str | None:
+        """Why the session is no longer there (None while it is, or after we left)."""
+        if not self._gone.is_set() or self._closing:
+            return None
+        if self.ended is not None:
+            return f"session {self.info.id} ended: {self.ended}"
+        snap = self._snap
+        pumps = f"; {self.rescue}" if self.rescue else \
+            ("; the rig's watchdog puts its pumps at 0" if snap.operation == "Active" else "")
+        return (f"the session process {self.info.id} (pid {self.info.pid}) stopped unexpectedly"
+                f"{pumps}; its log so far is in {self._logs_dir}")
 
     def submit(self, command: Command) -> Future[CommandResult]:
         fut: Future[CommandResult] = Future()
@@ -170,7 +174,11 @@ class SessionClient(HeldLocally):
         return self._gone.wait(timeout)
 
     def session_banner(self) -> str:
-        """One line for the screen: whose session this is and who drives it."""
+        """One line for the screen: whose session this is and who drives it - or,
+        once it is gone, why (the status line's fault is cut on a narrow screen)."""
+        why = self._gone_reason()
+        if why is not None:
+            return f"{why}; the screen shows its last state, q leaves"
         you = "you operate it" if self.role == "operator" else "read-only: you observe it"
         return f"session {self.info.id} of {self.info.owner}: {self.controller}; {you}"
 
@@ -299,6 +307,28 @@ def stop_session_at(path: str | Path, timeout: float = STOP_TIMEOUT) -> str:
     except (OSError, ProtocolError) as exc:
         if isinstance(exc, SessionError):
             raise
-        raise SessionError(f"cannot reach the session at {path}: {exc}") from None
+        raise _unreachable(path, exc) from None
     finally:
         sock.close()
+
+
+def _unreachable(path: str | Path, exc: Exception) -> SessionError:
+    """Why a session's socket could not be reached; refused by its mode: whose it is
+    and which group may connect, as the user would ask an administrator."""
+    if isinstance(exc, PermissionError):
+        import grp
+        import os
+
+        from quadtank_tui.session.roles import user_name
+
+        try:
+            st = os.stat(path)
+            group = grp.getgrgid(st.st_gid).gr_name if st.st_mode & 0o060 else None
+        except (OSError, KeyError):
+            pass
+        else:
+            who = f"its owner ({user_name(st.st_uid)})" + (f" and members of group {group}" if group else "")
+            return SessionError(f"the session at {path} admits {who} only; you are {user_name(os.getuid())} "
+                                "(the lab file's share_group says who may watch others' sessions)")
+    reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+    return SessionError(f"cannot reach the session at {path}: {reason}")

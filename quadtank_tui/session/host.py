@@ -366,8 +366,9 @@ class SessionHost:
                 seconds_since_log=None if self._log_ended is None else now - self._log_ended)
             if action == "pause":
                 self.engine.submit(SetState("Pause"))  # a real process: pumps at 0
-                self.info = dataclasses.replace(self.info, note=f"paused unattended at {datetime.now():%H:%M:%S} "
-                                                "(the lab's policy)")
+                whose = "the default policy" if self.policy == UnattendedPolicy() else "the lab's policy"
+                self.info = dataclasses.replace(self.info, note=f"paused unattended at {datetime.now():%H:%M:%S}, "
+                                                f"pumps at 0 ({whose})")
                 self._publish(force=True)
                 self._write_record(force=True)
 

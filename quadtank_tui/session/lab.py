@@ -26,9 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-import yaml
 
-from quadtank_tui.files.yamltext import parse_yaml, read_text
+from quadtank_tui.files.yamltext import key_lines, parse_yaml, read_text
 from quadtank_tui.session.policy import MAX_GRACE_MINUTES, UnattendedPolicy
 
 #: The lab file read when neither a path nor $QUADTANK_LAB is given.
@@ -107,7 +106,7 @@ def _error(name: str, message: str, line: int | None) -> LabConfigError:
 def parse_lab_config(text: str, *, name: str = "<lab config>", source: Path | None = None) -> LabConfig:
     """Validate the YAML `text` (named `name` in errors)."""
     node, data = parse_yaml(text, name, _error)
-    lines = _key_lines(node)
+    lines = key_lines(node)
 
     def fail(key: str, reason: str) -> LabConfigError:
         return LabConfigError(name, reason, key=key, line=lines.get(key, lines.get(key.split(".")[0])))
@@ -167,17 +166,6 @@ def _path(data: Mapping[str, Any], key: str, base: Path, fail: Any) -> Path | No
         raise fail(key, f"must be a folder path, got {_show(value)}")
     p = Path(value).expanduser()
     return p if p.is_absolute() else base / p
-
-
-def _key_lines(node: yaml.Node | None, prefix: str = "") -> dict[str, int]:
-    """Dotted key -> 1-based line of that key (yaml's marks)."""
-    out: dict[str, int] = {}
-    if isinstance(node, yaml.MappingNode):
-        for k, val in node.value:
-            if isinstance(k, yaml.ScalarNode):
-                out[f"{prefix}{k.value}"] = k.start_mark.line + 1
-                out.update(_key_lines(val, f"{prefix}{k.value}."))
-    return out
 
 
 def _show(value: Any) -> str:

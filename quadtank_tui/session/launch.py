@@ -22,12 +22,14 @@ import time
 from dataclasses import asdict, dataclass, replace
 from datetime import datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from quadtank_tui.engine.runner import ClockKind, EngineSpec
-from quadtank_tui.files.script import Script
-from quadtank_tui.session.lock import DaqLock
-from quadtank_tui.session.protocol import SessionInfo
-from quadtank_tui.session.runtime import runtime_dir
+from quadtank_tui.session.info import SessionInfo
+
+if TYPE_CHECKING:  # the launcher spawns the session before it loads the engine
+    from quadtank_tui.engine.runner import ClockKind, EngineSpec
+    from quadtank_tui.files.script import Script
+    from quadtank_tui.session.lock import DaqLock
 
 #: Seconds a session may take to start (a fresh interpreter importing numpy).
 START_TIMEOUT = 60.0
@@ -62,48 +64,120 @@ class SessionSpec:
     run: HeadlessArgs | None = None
 
 
+class Spawned:
+    """A session process started before its spec is known: it boots (a fresh
+    interpreter importing numpy and the engine, about 0.3 s) while the launcher
+    checks the files and loads the UI, then waits on its stdin for the spec.
+    `send` hands it over and waits for "ready"; `cancel` ends it unseen (it
+    reads an empty spec and exits without a record)."""
+
+    def __init__(self) -> None:
+        r, w = os.pipe()
+        try:
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", "quadtank_tui.session.launch", str(w)],
+                stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                pass_fds=(w,), start_new_session=True, close_fds=True,
+            )
+        except OSError:
+            os.close(r)
+            raise
+        finally:
+            os.close(w)
+        self._ready = r
+        self._handed_over = False
+        # Reap it whenever it ends, so a session that stops while we run is no zombie.
+        threading.Thread(target=self._proc.wait, name="quadtank-session-reaper", daemon=True).start()
+
+    @property
+    def pid(self) -> int:
+        return self._proc.pid
+
+    def send(self, spec: SessionSpec, *, lock: DaqLock | None = None,
+             timeout: float = START_TIMEOUT) -> SessionInfo:
+        """Start the session `spec` describes; its record once it listens."""
+        self.hand_over(spec, lock=lock)
+        return self.wait_ready(timeout)
+
+    def hand_over(self, spec: SessionSpec, *, lock: DaqLock | None = None) -> None:
+        """Give the process its spec (it goes on booting meanwhile).  `lock`: the
+        rig's lock this launcher took (`quadtank --daq`), handed to the session
+        process, which holds it from then on."""
+        proc = self._proc
+        if lock is not None:
+            try:
+                lock.transfer(proc.pid)  # before the process looks: it adopts the lock
+            except OSError:
+                proc.kill()
+                self._close_ready()
+                raise
+        self._handed_over = True
+        try:
+            assert proc.stdin is not None
+            proc.stdin.write(pickle.dumps(spec))
+            proc.stdin.close()
+        except BrokenPipeError:
+            pass  # it died booting: wait_ready says so
+
+    def wait_ready(self, timeout: float = START_TIMEOUT) -> SessionInfo:
+        """The session's record once it listens, or SessionStartError saying why not."""
+        proc = self._proc
+        try:
+            reply = _read_reply(self._ready, timeout)
+        finally:
+            self._close_ready()
+        if reply.startswith(b"ready "):
+            return SessionInfo(**json.loads(reply[6:]))
+        if reply.startswith(b"failed "):
+            raise SessionStartError(reply[7:].decode(errors="replace").strip())
+        if proc.poll() is None:
+            proc.kill()
+        raise SessionStartError(f"the session process did not start (exit code {proc.poll()})")
+
+    def cancel(self) -> None:
+        """End the process: before it was handed a spec (the files were refused) it
+        reads an empty one and exits; after, the session stops as with `quadtank
+        stop` (nobody would know it runs): asked to, if it already said ready, else
+        by itself when it finds nobody listening for its "ready"."""
+        if self._handed_over:
+            self._stop_handed_over()
+        else:
+            try:
+                if self._proc.stdin is not None:
+                    self._proc.stdin.close()  # an empty spec: it exits at once
+            except OSError:
+                pass
+        self._close_ready()
+
+    def _stop_handed_over(self) -> None:
+        if self._ready < 0:
+            return
+        import select
+
+        reply = b""
+        if select.select([self._ready], [], [], 0)[0]:
+            reply = os.read(self._ready, 65536)
+        self._close_ready()
+        if reply.startswith(b"ready "):
+            from quadtank_tui.session.client import SessionError, stop_session_at
+
+            try:
+                stop_session_at(SessionInfo(**json.loads(reply[6:])).socket)
+            except (SessionError, OSError, ValueError):
+                self._proc.terminate()
+
+    def _close_ready(self) -> None:
+        if self._ready >= 0:
+            os.close(self._ready)
+            self._ready = -1
+
+
 def start_session(spec: SessionSpec, *, lock: DaqLock | None = None,
                   timeout: float = START_TIMEOUT) -> SessionInfo:
     """Start a detached session process; its record once it listens.  `lock`: the
     rig's lock this launcher took (`quadtank --daq`), handed to the session process,
     which holds it from then on."""
-    r, w = os.pipe()
-    try:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "quadtank_tui.session.launch", str(w)],
-            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            pass_fds=(w,), start_new_session=True, close_fds=True,
-        )
-    except OSError:
-        os.close(r)
-        os.close(w)
-        raise
-    os.close(w)
-    if lock is not None:
-        try:
-            lock.transfer(proc.pid)  # before the process looks: it adopts the lock
-        except OSError:
-            proc.kill()
-            os.close(r)
-            raise
-    # Reap it whenever it ends, so a session that stops while we run is no zombie.
-    threading.Thread(target=proc.wait, name="quadtank-session-reaper", daemon=True).start()
-    try:
-        assert proc.stdin is not None
-        proc.stdin.write(pickle.dumps(spec))
-        proc.stdin.close()
-        reply = _read_reply(r, timeout)
-    except BrokenPipeError:
-        reply = b""
-    finally:
-        os.close(r)
-    if reply.startswith(b"ready "):
-        return SessionInfo(**json.loads(reply[6:]))
-    if reply.startswith(b"failed "):
-        raise SessionStartError(reply[7:].decode(errors="replace").strip())
-    if proc.poll() is None:
-        proc.kill()
-    raise SessionStartError(f"the session process did not start (exit code {proc.poll()})")
+    return Spawned().send(spec, lock=lock, timeout=timeout)
 
 
 def _read_reply(fd: int, timeout: float) -> bytes:
@@ -133,11 +207,14 @@ def session_main(ready_fd: int) -> int:
     from quadtank_tui.session.host import Access, SessionHost
     from quadtank_tui.session.lab import load_lab_config
     from quadtank_tui.session.lock import DaqLock, device_key
-    from quadtank_tui.session.roles import group_id, user_name
-    from quadtank_tui.session.runtime import claim_id, remove_files, socket_path, write_record
+    from quadtank_tui.session.roles import user_name
+    from quadtank_tui.session.runtime import claim_id, remove_files, runtime_dir, socket_path, write_record
     from quadtank_tui.session.server import listen
 
-    spec: SessionSpec = pickle.loads(sys.stdin.buffer.read())
+    data = sys.stdin.buffer.read()
+    if not data:  # Spawned.cancel: the launcher refused the files; nothing to do
+        return 0
+    spec: SessionSpec = pickle.loads(data)
     ready = os.fdopen(ready_fd, "wb", buffering=0)
     lab = replace(load_lab_config(), runtime_dir=Path(spec.runtime))
     runtime = runtime_dir(lab.runtime_dir)
@@ -177,9 +254,10 @@ def session_main(ready_fd: int) -> int:
             assert spec.engine is not None
             engine = assemble(spec.engine, daq=daq, threaded=False)
         sock_path = socket_path(runtime, sid)
-        # The share group (else the admin group) may connect; the session checks who.
-        group = lab.share_group or lab.admin_group
-        listener = listen(str(sock_path), group_id(group) if group else None)
+        # Every local user may connect and the session checks each one (Access):
+        # a mode of 0660 with the share or admin group shut out a teacher outside
+        # that group, and the group could not be set at all by an owner outside it.
+        listener = listen(str(sock_path), anyone=True)
         params = engine.loop.params
         plant = params.process.kind if params.process is not None else "quadtank"
         info = SessionInfo(id=sid, owner=user_name(uid), uid=uid, pid=os.getpid(),
@@ -202,8 +280,11 @@ def session_main(ready_fd: int) -> int:
         ready.write(f"failed {exc}".encode())
         ready.close()
         return 1
-    ready.write(b"ready " + json.dumps(asdict(info)).encode())
-    ready.close()
+    try:
+        ready.write(b"ready " + json.dumps(asdict(info)).encode())
+        ready.close()
+    except OSError:  # the launcher was interrupted before the session was ready
+        host.request_stop("its launcher went away before it was ready")
     try:
         reason = host.serve()
     finally:

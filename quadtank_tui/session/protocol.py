@@ -32,6 +32,7 @@ from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine import commands as engine_commands
 from quadtank_tui.engine.commands import Command, CommandResult
 from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.session.info import SessionInfo
 
 #: Longest line a session reads from a client (a command is a few hundred bytes).
 MAX_CLIENT_LINE = 1 << 20
@@ -46,28 +47,6 @@ class ProtocolError(ValueError):
 
 
 # --- the messages ------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class SessionInfo:
-    """What `quadtank sessions` shows of one session; also its JSON record on disk."""
-
-    id: str
-    owner: str
-    uid: int
-    pid: int
-    started: str               # ISO 8601, local time, seconds
-    plant: str
-    operation: str = "Simul"   # Simul | Active
-    state: str = "Pause"       # Run | Pause
-    logging: str = "off"       # "off", "42% (420/1000)", "unsaved 1000 rows"
-    clients: int = 0
-    operator: str = ""         # who controls it now ("" while nobody is attached as operator)
-    socket: str = ""
-    cwd: str = ""
-    daq: str = ""              # the DAQ configuration file ("" for the simulator only)
-    headless: bool = False     # `quadtank run --detach`
-    note: str = ""             # what the session did by itself (the unattended policy)
 
 
 @dataclass(frozen=True)

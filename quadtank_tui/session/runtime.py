@@ -16,7 +16,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from quadtank_tui.session.protocol import SessionInfo
+from quadtank_tui.session.info import SessionInfo
 
 class NoSession(LookupError):
     """No session matches what was asked; the message says what there is."""

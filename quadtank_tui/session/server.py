@@ -168,21 +168,19 @@ class Server:
         self.listener.close()
 
 
-def listen(path: str, group: int | None = None) -> socket.socket:
+def listen(path: str, *, anyone: bool = False) -> socket.socket:
     """A Unix socket at `path` only its owner may connect to (bound under a umask
     that allows nobody else, so no one can connect before the mode is right); with
-    `group` (a group id: the lab's share or admin group), that group's members too."""
+    `anyone`, every local user may connect, and the session decides (SO_PEERCRED):
+    who may - its owner, the lab's administrators, its share group - is more than
+    a file mode can say (one group, and only a group its owner is in)."""
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     old = os.umask(0o177)
     try:
         sock.bind(path)
     finally:
         os.umask(old)
-    if group is not None:
-        try:
-            os.chown(path, -1, group)
-            os.chmod(path, 0o660)
-        except OSError:
-            pass  # not a member of that group: the socket stays the owner's alone
+    if anyone:
+        os.chmod(path, 0o666)
     sock.listen(16)
     return sock

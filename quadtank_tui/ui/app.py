@@ -8,6 +8,7 @@ runs (the CLI does; tests drive a manual-clock engine themselves).
 from __future__ import annotations
 
 import asyncio
+import gc
 import os
 import threading
 import time
@@ -36,7 +37,7 @@ class QuadTankApp(OrderedKeys):
                 Binding("f1", "help", "Help", show=False, priority=True)]
 
     def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.05,
-                 wall_clock: Callable[[], float] = time.monotonic) -> None:
+                 wall_clock: Callable[[], float] = time.monotonic, resume_gc: bool = False) -> None:
         # NO_COLOR (no-color.org): Textual then strips every colour (its NoColor
         # filter) only with native ANSI colours; otherwise it paints in greys.
         super().__init__(ansi_color=True if "NO_COLOR" in os.environ else None)
@@ -48,6 +49,7 @@ class QuadTankApp(OrderedKeys):
         # the TUI was starting) waits here for on_mount instead of being dropped.
         self._exit_lock = threading.Lock()
         self._early_exit: int | None = None
+        self._resume_gc = resume_gc
 
     def on_mount(self) -> None:
         with self._exit_lock:
@@ -58,6 +60,8 @@ class QuadTankApp(OrderedKeys):
             return
         self.push_screen(self.main)
         self._check_size()
+        if self._resume_gc:
+            self.call_after_refresh(resume_gc)
 
     def on_resize(self) -> None:
         self.call_later(self._check_size)
@@ -134,8 +138,18 @@ class QuadTankApp(OrderedKeys):
                                     partial(self.call_later, screen.run_action, b.action))
 
 
+def resume_gc() -> None:
+    """After the first frame (the CLI paused the collector for the start-up,
+    commands.pause_gc): what exists now stays, so it is frozen out of every later
+    collection (shorter pauses for the life of the TUI), then collection resumes."""
+    gc.freeze()
+    gc.enable()
+
+
 def build_app(engine: EngineHandle, *, refresh_interval: float = 0.05,
-              wall_clock: Callable[[], float] = time.monotonic) -> QuadTankApp:
+              wall_clock: Callable[[], float] = time.monotonic, resume_gc: bool = False) -> QuadTankApp:
     """The app on `engine`; `refresh_interval` is the UI timer in seconds (raise it
-    on a slow link); `wall_clock` is injected so tests are deterministic."""
-    return QuadTankApp(engine, refresh_interval=refresh_interval, wall_clock=wall_clock)
+    on a slow link); `wall_clock` is injected so tests are deterministic;
+    `resume_gc`: the caller paused the garbage collector for the start
+    (commands.pause_gc)."""
+    return QuadTankApp(engine, refresh_interval=refresh_interval, wall_clock=wall_clock, resume_gc=resume_gc)

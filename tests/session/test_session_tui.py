@@ -56,3 +56,20 @@ async def test_an_observer_sees_who_controls_and_its_keys_change_nothing(thread_
     observer.close()
     assert operator.submit(c.SetState("Run")).result(5).ok
     operator.close()
+
+
+async def test_an_observer_of_a_stopped_session_is_told_on_the_session_line(thread_session) -> None:
+    """The status line's fault is cut at 100 columns ("fault: session alice-1");
+    the session line says why the session is gone, whatever the width."""
+    s: ThreadSession = thread_session()
+    observer = SessionClient(s.path, role="observer")
+    app = build_app(observer, refresh_interval=0.05)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.pause()
+        s.host.request_stop("stopped by carol")
+        s.thread.join(10)
+        assert observer.wait_gone(5)
+        await pilot.pause(0.6)  # a paused screen's tick
+        text = str(app.main.query_one("#session-bar", Static).render())
+        assert text.startswith("session alice-1 ended: stopped by carol; the screen shows its last state")
+    observer.close()
