@@ -56,6 +56,23 @@ def test_a_steady_run_keeps_two_anchors_and_a_pause_adds_its_own() -> None:
     assert len(clock) == 1 and clock.wall(0.0) == BASE + 2000.0
 
 
+def test_a_pause_stands_and_its_clock_times_have_no_sample() -> None:
+    clock = ClockMap()
+    clock.note(0.0, BASE)
+    clock.note(10.0, BASE + 10.0)
+    for wall in (20.0, 45.0, 70.0):  # paused 60 s: the sample at 10 s stays the newest
+        clock.stand(10.0, BASE + wall)
+    clock.note(10.1, BASE + 70.1)
+    clock.note(20.0, BASE + 80.0)
+    assert len(clock) == 4
+    assert clock.paused_at(BASE + 40.0) and not clock.paused_at(BASE + 5.0) and not clock.paused_at(BASE + 75.0)
+    assert clock.wall(15.0) == pytest.approx(BASE + 75.0) and clock.wall(5.0) == pytest.approx(BASE + 5.0)
+    ticks = clock_ticks(clock, 0.0, 0.5, 41)  # 0..20 s: labels every 5 s of clock, none in the pause
+    values = [seconds_of(label) - local(BASE) for label in ticks.labels]
+    assert ticks.step == 5 and values == [0.0, 5.0, 10.0, 75.0, 80.0], ticks
+    assert ticks.columns == (0, 10, 20, 30, 40)  # 14:01:15 is the sample at 15 s
+
+
 def test_clock_labels_are_round_and_on_the_columns_of_their_samples() -> None:
     clock = ClockMap()
     clock.note(0.0, BASE + 7.3)  # the run started at 14:00:07.3

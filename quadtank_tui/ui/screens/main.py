@@ -286,9 +286,9 @@ class MainScreen(CommandSender):
         wall = self.epoch_clock() - (age if age < 60 else 0.0)  # minutes: a stalled loop, or clocks apart
         if watched_start and t > 0:  # (after a Reset: the map starts again)
             self.clock_map.note(0.0, wall - (t / snap.speed if 0 < snap.speed < math.inf else 0.0))
-        if snap.state == "Run" or snap.realtime:
+        if snap.state == "Run":
             self.clock_map.note(t, wall)
-        else:  # a paused simulation takes no samples: the newest one stands
+        else:  # paused: a simulation takes no samples, the newest one stands (a rig's go on)
             self.clock_map.stand(t, wall)
 
     def _feed_live(self, snap: Snapshot) -> None:

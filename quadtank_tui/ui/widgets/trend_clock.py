@@ -77,10 +77,18 @@ class ClockMap:
             self._t.append(t)
             self._wall.append(wall)
 
+    def paused_within(self, start: float, end: float) -> float:
+        """Wall seconds of pauses between `start` and `end`."""
+        t, w = np.asarray(self._t), np.asarray(self._wall)
+        standing = t[:-1] == t[1:]
+        overlap = np.minimum(w[1:], end) - np.maximum(w[:-1], start)
+        return float(np.clip(overlap[standing], 0.0, None).sum())
+
     def paused_at(self, wall: float) -> bool:
         """Whether `wall` falls in a pause (no sample then)."""
-        return any(t0 == t1 and w0 + TOLERANCE < wall < w1 - TOLERANCE
-                   for t0, t1, w0, w1 in zip(self._t, self._t[1:], self._wall, self._wall[1:]))
+        t, w = np.asarray(self._t), np.asarray(self._wall)
+        standing = (t[:-1] == t[1:]) & (w[:-1] + TOLERANCE < wall) & (wall < w[1:] - TOLERANCE)
+        return bool(standing.any())
 
     def clear(self) -> None:
         self._t.clear()
@@ -138,7 +146,8 @@ class Ticks:
 
 def round_ticks(t_first: float, per_column: float, columns: int, *, value: Callable[[float], float],
                 time_of: Callable[[float], float], label: Callable[[float, bool], str],
-                start: float | None = None, skip: Callable[[float], bool] = lambda v: False) -> Ticks:
+                start: float | None = None, skip: Callable[[float], bool] = lambda v: False,
+                idle: Callable[[float, float], float] = lambda v0, v1: 0.0) -> Ticks:
     """Labels at round values of a non-decreasing `value` of process time, each
     on the column holding the sample of that value.
 
@@ -146,13 +155,14 @@ def round_ticks(t_first: float, per_column: float, columns: int, *, value: Calla
     CLOCK_STEPS that leaves room for its labels (CLOCK_GAP columns a label with
     seconds, MINUTES_GAP without) on average; a label closer than that to the
     previous one (after a pause the clock jumps) is left out, and so is a value
-    `skip` says has no sample.  Nothing before process time `start` is labelled."""
+    `skip` says has no sample; `idle` is how much of a span of values has none
+    (a pause: it takes no columns).  Nothing before process time `start` is labelled."""
     t_last = t_first + (columns - 1) * per_column
     t_from = t_first if start is None else max(t_first, start)
     v0, v1 = value(t_from), value(t_last)
     if not (t_last > t_from and v1 > v0):
         return Ticks((), (), 0.0)
-    columns_per_unit = (t_last - t_from) / (v1 - v0) / per_column
+    columns_per_unit = (t_last - t_from) / max(v1 - v0 - idle(v0, v1), 1e-9) / per_column
     step = float(next((c for c in CLOCK_STEPS if c * columns_per_unit >= _gap(c)), CLOCK_STEPS[-1]))
     gap = _gap(step)
     kept: list[int] = []
@@ -178,7 +188,8 @@ def clock_ticks(clock: ClockMap, t_first: float, per_column: float, columns: int
     return round_ticks(t_first, per_column, columns,
                        value=lambda t: clock.wall(t) + offset,
                        time_of=lambda local: clock.process_time(local - offset),
-                       label=clock_label, start=clock.since, skip=lambda local: clock.paused_at(local - offset))
+                       label=clock_label, start=clock.since, skip=lambda local: clock.paused_at(local - offset),
+                       idle=lambda a, b: clock.paused_within(a - offset, b - offset))
 
 
 def process_ticks(t_first: float, per_column: float, columns: int) -> Ticks:
