@@ -521,14 +521,19 @@ class MainScreen(CommandSender):
         self._exit_stopping(confirm=True)
 
     def _exit_session(self) -> None:
+        from quadtank_tui.session.client import SessionClient  # loaded already: the engine is one
+
         engine = self.engine
-        sid = engine.info.id  # type: ignore[attr-defined]  # a session client (session/client.py)
-        if engine.role != "operator":  # type: ignore[attr-defined]
+        if not isinstance(engine, SessionClient):  # a banner without a session: an ordinary exit
+            self._exit_stopping(confirm=True)
+            return
+        sid = engine.info.id
+        if engine.role != "operator":
             self.app.push_screen(ConfirmWindow("Exit", f"Stop watching session {sid} and exit?\n"
                                                "It keeps running.", yes="Exit"),
                                  lambda yes: self.app.exit() if yes else None)
             return
-        policy = engine.policy  # type: ignore[attr-defined]  # the lab's unattended policy, one sentence
+        policy = engine.policy  # the lab's unattended policy, one sentence
         question = (f"Session {sid} can run on without this screen.\n"
                     f"Detach: it runs on; quadtank attach {sid} comes back to it. {policy}\n"
                     "Stop: the pumps at 0, logging stopped (its rows kept), the session ended.")
@@ -542,7 +547,7 @@ class MainScreen(CommandSender):
                 self._exit_stopping(confirm=False, leave=stop_and_exit)
 
         def stop_and_exit() -> None:
-            engine.stop_on_close = True  # type: ignore[attr-defined]  # the CLI stops it once the app is down
+            engine.stop_on_close = True  # the CLI stops it once the app is down
             self.app.exit()
 
         self.app.push_screen(ChoiceWindow("Exit", question, choices), answered)
