@@ -4,6 +4,7 @@ the real code paths, each case judged, every failure kept with its input.
     .venv/bin/python benchmarks/hardening.py                 # small counts, a few minutes
     .venv/bin/python benchmarks/hardening.py --issue         # the issue's counts
     .venv/bin/python benchmarks/hardening.py --only par,scripts --par 5009 --seed 3
+    .venv/bin/python benchmarks/hardening.py --replay /tmp/hardening-xyz/keys-0001.txt --shrink
 
 Campaigns (each prints: cases run, accepted, refused cleanly, failures):
   keys     random keys through the TUI (Textual's pilot, the real app on a manual-clock engine)
@@ -41,7 +42,7 @@ import threading
 import time
 import traceback
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any, AsyncIterator, Callable, Iterator, Sequence
 
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS = ROOT / "params"
@@ -54,7 +55,7 @@ CAMPAIGNS = ("keys", "fields", "par", "scripts", "daq", "kills", "devices", "pat
 
 @dataclasses.dataclass
 class Failure:
-    kind: str      # traceback | hang | exit status | invalid value accepted | lost row
+    kind: str      # traceback | hang | exit status | invalid value accepted | lost row | wrong state
     detail: str
     saved: Path | None
 
@@ -68,6 +69,9 @@ class Tally:
     refused: int = 0
     failures: list[Failure] = dataclasses.field(default_factory=list)
     seconds: float = 0.0
+    #: The pilot's wait for the screen ran out in a process the machine starved
+    #: (keys campaign): no failure of the program, counted and said.
+    starved: list[str] = dataclasses.field(default_factory=list)
 
     def fail(self, kind: str, detail: str, data: bytes | str | None = None, suffix: str = ".txt") -> None:
         saved = None
@@ -79,7 +83,8 @@ class Tally:
 
     def line(self) -> str:
         return (f"{self.name:8s} {self.ran:7d} cases  {self.accepted:6d} accepted  {self.refused:6d} refused cleanly"
-                f"  {len(self.failures):4d} failures  {self.seconds:7.1f} s")
+                f"  {len(self.failures):4d} failures  {self.seconds:7.1f} s"
+                + (f"  ({len(self.starved)} starved waits)" if self.starved else ""))
 
 
 class Hang(Exception):
@@ -406,15 +411,177 @@ def _valid(params: Any) -> str:
         return f"{type(exc).__name__}: {exc}"
 
 
-async def _burst(pilot: Any, keys: Sequence[str]) -> None:
+async def _burst(pilot: Any, keys: Sequence[str], starved: list[str]) -> None:
     """Keys as they arrive over SSH: all queued before the app handles the first
-    (the pilot tests' helper, tests/ui/bursts.py)."""
+    (the pilot tests' helper, tests/ui/bursts.py).  If the pilot's wait for the
+    screen runs out (WaitForScreenTimeout, 30 s), what it was is found out: a wait
+    that ends in a process the machine starved is noted in `starved` and the
+    session goes on; one in which the app computed, or that never ends, fails."""
+    from textual.pilot import WaitForScreenTimeout
+
     if str(ROOT / "tests" / "ui") not in sys.path:
         sys.path.insert(0, str(ROOT / "tests" / "ui"))
     from bursts import burst
 
-    if pilot.app.is_running:
-        await burst(pilot, *keys)
+    while pilot.app.is_running:
+        wall, cpu = time.monotonic(), time.process_time()
+        try:
+            await burst(pilot, *keys)
+            return
+        except WaitForScreenTimeout:
+            starved.append(await _why_timed_out(pilot, wall, cpu))
+            keys = ()  # sent: wait for the rest of them to be handled
+
+
+class ScreenHang(Exception):
+    """The screen never handled what was posted to it: a real hang."""
+
+
+class ScreenBusy(Exception):
+    """The screen took over 30 s to handle its messages and the process computed
+    most of that time: the program, not the machine."""
+
+
+async def _why_timed_out(pilot: Any, wall: float, cpu: float, more: float = 120.0) -> str:
+    """After a WaitForScreenTimeout: wait up to `more` seconds for the screen to
+    become idle, and tell a starved process (it got little CPU: the machine's
+    load) from a busy one (ScreenBusy) and from a hang (ScreenHang), naming the
+    widgets that held messages when the wait ran out."""
+    from textual.pilot import WaitForScreenTimeout
+
+    app = pilot.app
+    try:
+        nodes = [app, *app.screen.walk_children(with_self=True)]
+    except Exception:  # no screen: the app is closing
+        nodes = [app]
+    holding = ", ".join(f"{type(n).__name__}#{n.id or ''} ({n._message_queue.qsize()})" for n in nodes
+                        if not n._message_queue.empty()) or "none"
+    idle = False
+    deadline = time.monotonic() + more
+    while not idle and time.monotonic() < deadline and app.is_running:
+        try:
+            idle = await pilot._wait_for_screen(timeout=10.0)
+        except WaitForScreenTimeout:
+            pass
+    took, used = time.monotonic() - wall, time.process_time() - cpu
+    said = f"holding messages: {holding}; {took:.0f} s of wall time, {used:.1f} s of CPU"
+    if not idle and app.is_running:
+        raise ScreenHang(f"the screen never became idle; {said}")
+    if used > 0.5 * took:
+        raise ScreenBusy(f"the app computed through the wait; {said}")
+    return f"starved: idle again; {said}"
+
+
+#: Trail lines that are no burst of keys: the engine run on for that many seconds;
+#: the terminal resized (columns x rows).
+RUN_FOR = "!run_for "
+RESIZE = "!size "
+#: Terminal sizes a session moves between: the 80x24 minimum, below it (the
+#: "too small" sentence), and larger.
+SIZES = ((120, 40), (120, 40), (100, 30), (80, 24), (70, 20))
+Step = list[str] | float | tuple[int, int]
+
+
+async def _session(app: Any, engine: Any, bursts: Iterator[Step], trail: list[str], starved: list[str]) -> None:
+    """One app session: each burst of keys pressed at once, each float the engine
+    run on for that long, each pair a new terminal size; every step written to
+    `trail` (one line each) first, so a
+    failing session's trail replays it (`--replay`).  Notifications shown, as a
+    terminal shows them (the pilot hides them by default, and a toast's text is
+    read as markup only when it renders)."""
+    async with _app_running(app) as pilot:
+        for step in bursts:
+            if not app.is_running:
+                break
+            if isinstance(step, float):
+                trail.append(f"{RUN_FOR}{step:g}")
+                engine.run_for(step)
+            elif isinstance(step, tuple):
+                trail.append(f"{RESIZE}{step[0]}x{step[1]}")
+                await asyncio.wait_for(pilot.resize_terminal(*step), timeout=60)
+                await asyncio.wait_for(_burst(pilot, [], starved), timeout=300)
+            else:
+                trail.append(" ".join(step))
+                await asyncio.wait_for(_burst(pilot, step, starved), timeout=300)
+            if app.is_running and (wrong := _screen_problem(app)):
+                raise WrongState(wrong)
+
+
+@contextlib.asynccontextmanager
+async def _app_running(app: Any, close_within: float = 60.0) -> AsyncIterator[Any]:
+    """`app.run_test()` at 120x40 with notifications shown, except that an app
+    that does not close within `close_within` seconds (its loop hangs: the
+    failure is already recorded) is left behind instead of hanging the campaign."""
+    test = app.run_test(size=(120, 40), notifications=True)
+    pilot = await test.__aenter__()
+    try:
+        yield pilot
+    except BaseException as exc:
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(close_within):  # in this task: run_test resets its context here
+                await test.__aexit__(type(exc), exc, exc.__traceback__)
+        raise
+    try:
+        async with asyncio.timeout(close_within):
+            await test.__aexit__(None, None, None)
+    except TimeoutError:
+        raise ScreenHang(f"the app did not close within {close_within:g} s") from None
+
+
+class WrongState(Exception):
+    """The screens left in a state no key sequence should leave them in."""
+
+
+def _screen_problem(app: Any) -> str:
+    """'' if the screen stack is one a user can be in once the keys are handled;
+    else what is wrong with it."""
+    from textual.command import CommandPalette
+
+    from quadtank_tui.ui.screens.help import HelpScreen
+    from quadtank_tui.ui.screens.too_small import TooSmallScreen, too_small
+
+    stack = app.screen_stack
+    names = [type(s).__name__ for s in stack]
+    if app.main not in stack:
+        return f"no Main screen in {names}"
+    if len(stack) > 8 or len({id(s) for s in stack}) != len(stack):
+        return f"screens piled up: {names}"
+    # Help, the palette over it, Help again (F1 there) is allowed; no more.
+    if sum(isinstance(s, CommandPalette) for s in stack) > 1 or sum(isinstance(s, HelpScreen) for s in stack) > 2:
+        return f"palette or help piled up: {names}"
+    if sum(isinstance(s, TooSmallScreen) for s in stack) > 1:
+        return f"'terminal too small' twice: {names}"
+    if isinstance(app.screen, TooSmallScreen) and not too_small(*app.size):
+        return f"'terminal too small' on a {app.size[0]}x{app.size[1]} terminal: {names}"
+    return ""
+
+
+async def _judged(t: Tally, engine: Any, trail: list[str], session: Any) -> None:
+    """Await a session and judge it: a hang, a traceback, or the values it left."""
+    try:
+        await session
+    except asyncio.TimeoutError:
+        t.fail("hang", f"a burst took over 300 s (after {len(trail)} bursts)", "\n".join(trail))
+        return
+    except ScreenHang as exc:
+        t.fail("hang", f"after {len(trail)} bursts: {exc}", "\n".join(trail))
+        return
+    except ScreenBusy as exc:
+        t.fail("slow", f"after {len(trail)} bursts: {exc}", "\n".join(trail))
+        return
+    except WrongState as exc:
+        t.fail("wrong state", f"after {len(trail)} bursts: {exc}", "\n".join(trail))
+        return
+    except Exception:
+        t.fail("traceback", traceback.format_exc(), "\n".join(trail))
+        return
+    finally:
+        engine.stop()
+    why = _valid(engine.snapshot().params)
+    if why:
+        t.fail("invalid value accepted", why, "\n".join(trail))
+    else:
+        t.accepted += 1  # a session that ended cleanly
 
 
 async def _keys(t: Tally, n: int, rng: random.Random, work: Path) -> None:
@@ -422,32 +589,103 @@ async def _keys(t: Tally, n: int, rng: random.Random, work: Path) -> None:
 
     left = n
     session = 0
+    start = time.monotonic()
+
+    def bursts(app: Any) -> Iterator[Step]:
+        nonlocal left
+        pressed = 0
+        while left > 0 and app.is_running and pressed < 1500:
+            chunk = [rng.choice(KEYS) for _ in range(min(left, rng.randint(1, 12)))]
+            pressed += len(chunk)
+            left -= len(chunk)
+            t.ran += len(chunk)
+            yield chunk
+            if rng.random() < 0.05:
+                yield rng.choice((0.1, 1.0, 10.0))
+            if rng.random() < 0.03:
+                yield rng.choice(SIZES)
+
     while left > 0:
         session += 1
         engine = _engine(work / f"keys{session}")
         app = build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)
-        pressed: list[str] = []
-        try:
-            async with app.run_test(size=(120, 40)) as pilot:
-                while left > 0 and app.is_running and len(pressed) < 1500:
-                    chunk = [rng.choice(KEYS) for _ in range(min(left, rng.randint(1, 12)))]
-                    pressed.extend(chunk)
-                    left -= len(chunk)
-                    t.ran += len(chunk)
-                    await asyncio.wait_for(_burst(pilot, chunk), timeout=60)
-                    if rng.random() < 0.05:
-                        engine.run_for(rng.choice((0.1, 1.0, 10.0)))
-            why = _valid(engine.snapshot().params)
-            if why:
-                t.fail("invalid value accepted", why, "\n".join(pressed))
-            else:
-                t.accepted += 1  # a session that ended cleanly
-        except asyncio.TimeoutError:
-            t.fail("hang", f"a key took over 60 s (after {len(pressed)} keys)", "\n".join(pressed))
-        except Exception:
-            t.fail("traceback", traceback.format_exc(), "\n".join(pressed))
-        finally:
-            engine.stop()
+        trail: list[str] = []
+        failed = len(t.failures)
+        await _judged(t, engine, trail, _session(app, engine, bursts(app), trail, t.starved))
+        print(f"  keys: session {session}, {t.ran}/{n} keys, {time.monotonic() - start:.0f} s"
+              + (f", FAILED: {t.failures[-1].kind}" if len(t.failures) > failed else ""),
+              file=sys.stderr, flush=True)
+
+
+def _steps(lines: Sequence[str]) -> list[Step]:
+    """A trail's lines as steps: a burst of keys a line, `!run_for S`, `!size WxH`."""
+    steps: list[Step] = []
+    for line in lines:
+        if line.startswith(RUN_FOR):
+            steps.append(float(line[len(RUN_FOR):]))
+        elif line.startswith(RESIZE):
+            w, h = line[len(RESIZE):].split("x")
+            steps.append((int(w), int(h)))
+        elif line.strip():
+            steps.append(line.split())
+    return steps
+
+
+def replay_keys(lines: Sequence[str], work: Path, out: Path) -> Tally:
+    """A saved trail of the keys campaign replayed on a fresh app and engine,
+    judged as the campaign judges it."""
+    from quadtank_tui.ui.app import build_app
+
+    steps = _steps(lines)
+    t = Tally("replay", out)
+    t.ran = sum(len(s) for s in steps if isinstance(s, list))
+    start = time.monotonic()
+    engine = _engine(Path(tempfile.mkdtemp(prefix="replay-", dir=work)))
+    app = build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)
+    trail: list[str] = []
+    asyncio.run(_judged(t, engine, trail, _session(app, engine, iter(steps), trail, t.starved)))
+    t.seconds = time.monotonic() - start
+    return t
+
+
+def _signature(t: Tally) -> str | None:
+    """What a replay's first failure was, without its numbers (None: it passed)."""
+    if not t.failures:
+        return None
+    f = t.failures[0]
+    last = f.detail.splitlines()[-1] if f.detail else ""
+    return f"{f.kind}: " + re.sub(r"\d+", "N", re.sub(r"^after \d+ bursts: ", "", last))[:120]
+
+
+def shrink_keys(lines: list[str], work: Path) -> tuple[list[str], str | None]:
+    """The shortest trail found that fails as `lines` fails: whole lines dropped
+    (halves, quarters, ... one at a time), then single keys.  A failure that
+    depends on timing may not come back each time: what is kept always failed."""
+    def fails(candidate: list[str]) -> bool:
+        return _signature(replay_keys(candidate, work, work)) == want
+
+    want = _signature(replay_keys(lines, work, work))
+    if want is None:
+        return lines, None
+    parts = 2
+    while len(lines) > 1:
+        size = -(-len(lines) // parts)
+        for i in range(0, len(lines), size):
+            if fails(candidate := lines[:i] + lines[i + size:]):
+                lines, parts = candidate, max(2, parts - 1)
+                break
+        else:
+            if size == 1:
+                break
+            parts = min(len(lines), 2 * parts)
+    for i in range(len(lines)):
+        if lines[i].startswith("!"):
+            continue
+        for j in reversed(range(len(lines[i].split()))):
+            keys = lines[i].split()
+            if len(keys) > 1 and fails(candidate := [*lines[:i], " ".join(keys[:j] + keys[j + 1:]), *lines[i + 1:]]):
+                lines = candidate
+    return lines, want
 
 
 FIELD_VALUES = [v for v in JUNK if v.strip()] + ["x" * 300, "[/x]" * 3, "-1e-300", "0.00000001", "100000"]
@@ -463,7 +701,7 @@ async def _fields(t: Tally, n: int, rng: random.Random, work: Path) -> None:
     done = 0
     trail: list[str] = []
     try:
-        async with app.run_test(size=(120, 40)) as pilot:
+        async with app.run_test(size=(120, 40), notifications=True) as pilot:
             while done < n:
                 for opener in WINDOWS:
                     for key in opener:
@@ -766,6 +1004,10 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--cli-every", type=int, default=10, metavar="K",
                    help="also run `quadtank analyze --par` on every K-th .par mutant (0: never)")
     p.add_argument("--out", help="folder for the failing inputs (default: a new temporary folder)")
+    p.add_argument("--replay", metavar="FILE", help="replay a failing session of the keys campaign (its saved "
+                   "keys-NNNN.txt: a burst a line) and print what became of it")
+    p.add_argument("--shrink", action="store_true", help="with --replay: cut the trail down to the fewest lines "
+                   "and keys that still fail the same way (tens of replays: minutes)")
     return p.parse_args(argv)
 
 
@@ -778,6 +1020,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     work_root = Path(tempfile.mkdtemp(prefix="hardening-work-"))
     os.environ.setdefault("NO_COLOR", "1")
+    if args.replay and args.shrink:
+        lines, why = shrink_keys(Path(args.replay).read_text().splitlines(), work_root)
+        shutil.rmtree(work_root, ignore_errors=True)
+        if why is None:
+            print("the trail did not fail again: nothing to shrink")
+            return 0
+        (out / "shrunk.txt").write_text("\n".join(lines) + "\n")
+        print(f"{why}\n{sum(len(s) for s in _steps(lines) if isinstance(s, list))} keys, "
+              f"saved as {out / 'shrunk.txt'}:\n" + "\n".join(lines))
+        return 1
+    if args.replay:
+        t = replay_keys(Path(args.replay).read_text().splitlines(), work_root, out)
+        shutil.rmtree(work_root, ignore_errors=True)
+        print(t.line())
+        for f in t.failures:
+            print(f"    {f.kind}: {f.detail}")
+        for note in t.starved:
+            print(f"    {note}")
+        return 1 if t.failures else 0
     tallies = []
     for name in chosen:
         rng = random.Random(f"{args.seed}-{name}")
@@ -817,6 +1078,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                   + (f"  [{f.saved}]" if f.saved else ""), flush=True)
         if len(t.failures) > 20:
             print(f"    ... {len(t.failures) - 20} more under {out}", flush=True)
+        for note in t.starved:
+            print(f"    {note}", flush=True)
     shutil.rmtree(work_root, ignore_errors=True)
     total = sum(len(t.failures) for t in tallies)
     print(f"seed {args.seed}: {sum(t.ran for t in tallies)} cases, {total} failures, "

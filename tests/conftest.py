@@ -21,6 +21,16 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.wallclock)
 
 
+@pytest.fixture(autouse=True)
+def _runtime_of_its_own(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Every test its own runtime folder (session sockets and records, DAQ locks) and
+    no lab file named: a test run leaves nothing in the machine's
+    /tmp/quadtank-sessions, and never lists, attaches to or locks out a lab's real
+    sessions.  A test about the runtime folder sets or removes the variable itself."""
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(tmp_path_factory.mktemp("runtime")))
+    monkeypatch.delenv("QUADTANK_LAB", raising=False)
+
+
 def copy_params(folder: Path) -> Path:
     """A private copy of the repository's params/ (and an empty logs/) in `folder`:
     a test that runs a command the way a user does, from a folder holding params/,

@@ -71,7 +71,8 @@ class QuadTankApp(OrderedKeys):
         if self.main not in self.screen_stack:
             return  # not started yet: on_mount checks
         small = too_small(*self.size)
-        if small and not isinstance(self.screen, TooSmallScreen):
+        # Once: one may be under a window opened over it (it goes when back in front).
+        if small and not any(isinstance(s, TooSmallScreen) for s in self.screen_stack):
             self.push_screen(TooSmallScreen())
         elif not small and isinstance(self.screen, TooSmallScreen):
             self.pop_screen()
@@ -89,8 +90,10 @@ class QuadTankApp(OrderedKeys):
             aloop.call_soon_threadsafe(self.exit, None, return_code)
 
     def action_request_exit(self) -> None:
-        # From Main or Setup (the original had Exit on both), not over a window.
-        if not isinstance(self.screen, ModalScreen):
+        # From Main or Setup (the original had Exit on both), not over a window,
+        # also when a terminal too small to show them hides them (too_small.py).
+        front = next(s for s in reversed(self.screen_stack) if not isinstance(s, TooSmallScreen))
+        if not isinstance(front, ModalScreen):
             self.main.action_exit()
 
     def action_help(self) -> None:

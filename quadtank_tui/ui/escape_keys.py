@@ -10,9 +10,11 @@ below reports the two keys, in order, and the app's ordered keys (keyorder.py)
 let the window close before the key acts on the screen behind it.
 
 Kept as they are: escape sequences (ESC [ and ESC O: arrows, function keys,
-mouse, focus, paste; ESC ], ESC P, ESC _: the terminal's replies) and iTerm's
-"natural text editing" Option+arrows (ESC b, ESC f: a word left or right in a
-field; `b` and `f` are no keys of this program).
+mouse, focus, paste; ESC ], ESC P, ESC _: the terminal's replies).  ESC b and
+ESC f, which some terminals send for Option+arrow (a word left or right in a
+field), are Esc then `b` (Ghost runs, on Main) or `f` (Files, on Setup): closing
+a window and going on matters more than a word jump in a field of a few digits
+(ctrl+left/right and the arrows still move there).
 """
 
 from __future__ import annotations
@@ -26,8 +28,6 @@ from textual.drivers import linux_driver
 ESC = "\x1b"
 #: Bytes that after ESC start a sequence the terminal sends (not a key typed after Esc).
 SEQUENCE_STARTS = frozenset("[O]P_" + ESC)
-#: ESC + byte pairs left as Textual reads them (word jumps in a field).
-WORD_JUMPS = frozenset({ESC + "b", ESC + "f"})
 
 
 class EscapeThenKeyParser(XTermParser):
@@ -40,8 +40,7 @@ class EscapeThenKeyParser(XTermParser):
             yield events.Key("escape", ESC)
             yield from super()._sequence_to_key_events(sequence)
             return
-        if (len(sequence) == 2 and sequence[0] == ESC and sequence[1] not in SEQUENCE_STARTS
-                and sequence not in WORD_JUMPS):
+        if len(sequence) == 2 and sequence[0] == ESC and sequence[1] not in SEQUENCE_STARTS:
             yield events.Key("escape", ESC)
             yield from super()._sequence_to_key_events(sequence[1])
             return

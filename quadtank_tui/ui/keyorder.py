@@ -29,8 +29,11 @@ from textual.dom import DOMNode
 from textual.message import Message
 from textual.screen import Screen
 
-#: Longest a key is waited for before the next one goes anyway, s.
-KEY_CAP = 0.5
+#: Longest a key is waited for before the next one goes anyway, s: only a key
+#: dropped on its way (its screen closed under it) waits this long; a window that
+#: mounts slowly on a loaded machine (0.5 s was seen at load 6) must not see the
+#: keys typed into it go to the screen behind.
+KEY_CAP = 2.0
 #: How often a key in flight is looked at, s.
 POLL = 0.0005
 

@@ -14,7 +14,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Any, Callable, Iterator
 
 import pytest
 from pymodbus.client import ModbusTcpClient
@@ -23,10 +23,13 @@ from quadtank_tui.daq.config import DaqConfig, load_daq_config
 from quadtank_tui.daq.registers import Register, decode, encode
 from quadtank_tui.daq.server import IllegalAddress, ModbusTcpServer
 
-ROOT = Path(__file__).parents[2]
-VIRTUAL_RIG = ROOT / "params" / "virtual-rig.yaml"
-DAC = Register("holding", 1000, "float32", "big")  # the LabJack map virtual-rig.yaml uses
+# The tests import daqkit's helpers by name (pytest's importlib mode does not put
+# the test folder on sys.path).
+sys.path.insert(0, str(Path(__file__).parent))
 
+from daqkit import LINK_TIMEOUT, VIRTUAL_RIG  # noqa: E402
+
+DAC = Register("holding", 1000, "float32", "big")  # the LabJack map virtual-rig.yaml uses
 
 class RigProcess:
     """`quadtank rig ...` running; `lines` collects its stdout."""
@@ -41,7 +44,7 @@ class RigProcess:
         self.lines: queue.Queue[str] = queue.Queue()
         self.seen: list[str] = []
         threading.Thread(target=self._pump, daemon=True).start()
-        first = self.wait_for("serving on", timeout=20.0)
+        first = self.wait_for("serving on", timeout=60.0)
         self.port = int(first.split("serving on ")[1].split()[0].rsplit(":", 1)[1])
 
     def _pump(self) -> None:
@@ -69,8 +72,8 @@ class RigProcess:
         raise AssertionError(f"rig did not print {text!r} within {timeout} s; got {self.seen}")
 
     def config(self, **changes: object) -> DaqConfig:
-        """The virtual-rig configuration pointed at this rig."""
-        options: dict[str, object] = {"host": "127.0.0.1", "port": self.port, **changes}
+        """The virtual-rig configuration pointed at this rig (LINK_TIMEOUT unless given)."""
+        options: dict[str, object] = {"host": "127.0.0.1", "port": self.port, "timeout": LINK_TIMEOUT, **changes}
         return dataclasses.replace(load_daq_config(VIRTUAL_RIG), **options)  # type: ignore[arg-type]
 
     def dacs(self) -> tuple[float, float]:
@@ -97,14 +100,6 @@ class RigProcess:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait(timeout=10)
-
-
-@pytest.fixture(autouse=True)
-def _lab_of_its_own(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytest.TempPathFactory) -> None:
-    """Every test its own lab runtime folder (the DAQ locks) and no lab file named:
-    never the machine's /tmp/quadtank-sessions, nor another test's locks."""
-    monkeypatch.setenv("QUADTANK_RUNTIME", str(tmp_path_factory.mktemp("lab-runtime")))
-    monkeypatch.delenv("QUADTANK_LAB", raising=False)
 
 
 @pytest.fixture
@@ -235,12 +230,14 @@ class FixedBank:
 
 class Device:
     """A Modbus TCP device in this process (our server on a thread of its own) over a
-    FixedBank; `reply_delay` s before each answer."""
+    FixedBank, or over `bank` (a VirtualRig on a clock of the test's); `reply_delay` s
+    before each answer."""
 
-    def __init__(self, volts: tuple[float, float, float, float], reply_delay: float = 0.0) -> None:
+    def __init__(self, volts: tuple[float, float, float, float], reply_delay: float = 0.0,
+                 bank: Any = None) -> None:
         import asyncio
 
-        self.bank = FixedBank(volts)
+        self.bank = FixedBank(volts) if bank is None else bank
         self._loop = asyncio.new_event_loop()
         self._server = ModbusTcpServer(self.bank, reply_delay=reply_delay)
         self.port = self._loop.run_until_complete(self._server.start("127.0.0.1", 0))[1]
@@ -248,7 +245,7 @@ class Device:
         self._thread.start()
 
     def config(self, **changes: object) -> DaqConfig:
-        options: dict[str, object] = {"host": "127.0.0.1", "port": self.port, **changes}
+        options: dict[str, object] = {"host": "127.0.0.1", "port": self.port, "timeout": LINK_TIMEOUT, **changes}
         return dataclasses.replace(load_daq_config(VIRTUAL_RIG), **options)  # type: ignore[arg-type]
 
     def close(self) -> None:
@@ -262,11 +259,11 @@ class Device:
 
 @pytest.fixture
 def device() -> Iterator[Callable[..., Device]]:
-    """Start in-process devices with `device(volts, reply_delay=0.0)`; closed after."""
+    """Start in-process devices with `device(volts, reply_delay=0.0, bank=None)`; closed after."""
     made: list[Device] = []
 
-    def make(volts: tuple[float, float, float, float], reply_delay: float = 0.0) -> Device:
-        d = Device(volts, reply_delay)
+    def make(volts: tuple[float, float, float, float], reply_delay: float = 0.0, bank: Any = None) -> Device:
+        d = Device(volts, reply_delay, bank)
         made.append(d)
         return d
 

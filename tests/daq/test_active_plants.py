@@ -18,6 +18,7 @@ from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.registers import decode
 from quadtank_tui.engine.runner import build_engine
 from quadtank_tui.files.log import read_log
+from daqkit import rig_yaml
 
 ROOT = Path(__file__).parents[2]
 CASCADE_PAR = ROOT / "params" / "coupled-cascade.par"
@@ -38,7 +39,7 @@ STEP = """\
 
 def coupled_map(tmp_path: Path, port: int) -> Path:
     path = tmp_path / "coupled.yaml"
-    path.write_text(COUPLED_MAP.read_text().replace("port: 5020", f"port: {port}"))
+    path.write_text(rig_yaml(port, COUPLED_MAP))
     return path
 
 

@@ -15,6 +15,7 @@ from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.core.plant import steady_state_levels
 from quadtank_tui.daq.calibrate import Pairs, fit_pairs, parse_pairs
 from quadtank_tui.files.par import write_par
+from daqkit import rig_yaml
 
 ROOT = Path(__file__).parents[2]
 TABLE_1 = """# Desautel Table 1 (coupled tanks: one pump)
@@ -75,7 +76,7 @@ def test_on_the_virtual_rig_it_recovers_the_sensor_gain_and_offset(
     par = write_par(tmp_path / "kc045.par", params)
     r = rig("--par", str(par), "--offset", "0.1", "--speed", "4000")
     config = tmp_path / "rig.yaml"
-    config.write_text((ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {r.port}"))
+    config.write_text(rig_yaml(r.port))
     volts = (2.0, 2.5, 3.0)
     heights = [steady_state_levels((v, v), params.plant()) for v in volts]
     monkeypatch.setattr("sys.stdin", io.StringIO("".join(" ".join(f"{x:.6f}" for x in h) + "\n" for h in heights)))

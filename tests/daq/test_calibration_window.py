@@ -24,6 +24,7 @@ from quadtank_tui.ui.app import build_app
 from quadtank_tui.ui.screens.setup import SetupScreen
 from quadtank_tui.ui.windows.base import ConfirmWindow
 from quadtank_tui.ui.windows.calibration import CalibrationWindow
+from daqkit import rig_yaml
 
 ROOT = Path(__file__).parents[2]
 SENSOR, OFFSET = 0.45, 0.1
@@ -38,7 +39,7 @@ def rig_engine(rig: Callable, tmp_path: Path):  # type: ignore[no-untyped-def]
     par = write_par(folder / "lab.par", params)
     r = rig("--par", str(par), "--offset", str(OFFSET), "--speed", "4000")
     config = tmp_path / "rig.yaml"
-    config.write_text((ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {r.port}"))
+    config.write_text(rig_yaml(r.port))
     engine = build_engine(None, daq=ModbusBackend(load_daq_config(config)), clock="manual",
                           params_dir=folder, logs_dir=tmp_path)
     assert engine.submit(SetOperation("Active")).result().ok
@@ -123,7 +124,7 @@ async def test_cancel_puts_the_pumps_to_0(rig_engine, poll: Callable) -> None:  
         window.query_one("#cal-tol").value = "0.000000001"
         await pilot.click("#start")
         await _until(pilot, engine, window, lambda: window.status is not None and window.status.reads >= 3)
-        assert poll(lambda: r.dacs() == (4.0, 4.0), 2.0)
+        assert poll(lambda: r.dacs() == (4.0, 4.0), 30.0)
         await pilot.click("#cancel")
         await pilot.pause()
         assert not isinstance(app.screen, CalibrationWindow)

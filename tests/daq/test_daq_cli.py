@@ -9,6 +9,7 @@ import pytest
 
 from quadtank_tui.cli import main
 from quadtank_tui.daq.modbus import ModbusBackend
+from daqkit import rig_yaml
 
 ROOT = Path(__file__).parents[2]
 
@@ -30,7 +31,7 @@ def test_fit_refuses_bad_pairs(pairs: list[str], message: str, capsys: pytest.Ca
 def test_check_reads_and_writes_nothing(rig: Callable, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     r = rig()
     config = tmp_path / "rig.yaml"
-    config.write_text((ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {r.port}"))
+    config.write_text(rig_yaml(r.port))
     driver = ModbusBackend(r.config())
     driver.write_pumps((0.25, 0.35))
     assert main(["daq", "check", str(config)]) == 0

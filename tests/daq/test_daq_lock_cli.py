@@ -24,7 +24,8 @@ from quadtank_tui.cli import main
 from quadtank_tui.files.log import read_log
 from quadtank_tui.session import roles
 from quadtank_tui.session.lab import load_lab_config
-from quadtank_tui.session.lock import device_key, holder_of
+from quadtank_tui.session.lock import DaqLock, device_key, holder_of
+from daqkit import missed_before_the_last_row, missed_slots, rig_yaml
 
 ROOT = Path(__file__).parents[2]
 PAR = str(ROOT / "params" / "default.par")
@@ -33,7 +34,7 @@ ME = roles.user_name(os.getuid())
 
 def config_for(tmp_path: Path, port: int) -> Path:
     """params/virtual-rig.yaml pointed at `port`."""
-    text = (ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {port}")
+    text = rig_yaml(port)
     path = tmp_path / "rig.yaml"
     path.write_text(text)
     return path
@@ -116,6 +117,14 @@ def test_calibrate_from_pairs_takes_no_lock(tmp_path: Path, holding: Callable,
     assert capsys.readouterr().out.startswith("tank 1  gain ")
 
 
+def logged_its_ten_slots(log: Path) -> bool:
+    """Whether a `--realtime --duration 1` run at TSamp 0.1 s logged its ten sampling
+    slots: a row each, except the slots a busy machine let go by, which the log notes
+    (on an idle machine, ten rows)."""
+    rows, covered = read_log(log).rows, read_log(log).rows + sum(missed_slots(log, 0.1))
+    return rows >= 1 and covered - missed_before_the_last_row(log, 0.1) <= 10 <= covered
+
+
 def run_in_child(cfg: Path, log: Path) -> subprocess.Popen[str]:
     """`quadtank run --daq` in real time for a minute, as another terminal would."""
     return subprocess.Popen([sys.executable, "-m", "quadtank_tui", "run", "--daq", str(cfg), "--realtime",
@@ -129,16 +138,16 @@ def test_a_sigkilled_holders_lock_is_taken_over(rig: Callable, poll: Callable, t
     cfg = config_for(tmp_path, r.port)
     child = run_in_child(cfg, tmp_path / "first.log")
     try:
-        assert poll(lambda: holder_pid(r.port) == child.pid, 20.0)
+        assert poll(lambda: holder_pid(r.port) == child.pid, 60.0)
         os.kill(child.pid, signal.SIGKILL)
-        child.wait(10)
+        child.wait(60)
     finally:
         child.kill()
         child.communicate()
     assert holder_pid(r.port) is None  # its record is there, its pid is gone: stale
     out = tmp_path / "second.log"
     assert main(["run", "--daq", str(cfg), "--realtime", "--duration", "1", "--log", str(out), "--par", PAR]) == 0
-    assert read_log(out).rows == 10
+    assert logged_its_ten_slots(out)
     assert holder_pid(r.port) is None  # released on the way out
     assert r.dacs() == (0.0, 0.0)
 
@@ -164,8 +173,8 @@ def test_a_student_may_not_take_over_an_administrator_may(rig: Callable, poll: C
     child = run_in_child(cfg, first_log)
     partial = first_log.with_name("first.log.partial")
     try:
-        assert poll(lambda: holder_pid(r.port) == child.pid, 20.0)
-        assert poll(lambda: partial.exists() and read_log(partial).rows >= 5, 20.0)  # it drives the rig
+        assert poll(lambda: holder_pid(r.port) == child.pid, 60.0)
+        assert poll(lambda: partial.exists() and read_log(partial).rows >= 5, 60.0)  # it drives the rig
         out = tmp_path / "second.log"
         argv = ["run", "--daq", str(cfg), "--realtime", "--duration", "1", "--log", str(out), "--par", PAR,
                 "--take-over"]
@@ -177,17 +186,22 @@ def test_a_student_may_not_take_over_an_administrator_may(rig: Callable, poll: C
         assert child.poll() is None and holder_pid(r.port) == child.pid and not out.exists()
 
         be(monkeypatch, tmp_path, "alice")
+        # The first program looks at its lock every 0.5 s (LockWatch); this run of 1 s
+        # keeps the rig until it has stopped, or on a loaded machine it may look only
+        # after this one released the lock and read "removed", not who took it.
+        release = DaqLock.release
+        monkeypatch.setattr(DaqLock, "release", lambda lock: (child.wait(60), release(lock))[-1])
         assert main(argv) == 0
         err = capsys.readouterr().err
         assert f"took the rig at 127.0.0.1:{r.port}/1 over from {ME} (pid {child.pid})" in err
         # the first program stopped before this one drove the rig: pumps at 0, its rows kept
-        assert child.wait(10) == 1
+        assert child.wait(60) == 1
     finally:
         child.kill()
         _, child_err = child.communicate()
     assert f"the rig at 127.0.0.1:{r.port}/1 was taken over by {ME} (pid {os.getpid()})" in child_err
     assert child_err.startswith("quadtank: stopped (pumps at 0, rows kept): the rig at")
-    assert read_log(out).rows == 10
+    assert logged_its_ten_slots(out)
     kept = read_log(partial)
     assert kept.rows >= 5 and kept.columns()["u1"][-1] == 0.3
     assert holder_pid(r.port) is None
@@ -221,7 +235,7 @@ class FakeApp:
         self._exit.set()
 
     def run(self) -> None:
-        assert self._exit.wait(10.0), "the TUI was not told its rig was taken over"
+        assert self._exit.wait(60.0), "the TUI was not told its rig was taken over"
 
 
 def test_the_tui_ends_when_its_rig_is_taken_over(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
@@ -230,8 +244,6 @@ def test_the_tui_ends_when_its_rig_is_taken_over(tmp_path: Path, monkeypatch: py
     engine stopped (pumps at 0), saying who took the rig; the new holder keeps it."""
     import threading
 
-    from quadtank_tui.session.lock import DaqLock
-
     port = free_port()
     engine, app = FakeEngine(), FakeApp()
     running = threading.Event()
@@ -239,7 +251,7 @@ def test_the_tui_ends_when_its_rig_is_taken_over(tmp_path: Path, monkeypatch: py
     taker: list[DaqLock] = []
 
     def take() -> None:
-        assert running.wait(10.0)
+        assert running.wait(60.0)
         assert holder_pid(port) == os.getpid()  # the TUI holds it while it runs
         taker.append(DaqLock.acquire(device_key("127.0.0.1", port, 1), load_lab_config(), take_over=True))
 
@@ -261,10 +273,10 @@ def test_a_terminated_run_gives_the_rig_back(rig: Callable, poll: Callable, tmp_
     child = run_in_child(cfg, tmp_path / "first.log")
     partial = tmp_path / "first.log.partial"
     try:
-        assert poll(lambda: partial.exists() and read_log(partial).rows >= 3, 20.0)  # under way
+        assert poll(lambda: partial.exists() and read_log(partial).rows >= 3, 60.0)  # under way
         assert holder_pid(r.port) == child.pid
         child.terminate()
-        assert child.wait(10) == 143
+        assert child.wait(60) == 143
     finally:
         child.kill()
         child.communicate()

@@ -44,7 +44,7 @@ def test_levels_follow_the_model_to_its_steady_state(rig: Callable, poll: Callab
             return backend.read_levels() == pytest.approx(target, abs=0.004)
 
         # ~10 slowest time constants of process time: under 10 s of wall time at x100.
-        assert poll(settled, timeout=30.0), (backend.read_levels(), target)
+        assert poll(settled, timeout=60.0), (backend.read_levels(), target)
         assert r.dacs() == pytest.approx(v)
     finally:
         backend.safe_state()
@@ -58,7 +58,7 @@ def test_pump_writes_move_the_levels(rig: Callable, poll: Callable) -> None:
         y0 = backend.read_levels()
         backend.write_pumps((0.8, 0.0))  # pump 1 feeds tanks 1 and 4; pump 2 off
         assert poll(lambda: (y := backend.read_levels())[0] > y0[0] + 0.02 and y[3] > y0[3] + 0.01
-                    and y[1] < y0[1] and y[2] < y0[2], timeout=15.0)
+                    and y[1] < y0[1] and y[2] < y0[2], timeout=60.0)
         assert backend.applied == (0.8, 0.0) and backend.alarms == ()
     finally:
         backend.safe_state()
@@ -112,8 +112,8 @@ def test_rig_watchdog_stops_pumps_when_writes_stop(rig: Callable, poll: Callable
     backend = ModbusBackend(r.config())
     backend.write_pumps((0.5, 0.4))
     assert r.dacs() == pytest.approx((5.0, 4.0))
-    assert "no write for 0.4 s, pumps set to 0" in r.wait_for("watchdog:", timeout=10.0)
-    assert poll(lambda: r.dacs() == (0.0, 0.0), timeout=5.0)
+    assert "no write for 0.4 s, pumps set to 0" in r.wait_for("watchdog:", timeout=60.0)
+    assert poll(lambda: r.dacs() == (0.0, 0.0), timeout=30.0)
     backend.close()
 
 
@@ -126,7 +126,7 @@ def test_interlock_trips_on_an_overfull_tank(rig: Callable, poll: Callable) -> N
             backend.write_pumps((0.95, 0.3))  # a controller insisting on filling tank 1
             return bool(backend.alarms)
 
-        assert poll(overfull, timeout=20.0)
+        assert poll(overfull, timeout=60.0)
         assert backend.alarms[0] == "interlock: tank 1 above 95 % of its height, pump 1 cut"
         assert backend.applied == (0.0, 0.3)
         assert r.dacs() == pytest.approx((0.0, 3.0))
@@ -184,7 +184,7 @@ def test_cable_cut_times_out_and_the_rig_watchdog_stops_the_pumps(
         assert 0.19 < time.monotonic() - t0 < 5.0       # one try of 0.2 s: a silence is not waited twice
         backend.safe_state()
         assert "no answer within 0.2 s" in backend.safe_state_error
-        assert poll(lambda: r.dacs() == (0.0, 0.0), timeout=5.0)  # the rig's firmware
+        assert poll(lambda: r.dacs() == (0.0, 0.0), timeout=30.0)  # the rig's firmware
         proxy.cut.clear()
         assert len(backend.read_levels()) == 4
     finally:

@@ -12,6 +12,7 @@ import pytest
 from quadtank_tui.cli import build_parser, build_tui, main
 from quadtank_tui.engine.commands import SetOperation, SetParams, SetState
 from quadtank_tui.files.log import read_log
+from daqkit import missed_before_the_last_row, rig_yaml
 
 pytestmark = pytest.mark.wallclock  # a rig subprocess, real time
 
@@ -20,7 +21,7 @@ ROOT = Path(__file__).parents[2]
 
 def config_for(tmp_path: Path, port: int) -> Path:
     """params/virtual-rig.yaml pointed at `port`."""
-    text = (ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {port}")
+    text = rig_yaml(port)
     path = tmp_path / "rig.yaml"
     path.write_text(text)
     return path
@@ -36,10 +37,11 @@ def test_run_daq_logs_an_active_experiment(rig: Callable, tmp_path: Path,
     assert status == 0, text
     assert "FAULT" not in text
     # 300 sampling slots of 0.1 s: each either sampled (a row) or, at x20 (5 ms) on a
-    # busy machine, missed - the rig's time does not wait, the log notes the late rows.
+    # busy machine, missed - the rig's time does not wait, the log notes the late rows
+    # (a late last row may carry the count past 300 by the slots it missed).
     samples, overruns = (int(w) for w in re.match(r"ran 30 s: (\d+) samples, (\d+) overruns", text).groups())
     log = read_log(out)
-    assert samples + overruns == 300 and log.rows == samples
+    assert 300 <= samples + overruns <= 300 + missed_before_the_last_row(out, 0.1) and log.rows == samples
     notes = out.read_text().count("% late:")
     assert (notes > 0) == (f"late       {notes} of the {samples} rows came late" in text)
     assert abs(log.columns()["u1"][-1] - 0.3) < 1e-9
@@ -139,7 +141,7 @@ def test_the_tuis_loop_process_drives_the_rig_and_leaves_its_pumps_at_0(rig: Cal
             result = engine.submit(command).result(timeout=10)
             assert result.ok, result.message
         engine.start()
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + 60
         while engine.snapshot().k < 10 and time.monotonic() < deadline:
             time.sleep(0.05)
         s = engine.snapshot()
@@ -164,12 +166,12 @@ def test_when_the_loop_process_is_killed_the_tui_commands_the_pumps_to_0(rig: Ca
         for command in (SetOperation("Active"), SetParams({"REFERENCE ONE.Mean": 0.4}), SetState("Run")):
             assert engine.submit(command).result(timeout=10).ok
         engine.start()
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + 60
         while r.dacs()[0] == 0.0 and time.monotonic() < deadline:
             time.sleep(0.05)
         assert r.dacs()[0] == pytest.approx(4.0, abs=1e-4)
         os.kill(engine._proc.pid, signal.SIGKILL)
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + 60
         while "commanded to 0" not in (engine.snapshot().fault or "") and time.monotonic() < deadline:
             time.sleep(0.05)
         fault = engine.snapshot().fault or ""

@@ -21,6 +21,7 @@ from quadtank_tui.daq.config import parse_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.engine.commands import CommandResult, SetControlMode, SetOperation, SetParams, SetState
 from quadtank_tui.engine.runner import Engine, build_engine
+from daqkit import rig_yaml
 
 ROOT = Path(__file__).parents[2]
 GOOD = (3.0, 3.0, 2.0, 2.0)  # volts: 6, 6, 4, 4 cm with the virtual rig's calibration (2 cm/V)
@@ -73,7 +74,7 @@ def test_a_range_of_its_own_from_the_configuration(device: Callable, tmp_path: P
     """`plausible: {tank2: [0, 15]}`: 16 cm in tank 2 is a fault there; tank 1 keeps
     the default range, so 21 cm there is a level."""
     dev = device((10.5, 8.0, 2.0, 2.0))
-    text = (ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {dev.port}")
+    text = rig_yaml(dev.port)
     config = parse_daq_config(text + "plausible:\n  tank2: [0, 15]\n", name="rig.yaml")
     backend = ModbusBackend(config)
     try:
@@ -94,7 +95,7 @@ def test_daq_check_shows_every_sensor_and_marks_the_faulty_one(device: Callable,
 
     dev = device((3.0, -10.5, 2.0, 2.0))
     config = tmp_path / "rig.yaml"
-    config.write_text((ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {dev.port}"))
+    config.write_text(rig_yaml(dev.port))
     assert main(["daq", "check", str(config)]) == 1
     lines = capsys.readouterr().out.splitlines()
     assert lines[1].split() == ["tank", "1", "AIN0", "3.0000", "V", "6.00", "cm", "y", "=", "0.3000"]

@@ -126,7 +126,10 @@ def test_a_half_second_fsync_costs_a_paced_loop_no_deadline(
         e.stop()
     s = e.snapshot()
     assert logging.ok and saved.ok and took >= 1.5
-    assert s.stats.samples >= 25 and s.stats.overruns == 0 and s.stats.jitter_max < 0.25
+    # One 0.5-s fsync on the sampling thread would cost at least 9 of these 50-ms slots
+    # and 0.45 s of jitter (three of them: 27 slots); the bounds leave a loaded CI
+    # machine's scheduling room below that (measured at load 5.5: 0 overruns, 3 ms).
+    assert s.stats.samples >= 25 and s.stats.overruns < 9 and s.stats.jitter_max < 0.45
     t = e.history()["t"]
     np.testing.assert_allclose(np.diff(t), 0.05, atol=1e-9)  # no slot skipped
     assert set(disk.threads) == {"quadtank-files"}
@@ -217,7 +220,7 @@ def _loop_process(tmp_path: Path) -> EngineProcess:
     return e
 
 
-def _wait_for(condition: Callable[[], bool], timeout: float = 20.0) -> None:
+def _wait_for(condition: Callable[[], bool], timeout: float = 60.0) -> None:
     end = time.monotonic() + timeout
     while not condition():
         assert time.monotonic() < end, "timed out"
@@ -231,7 +234,7 @@ def test_the_loop_process_stopping_writes_every_row_it_took(tmp_path: Path) -> N
     try:
         _wait_for(lambda: e.snapshot().log.rows > 300)
         e._inbox.close()  # the parent's end of the pipe closes: the child stops, pumps at 0
-        e._proc.join(timeout=20)
+        e._proc.join(timeout=60)
         s = e.snapshot()
         log = read_log(tmp_path / "logs" / "data.log.partial")
         assert s.log.unsaved and log.rows == s.log.rows > 300 and log.warnings == ()

@@ -79,8 +79,25 @@ class Rig(ProcessBackend):
     def __init__(self) -> None:
         self.pumps: tuple[float, float] = (0.0, 0.0)
         self.safe_states = 0
+        self.held = threading.Event()      # set while the session is held (hold_after)
+        self.release = threading.Event()   # set by the test to let it go on
+        self._reads_left: int | None = None
+
+    def hold_after(self, reads: int) -> None:
+        """Hold the session inside its `reads`-th read from now until `release` is set:
+        a test looks at a running session at a point of its own choosing, not at
+        whatever point a loaded machine lets it reach."""
+        self.held.clear()
+        self.release.clear()
+        self._reads_left = reads
 
     def read_levels(self):  # type: ignore[no-untyped-def]
+        if self._reads_left is not None:
+            self._reads_left -= 1
+            if self._reads_left <= 0:
+                self._reads_left = None
+                self.held.set()
+                assert self.release.wait(60), "the test never released the rig"
         return (0.6, 0.6, 0.1, 0.1)
 
     def write_pumps(self, u: Any) -> None:

@@ -32,6 +32,17 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="us
 ROOT = Path(__file__).parents[2]
 
 
+def wait_until(condition, timeout: float = 60.0) -> bool:  # type: ignore[no-untyped-def]
+    """True as soon as `condition()` holds, False after `timeout` s: the deadline is
+    for a test that fails, never what a passing one waits for."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+    return True
+
+
 def _hangup_kit():  # type: ignore[no-untyped-def]
     """The pty harness of tests/ui/test_terminal_hangup.py (one copy of it)."""
     spec = importlib.util.spec_from_file_location("hangup_kit", ROOT / "tests" / "ui" / "test_terminal_hangup.py")
@@ -51,24 +62,21 @@ def test_a_killed_session_is_reported_by_its_client(tmp_path: Path) -> None:
     info = _start(tmp_path, runtime)
     client = SessionClient(info.socket)
     try:
-        assert client.submit(c.SetState("Run")).result(5).ok
+        assert client.submit(c.SetState("Run")).result(30).ok
         time.sleep(0.2)
         t0 = time.monotonic()
         os.kill(info.pid, signal.SIGKILL)
-        assert client.wait_gone(1.0)
+        assert client.wait_gone(30.0)
         took = time.monotonic() - t0
         fault = client.snapshot().fault or ""
         assert f"the session process {info.id} (pid {info.pid}) stopped unexpectedly" in fault
         assert client.snapshot().state == "Pause"
-        refused = client.submit(c.SetState("Run")).result(1)
+        refused = client.submit(c.SetState("Run")).result(30)
         assert not refused.ok and "gone" in refused.message
         print(f"the client saw the SIGKILL after {took * 1000:.0f} ms")
     finally:
         client.close()
-    for _ in range(100):
-        if not pid_alive(info.pid):
-            break
-        time.sleep(0.02)
+    wait_until(lambda: not pid_alive(info.pid))
     assert list_sessions(runtime) == []  # the stale record is removed when listed
     assert sorted(p.name for p in runtime.iterdir() if not p.name.endswith(".out")) == []
 
@@ -85,12 +93,10 @@ def test_quadtank_stop_leaves_nothing_behind(tmp_path: Path, monkeypatch: pytest
     # (/dev/shm is the machine's: other programs' blocks are none of our business).
     assert _hangup_kit()._shared_blocks([info.pid]) == set()
     with SessionClient(info.socket) as client:
-        assert client.submit(c.SetState("Run")).result(5).ok
-        assert client.submit(c.LogOn(points=100000)).result(5).ok
-        deadline = time.monotonic() + 20
-        while client.snapshot().log.rows < 20 and time.monotonic() < deadline:
-            time.sleep(0.02)
-    deadline = time.monotonic() + 5
+        assert client.submit(c.SetState("Run")).result(30).ok
+        assert client.submit(c.LogOn(points=100000)).result(30).ok
+        assert wait_until(lambda: client.snapshot().log.rows >= 20)
+    deadline = time.monotonic() + 60
     while main(["sessions"]) == 0 and "1 (" in (table := capsys.readouterr().out) and time.monotonic() < deadline:
         time.sleep(0.05)  # the record follows the detach at once; wait for the session to see it
     assert info.id in table and "Run" in table and "%" in table and f"({info.owner} operates)" not in table
@@ -125,7 +131,7 @@ def test_a_hang_up_ends_the_client_never_the_session(tmp_path: Path, shell: bool
         session = sessions[0]
         assert tui.master is not None
         os.write(tui.master, b"r")  # Run
-        time.sleep(0.5)
+        assert wait_until(lambda: [i.state for i in list_sessions(runtime)] == ["Run"])
         tui.hang_up()
         took = kit._wait_gone([pid], kit.GONE_WITHIN)
         print(f"hang-up ({'shell' if shell else 'direct'}): the client was gone {took:.2f} s after")
@@ -182,17 +188,14 @@ def test_run_detach_is_a_session_one_watches_until_the_run_is_over(tmp_path: Pat
     assert f"session {info.id} runs the experiment" in said and info.headless
     with SessionClient(info.socket) as watcher:  # asked to operate: observes
         assert watcher.role == "observer" and "the script" in watcher.controller
-        refused = watcher.submit(c.SetState("Pause")).result(5)
+        refused = watcher.submit(c.SetState("Pause")).result(30)
         assert not refused.ok and "read-only" in refused.message
         assert watcher.wait_gone(30)
         assert watcher.ended is not None and f"the run is over; its log is {out}" in watcher.ended
         assert len(watcher.history()["t"]) == 2000  # every sample, watched from wherever it was at attach
     log = read_log(out)
     assert log.rows == 2000
-    for _ in range(100):
-        if not pid_alive(info.pid):
-            break
-        time.sleep(0.02)
+    wait_until(lambda: not pid_alive(info.pid))
     assert [p.name for p in runtime.iterdir()] == [f"{info.id}.out"]
     assert f"log        {out} (2000 rows)" in (runtime / f"{info.id}.out").read_text()
 
@@ -203,17 +206,14 @@ def test_sigterm_stops_the_session_in_order(tmp_path: Path) -> None:
     runtime = tmp_path / "run"
     info = _start(tmp_path, runtime)
     with SessionClient(info.socket) as client:
-        assert client.submit(c.SetState("Run")).result(5).ok
-        assert client.submit(c.LogOn(points=100000)).result(5).ok
+        assert client.submit(c.SetState("Run")).result(30).ok
+        assert client.submit(c.LogOn(points=100000)).result(30).ok
         time.sleep(0.3)
         os.kill(info.pid, signal.SIGTERM)
-        assert client.wait_gone(5)
+        assert client.wait_gone(30)
         assert client.ended == "SIGTERM"
         assert "ended: SIGTERM" in (client.snapshot().fault or "")
-    for _ in range(100):
-        if not pid_alive(info.pid):
-            break
-        time.sleep(0.02)
+    wait_until(lambda: not pid_alive(info.pid))
     assert not pid_alive(info.pid)
     assert sorted(p.name for p in runtime.iterdir()) == []
     assert list((tmp_path / "logs").glob("*.partial"))
@@ -246,8 +246,5 @@ def test_the_launchers_rig_lock_passes_to_the_session(tmp_path: Path, monkeypatc
         assert f"is driven by {info.owner} (pid {info.pid}, session {info.id})" in err
     finally:
         stop_session_at(info.socket)
-    for _ in range(100):
-        if not pid_alive(info.pid):
-            break
-        time.sleep(0.02)
+    wait_until(lambda: not pid_alive(info.pid))
     assert holder_of(device, load_lab_config()) is None

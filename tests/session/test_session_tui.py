@@ -4,6 +4,8 @@ of an observer is shown, and nothing changes in the session."""
 
 from __future__ import annotations
 
+import time
+
 from sessionkit import ThreadSession
 from textual.widgets import Static
 
@@ -12,9 +14,13 @@ from quadtank_tui.session.client import SessionClient
 from quadtank_tui.ui.app import build_app
 from quadtank_tui.ui.windows.base import ChoiceWindow, ConfirmWindow
 
+# IDLE: the session samples on a thread of this process, and Textual's pilot waits
+# after each key until the process is idle, at most 1 s: at x200 it never is (3 s a
+# key, 14 s a test), at x1 (10 samples a second) at once.
+
 
 async def test_exit_asks_detach_or_stop_and_stop_is_remembered(thread_session) -> None:
-    s: ThreadSession = thread_session()
+    s: ThreadSession = thread_session(speed=1.0)  # see IDLE
     client = SessionClient(s.path)
     app = build_app(client, refresh_interval=0.05)
     async with app.run_test(size=(120, 40)) as pilot:
@@ -38,7 +44,7 @@ async def test_exit_asks_detach_or_stop_and_stop_is_remembered(thread_session) -
 
 
 async def test_an_observer_sees_who_controls_and_its_keys_change_nothing(thread_session) -> None:
-    s: ThreadSession = thread_session()
+    s: ThreadSession = thread_session(speed=1.0)  # see IDLE
     operator = SessionClient(s.path)
     observer = SessionClient(s.path, role="observer")
     app = build_app(observer, refresh_interval=0.05)
@@ -47,29 +53,35 @@ async def test_an_observer_sees_who_controls_and_its_keys_change_nothing(thread_
         text = str(app.main.query_one("#session-bar", Static).render())
         assert "alice (pid" in text and "controls session alice-1" in text and "read-only" in text
         await pilot.press("r")  # Run: refused
-        await pilot.pause(0.3)
+        deadline = time.monotonic() + 60  # the refusal comes back over the socket
+        while not any("read-only" in str(n.message) for n in app._notifications):
+            assert time.monotonic() < deadline, "no refusal shown"
+            await pilot.pause(0.02)
         assert s.engine.snapshot().state == "Pause"
-        assert any("read-only" in str(n.message) for n in app._notifications)
         await pilot.press("q")
         await pilot.pause()
         assert isinstance(app.screen, ConfirmWindow)
     observer.close()
-    assert operator.submit(c.SetState("Run")).result(5).ok
+    assert operator.submit(c.SetState("Run")).result(30).ok
     operator.close()
 
 
 async def test_an_observer_of_a_stopped_session_is_told_on_the_session_line(thread_session) -> None:
     """The status line's fault is cut at 100 columns ("fault: session alice-1");
     the session line says why the session is gone, whatever the width."""
-    s: ThreadSession = thread_session()
+    s: ThreadSession = thread_session(speed=1.0)  # see IDLE
     observer = SessionClient(s.path, role="observer")
     app = build_app(observer, refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         await pilot.pause()
         s.host.request_stop("stopped by carol")
-        s.thread.join(10)
-        assert observer.wait_gone(5)
-        await pilot.pause(0.6)  # a paused screen's tick
-        text = str(app.main.query_one("#session-bar", Static).render())
+        s.thread.join(30)
+        assert observer.wait_gone(30)
+        bar = app.main.query_one("#session-bar", Static)
+        deadline = time.monotonic() + 60  # a paused screen's tick (0.5 s) shows it
+        while not str(bar.render()).startswith("session alice-1 ended"):
+            assert time.monotonic() < deadline, str(bar.render())
+            await pilot.pause(0.05)
+        text = str(bar.render())
         assert text.startswith("session alice-1 ended: stopped by carol; the screen shows its last state")
     observer.close()

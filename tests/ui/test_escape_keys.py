@@ -35,10 +35,11 @@ def keys(data: str) -> list[tuple[str, str | None]]:
     ("\x1b[", [("escape", "\x1b"), ("left_square_bracket", "[")]),
     ("\x1brS", [("escape", "\x1b"), ("r", "r"), ("S", "S")]),
     ("\x1b\x1b", [("escape", "\x1b"), ("escape", "\x1b")]),
+    ("\x1bb", [("escape", "\x1b"), ("b", "b")]),   # Textual: ctrl+left (a word jump); b is Ghost
+    ("\x1bf", [("escape", "\x1b"), ("f", "f")]),   # Textual: ctrl+right; f is Files on Setup
     # Sequences stay what they are.
     ("\x1b[A", [("up", None)]),
     ("\x1bOP", [("f1", None)]),
-    ("\x1bb", [("ctrl+left", None)]),
 ])
 def test_escape_then_a_key_is_two_keys(data: str, expected: list[tuple[str, str | None]]) -> None:
     assert keys(data) == expected
@@ -94,3 +95,19 @@ async def test_esc_digit_closes_the_window_then_opens_the_element(engine: Record
         await pilot.press("h")
         await typed(pilot, "\x1b1")
         assert type(app.screen).__name__ == "PIDWindow"
+
+
+async def test_esc_f_closes_the_sampling_window_then_opens_files(setup_app: Any) -> None:
+    """ESC f is also what some terminals send for Option+right (a word jump), which
+    Textual reads as ctrl+right: the window stayed open with its cursor moved."""
+    from conftest import open_setup
+
+    from quadtank_tui.ui.windows.par_files import ParFileWindow
+    from quadtank_tui.ui.windows.sampling import SamplingTimeWindow
+
+    async with setup_app.run_test(size=(120, 40)) as pilot:
+        await open_setup(pilot)
+        await pilot.press("s")
+        assert isinstance(setup_app.screen, SamplingTimeWindow)
+        await typed(pilot, "\x1bf")
+        assert isinstance(setup_app.screen, ParFileWindow)

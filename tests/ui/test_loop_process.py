@@ -19,7 +19,7 @@ from quadtank_tui.ui.widgets.trends import Trend
 pytestmark = pytest.mark.wallclock  # the TUI on a real loop process
 
 
-async def wait_until(pilot: Pilot, condition, timeout: float = 20.0) -> None:  # type: ignore[no-untyped-def]
+async def wait_until(pilot: Pilot, condition, timeout: float = 60.0) -> None:  # type: ignore[no-untyped-def]
     end = time.monotonic() + timeout
     while not condition():
         assert time.monotonic() < end, "timed out"

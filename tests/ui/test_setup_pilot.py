@@ -16,6 +16,7 @@ from quadtank_tui.ui.windows.par_files import ParFileWindow
 from quadtank_tui.ui.windows.tank_setup import TankSetupWindow
 from quadtank_tui.ui.windows.wave import WaveWindow
 
+from bursts import pause_until  # noqa: E402
 from conftest import open_setup  # noqa: E402
 
 
@@ -279,10 +280,8 @@ async def test_an_administrator_saves_default_par_after_asking(app, lab_user) ->
         assert Path("params/default.par").read_bytes() == before
         await pilot.press("ctrl+s", "y")
         await pilot.pause()
-        for _ in range(50):  # the loop writes it
-            if Path("params/default.par").read_bytes() != before:
-                break
-            await pilot.pause(0.05)
+        await pause_until(pilot, lambda: Path("params/default.par").read_bytes() != before,
+                          what="the loop to write default.par")
         assert isinstance(app.screen, SetupScreen)
         assert read_par("params/default.par").params.simulation.valves == (0.7, 0.34)
 

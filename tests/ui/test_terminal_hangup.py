@@ -104,6 +104,13 @@ class Tui:
             return kids[0] if kids else None
         return self.proc.pid
 
+    def drained(self) -> bytes:
+        """Everything the program wrote, once it has gone: the reader ends when the
+        terminal's last writer has (EIO), however long a loaded machine takes."""
+        self._reader.join(timeout=START_WITHIN)
+        assert not self._reader.is_alive(), "the terminal was still written to"
+        return bytes(self.output)
+
     def hang_up(self) -> None:
         """The terminal emulator (sshd, tmux) closes its side."""
         assert self.master is not None
@@ -205,8 +212,8 @@ def test_losing_the_terminal_ends_the_tui_and_its_loop(tmp_path: Path, how: str,
             assert code == status
         assert not [b for b in blocks if os.path.exists(b)]
         if tui.master is not None:  # the terminal is still there: given back as it was
-            time.sleep(0.2)  # the reader takes the last bytes
-            tail = bytes(tui.output[tui.output.rfind(ALT_ON):])
+            output = tui.drained()
+            tail = output[output.rfind(ALT_ON):]
             assert ALT_OFF in tail and all(m in tail for m in MOUSE_OFF), tail[-400:]
             assert b"Traceback" not in tui.output
             assert f"quadtank: stopped: {how}".encode() in tui.output
@@ -224,8 +231,8 @@ def test_a_crash_exits_non_zero_and_gives_the_terminal_back(tmp_path: Path) -> N
     tui = Tui(tmp_path, code=code)
     try:
         assert tui.proc.wait(timeout=START_WITHIN) == 1
-        time.sleep(0.2)
-        tail = bytes(tui.output[tui.output.rfind(ALT_ON):])
+        output = tui.drained()
+        tail = output[output.rfind(ALT_ON):]
         assert ALT_OFF in tail and b"boom" in tail
     finally:
         tui.kill()
@@ -314,8 +321,8 @@ def test_exit_is_prompt_with_a_hung_device(tmp_path: Path) -> None:
         took = time.monotonic() - t0
         print(f"Exit with a hung device took {took:.2f} s")
         assert took < 10.0  # it took 20-30 s; room for a loaded machine
-        time.sleep(0.2)
-        assert b"Traceback" not in tui.output and b"NoMatches" not in tui.output
+        output = tui.drained()
+        assert b"Traceback" not in output and b"NoMatches" not in output
     finally:
         tui.kill()
         listener.close()

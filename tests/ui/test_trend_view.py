@@ -23,7 +23,7 @@ from rich.style import Style
 from textual.color import Color
 from textual.theme import BUILTIN_THEMES
 
-from bursts import burst
+from bursts import burst, pause_until
 from conftest import Recording, make_app
 from test_repaint_cost import Wire, paused_app, ticks
 from test_trust import read_constant
@@ -312,11 +312,7 @@ def write_log(path: Path, rows: int, u1: float, u2: float, tsamp: float = 1.0) -
 
 
 async def wait_for_ghost(pilot: Any, app: Any) -> None:
-    for _ in range(200):
-        await pilot.pause(0.02)
-        if app.main.ghost.run is not None:
-            return
-    raise AssertionError("the ghost was not loaded")
+    await pause_until(pilot, lambda: app.main.ghost.run is not None, what="the ghost to be loaded")
 
 
 async def test_a_ghost_run_is_drawn_dimmed_at_its_values_and_cleared(engine: Recording) -> None:
@@ -378,10 +374,7 @@ async def test_a_bad_ghost_log_is_named_and_nothing_breaks(engine: Recording) ->
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("b", "enter")
-        for _ in range(100):
-            await pilot.pause(0.02)
-            if app._notifications:
-                break
+        await pause_until(pilot, lambda: app._notifications, what="the message about bad.log")
         message = list(app._notifications)[-1].message
         assert "bad.log" in message and "line 5" in message, message
         assert app.main.ghost.run is None and app.screen is app.main

@@ -35,7 +35,8 @@ class GhostHost(Protocol):
 
     def refresh_view(self) -> None: ...
 
-    def notify(self, message: str, *, severity: Any = ..., timeout: float | None = ...) -> None: ...
+    def notify(self, message: str, *, severity: Any = ..., timeout: float | None = ...,
+               markup: bool = ...) -> None: ...
 
     def run_worker(self, work: Any, *, thread: bool = ..., group: str = ..., exclusive: bool = ...,
                    exit_on_error: bool = ...) -> Any: ...
@@ -88,8 +89,9 @@ class GhostControl:
         try:
             run = load_run(choice.path)
         except LogFileError as exc:
+            # The message quotes the file (a row's text, its name): plain text.
             self.screen.app.call_from_thread(self.screen.notify, f"Ghost run: {exc}",
-                                             severity="error", timeout=8)
+                                             severity="error", timeout=8, markup=False)
             return
         self.screen.app.call_from_thread(self.loaded, run, choice.at)
 
@@ -103,7 +105,7 @@ class GhostControl:
         else:
             where = f"from now (t = {self._loaded_at:g} s) until a LogOn"
         self.screen.notify(f"Ghost run {run.name} ({len(run.t)} rows) drawn dimmed {where}; B clears it.",
-                           timeout=5)
+                           timeout=5, markup=False)
         self.screen.refresh_view()
 
     def clear(self) -> None:

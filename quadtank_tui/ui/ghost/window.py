@@ -10,6 +10,7 @@ from pathlib import Path
 from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
+from textual.content import Content
 from textual.containers import Horizontal
 from textual.widgets import Button, Input, Label, OptionList, RadioButton, RadioSet, Static
 from textual.widgets.option_list import Option
@@ -43,7 +44,7 @@ class GhostWindow(Window[GhostChoice]):
 
     def compose_body(self) -> ComposeResult:
         if self.logs:
-            yield OptionList(*(Option(p.name, id=f"log-{n}") for n, p in enumerate(self.logs)), id="ghost-logs")
+            yield OptionList(*(Option(Content(p.name), id=f"log-{n}") for n, p in enumerate(self.logs)), id="ghost-logs")
         else:
             yield Static("No .log in the logs folder yet: save a log first (Main l).", id="no-logs")
         with RadioSet(id="ghost-align"):

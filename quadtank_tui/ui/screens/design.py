@@ -21,6 +21,7 @@ from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.content import Content
 from textual.widgets import DataTable, Footer, Input, Label, Static
 from textual_plotext import PlotextPlot
 
@@ -169,7 +170,8 @@ class DesignScreen(CommandSender):
         try:
             g = parse_model(event.value)
         except ModelError as exc:
-            self.notify(str(exc), title=f"Loop {loop} model", severity="error", timeout=8)
+            # The message quotes what was typed: plain text, never markup.
+            self.notify(str(exc), title=f"Loop {loop} model", severity="error", timeout=8, markup=False)
             return
         self.loops[loop] = LoopState(text=event.value, model=g)
         self.loop = loop
@@ -191,7 +193,7 @@ class DesignScreen(CommandSender):
         try:
             rows = candidates(model)
         except ValueError as exc:  # a model the evaluation cannot simulate: one line, no crash
-            self.app.call_from_thread(self._status, f"[red]loop {loop}: {exc}[/]")
+            self.app.call_from_thread(self._status, f"loop {loop}: {exc}", error=True)
             return
         self.app.call_from_thread(self._show_table, loop, model, rows)
 
@@ -303,7 +305,7 @@ class DesignScreen(CommandSender):
 
     def action_design_2x2(self) -> None:
         if self.G is None:
-            self.notify(f"no 2x2 model: {self.source} lacks an element", severity="error")
+            self.notify(f"no 2x2 model: {self.source} lacks an element", severity="error", markup=False)
             return
         self._status(f"designing both loops on {self.source} ...")
         self._compute_2x2(self.G)
@@ -318,7 +320,7 @@ class DesignScreen(CommandSender):
         try:
             chk = design_2x2(G)
         except DesignError as exc:
-            self.app.call_from_thread(self.notify, str(exc), severity="error")
+            self.app.call_from_thread(self.notify, str(exc), severity="error", markup=False)
             return
         self.app.call_from_thread(self._show_2x2, chk, format_check(chk))
 
@@ -362,5 +364,8 @@ class DesignScreen(CommandSender):
     def action_main(self) -> None:
         self.app.pop_screen()
 
-    def _status(self, text: str) -> None:
-        self.query_one("#design-status", Static).update(f"[b]Design[/]  {text}")
+    def _status(self, text: str, *, error: bool = False) -> None:
+        """The status line: `text` as it is (it quotes typed models and file
+        names, never read as markup), red for an error."""
+        line = Content.assemble(("Design", "bold"), "  ", (text, "red") if error else text)
+        self.query_one("#design-status", Static).update(line)

@@ -22,6 +22,7 @@ from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.content import Content
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, SelectionList, Static
 from textual.worker import get_current_worker
@@ -146,7 +147,7 @@ class IdentifyScreen(Screen[None]):
         self.set_class(self.size.width < COMPACT_WIDTH, "-compact")
 
     def on_mount(self) -> None:
-        self.query_one("#logs", SelectionList).border_title = f"Logs in {self.logs_dir}/ (space ticks)"
+        self.query_one("#logs", SelectionList).border_title = Content(f"Logs in {self.logs_dir}/ (space ticks)")
         self.query_one("#compare", DataTable).border_title = "Identified | physical"
         self.action_rescan()
         self._show_choice()
@@ -169,7 +170,7 @@ class IdentifyScreen(Screen[None]):
         try:
             log = read_log(path)
         except ValueError as exc:
-            self._status(f"[red]{exc}[/]")
+            self._status(str(exc), error=True)
             return
         h = log.tsamp or 1.0
         t = np.arange(log.rows) * h
@@ -178,7 +179,7 @@ class IdentifyScreen(Screen[None]):
         for name in log.variables:
             if name in colors:
                 top.plt.plot(t[::step].tolist(), log[name][::step].tolist(), color=colors[name], label=name)
-        top.border_title = f"{Path(path).name}: {log.rows} rows at {h:g} s"
+        top.border_title = Content(f"{Path(path).name}: {log.rows} rows at {h:g} s")
         top.plt.xlabel("t (s)")
         top.refresh()
 
@@ -188,7 +189,7 @@ class IdentifyScreen(Screen[None]):
         logs = sorted(self.logs_dir.glob("*.log")) if self.logs_dir.is_dir() else []
         last = Path(self.last_log).resolve() if self.last_log else None
         for p in logs:
-            sel.add_option((p.name, str(p), last is not None and p.resolve() == last))
+            sel.add_option((Content(p.name), str(p), last is not None and p.resolve() == last))
         if logs:
             sel.highlighted = 0
 
@@ -222,7 +223,7 @@ class IdentifyScreen(Screen[None]):
     def action_fit(self) -> None:
         paths = list(self.query_one("#logs", SelectionList).selected)
         if not paths:
-            self._status("[red]Tick at least one log (space) first.[/]")
+            self._status("Tick at least one log (space) first.", error=True)
             return
         if self._fitting:
             return
@@ -253,7 +254,7 @@ class IdentifyScreen(Screen[None]):
 
     def _failed(self, message: str) -> None:
         self._fitting = False
-        self._status(f"[red]{message}[/]")
+        self._status(message, error=True)
 
     def _done(self, view: FitView) -> None:
         from quadtank_tui.core.identify.report import phase
@@ -270,8 +271,10 @@ class IdentifyScreen(Screen[None]):
 
     # --- views --------------------------------------------------------------------
 
-    def _status(self, text: str) -> None:
-        self.query_one("#identify-status", Static).update(text)
+    def _status(self, text: str, *, error: bool = False) -> None:
+        """The status line: `text` as it is (it quotes file names and what was
+        wrong in a file, never read as markup), red for an error."""
+        self.query_one("#identify-status", Static).update(Content.styled(text, "red") if error else Content(text))
 
     def _table(self) -> None:
         from quadtank_tui.core.identify.compare import physical_time_constants
@@ -363,16 +366,16 @@ class IdentifyScreen(Screen[None]):
         from quadtank_tui.files.model import from_identification, model_path, write_model
 
         if self.view is None:
-            self._status("[red]Nothing to keep yet: fit first (f).[/]")
+            self._status("Nothing to keep yet: fit first (f).", error=True)
             return
         ident = self.view.ident
         try:
             path = write_model(model_path(ident.records[0]), from_identification(ident))
         except OSError as exc:
-            self._status(f"[red]Cannot save the model: {exc}[/]")
+            self._status(f"Cannot save the model: {exc}", error=True)
             return
         self._status(f"Model kept in {path}")
-        self.notify(f"Model saved to {path}")
+        self.notify(f"Model saved to {path}", markup=False)
 
     # --- design -----------------------------------------------------------------------
 
@@ -382,15 +385,15 @@ class IdentifyScreen(Screen[None]):
         from quadtank_tui.ui.screens.design import DesignScreen
 
         if self.view is None:
-            self._status("[red]Nothing to design on yet: fit first (f).[/]")
+            self._status("Nothing to design on yet: fit first (f).", error=True)
             return
         if self.engine is None:
-            self._status("[red]No process to design for (open Identify from Main).[/]")
+            self._status("No process to design for (open Identify from Main).", error=True)
             return
         ident = self.view.ident
         G = from_identification(ident).matrix_2x2()
         if G[0][0] is None or G[1][1] is None:
-            self._status("[red]The Design screen needs G11 and G22: fit logs in which u1 and u2 move.[/]")
+            self._status("The Design screen needs G11 and G22: fit logs in which u1 and u2 move.", error=True)
             return
         name = f"the identified model ({ident.method}, {', '.join(Path(r).name for r in ident.records)})"
         self.app.push_screen(DesignScreen(self.engine, identified=G, identified_name=name))

@@ -509,7 +509,10 @@ class MainScreen(CommandSender):
         comes back here."""
         from quadtank_tui.ui.screens.identify import IdentifyScreen
 
-        self.app.push_screen(IdentifyScreen(last_log=self.current().log.saved_path, engine=self.engine))
+        # The engine's logs folder (a session's, wherever this terminal started), as
+        # the ghost window lists; ./logs only for an engine that names none.
+        logs = getattr(self.engine, "logs_dir", "logs")
+        self.app.push_screen(IdentifyScreen(logs, last_log=self.current().log.saved_path, engine=self.engine))
 
     def action_exit(self) -> None:
         """Exit, asking first; an unsaved log is saved by default (Enter), never

@@ -3,6 +3,8 @@ drawn in: clipped tanks and cut-off keys would mislead; a sentence does not.
 
 The app pushes it when the terminal shrinks below MIN_SIZE and takes it away when
 it grows again; the process runs on meanwhile, and ctrl+q still exits (asking).
+Help (F1), the palette (ctrl+p) or the Exit question may open over it: if the
+terminal grew meanwhile, it goes as soon as it is back in front.
 """
 
 from __future__ import annotations
@@ -40,6 +42,12 @@ class TooSmallScreen(ModalScreen[None]):
 
     def on_mount(self) -> None:
         self.on_resize()
+
+    def on_screen_resume(self) -> None:
+        # Back from a window that was over it when the terminal grew (the app's
+        # resize check saw that window on top, not this screen): nothing to say.
+        if self.app.screen is self and not too_small(*self.app.size):
+            self.dismiss()
 
     def on_resize(self) -> None:
         w, h = self.app.size
