@@ -19,7 +19,7 @@ run: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest
 
-# Errors (ruff), types of the headless layers (mypy), the layer contract (import-linter).
+# Errors (ruff), types of the whole package (mypy: core to ui, commands, cli), the layer contract (import-linter).
 lint: $(STAMP)
 	$(BIN)/ruff check quadtank_tui tests benchmarks
 	$(BIN)/mypy

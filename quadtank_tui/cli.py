@@ -271,7 +271,7 @@ def _add_tui_options(parser: argparse.ArgumentParser) -> None:
     tui.add_argument("--par", metavar="FILE", dest="tui_par",
                      help="parameters: a .par file or a name in params/ "
                      "(default: params/default.par, else the built-in values)")
-    add_daq_option(tui, dest="daq_global")  # type: ignore[arg-type]
+    add_daq_option(tui, dest="daq_global")
     lab_command.add_take_over_option(tui, dest="take_over_global")
     tui.add_argument("--speed", metavar="X", type=float, default=1.0, dest="tui_speed",
                      help="simulated seconds per wall second at start (1..1000; keys + and - change it)")
@@ -293,7 +293,7 @@ def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTan
     from concurrent.futures import ThreadPoolExecutor
 
     from quadtank_tui.engine.process import EngineProcess
-    from quadtank_tui.engine.runner import build_engine, engine_spec
+    from quadtank_tui.engine.runner import ClockKind, build_engine, engine_spec
 
     if not 1.0 <= args.tui_speed <= 1000.0:
         raise UsageError(f"--speed must be 1..1000, got {args.tui_speed:g}")
@@ -301,7 +301,7 @@ def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTan
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
     # the configuration is checked here, in any case, for the plant of the parameters
     daq = open_daq(args.daq_global, _plant_in_use(args.tui_par) if args.daq_global else None)
-    clock = "realtime" if daq is not None else "virtual"
+    clock: ClockKind = "realtime" if daq is not None else "virtual"
     engine: Engine | EngineProcess
     if args.loop == "thread":
         from quadtank_tui.ui.app import build_app

@@ -69,7 +69,7 @@ def coefficients(k: Rational) -> dict[str, list[float]]:
 
 def show(k: Rational) -> str:
     """(31s + 5)/(1s) style, 4 significant digits."""
-    def poly(c: Sequence[float]) -> str:
+    def poly(c: Sequence[float] | np.ndarray) -> str:
         n = len(c) - 1
         text = ""
         for i, x in enumerate(c):

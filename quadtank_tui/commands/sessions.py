@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from quadtank_tui.files.script import Script
     from quadtank_tui.session.client import SessionClient
     from quadtank_tui.session.info import SessionInfo
+    from quadtank_tui.session.protocol import Role
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -126,10 +127,10 @@ def cmd_attach(args: argparse.Namespace) -> int:
     return run_tui_on(client, args.attach_refresh)
 
 
-def _connect(info: SessionInfo, role: str, *, take_over: bool = False) -> SessionClient:
+def _connect(info: SessionInfo, role: Role, *, take_over: bool = False) -> SessionClient:
     from quadtank_tui.session.client import SessionClient
 
-    return SessionClient(info.socket, role=role, take_over=take_over)  # type: ignore[arg-type]
+    return SessionClient(info.socket, role=role, take_over=take_over)
 
 
 def cmd_tui_session(args: argparse.Namespace) -> int:

@@ -36,8 +36,10 @@ import numpy as np
 from quadtank_tui.core.design.frequency import crossings, phase_crossings
 from quadtank_tui.core.plants.linear import LinearModel
 
-#: A SISO controller as (numerator, denominator) coefficients in s, highest power first.
-Rational = tuple[Sequence[float], Sequence[float]]
+#: Polynomial coefficients in s, highest power first (a list or a numpy array).
+Coefficients = Sequence[float] | np.ndarray
+#: A SISO controller as (numerator, denominator).
+Rational = tuple[Coefficients, Coefficients]
 
 #: Frequency grid, rad/s: wide enough for a tank (time constants of seconds to hours).
 W_MIN, W_MAX, W_POINTS = 1e-5, 1e3, 4000
@@ -101,7 +103,7 @@ class IcadResult:
         }
 
 
-def _polyval(c: Sequence[float], s: np.ndarray) -> np.ndarray:
+def _polyval(c: Coefficients, s: np.ndarray) -> np.ndarray:
     return np.polyval(np.asarray(c, dtype=float), s)
 
 

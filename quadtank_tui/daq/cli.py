@@ -341,7 +341,7 @@ DAQ_HELP = ("Active mode through a DAQ: a DAQ configuration file (params/daq-lab
             "params/virtual-rig.yaml) or a preset name (labjack)")
 
 
-def add_daq_option(parser: argparse.ArgumentParser, *, dest: str = "daq") -> None:
+def add_daq_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup, *, dest: str = "daq") -> None:
     parser.add_argument("--daq", metavar="CONFIG", dest=dest, help=DAQ_HELP)
 
 

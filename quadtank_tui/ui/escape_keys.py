@@ -52,4 +52,4 @@ def install() -> None:
     driver builds its parser from its module's name for it, and offers no other
     hook; a later Textual that renames it keeps its own reading (Esc+key as Alt)."""
     if getattr(linux_driver, "XTermParser", None) in (XTermParser, EscapeThenKeyParser):
-        linux_driver.XTermParser = EscapeThenKeyParser  # type: ignore[misc]
+        linux_driver.XTermParser = EscapeThenKeyParser  # type: ignore[misc]  # replacing a class Textual imported

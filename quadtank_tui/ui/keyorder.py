@@ -17,6 +17,8 @@ milliseconds on a loaded machine.  A cap keeps a key that is dropped on the way
 
 from __future__ import annotations
 
+from typing import Any
+
 import asyncio
 import time
 from collections import deque
@@ -39,8 +41,8 @@ POLL = 0.0005
 class OrderedKeys(App[None]):
     """An App whose keys reach the focus in the order, and at the place, typed."""
 
-    def __init__(self, *args: object, **kwargs: object) -> None:
-        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
         self._key_backlog: deque[events.Key] = deque()
         self._key_in_flight: events.Key | None = None
         self._key_released: events.Key | None = None
@@ -147,8 +149,13 @@ class OrderedKeys(App[None]):
     async def _drained(screen: Screen[object], deadline: float) -> None:
         """Until the screen has handled everything posted to it so far (its queue
         is first in, first out: a callback posted now runs after all of it)."""
-        done = asyncio.get_running_loop().create_future()
-        screen.call_later(lambda: done.done() or done.set_result(None))
+        done: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+
+        def finish() -> None:
+            if not done.done():  # the wait may have timed out and cancelled it
+                done.set_result(None)
+
+        screen.call_later(finish)
         try:
             await asyncio.wait_for(done, max(0.0, deadline - time.monotonic()))
         except asyncio.TimeoutError:

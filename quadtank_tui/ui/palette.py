@@ -27,4 +27,5 @@ class Palette(CommandPalette):
     async def _gather_commands(self, search_value: str) -> None:
         if not self.is_attached or not self.query(CommandList):
             return
+        # Textual's @work returns a typed worker factory without the wrapped coroutine's attribute
         await CommandPalette._gather_commands.__wrapped__(self, search_value)  # type: ignore[attr-defined]

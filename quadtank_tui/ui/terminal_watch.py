@@ -24,6 +24,7 @@ import select
 import signal
 import sys
 import threading
+from types import FrameType
 from typing import Any, Callable, Sequence
 
 #: Seconds the app has to close in order before the watch ends the program itself.
@@ -66,7 +67,8 @@ class TerminalWatch:
         self._closed = threading.Event()  # the app has closed (or the watch is done)
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_w, False)
-        self._previous: dict[int, object] = {}
+        #: The handlers to restore: what signal.signal returned (None: one not set from Python).
+        self._previous: dict[int, Callable[[int, FrameType | None], Any] | int | signal.Handlers | None] = {}
         self._thread: threading.Thread | None = None
         self._attrs = _terminal_attrs(self._fds)
 
@@ -83,7 +85,8 @@ class TerminalWatch:
         """The app has closed: restore the signal handlers, stop watching."""
         self._closed.set()
         for sig, previous in self._previous.items():
-            signal.signal(sig, previous)  # type: ignore[arg-type]
+            # None (a handler installed outside Python) cannot be passed back: the default then
+            signal.signal(sig, signal.SIG_DFL if previous is None else previous)
         self._previous.clear()
         self._poke()
         if self._thread is not None and self._thread is not threading.current_thread():

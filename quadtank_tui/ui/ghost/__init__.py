@@ -25,7 +25,8 @@ class GhostHost(Protocol):
     here rather than imported, so ui/ghost does not depend on ui/screens, which
     depends on it."""
 
-    engine: object
+    @property
+    def engine(self) -> object: ...  # read-only: any engine handle (the screen's is an EngineHandle)
 
     @property
     def app(self) -> App[Any]: ...

@@ -14,7 +14,7 @@ notification of what changed.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 from textual import on, work
@@ -32,6 +32,11 @@ from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.screens.sending import CommandSender
 
+if TYPE_CHECKING:  # the design core loads when the screen first computes (start-up time)
+    from quadtank_tui.core.design.mimo import Matrix, MimoCheck
+    from quadtank_tui.core.design.simulate import Response
+    from quadtank_tui.core.design.table import Candidate
+
 #: Fixed widths (a space included): the header never depends on when the rows came in.
 COLUMNS = (("candidate", 14), ("Kc", 7), ("Ti", 7), ("Td", 5), ("IAE", 7), ("Emax", 6),
            ("u_os", 5), ("φm", 4), ("Lm", 6), ("Am", 6), ("Ms", 5))
@@ -45,7 +50,7 @@ class LoopState:
 
     text: str = ""
     model: DelayTF | None = None
-    rows: list = field(default_factory=list)  # core.design.table.Candidate
+    rows: list[Candidate] = field(default_factory=list)
     chosen: PID | None = None
     chosen_label: str = ""
 
@@ -84,7 +89,7 @@ class DesignScreen(CommandSender):
         self.loop = 1
         self.identified = identified
         self.identified_name = identified_name
-        self.G = None  # the 2x2 DelayTF matrix of the 2x2 design and check
+        self.G: Matrix | None = None  # the 2x2 DelayTF matrix of the 2x2 design and check
         self.source = "the physical linearization"  # what G is, for messages
 
     def compose(self) -> ComposeResult:
@@ -95,8 +100,8 @@ class DesignScreen(CommandSender):
                 yield Input(id=f"model-{i}", classes="model")
         with Horizontal(id="design-body"):
             with Vertical(id="design-left"):
-                table = DataTable(id="design-table", cursor_type="row", zebra_stripes=False,
-                                  cell_padding=0)
+                table: DataTable[str] = DataTable(id="design-table", cursor_type="row", zebra_stripes=False,
+                                                  cell_padding=0)
                 table.border_title = "Candidates"
                 yield table
                 yield Static(id="design-chosen")
@@ -142,8 +147,11 @@ class DesignScreen(CommandSender):
         assert self.identified is not None
         (g11, g12), (g21, g22) = self.identified
         self.source = self.identified_name
-        full = None not in (g11, g12, g21, g22)
-        self.G = ((g11, g12), (g21, g22)) if full else None  # type: ignore[assignment]
+        if g11 is not None and g12 is not None and g21 is not None and g22 is not None:
+            self.G = ((g11, g12), (g21, g22))
+        else:
+            self.G = None
+        full = self.G is not None
         self._set_models(g11, g22)
         self._status(f"models: G11 and G22 of {self.identified_name}"
                      + ("" if full else " (G12 or G21 missing: no 2x2 check)"))
@@ -189,7 +197,7 @@ class DesignScreen(CommandSender):
             return
         self.app.call_from_thread(self._show_table, loop, model, rows)
 
-    def _show_table(self, loop: int, model: DelayTF, rows: list) -> None:
+    def _show_table(self, loop: int, model: DelayTF, rows: list[Candidate]) -> None:
         state = self.loops[loop]
         if state.model is not model:
             return  # a newer model was typed meanwhile
@@ -224,7 +232,7 @@ class DesignScreen(CommandSender):
             self.design_loop(self.loop)
         self._show_chosen()
 
-    def _row(self, key: str | None):  # type: ignore[no-untyped-def]
+    def _row(self, key: str | None) -> Candidate | None:
         rows = self.loops[self.loop].rows
         if key is None or not key.isdigit() or int(key) >= len(rows):
             return None
@@ -273,7 +281,7 @@ class DesignScreen(CommandSender):
         resp = settled_response(model, c, m, d=load_size(model))
         self.app.call_from_thread(self._draw_plots, L[keep], resp, ms or m.Ms)
 
-    def _draw_plots(self, L: np.ndarray, resp, ms: float) -> None:  # type: ignore[no-untyped-def]
+    def _draw_plots(self, L: np.ndarray, resp: Response, ms: float) -> None:
         ny = self.query_one("#nyquist", PlotextPlot)
         plt = ny.plt
         plt.clear_data()
@@ -300,21 +308,23 @@ class DesignScreen(CommandSender):
             self.notify(f"no 2x2 model: {self.source} lacks an element", severity="error", markup=False)
             return
         self._status(f"designing both loops on {self.source} ...")
-        self._compute_2x2()
+        self._compute_2x2(self.G)
 
     @work(thread=True, exclusive=True, group="mimo")
-    def _compute_2x2(self) -> None:
+    def _compute_2x2(self, G: Matrix) -> None:
+        """On the matrix of the moment it was asked for: self.G may change (a model
+        typed) while the worker runs."""
         from quadtank_tui.core.design.controller import DesignError
         from quadtank_tui.core.design.mimo import design_2x2, format_check
 
         try:
-            chk = design_2x2(self.G)  # type: ignore[arg-type]
+            chk = design_2x2(G)
         except DesignError as exc:
             self.app.call_from_thread(self.notify, str(exc), severity="error", markup=False)
             return
         self.app.call_from_thread(self._show_2x2, chk, format_check(chk))
 
-    def _show_2x2(self, chk, text: str) -> None:  # type: ignore[no-untyped-def]
+    def _show_2x2(self, chk: MimoCheck, text: str) -> None:
         for d in chk.loops:
             s = self.loops[d.loop]
             s.chosen, s.chosen_label = d.controller, f"2x2 design on {d.how}"

@@ -8,7 +8,7 @@ Textual's key panel, which squeezed the process image and did not close on Esc.
 
 from __future__ import annotations
 
-from typing import Iterable
+from typing import Any, Iterable
 
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -45,7 +45,7 @@ EVERY_WINDOW = (
 )
 
 #: The windows: title, the keys that open them, the class whose bindings it has.
-WINDOWS: tuple[tuple[str, str, type[Window]], ...] = (  # type: ignore[type-arg]
+WINDOWS: tuple[tuple[str, str, type[Window[Any]]], ...] = (
     ("Controller type", "Main t, Setup t", ControllerTypeWindow),
     ("PID element", "Main 1-4", PIDWindow),
     ("PID element with extras N, Tr, a, b", "Setup 1-4", PIDExtrasWindow),
@@ -94,12 +94,12 @@ def table(rows: Iterable[Row], note: str = "") -> Table:
     return grid
 
 
-def screen_rows(screen: type[Screen]) -> list[Row]:  # type: ignore[type-arg]
+def screen_rows(screen: type[Screen[Any]]) -> list[Row]:
     """One line per key of a screen class (its own bindings, not Textual's)."""
     return [row(b.key, b.tooltip or b.description) for b in _bindings(screen, screen) if b.description]
 
 
-def window_rows(window: type[Window]) -> list[Row]:  # type: ignore[type-arg]
+def window_rows(window: type[Window[Any]]) -> list[Row]:
     """The keys of a window beyond what every window has; numbered choices in one line."""
     rows, choices = [], []
     for binding in _bindings(window, Window):
@@ -116,7 +116,7 @@ def window_rows(window: type[Window]) -> list[Row]:  # type: ignore[type-arg]
     return rows
 
 
-def _bindings(node: type[Screen], base: type[Screen]) -> Iterable[Binding]:  # type: ignore[type-arg]
+def _bindings(node: type[Screen[Any]], base: type[Screen[Any]]) -> Iterable[Binding]:
     """The bindings the classes from `base` down to `node` declare, the most
     derived first (a subclass's key hides its parent's)."""
     seen: set[str] = set()

@@ -305,26 +305,28 @@ class IdentifyScreen(Screen[None]):
             f"Zeros {zero_text(ident.system.zeros)}{pz}\nPhase {phase(ident)}{pp}")
         t.border_subtitle = f"physical: {self.view.physical}"
 
-    def _element(self) -> tuple[tuple[str, str], Element] | tuple[None, None]:
+    def _element(self) -> tuple[FitView, tuple[str, str], Element] | None:
+        """The fit, and the element of it on show; None before the first fit."""
         if self.view is None:
-            return None, None
+            return None
         keys = list(self.view.ident.elements)
         key = keys[self.element_index % len(keys)]
-        return key, self.view.ident.elements[key]
+        return self.view, key, self.view.ident.elements[key]
 
     def _draw(self) -> None:
         top = self.query_one("#outputs", PlotextPlot)
         low = self.query_one("#lower", PlotextPlot)
-        for w in (top, low):
-            w.plt.clear_figure()
-            w.plt.theme("clear")
-        key, e = self._element()
-        if e is None:
+        for plot in (top, low):
+            plot.plt.clear_figure()
+            plot.plt.theme("clear")
+        shown = self._element()
+        if shown is None:
             top.border_title = "Measured and model output"
             low.border_title = "Residual autocorrelation"
             top.plt.title("no fit yet")
         else:
-            h = self.view.ident.h
+            view, key, e = shown
+            h = view.ident.h
             t = np.arange(len(e.y)) * h
             step = max(1, len(t) // 400)
             top.plt.plot(t[::step].tolist(), e.y[::step].tolist(), color="blue", label="measured")
@@ -336,21 +338,21 @@ class IdentifyScreen(Screen[None]):
             top.plt.xlabel("t (s)")
             if self.lower == "residuals":
                 low.border_title = "Residual autocorrelation (validation part), 99 % band"
-                if key in self.view.residuals:
-                    lags, r, band = self.view.residuals[key]
+                if key in view.residuals:
+                    lags, r, band = view.residuals[key]
                     low.plt.bar(lags.tolist(), r.tolist(), color="blue", width=0.3)
                     low.plt.hline(band, "red")
                     low.plt.hline(-band, "red")
                 low.plt.xlabel("lag (samples)")
             elif self.lower == "frequency":
                 low.border_title = f"|G{key[0][1:]}{key[1][1:]}(iw)|: spectral estimate (blue), model (red), log scales"
-                w, est, mod = self.view.frequency[key]
+                w, est, mod = view.frequency[key]
                 low.plt.plot(np.log10(w).tolist(), np.log10(est).tolist(), color="blue")
                 low.plt.plot(np.log10(w).tolist(), np.log10(mod).tolist(), color="red")
                 low.plt.xlabel("log10 w (rad/s)")
             else:
                 low.border_title = f"Coherence {key[1]} -> {key[0]} up to 0.1 Hz (Hamming window, 720 points)"
-                f, c = self.view.coherence[key]
+                f, c = view.coherence[key]
                 keep = f <= 0.1  # the thesis's range: a linear model holds up to 0.05-0.1 Hz
                 low.plt.plot(f[keep].tolist(), c[keep].tolist(), color="blue")
                 low.plt.ylim(0, 1.05)

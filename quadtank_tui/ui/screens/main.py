@@ -37,6 +37,7 @@ from quadtank_tui.ui.widgets.controller_box import ControllerBox, element_used
 from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.status_line import StatusLine
+from quadtank_tui.ui.widgets.trend_clock import ClockMap
 from quadtank_tui.ui.widgets.trends import WINDOWS, Scale, Trend, TrendView, physical_scales, scroll_step
 from quadtank_tui.ui.ghost import GhostControl
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, ConfirmWindow, free_log_name
@@ -116,6 +117,8 @@ class MainScreen(CommandSender):
         Binding("z", "time_window", "Time window", show=False, tooltip="Trend time window: 2, 5, 10, 30 min"),
         Binding("Z", "autoscale", "Autoscale", show=False, tooltip="Trends autoscaled or full scale"),
         Binding("u", "units", "Units", show=False, tooltip="Trends normalized or in the plant's units (levels cm, pumps V)"),
+        Binding("c", "clock_axis", "Clock", show=False,
+                tooltip="Trends' time axis in s before now or at the clock times the samples were taken"),
         Binding("left", "scroll_trends(1)", "Trends back", show=False,
                 tooltip="Paused: scroll the trends back through the history (half a window)"),
         Binding("right", "scroll_trends(-1)", "Trends forward", show=False, tooltip="Paused: scroll the trends forward"),
@@ -151,6 +154,12 @@ class MainScreen(CommandSender):
         #: Trends in the plant's units (else normalized); how far back they show, s.
         self.physical = False
         self.trend_offset = 0.0
+        #: The trends' time axis in clock time (else s before now); the clock of each
+        #: sample as it arrived, and where the wall clock comes from (epoch s).
+        self.clock_axis = False
+        self.clock_map = ClockMap()
+        self.epoch_clock: Callable[[], float] = time.time
+        self._clock_k = -1  # the sample count at the last look (-1: none yet)
         self._scales: tuple[object, tuple[tuple[str, Scale], ...]] = (None, ())
         self.ghost = GhostControl(self)
 
@@ -249,8 +258,9 @@ class MainScreen(CommandSender):
         if snap.state == "Run":
             self.trend_offset = 0.0  # scrolling back is for a paused trend
         self.ghost.follow(snap)
+        self._note_clock(snap, status.age)
         view = (window, self.autoscale, self.size, snap.params.plots, snap.state, snap.control,
-                self.physical, self.trend_offset, self.ghost.run, self.ghost.start)
+                self.physical, self.trend_offset, self.ghost.run, self.ghost.start, self.clock_axis)
         if self._trends_due(snap, view, timer):
             self._drawn_view, self._drawn_t, self._drawn_k = view, snap.t, snap.k
             self._drawn_at = time.monotonic()
@@ -260,8 +270,26 @@ class MainScreen(CommandSender):
             for trend, plot_type in ((self._upper, snap.params.plots.upper),
                                      (self._lower, snap.params.plots.lower)):
                 trend.show(history, TrendView(plot_type, window, self.autoscale, self.trend_offset,
-                                              scales, self.ghost.run, self.ghost.start))
+                                              scales, self.ghost.run, self.ghost.start,
+                                              self.clock_map if self.clock_axis else None))
         self._feed_live(snap)
+
+    def _note_clock(self, snap: Snapshot, age: float) -> None:
+        """The wall clock of the newest sample (the one before snap.t, which is the
+        next sample's time), `age` seconds ago, for the clock axis.  Seen from the
+        first sample on (k was 0 at the last look), the run's start is known too: the
+        samples in between went at the speed of the snapshot."""
+        watched_start, self._clock_k = self._clock_k == 0, snap.k
+        if snap.k <= 0:
+            return
+        t = max(0.0, snap.t - snap.params.tsamp)
+        wall = self.epoch_clock() - (age if age < 60 else 0.0)  # minutes: a stalled loop, or clocks apart
+        if watched_start and t > 0:  # (after a Reset: the map starts again)
+            self.clock_map.note(0.0, wall - (t / snap.speed if 0 < snap.speed < math.inf else 0.0))
+        if snap.state == "Run":
+            self.clock_map.note(t, wall)
+        else:  # paused: a simulation takes no samples, the newest one stands (a rig's go on)
+            self.clock_map.stand(t, wall)
 
     def _feed_live(self, snap: Snapshot) -> None:
         """Hand the snapshot to the live window in front (Tank, Pump, Logging)."""
@@ -317,8 +345,10 @@ class MainScreen(CommandSender):
         snap = self.snap
         if action == "speed" and (snap.operation != "Simul" or snap.realtime or snap.speed == float("inf")):
             return None
-        if action == "element" and parameters and not element_used(snap.params, int(parameters[0])):  # type: ignore[call-overload]
-            return None
+        if action == "element" and parameters:
+            n = parameters[0]  # Textual types action arguments as objects: element(n) has an int
+            if isinstance(n, int) and not element_used(snap.params, n):
+                return None
         return True
 
     # --- modes (M1-M3) ------------------------------------------------------------------
@@ -418,6 +448,10 @@ class MainScreen(CommandSender):
         self.physical = not self.physical
         self.refresh_view()
 
+    def action_clock_axis(self) -> None:
+        self.clock_axis = not self.clock_axis
+        self.refresh_view()
+
     def _trend_scales(self, snap: Snapshot) -> tuple[tuple[str, Scale], ...]:
         """The plant's units per signal, worked out again only when the
         parameters change."""
@@ -490,14 +524,19 @@ class MainScreen(CommandSender):
         self._exit_stopping(confirm=True)
 
     def _exit_session(self) -> None:
+        from quadtank_tui.session.client import SessionClient  # loaded already: the engine is one
+
         engine = self.engine
-        sid = engine.info.id  # type: ignore[attr-defined]  # a session client (session/client.py)
-        if engine.role != "operator":  # type: ignore[attr-defined]
+        if not isinstance(engine, SessionClient):  # a banner without a session: an ordinary exit
+            self._exit_stopping(confirm=True)
+            return
+        sid = engine.info.id
+        if engine.role != "operator":
             self.app.push_screen(ConfirmWindow("Exit", f"Stop watching session {sid} and exit?\n"
                                                "It keeps running.", yes="Exit"),
                                  lambda yes: self.app.exit() if yes else None)
             return
-        policy = engine.policy  # type: ignore[attr-defined]  # the lab's unattended policy, one sentence
+        policy = engine.policy  # the lab's unattended policy, one sentence
         question = (f"Session {sid} can run on without this screen.\n"
                     f"Detach: it runs on; quadtank attach {sid} comes back to it. {policy}\n"
                     "Stop: the pumps at 0, logging stopped (its rows kept), the session ended.")
@@ -511,12 +550,12 @@ class MainScreen(CommandSender):
                 self._exit_stopping(confirm=False, leave=stop_and_exit)
 
         def stop_and_exit() -> None:
-            engine.stop_on_close = True  # type: ignore[attr-defined]  # the CLI stops it once the app is down
+            engine.stop_on_close = True  # the CLI stops it once the app is down
             self.app.exit()
 
         self.app.push_screen(ChoiceWindow("Exit", question, choices), answered)
 
-    def _exit_stopping(self, *, confirm: bool, leave: Callable[[], object] | None = None) -> None:
+    def _exit_stopping(self, *, confirm: bool, leave: Callable[[], None] | None = None) -> None:
         """Exit stopping the loop: asks about an unsaved log (and, if `confirm`,
         whether to stop at all); `leave` exits (default: the app's exit)."""
         leave = leave or self.app.exit

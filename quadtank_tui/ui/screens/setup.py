@@ -13,6 +13,7 @@ hands snapshots down to its widgets on a timer and sends the windows' commands.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 from textual import events
 from textual.app import ComposeResult
@@ -64,12 +65,14 @@ def operating_point_view(snap: Snapshot) -> Snapshot:
     if p.process is not None:  # another plant: its levels and the pumps that hold them
         plant, levels = p.process_plant(), p.process_levels()
         ys = [v / FULL_SCALE_V for v in plant.output(levels)] + [0.0] * 4
+        u: tuple[float, float] = snap.u
         try:
             v = plant.steady_inputs([x if i in plant.controlled else None for i, x in enumerate(levels)]).u
-            u = tuple(x / s.full_scale for x, s in zip(v, plant.inputs)) + (0.0,) * (2 - len(v))
+            us = [x / s.full_scale for x, s in zip(v, plant.inputs)] + [0.0] * 2
+            u = (us[0], us[1])
         except PlantError:
-            u = snap.u
-        return dataclasses.replace(snap, y=tuple(ys[:4]), u=u, state="Pause", operation="Simul")
+            pass
+        return dataclasses.replace(snap, y=(ys[0], ys[1], ys[2], ys[3]), u=u, state="Pause", operation="Simul")
     y = p.simulation.op_points
     try:
         h = p.operating_levels()
@@ -245,7 +248,7 @@ class SetupScreen(CommandSender):
             if isinstance(command, (LoadPar, SavePar)):
                 self.par_name = command.name
                 verb = "Not loaded" if isinstance(command, LoadPar) else "Not saved"
-                self.send(command, on_refused=lambda why, verb=verb: self._par_refused(verb, why))
+                self.send(command, on_refused=functools.partial(self._par_refused, verb))
             else:
                 self.send(command)
 

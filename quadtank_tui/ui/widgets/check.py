@@ -7,6 +7,8 @@ be logged.  These draw the mark only when on.
 
 from __future__ import annotations
 
+from typing import Any
+
 from textual.binding import Binding
 from textual.widgets import Checkbox
 
@@ -15,7 +17,7 @@ class Check(Checkbox):
     """A checkbox: X when on, blank when off."""
 
     @property
-    def BUTTON_INNER(self) -> str:  # type: ignore[override]
+    def BUTTON_INNER(self) -> str:  # type: ignore[override]  # Textual's is a class constant
         return "X" if self.value else " "
 
 
@@ -27,8 +29,8 @@ class Switch(Check, inherit_bindings=False):
 
     BINDINGS = [Binding("space", "toggle_button", "Toggle", show=False)]
 
-    def __init__(self, value: bool = False, **kwargs: object) -> None:
-        super().__init__("on" if value else "off", value, **kwargs)  # type: ignore[arg-type]
+    def __init__(self, value: bool = False, **kwargs: Any) -> None:
+        super().__init__("on" if value else "off", value, **kwargs)
 
     def on_checkbox_changed(self, event: Checkbox.Changed) -> None:
         self.label = "on" if event.value else "off"

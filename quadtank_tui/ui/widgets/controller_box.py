@@ -9,7 +9,7 @@ shows its gains L1, L2, the placed poles (z) and delta instead.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any, TYPE_CHECKING
 
 from textual import events
 from textual.app import ComposeResult
@@ -114,8 +114,8 @@ class ControllerBox(Vertical):
     #: The state feedback in use (from the snapshot), None with the other types.
     statefb: reactive[StateFeedbackInfo | None] = reactive(None)
 
-    def __init__(self, defaults: Parameters, **kwargs: object) -> None:
-        super().__init__(**kwargs)  # type: ignore[arg-type]
+    def __init__(self, defaults: Parameters, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
         self.defaults = defaults
         self.border_title = "Controller"
         self.border_subtitle = "t type · 1-4 · C reset"

@@ -42,7 +42,7 @@ class ChannelPanel(Static, can_focus=True):
         Binding("shift+up", "nudge(0.1)", "+ fine", show=False),
         Binding("shift+down", "nudge(-0.1)", "- fine", show=False),
         Binding("enter", "open", "Edit"),
-        Binding("o", "toggle", "Wave on/off"),
+        Binding("o", "wave_on_off", "Wave on/off"),
     ]
 
     snapshot: reactive[Snapshot | None] = reactive(None, repaint=False)
@@ -99,7 +99,7 @@ class ChannelPanel(Static, can_focus=True):
     def action_open(self) -> None:
         self.post_message(ActionRequested(f"input({self.channel})"))
 
-    def action_toggle(self) -> None:
+    def action_wave_on_off(self) -> None:
         self.post_message(ActionRequested(f"toggle_wave({self.channel})"))
 
     def on_click(self, event: events.Click) -> None:

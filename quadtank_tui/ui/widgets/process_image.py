@@ -19,6 +19,8 @@ tanks side by side ("◀"/"▶" the way the water runs).
 
 from __future__ import annotations
 
+from typing import Any
+
 from dataclasses import dataclass
 
 from rich.style import Style
@@ -27,6 +29,7 @@ from textual import events
 from textual.reactive import reactive
 from textual.widget import Widget
 
+from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fixed
@@ -105,10 +108,10 @@ def tank_label(number: int, level: float, room: int) -> str:
     return short
 
 
-def gamma_text(p: object, pump: int, wide: bool) -> str:
+def gamma_text(p: Parameters, pump: int, wide: bool) -> str:
     """A valve's split: "γ1 0.70→1 0.30→4" (how much of pump 1 goes to which tank),
     or "γ1 0.70" where there is no room."""
-    g = p.get(f"SIMULATION.Valve{pump}")  # type: ignore[attr-defined]
+    g = p.get(f"SIMULATION.Valve{pump}")
     lower, upper = (1, 4) if pump == 1 else (2, 3)
     return f"γ{pump} {g:.2f}→{lower} {1 - g:.2f}→{upper}" if wide else f"γ{pump} {g:.2f}"
 
@@ -290,8 +293,8 @@ class ProcessImage(Widget):
     #: Tanks that overflow now (the screen works it out, see spilling_tanks).
     spilling: reactive[frozenset[int]] = reactive(frozenset())
 
-    def __init__(self, caption: str = "", **kwargs: object) -> None:
-        super().__init__(**kwargs)  # type: ignore[arg-type]
+    def __init__(self, caption: str = "", **kwargs: Any) -> None:
+        super().__init__(**kwargs)
         self._boxes: list[Box] = []
         self._drawn: tuple[tuple[int, int], Text] | None = None
         #: What the border's subtitle says (Setup: what the pump values are).
@@ -325,8 +328,8 @@ class ProcessImage(Widget):
                 and self._drawn_from(old) == self._drawn_from(new)):
             return
         before = self._drawn
-        text = self._draw()
-        if before is None or before[0] != self._drawn[0] or before[1] != text:  # type: ignore[index]
+        self._draw()
+        if before is None or before != self._drawn:  # another size, or other text
             self.refresh()
         self._subtitle()
 

@@ -11,7 +11,7 @@ from its default is shown dim italic, as the original drew it gray.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 from rich.text import Text
 from textual.reactive import reactive
@@ -46,8 +46,8 @@ class ParamTable(DataTable[Text]):
     FIRST = 0
     COLUMNS: tuple[Column, ...] = ()
 
-    def __init__(self, defaults: Parameters, **kwargs: object) -> None:
-        super().__init__(cursor_type="row", zebra_stripes=False, show_cursor=True, **kwargs)  # type: ignore[arg-type]
+    def __init__(self, defaults: Parameters, **kwargs: Any) -> None:
+        super().__init__(cursor_type="row", zebra_stripes=False, show_cursor=True, **kwargs)
         self.defaults = defaults
 
     def on_mount(self) -> None:
@@ -158,10 +158,10 @@ class ProcessTable(ParamTable):
     ACTION = "tank({n})"
     FIRST = 1
     COLUMNS = (
-        Column("Op.Pt", _tank("OpPoint"), lambda v: f"{v:.3f}"),  # type: ignore[str-format]
-        Column("Diam cm", _tank("Diameter"), lambda v: f"{v:.2f}"),  # type: ignore[str-format]
-        Column("T s", _tank("TimeConst"), lambda v: f"{v:.2f}"),  # type: ignore[str-format]
-        Column("γ", _tank("Valve", (1, 2)), lambda v: f"{v:.2f}"),  # type: ignore[str-format]
+        Column("Op.Pt", _tank("OpPoint"), lambda v: f"{v:.3f}"),
+        Column("Diam cm", _tank("Diameter"), lambda v: f"{v:.2f}"),
+        Column("T s", _tank("TimeConst"), lambda v: f"{v:.2f}"),
+        Column("γ", _tank("Valve", (1, 2)), lambda v: f"{v:.2f}"),
     )
 
     def watch_params(self, params: Parameters | None) -> None:

@@ -12,6 +12,8 @@ every refresh tick, and over SSH every repaint costs the link (issue 17).
 
 from __future__ import annotations
 
+from typing import Any
+
 import math
 from collections import deque
 
@@ -78,8 +80,8 @@ class StatusLine(Widget):
     snapshot: reactive[Snapshot | None] = reactive(None, repaint=False)
     age: reactive[float] = reactive(0.0, repaint=False)
 
-    def __init__(self, **kwargs: object) -> None:
-        super().__init__(**kwargs)  # type: ignore[arg-type]
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
         self.speed = SpeedMeter()
         self._lines: tuple[object, ...] = (None, None)
 

@@ -53,7 +53,8 @@ class TraceStyle:
 
 def blend(a: RGB, b: RGB, f: float) -> RGB:
     """`a` moved the fraction `f` of the way to `b`."""
-    return tuple(round(x + (y - x) * f) for x, y in zip(a, b))  # type: ignore[return-value]
+    r, g, bl = (round(x + (y - x) * f) for x, y in zip(a, b))
+    return r, g, bl
 
 
 def trace_styles(names: list[str], *, dark: bool, no_color: bool, background: RGB) -> dict[str, TraceStyle]:

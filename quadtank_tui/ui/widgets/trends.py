@@ -12,7 +12,8 @@ so a label could sit a row away from the curve it names, and two labels could
 fall on one row (0.3000 lost at 80x24).  `y_axis` picks a round value per row
 and the limits that put every row's value exactly under the dots of that row,
 so each label names the row it is on, at every size; `x_axis` does the same for
-the columns, in seconds relative to the newest sample (-60 -40 -20 0).
+the columns, in seconds relative to the newest sample (-60 -40 -20 0), or, with
+the `c` key, at round clock times of the samples (trend_clock.py).
 
 The first row is the legend: each signal's value at the right edge of the view,
 in the colour its curve has (trend_style.py: one table for both, RGB, a dark and
@@ -25,7 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterator, Mapping
+from typing import Any, Iterator, Mapping
 
 import numpy as np
 from rich.console import RenderableType
@@ -37,6 +38,7 @@ from textual_plotext import PlotextPlot
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.files.ghost import LoggedRun
 from quadtank_tui.ui.messages import ActionRequested
+from quadtank_tui.ui.widgets.trend_clock import ClockMap, Ticks, clock_ticks, process_ticks, wall_label
 from quadtank_tui.ui.widgets.trend_style import TraceStyle, trace_styles
 
 #: Time windows the `z` key cycles through, s.
@@ -258,6 +260,7 @@ class TrendView:
     scales : per signal, the unit shown (empty: normalized)
     ghost, ghost_start : a logged run drawn dimmed behind the signals, its first
         row at process time ghost_start
+    clock : the time axis in clock time of the samples (None: s relative to now)
     """
 
     plot_type: str = "u1 u2"
@@ -267,6 +270,7 @@ class TrendView:
     scales: tuple[tuple[str, Scale], ...] = ()
     ghost: LoggedRun | None = None
     ghost_start: float = 0.0
+    clock: ClockMap | None = None
 
     @property
     def names(self) -> list[str]:
@@ -285,8 +289,8 @@ class Trend(PlotextPlot):
     """One trend: the legend row (each signal's latest value in its colour), then
     the plot, relative time on x."""
 
-    def __init__(self, which: str, **kwargs: object) -> None:
-        super().__init__(**kwargs)  # type: ignore[arg-type]
+    def __init__(self, which: str, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
         self.which = which
         self.view = TrendView()
         self._history: Mapping[str, np.ndarray] | None = None
@@ -308,18 +312,50 @@ class Trend(PlotextPlot):
         key = "g" if self.which == "upper" else "G"
         scale = "auto" if v.autoscale else "full"
         unit = v.unit or "norm"
-        # The title says what is in view; the subtitle the keys that change it (34
-        # characters: it fits a trend at 80x24).
-        if v.offset > 0 and self._history is not None and len(self._history["t"]):
-            end = float(self._history["t"][-1]) - v.offset
-            title = f"viewing t = {max(0.0, end - v.window):.0f}-{end:.0f} s, End to return"
-        else:
+        axis = "s" if v.clock is None else "clock"
+        history = self._history if self._history is not None and len(self._history["t"]) else None
+        clock = self._clock_known(v, history)
+        # The title says what is in view; the subtitle the keys that change it.
+        if v.offset > 0 and history is not None:
+            end = float(history["t"][-1]) - v.offset
+            start = max(0.0, end - v.window)
+            if clock is not None:
+                title = f"viewing {wall_label(clock, start)}-{wall_label(clock, end)}, End to return"
+            else:
+                title = f"viewing t = {start:.0f}-{end:.0f} s, End to return"
+        elif v.clock is None:
             title = "live, t in s"
+        elif clock is not None:
+            title = "live, clock time"
+        else:  # samples from before the screen watched: process time since the start
+            since = v.clock.since
+            title = "live, t h:m:s" + ("" if since is None else f", clock from {wall_label(v.clock, since)}")
         if v.ghost is not None:
             title += f" · ghost {v.ghost.name}"
         self.border_title = title
-        keys = f"{key} type · z {v.window / 60:g} min · Z {scale} · u {unit}"
-        self.border_subtitle = keys if len(keys) <= 34 else keys.replace(" type", "", 1)
+        keys = f"{key} type · z {v.window / 60:g} min · Z {scale} · u {unit} · c {axis}"
+        # the border's corners and a line and a space each side (34 at 80x24)
+        room = self.size.width - 6 if self.size.width else 34
+        short = keys.replace(" type", "", 1)
+        for form in (keys, short, short.replace(" min", "m"), short.replace(" min", "m").replace(" · ", "·")):
+            if len(form) <= room:
+                break
+        self.border_subtitle = form
+
+    def on_resize(self, event: events.Resize) -> None:
+        self._title()  # the subtitle's form depends on the width
+
+    def _clock_known(self, view: TrendView, history: Mapping[str, np.ndarray] | None) -> ClockMap | None:
+        """The view's clock, if it knows the wall clock of every sample in view."""
+        clock = view.clock
+        if clock is None or clock.since is None:
+            return None
+        if history is None:
+            return clock
+        t = history["t"]
+        x = x_axis(view.window, self.columns, -view.offset)
+        oldest_in_view = t[visible(t - t[-1], x.first, -view.offset)]
+        return clock if not len(oldest_in_view) or clock.since <= float(oldest_in_view[0]) + 1e-9 else None
 
     def show(self, history: Mapping[str, np.ndarray], view: TrendView | None = None) -> None:
         """Redraw from `history` as `view` says, if the newest sample or the view
@@ -367,13 +403,17 @@ class Trend(PlotextPlot):
         plt.ylim(yaxis.lo, yaxis.hi)
         plt.yticks(list(yaxis.ticks), list(yaxis.labels))
         plt.xlim(xaxis.lo, xaxis.hi)
-        plt.xticks(list(xaxis.ticks), list(xaxis.labels))
+        if view.clock is None:
+            plt.xticks(list(xaxis.ticks), list(xaxis.labels))
+        else:
+            ticks = self._clock_axis(view, history, t_new, xaxis.first, xaxis.per_column, columns)
+            plt.xticks([xaxis.first + c * xaxis.per_column for c in ticks.columns], list(ticks.labels))
 
         for name, (gx, gy) in ghost.items():  # first: the live curves draw over it
             pick = visible(gx, x_lo, x_hi)
             keep = decimate(len(gx[pick]), XDOTS * columns)
             plt.plot(gx[pick][keep].tolist(), gy[pick][keep].tolist(), marker=styles[name].ghost_marker,
-                     **_color(styles[name].ghost_color))
+                     color=styles[name].ghost_color)
         latest: dict[str, float] = {}
         if history is not None and len(t):
             x = t - t_new
@@ -384,13 +424,23 @@ class Trend(PlotextPlot):
                 if len(y):
                     latest[name] = float(y[-1])
                     plt.plot(x[pick][keep].tolist(), y[keep].tolist(), marker=styles[name].marker,
-                             **_color(styles[name].color))
+                             color=styles[name].color)  # None: plotext's default foreground
         if not latest and not ghost:
             # plotext draws no axes without data: one point left of the plot (not
             # drawn) gives an empty trend its labelled axes, as at start-up.
             plt.plot([xaxis.lo - 10 * xaxis.per_column], [yaxis.ticks[0] if yaxis.ticks else yaxis.lo])
         legend = self._legend(names, styles, latest, width)
         return Text("\n").join([legend, Text.from_ansi(plt.build())])
+
+    def _clock_axis(self, view: TrendView, history: Mapping[str, np.ndarray] | None, t_new: float,
+                    first: float, per_column: float, columns: int) -> Ticks:
+        """Round clock times of the samples in view, or process time as H:MM:SS
+        where the clock is not known for all of them."""
+        t_first = t_new + first  # the left-most column's process time
+        clock = self._clock_known(view, history if history is not None and len(history["t"]) else None)
+        if clock is not None:
+            return clock_ticks(clock, t_first, per_column, columns)
+        return process_ticks(t_first, per_column, columns)
 
     def _ghost_curves(self, t_new: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """The ghost's signals of this plot as (time relative to the newest sample,
@@ -453,18 +503,13 @@ class Trend(PlotextPlot):
             if sum(len(p) for p, _ in parts) + len(gap) * (len(parts) - 1) <= width:
                 break
         text = Text(no_wrap=True, overflow="crop")
-        for n, (part, style) in enumerate(parts):
+        for n, (part, rich_style) in enumerate(parts):
             if text.cell_len + len(gap) * bool(n) + len(part) > width:
                 break  # whole entries only: a cut value would read as another
             if n:
                 text.append(gap)
-            text.append(part, style)
+            text.append(part, rich_style)
         return text
 
     def on_click(self, event: events.Click) -> None:
         self.post_message(ActionRequested(f"plot_type({self.which!r})"))
-
-
-def _color(rgb: tuple[int, int, int] | None) -> dict[str, object]:
-    """plotext's colour argument: an RGB tuple, or none (the default foreground)."""
-    return {} if rgb is None else {"color": rgb}

@@ -22,6 +22,7 @@ from textual.containers import Horizontal, Vertical
 from textual.content import Content
 from textual.screen import ModalScreen
 from textual.widgets import Button, Checkbox, Footer, Input, Label, Static
+from textual.widgets.button import ButtonVariant
 
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.validation import ParameterError
@@ -177,7 +178,9 @@ class ParamWindow(Window[Commands]):
 
     def field_widget(self, key: str) -> Input | Checkbox:
         i = [f.key for f in self.fields].index(key)
-        return self.query_one(f"#f-{i}")  # type: ignore[return-value]
+        widget = self.query_one(f"#f-{i}")
+        assert isinstance(widget, (Input, Checkbox))  # compose_fields makes nothing else
+        return widget
 
     def _read(self, i: int) -> Any:
         f = self.fields[i]
@@ -306,7 +309,7 @@ class Choice:
 
     answer: str
     label: str
-    variant: str = "default"
+    variant: ButtonVariant = "default"
 
 
 class ChoiceWindow(Window[str | None]):
@@ -327,7 +330,7 @@ class ChoiceWindow(Window[str | None]):
 
     def compose_buttons(self) -> ComposeResult:
         for n, choice in enumerate(self.choices):
-            yield Button(Content(choice.label), id=f"choice-{n}", variant=choice.variant)  # type: ignore[arg-type]
+            yield Button(Content(choice.label), id=f"choice-{n}", variant=choice.variant)
 
     def on_mount(self) -> None:
         self.query_one("#choice-0", Button).focus()

@@ -30,7 +30,7 @@ class Radio(RadioButton):
     states apart by colour alone, which an SSH terminal's scheme may hide."""
 
     @property
-    def BUTTON_INNER(self) -> str:  # type: ignore[override]
+    def BUTTON_INNER(self) -> str:  # type: ignore[override]  # Textual's is a class constant
         return "●" if self.value else " "
 
 
