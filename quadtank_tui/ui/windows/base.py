@@ -21,6 +21,7 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
 from textual.screen import ModalScreen
+from textual.widget import Widget
 from textual.widgets import Button, Checkbox, Footer, Input, Label, Static
 from textual.widgets.button import ButtonVariant
 
@@ -122,6 +123,23 @@ class Window(ModalScreen[T], Generic[T]):
             self.action_cancel()
 
 
+def field_row(row_id: str, label: str, field: Widget, unit: str, error_id: str) -> ComposeResult:
+    """One row of a window's form: label, the field, its unit, and the line where
+    a refused value is named (every editing window lays its fields out so)."""
+    with Horizontal(classes="field", id=row_id):
+        yield Label(label, classes="label")
+        yield field
+        yield Label(unit, classes="unit")
+        yield Static("", classes="error", id=error_id, markup=False)
+
+
+def set_default_cancel() -> ComposeResult:
+    """The buttons of a window that edits values (their ids are the actions)."""
+    yield Button("Set", id="set", variant="primary")
+    yield Button("Default", id="default")
+    yield Button("Cancel", id="cancel")
+
+
 @dataclass(frozen=True)
 class Field:
     """One editable parameter: its `.par` key, its label, its unit; a flag is a
@@ -155,20 +173,13 @@ class ParamWindow(Window[Commands]):
     def compose_fields(self, fields: Iterable[Field]) -> ComposeResult:
         for f in fields:
             i = self.fields.index(f)
-            with Horizontal(classes="field", id=f"row-{i}"):
-                yield Label(f.label, classes="label")
-                value = self.params.get(f.key)
-                if f.flag:
-                    yield Switch(bool(value), id=f"f-{i}", compact=True)
-                else:
-                    yield Input(fmt(value), id=f"f-{i}", compact=True, select_on_focus=True)
-                yield Label(f.unit, classes="unit")
-                yield Static("", classes="error", id=f"e-{i}", markup=False)
+            value = self.params.get(f.key)
+            field: Widget = Switch(bool(value), id=f"f-{i}", compact=True) if f.flag else \
+                Input(fmt(value), id=f"f-{i}", compact=True, select_on_focus=True)
+            yield from field_row(f"row-{i}", f.label, field, f.unit, f"e-{i}")
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("Set", id="set", variant="primary")
-        yield Button("Default", id="default")
-        yield Button("Cancel", id="cancel")
+        yield from set_default_cancel()
 
     def on_mount(self) -> None:
         for i in range(len(self.fields)):

@@ -14,7 +14,7 @@ from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Family, Parameters
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import ResetControllers, SetParams
 from quadtank_tui.ui.labels import ELEMENT_NAMES, TYPES, type_index
-from quadtank_tui.ui.windows.base import Commands, Field, ParamWindow, Window
+from quadtank_tui.ui.windows.base import Commands, Field, ParamWindow, Window, set_default_cancel
 
 def element_ij(index: int) -> tuple[int, int]:
     """Element 0..3 as (i, j), 1-based, as ResetControllers wants it."""
@@ -47,9 +47,7 @@ class ControllerTypeWindow(Window[Commands]):
                     "state feedback starts from the pumps' u.", classes="hint")
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("Set", id="set", variant="primary")
-        yield Button("Default", id="default")
-        yield Button("Cancel", id="cancel")
+        yield from set_default_cancel()
 
     def on_mount(self) -> None:
         types = self.query_one(OptionList)

@@ -18,8 +18,8 @@ import dataclasses
 from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Horizontal, VerticalScroll
-from textual.widgets import Button, Input, Label, Static
+from textual.containers import VerticalScroll
+from textual.widgets import Input, Static
 
 from quadtank_tui.core.parameters import PLANT_SETTINGS, Parameters
 from quadtank_tui.core.plants.spec import PREFIX, PlantSpec, level_key
@@ -27,7 +27,7 @@ from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel
-from quadtank_tui.ui.windows.base import Commands, Window
+from quadtank_tui.ui.windows.base import Commands, Window, field_row, set_default_cancel
 
 
 class PlantSetupWindow(Window[Commands]):
@@ -58,17 +58,12 @@ class PlantSetupWindow(Window[Commands]):
     def compose_body(self) -> ComposeResult:
         with VerticalScroll(id="plant-fields"):
             for i, (key, label, unit) in enumerate(self.rows):
-                with Horizontal(classes="field", id=f"row-{i}"):
-                    yield Label(label, classes="label")
-                    yield Input(fmt(self.spec.get(key)), id=f"f-{i}", compact=True, select_on_focus=True)
-                    yield Label(unit, classes="unit")
-                    yield Static("", classes="error", id=f"e-{i}", markup=False)
+                field = Input(fmt(self.spec.get(key)), id=f"f-{i}", compact=True, select_on_focus=True)
+                yield from field_row(f"row-{i}", label, field, unit, f"e-{i}")
         yield AnalysisPanel(id="plant-analysis")
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("Set", id="set", variant="primary")
-        yield Button("Default", id="default")
-        yield Button("Cancel", id="cancel")
+        yield from set_default_cancel()
 
     def on_mount(self) -> None:
         self._edited()

@@ -16,8 +16,7 @@ from __future__ import annotations
 from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Horizontal
-from textual.widgets import Button, Input, Label, Static
+from textual.widgets import Input, Label, Static
 
 from quadtank_tui.core.parameters import Parameters, SimulationSettings
 from quadtank_tui.core.setup_relations import diff, edit_by_key, outlet, tank_keys, tank_setup
@@ -25,7 +24,7 @@ from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel
-from quadtank_tui.ui.windows.base import Commands, Window
+from quadtank_tui.ui.windows.base import Commands, Window, field_row, set_default_cancel
 
 #: Label and unit of each tank value, by the key's name without the tank number.
 ROWS = {
@@ -64,18 +63,13 @@ class TankSetupWindow(Window[Commands]):
         for key in self.keys:
             name = _name(key)
             label, unit = ROWS[name]
-            with Horizontal(classes="field", id=f"row-{name}"):
-                yield Label(label, classes="label")
-                yield Input(fmt(self.params.get(key)), id=f"f-{name}", compact=True, select_on_focus=True)
-                yield Label(unit, classes="unit")
-                yield Static("", classes="error", id=f"e-{name}", markup=False)
+            field = Input(fmt(self.params.get(key)), id=f"f-{name}", compact=True, select_on_focus=True)
+            yield from field_row(f"row-{name}", label, field, unit, f"e-{name}")
         yield Label("", id="outlet", classes="hint")
         yield AnalysisPanel(id="tank-analysis")
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("Set", id="set", variant="primary")
-        yield Button("Default", id="default")
-        yield Button("Cancel", id="cancel")
+        yield from set_default_cancel()
 
     def on_mount(self) -> None:
         self._show()
