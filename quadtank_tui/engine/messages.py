@@ -26,7 +26,8 @@ class Start:
 
 @dataclass(frozen=True)
 class Submit:
-    """Apply `command` between samples and answer with a :class:`Result` of the same id."""
+    """Apply `command` between samples and answer with a :class:`Result` of the same id
+    (also a session client's message: session.protocol)."""
 
     id: int
     command: Command

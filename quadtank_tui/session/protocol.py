@@ -31,6 +31,8 @@ import numpy as np
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine import commands as engine_commands
 from quadtank_tui.engine.commands import Command, CommandResult
+# A command and its answer, by id: the same on the session's socket as on the loop process's pipe.
+from quadtank_tui.engine.messages import Result, Submit
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.session.info import SessionInfo
 
@@ -57,12 +59,6 @@ class Hello:
     role: Role
     client: str = ""
     take_over: bool = False
-
-
-@dataclass(frozen=True)
-class Submit:
-    id: int
-    command: Command
 
 
 @dataclass(frozen=True)
@@ -106,12 +102,6 @@ class Update:
     snapshot: Snapshot
     rows: np.ndarray
     cleared: bool = False
-
-
-@dataclass(frozen=True)
-class Result:
-    id: int
-    result: CommandResult
 
 
 @dataclass(frozen=True)
