@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import importlib.util
 import shutil
 import time
 from pathlib import Path
+from types import ModuleType
 from typing import Callable
 
 import pytest
@@ -63,3 +65,15 @@ def in_params_copy(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     folder = copy_params(tmp_path / "work")
     monkeypatch.chdir(folder)
     return folder
+
+
+@pytest.fixture(scope="session")
+def pty_kit() -> ModuleType:
+    """The pseudo-terminal harness of tests/ui/test_terminal_hangup.py (Tui,
+    _wait_gone, _shared_blocks, GONE_WITHIN), for the session and rig tests that
+    run `quadtank` in a terminal too: one copy of it, loaded once."""
+    spec = importlib.util.spec_from_file_location("hangup_kit", ROOT / "tests" / "ui" / "test_terminal_hangup.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -10,7 +10,6 @@ say, read by a client of the test's own.
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import sys
 import time
@@ -26,16 +25,6 @@ from daqkit import rig_yaml
 pytestmark = [pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and Linux ptys"),
               pytest.mark.wallclock]
 
-ROOT = Path(__file__).parents[2]
-
-
-def _hangup_kit() -> Any:
-    """The pty harness of tests/ui/test_terminal_hangup.py (one copy of it)."""
-    spec = importlib.util.spec_from_file_location("hangup_kit", ROOT / "tests" / "ui" / "test_terminal_hangup.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _config_for(r: Any, folder: Path) -> Path:
@@ -45,19 +34,15 @@ def _config_for(r: Any, folder: Path) -> Path:
 
 
 def test_a_hang_up_under_active_puts_the_rigs_pumps_at_0(
-        tmp_path: Path, rig: Callable[..., Any], poll: Callable[..., bool]) -> None:
-    kit = _hangup_kit()
+        tmp_path: Path, rig: Callable[..., Any], poll: Callable[..., bool], pty_kit: Any) -> None:
+    kit = pty_kit
     r = rig("--watchdog", "0")  # the rig's own last line off: the 0 must come from the session
     runtime = tmp_path / "run"
     tui = kit.Tui(tmp_path, args=("--daq", str(_config_for(r, tmp_path))),
                   env={"QUADTANK_RUNTIME": str(runtime)})
     session = None
     try:
-        pid = tui.wait_started()
-        sessions = list_sessions(runtime)
-        assert len(sessions) == 1
-        session = sessions[0]
-        assert tui.master is not None
+        pid, session = tui.started_session(runtime)
         for key in (b"A", b"r"):  # Active, Run (Manual at 0.3 of full scale: both pumps on)
             os.write(tui.master, key)
             time.sleep(0.3)

@@ -10,13 +10,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import signal
 import stat
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -41,15 +41,6 @@ def wait_until(condition, timeout: float = 60.0) -> bool:  # type: ignore[no-unt
             return False
         time.sleep(0.02)
     return True
-
-
-def _hangup_kit():  # type: ignore[no-untyped-def]
-    """The pty harness of tests/ui/test_terminal_hangup.py (one copy of it)."""
-    spec = importlib.util.spec_from_file_location("hangup_kit", ROOT / "tests" / "ui" / "test_terminal_hangup.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _start(tmp_path: Path, runtime: Path, **kwargs: object):  # type: ignore[no-untyped-def]
@@ -82,7 +73,7 @@ def test_a_killed_session_is_reported_by_its_client(tmp_path: Path) -> None:
 
 
 def test_quadtank_stop_leaves_nothing_behind(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                             capsys: pytest.CaptureFixture[str]) -> None:
+                                             capsys: pytest.CaptureFixture[str], pty_kit: Any) -> None:
     runtime = tmp_path / "run"
     monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
     info = _start(tmp_path, runtime)
@@ -91,7 +82,7 @@ def test_quadtank_stop_leaves_nothing_behind(tmp_path: Path, monkeypatch: pytest
     assert stat.S_IMODE(os.stat(info.socket).st_mode) == 0o666
     # The session's trends travel on its socket: it maps no shared memory at all
     # (/dev/shm is the machine's: other programs' blocks are none of our business).
-    assert _hangup_kit()._shared_blocks([info.pid]) == set()
+    assert pty_kit._shared_blocks([info.pid]) == set()
     with SessionClient(info.socket) as client:
         assert client.submit(c.SetState("Run")).result(30).ok
         assert client.submit(c.LogOn(points=100000)).result(30).ok
@@ -119,17 +110,13 @@ def test_a_bad_session_start_says_why(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("shell", [False, True], ids=["direct", "under a shell that keeps SIGHUP (make run)"])
-def test_a_hang_up_ends_the_client_never_the_session(tmp_path: Path, shell: bool) -> None:
-    kit = _hangup_kit()
+def test_a_hang_up_ends_the_client_never_the_session(tmp_path: Path, shell: bool, pty_kit: Any) -> None:
+    kit = pty_kit
     runtime = tmp_path / "run"
     env = {"QUADTANK_RUNTIME": str(runtime)}
     tui = kit.Tui(tmp_path, shell=shell, args=("--speed", "50"), env=env)
     try:
-        pid = tui.wait_started()
-        sessions = list_sessions(runtime)
-        assert len(sessions) == 1
-        session = sessions[0]
-        assert tui.master is not None
+        pid, session = tui.started_session(runtime)
         os.write(tui.master, b"r")  # Run
         assert wait_until(lambda: [i.state for i in list_sessions(runtime)] == ["Run"])
         tui.hang_up()

@@ -4,8 +4,19 @@ palette and the app ended on `DuplicateIds: '--command-palette'`."""
 
 from __future__ import annotations
 
+from typing import Any
+
 from conftest import make_app
 from textual.command import CommandPalette
+
+
+async def _open_palette(pilot: Any) -> CommandPalette:
+    """ctrl+p as a user types it; the palette in front."""
+    await pilot.press("ctrl+p")
+    await pilot.pause()
+    palette = pilot.app.screen
+    assert isinstance(palette, CommandPalette)
+    return palette
 
 
 async def test_ctrl_p_under_help_does_not_open_a_second_palette(engine) -> None:  # type: ignore[no-untyped-def]
@@ -30,10 +41,7 @@ async def test_a_page_key_before_the_palette_list_is_laid_out_does_nothing(engin
 
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.press("ctrl+p")
-        await pilot.pause()
-        palette = app.screen
-        assert isinstance(palette, CommandPalette)
+        palette = await _open_palette(pilot)
         command_list = palette.query_one(CommandList)
         command_list.add_option("x")
         await pilot.pause()
@@ -54,10 +62,7 @@ async def test_the_gathering_worker_of_a_palette_without_its_list_does_nothing(e
 
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.press("ctrl+p")
-        await pilot.pause()
-        palette = app.screen
-        assert isinstance(palette, CommandPalette)
+        palette = await _open_palette(pilot)
         await palette.query_one(CommandList).remove()
         worker = palette._gather_commands("x")
         await worker.wait()

@@ -24,6 +24,7 @@ import termios
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -96,6 +97,17 @@ class Tui:
                 break
             time.sleep(0.1)
         raise AssertionError(f"the TUI did not start: {bytes(self.output[-2000:])!r}")
+
+    def started_session(self, runtime: Path) -> tuple[int, Any]:
+        """Wait for the screen; (the TUI's pid, the one session in `runtime`, which
+        it started and attached to)."""
+        from quadtank_tui.session.runtime import list_sessions
+
+        pid = self.wait_started()
+        sessions = list_sessions(runtime)
+        assert len(sessions) == 1, sessions
+        assert self.master is not None
+        return pid, sessions[0]
 
     def tui_pid(self) -> int | None:
         """The python process running the TUI: the Popen's or its child's."""
