@@ -405,7 +405,9 @@ def _driven_daq(args: argparse.Namespace) -> str | None:
     the TUI and `run` with --daq, `daq calibrate` on a rig; `daq check` only reads."""
     if args.command is None:  # the TUI; on a rig your own session drives, it attaches to that session
         session = not args.no_session and args.loop is None
-        return None if session and sessions_command.own_session_on_rig(args.daq_global) else args.daq_global
+        # Looked up once (a DAQ file read, a name resolved): cmd_tui_session attaches to it.
+        args.own_rig_session = sessions_command.own_session_on_rig(args.daq_global) if session else None
+        return None if args.own_rig_session else args.daq_global
     if args.command == "run":
         return args.daq or args.daq_global
     if args.command == "daq" and args.daq_command == "calibrate" and args.pairs is None:

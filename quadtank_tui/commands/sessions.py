@@ -201,7 +201,8 @@ def attach_to_own_rig_session(args: argparse.Namespace) -> int | None:
     it, saying so (its exit status), instead of refusing; None otherwise."""
     from quadtank_tui.session.client import SessionError
 
-    own = own_session_on_rig(args.daq_global)
+    # cli._driven_daq looked it up before taking the rig's lock (main always runs it)
+    own = args.own_rig_session if hasattr(args, "own_rig_session") else own_session_on_rig(args.daq_global)
     if own is None:
         return None
     info, device = own
