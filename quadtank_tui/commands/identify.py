@@ -99,6 +99,10 @@ def parse_start(items: list[str] | None) -> dict[str, object] | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.figure is not None:
+        from quadtank_tui.files.figures import figure_format
+
+        figure_format(args.figure)  # a name that cannot be written is refused before the fit
     from quadtank_tui.core.identify.compare import compare
     from quadtank_tui.core.identify.experiment import Options, Record, identify
     from quadtank_tui.core.identify.report import format_report, to_dict
@@ -109,10 +113,6 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--validate must be a fraction in [0, 1), got {args.validate:g}")
     if args.order is not None and args.order < 1:
         raise UsageError(f"--order must be >= 1, got {args.order}")
-    if args.figure is not None:
-        from quadtank_tui.files.figures import figure_format
-
-        figure_format(args.figure)  # a name that cannot be written is refused before the fit
     records = []
     for path in args.logs:
         log = read_log(path)
