@@ -38,7 +38,9 @@ def export(screen: Screen[Any], folder: Path, stem: str, build: Callable[[], Fig
         from quadtank_tui.files.figures.style import save
 
         try:
-            path = save(build(), free_name(folder, stem, FORMAT))
+            figure = build()
+            folder.mkdir(parents=True, exist_ok=True)  # a new session's logs/ may not be there yet
+            path = save(figure, free_name(folder, stem, FORMAT))
         except (OSError, ValueError) as exc:  # a full disk, a folder gone, nothing to draw
             screen.app.call_from_thread(screen.notify, f"No figure: {exc}", title="Export",
                                         severity="error", markup=False)
