@@ -50,7 +50,7 @@ def design_figure(loops: Sequence[DesignedLoop], title: str = "") -> Figure:
 
 
 def _step(ax: Axes, loop: DesignedLoop, m: Margins) -> None:
-    name = f"{loop.title}: {loop.controller.kind} {loop.controller.describe()}"
+    name = f"{loop.title}\n{loop.controller.kind} {loop.controller.describe()}"
     if not m.stable:
         ax.set_title(f"{name}\nreference step: the closed loop is UNSTABLE", loc="left")
         return
@@ -58,11 +58,12 @@ def _step(ax: Axes, loop: DesignedLoop, m: Margins) -> None:
     t = np.concatenate([[-1e-9], resp.t])
     y = np.concatenate([[0.0], resp.y])
     lm = loop_metrics(t, y, np.concatenate([[0.0], np.ones_like(resp.y)]))
-    settle = "not settled" if lm.settling_time is None else f"{lm.settling_time:.3g} s"
+    settle = "not settled" if lm.settling_time is None else f"{lm.settling_time:.3g} s" \
+        if lm.settling_time < 100 else f"{lm.settling_time:.0f} s"
     ax.plot(resp.t, np.ones_like(resp.t), color=GUIDE_COLOUR, linestyle="--", linewidth=1.0, label="r",
             gid="step:r")
     ax.plot(resp.t, resp.y, color=PALETTE[0], linewidth=1.6, label="y", gid="step:y")
-    ax.set_title(f"{name}\nunit reference step: overshoot {lm.overshoot or 0.0:.1f} %, settling {settle}",
+    ax.set_title(f"{name}\nunit step: overshoot {lm.overshoot or 0.0:.1f} %, settling {settle}",
                  loc="left")
     ax.set_xlabel("t (s)")
     ax.set_ylabel("y")
@@ -85,7 +86,7 @@ def _bode(ax: Axes, L: DelayTF, m: Margins) -> None:
     ax.set_ylim(1e-3, max(3.0, 2.0 * m.Ms if np.isfinite(m.Ms) else 3.0))
     ax.set_title(f"|S| and |T|\nMs {m.Ms:.2f}, crossover {m.crossover:.3g} rad/s", loc="left")
     ax.set_xlabel("ω (rad/s)")
-    ax.legend(loc="lower left", frameon=False)
+    ax.legend(loc="best", frameon=False)  # where the curves leave room (data-driven, deterministic)
 
 
 def _nyquist(ax: Axes, L: DelayTF, m: Margins) -> None:

@@ -97,7 +97,9 @@ def new_figure(width: float, height: float) -> Figure:
 
 
 def render(fig: Figure, fmt: str) -> bytes:
-    """The figure's file in `fmt` (png, svg, pdf): the same bytes for the same figure."""
+    """The figure's file in `fmt` (png, svg, pdf): the same bytes for the same data.  A
+    figure is drawn once: drawing it again starts its layout from the last one, which
+    moves things by a hair (build the figure again for another file)."""
     out = io.BytesIO()
     with context():
         fig.savefig(out, format=fmt, metadata=_METADATA[fmt])
