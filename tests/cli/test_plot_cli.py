@@ -78,10 +78,11 @@ def test_identify_and_design_refuse_a_bad_figure_name_before_working(tmp_path: P
 
 
 def test_design_figure_is_written(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    out = tmp_path / "d.pdf"
+    out = tmp_path / "d.svg"
     assert main(["design", "--model", "1.6592*exp(-2.4*s)/(1.07*s+1)^3", "--figure", str(out)]) == 0
     assert f"figure     {out}" in capsys.readouterr().out
-    assert out.read_bytes().startswith(b"%PDF")
+    svg = out.read_text()
+    assert 'id="nyquist:circle"' in svg and "<!-- Ms = 1.40 -->" in svg
 
 
 def test_matplotlib_is_not_loaded_by_the_tui_or_the_cli() -> None:
