@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import io
+import threading
 from pathlib import Path
 from typing import Any, Callable, Iterator, ParamSpec, TypeVar
 from contextlib import contextmanager
@@ -69,11 +70,16 @@ P = ParamSpec("P")
 R = TypeVar("R")
 
 
+#: rcParams are global: two figures made at once (the E key pressed twice, two
+#: workers) would restore each other's settings half-way.  One figure at a time.
+_ONE_AT_A_TIME = threading.RLock()
+
+
 @contextmanager
 def context() -> Iterator[None]:
     """The figures' rcParams, for building and for saving (fonts and sizes are read
     when the artists are made, ids and metadata when the file is written)."""
-    with matplotlib.rc_context(RC):  # type: ignore[arg-type]  # keys checked by matplotlib at run time
+    with _ONE_AT_A_TIME, matplotlib.rc_context(RC):  # type: ignore[arg-type]  # keys checked at run time
         yield
 
 

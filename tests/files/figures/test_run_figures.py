@@ -132,3 +132,14 @@ def test_formats_and_free_names(tmp_path) -> None:  # type: ignore[no-untyped-de
     (tmp_path / "trends.png").touch()
     (tmp_path / "trends-2.png").touch()
     assert free_name(tmp_path, "trends", "png").name == "trends-3.png"
+
+
+def test_two_figures_made_at_once_are_each_as_if_made_alone() -> None:
+    """rcParams are global: without one figure at a time, the first to finish put
+    matplotlib's defaults back under the other (the E key pressed twice)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    alone = render(one_panel(first_order_run("A")), "svg")
+    with ThreadPoolExecutor(2) as pool:
+        both = list(pool.map(lambda _: render(one_panel(first_order_run("A")), "svg"), range(2)))
+    assert both == [alone, alone]
