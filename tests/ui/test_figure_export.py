@@ -13,7 +13,7 @@ from quadtank_tui.ui.screens.design import DesignScreen
 from quadtank_tui.ui.screens.identify import IdentifyScreen
 
 from conftest import Recording, make_app
-from test_identify_screen import fit_both, simo_logs
+from test_identify_screen import simo_logs
 
 
 def notes(app: Any) -> list[str]:
@@ -63,9 +63,10 @@ async def test_identify_exports_the_fit_next_to_the_first_log(app) -> None:  # t
         await pilot.pause()
         await export(pilot)  # before a fit: said, nothing written
         assert "Nothing to draw yet: fit first (f)." in str(pilot.app.screen.query_one("#identify-status").render())
-        await pilot.press("escape")
-        await fit_both(pilot)
-        assert isinstance(pilot.app.screen, IdentifyScreen)
+        await pilot.press("space", "f")  # pminus-u1.log alone: G11 and G21 (half the fit and figure)
+        await pilot.app.workers.wait_for_complete()
+        await pilot.pause()
+        assert isinstance(pilot.app.screen, IdentifyScreen) and len(pilot.app.screen.view.ident.elements) == 2
         await export(pilot)
         assert "Figure saved to logs/pminus-u1.oe.png" in notes(pilot.app)
         assert Path("logs/pminus-u1.oe.png").stat().st_size > 10_000
