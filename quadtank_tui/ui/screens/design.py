@@ -89,6 +89,8 @@ class DesignScreen(CommandSender):
         Binding("A", "apply", "Apply"),
         Binding("p", "physical", "Physical models", show=False),
         Binding("v", "plots", "Plots"),  # only below NARROW columns (check_action)
+        Binding("E", "export_figure", "Export figure", show=False,
+                tooltip="The chosen controllers' step, |S| |T| and Nyquist plots as a PNG in the logs folder"),
     ]
 
     def __init__(self, engine: EngineHandle,
@@ -466,6 +468,20 @@ class DesignScreen(CommandSender):
         changes = describe_changes(self.engine.snapshot().params, values)
         self.send(SetParams(values))
         self.notify("\n".join(changes) or "already in the matrix", title="Applied", timeout=6)
+
+    def action_export_figure(self) -> None:
+        """Each loop with a chosen controller, on its model, drawn in a worker."""
+        from pathlib import Path
+
+        from quadtank_tui.ui.figure_export import design_builder, export
+
+        loops = [(f"loop {i}", s.model, s.chosen) for i, s in self.loops.items()
+                 if s.chosen is not None and s.model is not None]
+        if not loops:
+            self.notify("choose a controller first (Enter on a row, or 2)", severity="warning")
+            return
+        export(self, Path(getattr(self.engine, "logs_dir", "logs")), "design",
+               design_builder(loops, f"models: {self.source}"))
 
     def _status(self, text: str, *, error: bool = False) -> None:
         """The status line: `text` as it is (it quotes typed models and file
