@@ -1,43 +1,31 @@
 """Two real users (issue 24): roles and the DAQ lock decided where they cannot be
 forged.  Created with useradd when the tests run as root (CI does), removed after;
-skipped otherwise.  The programs run as them with runuser, from the worktree's
-venv, with a temporary folder of their own for the runtime folder and files.
-
-Where the interpreter is out of their reach (a Python under /root, mode 0700) the
-program starts as root, imports what it needs and then drops to the user's uid and
-gid itself (setgroups, setgid, setuid) before it runs: the kernel sees that user
-from then on (file owners, /proc, SO_PEERCRED), as with runuser."""
+skipped otherwise.  The programs run as them (otherusers.as_user: runuser, or a
+drop to their uid where the interpreter is under /root), from the worktree, with a
+temporary folder of their own for the runtime folder and files."""
 
 from __future__ import annotations
 
 import os
 import shutil
 import subprocess
-import sys
 import tempfile
-import textwrap
 import time
 from pathlib import Path
 from typing import Iterator
 
 import pytest
+from otherusers import ROOT, made_users
+from otherusers import as_user as run_as
 
-ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.skipif(os.getuid() != 0 or shutil.which("useradd") is None
                                 or shutil.which("runuser") is None, reason="needs root, useradd and runuser")
 
 
 @pytest.fixture(scope="module")
-def users() -> Iterator[tuple[str, str]]:
-    names = (f"qtr{os.getpid()}a", f"qtr{os.getpid()}b")
-    for name in names:
-        subprocess.run(["useradd", "--no-create-home", "--shell", "/bin/sh", name], check=True,
-                       capture_output=True)
-    try:
+def users() -> Iterator[tuple[str, ...]]:
+    with made_users(f"qtr{os.getpid()}a", f"qtr{os.getpid()}b") as names:
         yield names
-    finally:
-        for name in names:
-            subprocess.run(["userdel", name], capture_output=True)
 
 
 @pytest.fixture
@@ -49,45 +37,9 @@ def shared() -> Iterator[Path]:
     shutil.rmtree(folder, ignore_errors=True)
 
 
-def env(shared: Path) -> dict[str, str]:
-    keep = {k: v for k, v in os.environ.items() if k in ("PATH", "LANG", "LC_ALL", "TERM")}
-    return {**keep, "QUADTANK_RUNTIME": str(shared / "rt"), "PYTHONDONTWRITEBYTECODE": "1",
-            "PYTHONPATH": str(ROOT), "NO_COLOR": "1", "HOME": str(shared)}
-
-
-#: Runs sys.argv[3] as uid sys.argv[1], gid sys.argv[2], after importing (as root)
-#: what the programs below need.
-DROP = """
-import argparse, fcntl, gettext, json, locale, os, secrets, sys, textwrap, time
-import quadtank_tui.cli, quadtank_tui.commands.lab, quadtank_tui.session.lab, quadtank_tui.session.lock
-import quadtank_tui.session.policy, quadtank_tui.session.roles
-quadtank_tui.cli.build_parser()  # argparse's own imports (gettext, locale)
-uid, gid = int(sys.argv[1]), int(sys.argv[2])
-os.setgroups([])
-os.setgid(gid)
-os.setuid(uid)
-code, sys.argv = sys.argv[3], [sys.argv[0]] + sys.argv[4:]
-exec(compile(code, "<as-user>", "exec"), {"__name__": "__main__"})
-"""
-
-
-def _reachable(user: str) -> bool:
-    """Whether `user` may run this interpreter (runuser), or it sits in root's home."""
-    return subprocess.run(["runuser", "-u", user, "--", sys.executable, "-c", "pass"],
-                          capture_output=True).returncode == 0
-
-
 def as_user(user: str, shared: Path, code: str, *args: str, cwd: Path | None = None) -> subprocess.Popen[str]:
-    code = textwrap.dedent(code)
-    if _reachable(user):
-        argv = ["runuser", "-u", user, "--", sys.executable, "-c", code, *args]
-    else:
-        import pwd
-
-        entry = pwd.getpwnam(user)
-        argv = [sys.executable, "-c", DROP, str(entry.pw_uid), str(entry.pw_gid), code, *args]
-    return subprocess.Popen(argv, cwd=cwd or shared, env=env(shared), stdin=subprocess.PIPE,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return run_as(user, code, *args, cwd=cwd or shared,
+                  env={"QUADTANK_RUNTIME": str(shared / "rt"), "HOME": str(shared)})
 
 
 def test_a_student_in_a_folder_of_their_own_is_not_an_administrator(users: tuple[str, str], shared: Path) -> None:
