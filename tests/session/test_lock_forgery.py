@@ -191,3 +191,25 @@ def test_flock_holders_come_from_the_kernel(tmp_path: Path) -> None:
         assert (os.getpid(), lockmod.user_name(os.getuid())) in lockmod.flock_holders(fd)
     finally:
         os.close(fd)
+
+
+@root_only
+def test_the_watch_tells_a_refused_take_over_once_and_keeps_the_lock(
+        lab: LabConfig, student_process: subprocess.Popen[bytes]) -> None:
+    from quadtank_tui.session.lockwatch import LockWatch
+
+    lock = DaqLock.acquire(DEVICE, lab)
+    lost: list[str] = []
+    notes: list[str] = []
+    noted = threading.Event()
+    watch = LockWatch(lock, lost.append, interval=0.01,
+                      on_note=lambda what: (notes.append(what), noted.set())).start()
+    try:
+        plant(lab, user="student", uid=STUDENT, pid=student_process.pid, owner=STUDENT)
+        assert noted.wait(30)
+        time.sleep(0.1)  # more looks: the same finding is not told again
+        assert notes == [f"{STUDENT} (not an administrator) tried to take the rig at {DEVICE} over; refused"]
+        assert lost == [] and lock.held
+    finally:
+        watch.stop()
+        lock.release()
