@@ -22,9 +22,11 @@ ROOT = Path(__file__).resolve().parents[2]
 #: Runs sys.argv[3] as uid sys.argv[1], gid sys.argv[2], after importing (as root)
 #: what the programs of the tests and the benchmark need.
 DROP = """
-import argparse, fcntl, gettext, json, locale, os, secrets, sys, textwrap, time
+import argparse, fcntl, gettext, ipaddress, json, locale, os, secrets, sys, textwrap, time
 import quadtank_tui.cli, quadtank_tui.commands.lab, quadtank_tui.session.lab, quadtank_tui.session.lock
-import quadtank_tui.session.policy, quadtank_tui.session.roles
+import quadtank_tui.session.policy, quadtank_tui.session.roles, quadtank_tui.session.riglock
+import quadtank_tui.daq.config, quadtank_tui.session.lockwatch
+import encodings.idna, encodings.latin_1, encodings.utf_8_sig
 quadtank_tui.cli.build_parser()  # argparse's own imports (gettext, locale)
 uid, gid = int(sys.argv[1]), int(sys.argv[2])
 os.setgroups([])

@@ -171,3 +171,36 @@ def test_a_forged_record_stops_nobody_and_a_held_flock_is_named(users: tuple[str
     finally:
         hostage.kill()
         hostage.wait()
+
+
+def test_a_student_with_a_copy_of_their_own_cannot_take_the_rig_over(users: tuple[str, str], shared: Path) -> None:
+    """The issue's case: stud2 ran `run --daq ... --take-over` from a copy (a folder
+    of their own whose params/default.par they may write) and ended stud1's Active
+    run.  Now stud2 is no administrator there: refused, exit 2, stud1 still holds."""
+    stud1, stud2 = users
+    copy = shared / "copy"
+    (copy / "params").mkdir(parents=True)
+    shutil.copy(ROOT / "params" / "default.par", copy / "params" / "default.par")
+    text = (ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", "port: 15020")
+    (copy / "rig.yaml").write_text(text)
+    for path in (copy, copy / "params", copy / "params" / "default.par", copy / "rig.yaml"):
+        shutil.chown(path, stud2)
+    holder = as_user(stud1, shared, HOLD, DEVICE)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline() == "held\n", holder.stderr
+        taker = as_user(stud2, shared, """
+            import sys
+            from quadtank_tui.cli import main
+            sys.exit(main(["run", "--daq", "rig.yaml", "--realtime", "--duration", "5", "--log", "x.log",
+                           "--par", "params/default.par", "--take-over"]))
+        """, cwd=copy)
+        out, err = taker.communicate(timeout=120)
+        assert taker.returncode == 2, err
+        assert err == (f"quadtank: error: taking over the rig at 127.0.0.1:15020/1 from {stud1} needs an "
+                       f"administrator (someone who may write {ROOT / 'params' / 'default.par'}); "
+                       f"you are {stud2}\n")
+        assert ask(holder) == "ours | -"
+        assert not (copy / "x.log").exists()
+    finally:
+        holder.kill()
+        holder.wait()
