@@ -443,7 +443,8 @@ def _holding_the_daq(handler: Handler, args: argparse.Namespace) -> int:
         previous = signal.signal(TAKEN_OVER_SIGNAL, _taken_over)
         main_thread = threading.main_thread().ident
         assert main_thread is not None
-        hold.watch(lambda why: signal.pthread_kill(main_thread, TAKEN_OVER_SIGNAL))
+        hold.watch(lambda why: signal.pthread_kill(main_thread, TAKEN_OVER_SIGNAL),
+                   lambda what: _say(f"quadtank: warning: {what}; this run goes on"))
         try:
             return handler(args)
         finally:

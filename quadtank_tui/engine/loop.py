@@ -370,7 +370,8 @@ class ControlLoop:
         self._missed = missed
         self._jitter.add(jitter)
         self.stats = LoopStats(
-            samples=s.samples + 1, overruns=s.overruns + missed, jitter_last=jitter,
+            samples=s.samples + 1, overruns=s.overruns + int(missed > 0), skipped=s.skipped + missed,
+            jitter_last=jitter,
             jitter_max=max(s.jitter_max, abs(jitter)), last_sample_wall=wall,
             jitter_p50=self._jitter.percentile(50), jitter_p99=self._jitter.percentile(99),
         )
