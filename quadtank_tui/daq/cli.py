@@ -190,7 +190,6 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
         backend.close()
     print(f"{backend.description}  (device id {config.device_id}, timeout {config.timeout:g} s; "
           f"{config.plant.kind}: {len(config.tanks)} level, {len(config.pump_channels)} pump channels)")
-    print(config.watchdog_line())
     faults = 0
     unit = config.plant.unit
     for i, tank in enumerate(config.tanks):
@@ -205,6 +204,7 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
         backend.interlock.update(backend.height_fractions(volts))
     for alarm in backend.alarms:
         print(alarm)
+    print(config.watchdog_line())
     return 1 if faults else 0
 
 

@@ -136,7 +136,8 @@ class ModbusBackend(ProcessBackend):
 
     def read_levels(self) -> Levels4:
         self._watch()
-        volts = self._read_volts()
+        volts = self._read_volts()  # a dead link fails here first, and says so, before the arming
+        self._arm_if_pending()
         levels = self.levels_from_volts(volts)
         self.interlock.update(self.height_fractions(volts))
         return levels
@@ -156,6 +157,7 @@ class ModbusBackend(ProcessBackend):
 
     def write_pumps(self, u: Pair) -> None:
         self._watch()
+        self._arm_if_pending()  # armed before the pumps are driven
         applied = self.interlock.cut(u)
         self._write_volts([self._output_volts(i, applied[i]) for i in range(len(self._pumps))])
         self.applied = applied
@@ -192,13 +194,13 @@ class ModbusBackend(ProcessBackend):
 
     def close(self) -> None:
         """The orderly end (the pumps already at 0): the device's watchdog disarmed
-        (one try: a dead link must not hold the stop), the guard told, the link closed."""
+        (a dead link: it stays armed, which only ever stops pumps), the guard told,
+        the link closed."""
         if self._armed and self.config.watchdog is not None:
             reg = self.config.watchdog.enable
             try:
-                if self._client.connect():
-                    self._write(reg.address, encode(reg, 0.0))
-                    self._armed = False
+                self._request("disarming the watchdog", lambda: self._write(reg.address, encode(reg, 0.0)))
+                self._armed = False
             except Exception:  # noqa: BLE001 - the watchdog stays armed: it only ever stops pumps
                 pass
         if self.guard is not None:
@@ -217,7 +219,7 @@ class ModbusBackend(ProcessBackend):
 
     def _watch(self) -> None:
         """Before a sample's request: a silence longer than the watchdog timeout ends
-        Active control (BackendError); a pending arm is done; the feed is written."""
+        Active control (BackendError); the feed is written."""
         if self.watch_timeout is None:
             return
         now = self._clock()
@@ -230,14 +232,17 @@ class ModbusBackend(ProcessBackend):
                 f"no request reached the rig for {gap:.1f} s, longer than the watchdog timeout "
                 f"{self.watch_timeout:g} s (this program was stopped or the machine suspended); {wd}. "
                 "Active control ends here: Run starts it again")
-        if self._arm_pending:
-            self._arm()
         wd_decl = self.config.watchdog
-        if wd_decl is not None and wd_decl.feed is not None and now - self._last_feed > self.watch_timeout / 4:
+        if (wd_decl is not None and wd_decl.feed is not None and not self._arm_pending
+                and now - self._last_feed > self.watch_timeout / 4):
             feed = wd_decl.feed
             self._request(f"feed of the watchdog (holding register {feed.address})",
                           lambda: self._write(feed.address, encode(feed, 0.0)))
             self._last_feed = now
+
+    def _arm_if_pending(self) -> None:
+        if self._arm_pending:
+            self._arm()
 
     def _arm(self) -> None:
         """Arm the device's watchdog (only the settings that differ are written: a
@@ -342,16 +347,21 @@ class ModbusBackend(ProcessBackend):
 
     def _request(self, what: str, call: Callable[[], list[int]]) -> list[int]:
         """`call`, tried once more if it failed fast; BackendError naming `what` and
-        the reasons after that."""
+        the reasons after that.  Its end, answered or not, ends a silence: a link
+        that is down is a fault of its own, not this program gone quiet."""
+        try:
+            return self._tries(what, call)
+        finally:
+            self._last_exchange = self._clock()
+
+    def _tries(self, what: str, call: Callable[[], list[int]]) -> list[int]:
         reasons: list[str] = []
         for _ in range(2):
             start = time.monotonic()
             try:
                 if not self._client.connect():
                     raise _NoConnection()
-                got = call()
-                self._last_exchange = self._clock()
-                return got
+                return call()
             except _NoConnection:
                 reasons.append(f"cannot connect to {self._where()}")
             except _DeviceAnswer as exc:

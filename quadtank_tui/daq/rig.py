@@ -171,8 +171,10 @@ class VirtualRig:
         words = dict(self._out_words)
         if self.watchdog is not None:
             words.update(self.watchdog.words())
-        for reg, v in zip(self._tanks, self.sensor_volts()):
-            words.update(zip(reg.span, encode(reg, v)))
+        asked = range(address, address + count)
+        if any(a in asked for reg in self._tanks for a in reg.span):  # a noise draw per sensor read only
+            for reg, v in zip(self._tanks, self.sensor_volts()):
+                words.update(zip(reg.span, encode(reg, v)))
         try:
             return [words[a] for a in range(address, address + count)]
         except KeyError as exc:
