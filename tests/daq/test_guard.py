@@ -67,7 +67,7 @@ def test_sigstop_the_devices_watchdog_stops_the_pumps_and_sigcont_pauses(
     r = rig()
     config = tmp_path / "rig.yaml"
     config.write_text(rig_yaml(r.port))
-    proc = _run(tmp_path, config, 5)
+    proc = _run(tmp_path, config, 6)
     _pumps_on(r, proc, poll)
     proc.send_signal(signal.SIGSTOP)
     time.sleep(WITHIN + 0.2)  # no request meanwhile: a read clears a LabJack's timer
