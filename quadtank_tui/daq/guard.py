@@ -30,6 +30,7 @@ import struct
 import subprocess
 import sys
 import time
+import dataclasses
 from dataclasses import asdict, dataclass
 from typing import IO
 
@@ -54,6 +55,10 @@ class GuardSpec:
     writes: list[tuple[str, int, list[int]]]  # (output, address, words) of each pump's stop value
     gap: float                          # the watchdog timeout, s: a stop longer than it is acted on
     who: str = "the program driving the rig"
+    #: (what, address, words) that disarm the device's watchdog once the pumps are at 0
+    #: after the program died (it kept it armed; a next program, `daq calibrate` say,
+    #: would find its pumps stopped after each silence of the timeout)
+    disarm: list[tuple[str, int, list[int]]] = dataclasses.field(default_factory=list)
 
 
 class Guard:
@@ -116,10 +121,10 @@ def _recv(sock: socket.socket, n: int) -> bytes:
     return out
 
 
-def stop_pumps(spec: GuardSpec) -> list[str]:
-    """Each pump output to its stop value, separately, each tried twice; the errors."""
+def stop_pumps(spec: GuardSpec, writes: list[tuple[str, int, list[int]]]) -> list[str]:
+    """Each write (each pump output to its stop value), separately, each tried twice; the errors."""
     errors = []
-    for tid, (output, address, words) in enumerate(spec.writes, start=1):
+    for tid, (output, address, words) in enumerate(writes, start=1):
         for attempt in range(2):
             try:
                 write_registers(spec, address, words, tid)
@@ -141,15 +146,18 @@ class _Watch:
         except OSError:
             pass
 
-    def act(self, why: str) -> None:
+    def act(self, why: str, *, gone: bool) -> None:
+        """The pumps to 0; when the program is `gone`, its watchdog disarmed after."""
         s = self.spec
         outs = ", ".join(w[0] for w in s.writes)
-        errors = stop_pumps(s)
+        errors = stop_pumps(s, s.writes)
         if errors:
             self.say(f"{why}; could not set the pumps ({outs}) to 0 at {s.host}:{s.port}: "
                      f"{'; '.join(errors)} - only the device's watchdog stops them now")
-        else:
-            self.say(f"{why}; pumps ({outs}) set to 0 over the guard's own connection to {s.host}:{s.port}")
+            return
+        disarmed = "" if not (gone and s.disarm) else \
+            "; its watchdog disarmed" if not stop_pumps(s, s.disarm) else "; its watchdog left armed (no answer)"
+        self.say(f"{why}; pumps ({outs}) set to 0 over the guard's own connection to {s.host}:{s.port}{disarmed}")
 
 
 def guard_main(stdin: IO[bytes], err: IO[str]) -> int:
@@ -158,7 +166,8 @@ def guard_main(stdin: IO[bytes], err: IO[str]) -> int:
     if not line:
         return 0
     raw = json.loads(line)
-    spec = GuardSpec(**{**raw, "writes": [tuple(w) for w in raw["writes"]]})
+    spec = GuardSpec(**{**raw, "writes": [tuple(w) for w in raw["writes"]],
+                        "disarm": [tuple(w) for w in raw.get("disarm", [])]})
     watch = _Watch(spec, err)
     fd = stdin.fileno()
     os.set_blocking(fd, False)
@@ -185,14 +194,14 @@ def guard_main(stdin: IO[bytes], err: IO[str]) -> int:
             if BYE.strip() in heard:
                 return 0
             watch.act(f"{spec.who} (pid {spec.pid}) ended without stopping its pumps "
-                      "(killed, or it crashed)")
+                      "(killed, or it crashed)", gone=True)
             return 0
         if state in ("T", "t"):
             now = time.monotonic()
             stopped_since = now if stopped_since is None else stopped_since
             if not acted_on_stop and now - stopped_since >= spec.gap:
                 watch.act(f"{spec.who} (pid {spec.pid}) has been stopped for {now - stopped_since:.1f} s, "
-                          f"longer than the watchdog timeout {spec.gap:g} s")
+                          f"longer than the watchdog timeout {spec.gap:g} s", gone=False)
                 acted_on_stop = True
         else:
             stopped_since, acted_on_stop = None, False

@@ -264,9 +264,10 @@ class ModbusBackend(ProcessBackend):
             c = self.config
             writes_spec = [(c.channels[p], o.register.address, encode(o.register, c.stop_volts(c.channels[p])))
                            for p, o in zip(c.pump_channels, self._pumps)]
+            disarm = [] if wd is None else [("watchdog enable", wd.enable.address, encode(wd.enable, 0.0))]
             try:
                 self.guard = Guard(GuardSpec(os.getpid(), c.host, c.port, c.device_id, c.timeout,
-                                             writes_spec, timeout))
+                                             writes_spec, timeout, disarm=disarm))
             except OSError as exc:
                 raise BackendError(f"cannot start the guard process: {exc}") from None
         self._arm_pending = False

@@ -131,3 +131,40 @@ def test_a_silence_longer_than_the_timeout_ends_active_control(device: Callable[
     assert rig.pump_volts == (3.0, 3.0)
     backend.safe_state()
     backend.close()
+
+
+def test_the_guard_of_a_dead_program_stops_the_pumps_and_disarms_the_watchdog(device: Callable[..., Any]) -> None:
+    """The guard's work, in process: the program it watches is gone without a
+    'bye'; it writes each pump's stop value and then disarms the watchdog the
+    program had armed (a next program would find its pumps stopped after each
+    silence), and says so."""
+    import io
+    import json
+    import os
+    import subprocess
+    from dataclasses import asdict
+
+    from quadtank_tui.daq.guard import GuardSpec, guard_main
+
+    clock, rig, backend, _ = _rig_and_backend(device)
+    backend.arm(0.1)
+    backend.write_pumps((0.3, 0.4))
+    assert rig.watchdog is not None and rig.watchdog.enabled and rig.pump_volts == (3.0, 4.0)
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    c = backend.config
+    spec = GuardSpec(dead.pid, c.host, c.port, c.device_id, c.timeout,
+                     [("DAC0", 1000, [0, 0]), ("DAC1", 1002, [0, 0])], 1.0,
+                     disarm=[("watchdog enable", 61600, [0, 0])])
+    r, w = os.pipe()
+    os.write(w, json.dumps(asdict(spec)).encode() + b"\n")
+    os.close(w)
+    said = io.StringIO()
+    with os.fdopen(r, "rb") as pipe:
+        assert guard_main(pipe, said) == 0
+    assert rig.pump_volts == (0.0, 0.0) and not rig.watchdog.enabled
+    assert said.getvalue().endswith(
+        f"quadtank guard: the program driving the rig (pid {dead.pid}) ended without stopping its pumps (killed, "
+        f"or it crashed); pumps (DAC0, DAC1) set to 0 over the guard's own connection to 127.0.0.1:{c.port}; "
+        "its watchdog disarmed\n")
+    backend.close()
