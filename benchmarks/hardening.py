@@ -14,6 +14,8 @@ Campaigns (each prints: cases run, accepted, refused cleanly, failures):
   daq      mutated DAQ configurations through daq.config (and `quadtank daq check`)
   kills    SIGKILL of `quadtank run` while logging: the partial log and its recovery
   devices  a killed / frozen / slow / hung / lying Modbus device under `quadtank run --daq`
+  hosts    `quadtank run --daq` itself killed (SIGKILL) or stopped (SIGSTOP, then SIGCONT) while
+           its pumps run, on a rig with the LabJack watchdog and one without: the time to 0 V
   paths    hostile path names given to every command that takes a file
   locks    the DAQ lock forged, its folder's flock held hostage, six programs racing (hardening_locks.py)
   users    two real users (root: useradd): a forced take-over, a forged record, a held flock
@@ -48,9 +50,10 @@ from typing import Any, AsyncIterator, Callable, Iterator, Sequence
 
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS = ROOT / "params"
-ISSUE_COUNTS = {"keys": 11_724, "fields": 570, "par": 5_009, "scripts": 700, "daq": 500, "kills": 29}
-SMALL_COUNTS = {"keys": 600, "fields": 120, "par": 400, "scripts": 60, "daq": 80, "kills": 3}
-CAMPAIGNS = ("keys", "fields", "par", "scripts", "daq", "kills", "devices", "paths", "locks", "users")
+ISSUE_COUNTS = {"keys": 11_724, "fields": 570, "par": 5_009, "scripts": 700, "daq": 500, "kills": 29,
+                "hosts": 20}
+SMALL_COUNTS = {"keys": 600, "fields": 120, "par": 400, "scripts": 60, "daq": 80, "kills": 3, "hosts": 4}
+CAMPAIGNS = ("keys", "fields", "par", "scripts", "daq", "kills", "devices", "hosts", "paths", "locks", "users")
 
 
 # --- bookkeeping ---------------------------------------------------------------------------
@@ -943,6 +946,70 @@ def campaign_devices(t: Tally, work: Path) -> None:
     case("lying-high", ["--offset", "1e30"], 0.2, 6, 0, _pumps_cut, "log", 20)
 
 
+def campaign_hosts(t: Tally, n: int, rng: random.Random, work: Path) -> None:
+    """`quadtank run --daq` at TSamp 0.1 s (watchdog timeout 1 s) killed or stopped
+    while its pumps run at 3 V.  SIGKILL: the pumps must be at 0 within the timeout
+    plus a sample (the guard; on the map without a watchdog nothing else could);
+    SIGSTOP: likewise (the device's watchdog, or the guard), and after SIGCONT the
+    run must pause (FAULT, exit 1) with the pumps left at 0.  Prints the worst times.
+    Without a watchdog a stop is the guard's to notice (it looks every 0.05 s and
+    acts once the stop outlasts the timeout): 0.15 s more is allowed there."""
+    within = 1.1
+    worst: dict[str, float] = {}
+    bare = work / "bare-map.yaml"
+    bare.write_text((PARAMS / "virtual-rig.yaml").read_text() + "watchdog: none\n")
+    for k in range(n):
+        how = ("kill", "stop")[k % 2]
+        map_kind = ("watchdog", "none")[(k // 2) % 2]
+        name = f"{how}-{map_kind}-{k}"
+        t.ran += 1
+        rig = Rig(*(["--map", str(bare)] if map_kind == "none" else []))
+        try:
+            cfg = _daq_config(work, rig.port, 5.0)
+            if map_kind == "none":
+                cfg.write_text(cfg.read_text() + "watchdog: none\n")
+            proc = subprocess.Popen([sys.executable, "-m", "quadtank_tui", "run", "--daq", str(cfg), "--duration",
+                                     "14" if how == "stop" else "600", "--log", str(work / f"{name}.log")],
+                                    cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            start = time.monotonic()
+            while min(rig.dacs()) < 2.9 and proc.poll() is None and time.monotonic() - start < 60:
+                time.sleep(0.05)
+            time.sleep(rng.uniform(0.0, 1.0))
+            proc.send_signal(signal.SIGKILL if how == "kill" else signal.SIGSTOP)
+            t0 = time.monotonic()
+            bound = within + (0.15 if how == "stop" and map_kind == "none" else 0.0)
+            if how == "kill" or map_kind == "none":  # nobody else talks to the rig: poll it
+                while rig.dacs() != (0.0, 0.0) and time.monotonic() - t0 < 30:
+                    time.sleep(0.02)
+                took = time.monotonic() - t0
+            else:  # a read would clear the watchdog's timer: look once, after the timeout and a sample
+                time.sleep(within)
+                took = within
+            dacs = rig.dacs()
+            worst[f"{how}, {map_kind}"] = max(worst.get(f"{how}, {map_kind}", 0.0), took)
+            if dacs != (0.0, 0.0) or took > bound:
+                t.fail("wrong state", f"{name}: pumps at {dacs} V {took:.2f} s after SIG{how.upper()}")
+            if how == "stop":
+                time.sleep(rng.uniform(0.5, 2.0))
+                proc.send_signal(signal.SIGCONT)
+            out, err = proc.communicate(timeout=60)
+            if how == "stop" and (proc.returncode != 1 or "no request reached the rig" not in out):
+                t.fail("exit status", f"{name}: after SIGCONT exit {proc.returncode}, stdout {out[-400:]!r}")
+            elif how == "kill" and "quadtank guard:" not in err:
+                t.fail("exit status", f"{name}: the guard said nothing; stderr {err[-300:]!r}")
+            elif rig.dacs() != (0.0, 0.0):
+                t.fail("wrong state", f"{name}: the pumps went back to {rig.dacs()} V")
+            else:
+                t.accepted += 1
+        except Exception:
+            t.fail("traceback", f"{name}: {traceback.format_exc()}")
+        finally:
+            rig.stop()
+    for what, took in sorted(worst.items()):
+        print(f"    {what}: worst {took:.2f} s to 0 V" + (" (looked once, at the bound)" if what == "stop, watchdog"
+                                                          else ""))
+
+
 # --- hostile path names ----------------------------------------------------------------------
 
 def hostile_paths(work: Path) -> list[str]:
@@ -1081,6 +1148,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 campaign_kills(t, counts["kills"], rng, work)
             elif name == "devices":
                 campaign_devices(t, work)
+            elif name == "hosts":
+                campaign_hosts(t, counts["hosts"], rng, work)
             elif name == "paths":
                 campaign_paths(t, work)
             elif name in ("locks", "users"):

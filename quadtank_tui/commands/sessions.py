@@ -83,8 +83,9 @@ def format_table(sessions: list[SessionInfo]) -> str:
     for i in sessions:
         clients = f"{i.clients}" + (f" ({i.operator} operates)" if i.operator else "")
         state = i.state + (f" - {i.note}" if i.note else "")
+        operation = i.operation + (" (no watchdog)" if i.daq and i.watchdog == "none" else "")
         rows.append((i.id, i.owner, i.started.replace("T", " "), i.plant + (" (headless)" if i.headless else ""),
-                     i.operation, state, i.logging, clients))
+                     operation, state, i.logging, clients))
     widths = [max(len(r[c]) for r in rows) for c in range(len(head))]
     return "\n".join("  ".join(v.ljust(w) for v, w in zip(r, widths)).rstrip() for r in rows)
 

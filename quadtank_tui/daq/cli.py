@@ -50,9 +50,10 @@ def add_rig_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lsb", type=float, default=0.0, metavar="V",
                    help="sensor quantization step, volts (default 0: none)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (default 0)")
-    p.add_argument("--watchdog", type=float, default=15.0, metavar="S",
-                   help="pumps to 0 when no write comes for S wall seconds; keep it longer than "
-                   "the sampling time (default 15, above the longest TSamp of 10 s; 0: off)")
+    p.add_argument("--watchdog", type=float, default=0.0, metavar="S",
+                   help="start with the map's watchdog armed for S wall seconds, the pumps to 0 on a "
+                   "timeout, as a program left it (default 0: off, as a LabJack out of the box, until "
+                   "a program arms it through its registers)")
     p.add_argument("--reply-delay", type=float, default=0.0, metavar="S",
                    help="answer every request S seconds late (to try a slow link)")
     p.add_argument("--status", type=float, default=0.0, metavar="S",
@@ -203,6 +204,7 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
         backend.interlock.update(backend.height_fractions(volts))
     for alarm in backend.alarms:
         print(alarm)
+    print(config.watchdog_line())
     return 1 if faults else 0
 
 
@@ -354,16 +356,19 @@ def _par_plant(par: str | None) -> Plant | None:
     return read_par(par).params.process_plant()
 
 
-def open_daq(config: str | None, plant: Plant | None = None) -> ModbusBackend | None:
+def open_daq(config: str | None, plant: Plant | None = None, *, quiet: bool = False) -> ModbusBackend | None:
     """The Modbus backend a `--daq CONFIG` asks for (None without one), wired for
     `plant` (the quadruple tank when None).  The file is read and checked now, so a
     bad one stops the program before anything runs; the link is opened on the
-    first sample."""
+    first sample.  A device without a watchdog is said to have none (unless `quiet`)."""
     if config is None:
         return None
     from quadtank_tui.daq.modbus import ModbusBackend  # pymodbus only when asked for
 
-    return ModbusBackend(load_daq_config(config, plant))
+    daq_config = load_daq_config(config, plant)
+    if daq_config.watchdog is None and not quiet:
+        warn([daq_config.watchdog_line()])
+    return ModbusBackend(daq_config)
 
 
 def run_clock(*, realtime: bool, speed: float | None, config: str | None,

@@ -16,7 +16,9 @@ One YAML file (examples: `params/daq-labjack.yaml`, `params/virtual-rig.yaml`) s
 - the high-level interlock (fraction of the tank height, default 0.95);
 - the plausible range of each tank's level (cm): a reading outside it is a sensor
   fault (a broken wire reads the rail, -10.5 V), not a level; by default the tank
-  from `margin` x its height below the bottom to as much above the top.
+  from `margin` x its height below the bottom to as much above the top;
+- the device's own watchdog (`watchdog:`, daq/watchdog.py), or `watchdog: none` for
+  a device without one (said so at start, in `daq check` and `quadtank sessions`).
 
 The channels follow the plant in use (:class:`PlantChannels`, from the `.par`'s
 PLANT section; the quadruple tank without one): one level channel per tank
@@ -47,7 +49,8 @@ from typing import TYPE_CHECKING, Any, Mapping
 from quadtank_tui.core.calibration import SensorCalibration
 from quadtank_tui.core.validation import is_finite_number
 from quadtank_tui.daq.interlock import QUADTANK_FEEDERS
-from quadtank_tui.daq.registers import MAX_ADDRESS, TABLES, TYPES, WORD_ORDERS, Register
+from quadtank_tui.daq.registers import MAX_ADDRESS, SETTING_TYPES, TABLES, TYPES, WORD_ORDERS, Register
+from quadtank_tui.daq.watchdog import OutputAction, Watchdog
 from quadtank_tui.files.yamltext import key_lines, parse_yaml, read_text
 
 if TYPE_CHECKING:  # core.plants loads numpy; reading a configuration does not need it
@@ -84,6 +87,24 @@ LABJACK: dict[str, Any] = {
         **{p: {"gain": 1.0, "offset": 0.0} for p in PUMPS},
     },
     "interlock": {"enabled": True, "limit": 0.95, "tank_height": 20.0},
+    # The T-series watchdog (T-Series Datasheet 23.0, Modbus map; UINT32 unless
+    # said): WATCHDOG_ENABLE_DEFAULT 61600, WATCHDOG_TIMEOUT_S_DEFAULT 61604 (whole
+    # seconds), WATCHDOG_STRICT_CLEAR 61614 (any write clears it while strict mode
+    # is off), WATCHDOG_DAC0_ENABLE_DEFAULT 61640, WATCHDOG_DAC0_DEFAULT 61642
+    # (FLOAT32 volts), WATCHDOG_DAC1_ENABLE_DEFAULT 61650, WATCHDOG_DAC1_DEFAULT 61652.
+    # Any request clears its timer.  The settings live in flash: arming writes them
+    # once per Active start, disarming once per end.
+    "watchdog": {
+        "timeout": "auto",
+        "enable": {"address": 61600, "type": "uint32"},
+        "timeout_register": {"address": 61604, "type": "uint32"},
+        "feed": {"address": 61614, "type": "uint32"},
+        "outputs": {
+            f"DAC{i}": {"enable": {"address": 61640 + 10 * i, "type": "uint32"},
+                        "value": {"address": 61642 + 10 * i, "type": "float32"}}
+            for i in range(2)
+        },
+    },
 }
 
 PRESETS: dict[str, dict[str, Any]] = {"labjack": LABJACK}
@@ -197,6 +218,8 @@ class DaqConfig:
     plausible_margin: float = PLAUSIBLE_MARGIN
     #: tank1..tank4 -> (low, high) cm, where the file gives a range of its own
     plausible: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    #: the device's own watchdog (None: the device has none, `watchdog: none`)
+    watchdog: Watchdog | None = None
     source: str = field(default="<preset>", compare=False)
 
     def __post_init__(self) -> None:
@@ -228,6 +251,22 @@ class DaqConfig:
     def pump_output(self, pump: int) -> Output:
         """The output of pump 1..M."""
         return self.outputs[self.channels[self.pump_channels[pump - 1]]]
+
+    def stop_volts(self, output: str) -> float:
+        """The volts written to `output` to stop its pump (a pump's calibration
+        offset may make it other than 0 V), within the output's limits."""
+        lo, hi = self.outputs[output].limits
+        for i, pump in enumerate(self.pump_channels):
+            if self.channels[pump] == output:
+                return min(hi, max(lo, self.pumps[i].volts(0.0)))
+        return min(hi, max(lo, 0.0))
+
+    def watchdog_line(self) -> str:
+        """What `daq check` and a run's start say about the device's watchdog."""
+        if self.watchdog is None:
+            return (f"watchdog: none declared by {self.source}: if this program dies its guard stops the "
+                    "pumps; if the computer dies or hangs, nothing does")
+        return f"watchdog: {self.watchdog.describe()}"
 
     def check_plant(self, plant: Plant) -> None:
         """DaqConfigError unless these channels are wired for `plant`'s kind (the
@@ -426,7 +465,7 @@ class _Validator:
 
     def config(self, d: dict[str, Any]) -> DaqConfig:
         top = ("host", "port", "device_id", "timeout", "inputs", "outputs", "channels",
-               "calibration", "interlock", "plausible")
+               "calibration", "interlock", "plausible", "watchdog")
         self.mapping("", d, top)
         host = self.require(d, "", "host")
         if not isinstance(host, str) or not host.strip():
@@ -458,13 +497,15 @@ class _Validator:
         height = self.number("interlock.tank_height", lock.get("tank_height", default_height), 0.0, 1000.0,
                              lo_open=True)
         margin, plausible = self.plausible(self.mapping("plausible", d.get("plausible", {}), ("margin",) + tanks))
-        self._no_overlap(inputs, outputs)
+        watchdog = self.watchdog(d.get("watchdog"), outputs, [channels[p] for p in pump_names])
+        self._no_overlap(inputs, outputs, watchdog)
         return DaqConfig(
             host=host.strip(), port=port, device_id=device_id, timeout=timeout,
             inputs=inputs, outputs=outputs, channels=channels,
             sensors=sensors, pumps=pumps, sensor_gain=gains[0], plant=self.wiring, sensor_gains=gains,
             interlock_enabled=enabled, interlock_limit=limit,
-            tank_height=height, plausible_margin=margin, plausible=plausible, source=self.name,
+            tank_height=height, plausible_margin=margin, plausible=plausible, watchdog=watchdog,
+            source=self.name,
         )
 
     def sensor_gains(self, cal: Mapping[str, Any]) -> tuple[float, ...]:
@@ -501,11 +542,56 @@ class _Validator:
                 out[ch] = ref
         return out
 
-    def _no_overlap(self, inputs: Mapping[str, Register], outputs: Mapping[str, Output]) -> None:
-        """Two channels sharing a register is a typo that would read one tank twice."""
+    def watchdog(self, value: Any, outputs: Mapping[str, Output], pump_outputs: list[str]) -> Watchdog | None:
+        """`watchdog:` - the device's own, or None for `watchdog: none` (or absent
+        from a complete file).  Every pump output must be set by it on a timeout."""
+        if value is None or value == "none":
+            return None
+        if not isinstance(value, dict):
+            self.fail("watchdog", f"must be the device's watchdog registers (a mapping) or none, got {_show(value)}")
+        m = self.mapping("watchdog", value, ("timeout", "enable", "timeout_register", "feed", "outputs"))
+        least = m.get("timeout", "auto")
+        timeout = 0.0 if least == "auto" else self.number("watchdog.timeout", least, 0.0, 3600.0, lo_open=True)
+        actions = []
+        for name, spec in self.mapping("watchdog.outputs", self.require(m, "watchdog", "outputs")).items():
+            key = f"watchdog.outputs.{name}"
+            if name not in outputs:
+                self.fail(key, f"{name} is not one of the outputs ({', '.join(outputs)})")
+            a = self.mapping(key, spec, ("value", "enable"))
+            enable = self.setting(f"{key}.enable", a["enable"]) if "enable" in a else None
+            actions.append(OutputAction(name, self.setting(f"{key}.value", self.require(a, key, "value"),
+                                                           "float32"), enable))
+        missing = [o for o in pump_outputs if o not in {a.output for a in actions}]
+        if missing:
+            self.fail("watchdog.outputs", f"{', '.join(missing)} missing: the watchdog must stop every pump")
+        return Watchdog(
+            enable=self.setting("watchdog.enable", self.require(m, "watchdog", "enable")),
+            timeout_register=self.setting("watchdog.timeout_register",
+                                          self.require(m, "watchdog", "timeout_register")),
+            actions=tuple(actions),
+            feed=self.setting("watchdog.feed", m["feed"]) if m.get("feed") is not None else None,
+            timeout=timeout,
+        )
+
+    def setting(self, key: str, value: Any, default_type: str = "uint32") -> Register:
+        """A configuration register of the device (holding table): a count, a
+        timeout in `scale` s, or a value in volts."""
+        m = self.mapping(key, value, ("address", "type", "word_order", "scale"))
+        reg_type = self.choice(f"{key}.type", m.get("type", default_type), SETTING_TYPES)
+        address = self.integer(f"{key}.address", self.require(m, key, "address"), 0,
+                               MAX_ADDRESS - (1 if reg_type in ("float32", "uint32") else 0))
+        word_order = self.choice(f"{key}.word_order", m.get("word_order", "big"), WORD_ORDERS)
+        scale = self.number(f"{key}.scale", m.get("scale", 1.0), 0.0, lo_open=True)
+        return Register("holding", address, reg_type, word_order, scale)  # type: ignore[arg-type]
+
+    def _no_overlap(self, inputs: Mapping[str, Register], outputs: Mapping[str, Output],
+                    watchdog: Watchdog | None = None) -> None:
+        """Two channels sharing a register is a typo that would read one tank twice
+        (or arm the watchdog over a pump's output)."""
         owner: dict[tuple[str, int], str] = {}
         regs = [(f"inputs.{n}", r) for n, r in inputs.items()]
         regs += [(f"outputs.{n}", o.register) for n, o in outputs.items()]
+        regs += watchdog.registers() if watchdog is not None else []
         for key, reg in regs:
             for a in reg.span:
                 if (reg.table, a) in owner:

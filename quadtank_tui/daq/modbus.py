@@ -16,12 +16,23 @@ The sync pymodbus client is used from the engine's loop thread; the client's own
 retry loop is off (retries=0), so the worst case is known: a silent device is a
 fault within one timeout per request, and safe_state takes at most one more
 timeout per pump.  Register values go through `registers.encode/decode`.
+
+When Active control starts (`arm`, called by the loop with its sampling time) the
+rig is watched for the program: at the next request the device's own watchdog
+(daq/watchdog.py, if the configuration declares one) is armed with a timeout of a
+few samples and the pumps' stop values, and a guard process (daq/guard.py) starts
+to stop the pumps should this process die.  A silence longer than that timeout
+between two requests (this process stopped, the machine suspended: the device's
+watchdog has set the pumps to 0 meanwhile) fails the next sample instead of
+driving the pumps again as if nothing had happened; the engine pauses and says
+why.  `close` (the orderly end, pumps already at 0) disarms both.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import os
 import time
 from typing import TYPE_CHECKING, Callable, Sequence
 
@@ -30,8 +41,10 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 
 from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.daq.config import DaqConfig, DaqConfigError, Output
+from quadtank_tui.daq.guard import Guard, GuardSpec
 from quadtank_tui.daq.interlock import Interlock
 from quadtank_tui.daq.registers import Register, block, decode, encode
+from quadtank_tui.daq.watchdog import gap_limit
 from quadtank_tui.engine.backend import BackendError, InterlockHold, Levels4, Pair, ProcessBackend
 
 if TYPE_CHECKING:
@@ -61,8 +74,19 @@ class ModbusBackend(ProcessBackend):
 
     kind = "Active"
 
-    def __init__(self, config: DaqConfig) -> None:
+    def __init__(self, config: DaqConfig, *, clock: Callable[[], float] | None = None,
+                 guard: bool = True) -> None:
         self.config = config
+        #: the time the silences are measured on: CLOCK_BOOTTIME counts a suspended machine
+        self._clock = clock or _boot_clock
+        #: the watchdog timeout armed (the longest silence allowed), s; None until `arm`
+        self.watch_timeout: float | None = None
+        self._arm_pending = False
+        self._armed = False  # the device's watchdog is on (written by us)
+        self._last_exchange: float | None = None
+        self._last_feed = -math.inf
+        self._use_guard = guard
+        self.guard: Guard | None = None
         self.description = f"modbus {config.host}:{config.port}"
         # `timeout` bounds the connect and each answer; the client's own retries are
         # off: this class retries once itself, so the worst case is known.
@@ -102,8 +126,18 @@ class ModbusBackend(ProcessBackend):
 
     # --- ProcessBackend --------------------------------------------------------------
 
+    def arm(self, tsamp: float) -> None:
+        """Active control starts (or its sampling time changed): the device's
+        watchdog and the guard are set up at the next request, for `tsamp`."""
+        wd = self.config.watchdog
+        self.watch_timeout = wd.timeout_for(tsamp) if wd is not None else gap_limit(tsamp)
+        self._arm_pending = True
+        self._last_exchange = None  # a silence before Active control is none of its business
+
     def read_levels(self) -> Levels4:
-        volts = self._read_volts()
+        self._watch()
+        volts = self._read_volts()  # a dead link fails here first, and says so, before the arming
+        self._arm_if_pending()
         levels = self.levels_from_volts(volts)
         self.interlock.update(self.height_fractions(volts))
         return levels
@@ -122,6 +156,8 @@ class ModbusBackend(ProcessBackend):
         return [cal.level(v) / self.config.tank_height for cal, v in zip(self.config.sensors, volts)]
 
     def write_pumps(self, u: Pair) -> None:
+        self._watch()
+        self._arm_if_pending()  # armed before the pumps are driven
         applied = self.interlock.cut(u)
         self._write_volts([self._output_volts(i, applied[i]) for i in range(len(self._pumps))])
         self.applied = applied
@@ -157,10 +193,89 @@ class ModbusBackend(ProcessBackend):
         return None
 
     def close(self) -> None:
+        """The orderly end (the pumps already at 0): the device's watchdog disarmed
+        (a dead link: it stays armed, which only ever stops pumps), the guard told,
+        the link closed."""
+        if self._armed and self.config.watchdog is not None:
+            reg = self.config.watchdog.enable
+            try:
+                self._request("disarming the watchdog", lambda: self._write(reg.address, encode(reg, 0.0)))
+                self._armed = False
+            except Exception:  # noqa: BLE001 - the watchdog stays armed: it only ever stops pumps
+                pass
+        if self.guard is not None:
+            self.guard.release()
+            self.guard = None
+        self._drop()
+
+    def _drop(self) -> None:
+        """Close the connection (the next request opens a new one)."""
         try:
             self._client.close()
         except Exception:  # noqa: BLE001 - closing a dead socket must not hide the real fault
             pass
+
+    # --- the watch: the device's watchdog, the guard, the silences ----------------------
+
+    def _watch(self) -> None:
+        """Before a sample's request: a silence longer than the watchdog timeout ends
+        Active control (BackendError); the feed is written."""
+        if self.watch_timeout is None:
+            return
+        now = self._clock()
+        if self._last_exchange is not None and now - self._last_exchange > self.watch_timeout:
+            gap = now - self._last_exchange
+            self._last_exchange = None
+            wd = "its watchdog has set the pumps to 0" if self.config.watchdog is not None else \
+                "it has no watchdog: the pumps ran on unwatched"
+            raise BackendError(
+                f"no request reached the rig for {gap:.1f} s, longer than the watchdog timeout "
+                f"{self.watch_timeout:g} s (this program was stopped or the machine suspended); {wd}. "
+                "Active control ends here: Run starts it again")
+        wd_decl = self.config.watchdog
+        if (wd_decl is not None and wd_decl.feed is not None and not self._arm_pending
+                and now - self._last_feed > self.watch_timeout / 4):
+            feed = wd_decl.feed
+            self._request(f"feed of the watchdog (holding register {feed.address})",
+                          lambda: self._write(feed.address, encode(feed, 0.0)))
+            self._last_feed = now
+
+    def _arm_if_pending(self) -> None:
+        if self._arm_pending:
+            self._arm()
+
+    def _arm(self) -> None:
+        """Arm the device's watchdog (only the settings that differ are written: a
+        LabJack keeps them in flash) and start the guard."""
+        wd, timeout = self.config.watchdog, self.watch_timeout
+        assert timeout is not None
+        if wd is not None:
+            writes = wd.arm_writes(timeout, {o: self.config.stop_volts(o) for o in self.config.outputs})
+            enable, settings = writes[-1], writes[1:-1]
+            held = {id(reg): self._read_setting(what, reg) for what, reg, _ in writes[:-1]}
+            differ = [(what, reg, v) for what, reg, v in settings if not math.isclose(held[id(reg)], v, abs_tol=1e-6)]
+            on = held[id(wd.enable)] != 0
+            plan = ([writes[0]] if differ and on else []) + differ + ([enable] if differ or not on else [])
+            for what, reg, value in plan:
+                self._request(f"arming the watchdog: {what} (holding register {reg.address})",
+                              lambda reg=reg, value=value: self._write(reg.address, encode(reg, value)))  # type: ignore[misc]
+            self._armed = True
+        if self.guard is None and self._use_guard:
+            c = self.config
+            writes_spec = [(c.channels[p], o.register.address, encode(o.register, c.stop_volts(c.channels[p])))
+                           for p, o in zip(c.pump_channels, self._pumps)]
+            disarm = [] if wd is None else [("watchdog enable", wd.enable.address, encode(wd.enable, 0.0))]
+            try:
+                self.guard = Guard(GuardSpec(os.getpid(), c.host, c.port, c.device_id, c.timeout,
+                                             writes_spec, timeout, disarm=disarm))
+            except OSError as exc:
+                raise BackendError(f"cannot start the guard process: {exc}") from None
+        self._arm_pending = False
+
+    def _read_setting(self, what: str, reg: Register) -> float:
+        words = self._request(f"arming the watchdog: reading {what} (holding register {reg.address})",
+                              lambda: self._read("holding", reg.address, reg.count))
+        return decode(reg, words)
 
     def _check_plausible(self, volts: Sequence[float], cm: Sequence[float]) -> None:
         """A level no tank can have is a sensor fault (a broken wire at the rail), not
@@ -233,7 +348,14 @@ class ModbusBackend(ProcessBackend):
 
     def _request(self, what: str, call: Callable[[], list[int]]) -> list[int]:
         """`call`, tried once more if it failed fast; BackendError naming `what` and
-        the reasons after that."""
+        the reasons after that.  Its end, answered or not, ends a silence: a link
+        that is down is a fault of its own, not this program gone quiet."""
+        try:
+            return self._tries(what, call)
+        finally:
+            self._last_exchange = self._clock()
+
+    def _tries(self, what: str, call: Callable[[], list[int]]) -> list[int]:
         reasons: list[str] = []
         for _ in range(2):
             start = time.monotonic()
@@ -252,7 +374,7 @@ class ModbusBackend(ProcessBackend):
             except (ModbusException, OSError) as exc:
                 reasons.append(str(exc) or type(exc).__name__)
             # A late answer to the failed request must not be taken for the next one.
-            self.close()
+            self._drop()
             if time.monotonic() - start >= self.config.timeout / 2:
                 break  # it waited (out) the timeout: no second wait
         seen = list(dict.fromkeys(reasons))
@@ -261,6 +383,15 @@ class ModbusBackend(ProcessBackend):
 
     def _where(self) -> str:
         return f"{self.config.host}:{self.config.port}"
+
+
+def _boot_clock() -> float:
+    """Seconds on a clock that runs on while the machine is suspended (Linux's
+    CLOCK_BOOTTIME; elsewhere the monotonic clock)."""
+    try:
+        return time.clock_gettime(time.CLOCK_BOOTTIME)
+    except (AttributeError, OSError):
+        return time.monotonic()
 
 
 class _NoConnection(Exception):

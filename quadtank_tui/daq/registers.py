@@ -2,7 +2,9 @@
 
 A channel's value (volts) lives in one or two 16-bit registers: an IEEE-754 FLOAT32
 over two registers (a LabJack T-series, most gateways) in big or little word order,
-or a scaled 16-bit integer (many PLCs: volts = count * scale).  The codec is plain
+or a scaled 16-bit integer (many PLCs: volts = count * scale).  A device's
+configuration registers (its watchdog's: daq/watchdog.py) may also be UINT32, two
+registers in the same word orders (a LabJack's WATCHDOG_TIMEOUT_S_DEFAULT).  The codec is plain
 `struct` so the DAQ backend and the virtual rig share it and neither depends on the
 helper names pymodbus has changed across 3.x releases.
 """
@@ -15,16 +17,18 @@ from dataclasses import dataclass
 from typing import Literal, Sequence
 
 Table = Literal["input", "holding"]
-RegType = Literal["float32", "int16", "uint16"]
+RegType = Literal["float32", "int16", "uint16", "uint32"]
 WordOrder = Literal["big", "little"]
 
 TABLES: tuple[str, ...] = ("input", "holding")
 TYPES: tuple[str, ...] = ("float32", "int16", "uint16")
+#: The types of a configuration register (a watchdog's): the analog ones and UINT32.
+SETTING_TYPES: tuple[str, ...] = TYPES + ("uint32",)
 WORD_ORDERS: tuple[str, ...] = ("big", "little")
 #: Modbus addresses are 16-bit.
 MAX_ADDRESS = 0xFFFF
 
-_INT_RANGE = {"int16": (-32768, 32767), "uint16": (0, 65535)}
+_INT_RANGE = {"int16": (-32768, 32767), "uint16": (0, 65535), "uint32": (0, 0xFFFFFFFF)}
 
 
 @dataclass(frozen=True)
@@ -33,8 +37,8 @@ class Register:
 
     table : "input" (read with function code 4) or "holding" (code 3, written with 16)
     address : first register, 0-based protocol address
-    type : "float32" (2 registers), "int16" or "uint16" (1 register)
-    word_order : float32 only; "big" = high word first (Modbus convention, LabJack)
+    type : "float32" or "uint32" (2 registers), "int16" or "uint16" (1 register)
+    word_order : the 2-register types; "big" = high word first (Modbus convention, LabJack)
     scale : volts per count for the integer types (ignored for float32)
     """
 
@@ -47,7 +51,7 @@ class Register:
     @property
     def count(self) -> int:
         """Number of 16-bit registers the value occupies."""
-        return 2 if self.type == "float32" else 1
+        return 2 if self.type in ("float32", "uint32") else 1
 
     @property
     def span(self) -> range:
@@ -66,6 +70,9 @@ def decode(reg: Register, words: Sequence[int]) -> float:
     if reg.type == "float32":
         hi, lo = (words[0], words[1]) if reg.word_order == "big" else (words[1], words[0])
         return struct.unpack(">f", struct.pack(">HH", hi & 0xFFFF, lo & 0xFFFF))[0]
+    if reg.type == "uint32":
+        hi, lo = (words[0], words[1]) if reg.word_order == "big" else (words[1], words[0])
+        return ((hi & 0xFFFF) << 16 | (lo & 0xFFFF)) * reg.scale
     raw = words[0] & 0xFFFF
     if reg.type == "int16" and raw >= 0x8000:
         raw -= 0x10000
@@ -81,6 +88,9 @@ def encode(reg: Register, volts: float) -> list[int]:
         return [hi, lo] if reg.word_order == "big" else [lo, hi]
     lo_count, hi_count = _INT_RANGE[reg.type]
     count = min(hi_count, max(lo_count, round(volts / reg.scale)))
+    if reg.type == "uint32":
+        hi, lo = count >> 16, count & 0xFFFF
+        return [hi, lo] if reg.word_order == "big" else [lo, hi]
     return [count & 0xFFFF]
 
 

@@ -3,9 +3,12 @@
 It stands where the lab's DAQ would: its input registers carry the sensor voltages
 of the simulated tanks (kc * h, plus optional noise, offset and quantization), its
 output registers drive the simulated pumps, and the process advances in wall-clock
-time (times a speed factor), whatever the client does.  Like a real rig's firmware
-it has a watchdog: when no write has come for `watchdog` s it sets its pumps (and
-their registers) to 0, so a program that dies cannot leave the pumps running.
+time (times a speed factor), whatever the client does.  Like the device its map
+describes it has that device's watchdog (daq/rig_watchdog.py: the LabJack's
+WATCHDOG_* registers), off until a program arms it: then a silence of its timeout
+sets the pumps (and their registers) to what the program said, so a program that
+dies or stops cannot leave the pumps running.  A map with `watchdog: none` is a
+device without one.
 
 The register layout and the wiring are those of a DAQ configuration (`--map`, the
 LabJack preset by default), read for the plant it serves: a two-tank plant serves
@@ -31,6 +34,7 @@ from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams, advance
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.daq.config import DaqConfig
 from quadtank_tui.daq.registers import decode, encode
+from quadtank_tui.daq.rig_watchdog import RigWatchdog
 from quadtank_tui.daq.server import IllegalAddress, ModbusTcpServer
 
 #: The pumps take 0..10 V; an analog input reads at most about +-10.5 V.
@@ -62,7 +66,7 @@ class VirtualRig:
         levels_cm: Sequence[float],
         *,
         speed: float = 1.0,
-        watchdog: float = 15.0,
+        watchdog: float = 0.0,
         sensors: SensorModel = SensorModel(),
         clock: Callable[[], float] = time.monotonic,
         report: Callable[[str], None] = lambda text: None,
@@ -70,7 +74,9 @@ class VirtualRig:
         if not speed > 0 or not math.isfinite(speed):
             raise ValueError(f"speed must be a number > 0, got {speed}")
         if watchdog < 0 or not math.isfinite(watchdog):
-            raise ValueError(f"watchdog must be >= 0 s (0: off), got {watchdog}")
+            raise ValueError(f"watchdog must be >= 0 s (0: off until a program arms it), got {watchdog}")
+        if watchdog > 0 and config.watchdog is None:
+            raise ValueError(f"watchdog: the map {config.source} declares none (watchdog: none)")
         self.config = config
         #: The process through the plant interface; `plant` stays the quadruple tank's
         #: constants (None for another plant: core.plants).
@@ -81,7 +87,9 @@ class VirtualRig:
         self.faults = fx.Faults()
         self.h = tuple(float(x) for x in levels_cm)
         self.speed = speed
-        self.watchdog = watchdog
+        #: the device's watchdog (None: the map declares none); `watchdog` > 0 starts it armed
+        self.watchdog = None if config.watchdog is None else RigWatchdog(
+            config.watchdog, {o: config.stop_volts(o) for o in config.outputs}, watchdog)
         self.sensors = sensors
         self.clock = clock
         self.report = report
@@ -92,7 +100,7 @@ class VirtualRig:
         self._stop_pumps()  # pumps and their registers at 0
         self._now = clock()
         self.t = 0.0                      # process time, s
-        self.last_write = self._now       # wall time of the last write
+        self.last_request = self._now     # wall time of the last request (any client)
         self.watchdog_trips = 0
 
     # --- time -------------------------------------------------------------------------
@@ -100,14 +108,26 @@ class VirtualRig:
     def tick(self) -> None:
         """Bring the process up to the clock (and apply the watchdog on the way)."""
         now = self.clock()
-        if self.watchdog > 0 and any(self.pump_volts):
-            deadline = self.last_write + self.watchdog
-            if deadline <= now:
+        wd = self.watchdog
+        if wd is not None and wd.enabled and wd.timeout > 0:
+            deadline = self.last_request + wd.timeout
+            if deadline <= now:  # (it would fire again after each further timeout: the same values)
                 self._advance_to(max(deadline, self._now))
-                self._stop_pumps()
-                self.watchdog_trips += 1
-                self.report(f"watchdog: no write for {self.watchdog:g} s, pumps set to 0")
+                self.last_request = now
+                self._fire(wd)
         self._advance_to(now)
+
+    def _fire(self, wd: RigWatchdog) -> None:
+        before = self.pump_volts
+        set_to = wd.actions()
+        for name, volts in set_to:
+            reg = self.config.outputs[name].register
+            self._out_words.update((a, w) for a, w in zip(reg.span, encode(reg, volts)) if a in self._out_words)
+        self._pumps_from_words()
+        if self.pump_volts != before:
+            self.watchdog_trips += 1
+            said = ", ".join(f"{n} set to {v:g} V" for n, v in set_to)
+            self.report(f"watchdog: no request for {wd.timeout:g} s, {said}")
 
     def _advance_to(self, wall: float) -> None:
         if wall <= self._now:
@@ -147,9 +167,14 @@ class VirtualRig:
 
     def read(self, address: int, count: int) -> list[int]:
         self.tick()
+        self.last_request = self._now
         words = dict(self._out_words)
-        for reg, v in zip(self._tanks, self.sensor_volts()):
-            words.update(zip(reg.span, encode(reg, v)))
+        if self.watchdog is not None:
+            words.update(self.watchdog.words())
+        asked = range(address, address + count)
+        if any(a in asked for reg in self._tanks for a in reg.span):  # a noise draw per sensor read only
+            for reg, v in zip(self._tanks, self.sensor_volts()):
+                words.update(zip(reg.span, encode(reg, v)))
         try:
             return [words[a] for a in range(address, address + count)]
         except KeyError as exc:
@@ -157,17 +182,24 @@ class VirtualRig:
 
     def write(self, address: int, values: Sequence[int]) -> None:
         span = range(address, address + len(values))
-        if any(a not in self._out_words for a in span):
+        wd = self.watchdog
+        setting = [wd is not None and wd.owns(a) for a in span]
+        if any(a not in self._out_words and not own for a, own in zip(span, setting)):
             raise IllegalAddress(f"registers {address}..{span[-1]} are not all outputs")
         self.tick()
-        self._out_words.update(zip(span, values))
+        self.last_request = self._now
+        if wd is not None and any(setting):
+            wd.write([a for a, own in zip(span, setting) if own], [v for v, own in zip(values, setting) if own])
+        self._out_words.update((a, v) for a, v, own in zip(span, values, setting) if not own)
+        self._pumps_from_words()
+
+    def _pumps_from_words(self) -> None:
         volts = []
         for i, reg in enumerate(self._outputs):
             dac = decode(reg, [self._out_words[a] for a in reg.span])
             pump = self.config.pumps[i].level(dac) if math.isfinite(dac) else 0.0
             volts.append(min(PUMP_RANGE[1], max(PUMP_RANGE[0], pump)))
         self.pump_volts = tuple(volts)
-        self.last_write = self._now
 
     def set_fault(self, fault: fx.Fault) -> fx.Fault:
         """Switch a fault on now (FaultError if the plant cannot have it)."""
@@ -209,7 +241,8 @@ async def serve_rig(
     server = ModbusTcpServer(rig, reply_delay=reply_delay)
     bound_host, bound_port = await server.start(host, port)
     print(f"quadtank rig: serving on {bound_host}:{bound_port} "
-          f"(speed x{rig.speed:g}, watchdog {rig.watchdog:g} s, noise {rig.sensors.noise:g} V; "
+          f"(speed x{rig.speed:g}, {rig.watchdog.status() if rig.watchdog else 'no watchdog'}, "
+          f"noise {rig.sensors.noise:g} V; "
           f"{describe(rig.config)})", file=out, flush=True)
     stop = stop or asyncio.Event()
     loop = asyncio.get_running_loop()

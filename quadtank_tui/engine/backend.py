@@ -81,6 +81,11 @@ class ProcessBackend(ABC):
         The simulator becomes any plant."""
         return None
 
+    def arm(self, tsamp: float) -> None:
+        """Active control on this process starts, or its sampling time changed: a
+        DAQ arms its device's watchdog for a few samples of `tsamp` and has the rig
+        watched should this program die (daq/modbus.py).  Nothing for the simulator."""
+
     def elapse(self, dt: float) -> None:
         """Let `dt` s of process time pass (only the simulator acts on it)."""
 

@@ -321,8 +321,10 @@ class ControlLoop:
     def _fail(self, exc: BaseException) -> None:
         reason = str(exc) if isinstance(exc, BackendError) else f"{type(exc).__name__}: {exc}"
         self.fault = f"{self.backend.description or self.backend.kind}: {reason}"
-        self.running = False
+        was_running, self.running = self.running, False
         self._safe(self.backend)
+        if was_running and self.log.running:  # the log says why its rows stop here
+            self.log.comment(self.t, f"paused, pumps at 0: {self.fault}")
 
     @staticmethod
     def _safe(backend: ProcessBackend) -> None:
@@ -520,6 +522,8 @@ class ControlLoop:
         if plant is not None:
             self.sim.set_plant(plant, new.process_levels())
         self.params = new
+        if h != old.tsamp and self.backend is not self.sim:
+            _arm(self.backend, h)  # the rig's watchdog timeout follows the sampling time
 
     def _statefb_for(self, new: Parameters, old: Parameters) -> AnyStateFeedback | Design | None:
         """What the state feedback needs for `new`, designed (or refused) before anything
@@ -628,6 +632,8 @@ class ControlLoop:
             self.running = False
             self.backend = target
             self.fault = None
+            if target is not self.sim:
+                _arm(target, self.h)
         return CommandResult(True)
 
     def _nudge(self, cmd: NudgeMean) -> CommandResult:
@@ -803,6 +809,13 @@ class ControlLoop:
         self.sim.set_levels(levels_cm)
         self._y = self.sim.read_levels()
         self._r = (self._y[0], self._y[1])
+
+
+def _arm(backend: ProcessBackend, tsamp: float) -> None:
+    """`backend.arm(tsamp)` (a backend written before the hook, or a test's stand-in, may not have one)."""
+    arm = getattr(backend, "arm", None)
+    if arm is not None:
+        arm(tsamp)
 
 
 def _plant_shape(p: Parameters) -> str:

@@ -30,3 +30,4 @@ class SessionInfo:
     daq: str = ""              # the DAQ configuration file ("" for the simulator only)
     headless: bool = False     # `quadtank run --detach`
     note: str = ""             # what the session did by itself (the unattended policy)
+    watchdog: str = ""         # the DAQ's own watchdog: "device", or "none" (said by `quadtank sessions`)

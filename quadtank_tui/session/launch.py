@@ -236,7 +236,7 @@ def session_main(ready_fd: int) -> int:
 
                 assert spec.run is not None
                 wired = load_parameters(spec.run.par, ParStore(spec.run.params_dir))[0].process_plant()
-            daq = open_daq(spec.daq_config, wired)
+            daq = open_daq(spec.daq_config, wired, quiet=True)  # the launcher said it; the record says it
             assert daq is not None
             c = daq.config
             lock = RigLock.acquire(c.host, c.port, c.device_id, lab, session=sid)  # adopts the launcher's
@@ -263,7 +263,8 @@ def session_main(ready_fd: int) -> int:
         info = SessionInfo(id=sid, owner=user_name(uid), uid=uid, pid=os.getpid(),
                            started=datetime.now().isoformat(timespec="seconds"), plant=plant,
                            socket=str(sock_path), cwd=os.getcwd(), daq=spec.daq_config or "",
-                           headless=scripted is not None)
+                           headless=scripted is not None,
+                           watchdog="" if daq is None else "device" if daq.config.watchdog else "none")
         host = SessionHost(engine, listener, info, runtime=runtime, access=Access.for_lab(uid, lab),
                            policy=lab.unattended, scripted=scripted)
         host.install_signal_handlers()

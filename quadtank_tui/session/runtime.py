@@ -16,6 +16,7 @@ import os
 import tempfile
 from pathlib import Path
 
+from quadtank_tui.files.proc import process_state
 from quadtank_tui.session.info import SessionInfo
 
 class NoSession(LookupError):
@@ -32,17 +33,7 @@ def runtime_dir(configured: Path | None = None) -> Path:
 
 def pid_alive(pid: int) -> bool:
     """A running process (a zombie counts as gone)."""
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except (OSError, IndexError):
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            return False
-        except PermissionError:
-            return True
-        return True
-    return state != "Z"
+    return process_state(pid) != ""
 
 
 def record_path(runtime: Path, session_id: str) -> Path:

@@ -230,7 +230,11 @@ class Device:
         self._thread.start()
 
     def config(self, **changes: object) -> DaqConfig:
+        """The virtual-rig configuration pointed at this device; over a FixedBank,
+        which has no watchdog registers, one saying so (`watchdog: none`)."""
         options: dict[str, object] = {"host": "127.0.0.1", "port": self.port, "timeout": LINK_TIMEOUT, **changes}
+        if isinstance(self.bank, FixedBank):
+            options.setdefault("watchdog", None)
         return dataclasses.replace(load_daq_config(VIRTUAL_RIG), **options)  # type: ignore[arg-type]
 
     def close(self) -> None:

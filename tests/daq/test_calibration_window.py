@@ -39,7 +39,9 @@ def rig_engine(rig: Callable, tmp_path: Path):  # type: ignore[no-untyped-def]
     par = write_par(folder / "lab.par", params)
     r = rig("--par", str(par), "--offset", str(OFFSET), "--speed", "4000")
     config = tmp_path / "rig.yaml"
-    config.write_text(rig_yaml(r.port))
+    # The manual clock steps only while the test says so (not while it types the
+    # heights): a watchdog timeout of a few samples would end Active control.
+    config.write_text(rig_yaml(r.port) + "watchdog: {timeout: 3600}\n")
     engine = build_engine(None, daq=ModbusBackend(load_daq_config(config)), clock="manual",
                           params_dir=folder, logs_dir=tmp_path)
     assert engine.submit(SetOperation("Active")).result().ok

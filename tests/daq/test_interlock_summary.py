@@ -35,7 +35,7 @@ class RigHere(ModbusBackend):
     advances by the loop's sampling time at each sample (elapse)."""
 
     def __init__(self, config: DaqConfig, levels_cm: tuple[float, float, float, float]) -> None:
-        super().__init__(config)
+        super().__init__(config, guard=False)
         self.now = 0.0
         params = read_par(PAR).params
         self.rig = VirtualRig(config, params.plant(), levels_cm, clock=lambda: self.now)
@@ -49,7 +49,8 @@ class RigHere(ModbusBackend):
 
     def _write(self, address: int, values: list[int]) -> list[int]:
         self.rig.write(address, values)
-        self.pump1_volts.append(self.rig.pump_volts[0])
+        if address == self.config.pump_output(1).register.address:  # not the watchdog's settings
+            self.pump1_volts.append(self.rig.pump_volts[0])
         return values
 
     def elapse(self, dt: float) -> None:

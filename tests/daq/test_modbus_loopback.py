@@ -107,12 +107,12 @@ def test_a_rig_slower_than_the_timeout(rig: Callable) -> None:
     backend.close()
 
 
-def test_rig_watchdog_stops_pumps_when_writes_stop(rig: Callable, poll: Callable) -> None:
-    r = rig("--watchdog", "0.4", full_cli=True)  # the `quadtank rig` command itself
+def test_rig_watchdog_stops_pumps_when_requests_stop(rig: Callable, poll: Callable) -> None:
+    r = rig("--watchdog", "0.4", full_cli=True)  # the `quadtank rig` command itself, armed as a program left it
     backend = ModbusBackend(r.config())
     backend.write_pumps((0.5, 0.4))
     assert r.dacs() == pytest.approx((5.0, 4.0))
-    assert "no write for 0.4 s, pumps set to 0" in r.wait_for("watchdog:", timeout=60.0)
+    assert "no request for 0.4 s, DAC0 set to 0 V, DAC1 set to 0 V" in r.wait_for("watchdog:", timeout=60.0)
     assert poll(lambda: r.dacs() == (0.0, 0.0), timeout=30.0)
     backend.close()
 

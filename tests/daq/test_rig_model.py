@@ -71,20 +71,43 @@ def test_watchdog_stops_the_pumps_at_its_deadline() -> None:
     clock.now += 4.1          # 5 s after the write: pumps ran 1 s, then stood still 4 s
     rig.tick()
     assert rig.pump_volts == (0.0, 0.0) and rig.watchdog_trips == 1
-    assert events == ["watchdog: no write for 1 s, pumps set to 0"]
+    assert events == ["watchdog: no request for 1 s, DAC0 set to 0 V, DAC1 set to 0 V"]
     h_expected = advance(advance(H0, (5.0, 5.0), 1.0, P), (0.0, 0.0), 4.0, P)
     assert rig.h == pytest.approx(h_expected, abs=1e-9)
     assert rig.read(1000, 4) == encode(CONFIG.outputs["DAC0"].register, 0.0) * 2
 
 
-def test_regular_writes_keep_the_watchdog_quiet() -> None:
+def test_regular_requests_keep_the_watchdog_quiet() -> None:
+    """As a LabJack's: any request clears its timer, a read as well as a write."""
     clock = FakeClock()
     rig = make(clock, watchdog=1.0)
-    for _ in range(10):
-        write_volts(rig, 3.0, 3.0)
+    write_volts(rig, 3.0, 3.0)
+    for i in range(10):
         clock.now += 0.5
-        rig.tick()
+        if i % 2:
+            write_volts(rig, 3.0, 3.0)
+        else:
+            read_volts(rig)
     assert rig.pump_volts == (3.0, 3.0) and rig.watchdog_trips == 0
+
+
+def test_the_watchdog_is_off_out_of_the_box_and_refuses_settings_while_on() -> None:
+    """Off until armed (a LabJack's factory default); once on, its settings are
+    refused (disable first, as the T-series datasheet says); the feed is not."""
+    clock = FakeClock()
+    rig = make(clock)
+    write_volts(rig, 3.0, 3.0)
+    clock.now += 60.0
+    rig.tick()
+    assert rig.pump_volts == (3.0, 3.0)
+    wd = CONFIG.watchdog
+    assert wd is not None
+    on = make(clock, watchdog=1.0)
+    assert on.read(61600, 2) == encode(wd.enable, 1) and on.read(61604, 2) == encode(wd.timeout_register, 1)
+    with pytest.raises(IllegalAddress):
+        on.write(61604, encode(wd.timeout_register, 5))
+    assert wd.feed is not None
+    on.write(61614, encode(wd.feed, 0))
 
 
 def test_sensor_noise_offset_and_quantization() -> None:

@@ -1,0 +1,231 @@
+"""The guard: a small process of its own that stops the pumps when the program driving them dies.
+
+While a rig is driven (Active control armed, daq/modbus.py), the process driving
+it - a session host, a headless `quadtank run --daq`, a TUI's loop process -
+starts `python -m quadtank_tui.daq.guard` and keeps a pipe to it.  The guard
+watches that process (a pidfd where Linux has one, else polling) and:
+
+- when it ends after saying "bye" on the pipe (an orderly end: it has put the
+  pumps at 0 and disarmed the watchdog itself), ends without a word;
+- when it ends without it (SIGKILL, a crash, the OOM killer), writes each pump
+  output's stop value over a Modbus TCP connection of its own, and says why on
+  its stderr (a session's `<runtime>/<id>.out`, a headless run's terminal);
+- when it stays stopped (SIGSTOP, a debugger) longer than the watchdog timeout,
+  does the same once per stop - a device without a watchdog would pump on - and
+  the program, when it runs again, finds the gap and pauses (daq/modbus.py).
+
+It never writes while the program runs.  It starts its own session (a Ctrl-C or a
+hang-up of the program's terminal does not reach it) and imports nothing heavy:
+the socket, struct and the few lines of Modbus it needs (function 16), so it is
+watching within a fraction of a second of being started.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import socket
+import struct
+import subprocess
+import sys
+import time
+import dataclasses
+from dataclasses import asdict, dataclass
+from typing import IO
+
+from quadtank_tui.files.proc import process_state
+
+#: How often the guard looks whether the program is stopped, s (a read of
+#: /proc/PID/stat: 20 a second cost nothing measurable).
+POLL_S = 0.05
+#: What the program writes on the pipe at an orderly end.
+BYE = b"bye\n"
+
+
+@dataclass(frozen=True)
+class GuardSpec:
+    """What the guard is told: whom to watch and what to write when it dies."""
+
+    pid: int
+    host: str
+    port: int
+    device_id: int
+    timeout: float                      # s per request (the link's)
+    writes: list[tuple[str, int, list[int]]]  # (output, address, words) of each pump's stop value
+    gap: float                          # the watchdog timeout, s: a stop longer than it is acted on
+    who: str = "the program driving the rig"
+    #: (what, address, words) that disarm the device's watchdog once the pumps are at 0
+    #: after the program died (it kept it armed; a next program, `daq calibrate` say,
+    #: would find its pumps stopped after each silence of the timeout)
+    disarm: list[tuple[str, int, list[int]]] = dataclasses.field(default_factory=list)
+
+
+class Guard:
+    """The program's side: start the guard process; `release` at an orderly end."""
+
+    def __init__(self, spec: GuardSpec) -> None:
+        self.spec = spec
+        self._proc = subprocess.Popen(
+            [sys.executable, "-m", "quadtank_tui.daq.guard"], stdin=subprocess.PIPE,
+            stdout=subprocess.DEVNULL, start_new_session=True, close_fds=True,
+        )
+        assert self._proc.stdin is not None
+        self._pipe: IO[bytes] | None = self._proc.stdin
+        self._pipe.write(json.dumps(asdict(spec)).encode() + b"\n")
+        self._pipe.flush()
+
+    @property
+    def pid(self) -> int:
+        return self._proc.pid
+
+    def release(self, wait: float = 1.0) -> None:
+        """The orderly end (pumps already at 0): the guard ends without writing."""
+        if self._pipe is None:
+            return
+        try:
+            self._pipe.write(BYE)
+            self._pipe.close()
+        except OSError:
+            pass
+        self._pipe = None
+        try:
+            self._proc.wait(wait)
+        except subprocess.TimeoutExpired:
+            pass  # it ends by itself; the init process reaps it
+
+
+# --- the guard process ------------------------------------------------------------------------
+
+
+def write_registers(spec: GuardSpec, address: int, words: list[int], tid: int) -> None:
+    """One Modbus TCP write (function 16) on a connection of its own; OSError or
+    ValueError (an exception answer) when it fails."""
+    pdu = struct.pack(f">BHHB{len(words)}H", 16, address, len(words), 2 * len(words), *words)
+    with socket.create_connection((spec.host, spec.port), timeout=spec.timeout) as sock:
+        sock.sendall(struct.pack(">HHHB", tid, 0, len(pdu) + 1, spec.device_id) + pdu)
+        head = _recv(sock, 7)
+        length = struct.unpack(">HHHB", head)[2]
+        body = _recv(sock, length - 1)
+    if body[0] & 0x80:
+        raise ValueError(f"the device answered exception code {body[1] if len(body) > 1 else '?'}")
+
+
+def _recv(sock: socket.socket, n: int) -> bytes:
+    out = b""
+    while len(out) < n:
+        chunk = sock.recv(n - len(out))
+        if not chunk:
+            raise ConnectionError("connection closed")
+        out += chunk
+    return out
+
+
+def stop_pumps(spec: GuardSpec, writes: list[tuple[str, int, list[int]]]) -> list[str]:
+    """Each write (each pump output to its stop value), separately, each tried twice; the errors."""
+    errors = []
+    for tid, (output, address, words) in enumerate(writes, start=1):
+        for attempt in range(2):
+            try:
+                write_registers(spec, address, words, tid)
+                break
+            except (OSError, ValueError) as exc:
+                if attempt:
+                    errors.append(f"{output}: {exc or type(exc).__name__}")
+    return errors
+
+
+class _Watch:
+    def __init__(self, spec: GuardSpec, err: IO[str]) -> None:
+        self.spec = spec
+        self.err = err
+
+    def say(self, text: str) -> None:
+        try:
+            print(f"{time.strftime('%Y-%m-%d %H:%M:%S')} quadtank guard: {text}", file=self.err, flush=True)
+        except OSError:
+            pass
+
+    def act(self, why: str, *, gone: bool) -> None:
+        """The pumps to 0; when the program is `gone`, its watchdog disarmed after."""
+        s = self.spec
+        outs = ", ".join(w[0] for w in s.writes)
+        errors = stop_pumps(s, s.writes)
+        if errors:
+            self.say(f"{why}; could not set the pumps ({outs}) to 0 at {s.host}:{s.port}: "
+                     f"{'; '.join(errors)} - only the device's watchdog stops them now")
+            return
+        disarmed = "" if not (gone and s.disarm) else \
+            "; its watchdog disarmed" if not stop_pumps(s, s.disarm) else "; its watchdog left armed (no answer)"
+        self.say(f"{why}; pumps ({outs}) set to 0 over the guard's own connection to {s.host}:{s.port}{disarmed}")
+
+
+def guard_main(stdin: IO[bytes], err: IO[str]) -> int:
+    """Read the spec, watch, act; returns the exit status."""
+    line = stdin.readline()
+    if not line:
+        return 0
+    raw = json.loads(line)
+    spec = GuardSpec(**{**raw, "writes": [tuple(w) for w in raw["writes"]],
+                        "disarm": [tuple(w) for w in raw.get("disarm", [])]})
+    watch = _Watch(spec, err)
+    fd = stdin.fileno()
+    os.set_blocking(fd, False)
+    try:
+        pidfd: int | None = os.pidfd_open(spec.pid)
+    except (AttributeError, OSError):  # gone already, or no pidfd: poll
+        pidfd = None
+    heard = b""
+    pipe_open = True
+    stopped_since: float | None = None
+    acted_on_stop = False
+    while True:
+        watched = ([fd] if pipe_open else []) + ([pidfd] if pidfd is not None else [])
+        ready: list[int] = select.select(watched, [], [], POLL_S)[0] if watched else []
+        if not watched:
+            time.sleep(POLL_S)
+        if fd in ready or not pipe_open or pidfd in ready:
+            heard, pipe_open = _drain(fd, heard, pipe_open)
+            if BYE.strip() in heard:
+                return 0  # the orderly end: the program put its pumps at 0 itself
+        state = process_state(spec.pid)
+        if not state or (pidfd is not None and pidfd in ready):
+            heard, pipe_open = _drain(fd, heard, pipe_open)
+            if BYE.strip() in heard:
+                return 0
+            watch.act(f"{spec.who} (pid {spec.pid}) ended without stopping its pumps "
+                      "(killed, or it crashed)", gone=True)
+            return 0
+        if state in ("T", "t"):
+            now = time.monotonic()
+            stopped_since = now if stopped_since is None else stopped_since
+            if not acted_on_stop and now - stopped_since >= spec.gap:
+                watch.act(f"{spec.who} (pid {spec.pid}) has been stopped for {now - stopped_since:.1f} s, "
+                          f"longer than the watchdog timeout {spec.gap:g} s", gone=False)
+                acted_on_stop = True
+        else:
+            stopped_since, acted_on_stop = None, False
+
+
+def _drain(fd: int, heard: bytes, pipe_open: bool) -> tuple[bytes, bool]:
+    """What the program wrote since (kept short), and whether the pipe is still open."""
+    if not pipe_open:
+        return heard, False
+    try:
+        while True:
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                return heard, False
+            heard = (heard + chunk)[-64:]
+    except BlockingIOError:
+        return heard, True
+    except OSError:
+        return heard, False
+
+
+if __name__ == "__main__":  # pragma: no cover - the guard process
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGHUP, signal.SIGTSTP):
+        signal.signal(sig, signal.SIG_IGN)
+    raise SystemExit(guard_main(sys.stdin.buffer, sys.stderr))

@@ -1,0 +1,170 @@
+"""The DAQ's own watchdog: declared by the configuration, armed by Active control,
+disarmed at an orderly end, and a silence longer than its timeout ending Active
+control.  In process: a virtual rig on the test's clock behind our Modbus server."""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import pytest
+
+from quadtank_tui.commands.sessions import format_table
+from quadtank_tui.core.plant import P_MINUS
+from quadtank_tui.daq.config import DaqConfigError, load_daq_config, parse_daq_config
+from quadtank_tui.daq.modbus import ModbusBackend
+from quadtank_tui.daq.registers import Register
+from quadtank_tui.daq.rig import VirtualRig
+from quadtank_tui.engine.backend import BackendError
+from quadtank_tui.session.info import SessionInfo
+from daqkit import VIRTUAL_RIG
+
+U32 = "uint32"
+
+
+def test_the_labjack_preset_declares_the_t_series_watchdog_registers() -> None:
+    """The addresses of LabJack's Modbus map (T-Series datasheet 23.0)."""
+    wd = load_daq_config("labjack").watchdog
+    assert wd is not None
+    assert wd.enable == Register("holding", 61600, U32)           # WATCHDOG_ENABLE_DEFAULT
+    assert wd.timeout_register == Register("holding", 61604, U32)  # WATCHDOG_TIMEOUT_S_DEFAULT
+    assert wd.feed == Register("holding", 61614, U32)             # WATCHDOG_STRICT_CLEAR
+    assert [(a.output, a.enable, a.value) for a in wd.actions] == [
+        ("DAC0", Register("holding", 61640, U32), Register("holding", 61642, "float32")),
+        ("DAC1", Register("holding", 61650, U32), Register("holding", 61652, "float32"))]
+    # a few samples, at least 1 s, in the whole seconds the register holds
+    assert [wd.timeout_for(ts) for ts in (0.01, 0.1, 0.5, 0.7, 10.0)] == [1.0, 1.0, 1.0, 2.0, 20.0]
+
+
+@pytest.mark.parametrize("section, message", [
+    ("watchdog:\n  timeout: soon\n", "x.yaml:4: watchdog.timeout: must be a number, got 'soon'"),
+    ("watchdog:\n  enable: {address: 1002}\n",
+     "x.yaml:4: watchdog.enable.address: holding register 1002 is also used by outputs.DAC1"),
+    ("watchdog:\n  outputs: {DAC9: {value: {address: 7}}}\n",
+     "x.yaml:4: watchdog.outputs.DAC9: DAC9 is not one of the outputs (DAC0, DAC1)"),
+    ("watchdog: [61600]\n", "x.yaml:3: watchdog: must be the device's watchdog registers (a mapping) or none, "
+                            "got [61600]"),
+])
+def test_a_bad_watchdog_section_is_refused_with_file_line_and_key(section: str, message: str) -> None:
+    with pytest.raises(DaqConfigError) as err:
+        parse_daq_config("preset: labjack\nhost: 10.0.0.2\n" + section, name="x.yaml")
+    assert str(err.value) == message
+
+
+def test_a_device_without_one_is_said_to_have_none(capsys: pytest.CaptureFixture[str]) -> None:
+    plc = load_daq_config("params/daq-plc-example.yaml")
+    assert plc.watchdog is None
+    assert plc.watchdog_line() == ("watchdog: none declared by params/daq-plc-example.yaml: if this program dies "
+                                   "its guard stops the pumps; if the computer dies or hangs, nothing does")
+    from quadtank_tui.daq.cli import open_daq
+
+    open_daq("params/daq-plc-example.yaml")
+    assert capsys.readouterr().err == f"quadtank: warning: {plc.watchdog_line()}\n"
+    info = SessionInfo(id="ann-1", owner="ann", uid=1000, pid=1, started="2026-11-26T10:00:00", plant="quadtank",
+                       operation="Active", daq="params/daq-plc-example.yaml", watchdog="none")
+    assert "  Active (no watchdog)  " in format_table([info])
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def _rig_and_backend(device: Callable[..., Any]) -> tuple[Clock, VirtualRig, ModbusBackend, list[int]]:
+    clock = Clock()
+    config = load_daq_config(VIRTUAL_RIG)
+    rig = VirtualRig(config, P_MINUS.params, P_MINUS.op.h, clock=clock)
+    written: list[int] = []
+    write = rig.write
+    rig.write = lambda address, values: (written.append(address), write(address, values))[1]  # type: ignore[method-assign]
+    d = device((0.0,) * 4, bank=rig)
+    return clock, rig, ModbusBackend(d.config(), clock=clock, guard=False), written
+
+
+def test_active_control_arms_the_watchdog_and_an_orderly_end_disarms_it(device: Callable[..., Any]) -> None:
+    clock, rig, backend, written = _rig_and_backend(device)
+    wd = rig.watchdog
+    assert wd is not None and not wd.enabled          # off out of the box
+    backend.arm(0.7)                                  # 2 Ts = 1.4 s: 2 whole seconds
+    backend.write_pumps((0.3, 0.3))
+    assert wd.enabled and wd.timeout == 2.0 and wd.actions() == [("DAC0", 0.0), ("DAC1", 0.0)]
+    # the settings that differ (the values on timeout are 0 V already), then on, then the pumps
+    assert written == [61604, 61640, 61650, 61600, 1000]
+    clock.now += 1.9                                  # traffic within the timeout: quiet
+    backend.read_levels()
+    clock.now += 1.9
+    rig.tick()
+    assert rig.pump_volts == (3.0, 3.0)
+    clock.now += 0.2                                  # 2.1 s of silence: the device stops the pumps
+    rig.tick()
+    assert rig.pump_volts == (0.0, 0.0) and rig.watchdog_trips == 1
+    backend.close()
+    assert not wd.enabled
+    written.clear()
+    backend.arm(0.7)                                  # armed again: only the enable differs (flash)
+    backend.read_levels()
+    assert written == [61600] and wd.enabled
+    backend.read_levels()
+    assert written == [61600, 61614]                  # the feed, as often as a quarter of the timeout
+    backend.safe_state()
+    backend.close()
+
+
+def test_a_silence_longer_than_the_timeout_ends_active_control(device: Callable[..., Any]) -> None:
+    """The program stopped (SIGSTOP) or the machine suspended: the next sample is
+    refused, never a silent return to the outputs of before."""
+    clock, rig, backend, _ = _rig_and_backend(device)
+    backend.arm(0.1)
+    backend.write_pumps((0.3, 0.3))
+    clock.now += 0.9
+    backend.read_levels()                             # 0.9 s: within the 1 s timeout
+    clock.now += 32.9
+    with pytest.raises(BackendError, match=r"^no request reached the rig for 32\.9 s, longer than the watchdog "
+                       r"timeout 1 s .*its watchdog has set the pumps to 0\. Active control ends here"):
+        backend.write_pumps((0.3, 0.3))
+    rig.tick()
+    assert rig.pump_volts == (0.0, 0.0)              # the device's watchdog did meanwhile
+    backend.safe_state()
+    backend.write_pumps((0.3, 0.3))                   # Run again: it drives again
+    assert rig.pump_volts == (3.0, 3.0)
+    backend.safe_state()
+    backend.close()
+
+
+def test_the_guard_of_a_dead_program_stops_the_pumps_and_disarms_the_watchdog(device: Callable[..., Any]) -> None:
+    """The guard's work, in process: the program it watches is gone without a
+    'bye'; it writes each pump's stop value and then disarms the watchdog the
+    program had armed (a next program would find its pumps stopped after each
+    silence), and says so."""
+    import io
+    import json
+    import os
+    import subprocess
+    from dataclasses import asdict
+
+    from quadtank_tui.daq.guard import GuardSpec, guard_main
+
+    clock, rig, backend, _ = _rig_and_backend(device)
+    backend.arm(0.1)
+    backend.write_pumps((0.3, 0.4))
+    assert rig.watchdog is not None and rig.watchdog.enabled and rig.pump_volts == (3.0, 4.0)
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    c = backend.config
+    spec = GuardSpec(dead.pid, c.host, c.port, c.device_id, c.timeout,
+                     [("DAC0", 1000, [0, 0]), ("DAC1", 1002, [0, 0])], 1.0,
+                     disarm=[("watchdog enable", 61600, [0, 0])])
+    r, w = os.pipe()
+    os.write(w, json.dumps(asdict(spec)).encode() + b"\n")
+    os.close(w)
+    said = io.StringIO()
+    with os.fdopen(r, "rb") as pipe:
+        assert guard_main(pipe, said) == 0
+    assert rig.pump_volts == (0.0, 0.0) and not rig.watchdog.enabled
+    assert said.getvalue().endswith(
+        f"quadtank guard: the program driving the rig (pid {dead.pid}) ended without stopping its pumps (killed, "
+        f"or it crashed); pumps (DAC0, DAC1) set to 0 over the guard's own connection to 127.0.0.1:{c.port}; "
+        "its watchdog disarmed\n")
+    backend.close()
