@@ -196,6 +196,7 @@ class MainScreen(CommandSender):
         self.refresh_view()
         self._interval = self.refresh_interval
         self._timer = self.set_interval(self._interval, self._tick)
+        self.ghost.restore()  # the ghost this user showed on this session, on a re-attach
         self.call_after_refresh(self.run_worker, partial(_warm_up, self.snap.params.simulation), thread=True,
                                 group="warm-up", exit_on_error=False)
 
