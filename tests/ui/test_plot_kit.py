@@ -182,3 +182,22 @@ def check_identify_plots(screen: Any) -> None:
     assert set(legend_colours(low).values()) == colours_drawn(lags)  # stems and the band
     axis = next(line for r in reversed(lags) if re.search(r"\d", line := "".join(c for c, _ in r)))
     assert re.findall(r"-?\d+(?:\.\d+)?", axis) == ["0", "5", "10", "15", "20", "25"]
+
+
+def test_every_hue_of_the_palette_is_readable_on_its_theme_background() -> None:
+    """WCAG 3:1 for graphics, for the hues Identify and Design draw with too (the
+    trends' signals are checked in test_trend_view)."""
+    from textual.color import Color
+    from textual.theme import BUILTIN_THEMES
+
+    from quadtank_tui.ui import colours
+    from quadtank_tui.ui.widgets.trend_style import contrast
+
+    hues = [h for h in vars(colours).values() if isinstance(h, colours.Hue)]
+    assert len(hues) == 7
+    for name, theme in BUILTIN_THEMES.items():
+        if name.startswith(("ansi", "textual-ansi")):
+            continue
+        surface = Color.parse(theme.to_color_system().generate()["surface"]).rgb
+        for hue in hues:
+            assert contrast(hue.rgb(theme.dark), surface) >= 3.0, (name, hue.name)
