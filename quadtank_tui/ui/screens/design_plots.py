@@ -51,7 +51,7 @@ def draw_nyquist(plot: PlotextPlot, p: DesignPlots, dark: bool, no_color: bool) 
                   marker=circle.marker, color=circle.color)
     plot.plt.plot(p.L.real.tolist(), p.L.imag.tolist(), marker=loop.marker, color=loop.color)
     plot.plt.scatter([-1.0], [0.0], marker="x", color=critical.color)
-    kit.axes(plot.plt, NYQUIST_RE, NYQUIST_IM, width, height, pad=0.0)
+    kit.axes(plot.plt, NYQUIST_RE, NYQUIST_IM, width, height)
     plot.border_title = kit.legend([loop, circle]) + f" Ms {p.ms:.2f}, x -1"
 
 
@@ -65,10 +65,9 @@ def draw_sensitivity(plot: PlotextPlot, p: DesignPlots, dark: bool, no_color: bo
     kit.draw(plot.plt, lw, np.abs(p.T), t, width)
     kit.draw(plot.plt, lw, np.abs(p.S), s, width)
     top = max(p.ms, float(np.abs(p.S).max()), float(np.abs(p.T).max()))
-    kit.axes(plot.plt, (float(lw[0]), float(lw[-1])), (0.0, top), width, height)
+    kit.axes(plot.plt, (float(lw[0]), float(lw[-1])), (0.0, top), width, height, xlabel="ω (rad/s)")
     decades = [float(k) for k in range(math.ceil(lw[0]), math.floor(lw[-1]) + 1)]
     plot.plt.xticks(decades, [f"{10.0 ** k:g}" for k in decades])
-    plot.plt.xlabel("ω (rad/s)")
     plot.border_title = kit.legend([s, t, line]) + f" {p.ms:.2f}"
 
 
@@ -80,8 +79,8 @@ def draw_load_step(plot: PlotextPlot, resp: Response, dark: bool, no_color: bool
     kit.draw(plot.plt, resp.t, resp.u / scale, u, width)
     kit.draw(plot.plt, resp.t, resp.y / scale, y, width)
     both = np.concatenate([resp.y, resp.u]) / scale
-    kit.axes(plot.plt, (0.0, float(resp.t[-1])), (float(both.min()), float(both.max())), width, height)
-    plot.plt.xlabel("t (s)")
+    kit.axes(plot.plt, (0.0, float(resp.t[-1])), (float(both.min()), float(both.max())), width, height,
+             xlabel="t (s)")
     plot.border_title = kit.legend([y, u], "Load step at u: ")
 
 
@@ -99,8 +98,8 @@ def draw_reference_steps(plot: PlotextPlot, steps: dict[int, Response], dark: bo
         inside = steps[i].t <= end
         kit.draw(plot.plt, steps[i].t[inside], steps[i].y[inside], st, width)
     top = max(1.0, *(float(r.y.max()) for r in steps.values()))
-    kit.axes(plot.plt, (0.0, end), (min(0.0, *(float(r.y.min()) for r in steps.values())), top), width, height)
-    plot.plt.xlabel("t (s)")
+    kit.axes(plot.plt, (0.0, end), (min(0.0, *(float(r.y.min()) for r in steps.values())), top), width, height,
+             xlabel="t (s)")
     plot.border_title = kit.legend(drawn[1:] + drawn[:1], "Reference step: ")
 
 

@@ -186,7 +186,8 @@ class IdentifyScreen(Screen[None]):
             kit.draw(top.plt, t, log[st.series.label], st, width)
         if shown:
             values = np.concatenate([log[n] for n in shown])
-            kit.axes(top.plt, (0.0, float(t[-1])), (float(values.min()), float(values.max())), width, height)
+            kit.axes(top.plt, (0.0, float(t[-1])), (float(values.min()), float(values.max())), width, height,
+                     xlabel="t (s)")
         top.border_title = kit.legend(drawn, f"{Path(path).name}: {log.rows} rows at {h:g} s: ")
         top.plt.xlabel("t (s)")
         top.refresh()
@@ -345,12 +346,11 @@ class IdentifyScreen(Screen[None]):
                 kit.draw(top.plt, t, y, st, top.size.width)
             both = np.concatenate([e.y, e.ym])
             kit.axes(top.plt, (0.0, float(t[-1])), (float(np.nanmin(both)), float(np.nanmax(both))),
-                     top.size.width, top.size.height)
+                     top.size.width, top.size.height, xlabel="t (s)")
             if e.split:
                 top.plt.vline(float(t[e.split]), None if no_color else GREY.rgb(dark))
             top.border_title = kit.legend(drawn[::-1], f"{name}: ") + Content(
                 f"  fit {e.fit_percent:.1f} % past the line")
-            top.plt.xlabel("t (s)")
             width, height = low.size.width, low.size.height
             if self.lower == "residuals":
                 band_style, r_style = kit.styles([Series("99 % band", GREY, dotted=True),
@@ -366,7 +366,7 @@ class IdentifyScreen(Screen[None]):
                         low.plt.plot([lag, lag], [0.0, value], marker=r_style.marker, color=r_style.color)
                     kit.axes(low.plt, (float(lags[0]) - 0.5, float(lags[-1]) + 0.5),
                              (min(-band, float(r.min())), max(band, float(r.max()))), width, height,
-                             whole_x=True)
+                             whole_x=True, xlabel="lag (samples)")
                 low.plt.xlabel("lag (samples)")
             elif self.lower == "frequency":
                 w, est, mod = view.frequency[key]
@@ -377,18 +377,17 @@ class IdentifyScreen(Screen[None]):
                     kit.draw(low.plt, lw, np.log10(g), st, width)
                 both = np.log10(np.concatenate([est, mod]))
                 kit.axes(low.plt, (float(lw.min()), float(lw.max())),
-                         (float(np.nanmin(both)), float(np.nanmax(both))), width, height)
+                         (float(np.nanmin(both)), float(np.nanmax(both))), width, height,
+                         xlabel="log10 ω (rad/s)")
                 low.border_title = kit.legend(drawn[::-1], f"log10 |{name}(iω)|: ")
-                low.plt.xlabel("log10 ω (rad/s)")
             else:
                 f, c = view.coherence[key]
                 keep = f <= 0.1  # the thesis's range: a linear model holds up to 0.05-0.1 Hz
                 (st,) = kit.styles([Series(f"coherence {key[1]} -> {key[0]}", BLUE)], dark=dark,
                                    no_color=no_color)
                 kit.draw(low.plt, f[keep], c[keep], st, width)
-                kit.axes(low.plt, (0.0, 0.1), (0.0, 1.0), width, height)
+                kit.axes(low.plt, (0.0, 0.1), (0.0, 1.0), width, height, xlabel="f (Hz)")
                 low.border_title = kit.legend([st]) + " (Hamming window, 720 points)"
-                low.plt.xlabel("f (Hz)")
         top.refresh()
         low.refresh()
 

@@ -24,14 +24,17 @@ import numpy as np
 from textual.content import Content
 
 from quadtank_tui.ui.colours import RGB, Hue
+from quadtank_tui.ui.widgets.trend_style import DOT_GAP
+from quadtank_tui.ui.widgets.trends import y_axis
 
 #: Without colour, series draw with these characters in turn; dotted ones with dots.
 MARKERS = ("*", "+", "o", "x")
 DOTTED_MARKER = "·"
 #: A legend's sample of a solid and of a dotted line.
 LINE_SOLID, LINE_DOTTED = "━", "┈"
-#: Columns between the dots of a dotted series.
-DOT_GAP = 2
+#: Rows of a framed plotext plot that are not canvas: the frame's top and bottom
+#: lines and the x tick labels (the x label takes one more).
+FRAME_ROWS = 3
 
 
 @dataclass(frozen=True)
@@ -130,19 +133,24 @@ def draw(plt: Any, x: np.ndarray, y: np.ndarray, style: Style, columns: int) -> 
 
 
 def axes(plt: Any, xlim: tuple[float, float], ylim: tuple[float, float], width: int, height: int, *,
-         whole_x: bool = False, pad: float = 0.05) -> None:
-    """Limits and round ticks on both axes for a plot of width x height cells
-    (about a label every 8 columns and every 3 rows); y gets `pad` of its span
-    above and below so a curve on the limit is not drawn on the frame."""
+         whole_x: bool = False, xlabel: str | None = None) -> None:
+    """Limits and round ticks on both axes for a framed plot of width x height
+    cells (a label every 8 columns or more), and the x label.  The y axis is laid
+    out as the trends' (trends.y_axis): each row stands for one round value and
+    every label sits on the row whose dots show its value, so a curve is read
+    off its labels to within a row (plotext's own rounding put a label up to a
+    row away from its value)."""
     y_lo, y_hi = ylim
     if not y_hi > y_lo:
         y_lo, y_hi = y_lo - 0.5, y_hi + 0.5
-    span = y_hi - y_lo
-    y_lo, y_hi = y_lo - pad * span, y_hi + pad * span
-    yv, yl = round_ticks(y_lo, y_hi, max(2, (height - 3) // 3))
+    rows = height - FRAME_ROWS - (xlabel is not None)
+    ya = y_axis(y_lo, y_hi, rows, min_span=(y_hi - y_lo) * 1e-3)
     x_lo, x_hi = xlim
-    xv, xl = round_ticks(x_lo, x_hi, max(2, (width - max(map(len, yl)) - 3) // 8), whole=whole_x)
+    xv, xl = round_ticks(x_lo, x_hi, max(2, (width - max(map(len, ya.labels), default=1) - 3) // 8),
+                         whole=whole_x)
     plt.xlim(x_lo, x_hi)
-    plt.ylim(y_lo, y_hi)
+    plt.ylim(ya.lo, ya.hi)
     plt.xticks(xv, xl)
-    plt.yticks(yv, yl)
+    plt.yticks(list(ya.ticks), list(ya.labels))
+    if xlabel is not None:
+        plt.xlabel(xlabel)

@@ -39,8 +39,7 @@ from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.files.ghost import LoggedRun
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.widgets.trend_clock import ClockMap, Ticks, clock_ticks, process_ticks, wall_label
-from quadtank_tui.ui.widgets.plot_kit import DOT_GAP
-from quadtank_tui.ui.widgets.trend_style import TraceStyle, trace_styles
+from quadtank_tui.ui.widgets.trend_style import DOT_GAP, TraceStyle, trace_styles
 
 #: Time windows the `z` key cycles through, s.
 WINDOWS = (120.0, 300.0, 600.0, 1800.0)
