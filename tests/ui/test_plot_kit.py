@@ -160,7 +160,7 @@ async def test_design_plots_match_their_legends_and_read_back(engine: Any) -> No
         for colour in (BLUE.rgb(dark), RED.rgb(dark)):
             (row,) = rows_of(rows, colour, last) or rows_of(rows, colour, last - 1)
             assert value_of_row(rows, row) == pytest.approx(1.0, abs=0.1)
-        await pilot.press("v")  # |S| |T| with the Ms line, and the load step
+        await pilot.press("b")  # |S| |T| with the Ms line, and the load step
         await pilot.pause()
         bode = screen.query_one("#nyquist", PlotextPlot)
         assert set(legend_colours(bode)) == {"|S|", "|T|", "Ms"}
