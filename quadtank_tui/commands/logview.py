@@ -88,20 +88,38 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
 def render_plot(log: LogData, t: np.ndarray, names: Sequence[str], width: int, height: int, *,
                 colour: bool, title: str) -> str:
-    """A title line naming each curve in its colour, then the plot, `height` rows."""
+    """A title line naming each curve in its colour, then the plot, `height` rows.
+
+    Without colour (a pipe, NO_COLOR) several curves draw with a character each
+    (* + o x, references ·), named in the title; one curve keeps braille.  The
+    references (r1, r2) are drawn first and dotted, the levels over them."""
     import plotext as plt
 
-    from quadtank_tui.ui.widgets.trend_style import DARK
-    from quadtank_tui.ui.widgets.trends import AXIS_ROWS, y_axis
+    from quadtank_tui.ui.colours import BLUE, CYAN, GREEN, GREY, MAGENTA, ORANGE, RED, SIGNALS
+    from quadtank_tui.ui.widgets.plot_kit import DOT_GAP, DOTTED_MARKER, MARKERS
+    from quadtank_tui.ui.widgets.trends import AXIS_ROWS, decimate, y_axis
 
     # The trends' own colours (as on a dark terminal), so a curve has the same
-    # colour here as on Main.
-    palette: list[str | tuple[int, int, int]] = [DARK.get(n, c) for n, c in zip(names, _SPARE_COLOURS)]
+    # colour here as on Main; other columns take the palette's hues in turn.
+    spare = (BLUE, RED, GREEN, ORANGE, CYAN, MAGENTA, GREY)
+    palette = [SIGNALS.get(n.replace("r", "ref") if n in ("r1", "r2") else n, h).dark
+               for n, h in zip(names, spare * (len(names) // len(spare) + 1))]
+    reference = [n in ("r1", "r2") for n in names]
+    solid = [n for n, ref in zip(names, reference) if not ref]
+    markers = {n: (DOTTED_MARKER if ref else MARKERS[solid.index(n) % len(MARKERS)]) for n, ref in zip(names, reference)}
+    marked = not colour and len(names) > 1
     plt.clear_figure()
     plt.limitsize(False, False)  # the size asked, not capped at the terminal's
     plt.plotsize(width, height - 1)
-    for name, c in zip(names, palette):
-        plt.plot(t.tolist(), log[name].tolist(), marker="braille", color=c)
+    order = sorted(range(len(names)), key=lambda i: not reference[i])
+    for i in order:
+        name, c = names[i], palette[i]
+        marker = markers[name] if marked else "braille"
+        if reference[i]:
+            keep = decimate(len(t), max(1, width // DOT_GAP))
+            plt.scatter(t[keep].tolist(), log[name][keep].tolist(), marker=marker, color=c)
+        else:
+            plt.plot(t.tolist(), log[name].tolist(), marker=marker, color=c)
     values = [float(v) for n in names for v in (log[n].min(), log[n].max())]
     axis = y_axis(min(values), max(values), height - 1 - AXIS_ROWS)
     plt.ylim(axis.lo, axis.hi)
@@ -117,20 +135,16 @@ def render_plot(log: LogData, t: np.ndarray, names: Sequence[str], width: int, h
     lines = [line.rstrip() for line in drawing.splitlines()]
     while lines and not lines[-1]:
         lines.pop()
-    legend = "  ".join(_in_colour(n, c, colour) for n, c in zip(names, palette))
+    legend = "  ".join(f"{markers[n]} {n}" if marked else _in_colour(n, c, colour) for n, c in zip(names, palette))
     return "\n".join([f"{title}  {legend}  (t in s)", *lines])
 
 
-#: Colours for columns the trends have none for.
-_SPARE_COLOURS = ("blue", "red", "green", "orange", "cyan", "magenta", "yellow", "white", "gray")
-
-
-def _in_colour(text: str, colour_name: str | tuple[int, int, int], colour: bool) -> str:
+def _in_colour(text: str, rgb: tuple[int, int, int], colour: bool) -> str:
     if not colour:
         return text
     import plotext as plt
 
-    return str(plt.colorize(text, colour_name))
+    return str(plt.colorize(text, rgb))
 
 
 def time_ticks(t0: float, t1: float, width: int) -> list[float]:

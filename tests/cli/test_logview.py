@@ -118,3 +118,26 @@ def test_bad_logs_are_one_line_naming_file_and_line(tmp_path: Path, capsys: pyte
     for key, path in paths.items():
         expected = expected.replace(key, str(path))
     assert capsys.readouterr().err.splitlines()[-1] == f"quadtank: error: {expected}"
+
+
+def test_plot_without_colour_tells_curves_apart_by_marker(tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 28: without colour each curve has its character, named in the title;
+    the reference is dotted and the level drawn over it."""
+    log = tmp_path / "two.log"
+    log.write_text(format_header(("t", "y1", "r1"), 0.5, datetime(2026, 1, 5))
+                   + "".join(format_row((0.5 * k, 0.4, 0.6)) for k in range(240)))
+    assert main(["log", "plot", str(log), "--vars", "y1", "r1", "--width", "80", "--height", "20"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"{log}  * y1  · r1  (t in s)"
+    rows = [(_ROW.match(line), line) for line in lines[1:]]
+    labels = {i: float(m.group(1)) for i, (m, _) in enumerate(rows) if m and m.group(1)}
+    (top, v_top), (bottom, v_bottom) = min(labels.items()), max(labels.items())
+    per_row = (v_bottom - v_top) / (bottom - top)
+    for marker, level in (("*", 0.4), ("·", 0.6)):
+        (row,) = [i for i, (m, _) in enumerate(rows) if m and marker in m.group(2)]
+        assert abs(v_top + (row - top) * per_row - level) <= abs(per_row) / 2
+        plotted = rows[row][0]
+        assert plotted is not None
+        if marker == "·":  # dotted: a dot every DOT_GAP columns, not a line
+            assert 20 <= plotted.group(2).count("·") <= 45

@@ -16,6 +16,7 @@ from quadtank_tui.core.plant import P_MINUS, steady_state_levels
 from quadtank_tui.files.log import format_header, format_row
 from quadtank_tui.files.model import read_model
 from quadtank_tui.ui.screens.identify import IdentifyScreen
+from test_plot_kit import check_identify_plots
 
 from bursts import burst  # noqa: E402
 
@@ -90,6 +91,7 @@ async def test_fit_compares_keeps_and_returns(app) -> None:  # type: ignore[no-u
         w, est, mod = screen.view.frequency[("y1", "u1")]
         assert w.size == est.size == mod.size == 72 and w.max() == pytest.approx(2 * np.pi * 0.1)
         assert mod[0] == pytest.approx(2.596 / abs(1 + 62.36j * w[0]), rel=0.01)
+        check_identify_plots(screen)
         await pilot.press("v", "v")
         await pilot.pause()
         assert "spectral estimate" in str(screen.query_one("#lower").border_title)

@@ -5,7 +5,9 @@ yesterday's.
 `GhostControl` is the Main screen's part: it opens the window, reads the file in
 a worker (files/ghost.py does the reading), and works out where the ghost's
 first row goes: at the current log's LogOn (until there is one, where the
-process was when it was loaded) or at a chosen process time.
+process was when it was loaded) or at a chosen process time.  On a session the
+choice is remembered for this user (files/ghost_memory.py) and drawn again when a
+client re-attaches to the same session.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from textual.app import App
 
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.ghost import LoggedRun, load_run, logs_newest_first
+from quadtank_tui.files.ghost_memory import RememberedGhost, recall, remember
 from quadtank_tui.files.log import LogFileError
 from quadtank_tui.ui.ghost.window import GhostChoice, GhostWindow
 
@@ -78,13 +81,29 @@ class GhostControl:
         window = GhostWindow(logs_newest_first(self.folder()), at=self.at, now=now, opener="b")
         self.screen.app.push_screen(window, self._chosen)
 
+    def session(self) -> str | None:
+        """The key the ghost is remembered under: the session's id and start, when
+        the screen shows a session (its engine is a session client), else None."""
+        info = getattr(self.screen.engine, "info", None)
+        ident, started = getattr(info, "id", None), getattr(info, "started", None)
+        return f"{ident} {started}" if isinstance(ident, str) and isinstance(started, str) else None
+
+    def restore(self) -> None:
+        """Draw again the ghost this user showed on this session (a re-attach)."""
+        session = self.session()
+        remembered = recall(session) if session is not None else None
+        if remembered is not None:
+            choice = GhostChoice(Path(remembered.path), remembered.at)
+            self.screen.run_worker(lambda: self._load(choice, remembered.loaded_at), thread=True,
+                                   group="ghost", exclusive=True, exit_on_error=False)
+
     def _chosen(self, choice: GhostChoice | None) -> None:
         if choice is None:
             return
         self.screen.run_worker(lambda: self._load(choice), thread=True, group="ghost",
                                exclusive=True, exit_on_error=False)
 
-    def _load(self, choice: GhostChoice) -> None:
+    def _load(self, choice: GhostChoice, loaded_at: float | None = None) -> None:
         """In a worker thread: read the file, then hand it to the screen."""
         try:
             run = load_run(choice.path)
@@ -93,11 +112,16 @@ class GhostControl:
             self.screen.app.call_from_thread(self.screen.notify, f"Ghost run: {exc}",
                                              severity="error", timeout=8, markup=False)
             return
-        self.screen.app.call_from_thread(self.loaded, run, choice.at)
+        self.screen.app.call_from_thread(self.loaded, run, choice.at, loaded_at, choice.path)
 
-    def loaded(self, run: LoggedRun, at: float | None) -> None:
+    def loaded(self, run: LoggedRun, at: float | None, loaded_at: float | None = None,
+               path: Path | None = None) -> None:
+        """`loaded_at`: the process time it was first loaded at (a restored ghost)."""
         self.run, self.at = run, at
-        self._loaded_at = self.screen.current().t
+        self._loaded_at = self.screen.current().t if loaded_at is None else loaded_at
+        session = self.session()
+        if session is not None and path is not None:
+            remember(session, RememberedGhost(str(Path(path).resolve()), at, self._loaded_at))
         if at is not None:
             where = f"from t = {at:g} s"
         elif self._logon is not None:
@@ -111,4 +135,7 @@ class GhostControl:
     def clear(self) -> None:
         if self.run is not None:
             self.run = None
+            session = self.session()
+            if session is not None:
+                remember(session, None)
             self.screen.refresh_view()

@@ -36,6 +36,8 @@ from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.design_inputs import InputError, format_values, parse_lambdas, parse_ms
 from quadtank_tui.ui.model_text import model_text
+from quadtank_tui.ui.screens.design_plots import (DesignPlots, draw_load_step, draw_nyquist,
+                                                  draw_reference_steps, draw_sensitivity)
 from quadtank_tui.ui.screens.sending import CommandSender
 from quadtank_tui.ui.widgets.candidates_table import CandidatesTable, label
 
@@ -89,6 +91,7 @@ class DesignScreen(CommandSender):
         Binding("A", "apply", "Apply"),
         Binding("p", "physical", "Physical models", show=False),
         Binding("v", "plots", "Plots"),  # only below NARROW columns (check_action)
+        Binding("b", "bode", "Bode/steps"),
         Binding("E", "export_figure", "Export figure", show=False,
                 tooltip="The chosen controllers' step, |S| |T| and Nyquist plots as a PNG in the logs folder"),
     ]
@@ -107,6 +110,9 @@ class DesignScreen(CommandSender):
         self.identified_name = identified_name
         self.G: Matrix | None = None  # the 2x2 DelayTF matrix of the 2x2 design and check
         self.source = "the physical linearization"  # what G is, for messages
+        self.frequency_view = False  # b: |S| |T| and the load step instead of Nyquist and the steps
+        self._plots: DesignPlots | None = None
+        self._plot_args: tuple[DelayTF, PID, float | None] | None = None  # the candidate on show
 
     def compose(self) -> ComposeResult:
         yield Static(id="design-status")
@@ -136,8 +142,8 @@ class DesignScreen(CommandSender):
         yield Footer()
 
     def on_mount(self) -> None:
-        self.query_one("#nyquist", PlotextPlot).border_title = "Nyquist L(iω), circle 1/Ms around -1"
-        self.query_one("#response", PlotextPlot).border_title = "Load step at the input: y (blue), u (red)"
+        self.query_one("#nyquist", PlotextPlot).border_title = "Nyquist L(iω)"
+        self.query_one("#response", PlotextPlot).border_title = "Reference steps"
         self._show_tuning()
         if self.identified is not None:
             self.action_identified()
@@ -353,7 +359,8 @@ class DesignScreen(CommandSender):
         if row is not None and row.error:
             self._status(f"{label(row)}: {row.error}")
         if row is not None and row.controller is not None and model is not None:
-            self._compute_plots(model, row.controller, row.parameter if row.method != "lambda" else None)
+            self._plot_args = (model, row.controller, row.parameter if row.method != "lambda" else None)
+            self._compute_plots(*self._plot_args)
 
     @on(CandidatesTable.RowSelected, "#design-table")
     def row_selected(self, event: CandidatesTable.RowSelected) -> None:
@@ -373,11 +380,17 @@ class DesignScreen(CommandSender):
             mark = "▸" if i == self.loop else " "
             lines.append(f"{mark} loop {i}: {what}")
         self.query_one("#design-chosen", Static).update("\n".join(lines))
+        if self._plot_args is not None:  # the reference steps show the chosen pair
+            self._compute_plots(*self._plot_args)
 
     # --- plots ---------------------------------------------------------------------
 
     @work(thread=True, exclusive=True, group="plots")
     def _compute_plots(self, model: DelayTF, c: PID, ms: float | None) -> None:
+        """The highlighted candidate's Nyquist curve, |S| and |T|, load step, and
+        the reference step of each loop with its controller: the highlighted one
+        for this loop, the chosen one for the other (so `_show_chosen` runs it
+        again: a choice changes the other loop's step)."""
         from quadtank_tui.core.design.evaluate import load_size, settled_response
         from quadtank_tui.core.design.frequency import frequency_grid, margins
 
@@ -386,28 +399,40 @@ class DesignScreen(CommandSender):
         w = frequency_grid(loop_tf, points=600, decades=2.0)
         L = loop_tf.freqresp(w)
         keep = np.abs(L + 1.0) < 4.0
-        resp = settled_response(model, c, m, d=load_size(model))
-        self.app.call_from_thread(self._draw_plots, L[keep], resp, ms or m.Ms)
+        load = settled_response(model, c, m, d=load_size(model))
+        steps: dict[int, Response] = {}
+        for i in (1, 2):
+            other = self.loops[i]
+            g, ci = (model, c) if i == self.loop else (other.model, other.chosen)
+            if g is not None and ci is not None:
+                try:
+                    steps[i] = settled_response(g, ci, margins(ci.loop(g)), r=1.0)
+                except ValueError:  # an unstable or unsimulable loop: not drawn
+                    pass
+        plots = DesignPlots(L[keep], w, 1.0 / (1.0 + L), L / (1.0 + L), load, steps, ms or m.Ms)
+        self.app.call_from_thread(self._draw_plots, plots)
 
-    def _draw_plots(self, L: np.ndarray, resp: Response, ms: float) -> None:
-        ny = self.query_one("#nyquist", PlotextPlot)
-        plt = ny.plt
-        plt.clear_data()
-        plt.plot(L.real.tolist(), L.imag.tolist(), color="blue", marker="braille")
-        th = np.linspace(0, 2 * np.pi, 120)
-        plt.plot((-1 + np.cos(th) / ms).tolist(), (np.sin(th) / ms).tolist(), color="red", marker="braille")
-        plt.xlim(-3.0, 1.0)
-        plt.ylim(-2.0, 1.0)
-        ny.refresh()
-        rp = self.query_one("#response", PlotextPlot)
-        plt = rp.plt
-        plt.clear_data()
-        n = len(resp.t)
-        step = max(1, n // 200)
-        scale = abs(resp.d) or 1.0
-        plt.plot(resp.t[::step].tolist(), (resp.y[::step] / scale).tolist(), color="blue", marker="braille")
-        plt.plot(resp.t[::step].tolist(), (resp.u[::step] / scale).tolist(), color="red", marker="braille")
-        rp.refresh()
+    def action_bode(self) -> None:
+        """The other pair of plots: Nyquist and the reference steps, or |S| |T|
+        and the load step."""
+        self.frequency_view = not self.frequency_view
+        if self._plots is not None:
+            self._draw_plots(self._plots)
+
+    def _draw_plots(self, plots: DesignPlots) -> None:
+        self._plots = plots
+        top, low = self.query_one("#nyquist", PlotextPlot), self.query_one("#response", PlotextPlot)
+        dark, no_color = self.app.current_theme.dark, self.app.no_color
+        for p in (top, low):
+            p.plt.clear_data()
+        if self.frequency_view:
+            draw_sensitivity(top, plots, dark, no_color)
+            draw_load_step(low, plots.load, dark, no_color)
+        else:
+            draw_nyquist(top, plots, dark, no_color)
+            draw_reference_steps(low, plots.steps, dark, no_color)
+        top.refresh()
+        low.refresh()
 
     # --- 2x2 -----------------------------------------------------------------------
 

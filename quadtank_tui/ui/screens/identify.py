@@ -28,7 +28,10 @@ from textual.widgets import DataTable, Footer, SelectionList, Static
 from textual.worker import get_current_worker
 from textual_plotext import PlotextPlot
 
+from quadtank_tui.ui.colours import BLUE, GREY, RED, SIGNALS
 from quadtank_tui.ui.screens.sending import COMPACT_WIDTH
+from quadtank_tui.ui.widgets import plot_kit as kit
+from quadtank_tui.ui.widgets.plot_kit import Series
 
 if TYPE_CHECKING:  # the analysis stack loads with the first fit, not with the app
     from quadtank_tui.engine.handle import EngineHandle
@@ -176,12 +179,18 @@ class IdentifyScreen(Screen[None]):
             return
         h = log.tsamp or 1.0
         t = np.arange(log.rows) * h
-        step = max(1, log.rows // 400)
-        colors = {"y1": "blue", "y2": "red", "u1": "cyan", "u2": "magenta"}
-        for name in log.variables:
-            if name in colors:
-                top.plt.plot(t[::step].tolist(), log[name][::step].tolist(), color=colors[name], label=name)
-        top.border_title = Content(f"{Path(path).name}: {log.rows} rows at {h:g} s")
+        shown = [n for n in ("y1", "y2", "u1", "u2") if n in log.variables]
+        # levels solid, the inputs that moved them dotted (the same hue per loop)
+        drawn = kit.styles([Series(n, SIGNALS[n], dotted=n.startswith("u")) for n in shown],
+                           dark=self.app.current_theme.dark, no_color=self.app.no_color)
+        width, height = top.size.width, top.size.height
+        for st in drawn:
+            kit.draw(top.plt, t, log[st.series.label], st, width)
+        if shown:
+            values = np.concatenate([log[n] for n in shown])
+            kit.axes(top.plt, (0.0, float(t[-1])), (float(values.min()), float(values.max())), width, height,
+                     xlabel="t (s)")
+        top.border_title = kit.legend(drawn, f"{Path(path).name}: {log.rows} rows at {h:g} s: ")
         top.plt.xlabel("t (s)")
         top.refresh()
 
@@ -328,37 +337,59 @@ class IdentifyScreen(Screen[None]):
             top.plt.title("no fit yet")
         else:
             view, key, e = shown
+            dark, no_color = self.app.current_theme.dark, self.app.no_color
             h = view.ident.h
             t = np.arange(len(e.y)) * h
-            step = max(1, len(t) // 400)
-            top.plt.plot(t[::step].tolist(), e.y[::step].tolist(), color="blue", label="measured")
-            top.plt.plot(t[::step].tolist(), e.ym[::step].tolist(), color="red", label="model")
+            name = f"G{key[0][1:]}{key[1][1:]}"
+            # the model under the measurement, dotted: both stay visible where they meet
+            drawn = kit.styles([Series("model", RED, dotted=True), Series(key[0], BLUE)],
+                               dark=dark, no_color=no_color)
+            for st, y in zip(drawn, (e.ym, e.y)):
+                kit.draw(top.plt, t, y, st, top.size.width)
+            both = np.concatenate([e.y, e.ym])
+            kit.axes(top.plt, (0.0, float(t[-1])), (float(np.nanmin(both)), float(np.nanmax(both))),
+                     top.size.width, top.size.height, xlabel="t (s)")
             if e.split:
-                top.plt.vline(float(t[e.split]), "gray")
-            top.border_title = (f"G{key[0][1:]}{key[1][1:]}: {key[0]} measured (blue) and model (red), "
-                                f"fit {e.fit_percent:.1f} % right of the line")
-            top.plt.xlabel("t (s)")
+                top.plt.vline(float(t[e.split]), None if no_color else GREY.rgb(dark))
+            top.border_title = kit.legend(drawn[::-1], f"{name}: ") + Content(
+                f"  fit {e.fit_percent:.1f} % past the line")
+            width, height = low.size.width, low.size.height
             if self.lower == "residuals":
-                low.border_title = "Residual autocorrelation (validation part), 99 % band"
+                band_style, r_style = kit.styles([Series("99 % band", GREY, dotted=True),
+                                                  Series("residual autocorrelation", BLUE)],
+                                                 dark=dark, no_color=no_color)
+                low.border_title = kit.legend([r_style, band_style], "Validation: ")
                 if key in view.residuals:
                     lags, r, band = view.residuals[key]
-                    low.plt.bar(lags.tolist(), r.tolist(), color="blue", width=0.3)
-                    low.plt.hline(band, "red")
-                    low.plt.hline(-band, "red")
+                    for sign in (1, -1):
+                        kit.draw(low.plt, lags, np.full(len(lags), sign * band), band_style, width)
+                    # a stem per lag: lags are whole numbers, a line between them means nothing
+                    for lag, value in zip(lags.tolist(), r.tolist()):
+                        low.plt.plot([lag, lag], [0.0, value], marker=r_style.marker, color=r_style.color)
+                    kit.axes(low.plt, (float(lags[0]) - 0.5, float(lags[-1]) + 0.5),
+                             (min(-band, float(r.min())), max(band, float(r.max()))), width, height,
+                             whole_x=True, xlabel="lag (samples)")
                 low.plt.xlabel("lag (samples)")
             elif self.lower == "frequency":
-                low.border_title = f"|G{key[0][1:]}{key[1][1:]}(iw)|: spectral estimate (blue), model (red), log scales"
                 w, est, mod = view.frequency[key]
-                low.plt.plot(np.log10(w).tolist(), np.log10(est).tolist(), color="blue")
-                low.plt.plot(np.log10(w).tolist(), np.log10(mod).tolist(), color="red")
-                low.plt.xlabel("log10 w (rad/s)")
+                drawn = kit.styles([Series("model", RED, dotted=True), Series("spectral estimate", BLUE)],
+                                   dark=dark, no_color=no_color)
+                lw = np.log10(w)
+                for st, g in zip(drawn, (mod, est)):
+                    kit.draw(low.plt, lw, np.log10(g), st, width)
+                both = np.log10(np.concatenate([est, mod]))
+                kit.axes(low.plt, (float(lw.min()), float(lw.max())),
+                         (float(np.nanmin(both)), float(np.nanmax(both))), width, height,
+                         xlabel="log10 ω (rad/s)")
+                low.border_title = kit.legend(drawn[::-1], f"log10 |{name}(iω)|: ")
             else:
-                low.border_title = f"Coherence {key[1]} -> {key[0]} up to 0.1 Hz (Hamming window, 720 points)"
                 f, c = view.coherence[key]
                 keep = f <= 0.1  # the thesis's range: a linear model holds up to 0.05-0.1 Hz
-                low.plt.plot(f[keep].tolist(), c[keep].tolist(), color="blue")
-                low.plt.ylim(0, 1.05)
-                low.plt.xlabel("f (Hz)")
+                (st,) = kit.styles([Series(f"coherence {key[1]} -> {key[0]}", BLUE)], dark=dark,
+                                   no_color=no_color)
+                kit.draw(low.plt, f[keep], c[keep], st, width)
+                kit.axes(low.plt, (0.0, 0.1), (0.0, 1.0), width, height, xlabel="f (Hz)")
+                low.border_title = kit.legend([st]) + " (Hamming window, 720 points)"
         top.refresh()
         low.refresh()
 

@@ -31,6 +31,7 @@ from quadtank_tui.engine.commands import (
 from quadtank_tui.engine.clock import next_speed
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
+from quadtank_tui.ui.asked_speed import AskedSpeed
 from quadtank_tui.ui.screens.sending import CommandSender
 from quadtank_tui.ui.widgets.analysis_panel import analysis_ready, warm_up
 from quadtank_tui.ui.widgets.controller_box import ControllerBox, element_used
@@ -156,6 +157,7 @@ class MainScreen(CommandSender):
         #: Trends in the plant's units (else normalized); how far back they show, s.
         self.physical = False
         self.trend_offset = 0.0
+        self._asked_speed = AskedSpeed()  # + and - step from the last press, not the snapshot
         #: The trends' time axis in clock time (else s before now); the clock of each
         #: sample as it arrived, and where the wall clock comes from (epoch s).
         self.clock_axis = False
@@ -196,6 +198,7 @@ class MainScreen(CommandSender):
         self.refresh_view()
         self._interval = self.refresh_interval
         self._timer = self.set_interval(self._interval, self._tick)
+        self.ghost.restore()  # the ghost this user showed on this session, on a re-attach
         self.call_after_refresh(self.run_worker, partial(_warm_up, self.snap.params.simulation), thread=True,
                                 group="warm-up", exit_on_error=False)
 
@@ -381,9 +384,17 @@ class MainScreen(CommandSender):
 
     def action_speed(self, direction: int) -> None:
         """Simul with a virtual clock: the next step of SPEED_STEPS up or down."""
-        speed = next_speed(self.current().speed, direction)
-        if speed != self.snap.speed:
-            self.send(SetSpeed(speed))
+        base = self._asked_speed.base(self.current().speed)
+        speed = next_speed(base, direction)
+        if speed == base:
+            return  # at an end
+        self._asked_speed.asked(speed)
+
+        def refused(message: str) -> None:
+            self._asked_speed.answered(False)
+            self.notify(message, title="SetSpeed", severity="error", timeout=6, markup=False)
+
+        self.send(SetSpeed(speed), on_refused=refused, on_done=lambda: self._asked_speed.answered(True))
 
     # --- controller box (M5) ------------------------------------------------------------
 

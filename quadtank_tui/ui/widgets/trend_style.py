@@ -13,25 +13,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-RGB = tuple[int, int, int]
+from quadtank_tui.ui.colours import RGB, SIGNALS
 
-#: Per signal, on a dark background: light, saturated colours.  Loop 1's input
-#: and level share a hue, loop 2's too (the plots never mix levels and inputs).
-DARK: dict[str, RGB] = {
-    "y1": (90, 160, 255), "y2": (255, 110, 110), "y3": (110, 220, 110), "y4": (255, 185, 80),
-    "u1": (90, 160, 255), "u2": (255, 110, 110),
-    "ref1": (80, 225, 225), "ref2": (235, 130, 235),
-}
-#: The same hues, darker, for a light background.
-LIGHT: dict[str, RGB] = {
-    "y1": (0, 85, 200), "y2": (200, 30, 30), "y3": (30, 120, 40), "y4": (170, 85, 0),
-    "u1": (0, 85, 200), "u2": (200, 30, 30),
-    "ref1": (0, 125, 135), "ref2": (145, 35, 165),
-}
+#: Per signal, on a dark background and on a light one (colours.py: the one palette).
+DARK: dict[str, RGB] = {name: hue.dark for name, hue in SIGNALS.items()}
+LIGHT: dict[str, RGB] = {name: hue.light for name, hue in SIGNALS.items()}
 #: Without colour, each trace of a plot draws with its own character (in the
 #: order of the plot type: "y1 y2 ref1 ref2" -> * + o x) and a ghost with dots.
 MARKERS = ("*", "+", "o", "x")
 GHOST_MARKER = "·"
+#: Columns between the dots of a dotted curve (a reference, a model).
+DOT_GAP = 2
 #: How far a ghost's colour goes towards the background (0 = the trace's own).
 GHOST_FADE = 0.6
 

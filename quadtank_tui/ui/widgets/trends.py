@@ -39,7 +39,7 @@ from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.files.ghost import LoggedRun
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.widgets.trend_clock import ClockMap, Ticks, clock_ticks, process_ticks, wall_label
-from quadtank_tui.ui.widgets.trend_style import TraceStyle, trace_styles
+from quadtank_tui.ui.widgets.trend_style import DOT_GAP, TraceStyle, trace_styles
 
 #: Time windows the `z` key cycles through, s.
 WINDOWS = (120.0, 300.0, 600.0, 1800.0)
@@ -419,10 +419,18 @@ class Trend(PlotextPlot):
             x = t - t_new
             pick = visible(x, x_lo, x_hi)
             keep = decimate(len(x[pick]), XDOTS * columns)
-            for name in names:
+            dots = decimate(len(x[pick]), max(1, columns // DOT_GAP))
+            # References first and dotted: the outputs are drawn over them whole,
+            # and a reference still shows between its dots once y sits on it.
+            for name in sorted(names, key=lambda n: not n.startswith("ref")):
                 y = history[name][pick] * view.scale(name).factor
-                if len(y):
-                    latest[name] = float(y[-1])
+                if not len(y):
+                    continue
+                latest[name] = float(y[-1])
+                if name.startswith("ref"):
+                    plt.scatter(x[pick][dots].tolist(), y[dots].tolist(), marker=styles[name].marker,
+                                color=styles[name].color)
+                else:
                     plt.plot(x[pick][keep].tolist(), y[keep].tolist(), marker=styles[name].marker,
                              color=styles[name].color)  # None: plotext's default foreground
         if not latest and not ghost:
