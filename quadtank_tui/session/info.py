@@ -30,3 +30,5 @@ class SessionInfo:
     daq: str = ""              # the DAQ configuration file ("" for the simulator only)
     headless: bool = False     # `quadtank run --detach`
     note: str = ""             # what the session did by itself (the unattended policy)
+    ended: str = ""            # why it ended ("" while it runs): its record is kept a while (runtime.ENDED_KEPT)
+    ended_at: str = ""         # ISO 8601, local time, seconds
