@@ -155,3 +155,30 @@ def test_connections_are_limited_per_user_and_in_total_with_room_for_owner_and_a
     raw = _raw(s)
     raw.close()
     assert s.thread.is_alive() and OWNER == s.host.access.owner_uid
+
+
+def test_a_session_id_is_never_given_again_while_its_record_is_there(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """alice-1 stopped (its record says so) and alice-2 died (SIGKILL: a stale
+    record): the next session is alice-3, not the smallest number free of a
+    running session (root-1 named another user's new session while its old
+    client still offered to stop it)."""
+    import subprocess
+
+    from quadtank_tui.session.info import SessionInfo
+    from quadtank_tui.session.runtime import claim_id, end_record, ended_sessions, write_record
+
+    runtime = tmp_path / "run"
+    runtime.mkdir()
+    gone = subprocess.Popen(["true"])
+    gone.wait()
+    first = SessionInfo(id="alice-1", owner="alice", uid=OWNER, pid=gone.pid, started="2026-11-26T10:00:00",
+                        plant="quadtank")
+    end_record(runtime, first, "stopped by teacher")
+    write_record(runtime, SessionInfo(id="alice-2", owner="alice", uid=OWNER, pid=gone.pid,
+                                      started="2026-11-26T11:00:00", plant="quadtank"))
+    assert claim_id(runtime, "alice") == "alice-3"
+    assert claim_id(runtime, "alice") == "alice-4"  # claimed: its record exists
+    assert claim_id(runtime, "bob") == "bob-1"
+    ended = {i.id: i.ended for i in ended_sessions(runtime)}
+    assert ended["alice-1"] == "stopped by teacher"
+    assert ended["alice-2"].startswith(f"the session process (pid {gone.pid}) was gone without stopping in order")
