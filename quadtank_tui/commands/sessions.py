@@ -279,14 +279,22 @@ def _held_lock(args: argparse.Namespace) -> RigLock | None:
 
 
 def start_detached_run(args: argparse.Namespace, script: Script | None, clock: ClockKind) -> int:
-    """`quadtank run ... --detach`: the run in a session process; returns at once."""
+    """`quadtank run ... --detach`: the run in a session process; returns at once,
+    once its options and its script have been checked here (a refusal is said in
+    the terminal, exit 2, not in the session's output after it detached)."""
+    from quadtank_tui.engine.headless import checked_out
     from quadtank_tui.engine.runner import load_parameters
     from quadtank_tui.files.par import ParStore
     from quadtank_tui.session.launch import HeadlessArgs, SessionSpec, start_session
+    from quadtank_tui.session.scripted import rehearse
 
     _, warnings = load_parameters(args.par, ParStore("params"))  # a bad .par is refused here
     warn(warnings)
     config = args.daq or getattr(args, "daq_global", None)
+    checked_out(Path(args.log))  # the log's name and folder
+    partly = rehearse(par=args.par, script=script, duration=args.duration, out=Path(args.log), seed=args.seed,
+                      params_dir=Path("params"), active=config is not None)  # the script's refusals
+    warn([partly] if partly else [])
     run = HeadlessArgs(args.par, script, args.duration, str(Path(args.log).resolve()), args.seed, clock,
                        args.speed, str(Path("params").resolve()))
     runtime = _runtime()

@@ -248,3 +248,23 @@ def test_the_launchers_rig_lock_passes_to_the_session(tmp_path: Path, monkeypatc
         stop_session_at(info.socket)
     wait_until(lambda: not pid_alive(info.pid))
     assert holder_of(device, load_lab_config()) is None
+
+
+def test_run_detach_refuses_a_script_the_run_would_refuse_before_detaching(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """A script that sets the sampling time while logging: `--detach` says so in the
+    terminal with exit 2, as the run without --detach does, and starts no session
+    (it said "runs the experiment", exit 0, and the session ended unseen)."""
+    runtime = tmp_path / "run"
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
+    monkeypatch.chdir(tmp_path)
+    script = tmp_path / "tsamp.yaml"
+    script.write_text('- at: 1\n  log: "on"\n- at: 2\n  set: {"SAMPLING TIME.TSamp": 200}\n')
+    run = ["run", "--script", str(script), "--duration", "60", "--log", str(tmp_path / "logs" / "t.log")]
+    assert main(run) == 2
+    undetached = capsys.readouterr().err.splitlines()[-1]
+    assert main([*run, "--detach"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[-1] == undetached
+    assert undetached.startswith(f"quadtank: error: {script}, event 2 (line 3): SAMPLING TIME.TSamp: stop logging")
+    assert not runtime.exists() or sorted(p.name for p in runtime.iterdir()) == []
