@@ -15,6 +15,8 @@ Campaigns (each prints: cases run, accepted, refused cleanly, failures):
   kills    SIGKILL of `quadtank run` while logging: the partial log and its recovery
   devices  a killed / frozen / slow / hung / lying Modbus device under `quadtank run --daq`
   paths    hostile path names given to every command that takes a file
+  sockets  another user against a session: malformed lines, 1,017 idle connections, 900 x 1 MB
+           lines (benchmarks/socket_campaign.py): host RSS, CPU, the owner able to attach
 
 A failure is a traceback, a hang, a wrong exit status, an invalid value accepted or a
 lost row; its input is saved under the output folder (printed at the end).  Not a
@@ -46,9 +48,10 @@ from typing import Any, AsyncIterator, Callable, Iterator, Sequence
 
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS = ROOT / "params"
-ISSUE_COUNTS = {"keys": 11_724, "fields": 570, "par": 5_009, "scripts": 700, "daq": 500, "kills": 29}
-SMALL_COUNTS = {"keys": 600, "fields": 120, "par": 400, "scripts": 60, "daq": 80, "kills": 3}
-CAMPAIGNS = ("keys", "fields", "par", "scripts", "daq", "kills", "devices", "paths")
+ISSUE_COUNTS = {"keys": 11_724, "fields": 570, "par": 5_009, "scripts": 700, "daq": 500, "kills": 29,
+                "sockets": 500}
+SMALL_COUNTS = {"keys": 600, "fields": 120, "par": 400, "scripts": 60, "daq": 80, "kills": 3, "sockets": 100}
+CAMPAIGNS = ("keys", "fields", "par", "scripts", "daq", "kills", "devices", "paths", "sockets")
 
 
 # --- bookkeeping ---------------------------------------------------------------------------
@@ -1066,6 +1069,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 campaign_devices(t, work)
             elif name == "paths":
                 campaign_paths(t, work)
+            elif name == "sockets":
+                from socket_campaign import campaign_sockets  # benchmarks/ is on the path of this script
+
+                campaign_sockets(t, counts["sockets"], rng, work)
             else:
                 raise SystemExit(f"unknown campaign {name!r}; choose from {', '.join(CAMPAIGNS)}")
         finally:

@@ -73,14 +73,13 @@ def _cpu_share(pid: int, seconds: float = 1.0) -> float:
 
 
 def _connect(path: str, timeout: float = 0.2) -> socket.socket | None:
+    """A connection, or None when the session's backlog is full (or it is gone)."""
     sock = socket.socket(socket.AF_UNIX)
     sock.settimeout(timeout)
-    try:
-        sock.connect(path)
-    except OSError:
-        sock.close()
-        return None
-    return sock
+    if sock.connect_ex(path) == 0:
+        return sock
+    sock.close()
+    return None
 
 
 # --- other users ------------------------------------------------------------------------------
