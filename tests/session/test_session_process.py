@@ -1,8 +1,9 @@
 """Real session processes: what is promised about processes holds for processes.
 
 - The session process SIGKILLed: an attached client says so within a second and
-  refuses commands; listing the sessions removes its stale record and socket.
-- `quadtank stop SESSION` leaves no process, socket, record or shared-memory file.
+  refuses commands; listing the sessions marks its stale record ended, saying so.
+- `quadtank stop SESSION` leaves no process, socket or shared-memory file; its
+  record and output say why it ended, and `quadtank sessions` lists it.
 - `quadtank` in a pseudo-terminal that hangs up (directly, and under a shell that
   keeps SIGHUP as `make run` does): the TUI is gone within a second or so, the
   session runs on, and a new `quadtank` attaches to it with its whole history.
@@ -75,7 +76,7 @@ def test_a_killed_session_is_reported_by_its_client(tmp_path: Path) -> None:
     assert sorted(p.name for p in runtime.iterdir() if not p.name.endswith(".out")) == [f"{info.id}.json"]
 
 
-def test_quadtank_stop_leaves_nothing_behind(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+def test_quadtank_stop_leaves_no_process_nor_socket_and_says_why(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                              capsys: pytest.CaptureFixture[str], pty_kit: Any) -> None:
     runtime = tmp_path / "run"
     monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
