@@ -36,8 +36,11 @@ from quadtank_tui.session.protocol import (
 )
 from quadtank_tui.session.roles import Peer, peer_of as kernel_peer
 
-#: Bytes queued for one client before it is dropped as too slow.
+#: Bytes queued for one client before it is dropped as too slow, and for all the
+#: clients that are neither the owner nor an administrator together (16 observers
+#: of one user each 64 MB behind would be a gigabyte of the session's memory).
 MAX_BACKLOG = 64 << 20
+MAX_BACKLOG_OTHERS = 256 << 20
 #: Connections a session holds at once, of which RESERVED only for its owner and
 #: the administrators; one user (not an administrator) holds at most MAX_PER_USER.
 MAX_CONNECTIONS = 128
@@ -89,6 +92,7 @@ class Server:
         self._peer_of = peer_of
         self._rank = rank
         self._per_user: dict[int, int] = {}
+        self._others_queued = 0   # bytes in the `out` of connections of rank "other"
         self._backoff = 0.0
         self._resume_at: float | None = None   # accept paused (out of descriptors) until then
         #: Connections turned away (limits, a silent peer, a bad line) and accept's pauses, for the record.
@@ -208,10 +212,13 @@ class Server:
         """Queue `payload` (encoded lines) for `conn`; `close`: then hang up."""
         if conn not in self.connections or conn.closing:
             return
-        if len(conn.out) + len(payload) > MAX_BACKLOG:
+        if len(conn.out) + len(payload) > MAX_BACKLOG or \
+                conn.rank == "other" and self._others_queued + len(payload) > MAX_BACKLOG_OTHERS:
             self.drop(conn)
             return
         conn.out += payload
+        if conn.rank == "other":
+            self._others_queued += len(payload)
         conn.closing = close
         self._write(conn)
 
@@ -230,6 +237,8 @@ class Server:
                 self.drop(conn)
                 return
             del conn.out[:n]
+            if conn.rank == "other":
+                self._others_queued -= n
         if conn.out:
             self.selector.modify(conn.sock, selectors.EVENT_READ | selectors.EVENT_WRITE,
                                  lambda m, c=conn: self._ready(c, m))
@@ -243,6 +252,8 @@ class Server:
         if conn not in self.connections:
             return
         self.connections.remove(conn)
+        if conn.rank == "other":
+            self._others_queued -= len(conn.out)
         left = self._per_user.get(conn.peer.uid, 1) - 1
         if left > 0:
             self._per_user[conn.peer.uid] = left

@@ -182,3 +182,31 @@ def test_a_session_id_is_never_given_again_while_its_record_is_there(tmp_path) -
     ended = {i.id: i.ended for i in ended_sessions(runtime)}
     assert ended["alice-1"] == "stopped by teacher"
     assert ended["alice-2"].startswith(f"the session process (pid {gone.pid}) was gone without stopping in order")
+
+
+def test_observers_that_never_read_hold_a_bounded_share_of_memory(thread_session, poll,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """bob may observe (a share group) and opens observers that never read: what the
+    session queues for them together stays under MAX_BACKLOG_OTHERS (here 2 MB); the
+    ones past it are dropped, the owner's client is not."""
+    from quadtank_tui.session.protocol import Hello, encode
+
+    monkeypatch.setattr(server_module, "MAX_BACKLOG_OTHERS", 2 << 20)
+    s: ThreadSession = thread_session(speed=1000.0)
+    s.host.access._may_connect = lambda uid: True  # type: ignore[attr-defined]  # everyone may observe
+    with SessionClient(s.path) as alice:
+        assert alice.submit(c.SetState("Run")).result(30).ok
+        s.peers.queue.extend([STUDENT] * 8)
+        silent = [_raw(s) for _ in range(8)]
+        for sock in silent:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+            sock.sendall(encode(Hello("observer")))
+        server = s.host.server
+        assert poll(lambda: not s.peers.queue, 30.0)  # all accepted
+        welcomed = [conn for conn in server.connections if conn.rank == "other"]
+        assert poll(lambda: any(conn not in server.connections for conn in welcomed), 60.0)
+        others = [conn for conn in server.connections if conn.rank == "other"]
+        assert server._others_queued == sum(len(conn.out) for conn in others) <= 2 << 20
+        assert not alice.gone and alice.submit(c.SetState("Pause")).result(30).ok
+        for sock in silent:
+            sock.close()
