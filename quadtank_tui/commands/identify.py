@@ -55,6 +55,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "(default: the preset whose steady state matches the log's first row)")
     p.add_argument("--save", nargs="?", const="", metavar="PATH",
                    help="keep the model as JSON (default path: next to the first log, NAME.model.json)")
+    p.add_argument("--figure", metavar="FILE",
+                   help="also draw the validation as a figure (.png, .svg or .pdf): per element the measured "
+                   "and model output on the validation part, the residual autocorrelation and the coherence")
     p.add_argument("--json", action="store_true", help="print a JSON object instead of a report")
     p.set_defaults(handler=run)
 
@@ -96,6 +99,10 @@ def parse_start(items: list[str] | None) -> dict[str, object] | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.figure is not None:
+        from quadtank_tui.files.figures import figure_format
+
+        figure_format(args.figure)  # a name that cannot be written is refused before the fit
     from quadtank_tui.core.identify.compare import compare
     from quadtank_tui.core.identify.experiment import Options, Record, identify
     from quadtank_tui.core.identify.report import format_report, to_dict
@@ -127,13 +134,23 @@ def run(args: argparse.Namespace) -> int:
     if args.save is not None:
         target = Path(args.save) if args.save else model_path(args.logs[0])
         saved = write_model(target, from_identification(ident))
+    figure = None
+    if args.figure is not None:
+        from quadtank_tui.files.figures.identification import identification_figure
+        from quadtank_tui.files.figures.style import save
+
+        figure = save(identification_figure(ident), args.figure)
     if args.json:
         out = to_dict(ident, cmp, name)
         if saved is not None:
             out["model_file"] = str(saved)
+        if figure is not None:
+            out["figure"] = str(figure)
         print(json.dumps(out, indent=2))
     else:
         print(format_report(ident, cmp, name))
         if saved is not None:
             print(f"Model saved to {saved}")
+        if figure is not None:
+            print(f"Figure written to {figure}")
     return 0
