@@ -12,17 +12,18 @@ from __future__ import annotations
 
 import json
 import os
+import pwd
 import resource
 import shutil
 import signal
 import socket
-import subprocess
 import sys
 import time
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
 import pytest
+from otherusers import made_users
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.engine.runner import engine_spec
@@ -91,21 +92,11 @@ def _connect(path: str, timeout: float = 0.2) -> socket.socket | None:
 
 @pytest.fixture
 def two_users() -> Iterator[list[tuple[int, int]]]:
-    """Two real users (uid, gid), made for the test and removed after it."""
+    """Two real users (uid, gid), made for the test and removed after it (otherusers.py)."""
     if os.geteuid() != 0 or shutil.which("useradd") is None:
         pytest.skip("needs root and useradd to make real users")
-    names = [f"qts{os.getpid() % 100000}{x}" for x in "bc"]
-    made = []
-    try:
-        for name in names:
-            subprocess.run(["useradd", "-M", "-N", "-s", "/usr/sbin/nologin", name], check=True,
-                           capture_output=True)
-            made.append(name)
-        yield [(int(subprocess.run(["id", "-u", n], capture_output=True, text=True).stdout),
-                int(subprocess.run(["id", "-g", n], capture_output=True, text=True).stdout)) for n in names]
-    finally:
-        for name in made:
-            subprocess.run(["userdel", name], capture_output=True)
+    with made_users(*(f"qts{os.getpid() % 100000}{x}" for x in "bc")) as names:
+        yield [(pwd.getpwnam(n).pw_uid, pwd.getpwnam(n).pw_gid) for n in names]
 
 
 class AsUser:
