@@ -19,6 +19,8 @@ Campaigns (each prints: cases run, accepted, refused cleanly, failures):
   paths    hostile path names given to every command that takes a file
   locks    the DAQ lock forged, its folder's flock held hostage, six programs racing (hardening_locks.py)
   users    two real users (root: useradd): a forced take-over, a forged record, a held flock
+  sockets  another user against a session: malformed lines, 1,017 idle connections, 900 x 1 MB
+           lines (benchmarks/socket_campaign.py): host RSS, CPU, the owner able to attach
 
 A failure is a traceback, a hang, a wrong exit status, an invalid value accepted or a
 lost row; its input is saved under the output folder (printed at the end).  Not a
@@ -51,9 +53,11 @@ from typing import Any, AsyncIterator, Callable, Iterator, Sequence
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS = ROOT / "params"
 ISSUE_COUNTS = {"keys": 11_724, "fields": 570, "par": 5_009, "scripts": 700, "daq": 500, "kills": 29,
-                "hosts": 20}
-SMALL_COUNTS = {"keys": 600, "fields": 120, "par": 400, "scripts": 60, "daq": 80, "kills": 3, "hosts": 4}
-CAMPAIGNS = ("keys", "fields", "par", "scripts", "daq", "kills", "devices", "hosts", "paths", "locks", "users")
+                "hosts": 20, "sockets": 500}
+SMALL_COUNTS = {"keys": 600, "fields": 120, "par": 400, "scripts": 60, "daq": 80, "kills": 3, "hosts": 4,
+                "sockets": 100}
+CAMPAIGNS = ("keys", "fields", "par", "scripts", "daq", "kills", "devices", "hosts", "paths", "locks", "users",
+             "sockets")
 
 
 # --- bookkeeping ---------------------------------------------------------------------------
@@ -1154,6 +1158,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 campaign_paths(t, work)
             elif name in ("locks", "users"):
                 campaign_lock_users(t, name, work)
+            elif name == "sockets":
+                from socket_campaign import campaign_sockets  # benchmarks/ is on the path of this script
+
+                campaign_sockets(t, counts["sockets"], rng, work)
             else:
                 raise SystemExit(f"unknown campaign {name!r}; choose from {', '.join(CAMPAIGNS)}")
         finally:

@@ -381,6 +381,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     handler: Handler | None = getattr(args, "handler", None)
     if handler is None:
+        missing = terminal_missing()
+        if missing is not None:  # before anything starts: no session, no lock, no loop
+            _say(f"quadtank: error: the screen needs a terminal and {missing}; a headless experiment "
+                 "runs with `quadtank run` (quadtank run --help)")
+            return 2
         handler = _cmd_tui
     try:
         return _holding_the_daq(handler, args)
@@ -400,6 +405,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 128 + exc.signum  # the shell's convention: 143 SIGTERM, 129 SIGHUP
     finally:
         gc.enable()  # paused for a TUI's start (pause_gc) that may not have got that far
+
+
+def terminal_missing() -> str | None:
+    """Why the screen cannot run here: stdin or stdout closed (`quadtank <&-`) or
+    not a terminal (a pipe, a file, cron); None when both are terminals."""
+    for fd, name in ((0, "stdin"), (1, "stdout")):
+        try:
+            os.fstat(fd)
+        except OSError:
+            return f"{name} is closed"
+        if not os.isatty(fd):
+            return f"{name} is not one"
+    return None
 
 
 def _driven_daq(args: argparse.Namespace) -> str | None:

@@ -50,6 +50,16 @@ def _runtime_of_its_own(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytes
     monkeypatch.delenv("QUADTANK_LAB", raising=False)
 
 
+@pytest.fixture(autouse=True)
+def _a_terminal_for_main(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A test calling cli.main for the TUI has no terminal (pytest holds stdin and
+    stdout) yet tests what comes after the check; the check itself is tested on a
+    real `quadtank` process (tests/cli/test_no_terminal.py)."""
+    import quadtank_tui.cli
+
+    monkeypatch.setattr(quadtank_tui.cli, "terminal_missing", lambda: None)
+
+
 def copy_params(folder: Path) -> Path:
     """A private copy of the repository's params/ (and an empty logs/) in `folder`:
     a test that runs a command the way a user does, from a folder holding params/,

@@ -31,8 +31,10 @@ if TYPE_CHECKING:
 def add_parsers(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("sessions", help="list the lab sessions on this machine",
                        description="The running sessions: id, owner, started, plant, Simul/Active, "
-                       "Run/Pause, logging progress, attached clients.")
-    p.add_argument("--json", action="store_true", help="one JSON object per session, a list")
+                       "Run/Pause, logging progress, attached clients; then the sessions that ended "
+                       "in the last 7 days, each with why.")
+    p.add_argument("--json", action="store_true", help="one JSON object per session, a list (an ended "
+                   "session's `ended` says why)")
     p.set_defaults(handler=cmd_sessions)
     a = sub.add_parser("attach", help="attach the TUI to a running session",
                        description="Attach the TUI to SESSION (default: your only running session).")
@@ -64,17 +66,36 @@ def cmd_sessions(args: argparse.Namespace) -> int:
     import json
     from dataclasses import asdict
 
-    from quadtank_tui.session.runtime import list_sessions
+    from quadtank_tui.session.runtime import ended_sessions, list_sessions
 
-    sessions = list_sessions(_runtime())
+    runtime = _runtime()
+    ended = ended_sessions(runtime)  # first: marks the dead ones ended
+    sessions = list_sessions(runtime, prune=False)
     if args.json:
-        print(json.dumps([asdict(i) for i in sessions], indent=2))
+        print(json.dumps([asdict(i) for i in sessions + ended], indent=2))
         return 0
-    if not sessions:
+    if not sessions and not ended:
         print("no sessions")
         return 0
-    print(format_table(sessions))
+    print(format_table(sessions) if sessions else "no running sessions")
+    if ended:
+        print(f"\nended (kept {_kept()}):\n" + format_ended(ended))
     return 0
+
+
+def _kept() -> str:
+    from quadtank_tui.session.runtime import ENDED_KEPT, ENDED_PER_OWNER
+
+    return f"{ENDED_KEPT.days} days, the last {ENDED_PER_OWNER} of each owner"
+
+
+def format_ended(sessions: list[SessionInfo]) -> str:
+    """The ended sessions, one a line: when and why (the reason last: it may be long)."""
+    head = ("ID", "OWNER", "STARTED", "ENDED", "WHY")
+    rows = [head] + [(i.id, i.owner, i.started.replace("T", " "), i.ended_at.replace("T", " ") or "?", i.ended)
+                     for i in sessions]
+    widths = [max(len(r[c]) for r in rows) for c in range(len(head) - 1)]
+    return "\n".join("  ".join([*(v.ljust(w) for v, w in zip(r, widths)), r[-1]]).rstrip() for r in rows)
 
 
 def format_table(sessions: list[SessionInfo]) -> str:
@@ -259,14 +280,22 @@ def _held_lock(args: argparse.Namespace) -> RigLock | None:
 
 
 def start_detached_run(args: argparse.Namespace, script: Script | None, clock: ClockKind) -> int:
-    """`quadtank run ... --detach`: the run in a session process; returns at once."""
+    """`quadtank run ... --detach`: the run in a session process; returns at once,
+    once its options and its script have been checked here (a refusal is said in
+    the terminal, exit 2, not in the session's output after it detached)."""
+    from quadtank_tui.engine.headless import checked_out
     from quadtank_tui.engine.runner import load_parameters
     from quadtank_tui.files.par import ParStore
     from quadtank_tui.session.launch import HeadlessArgs, SessionSpec, start_session
+    from quadtank_tui.session.scripted import rehearse
 
     _, warnings = load_parameters(args.par, ParStore("params"))  # a bad .par is refused here
     warn(warnings)
     config = args.daq or getattr(args, "daq_global", None)
+    checked_out(Path(args.log))  # the log's name and folder
+    partly = rehearse(par=args.par, script=script, duration=args.duration, out=Path(args.log), seed=args.seed,
+                      params_dir=Path("params"), active=config is not None)  # the script's refusals
+    warn([partly] if partly else [])
     run = HeadlessArgs(args.par, script, args.duration, str(Path(args.log).resolve()), args.seed, clock,
                        args.speed, str(Path("params").resolve()))
     runtime = _runtime()

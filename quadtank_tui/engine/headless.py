@@ -96,17 +96,8 @@ def prepare_headless(
 ) -> HeadlessRun:
     """The engine of `run_headless`, set up (log file, Active, Automatic, LogOn,
     Run as the run asks) and not yet sampled; a session process drives it too."""
+    out = checked_out(out)
     stem = out.name.removesuffix(SUFFIX)
-    name = stem + SUFFIX
-    try:
-        check_file_name(stem, "--log")
-    except ParameterError as exc:
-        raise ValueError(str(exc)) from None
-    out = out.with_name(name)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    check_log_folder(out.parent)  # now, not at a LogOn far into the run
-    if out.exists() and not out.is_file():
-        raise ValueError(f"{out}: not a regular file; --log names the .log to write")
     before = file_identity(out)  # an earlier run's log, which this run replaces
     params, _ = load_parameters(par, ParStore(params_dir))
     capacity = min(MAX_HISTORY, max(DEFAULT_CAPACITY, math.ceil(duration / params.tsamp) + 2))
@@ -131,6 +122,22 @@ def prepare_headless(
         engine.stop()
         raise
     return HeadlessRun(engine, script, duration, out, before)
+
+
+def checked_out(out: Path) -> Path:
+    """The run's `.log` path (`.log` added), its folder created and checked now,
+    not at a LogOn far into the run; ValueError saying what is wrong."""
+    stem = out.name.removesuffix(SUFFIX)
+    try:
+        check_file_name(stem, "--log")
+    except ParameterError as exc:
+        raise ValueError(str(exc)) from None
+    out = out.with_name(stem + SUFFIX)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    check_log_folder(out.parent)
+    if out.exists() and not out.is_file():
+        raise ValueError(f"{out}: not a regular file; --log names the .log to write")
+    return out
 
 
 def finish_headless(run: HeadlessRun) -> HeadlessResult:

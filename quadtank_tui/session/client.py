@@ -19,6 +19,7 @@ from __future__ import annotations
 import itertools
 import socket
 import threading
+import time
 from concurrent.futures import Future
 from dataclasses import replace
 from pathlib import Path
@@ -59,7 +60,7 @@ class SessionClient(HeldLocally):
         sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         sock.settimeout(timeout)
         try:
-            sock.connect(str(path))
+            connect(sock, path, timeout)
         except OSError as exc:
             sock.close()
             raise _unreachable(path, exc) from None
@@ -289,7 +290,7 @@ def stop_session_at(path: str | Path, timeout: float = STOP_TIMEOUT) -> str:
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     sock.settimeout(timeout)
     try:
-        sock.connect(str(path))
+        connect(sock, path, min(timeout, ATTACH_TIMEOUT))
         sock.sendall(encode(Hello("control", "stop")) + encode(StopSession()))
         reader = LineReader(MAX_SESSION_LINE)
         while True:
@@ -310,6 +311,20 @@ def stop_session_at(path: str | Path, timeout: float = STOP_TIMEOUT) -> str:
         raise _unreachable(path, exc) from None
     finally:
         sock.close()
+
+
+def connect(sock: socket.socket, path: str | Path, timeout: float) -> None:
+    """Connect, trying again for up to `timeout` s while the session's backlog is
+    full (EAGAIN: a flood of connections it is turning away)."""
+    end = time.monotonic() + timeout
+    while True:
+        try:
+            sock.connect(str(path))
+            return
+        except BlockingIOError:
+            if time.monotonic() > end:
+                raise
+            time.sleep(0.01)
 
 
 def _unreachable(path: str | Path, exc: Exception) -> SessionError:

@@ -13,7 +13,10 @@ command is applied at once).  Nobody else touches it.
 
 Stops (pumps at 0, logging stopped with the rows kept, backends closed): a client's
 StopSession from someone allowed to, SIGTERM / SIGHUP / SIGINT, or the loop failing.
-The socket and the record are removed; the clients are told why.
+The socket is removed; the record stays, saying why it ended and when (`quadtank
+sessions` lists it a while: runtime.ENDED_KEPT); the clients are told why.  Nothing
+a client sends ends the session unless it is a StopSession it may send (the
+server drops a client whose line is not a message, or whose message fails).
 """
 
 from __future__ import annotations
@@ -39,9 +42,10 @@ from quadtank_tui.session.protocol import (
 from quadtank_tui.session.lab import LabConfig
 from quadtank_tui.session.policy import UnattendedPolicy, describe, unattended_action
 from quadtank_tui.session.roles import group_id, groups_of, is_administrator, who_administers
-from quadtank_tui.session.runtime import remove_files, write_record
+from quadtank_tui.session.roles import Peer
+from quadtank_tui.session.runtime import end_record, write_record
 from quadtank_tui.session.scripted import ScriptedRun
-from quadtank_tui.session.server import Connection, Server
+from quadtank_tui.session.server import Connection, Rank, Server
 
 #: Least wall time between two updates to the clients, s (a 1000x virtual clock
 #: samples 20000 times a second; a screen redraws 20).
@@ -50,6 +54,9 @@ PUBLISH_INTERVAL = 0.02
 FINE_WAIT = 0.002
 #: Least wall time between two rewrites of the record for logging progress alone, s.
 RECORD_INTERVAL = 1.0
+#: Seconds a peer's rank (administrator or not: a look at the lab's group or files)
+#: is remembered: a flood of connections from one user asks it once.
+RANK_KEPT = 30.0
 
 
 class Access:
@@ -103,7 +110,8 @@ class SessionHost:
         self.access = access
         self.selector = selectors.DefaultSelector()
         kwargs = {} if peer_of is None else {"peer_of": peer_of}
-        self.server = Server(listener, self.selector, self._on_message, self._on_gone, **kwargs)
+        self._ranks: dict[int, tuple[float, Rank]] = {}
+        self.server = Server(listener, self.selector, self._on_message, self._on_gone, rank=self._rank, **kwargs)
         self.policy = policy if policy is not None else UnattendedPolicy()
         self.scripted = scripted
         self._log_ended: float | None = None  # when a log ended while nobody operated
@@ -139,7 +147,7 @@ class SessionHost:
             while self._stop_reason is None:
                 deadline = clock.deadline()
                 delay = 0.0 if deadline is None else deadline - clock.now()
-                self._serve_io(max(0.0, delay - FINE_WAIT))
+                self._serve_io(min(max(0.0, delay - FINE_WAIT), self.server.next_timer()))
                 if self._stop_reason is not None:
                     break
                 deadline = clock.deadline()
@@ -173,6 +181,20 @@ class SessionHost:
     def _serve_io(self, timeout: float) -> None:
         for key, mask in self.selector.select(timeout):
             key.data(mask)
+        self.server.tick()
+
+    def _rank(self, peer: Peer) -> Rank:
+        """An administrator (no per-user limit), the owner (the reserve), or another."""
+        now = time.monotonic()
+        kept = self._ranks.get(peer.uid)
+        if kept is not None and now - kept[0] < RANK_KEPT:
+            return kept[1]
+        rank: Rank = "admin" if self.access.is_admin(peer.uid) else \
+            "owner" if peer.uid == self.access.owner_uid else "other"
+        if len(self._ranks) > 1000:
+            self._ranks.clear()
+        self._ranks[peer.uid] = (now, rank)
+        return rank
 
     def request_stop(self, reason: str) -> None:
         """From any thread or a signal handler: stop at the next turn."""
@@ -423,7 +445,11 @@ class SessionHost:
                 self.selector.close()
                 for fd in (self._wake_r, self._wake_w):
                     os.close(fd)
-                remove_files(self.runtime, self.info.id)
+                self._operator = None
+                try:
+                    end_record(self.runtime, self._info(), reason)
+                except Exception:  # noqa: BLE001 - the engine may be what failed; the record says it ended
+                    end_record(self.runtime, self.info, reason)
 
 
 def _hhmm(wall: float) -> str:

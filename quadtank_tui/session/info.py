@@ -31,3 +31,5 @@ class SessionInfo:
     headless: bool = False     # `quadtank run --detach`
     note: str = ""             # what the session did by itself (the unattended policy)
     watchdog: str = ""         # the DAQ's own watchdog: "device", or "none" (said by `quadtank sessions`)
+    ended: str = ""            # why it ended ("" while it runs): its record is kept a while (runtime.ENDED_KEPT)
+    ended_at: str = ""         # ISO 8601, local time, seconds

@@ -7,7 +7,8 @@ a hang-up, a closed tmux window, Ctrl-C in the launcher's terminal never reach i
 hands it the checked engine spec on its stdin (our own child: a pickle is fine
 there, never on the socket), and waits on a pipe for "ready" with the session's
 record, or "failed" with why.  The session's stdout and stderr go to
-`<runtime>/<id>.out`, removed at a clean stop if empty.
+`<runtime>/<id>.out`, whose last line says why it stopped; it is kept with the
+session's ended record (runtime.ENDED_KEPT).
 """
 
 from __future__ import annotations
@@ -208,7 +209,8 @@ def session_main(ready_fd: int) -> int:
     from quadtank_tui.session.lab import load_lab_config
     from quadtank_tui.session.riglock import RigLock
     from quadtank_tui.session.roles import user_name
-    from quadtank_tui.session.runtime import claim_id, remove_files, runtime_dir, socket_path, write_record
+    from quadtank_tui.session.runtime import claim_id, out_path as output_of, remove_files, runtime_dir, socket_path, \
+        write_record
     from quadtank_tui.session.server import listen
 
     data = sys.stdin.buffer.read()
@@ -220,7 +222,7 @@ def session_main(ready_fd: int) -> int:
     runtime = runtime_dir(lab.runtime_dir)
     uid = os.getuid()
     sid = claim_id(runtime, user_name(uid))
-    out_path = runtime / f"{sid}.out"
+    out_path = output_of(runtime, sid)
     lock: RigLock | None = None
     try:
         _redirect_stdio(out_path)
@@ -276,8 +278,7 @@ def session_main(ready_fd: int) -> int:
     except BaseException as exc:  # noqa: BLE001 - the launcher says why
         if lock is not None:
             lock.release()
-        remove_files(runtime, sid)
-        _remove_if_empty(out_path)
+        remove_files(runtime, sid, output=True)  # it never ran: the launcher says why
         ready.write(f"failed {exc}".encode())
         ready.close()
         return 1
@@ -291,8 +292,8 @@ def session_main(ready_fd: int) -> int:
     finally:
         if lock is not None:
             lock.release()  # after the pumps went to 0
+    # The reason is in the record too (SessionHost); here it is the output's last line.
     print(f"{datetime.now():%Y-%m-%d %H:%M:%S} session {sid} stopped: {reason}", flush=True)
-    _remove_if_empty(out_path)
     return 0
 
 
@@ -304,19 +305,6 @@ def _redirect_stdio(out_path: Path) -> None:
     os.dup2(fd, 2)
     os.close(fd)
     os.close(null)
-
-
-def _remove_if_empty(path: Path) -> None:
-    try:
-        if path.stat().st_size == 0 or _only_the_stop_line(path):
-            path.unlink()
-    except OSError:
-        pass
-
-
-def _only_the_stop_line(path: Path) -> bool:
-    lines = path.read_text(errors="replace").splitlines()
-    return len(lines) == 1 and " stopped: " in lines[0]
 
 
 if __name__ == "__main__":  # pragma: no cover - the session process

@@ -36,8 +36,15 @@ from quadtank_tui.engine.messages import Result, Submit
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.session.info import SessionInfo
 
-#: Longest line a session reads from a client (a command is a few hundred bytes).
-MAX_CLIENT_LINE = 1 << 20
+#: Longest line a session reads from a client once its Hello is accepted (a command
+#: is a few hundred bytes; a SetParams of a whole .par a few kilobytes).
+MAX_CLIENT_LINE = 1 << 18
+#: Longest line a session reads from a connection that has not said Hello (about
+#: 60 bytes): anyone on the machine may connect, so what an unknown peer may make
+#: the session hold is small.
+MAX_HELLO_LINE = 1 << 12
+#: Deepest nesting of lists and objects in a line (a snapshot's is about 8).
+MAX_DEPTH = 32
 #: Longest line a client reads from a session (the whole history on attach).
 MAX_SESSION_LINE = 1 << 28
 
@@ -59,6 +66,15 @@ class Hello:
     role: Role
     client: str = ""
     take_over: bool = False
+
+    def __post_init__(self) -> None:
+        # The session acts on these before anything else: a peer's wrong types are refused here.
+        if self.role not in ("operator", "observer", "control"):
+            raise ValueError(f"role must be operator, observer or control, not {self.role!r:.40}")
+        if not isinstance(self.client, str) or len(self.client) > 200:
+            raise ValueError("client must be a short string")
+        if not isinstance(self.take_over, bool):
+            raise ValueError("take_over must be true or false")
 
 
 @dataclass(frozen=True)
@@ -225,7 +241,7 @@ def encode(message: Any) -> bytes:
 
 
 def _dec(value: Any, depth: int = 0) -> Any:
-    if depth > 64:
+    if depth > MAX_DEPTH:
         raise ProtocolError("nested too deeply")
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
@@ -303,12 +319,23 @@ def _array(obj: dict[str, Any]) -> np.ndarray:
 
 
 def decode(line: bytes, allowed: tuple[type, ...] = MESSAGES) -> Any:
-    """The message on `line`; ProtocolError if it is not one of `allowed`."""
+    """The message on `line`; ProtocolError if it is not one of `allowed`.
+
+    Whatever a peer sends, nothing but ProtocolError comes out of here: JSON
+    nested past the interpreter's recursion limit (the parser's RecursionError),
+    past MAX_DEPTH (ours), and anything a type's own construction raises on a
+    peer's values (an unhashable map key, a wrong type in a validation) are the
+    peer's fault, not the session's."""
     try:
         obj = json.loads(line)
-    except (ValueError, UnicodeDecodeError) as exc:
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
         raise ProtocolError(f"not JSON: {exc}") from None
-    message = _dec(obj)
+    try:
+        message = _dec(obj)
+    except ProtocolError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a peer's values broke a constructor: refuse the line
+        raise ProtocolError(f"not a message: {type(exc).__name__}: {exc}"[:300]) from None
     if not isinstance(message, allowed):
         raise ProtocolError(f"unexpected message {type(message).__name__}")
     if isinstance(message, Submit) and type(message.command).__name__ not in _COMMANDS:
@@ -317,20 +344,31 @@ def decode(line: bytes, allowed: tuple[type, ...] = MESSAGES) -> Any:
 
 
 class LineReader:
-    """Splits a byte stream into lines of at most `limit` bytes."""
+    """Splits a byte stream into lines of at most `limit` bytes: what it holds for a
+    peer is never more than `limit` (plus one read), however the bytes come."""
 
     def __init__(self, limit: int) -> None:
         self._buf = bytearray()
-        self._limit = limit
+        self._scanned = 0   # no newline before this offset of _buf
+        self.limit = limit
+
+    @property
+    def held(self) -> int:
+        """Bytes of an unfinished line held."""
+        return len(self._buf)
 
     def feed(self, data: bytes) -> list[bytes]:
         self._buf += data
         lines: list[bytes] = []
         while True:
-            nl = self._buf.find(b"\n")
+            nl = self._buf.find(b"\n", self._scanned)
             if nl < 0:
-                if len(self._buf) > self._limit:
-                    raise ProtocolError(f"a line longer than {self._limit} bytes")
+                self._scanned = len(self._buf)
+                if len(self._buf) > self.limit:
+                    raise ProtocolError(f"a line longer than {self.limit} bytes")
                 return lines
+            if nl > self.limit:
+                raise ProtocolError(f"a line longer than {self.limit} bytes")
             lines.append(bytes(self._buf[:nl]))
             del self._buf[:nl + 1]
+            self._scanned = 0

@@ -4,8 +4,14 @@ The runtime folder (the lab configuration's, else $QUADTANK_RUNTIME, else
 /tmp/quadtank-sessions) is shared by every user, sticky like /tmp: anyone may put
 a session there, nobody may remove another's.  A session's socket is its owner's
 alone (mode 0600); its record, readable by all, is what `quadtank sessions` lists.
-A record whose process is gone (a session killed with SIGKILL) is stale: listing
-the sessions removes it and its socket.
+
+A session that ends says why in its record (`ended`, `ended_at`) and in its output
+file `<id>.out`; both are kept ENDED_KEPT (a week: the owner back on Monday still
+learns why Friday's session ended), at most ENDED_PER_OWNER per owner, and removed
+by the owner's next listing after that.  A record whose process is gone without
+saying so (SIGKILL, a crash, a power cut) is marked ended by the first listing that
+may write it.  Ids are never reused while a record, socket or output file of theirs
+is there: a new session's number is one more than any of its owner's.
 """
 
 from __future__ import annotations
@@ -13,11 +19,17 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import tempfile
+from datetime import datetime, timedelta
 from pathlib import Path
 
 from quadtank_tui.files.proc import process_state
 from quadtank_tui.session.info import SessionInfo
+
+#: How long an ended session's record and output file are kept, and how many per owner.
+ENDED_KEPT = timedelta(days=7)
+ENDED_PER_OWNER = 20
 
 class NoSession(LookupError):
     """No session matches what was asked; the message says what there is."""
@@ -44,11 +56,19 @@ def socket_path(runtime: Path, session_id: str) -> Path:
     return runtime / f"{session_id}.sock"
 
 
+def out_path(runtime: Path, session_id: str) -> Path:
+    """The session's output file: its stderr and stdout, the reason it ended."""
+    return runtime / f"{session_id}.out"
+
+
 def claim_id(runtime: Path, user: str) -> str:
-    """A new session id, `<user>-<n>` with the smallest free n, claimed by creating its
-    record (O_EXCL: two sessions starting at once get different ids)."""
-    list_sessions(runtime)  # prunes stale records, so their ids come free
-    n = 1
+    """A new session id, `<user>-<n>`, n one more than any of `user`'s sessions whose
+    files are still there (running or ended): an id a client, a record or an
+    output file may still name is never given to another session.  Claimed by
+    creating its record (O_EXCL: two sessions starting at once get different ids)."""
+    list_sessions(runtime)  # marks the dead ones ended, removes the old ones
+    own = re.compile(re.escape(user) + r"-([0-9]{1,9})\.(?:json|sock|out)")
+    n = 1 + max((int(m.group(1)) for p in runtime.iterdir() if (m := own.fullmatch(p.name))), default=0)
     while True:
         sid = f"{user}-{n}"
         try:
@@ -91,30 +111,78 @@ def read_record(path: Path) -> SessionInfo | None:
         return None
 
 
-def remove_files(runtime: Path, session_id: str) -> None:
-    """The session's socket and record (what a stop leaves behind: nothing)."""
-    for path in (socket_path(runtime, session_id), record_path(runtime, session_id)):
+def remove_files(runtime: Path, session_id: str, *, output: bool = False) -> None:
+    """The session's socket and record (`output`: and its output file)."""
+    paths = [socket_path(runtime, session_id), record_path(runtime, session_id)]
+    for path in paths + ([out_path(runtime, session_id)] if output else []):
         try:
             path.unlink()
         except FileNotFoundError:
             pass
         except PermissionError:
-            pass  # another user's stale files in a sticky folder: theirs to remove
+            pass  # another user's files in a sticky folder: theirs to remove
 
 
-def list_sessions(runtime: Path, *, prune: bool = True) -> list[SessionInfo]:
-    """The live sessions, oldest first; stale records (process gone) are removed."""
-    out = []
+def end_record(runtime: Path, info: SessionInfo, reason: str) -> SessionInfo:
+    """Mark the session ended for `reason` (its record says so and when; its socket
+    goes); the record as written."""
+    ended = dataclasses.replace(info, ended=reason or "stopped", clients=0, operator="",
+                                ended_at=datetime.now().isoformat(timespec="seconds"))
+    try:
+        socket_path(runtime, info.id).unlink()
+    except OSError:
+        pass
+    try:
+        write_record(runtime, ended)
+    except OSError:
+        pass  # not ours to write (another user's dead session): listed as ended all the same
+    return ended
+
+
+def died(info: SessionInfo) -> str:
+    """What a record whose process is gone without a word says happened."""
+    return (f"the session process (pid {info.pid}) was gone without stopping in order (killed, "
+            "crashed, or the machine went down); pumps and log as it left them")
+
+
+def _records(runtime: Path, *, prune: bool) -> list[SessionInfo]:
+    """Every record, those of dead processes marked ended; `prune`: ended ones past
+    ENDED_KEPT or past the owner's newest ENDED_PER_OWNER removed (when ours to remove)."""
+    records = []
     for path in sorted(runtime.glob("*.json")):
         info = read_record(path)
         if info is None:
             continue
-        if not pid_alive(info.pid):
-            if prune:
-                remove_files(runtime, info.id)
-            continue
-        out.append(info)
+        if not info.ended and not pid_alive(info.pid):
+            info = end_record(runtime, info, died(info)) if prune else \
+                dataclasses.replace(info, ended=died(info), clients=0, operator="")
+        records.append(info)
+    if prune:
+        kept: list[SessionInfo] = []
+        oldest = (datetime.now() - ENDED_KEPT).isoformat(timespec="seconds")
+        per_owner: dict[int, int] = {}
+        for info in sorted(records, key=lambda i: (i.ended_at or i.started, i.id), reverse=True):
+            if info.ended:
+                per_owner[info.uid] = per_owner.get(info.uid, 0) + 1
+                if (info.ended_at or info.started) < oldest or per_owner[info.uid] > ENDED_PER_OWNER:
+                    remove_files(runtime, info.id, output=True)
+                    continue
+            kept.append(info)
+        records = kept
+    return records
+
+
+def list_sessions(runtime: Path, *, prune: bool = True) -> list[SessionInfo]:
+    """The live sessions, oldest first (`prune`: see _records)."""
+    out = [i for i in _records(runtime, prune=prune) if not i.ended]
     out.sort(key=lambda i: (i.started, i.id))
+    return out
+
+
+def ended_sessions(runtime: Path) -> list[SessionInfo]:
+    """The sessions that ended within ENDED_KEPT, newest first, each saying why."""
+    out = [i for i in _records(runtime, prune=True) if i.ended]
+    out.sort(key=lambda i: (i.ended_at or i.started, i.id), reverse=True)
     return out
 
 

@@ -5,15 +5,29 @@ are applied (engine.experiment.apply_due, as `quadtank run` does), and once the
 run's duration has passed the log is saved and the summary written, as `quadtank
 run` prints them, to the session's output file; then the session ends.  Clients
 attach to watch it (read-only: the script is the operator).
+
+Before the session is started the launcher rehearses the run (`rehearse`): the same
+script on a manual clock, up to its last event, so a refusal that would end the
+detached run (a script that changes the sampling time while logging) is said in
+the terminal with exit 2, as `quadtank run` without --detach says it, instead of
+in an output file nobody reads.
 """
 
 from __future__ import annotations
 
 import collections
+import tempfile
+import time
+from pathlib import Path
 
+from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend
 from quadtank_tui.engine.experiment import apply_due
-from quadtank_tui.engine.headless import HeadlessRun, finish_headless
+from quadtank_tui.engine.headless import HeadlessRun, finish_headless, prepare_headless
 from quadtank_tui.engine.runner import LoopTime
+from quadtank_tui.files.script import Script
+
+#: Wall seconds the launcher spends rehearsing a detached run's script at most.
+REHEARSAL_BUDGET = 3.0
 
 
 class ScriptedRun:
@@ -23,6 +37,16 @@ class ScriptedRun:
         self._events = collections.deque(script.events if script else ())
         self._name = script.file if script else ""
         self._elapsed = LoopTime(run.engine.loop.h)
+
+    @property
+    def pending(self) -> bool:
+        """Events of the script not applied yet."""
+        return bool(self._events)
+
+    @property
+    def elapsed(self) -> float:
+        """Loop time run so far, s."""
+        return self._elapsed.seconds
 
     def step(self) -> bool:
         """The script's due events, then one sample; True once the run is over."""
@@ -45,3 +69,45 @@ class ScriptedRun:
         if result.log is None:
             return f"the run is over; no log was written (see its output){acted}"
         return f"the run is over; its log is {result.log}{acted}"
+
+
+class _StandIn(ProcessBackend):
+    """The rig in a rehearsal: Active (so the engine refuses what it refuses on a
+    rig) and still at mid levels; its pumps go nowhere."""
+
+    kind = "Active"
+    description = "rehearsal"
+
+    def read_levels(self) -> Levels4:
+        return (0.5, 0.5, 0.5, 0.5)
+
+    def write_pumps(self, u: Pair) -> None:
+        pass
+
+    def safe_state(self) -> None:
+        pass
+
+
+def rehearse(*, par: str | None, script: Script | None, duration: float, out: Path, seed: int | None,
+             params_dir: Path, active: bool, budget: float = REHEARSAL_BUDGET) -> str | None:
+    """Run the detached run's script on a manual clock, writing only to a temporary
+    folder, until its last event has been applied: raises the ValueError (a
+    ScriptError naming file, event and line) the session would stop with.  `active`:
+    on a stand-in rig (the run drives a DAQ).  A rehearsal stops after `budget` s of
+    wall time (a sample costs about 0.1 ms: 10 min of script at 0.1 s is a
+    second): then a warning saying how far the script was checked, else None."""
+    with tempfile.TemporaryDirectory(prefix="quadtank-rehearsal-") as folder:
+        prepared = prepare_headless(par=par, script=script, duration=duration, out=Path(folder) / out.name,
+                                    seed=seed, clock="manual", params_dir=params_dir,
+                                    daq=_StandIn() if active else None)
+        run = ScriptedRun(prepared)
+        end = time.monotonic() + budget
+        try:
+            while run.pending and not run.step():
+                if time.monotonic() > end and run.pending:
+                    last = max(e.at for e in run.run.script.events) if run.run.script else 0.0
+                    return (f"the script was checked up to {run.elapsed:g} s of its last event at {last:g} s "
+                            f"(a refusal after that ends the session: quadtank sessions says why)")
+        finally:
+            prepared.engine.stop()
+    return None

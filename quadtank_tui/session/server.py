@@ -1,10 +1,20 @@
-"""The session's socket: connections that never make the loop wait.
+"""The session's socket: connections that never make the loop wait, and that no
+other user can use to end the session or crowd its owner out.
 
 Every connection is non-blocking.  What a client sends is split into lines and
-decoded (a line that is not a message drops the client); what the session sends is
-queued per connection and written when the socket takes it, so a slow or stopped
-client (a TUI suspended with Ctrl-Z, a link that stalls) costs the sampling nothing:
-past MAX_BACKLOG bytes queued it is dropped and may attach again.
+decoded (a line that is not a message drops that client, never the session: the
+same for anything its message makes go wrong); what the session sends is queued
+per connection and written when the socket takes it, so a slow or stopped client
+(a TUI suspended with Ctrl-Z, a link that stalls) costs the sampling nothing: past
+MAX_BACKLOG bytes queued it is dropped and may attach again.
+
+Anyone on the machine may connect (the session decides who is let in), so what a
+peer can make the session hold is bounded: a line before Hello is at most
+MAX_HELLO_LINE bytes and must come within HELLO_TIMEOUT; after it MAX_CLIENT_LINE.
+One user holds at most MAX_PER_USER connections, and RESERVED of the
+MAX_CONNECTIONS are kept for the owner and the administrators: another user's
+flood never locks them out.  Out of file descriptors (EMFILE), accept backs off
+instead of spinning.
 
 The connecting user is whom the kernel says (SO_PEERCRED), never what a message
 claims.
@@ -12,27 +22,49 @@ claims.
 
 from __future__ import annotations
 
+import errno
 import os
 import selectors
 import socket
+import sys
+import time
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Literal
 
-from quadtank_tui.session.protocol import CLIENT_MESSAGES, MAX_CLIENT_LINE, LineReader, ProtocolError, decode
+from quadtank_tui.session.protocol import (
+    CLIENT_MESSAGES, MAX_CLIENT_LINE, MAX_HELLO_LINE, LineReader, ProtocolError, Refused, decode, encode,
+)
 from quadtank_tui.session.roles import Peer, peer_of as kernel_peer
 
-#: Bytes queued for one client before it is dropped as too slow.
+#: Bytes queued for one client before it is dropped as too slow, and for all the
+#: clients that are neither the owner nor an administrator together (16 observers
+#: of one user each 64 MB behind would be a gigabyte of the session's memory).
 MAX_BACKLOG = 64 << 20
+MAX_BACKLOG_OTHERS = 256 << 20
+#: Connections a session holds at once, of which RESERVED only for its owner and
+#: the administrators; one user (not an administrator) holds at most MAX_PER_USER.
+MAX_CONNECTIONS = 128
+RESERVED = 32
+MAX_PER_USER = 16
+#: Seconds a new connection has to say Hello (a client says it at once).
+HELLO_TIMEOUT = 10.0
+#: Seconds accept pauses after running out of descriptors or memory, doubling up to the second.
+ACCEPT_BACKOFF = (0.05, 1.0)
+
+#: Who a peer is to this session: an administrator, its owner, anyone else.
+Rank = Literal["admin", "owner", "other"]
 
 
 @dataclass(eq=False)
 class Connection:
     sock: socket.socket
     peer: Peer
-    reader: LineReader = field(default_factory=lambda: LineReader(MAX_CLIENT_LINE))
+    rank: Rank = "other"
+    reader: LineReader = field(default_factory=lambda: LineReader(MAX_HELLO_LINE))
     out: bytearray = field(default_factory=bytearray)
     role: str | None = None        # None until its Hello was accepted
     since: float = 0.0             # wall time (time.time) it attached
+    opened: float = field(default_factory=time.monotonic)
     closing: bool = False          # close once `out` is written
 
     @property
@@ -45,17 +77,27 @@ class Server:
 
     on_message(conn, message) : a decoded client message
     on_gone(conn) : a connection closed (after its Hello or not)
+    rank(peer) : an administrator, the owner, or anyone else (who may use the reserve)
     """
 
     def __init__(self, listener: socket.socket, selector: selectors.BaseSelector,
                  on_message: Callable[[Connection, Any], None], on_gone: Callable[[Connection], None], *,
-                 peer_of: Callable[[socket.socket], Peer] = kernel_peer) -> None:
+                 peer_of: Callable[[socket.socket], Peer] = kernel_peer,
+                 rank: Callable[[Peer], Rank] = lambda peer: "other") -> None:
         self.listener = listener
         self.selector = selector
         self.connections: list[Connection] = []
         self._on_message = on_message
         self._on_gone = on_gone
         self._peer_of = peer_of
+        self._rank = rank
+        self._per_user: dict[int, int] = {}
+        self._others_queued = 0   # bytes in the `out` of connections of rank "other"
+        self._backoff = 0.0
+        self._resume_at: float | None = None   # accept paused (out of descriptors) until then
+        #: Connections turned away (limits, a silent peer, a bad line) and accept's pauses, for the record.
+        self.refused = 0
+        self.paused = 0
         listener.setblocking(False)
         selector.register(listener, selectors.EVENT_READ, self._accept)
 
@@ -65,17 +107,76 @@ class Server:
                 sock, _ = self.listener.accept()
             except (BlockingIOError, InterruptedError):
                 return
-            except OSError:
+            except ConnectionAbortedError:
+                continue
+            except OSError as exc:  # EMFILE, ENFILE, ENOBUFS, ENOMEM: the listener stays readable
+                self._pause_accept(exc)
                 return
+            self._backoff = 0.0
             sock.setblocking(False)
             try:
                 peer = self._peer_of(sock)
             except OSError:
                 sock.close()
                 continue
-            conn = Connection(sock, peer)
+            rank = self._rank(peer)
+            why = self._no_room(peer, rank)
+            if why is not None:
+                self.refused += 1
+                try:
+                    sock.send(encode(Refused(why)))  # a fresh socket takes one short line
+                except OSError:
+                    pass
+                sock.close()
+                continue
+            conn = Connection(sock, peer, rank)
             self.connections.append(conn)
+            self._per_user[peer.uid] = self._per_user.get(peer.uid, 0) + 1
             self.selector.register(sock, selectors.EVENT_READ, lambda m, c=conn: self._ready(c, m))
+
+    def _no_room(self, peer: Peer, rank: Rank) -> str | None:
+        """Why `peer` is turned away now (None: let in)."""
+        total = len(self.connections)
+        mine = self._per_user.get(peer.uid, 0)
+        if rank != "admin" and mine >= MAX_PER_USER:
+            return f"{peer.user} has {mine} connections to this session already (at most {MAX_PER_USER})"
+        room = MAX_CONNECTIONS if rank != "other" else MAX_CONNECTIONS - RESERVED
+        if total >= room:
+            return (f"this session has {total} connections (at most {room}"
+                    + (f"; the last {RESERVED} are kept for its owner and the administrators)" if rank == "other"
+                       else ")"))
+        return None
+
+    def _pause_accept(self, exc: OSError) -> None:
+        """Out of descriptors or memory: stop listening for a while (a readable
+        listener whose accept fails would wake the loop at once, forever)."""
+        self._backoff = min(ACCEPT_BACKOFF[1], max(ACCEPT_BACKOFF[0], 2 * self._backoff))
+        self._resume_at = time.monotonic() + self._backoff
+        self.paused += 1
+        try:
+            self.selector.unregister(self.listener)
+        except (KeyError, ValueError):
+            pass
+        if self.paused == 1 or exc.errno not in (errno.EMFILE, errno.ENFILE):
+            _note(f"accept paused {self._backoff:g} s: {exc}")
+
+    def tick(self) -> None:
+        """Timers: accept again after a pause; drop a connection silent past HELLO_TIMEOUT."""
+        now = time.monotonic()
+        if self._resume_at is not None and now >= self._resume_at:
+            self._resume_at = None
+            self.selector.register(self.listener, selectors.EVENT_READ, self._accept)
+            self._accept(selectors.EVENT_READ)
+        for conn in [c for c in self.connections if c.role is None and now - c.opened > HELLO_TIMEOUT]:
+            self.refused += 1
+            self.drop(conn)
+
+    def next_timer(self) -> float:
+        """Seconds until `tick` has something to do (at most HELLO_TIMEOUT)."""
+        now = time.monotonic()
+        due = [self._resume_at - now] if self._resume_at is not None else []
+        due += [c.opened + HELLO_TIMEOUT - now for c in self.connections if c.role is None]
+        return max(0.0, min(due, default=HELLO_TIMEOUT))
 
     def _ready(self, conn: Connection, mask: int) -> None:
         if mask & selectors.EVENT_WRITE:
@@ -98,17 +199,26 @@ class Server:
                 if conn not in self.connections or conn.closing:
                     return
                 self._on_message(conn, decode(line, CLIENT_MESSAGES))
+                if conn.role is not None:
+                    conn.reader.limit = MAX_CLIENT_LINE  # let in: commands may be longer than a Hello
         except ProtocolError:
+            self.refused += 1
+            self.drop(conn)
+        except Exception as exc:  # noqa: BLE001 - what one client's message broke ends that client only
+            _note(f"dropped {conn.name}: its message failed: {type(exc).__name__}: {exc}")
             self.drop(conn)
 
     def send(self, conn: Connection, payload: bytes, *, close: bool = False) -> None:
         """Queue `payload` (encoded lines) for `conn`; `close`: then hang up."""
         if conn not in self.connections or conn.closing:
             return
-        if len(conn.out) + len(payload) > MAX_BACKLOG:
+        if len(conn.out) + len(payload) > MAX_BACKLOG or \
+                conn.rank == "other" and self._others_queued + len(payload) > MAX_BACKLOG_OTHERS:
             self.drop(conn)
             return
         conn.out += payload
+        if conn.rank == "other":
+            self._others_queued += len(payload)
         conn.closing = close
         self._write(conn)
 
@@ -127,6 +237,8 @@ class Server:
                 self.drop(conn)
                 return
             del conn.out[:n]
+            if conn.rank == "other":
+                self._others_queued -= n
         if conn.out:
             self.selector.modify(conn.sock, selectors.EVENT_READ | selectors.EVENT_WRITE,
                                  lambda m, c=conn: self._ready(c, m))
@@ -140,6 +252,13 @@ class Server:
         if conn not in self.connections:
             return
         self.connections.remove(conn)
+        if conn.rank == "other":
+            self._others_queued -= len(conn.out)
+        left = self._per_user.get(conn.peer.uid, 1) - 1
+        if left > 0:
+            self._per_user[conn.peer.uid] = left
+        else:
+            self._per_user.pop(conn.peer.uid, None)
         try:
             self.selector.unregister(conn.sock)
         except (KeyError, ValueError):
@@ -149,8 +268,6 @@ class Server:
 
     def flush_all(self, timeout: float) -> None:
         """At the end: let the queued lines go out for up to `timeout` s."""
-        import time
-
         end = time.monotonic() + timeout
         while any(c.out for c in self.connections) and time.monotonic() < end:
             for key, mask in self.selector.select(max(0.0, end - time.monotonic())):
@@ -182,5 +299,13 @@ def listen(path: str, *, anyone: bool = False) -> socket.socket:
         os.umask(old)
     if anyone:
         os.chmod(path, 0o666)
-    sock.listen(16)
+    sock.listen(64)
     return sock
+
+
+def _note(line: str) -> None:
+    """One line in the session's output file (its stderr)."""
+    try:
+        print(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {line}", file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass

@@ -17,7 +17,7 @@ import pytest
 from quadtank_tui.cli import main
 from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.session import launch
-from quadtank_tui.session.runtime import list_sessions, pid_alive
+from quadtank_tui.session.runtime import ended_sessions, list_sessions, pid_alive
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc")
 
@@ -79,8 +79,12 @@ def test_an_interrupt_while_the_ui_loads_stops_the_session_just_handed_its_spec(
     assert main([]) == 130
     assert len(spawned) == 1
     assert _gone_within(spawned[0].pid, 30.0), "a session nobody knows of was left running"
-    # It stopped in order (not killed): no stale record, socket or output file.
-    assert sorted(p.name for p in runtime.iterdir()) == []
+    # It stopped in order (not killed): no socket; its record and output say why.
+    (ended,) = ended_sessions(runtime)
+    assert ended.ended == ("its launcher went away before it was ready" if when == "before it is ready"
+                           else f"stopped by {ended.owner}")
+    assert sorted(p.name for p in runtime.iterdir()) == [f"{ended.id}.json", f"{ended.id}.out"]
+    assert f"session {ended.id} stopped: {ended.ended}" in (runtime / f"{ended.id}.out").read_text()
 
 
 def test_a_good_start_attaches_to_the_session_it_spawned(

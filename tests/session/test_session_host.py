@@ -25,7 +25,7 @@ from quadtank_tui.session.policy import UnattendedPolicy, describe
 from quadtank_tui.session.protocol import (
     Hello, ProtocolError, Submit, Welcome, decode, encode,
 )
-from quadtank_tui.session.runtime import list_sessions
+from quadtank_tui.session.runtime import ended_sessions, list_sessions
 
 
 def wait_for(predicate, timeout: float = 60.0, what: str = "") -> None:  # type: ignore[no-untyped-def]
@@ -195,7 +195,10 @@ def test_the_owner_stops_the_session_pumps_at_0_log_kept(thread_session, tmp_pat
     assert snap.state == "Pause" and snap.u == (0.0, 0.0) or snap.state == "Pause"
     partial = list((tmp_path / "logs").glob("*.partial"))
     assert partial and read_log(partial[0]).rows > 50  # the unsaved rows are kept
-    assert sorted(p.name for p in s.runtime.iterdir()) == []
+    # No socket; the record stays, saying why and when it ended.
+    assert sorted(p.name for p in s.runtime.iterdir()) == ["alice-1.json"]
+    (ended,) = ended_sessions(s.runtime)
+    assert ended.ended == "stopped by alice" and ended.ended_at and ended.clients == 0
 
 
 def test_the_record_lists_the_session(thread_session) -> None:

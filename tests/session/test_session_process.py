@@ -1,8 +1,9 @@
 """Real session processes: what is promised about processes holds for processes.
 
 - The session process SIGKILLed: an attached client says so within a second and
-  refuses commands; listing the sessions removes its stale record and socket.
-- `quadtank stop SESSION` leaves no process, socket, record or shared-memory file.
+  refuses commands; listing the sessions marks its stale record ended, saying so.
+- `quadtank stop SESSION` leaves no process, socket or shared-memory file; its
+  record and output say why it ended, and `quadtank sessions` lists it.
 - `quadtank` in a pseudo-terminal that hangs up (directly, and under a shell that
   keeps SIGHUP as `make run` does): the TUI is gone within a second or so, the
   session runs on, and a new `quadtank` attaches to it with its whole history.
@@ -11,6 +12,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import stat
 import sys
@@ -25,7 +27,7 @@ from quadtank_tui.engine import commands as c
 from quadtank_tui.engine.runner import engine_spec
 from quadtank_tui.session.client import SessionClient
 from quadtank_tui.session.launch import SessionSpec, start_session
-from quadtank_tui.session.runtime import list_sessions, pid_alive
+from quadtank_tui.session.runtime import ended_sessions, list_sessions, pid_alive, socket_path
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and Linux ptys")
 
@@ -68,11 +70,13 @@ def test_a_killed_session_is_reported_by_its_client(tmp_path: Path) -> None:
     finally:
         client.close()
     wait_until(lambda: not pid_alive(info.pid))
-    assert list_sessions(runtime) == []  # the stale record is removed when listed
-    assert sorted(p.name for p in runtime.iterdir() if not p.name.endswith(".out")) == []
+    assert list_sessions(runtime) == []  # the stale record is no running session ...
+    (ended,) = ended_sessions(runtime)   # ... but an ended one that says so
+    assert ended.id == info.id and f"the session process (pid {info.pid}) was gone without stopping" in ended.ended
+    assert sorted(p.name for p in runtime.iterdir() if not p.name.endswith(".out")) == [f"{info.id}.json"]
 
 
-def test_quadtank_stop_leaves_nothing_behind(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+def test_quadtank_stop_leaves_no_process_nor_socket_and_says_why(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                              capsys: pytest.CaptureFixture[str], pty_kit: Any) -> None:
     runtime = tmp_path / "run"
     monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
@@ -95,7 +99,13 @@ def test_quadtank_stop_leaves_nothing_behind(tmp_path: Path, monkeypatch: pytest
     out = capsys.readouterr().out
     assert f"session {info.id} stopped (stopped by " in out
     assert not pid_alive(info.pid)
-    assert sorted(p.name for p in runtime.iterdir()) == []  # no socket, record, output
+    # No socket; the record and the output say why it ended, and `sessions` lists it.
+    assert sorted(p.name for p in runtime.iterdir()) == [f"{info.id}.json", f"{info.id}.out"]
+    assert f"session {info.id} stopped: stopped by {info.owner}" in (runtime / f"{info.id}.out").read_text()
+    assert main(["sessions"]) == 0
+    listed = capsys.readouterr().out
+    assert listed.startswith("no running sessions\n\nended (kept 7 days")
+    assert re.search(rf"^{info.id} +{info.owner} .* stopped by {info.owner}$", listed, re.M), listed
     partial = list((tmp_path / "logs").glob("*.partial"))
     assert partial, "the unsaved log is kept"
     assert main(["stop", info.id]) == 2  # nothing left to stop: one line, status 2
@@ -183,8 +193,10 @@ def test_run_detach_is_a_session_one_watches_until_the_run_is_over(tmp_path: Pat
     log = read_log(out)
     assert log.rows == 2000
     wait_until(lambda: not pid_alive(info.pid))
-    assert [p.name for p in runtime.iterdir()] == [f"{info.id}.out"]
+    assert sorted(p.name for p in runtime.iterdir()) == [f"{info.id}.json", f"{info.id}.out"]
     assert f"log        {out} (2000 rows)" in (runtime / f"{info.id}.out").read_text()
+    (ended,) = ended_sessions(runtime)
+    assert ended.ended == f"the run is over; its log is {out}"
 
 
 def test_sigterm_stops_the_session_in_order(tmp_path: Path) -> None:
@@ -202,7 +214,9 @@ def test_sigterm_stops_the_session_in_order(tmp_path: Path) -> None:
         assert "ended: SIGTERM" in (client.snapshot().fault or "")
     wait_until(lambda: not pid_alive(info.pid))
     assert not pid_alive(info.pid)
-    assert sorted(p.name for p in runtime.iterdir()) == []
+    (ended,) = ended_sessions(runtime)
+    assert ended.ended == "SIGTERM" and not socket_path(runtime, info.id).exists()
+    assert "stopped: SIGTERM" in (runtime / f"{info.id}.out").read_text()
     assert list((tmp_path / "logs").glob("*.partial"))
 
 
@@ -235,3 +249,23 @@ def test_the_launchers_rig_lock_passes_to_the_session(tmp_path: Path, monkeypatc
         stop_session_at(info.socket)
     wait_until(lambda: not pid_alive(info.pid))
     assert holder_of(device, load_lab_config()) is None
+
+
+def test_run_detach_refuses_a_script_the_run_would_refuse_before_detaching(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """A script that sets the sampling time while logging: `--detach` says so in the
+    terminal with exit 2, as the run without --detach does, and starts no session
+    (it said "runs the experiment", exit 0, and the session ended unseen)."""
+    runtime = tmp_path / "run"
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
+    monkeypatch.chdir(tmp_path)
+    script = tmp_path / "tsamp.yaml"
+    script.write_text('- at: 1\n  log: "on"\n- at: 2\n  set: {"SAMPLING TIME.TSamp": 200}\n')
+    run = ["run", "--script", str(script), "--duration", "60", "--log", str(tmp_path / "logs" / "t.log")]
+    assert main(run) == 2
+    undetached = capsys.readouterr().err.splitlines()[-1]
+    assert main([*run, "--detach"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[-1] == undetached
+    assert undetached.startswith(f"quadtank: error: {script}, event 2 (line 3): SAMPLING TIME.TSamp: stop logging")
+    assert not runtime.exists() or sorted(p.name for p in runtime.iterdir()) == []

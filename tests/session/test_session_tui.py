@@ -74,9 +74,7 @@ async def test_an_observer_of_a_stopped_session_is_told_on_the_session_line(thre
     app = build_app(observer, refresh_interval=0.05)
     async with app.run_test(size=(80, 24)) as pilot:
         await pilot.pause()
-        s.host.request_stop("stopped by carol")
-        s.thread.join(30)
-        assert observer.wait_gone(30)
+        _stop_from_outside(s, observer, "stopped by carol")
         bar = app.main.query_one("#session-bar", Static)
         deadline = time.monotonic() + 60  # a paused screen's tick (0.5 s) shows it
         while not str(bar.render()).startswith("session alice-1 ended"):
@@ -85,3 +83,29 @@ async def test_an_observer_of_a_stopped_session_is_told_on_the_session_line(thre
         text = str(bar.render())
         assert text.startswith("session alice-1 ended: stopped by carol; the screen shows its last state")
     observer.close()
+
+
+async def test_exit_after_the_session_ended_offers_no_stop(thread_session) -> None:
+    """Once its session has ended (stopped from outside), the operator's Exit only
+    leaves: it never offers to stop "session alice-1", an id that is nobody's now."""
+    s: ThreadSession = thread_session(speed=1.0)  # see IDLE
+    client = SessionClient(s.path)
+    app = build_app(client, refresh_interval=0.05)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        _stop_from_outside(s, client, "stopped by teacher")
+        await pilot.press("q")
+        await pilot.pause()
+        assert isinstance(app.screen, ConfirmWindow)
+        assert app.screen.question == "Session alice-1 has ended: stopped by teacher.\nExit?"
+        await pilot.press("enter")
+        await pilot.pause()
+    assert not client.stop_on_close
+    client.close()
+
+
+def _stop_from_outside(s: ThreadSession, client: SessionClient, reason: str) -> None:
+    """The session stops for `reason` (as `quadtank stop` by someone else) and `client` sees it go."""
+    s.host.request_stop(reason)
+    s.thread.join(30)
+    assert client.wait_gone(30)

@@ -555,6 +555,11 @@ class MainScreen(CommandSender):
             self._exit_stopping(confirm=True)
             return
         sid = engine.info.id
+        if engine.gone:  # it ended (or died): nothing of it to stop, and its id is no one else's to offer
+            why = engine.ended or "its process is gone"
+            self.app.push_screen(ConfirmWindow("Exit", f"Session {sid} has ended: {why}.\nExit?", yes="Exit"),
+                                 lambda yes: self.app.exit() if yes else None)
+            return
         if engine.role != "operator":
             self.app.push_screen(ConfirmWindow("Exit", f"Stop watching session {sid} and exit?\n"
                                                "It keeps running.", yes="Exit"),
