@@ -53,10 +53,13 @@ def plant(lab: LabConfig, *, user: str, uid: int, pid: int, owner: int) -> Path:
     """A record naming `user` (`uid`, `pid`) in a file owned by `owner`."""
     lab.locks_dir.mkdir(parents=True, exist_ok=True)
     path = lock_path(DEVICE, lab)
-    path.unlink(missing_ok=True)
-    path.write_text(json.dumps({"user": user, "uid": uid, "pid": pid, "start": process_start(pid),
-                                "since": "2026-11-26T10:00:00+00:00", "session": f"{user}-1", "token": "x"}))
-    os.chown(path, owner, owner)
+    # Written aside, owned, then renamed over the record in one step: a holder's
+    # watch looking every 0.01 s must never see the file missing or still root's.
+    aside = path.with_name(path.name + ".planting")
+    aside.write_text(json.dumps({"user": user, "uid": uid, "pid": pid, "start": process_start(pid),
+                                 "since": "2026-11-26T10:00:00+00:00", "session": f"{user}-1", "token": "x"}))
+    os.chown(aside, owner, owner)
+    os.replace(aside, path)
     return path
 
 
