@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from quadtank_tui.core.design.controller import PID
-from quadtank_tui.core.design.mimo import design_2x2, physical_model
+from quadtank_tui.core.design.mimo import design_2x2, model_in_use
 from quadtank_tui.core.design.apply import controller_values
 from quadtank_tui.engine.design_step import run_step
 from quadtank_tui.engine.runner import load_parameters
@@ -18,13 +18,13 @@ PARAMS = Path(__file__).resolve().parents[2] / "params"
 
 def _design(par: Path, tmp_path: Path):
     params, _ = load_parameters(par, ParStore(tmp_path / "params"))
-    return design_2x2(physical_model(params.plant(), params.operating_levels()))
+    return design_2x2(model_in_use(params))
 
 
 def test_the_thesis_pair_gives_the_published_step(tmp_path: Path) -> None:
     """Same experiment as the sample session: 5.1 % and 53 s (the physical model at 1 s)."""
     r = run_step([PID(3.0, 30.0), PID(2.7, 40.0)], par=PARAMS / "minphase.par", duration=300,
-                 params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
+                 params_dir=tmp_path / "params", logs_dir=tmp_path / "logs", tsamp_ms=1000.0)
     assert r.step.step == pytest.approx(0.1)
     assert r.step.overshoot == pytest.approx(5.1, abs=0.05) and r.step.settling_time == 53.0
 
@@ -32,7 +32,7 @@ def test_the_thesis_pair_gives_the_published_step(tmp_path: Path) -> None:
 def test_p_minus_designed_loops_step_under_10_percent(tmp_path: Path) -> None:
     chk = _design(PARAMS / "minphase.par", tmp_path)
     r = run_step(chk.pid_pair(), par=PARAMS / "minphase.par", loop=1, duration=600,
-                 params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
+                 params_dir=tmp_path / "params", logs_dir=tmp_path / "logs", tsamp_ms=1000.0)
     assert r.step.step == pytest.approx(0.1)
     assert r.step.overshoot < 10.0
     assert r.step.settling_time is not None and r.step.settling_time < 400.0
@@ -45,7 +45,7 @@ def test_p_plus_designed_loops_with_k2_negative_settle(tmp_path: Path) -> None:
     c1, c2 = chk.pid_pair()
     assert c1.Kc > 0 > c2.Kc
     r = run_step(chk.pid_pair(), par=PARAMS / "nonminphase.par", loop=1, duration=2500,
-                 params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
+                 params_dir=tmp_path / "params", logs_dir=tmp_path / "logs", tsamp_ms=1000.0)
     assert r.step.overshoot < 15.0
     assert r.step.settling_time is not None and r.step.settling_time < 1200.0  # thesis: ~800 s
     assert abs(r.step.final_error) < 1e-3

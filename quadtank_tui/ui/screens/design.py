@@ -127,14 +127,15 @@ class DesignScreen(CommandSender):
 
     def action_physical(self) -> None:
         """Both loops' models from the physical linearization of the current setting."""
-        from quadtank_tui.core.design.mimo import physical_model
+        from quadtank_tui.core.design.controller import DesignError
+        from quadtank_tui.core.design.mimo import model_in_use
         from quadtank_tui.core.plant import PlantError
 
         p = self.engine.snapshot().params
         self.source = "the physical linearization"
         try:
-            self.G = physical_model(p.plant(), p.operating_levels())
-        except PlantError as exc:
+            self.G = model_in_use(p)  # the plant in use, not always the quadruple tank
+        except (PlantError, DesignError) as exc:
             self.G = None
             self._status(f"no physical linearization: {exc}")
             return

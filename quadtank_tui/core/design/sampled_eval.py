@@ -1,0 +1,228 @@
+"""Andersson's figures for the sampled loop, and the actuator-limit check.
+
+Every figure here is the discrete loop's (core.design.sampled): Ms and the margins
+of L(e^(iwh)), 0 < w < pi/h; stability from the closed-loop eigenvalues; IAE, Emax
+and u overshoot of Andersson's load step (size 10/K, unlimited, as his tables);
+then the two steps the rig would see, with the pumps limited to 0..1 (0..10 V)
+around the operating input u0: a reference step of STEP (10 % of the range) and a
+load step of STEP at the process input.  A candidate is marked when either step
+sits at a pump limit for more than a fifth of its settling time (or never
+settles), or when its input reverses direction on most samples (chatter).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from quadtank_tui.core.delaytf import DelayTF
+from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.evaluate import Evaluation, load_size
+from quadtank_tui.core.design.simulate import Response
+from quadtank_tui.core.design.sampled import (
+    SampledModel, closed_loop_poles, controller_freqresp, sample, sampled_grid, slowest_rate,
+)
+from quadtank_tui.core.metrics import loop_metrics
+from quadtank_tui.core.pid import PID as RunningPID
+from quadtank_tui.core.pid import PIDParams
+
+#: reference and load step of the limit check, normalized (10 % of the pump/sensor range)
+STEP = 0.1
+#: a step that sits at a pump limit longer than this share of its settling time is marked
+SATURATION_SHARE = 0.2
+#: an input reversing direction on more than this share of its moving samples chatters
+CHATTER_SHARE = 0.5
+#: anti-windup tracking time of the simulated PID when none is given (the .par default)
+TR_DEFAULT = 1.0
+MAX_SAMPLES = 40_000
+
+
+def running_pid(c: PID, h: float, tr: float = TR_DEFAULT) -> RunningPID:
+    """The PID element core.pid runs, with this design's settings."""
+    if abs(c.Kc) > 1e3:
+        raise DesignError(f"Kc = {c.Kc:.4g}: beyond the PID element's range (|K| <= 1000)")
+    integral = math.isfinite(c.Ti) and c.Ti < 1e6
+    params = PIDParams(K=c.Kc, Ti=c.Ti if integral else 1e6, Td=c.Td, Tr=tr, N=c.N, b=c.b,
+                       integral=integral, derivative=c.Td > 0.0)
+    return RunningPID(params, h)
+
+
+def simulate(m: SampledModel, c: PID, *, r: float = 0.0, d: float = 0.0, samples: int,
+             limits: tuple[float, float] = (-math.inf, math.inf), tr: float = TR_DEFAULT) -> Response:
+    """From rest (deviations), a reference step r and a load step d at the process
+    input at sample 0; the controller output clipped to `limits` (deviation)."""
+    if m.Dd != 0.0:
+        raise DesignError("the sampled model passes its input straight through (no delay, biproper)")
+    pid = running_pid(c, m.h, tr)
+    A, B, C = m.A, m.B, m.C
+    lo, hi = limits
+    x = np.zeros(A.shape[0])
+    y = np.empty(samples)
+    u = np.empty(samples)
+    for k in range(samples):
+        yk = float(C @ x)
+        v = pid.compute(r, yk)
+        uk = lo if v < lo else hi if v > hi else v
+        pid.update(r, yk, uk)
+        y[k], u[k] = yk, uk
+        x = A @ x + B * (uk + d)
+    return Response(np.arange(samples) * m.h, y, u, r, d)
+
+
+def reversals(u: np.ndarray, step: float) -> float:
+    """Share of the moving samples on which u reverses direction."""
+    du = np.diff(u)
+    moving = np.abs(du) > 1e-3 * max(abs(step), float(np.max(np.abs(du))) if du.size else 0.0)
+    pairs = moving[1:] & moving[:-1]
+    n = int(pairs.sum())
+    if n < 6:
+        return 0.0
+    flips = (np.sign(du[1:]) != np.sign(du[:-1])) & pairs
+    return float(flips.sum()) / n
+
+
+@dataclass(frozen=True)
+class StepFigures:
+    """One limited step of the sampled loop."""
+
+    overshoot_pct: float
+    settling: float | None  # 2 % band, s
+    iae: float
+    at_limit: float  # s at a pump limit
+    reversals: float  # share of moving samples
+
+    @property
+    def saturated(self) -> bool:
+        if self.settling is None:
+            return self.at_limit > 0.0
+        return self.at_limit > SATURATION_SHARE * max(self.settling, 1e-9)
+
+
+def step_figures(resp: Response, limits: tuple[float, float], h: float) -> StepFigures:
+    """Figures of a reference step (r != 0) or a load step (error to zero)."""
+    at = (resp.u <= limits[0] + 1e-9) | (resp.u >= limits[1] - 1e-9)
+    size = resp.r if resp.r != 0.0 else resp.d
+    if resp.r != 0.0:
+        t = np.concatenate([[-h], resp.t])
+        lm = loop_metrics(t, np.concatenate([[0.0], resp.y]), np.concatenate([[0.0], np.full(resp.y.size, resp.r)]))
+        over, settle, iae = float(lm.overshoot or 0.0), lm.settling_time, lm.iae
+    else:
+        e = np.abs(resp.y)
+        peak = float(e.max()) if e.size else 0.0
+        outside = np.nonzero(e > 0.02 * max(peak, 1e-300))[0]
+        settle = None if outside.size and outside[-1] + 1 >= e.size else (
+            float(resp.t[outside[-1] + 1]) if outside.size else 0.0)
+        over, iae = 0.0, float(np.sum(e) * h)
+    return StepFigures(over, settle, iae, float(at.sum()) * h, reversals(resp.u, size))
+
+
+@dataclass(frozen=True)
+class LimitCheck:
+    """The reference and load steps with the pumps limited, and the verdict."""
+
+    u0: float
+    reference: StepFigures
+    load: StepFigures
+
+    @property
+    def saturates(self) -> bool:
+        return self.reference.saturated or self.load.saturated
+
+    @property
+    def chatters(self) -> bool:
+        return max(self.reference.reversals, self.load.reversals) > CHATTER_SHARE
+
+    @property
+    def problem(self) -> str | None:
+        """Why this candidate must not be suggested (None: it holds)."""
+        if self.chatters:
+            return "chatters: the pump reverses on most samples"
+        for name, s in (("reference", self.reference), ("load", self.load)):
+            if s.settling is None:
+                return f"the {name} step does not settle"
+        if self.saturates:
+            return "at a pump limit for more than a fifth of the settling time"
+        return None
+
+
+@dataclass(frozen=True)
+class SampledEvaluation:
+    evaluation: Evaluation
+    limits: LimitCheck | None
+
+
+def _margins(m: SampledModel, c: PID, g: DelayTF, h: float, stable: bool) -> tuple[float, float, float, float, float]:
+    """(Ms, phase margin deg, gain margin, delay margin s, crossover rad/s) of L(e^(iwh))."""
+    w = sampled_grid(g, h)
+    L = controller_freqresp(c, h, w) * m.freqresp(w)
+    ms = float(np.max(np.abs(1.0 / (1.0 + L)))) if stable else math.inf
+    mag = np.abs(L)
+    ph = np.unwrap(np.angle(L))
+    # the low-frequency phase is -90 deg per integrator of the loop (minus 180 for a
+    # negative loop gain): take the branch of the unwrapped phase that starts there
+    n_int = (1 if math.isfinite(c.Ti) else 0) + g.integrators
+    expect = -math.pi / 2 * n_int + (-math.pi if c.Kc * g.static_gain < 0 else 0.0)
+    ph = ph + 2.0 * math.pi * round((expect - ph[0]) / (2.0 * math.pi))
+    pm, wc = math.inf, math.nan
+    lg = np.log(mag)
+    for i in np.nonzero(np.sign(lg[:-1]) * np.sign(lg[1:]) < 0)[0]:
+        f = lg[i] / (lg[i] - lg[i + 1])
+        x = w[i] * (w[i + 1] / w[i]) ** f
+        p = ph[i] + f * (ph[i + 1] - ph[i])
+        marg = (math.degrees(p) + 360.0) % 360.0 - 180.0
+        if marg < pm:
+            pm, wc = marg, x
+    am = math.inf
+    k = np.floor((ph + math.pi) / (2.0 * math.pi))
+    for i in np.nonzero(np.diff(k) != 0)[0]:
+        if mag[i] > 1e-4:
+            am = min(am, 1.0 / float(0.5 * (mag[i] + mag[i + 1])))
+    lm = math.radians(pm) / wc if math.isfinite(pm) and wc > 0 else math.inf
+    return ms, pm, am, lm, wc
+
+
+def _horizon(c: PID, wc: float, h: float) -> int:
+    t = 40.0 / wc if math.isfinite(wc) and wc > 0 else 600.0
+    t = max(t, 8.0 * (c.Ti if math.isfinite(c.Ti) else 0.0), 40.0 * h)
+    return min(MAX_SAMPLES, int(math.ceil(t / h)) + 1)
+
+
+def evaluate_sampled(c: PID, g: DelayTF, h: float, *, u0: float | None = 0.5, setpoint: bool = True,
+                     tr: float = TR_DEFAULT, model: SampledModel | None = None) -> SampledEvaluation:
+    """All figures of `c` on `g` sampled at h (see the module); u0 = None skips the
+    limit check (no operating point)."""
+    m = model or sample(g, h)
+    rate = slowest_rate(closed_loop_poles(m, c, h), h)
+    stable = rate < 0.0
+    ms, pm, am, lm, wc = _margins(m, c, g, h, stable)
+    d = load_size(g)
+    nan = math.nan
+    if not stable:
+        return SampledEvaluation(Evaluation(math.inf, pm, am, lm, wc, nan, nan, nan, d, nan, None, False, h),
+                                 None)
+    n = _horizon(c, wc, h)
+    for _ in range(3):  # until the load response has died out
+        load = simulate(m, c, d=d, samples=n, tr=tr)
+        tail = np.abs(load.y[int(0.9 * n):])
+        if tail.max() <= 1e-3 * max(float(np.abs(load.y).max()), 1e-300) or n >= MAX_SAMPLES:
+            break
+        n = min(MAX_SAMPLES, 2 * n)
+    e = np.abs(load.y)
+    iae = float(np.sum(e) * h)
+    u_over = float(np.max(np.abs(load.u)) / abs(d) - 1.0)
+    overshoot, settling = nan, None
+    if setpoint:
+        sp = step_figures(simulate(m, c, r=1.0, samples=n, tr=tr), (-math.inf, math.inf), h)
+        overshoot, settling = sp.overshoot_pct, sp.settling
+    ev = Evaluation(ms, pm, am, lm, wc, iae, float(e.max()), max(u_over, 0.0), d, overshoot, settling, True, h)
+    check = None
+    if u0 is not None:
+        lim = (-u0, 1.0 - u0)
+        ref = step_figures(simulate(m, c, r=STEP, samples=n, limits=lim, tr=tr), lim, h)
+        # the load is answered by u = -d: towards the side of the range with more room
+        dl = -STEP if u0 < 0.5 else STEP
+        ld = step_figures(simulate(m, c, d=dl, samples=n, limits=lim, tr=tr), lim, h)
+        check = LimitCheck(u0, ref, ld)
+    return SampledEvaluation(ev, check)
