@@ -18,6 +18,7 @@ figures are simulations with core.pid's own PID object (anti-windup included).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -28,9 +29,9 @@ from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import PID, DesignError
 from quadtank_tui.core.plants.linear import zoh
 
-#: the lowest frequency of a sampled grid, as a share of the Nyquist frequency pi/h
-#: when the model's own characteristic frequencies do not reach lower.
 GRID_POINTS = 3000
+#: the sampled model keeps one state per sample of dead time: beyond this, refused
+MAX_DELAY_SAMPLES = 1000
 
 
 @dataclass(frozen=True)
@@ -67,7 +68,14 @@ class SampledModel:
 
 
 def sample(g: DelayTF, h: float) -> SampledModel:
-    """The exact ZOH model of g (dead time included) at sampling time h > 0."""
+    """The exact ZOH model of g (dead time included) at sampling time h > 0 (kept:
+    a table designs and evaluates nine candidates on the same model)."""
+    return _sample(g.num, g.den, g.delay, float(h))
+
+
+@functools.lru_cache(maxsize=64)
+def _sample(num: tuple[float, ...], den: tuple[float, ...], delay: float, h: float) -> SampledModel:
+    g = DelayTF(num, den, delay)
     if not (h > 0.0 and math.isfinite(h)):
         raise DesignError(f"the sampling time must be > 0 s, got {h:g}")
     A, B, C, D = tf2ss(np.array(g.num, dtype=float), np.array(g.den, dtype=float))
@@ -75,6 +83,9 @@ def sample(g: DelayTF, h: float) -> SampledModel:
     A, B, C = A.reshape(n, n), B.reshape(n, 1), C.reshape(1, n)
     dp = float(D.ravel()[0]) if D.size else 0.0
     d = int(math.floor(g.delay / h + 1e-9))
+    if d > MAX_DELAY_SAMPLES:
+        raise DesignError(f"the dead time {g.delay:g} s is {d} samples of {h:g} s: more than "
+                          f"{MAX_DELAY_SAMPLES}; sample slower")
     tau = max(0.0, g.delay - d * h)
     if tau < 1e-9 * h:
         tau = 0.0

@@ -22,7 +22,9 @@ from quadtank_tui.core.design.controller import PID, DesignError
 from quadtank_tui.core.design.evaluate import Evaluation, load_size
 from quadtank_tui.core.design.simulate import Response
 from quadtank_tui.core.design.sampled import (
-    SampledModel, closed_loop_poles, controller_freqresp, sample, sampled_grid, slowest_rate,
+    SampledModel, closed_loop_matrix, closed_loop_poles, controller_freqresp, controller_ss, derivative_gain, sample,
+    sampled_grid,
+    slowest_rate,
 )
 from quadtank_tui.core.metrics import loop_metrics
 from quadtank_tui.core.pid import PID as RunningPID
@@ -52,23 +54,104 @@ def running_pid(c: PID, h: float, tr: float = TR_DEFAULT) -> RunningPID:
 def simulate(m: SampledModel, c: PID, *, r: float = 0.0, d: float = 0.0, samples: int,
              limits: tuple[float, float] = (-math.inf, math.inf), tr: float = TR_DEFAULT) -> Response:
     """From rest (deviations), a reference step r and a load step d at the process
-    input at sample 0; the controller output clipped to `limits` (deviation)."""
+    input at sample 0; the controller output clipped to `limits` (deviation).
+
+    The controller is core.pid's algorithm sample by sample (P on b r - y, the
+    backward-difference derivative on y, the forward-difference integral with the
+    back-calculation anti-windup h/Tr (u - v); tests/core/design check it against
+    core.pid.PID to rounding).  While the output stays inside the limits the loop
+    is linear: from each unsaturated sample the rest is propagated in blocks
+    (`propagate`), and kept up to the first sample it would leave the limits."""
     if m.Dd != 0.0:
         raise DesignError("the sampled model passes its input straight through (no delay, biproper)")
-    pid = running_pid(c, m.h, tr)
+    running_pid(c, m.h, tr)  # the element's own range checks
     A, B, C = m.A, m.B, m.C
     lo, hi = limits
-    x = np.zeros(A.shape[0])
+    h = m.h
+    K, b = c.Kc, c.b
+    ki = K * h / c.Ti if math.isfinite(c.Ti) else 0.0
+    aw = h / tr
+    ad, gd = derivative_gain(c, h)
+    bd = K * gd
+    has_d = c.Td > 0.0
+    n = A.shape[0]
+    Acl = closed_loop_matrix([[m]], [c], h)
+    Ac, Bc, Cc, Dc = controller_ss(c, h)
+    nc = Ac.shape[0]
+    u_r = K * b * r
+    const = np.zeros(n + nc)
+    const[:n] = B * (u_r + d)
+    const[n] = ki * r
+    out = np.vstack([np.concatenate([C, np.zeros(nc)]), np.concatenate([Dc * C, Cc])])
+    x = np.zeros(n)
+    I = D = yprev = 0.0
     y = np.empty(samples)
     u = np.empty(samples)
-    for k in range(samples):
+    k = 0
+    free = True  # the last sample was inside the limits: try the linear shot
+    while k < samples:
+        if free:
+            z0 = np.concatenate([x, [I, D, yprev] if has_d else [I]])
+            yu = propagate_from(Acl, const, out, z0, samples - k)
+            v = yu[:, 1] + u_r
+            bad = np.nonzero((v < lo) | (v > hi))[0]
+            stop = int(bad[0]) if bad.size else samples - k
+            y[k:k + stop], u[k:k + stop] = yu[:stop, 0], v[:stop]
+            if stop == samples - k:
+                break
+            if stop > 0:  # the states at the first limited sample, from the same recursion
+                zs = propagate_from(Acl, const, np.eye(n + nc), z0, stop + 1)[stop]
+                x = zs[:n]
+                I = float(zs[n])
+                if has_d:
+                    D, yprev = float(zs[n + 1]), float(zs[n + 2])
+                k += stop
         yk = float(C @ x)
-        v = pid.compute(r, yk)
-        uk = lo if v < lo else hi if v > hi else v
-        pid.update(r, yk, uk)
+        Dk = ad * D - bd * (yk - yprev) if has_d else 0.0
+        vk = K * (b * r - yk) + I + Dk
+        uk = lo if vk < lo else hi if vk > hi else vk
+        I += ki * (r - yk) + aw * (uk - vk)
+        D, yprev = Dk, yk
         y[k], u[k] = yk, uk
         x = A @ x + B * (uk + d)
-    return Response(np.arange(samples) * m.h, y, u, r, d)
+        free = uk == vk
+        k += 1
+    return Response(np.arange(samples) * h, y, u, r, d)
+
+
+def linear_response(m: SampledModel, c: PID, *, r: float = 0.0, d: float = 0.0, samples: int) -> Response:
+    """`simulate` without limits: the closed-loop state recursion in blocks."""
+    return simulate(m, c, r=r, d=d, samples=samples)
+
+
+def propagate(A: np.ndarray, const: np.ndarray, out: np.ndarray, samples: int, block: int = 200) -> np.ndarray:
+    """out @ z_k for k < samples from z_0 = 0 (see propagate_from)."""
+    return propagate_from(A, const, out, np.zeros(A.shape[0]), samples, block)
+
+
+def propagate_from(A: np.ndarray, const: np.ndarray, out: np.ndarray, z0: np.ndarray, samples: int,
+                   block: int = 200) -> np.ndarray:
+    """out @ z_k for k < samples, z_(k+1) = A z_k + const: a block of samples per
+    matrix product (z_(k+j) = A^j z_k + sum_(i<j) A^i const, j = 0..block-1)."""
+    n = A.shape[0]
+    # the powers take block n^2 numbers: a long dead time (many buffer states) gets shorter blocks
+    block = max(1, min(block, samples, 4_000_000 // (n * n)))
+    powers = np.empty((block, n, n))
+    sums = np.empty((block, n))
+    P, S = np.eye(n), np.zeros(n)
+    for j in range(block):  # A^j and sum_(i<j) A^i const, j = 0..block-1
+        powers[j], sums[j] = P, S
+        S = A @ S + const
+        P = A @ P
+    OP = np.einsum("pn,jnm->jpm", out, powers)  # out A^j
+    OS = sums @ out.T
+    res = np.empty((samples, out.shape[0]))
+    z = np.asarray(z0, dtype=float)
+    for k0 in range(0, samples, block):
+        j = min(block, samples - k0)
+        res[k0:k0 + j] = OP[:j] @ z + OS[:j]
+        z = P @ z + S  # A^block z + sum_(i<block) A^i const
+    return res
 
 
 def reversals(u: np.ndarray, step: float) -> float:
@@ -185,7 +268,7 @@ def _margins(m: SampledModel, c: PID, g: DelayTF, h: float, stable: bool) -> tup
 
 def _horizon(c: PID, wc: float, h: float) -> int:
     t = 40.0 / wc if math.isfinite(wc) and wc > 0 else 600.0
-    t = max(t, 8.0 * (c.Ti if math.isfinite(c.Ti) else 0.0), 40.0 * h)
+    t = max(t, 3.0 * (c.Ti if math.isfinite(c.Ti) else 0.0), 40.0 * h)
     return min(MAX_SAMPLES, int(math.ceil(t / h)) + 1)
 
 
@@ -204,7 +287,7 @@ def evaluate_sampled(c: PID, g: DelayTF, h: float, *, u0: float | None = 0.5, se
                                  None)
     n = _horizon(c, wc, h)
     for _ in range(3):  # until the load response has died out
-        load = simulate(m, c, d=d, samples=n, tr=tr)
+        load = linear_response(m, c, d=d, samples=n)
         tail = np.abs(load.y[int(0.9 * n):])
         if tail.max() <= 1e-3 * max(float(np.abs(load.y).max()), 1e-300) or n >= MAX_SAMPLES:
             break
@@ -214,7 +297,7 @@ def evaluate_sampled(c: PID, g: DelayTF, h: float, *, u0: float | None = 0.5, se
     u_over = float(np.max(np.abs(load.u)) / abs(d) - 1.0)
     overshoot, settling = nan, None
     if setpoint:
-        sp = step_figures(simulate(m, c, r=1.0, samples=n, tr=tr), (-math.inf, math.inf), h)
+        sp = step_figures(linear_response(m, c, r=1.0, samples=n), (-math.inf, math.inf), h)
         overshoot, settling = sp.overshoot_pct, sp.settling
     ev = Evaluation(ms, pm, am, lm, wc, iae, float(e.max()), max(u_over, 0.0), d, overshoot, settling, True, h)
     check = None
