@@ -49,7 +49,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--sampling", type=float, metavar="SECONDS",
                    help="sampling time the loop runs at: design and evaluate the sampled loop (ZOH, "
                    "the PID as the program runs it); 0: continuous time (Andersson's tables).  Default: "
-                   "--par's TSamp, else the model file's sampling time, else 0 for --model")
+                   "the model file's sampling time, else --par's TSamp, else 0 for --model")
     p.add_argument("--u0", type=float, default=0.5, metavar="U",
                    help="--model with --sampling: the operating input (0..1 of the pump range) around "
                    "which the limited steps are simulated (default 0.5)")
@@ -60,7 +60,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--window", type=float, metavar="SECONDS",
                    help="length of each preview step, s (default: four times the slower loop's designed settling time)")
     p.add_argument("--write-par", metavar="OUT.par",
-                   help="with --par: save the parameters with the designed controllers")
+                   help="with --par: save the parameters with the designed controllers (and TSamp "
+                   "set to the sampling time they were designed for)")
     p.add_argument("--json", action="store_true", help="print a JSON object instead of a table")
     p.set_defaults(handler=run)
 
@@ -224,12 +225,14 @@ def _run_2x2(args: argparse.Namespace) -> int:
         assert params is not None
         G = model_in_use(params)  # the plant in use (a PLANT section counts)
         source = f"{args.par}: physical linearization at its operating levels"
+    # the sampling time in force: asked for; else the identification experiment's (the
+    # rate the lab runs the rig at, and --write-par sets TSamp to it); else the .par's
     if args.sampling is not None:
         h = args.sampling
-    elif params is not None:
-        h = params.tsamp
+    elif h_file:
+        h = h_file
     else:
-        h = h_file or 0.0
+        h = params.tsamp if params is not None else 0.0
     method = args.method or "lambda"
     chk = design_2x2(G, method, lam=(args.lam, args.lam), ms=args.ms, h=h)
     pv = None
@@ -243,7 +246,10 @@ def _run_2x2(args: argparse.Namespace) -> int:
         if out.suffix.lower() != ".par":
             raise ValueError(f"--write-par {out}: the file name must end in .par")
         assert params is not None
-        written = write_par(out, params.with_values(controller_values(chk.pid_pair())))
+        values = controller_values(chk.pid_pair())
+        if h > 0.0:  # the controllers run at the sampling time they were designed for
+            values["SAMPLING TIME.TSamp"] = h * 1000.0
+        written = write_par(out, params.with_values(values))
     if args.json:
         print(json.dumps(_check_json(chk, pv, written), indent=2))
         return 0

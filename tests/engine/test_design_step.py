@@ -56,3 +56,28 @@ def test_controller_values_are_par_keys() -> None:
     assert v["CONTROLLER ONE.K"] == 1.5 and v["CONTROLLER FOUR.K"] == -0.12
     assert v["CONTROLLER ONE.D"] == 0 and v["CONTROLLER FOUR.D"] == 1
     assert v["CONTROLLER FOUR.Td"] == 5.0 and v["CONTROL.Structure"] == "Decentralized"
+
+
+def test_the_identified_model_case_holds_on_the_plant_at_1s(tmp_path: Path) -> None:
+    """Issue 23: the identified G11 '2.5882*exp(-0.041*s)/(62.14*s+1)', PI Ms 1.4.  Designed
+    in continuous time (Kc 165.2, Ti 0.2753 s) the pumps flip between 0 and 10 V every
+    sample at Ts = 1 s; designed for the sampled loop the step on the plant settles
+    with the pumps quiet."""
+    from quadtank_tui.core.design.expr import parse_model
+    from quadtank_tui.core.design.optimize import pi_ms
+    from quadtank_tui.core.design.preview import preview
+    from quadtank_tui.core.design.sampled_eval import reversals
+
+    g = parse_model("2.5882*exp(-0.041*s)/(62.14*s+1)")
+    params, _ = load_parameters(PARAMS / "minphase.par", ParStore(tmp_path / "params"))
+    loop2 = design_2x2(model_in_use(params), h=1.0).loops[1].controller
+    plant, levels = params.process_plant(), params.process_levels()
+    op = plant.steady_inputs([levels[0], levels[1], None, None])
+    old = preview(plant, op.x, op.u, (pi_ms(g, 1.4), loop2), 1.0, window=100.0)
+    assert old.steps[0].limit_cycle and old.steps[0].sim.reversals > 0.9
+    new = pi_ms(g, 1.4, h=1.0).rounded()
+    r = run_step([new, loop2], par=PARAMS / "minphase.par", loop=1, duration=300,
+                 params_dir=tmp_path / "params", logs_dir=tmp_path / "logs", tsamp_ms=1000.0)
+    assert r.step.settling_time is not None and r.step.settling_time < 60.0
+    assert abs(r.step.final_error) < 1e-3
+    assert reversals(r.u[:, 0], 0.1) < 0.2

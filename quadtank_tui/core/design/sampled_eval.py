@@ -155,15 +155,16 @@ def propagate_from(A: np.ndarray, const: np.ndarray, out: np.ndarray, z0: np.nda
 
 
 def reversals(u: np.ndarray, step: float) -> float:
-    """Share of the moving samples on which u reverses direction."""
-    du = np.diff(u)
-    moving = np.abs(du) > 1e-3 * max(abs(step), float(np.max(np.abs(du))) if du.size else 0.0)
-    pairs = moving[1:] & moving[:-1]
-    n = int(pairs.sum())
-    if n < 6:
+    """Share of the input's moves that reverse the direction of the move before
+    (moves below 1e-3 of the step or of the largest move are not moves): about 1
+    for a pump flipping between its limits, whatever the dwell at each."""
+    du = np.diff(np.asarray(u, dtype=float))
+    if du.size == 0:
         return 0.0
-    flips = (np.sign(du[1:]) != np.sign(du[:-1])) & pairs
-    return float(flips.sum()) / n
+    moves = du[np.abs(du) > 1e-3 * max(abs(step), float(np.max(np.abs(du))))]
+    if moves.size < 6:
+        return 0.0
+    return float(np.count_nonzero(np.sign(moves[1:]) != np.sign(moves[:-1]))) / (moves.size - 1)
 
 
 @dataclass(frozen=True)
