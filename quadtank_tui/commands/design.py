@@ -256,50 +256,26 @@ def _run_2x2(args: argparse.Namespace) -> int:
     print(f"{source}, method {method}")
     print(format_check(chk))
     if pv is not None:
+        from quadtank_tui.core.design.preview import format_preview
+
         print(format_preview(pv))
     if written:
         print(f"wrote {written}")
     return 0
 
 
-#: the preview's window when the designs give no settling time, s
-DEFAULT_WINDOW = 600.0
-
-
-def preview_window(chk: Any) -> float:
-    """Four times the slower loop's designed (single-loop, unlimited) settling time,
-    120..3000 s: the other loop's coupling slows the steps (about 2x at P-)."""
-    times = [d.evaluation.setpoint_settling for d in chk.loops]
-    if any(t is None for t in times):
-        return DEFAULT_WINDOW
-    return min(3000.0, max(120.0, 4.0 * max(times)))
-
-
 def _preview(params: Any, chk: Any, G: Any, h: float, window: float | None) -> Any:
     """The designed pair on the nonlinear plant in use from its operating point."""
-    from quadtank_tui.core.design.preview import preview
+    from quadtank_tui.core.design.preview import preview, window_for
 
     plant = params.process_plant()
     levels = params.process_levels()
     op = plant.steady_inputs([x if i in plant.controlled else None for i, x in enumerate(levels)])
     tr = (params.get("CONTROLLER ONE.Tr"), params.get("CONTROLLER FOUR.Tr"))
-    return preview(plant, op.x, op.u, chk.pid_pair(), h, window=window or preview_window(chk), model=G,
+    if window is None:
+        window = window_for([d.evaluation.setpoint_settling for d in chk.loops], h)
+    return preview(plant, op.x, op.u, chk.pid_pair(), h, window=window, model=G,
                    tr=tuple(float(getattr(x, "value", x)) for x in tr))
-
-
-def format_preview(pv: Any) -> str:
-    """Predicted (linear sampled) and simulated (nonlinear plant) figures of each step."""
-    lines = [f"preview on the nonlinear simulator, sampled at {pv.h:g} s, pumps 0..10 V: step 0.1 on each loop"]
-    for s in pv.steps:
-        for name, f in (("predicted", s.pred), ("simulated", s.sim)):
-            if f is None:
-                continue
-            settle = "not settled" if f.settling is None else f"{f.settling:.0f} s"
-            lines.append(f"  r{s.loop} {name:9}: overshoot {f.overshoot_pct:.1f} %, settling (2 %) {settle}, "
-                         f"IAE {f.iae:.3f}, peak in y{3 - s.loop} {f.other_peak:.4f}, at a pump limit "
-                         f"{f.at_limit:.0f} s, reversals {f.reversals:.0%}")
-    lines.extend(f"WARNING: {w}" for w in pv.warnings)
-    return "\n".join(lines)
 
 
 def _check_json(chk: Any, pv: Any, written: Path | None) -> dict[str, Any]:

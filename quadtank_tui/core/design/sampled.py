@@ -168,6 +168,14 @@ def controller_ss(c: PID, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray,
 def closed_loop_matrix(models: list[list[SampledModel]], ctrls: list[PID], h: float) -> np.ndarray:
     """The state matrix of the decentralized loop u_i = C_i(-y_i) around a matrix of
     sampled elements (y_i = sum_j G_ij u_j); 1x1 for a single loop."""
+    return closed_loop(models, ctrls, h)[0]
+
+
+def closed_loop(models: list[list[SampledModel]], ctrls: list[PID], h: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(A, Bu, Bc, Y, U): z(k+1) = A z + Bu w_u + Bc w_c, y = Y z, u = U z + w_u for
+    the states z = [elements, controllers] with w_u the controllers' direct
+    setpoint terms (K b r) and w_c their integrators' (K h/Ti r), one per loop."""
     p = len(ctrls)
     blocks = [(i, j, models[i][j]) for i in range(p) for j in range(p)]
     ng = sum(b[2].A.shape[0] for b in blocks)
@@ -198,7 +206,15 @@ def closed_loop_matrix(models: list[list[SampledModel]], ctrls: list[PID], h: fl
     Y_x, Y_c = Cg + Dg @ Ku_x, Dg @ Ku_c  # y in the states
     top = np.hstack([Ag + Bg @ Ku_x, Bg @ Ku_c])
     bottom = np.hstack([Bc @ Y_x, Ac + Bc @ Y_c])
-    return np.vstack([top, bottom])
+    # the integrator is each controller's first state (controller_ss)
+    Bi = np.zeros((nc, p))
+    k = 0
+    for i, cs in enumerate(css):
+        Bi[k, i] = 1.0
+        k += cs[0].shape[0]
+    Bu = np.vstack([Bg, np.zeros((nc, p))])
+    return (np.vstack([top, bottom]), Bu, np.vstack([np.zeros((ng, p)), Bi]),
+            np.hstack([Y_x, Y_c]), np.hstack([Ku_x, Ku_c]))
 
 
 def closed_loop_poles(g: DelayTF | SampledModel, c: PID, h: float) -> np.ndarray:
