@@ -170,8 +170,9 @@ DEFAULT_WINDOW = 600.0
 WINDOW_RANGE = (120.0, 3000.0)
 
 
-#: samples per step at most (the nonlinear plant costs 0.1-0.3 ms a sample): at 0.1 s, 600 s
-MAX_SAMPLES = 6000
+#: samples per step at most (the nonlinear plant costs 0.1-0.3 ms a sample): 3000 s at 0.1 s,
+#: enough for P+'s slow loop 2 (1100 s to settle)
+MAX_SAMPLES = 30000
 
 
 def window_for(settling_times: Sequence[float | None], h: float) -> float:
