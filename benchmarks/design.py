@@ -7,6 +7,10 @@ Targets (issue 13, so the Design screen stays interactive): a design under 0.3 s
 the table under 2 s.  Andersson's process 1 (1.6592 e^-2.4s/(1.07s+1)^3) and
 process 2's simulation model (-0.00652 e^-2s/(s(49.33s+1)), the slowest to
 simulate: 5000-s responses).  Best of 3 runs; figures are printed, not asserted.
+
+Issue 23: the same table designed and evaluated for the loop sampled at 0.1 s and
+1 s (with the limit check), and the preview of the P- lambda pair on the
+nonlinear plant (a step on each loop; target under 1 s).
 """
 
 from __future__ import annotations
@@ -16,7 +20,10 @@ from typing import Callable
 
 from quadtank_tui.core.design.expr import parse_model
 from quadtank_tui.core.design.optimize import pi_ms, pid_ms
+from quadtank_tui.core.design.mimo import design_2x2, model_in_use
+from quadtank_tui.core.design.preview import preview, window_for
 from quadtank_tui.core.design.table import candidates, format_table
+from quadtank_tui.core.parameters import PRESET
 
 MODELS = {
     "process 1": "1.6592*exp(-2.4*s)/(1.07*s+1)^3",
@@ -42,6 +49,18 @@ def main() -> None:
         t_table = best_of(lambda: candidates(g), n=2)
         print(f"{name}: PI_opt {t_pi * 1000:.0f} ms, PID {t_pid * 1000:.0f} ms (target 300), "
               f"9-controller table {t_table:.2f} s (target 2)")
+        for h in (0.1, 1.0):
+            t_sampled = best_of(lambda: candidates(g, h=h), n=2)
+            print(f"  sampled at {h:g} s: 9-controller table with the limit check {t_sampled:.2f} s (target 2)")
+    G = model_in_use(PRESET)
+    plant, levels = PRESET.process_plant(), PRESET.process_levels()
+    op = plant.steady_inputs([levels[0], levels[1], None, None])
+    for h in (1.0, 0.1):
+        chk = design_2x2(G, h=h)
+        window = window_for([d.evaluation.setpoint_settling for d in chk.loops], h)
+        t_pv = best_of(lambda: preview(plant, op.x, op.u, chk.pid_pair(), h, window=window, model=G), n=2)
+        print(f"P- lambda pair, preview on the nonlinear plant at {h:g} s ({window:.0f} s a loop): "
+              f"{t_pv:.2f} s (target 1)")
     print()
     print("process 1 table:")
     print(format_table(candidates(parse_model(MODELS["process 1"]))))

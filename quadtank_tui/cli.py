@@ -88,7 +88,7 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
         warn(read.warnings)
         if read.params.process is not None:  # another rig (core.plants): its generic report
             return _analyze_other_plant(args, read.params)
-        params, h0 = read.params.plant(), read.params.operating_levels()
+        params, h0 = read.params.quadtank_constants(), read.params.operating_levels()
         source = {"par": args.par}
         title = f"{args.par}, linearized at its operating levels"
     else:
@@ -376,9 +376,31 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: options whose value is a transfer-function expression, which may start with a minus
+EXPRESSION_OPTIONS = ("--model", "--evaluate-on")
+
+
+def joined_expressions(argv: Sequence[str]) -> list[str]:
+    """`--model -0.0065*exp(-2*s)/s` as `--model=-0.0065*exp(-2*s)/s`: argparse takes a
+    value starting with '-' for an option unless it is joined with '='."""
+    out: list[str] = []
+    items = list(argv)
+    i = 0
+    while i < len(items):
+        a = items[i]
+        if a in EXPRESSION_OPTIONS and i + 1 < len(items) and items[i + 1].startswith("-") \
+                and not items[i + 1].startswith("--") and len(items[i + 1]) > 1 and not items[i + 1][1].isalpha():
+            out.append(f"{a}={items[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(joined_expressions(sys.argv[1:] if argv is None else argv))
     handler: Handler | None = getattr(args, "handler", None)
     if handler is None:
         missing = terminal_missing()

@@ -32,8 +32,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     src = p.add_mutually_exclusive_group()
     src.add_argument("--model", metavar="EXPR",
-                     help="transfer function in s with one exp(-L*s), e.g. '1.66*exp(-2.4*s)/(1.07*s+1)^3'; "
-                     "one that starts with a minus needs '=': --model=-0.00651*exp(-2*s)/s")
+                     help="transfer function in s with one exp(-L*s), e.g. '1.66*exp(-2.4*s)/(1.07*s+1)^3' "
+                     "or '-0.00651*exp(-2*s)/s'")
     src.add_argument("--model-file", metavar="FILE",
                      help="a 2x2 model saved by `quadtank identify --save`: design both diagonal loops "
                      "on its G11 and G22 and check the 2x2 loop with its off-diagonal elements")
@@ -46,12 +46,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lambda", dest="lam", type=float, metavar="L",
                    help="lambda, s (default: max(L, T) for --model, T/5 of each loop for --par)")
     p.add_argument("--ms", type=float, default=1.4, help="largest sensitivity Ms (default 1.4)")
+    p.add_argument("--sampling", type=float, metavar="SECONDS",
+                   help="sampling time the loop runs at: design and evaluate the sampled loop (ZOH, "
+                   "the PID as the program runs it); 0: continuous time (Andersson's tables).  Default: "
+                   "the model file's sampling time, else --par's TSamp, else 0 for --model")
+    p.add_argument("--u0", type=float, default=0.5, metavar="U",
+                   help="--model with --sampling: the operating input (0..1 of the pump range) around "
+                   "which the limited steps are simulated (default 0.5)")
     p.add_argument("--evaluate-on", metavar="EXPR",
                    help="evaluate on this model instead of the design model (e.g. a richer one)")
     p.add_argument("--no-step", action="store_true",
-                   help="with --par: skip the step on the nonlinear simulator")
+                   help="with --par: skip the preview (a step on each loop on the nonlinear simulator)")
+    p.add_argument("--window", type=float, metavar="SECONDS",
+                   help="length of each preview step, s (default: four times the slower loop's designed settling time)")
     p.add_argument("--write-par", metavar="OUT.par",
-                   help="with --par: save the parameters with the designed controllers")
+                   help="with --par: save the parameters with the designed controllers (and TSamp "
+                   "set to the sampling time they were designed for)")
     p.add_argument("--figure", metavar="FILE",
                    help="also draw each designed loop as a figure (.png, .svg or .pdf): the reference step, "
                    "|S| and |T| with the Ms line, the Nyquist curve with the 1/Ms circle")
@@ -84,34 +94,53 @@ def _evaluation_json(ev: Any) -> dict[str, Any]:
     return {k: (_num(v) if isinstance(v, float) else v) for k, v in ev.to_dict().items()}
 
 
-def _design_siso(g: Any, method: str, lam: float | None, ms: float) -> tuple[Any, str]:
+def _check_sampling(h: float | None) -> None:
+    if h is not None and not (math.isfinite(h) and h >= 0.0):
+        raise ValueError(f"--sampling must be a time >= 0 s, got {h:g}")
+
+
+def _design_siso(g: Any, method: str, lam: float | None, ms: float, h: float = 0.0) -> tuple[Any, str]:
     from quadtank_tui.core.design.lambda_tuning import first_order, lambda_for_tau, lambda_pi
     from quadtank_tui.core.design.optimize import pi_ms, pid_ms
 
+    at = f", sampled at {h:g} s" if h > 0 else ""
     if method == "lambda":
         fo = first_order(g)
         if lam is None:
             lam = lambda_for_tau(fo, 1.0) if not fo.integrating else 3.0 * max(fo.L, 1.0)
-        return lambda_pi(fo, lam), f"lambda = {lam:g} s on {fo}"
+        return lambda_pi(fo, lam, h), f"lambda = {lam:g} s on {fo}" + (f" (dead time + h/2{at})" if h else "")
     if method == "pi-ms":
-        return pi_ms(g, ms), f"PI, max ki subject to Ms <= {ms:g}"
-    return pid_ms(g, ms), f"PID, max ki subject to Ms <= {ms:g} and Td <= Ti/4"
+        return pi_ms(g, ms, h=h), f"PI, max ki subject to Ms <= {ms:g}{at}"
+    return pid_ms(g, ms, h=h), f"PID, max ki subject to Ms <= {ms:g} and Td <= Ti/4{at}"
 
 
 def _run_siso(args: argparse.Namespace) -> int:
     from quadtank_tui.core.design.evaluate import evaluate
     from quadtank_tui.core.design.expr import parse_model
 
+    _check_sampling(args.sampling)
+    if not 0.0 <= args.u0 <= 1.0:
+        raise ValueError(f"--u0 must be in 0..1 (a share of the pump range), got {args.u0:g}")
     g = parse_model(args.model)
     target = parse_model(args.evaluate_on) if args.evaluate_on else g
     method = args.method or "pi-ms"
-    c, how = _design_siso(g, method, args.lam, args.ms)
-    ev = evaluate(c, target)
+    h = args.sampling or 0.0
+    c, how = _design_siso(g, method, args.lam, args.ms, h)
+    limits = None
+    if h > 0.0:
+        from quadtank_tui.core.design.sampled_eval import evaluate_sampled
+
+        se = evaluate_sampled(c, target, h, u0=args.u0)
+        ev, limits = se.evaluation, se.limits
+    else:
+        ev = evaluate(c, target)
     figure = _figure(args.figure, [(method, target, c)], f"{how}; evaluated on {target}")
     if args.json:
         out = {"model": str(g), "method": method, "how": how, "Kc": c.Kc, "Ti": c.Ti, "Td": c.Td,
-               "evaluated_on": str(target),
+               "sampling_time": h, "evaluated_on": str(target),
                "evaluation": _evaluation_json(ev)}
+        if limits is not None:
+            out["limits"] = _limits_json(limits)
         if figure is not None:
             out["figure"] = str(figure)
         print(json.dumps(out, indent=2))
@@ -121,7 +150,12 @@ def _run_siso(args: argparse.Namespace) -> int:
     print(f"controller Kc = {c.Kc:.4g}   Ti = {c.Ti:.4g} s   Td = {c.Td:.4g} s"
           + ("   (derivative Td s/(1 + s Td/10) on y)" if c.Td > 0 else ""))
     print(f"evaluated on {target}" if args.evaluate_on else "evaluated on the design model")
+    if h > 0.0:
+        print(f"the loop sampled at h = {h:g} s (ZOH, the PID as the program runs it; "
+              f"Nyquist frequency {math.pi / h:.3g} rad/s)")
     print(format_evaluation(ev))
+    if limits is not None:
+        print(format_limits(limits))
     if figure is not None:
         print(f"figure     {figure}")
     return 0
@@ -135,6 +169,24 @@ def _figure(path: str | None, loops: list[tuple[str, Any, Any]], title: str) -> 
     from quadtank_tui.files.figures.style import save
 
     return save(design_figure([DesignedLoop(*loop) for loop in loops], title), path)
+
+
+def _limits_json(lc: Any) -> dict[str, Any]:
+    def step(s: Any) -> dict[str, Any]:
+        return {"overshoot_pct": _num(s.overshoot_pct), "settling_time": s.settling, "IAE": _num(s.iae),
+                "time_at_pump_limit": s.at_limit, "input_reversals": _num(s.reversals)}
+    return {"u0": lc.u0, "reference": step(lc.reference), "load": step(lc.load), "problem": lc.problem}
+
+
+def format_limits(lc: Any) -> str:
+    """The limited steps of the sampled loop and the verdict."""
+    def one(name: str, s: Any) -> str:
+        settle = "not settled" if s.settling is None else f"settling {s.settling:.3g} s"
+        return (f"{name} step 0.1 with the pump in 0..1 around u0 = {lc.u0:g}: overshoot "
+                f"{s.overshoot_pct:.1f} %, {settle}, at a pump limit {s.at_limit:.3g} s, "
+                f"reversals {s.reversals:.0%}")
+    return "\n".join([one("reference", lc.reference), one("load", lc.load),
+                      f"verdict: {lc.problem or 'holds (no saturation beyond a fifth of settling, no chatter)'}"])
 
 
 def format_evaluation(ev: Any) -> str:
@@ -170,55 +222,70 @@ def identified_matrix(path: str | Path) -> Any:
 
 
 def _run_2x2(args: argparse.Namespace) -> int:
-    from quadtank_tui.core.design.mimo import design_2x2, format_check, physical_model
     from quadtank_tui.core.design.apply import controller_values
-    from quadtank_tui.engine.design_step import run_step
+    from quadtank_tui.core.design.mimo import design_2x2, format_check, model_in_use
     from quadtank_tui.files.par import read_par, write_par
 
     if args.evaluate_on:
         raise ValueError("--evaluate-on is for --model; --par and --model-file check the 2x2 loop itself")
     if args.write_par and args.par is None:
         raise ValueError("--write-par with --model-file needs --par FILE for the other parameters")
+    _check_sampling(args.sampling)
     params = None
     if args.par is not None:
         read = read_par(args.par)
         warn(read.warnings)  # unknown keys or sections: said, as every command that reads a .par does
         params = read.params
+    h_file = None
     if args.model_file is not None:
+        from quadtank_tui.files.model import read_model
+
         G = identified_matrix(args.model_file)
+        h_file = read_model(args.model_file).sampling_time
         source = f"{args.model_file}: identified model"
     else:
         assert params is not None
-        G = physical_model(params.plant(), params.operating_levels())
+        G = model_in_use(params)  # the plant in use (a PLANT section counts)
         source = f"{args.par}: physical linearization at its operating levels"
+    # the sampling time in force: asked for; else the identification experiment's (the
+    # rate the lab runs the rig at, and --write-par sets TSamp to it); else the .par's
+    if args.sampling is not None:
+        h = args.sampling
+    elif h_file:
+        h = h_file
+    else:
+        h = params.tsamp if params is not None else 0.0
     method = args.method or "lambda"
-    chk = design_2x2(G, method, lam=(args.lam, args.lam), ms=args.ms)
-    steps = []
-    if not args.no_step and chk.stable and args.par is not None:
-        duration = 600.0 if chk.lambda11_0 > 0 else 3000.0  # P+'s loop 2 is slow
-        steps = [run_step(chk.pid_pair(), par=args.par, loop=i, duration=duration) for i in (1, 2)]
+    chk = design_2x2(G, method, lam=(args.lam, args.lam), ms=args.ms, h=h)
+    pv = None
+    if not args.no_step and chk.stable and params is not None:
+        if h <= 0.0:
+            raise ValueError("the preview on the simulator needs a sampling time: --sampling > 0")
+        pv = _preview(params, chk, G, h, args.window)
     written = None
     if args.write_par:
         out = Path(args.write_par)
         if out.suffix.lower() != ".par":
             raise ValueError(f"--write-par {out}: the file name must end in .par")
         assert params is not None
-        written = write_par(out, params.with_values(controller_values(chk.pid_pair())))
+        values = controller_values(chk.pid_pair())
+        if h > 0.0:  # the controllers run at the sampling time they were designed for
+            values["SAMPLING TIME.TSamp"] = h * 1000.0
+        written = write_par(out, params.with_values(values))
     figure = _figure(args.figure, [(f"loop {d.loop} on {d.how}", d.model, d.controller) for d in chk.loops],
                      f"{source}, method {method}")
     if args.json:
-        report = _check_json(chk, steps, written)
+        report = _check_json(chk, pv, written)
         if figure is not None:
             report["figure"] = str(figure)
         print(json.dumps(report, indent=2))
         return 0
     print(f"{source}, method {method}")
     print(format_check(chk))
-    for s in steps:
-        m = s.step
-        settle = "not settled" if m.settling_time is None else f"{m.settling_time:.0f} s"
-        print(f"nonlinear simulator, step 0.1 on r{s.loop}: overshoot {m.overshoot:.1f} %, "
-              f"settling (2 %) {settle}, IAE {m.iae:.3f}, peak in y{3 - s.loop} {s.other_peak:.4f}")
+    if pv is not None:
+        from quadtank_tui.core.design.preview import format_preview
+
+        print(format_preview(pv))
     if written:
         print(f"wrote {written}")
     if figure is not None:
@@ -226,7 +293,21 @@ def _run_2x2(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_json(chk: Any, steps: list[Any], written: Path | None) -> dict[str, Any]:
+def _preview(params: Any, chk: Any, G: Any, h: float, window: float | None) -> Any:
+    """The designed pair on the nonlinear plant in use from its operating point."""
+    from quadtank_tui.core.design.preview import preview, window_for
+
+    plant = params.process_plant()
+    levels = params.process_levels()
+    op = plant.steady_inputs([x if i in plant.controlled else None for i, x in enumerate(levels)])
+    tr = (params.get("CONTROLLER ONE.Tr"), params.get("CONTROLLER FOUR.Tr"))
+    if window is None:
+        window = window_for([d.evaluation.setpoint_settling for d in chk.loops], h)
+    return preview(plant, op.x, op.u, chk.pid_pair(), h, window=window, model=G,
+                   tr=tuple(float(getattr(x, "value", x)) for x in tr))
+
+
+def _check_json(chk: Any, pv: Any, written: Path | None) -> dict[str, Any]:
     loops = []
     for d, lw in zip(chk.loops, chk.lambda11_wc):
         c = d.controller
@@ -236,9 +317,8 @@ def _check_json(chk: Any, steps: list[Any], written: Path | None) -> dict[str, A
                       "lambda11_at_crossover_abs": abs(lw)})
     return {
         "det_G0": chk.det_G0, "lambda11_0": chk.lambda11_0, "stable": chk.stable,
-        "slowest_pole": chk.slowest_pole, "loops": loops, "notes": list(chk.notes),
-        "steps": [{"loop": s.loop, "overshoot_pct": s.step.overshoot,
-                   "settling_time": s.step.settling_time, "IAE": s.step.iae,
-                   "other_peak": s.other_peak} for s in steps],
+        "slowest_pole": chk.slowest_pole, "sampling_time": chk.sampling_time, "loops": loops,
+        "notes": list(chk.notes),
+        "preview": None if pv is None else pv.to_dict(),
         "written": None if written is None else str(written),
     }

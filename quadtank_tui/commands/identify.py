@@ -62,9 +62,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=run)
 
 
-def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams, str, tuple[float, float]]:
+def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams | None, str, tuple[float, float]]:
     """The physical model to compare with, its name, and the pump voltages to
-    assume for an input the logs do not hold."""
+    assume for an input the logs do not hold.  The comparison is with a quadruple
+    tank's linearization: for another plant in use (a PLANT section) there is none
+    (None), rather than the SIMULATION section's four tanks, which it is not."""
     from quadtank_tui.core.identify.compare import closest_setting
     from quadtank_tui.core.plant import SETTINGS
 
@@ -78,7 +80,9 @@ def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams, str, 
 
     read = read_par(par)
     warn(read.warnings)
-    return read.params.plant(), par, (3.0, 3.0)
+    if read.params.process is not None:  # another plant: no four-tank linearization to compare with
+        return None, f"{par} ({read.params.process_plant().title})", (3.0, 3.0)
+    return read.params.quadtank_constants(), par, (3.0, 3.0)
 
 
 def parse_start(items: list[str] | None) -> dict[str, object] | None:
@@ -127,7 +131,9 @@ def run(args: argparse.Namespace) -> int:
     ident = identify(records, opts)
     params, name, v_default = _physical(args.par, ident.operating_point)
     cmp = None
-    if all(k in ("u1", "u2") for k in ident.inputs) and all(k in ("y1", "y2") for k in ident.outputs):
+    if params is None:
+        warn([f"no physical comparison: {name} is not a quadruple tank"])
+    elif all(k in ("u1", "u2") for k in ident.inputs) and all(k in ("y1", "y2") for k in ident.outputs):
         cmp = compare(ident.operating_point, params, ident.system.static_gains, ident.inputs,
                       ident.outputs, v_default)
     saved = None

@@ -21,7 +21,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "statefb",
         help="state-feedback design of a .par file: Phi, Gamma, poles, L1, L2, delta",
         description="Design the state-feedback tracking controller (Desautel, chapters 3-4) "
-        "that the .par file's STATE FEEDBACK section asks for, at its SIMULATION plant, and "
+        "that the .par file's STATE FEEDBACK section asks for, on its plant in use (its PLANT "
+        "section, else the SIMULATION quadruple tank), and "
         "print the ZOH model, the poles, the gains and the robustness delta.",
     )
     p.add_argument("--par", metavar="FILE",
@@ -37,7 +38,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from quadtank_tui.core.parameters import PRESET, STATEFB_SECTION, TSAMP, TSAMP_MAX_MS, TSAMP_MIN_MS
-    from quadtank_tui.core.statefb.quadtank import design_for
+    from quadtank_tui.core.statefb.in_use import design_in_use
     from quadtank_tui.core.validation import ParameterError
 
     params, source = PRESET, "built-in preset"
@@ -61,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
         option = "--ts" if exc.field.endswith(".Ts") else exc.field
         raise ValueError(f"{option}: {exc.reason} s") from None
     try:
-        d = design_for(params.plant(), params.statefb, params.tsamp)
+        d = design_in_use(params)  # the plant in use: a PLANT section counts
     except ParameterError as exc:
         raise ValueError(f"{source}: {exc}") from None
     result = design_dict(d, params.statefb.poles)

@@ -88,7 +88,7 @@ def cmd_rig(args: argparse.Namespace) -> int:
         params = read.params
     else:
         params = PRESET
-    plant = params.plant() if params.process is None else params.process_plant()
+    plant = params.quadtank_constants() if params.process is None else params.process_plant()
     config = load_daq_config(args.map, params.process_plant())
     if not (args.speed > 0 and math.isfinite(args.speed)):
         raise ValueError(f"--speed must be a number > 0, got {args.speed}")

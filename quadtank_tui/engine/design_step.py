@@ -19,7 +19,7 @@ import numpy as np
 from quadtank_tui.core.design.apply import controller_values
 from quadtank_tui.core.design.controller import PID
 from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
-from quadtank_tui.core.plant import FULL_SCALE_V, steady_state_inputs
+from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
 from quadtank_tui.engine.headless import must
 from quadtank_tui.engine.history import DEFAULT_CAPACITY
@@ -29,7 +29,6 @@ from quadtank_tui.files.par import ParStore
 STEP = 0.1  # normalized: 1 V, about 2 cm
 SETTLE_BEFORE = 200.0  # s in Manual before Automatic
 AUTO_BEFORE_STEP = 10.0  # s in Automatic before the step
-TSAMP_MS = 1000.0  # the thesis's experiments sample at 1 s
 
 @dataclass(frozen=True)
 class StepCheck:
@@ -37,21 +36,28 @@ class StepCheck:
     step: LoopMetrics  # of the stepped loop, from the step on
     other_peak: float  # largest |y_other - y_other(step)|, normalized
     duration: float
+    u: np.ndarray  # both pumps from the step on, normalized (samples x 2)
+    t: np.ndarray  # s from the step
+    y: np.ndarray  # the stepped loop's level from the step on, normalized
 
 
 def run_step(pair: Sequence[PID], *, par: str | Path | None = None, loop: int = 1,
              duration: float = 600.0, params_dir: Path = Path("params"),
-             logs_dir: Path = Path("logs")) -> StepCheck:
-    """Step reference `loop` by STEP with the pair running; figures after the step."""
+             logs_dir: Path = Path("logs"), tsamp_ms: float | None = None) -> StepCheck:
+    """Step reference `loop` by STEP with the pair running; figures after the step.
+    The engine samples at `tsamp_ms` (None: the parameters' own TSamp)."""
     params, _ = load_parameters(par, ParStore(params_dir))
-    p = params.plant()
-    h = params.operating_levels()
-    v = steady_state_inputs(h[0], h[1], p).v
+    plant = params.process_plant()  # the plant in use: its pumps hold its operating levels
+    levels = params.process_levels()
+    op = plant.steady_inputs([x if i in plant.controlled else None for i, x in enumerate(levels)])
+    v = [u / s.full_scale * FULL_SCALE_V for u, s in zip(op.u, plant.inputs)]
+    tsamp = params.tsamp_ms if tsamp_ms is None else tsamp_ms
+    rows = int((SETTLE_BEFORE + AUTO_BEFORE_STEP + duration) / (tsamp / 1000.0)) + 100
     engine: Engine = build_engine(par, clock="manual", params_dir=params_dir,
                                   logs_dir=logs_dir, threaded=False,
-                                  history_capacity=max(DEFAULT_CAPACITY, int(SETTLE_BEFORE + duration) + 100))
+                                  history_capacity=max(DEFAULT_CAPACITY, rows))
     try:
-        setup = {"SAMPLING TIME.TSamp": TSAMP_MS, **controller_values(pair)}
+        setup = {"SAMPLING TIME.TSamp": tsamp, **controller_values(pair)}
         for i, sec in ((0, "REFERENCE ONE"), (1, "REFERENCE TWO")):
             setup.update({f"{sec}.Mean": v[i] / FULL_SCALE_V, f"{sec}.On": 0})
         for command in (SetControlMode("Manual"), SetParams(setup), SetState("Run")):
@@ -71,4 +77,7 @@ def run_step(pair: Sequence[PID], *, par: str | Path | None = None, loop: int = 
     i, o = loop, 3 - loop
     y_other = hist[f"y{o}"][after]
     m = loop_metrics(t[after], hist[f"y{i}"][after], hist[f"ref{i}"][after])
-    return StepCheck(loop, m, float(np.max(np.abs(y_other - y_other[0]))), duration)
+    stepped = t >= (m.step_time if m.step_time is not None else SETTLE_BEFORE) - 1e-9
+    u = np.column_stack([hist["u1"][stepped], hist["u2"][stepped]])
+    return StepCheck(loop, m, float(np.max(np.abs(y_other - y_other[0]))), duration, u,
+                     t[stepped] - t[stepped][0], hist[f"y{i}"][stepped])

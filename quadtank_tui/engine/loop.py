@@ -91,7 +91,7 @@ def _new_statefb(p: Parameters) -> AnyStateFeedback:
     if p.process is None:
         from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
 
-        return QuadTankStateFeedback(p.plant(), p.statefb, p.tsamp)
+        return QuadTankStateFeedback(p.quadtank_constants(), p.statefb, p.tsamp)
     from quadtank_tui.core.statefb.plants import PlantStateFeedback
 
     return PlantStateFeedback(p.process_plant(), p.process_levels(), p.statefb, p.tsamp)
@@ -99,13 +99,9 @@ def _new_statefb(p: Parameters) -> AnyStateFeedback:
 
 def _statefb_design(p: Parameters) -> Design:
     """A new design for the state feedback running on `p`'s plant."""
-    if p.process is None:
-        from quadtank_tui.core.statefb.quadtank import design_for
+    from quadtank_tui.core.statefb.in_use import design_in_use
 
-        return design_for(p.plant(), p.statefb, p.tsamp)
-    from quadtank_tui.core.statefb.plants import design_for as plant_design
-
-    return plant_design(p.process_plant(), p.process_levels(), p.statefb, p.tsamp)
+    return design_in_use(p)
 
 
 def _matrix_for(p: Parameters) -> ControllerMatrix:
@@ -554,7 +550,7 @@ class ControlLoop:
         elif isinstance(self._sf, PlantStateFeedback):
             self._sf.configure(new.process_plant(), new.process_levels(), new.statefb, change)
         elif self._sf is not None:
-            self._sf.configure(new.plant(), new.statefb, change)
+            self._sf.configure(new.quadtank_constants(), new.statefb, change)
 
     def _switch_mode(self, mode: ControlMode, *, adjust_means: bool = True) -> None:
         """Manual <-> Automatic, bumpless (M3): Manual -> Automatic sets the reference

@@ -59,6 +59,17 @@ def test_par_chooses_the_physical_model(tmp_path: Path, capsys: pytest.CaptureFi
     assert "Physical model: P+ (nonminimum phase), linearized" in capsys.readouterr().out
 
 
+def test_another_plant_is_not_compared_with_four_tanks(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The cascade's .par: no physical comparison (its SIMULATION section's four tanks
+    are not the plant in use), said on stderr (issue 23)."""
+    log = simo(tmp_path / "steps.log")
+    par = Path(__file__).resolve().parents[2] / "params" / "coupled-cascade.par"
+    assert main(["identify", str(log), "--par", str(par), "--outputs", "y1"]) == 0
+    out, err = capsys.readouterr()
+    assert "Physical model" not in out and "G11  2.6/(1+62s)" in out
+    assert "no physical comparison" in err and "coupled tanks, cascade" in err
+
+
 def test_step_method_prints_the_structures_parameters(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     log = simo(tmp_path / "steps.log")
     assert main(["identify", str(log), "--method", "step", "--outputs", "y1", "--n", "1"]) == 0

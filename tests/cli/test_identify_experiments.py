@@ -50,6 +50,17 @@ def _identify(capsys: pytest.CaptureFixture[str], *args: str) -> dict:  # type: 
     return json.loads(capsys.readouterr().out)
 
 
+@pytest.fixture(scope="module")
+def models(logs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """`quadtank identify LOG_u1 LOG_u2 --save` of each setting, once for the module."""
+    out = tmp_path_factory.mktemp("models")
+    made = {}
+    for s in PAR:
+        made[s] = out / f"{s}.model.json"
+        assert main(["identify", str(logs[f"{s}-u1"]), str(logs[f"{s}-u2"]), "--save", str(made[s])]) == 0
+    return made
+
+
 def _physical(setting: Setting, result: dict) -> np.ndarray:  # type: ignore[type-arg]
     h = operating_levels(result["operating_point"], setting.params, setting.op.v)
     return analyze(setting.params, h)
@@ -123,20 +134,19 @@ def test_step_fit_of_one_pair(logs: dict[str, Path], capsys: pytest.CaptureFixtu
 
 
 @pytest.mark.parametrize("s", ["pminus", "pplus"])
-def test_design_from_the_saved_model(logs: dict[str, Path], capsys: pytest.CaptureFixture[str],
+def test_design_from_the_saved_model(models: dict[str, Path], capsys: pytest.CaptureFixture[str],
                                      tmp_path: Path, s: str) -> None:
     """identify --save, then design --model-file: Kc and Ti within 3 % of the same
-    design on the physical linearization (at P+ loop 2 on g22 with loop 1 closed, K2 < 0);
-    --write-par puts them in a copy of the base .par."""
+    design on the physical linearization at the same sampling time (at P+ loop 2 on
+    g22 with loop 1 closed, K2 < 0); --write-par puts them in a copy of the base .par."""
     from quadtank_tui.files.par import read_par
 
-    model = tmp_path / f"{s}.model.json"
-    _identify(capsys, str(logs[f"{s}-u1"]), str(logs[f"{s}-u2"]), "--save", str(model))
+    model = models[s]
     base = ROOT / "params" / f"{PAR[s]}.par"
     out_par = tmp_path / "designed.par"
     ident = _design(capsys, "--model-file", str(model), "--par", str(base), "--no-step",
                     "--write-par", str(out_par))
-    phys = _design(capsys, "--par", str(base), "--no-step")
+    phys = _design(capsys, "--par", str(base), "--no-step", "--sampling", "1")
     assert ident["stable"] and phys["stable"]
     assert ident["lambda11_0"] == pytest.approx(phys["lambda11_0"], rel=0.03)
     for a, b in zip(ident["loops"], phys["loops"]):
@@ -155,3 +165,36 @@ def _design(capsys: pytest.CaptureFixture[str], *args: str) -> dict:  # type: ig
     capsys.readouterr()
     assert main(["design", *args, "--json"]) == 0
     return json.loads(capsys.readouterr().out)
+
+
+# --- the lab's workflow end to end (issue 23): identify -> design at the scripts' Ts
+# -> --write-par -> a reference step on each loop through the real engine, which must
+# do what the design's preview on the nonlinear simulator said.
+
+@pytest.mark.parametrize("s,method", [("pminus", "lambda"), ("pminus", "pi-ms"), ("pplus", "lambda")])
+def test_identify_design_write_par_and_the_plant_does_what_the_preview_said(
+        models: dict[str, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path, s: str, method: str) -> None:
+    from quadtank_tui.engine.design_step import run_step
+    from quadtank_tui.core.design.controller import PID
+    from quadtank_tui.core.design.sampled_eval import reversals
+    from quadtank_tui.files.par import read_par
+
+    out_par = tmp_path / "designed.par"
+    d = _design(capsys, "--model-file", str(models[s]), "--par", str(ROOT / "params" / f"{PAR[s]}.par"),
+                "--method", method, "--write-par", str(out_par))
+    model_h = json.loads(models[s].read_text())["sampling_time"]
+    assert d["sampling_time"] == 1.0 == model_h  # the scripts sample at 1 s: so does the design
+    assert read_par(out_par).params.tsamp == 1.0  # and the written file
+    assert d["stable"] and d["preview"]["warnings"] == []
+    pair = [PID(loop["Kc"], loop["Ti"], loop["Td"]) for loop in d["loops"]]
+    for step in d["preview"]["steps"]:
+        said = step["simulated"]
+        did = run_step(pair, par=out_par, loop=step["loop"], duration=step["window"],
+                       params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
+        assert did.step.step == pytest.approx(0.1)
+        assert abs(did.step.overshoot - said["overshoot_pct"]) <= 5.0
+        assert did.step.settling_time is not None and said["settling_time"] is not None
+        assert did.step.settling_time == pytest.approx(said["settling_time"], rel=0.2)
+        assert did.step.iae == pytest.approx(said["IAE"], rel=0.2)
+        assert reversals(did.u[:, step["loop"] - 1], 0.1) < 0.5  # no chatter
+        assert np.all((did.u >= 0.0) & (did.u <= 1.0))  # the pumps within 0..10 V

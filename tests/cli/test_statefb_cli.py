@@ -72,3 +72,18 @@ def test_a_file_whose_design_fails_names_the_file_and_key(capsys: pytest.Capture
     assert main(["statefb", "--par", str(par)]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"quadtank: error: {par}: STATE FEEDBACK.Level1: cannot linearize there") and "backwards" in err
+
+
+def test_the_plant_in_use_is_designed_desautels_ctp(capsys: pytest.CaptureFixture[str]) -> None:
+    """The cascade's PLANT section, not the SIMULATION section's four tanks (issue 23):
+    Desautel's CTP at Ts = 20 s, L_d = [2.1179, 9.9757, 0.13191], two states at x1 = 15 cm."""
+    root = Path(__file__).resolve().parents[2]
+    d = _json(capsys, "--par", str(root / "params" / "coupled-cascade.par"), "--ts", "20")
+    np.testing.assert_allclose([*d["L1"][0], *d["L2"][0]], [2.1179, 9.9757, 0.13191], rtol=5e-5)
+    assert d["x_e"] == pytest.approx([15.0, 14.727394], abs=1e-6)
+
+
+def test_parameters_have_no_ambiguous_plant() -> None:
+    """One name for the plant in use; the quadruple tank's constants say so."""
+    assert not hasattr(PRESET, "plant")
+    assert PRESET.process_plant().values()["a1"] == PRESET.quadtank_constants().a1

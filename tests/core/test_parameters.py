@@ -44,7 +44,7 @@ def test_preset_simulation_section_rebuilds_the_paper_plant() -> None:
     assert sim.diameters == (5.970821, 6.383076, 5.970821, 6.383076)
     assert sim.op_points == (0.62, 0.635, 0.09, 0.07)
     assert sim.time_constants == (62.70339, 90.335297, 23.890015, 29.992981)
-    plant = PRESET.plant()
+    plant = PRESET.quadtank_constants()
     want = P_MINUS.params
     for name in ("A1", "A2", "A3", "A4", "a1", "a2", "a3", "a4"):
         assert getattr(plant, name) == pytest.approx(getattr(want, name), rel=1e-6), name
@@ -54,7 +54,7 @@ def test_preset_simulation_section_rebuilds_the_paper_plant() -> None:
 
 def test_nonminphase_setting() -> None:
     p = NAMED_SETTINGS["nonminphase"]
-    plant = p.plant()
+    plant = p.quadtank_constants()
     assert (plant.k1, plant.k2, plant.gamma1, plant.gamma2) == (3.14, 3.29, 0.43, 0.34)
     assert p.operating_levels() == pytest.approx(P_PLUS.op.h, abs=1e-12)
     assert (p.controllers[0].pid.K, p.controllers[0].pid.Ti) == (1.5, 110.0)
@@ -198,7 +198,7 @@ def test_thesis_tank_window_values_and_the_setup_relations() -> None:
     62.16: through A = pi d^2/4 and a = A sqrt(2 h0/g)/T that is an outlet of
     0.0706 cm^2 (the paper's table says 0.071, which would give T = 61.8 s)."""
     p = PRESET.with_values({"SIMULATION.Diameter1": 5.93, "SIMULATION.OpPoint1": 0.62, "SIMULATION.TimeConst1": 62.16})
-    plant = p.plant()
+    plant = p.quadtank_constants()
     assert plant.A1 == pytest.approx(27.6184, abs=1e-4)
     assert plant.a1 == pytest.approx(0.070645, abs=1e-6)
     assert p.operating_levels()[0] == pytest.approx(12.4)

@@ -35,7 +35,7 @@ def test_outlet_of_figure_39(fig39: Parameters) -> None:
     assert a == pytest.approx(area_from_diameter(5.93) * math.sqrt(2 * 12.4 / G) / 62.16, rel=1e-12)
     assert a == pytest.approx(0.07065, abs=5e-5)  # the rig's a1 = 0.071 cm^2, to its precision
     # ... and it is the outlet the simulated plant uses.
-    assert fig39.plant().a1 == pytest.approx(a, rel=1e-12)
+    assert fig39.quadtank_constants().a1 == pytest.approx(a, rel=1e-12)
 
 
 def test_diameter_recomputes_time_constant_through_the_fixed_outlet(fig39: Parameters) -> None:

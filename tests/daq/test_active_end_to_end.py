@@ -74,7 +74,7 @@ def start(engine: Engine) -> None:
 def test_active_on_the_rig_matches_simul(device: Callable, tmp_path: Path) -> None:
     clock = [0.0]
     # What `quadtank rig --noise 0.01 --seed 3 --watchdog 0` serves, on the test's clock.
-    model = VirtualRig(load_daq_config(VIRTUAL_RIG, PRESET.process_plant()), PRESET.plant(), PRESET.process_levels(),
+    model = VirtualRig(load_daq_config(VIRTUAL_RIG, PRESET.process_plant()), PRESET.quadtank_constants(), PRESET.process_levels(),
                        watchdog=0.0, sensors=SensorModel(noise=NOISE_V, seed=3), clock=lambda: clock[0])
     rig = device((0.0,) * 4, bank=model)
     backend = Lockstep(rig.config(), clock)

@@ -51,7 +51,7 @@ def test_a_bad_pairs_file_says_where(text: str, message: str) -> None:
 
 
 def test_the_pairs_round_trip_and_give_the_outlets() -> None:
-    p = PRESET.plant()
+    p = PRESET.quadtank_constants()
     pairs = Pairs()
     for v in (2.0, 2.5, 3.0):
         h = steady_state_levels((v, v), p)
@@ -78,7 +78,7 @@ def test_on_the_virtual_rig_it_recovers_the_sensor_gain_and_offset(
     config = tmp_path / "rig.yaml"
     config.write_text(rig_yaml(r.port))
     volts = (2.0, 2.5, 3.0)
-    heights = [steady_state_levels((v, v), params.plant()) for v in volts]
+    heights = [steady_state_levels((v, v), params.quadtank_constants()) for v in volts]
     monkeypatch.setattr("sys.stdin", io.StringIO("".join(" ".join(f"{x:.6f}" for x in h) + "\n" for h in heights)))
     par_before, config_before = par.read_text(), config.read_text()
     assert main(["daq", "calibrate", str(config), "--volts", *map(str, volts), "--par", str(par),
@@ -184,7 +184,7 @@ def test_write_puts_the_quadruple_tanks_outlets_into_its_time_constants(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Pairs settled on the preset's plant written into a file whose TimeConst1 is off:
     it comes back as the preset's 62.703390 s (a1 at the file's diameter and level)."""
-    p = PRESET.plant()
+    p = PRESET.quadtank_constants()
     rows = ["u1 u2 volts1 volts2 volts3 volts4 level1 level2 level3 level4"]
     for v in (2.0, 2.5, 3.0):
         h = steady_state_levels((v, v), p)  # written to 12 digits: the fit is exact

@@ -62,16 +62,16 @@ def test_the_engine_runs_the_procedure_and_the_pairs_recover_the_rig_sensors(act
         s = engine.snapshot()
         assert s.u == (v / 10, v / 10) and s.calibration is not None
         assert s.calibration.volts[s.calibration.step] == v and len(s.calibration.settled) == 4
-        ok(engine, CalibrationHeights(tuple(steady_state_levels((v, v), params.plant()))))
+        ok(engine, CalibrationHeights(tuple(steady_state_levels((v, v), params.quadtank_constants()))))
     engine.step()
     status = engine.snapshot().calibration
     assert status is not None and status.phase == "done" and r.dacs() == (0.0, 0.0)
-    result = fit_pairs(Pairs({k: list(v) for k, v in status.columns}), params.plant())
+    result = fit_pairs(Pairs({k: list(v) for k, v in status.columns}), params.quadtank_constants())
     for cal in result.sensors.values():
         assert cal.gain == pytest.approx(1 / SENSOR, rel=2e-3)
         assert cal.offset == pytest.approx(-OFFSET / SENSOR, abs=0.02)
     assert result.outlets is not None
-    p = params.plant()
+    p = params.quadtank_constants()
     assert result.outlets.coefficients == pytest.approx((p.a1, p.a2, p.a3, p.a4), rel=5e-3)
 
 

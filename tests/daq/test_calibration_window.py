@@ -85,7 +85,7 @@ async def test_the_window_recovers_the_rig_sensors_and_writes_them(rig_engine) -
             await _until(pilot, engine, window, lambda: window.status is not None and window.status.phase == "heights")
             assert r.dacs() == (v, v)
             assert "Read the heights" in str(window.query_one("#cal-progress").render())
-            for i, h in enumerate(steady_state_levels((v, v), params.plant()), start=1):
+            for i, h in enumerate(steady_state_levels((v, v), params.quadtank_constants()), start=1):
                 window.query_one(f"#cal-h{i}").value = f"{h:.4f}"
             await pilot.click("#record")
             await pilot.pause()

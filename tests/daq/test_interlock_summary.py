@@ -38,7 +38,7 @@ class RigHere(ModbusBackend):
         super().__init__(config, guard=False)
         self.now = 0.0
         params = read_par(PAR).params
-        self.rig = VirtualRig(config, params.plant(), levels_cm, clock=lambda: self.now)
+        self.rig = VirtualRig(config, params.quadtank_constants(), levels_cm, clock=lambda: self.now)
         self.pump1_volts: list[float] = []  # the rig's pump 1 after each write
 
     def _request(self, what, call):  # type: ignore[no-untyped-def]

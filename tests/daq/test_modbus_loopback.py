@@ -23,7 +23,7 @@ from quadtank_tui.files.par import read_par
 
 ROOT = Path(__file__).parents[2]
 
-PLANT = PRESET.plant()
+PLANT = PRESET.quadtank_constants()
 H0 = PRESET.operating_levels()
 
 

@@ -97,6 +97,6 @@ def test_loading_a_par_switches_the_simulated_plant(make_engine, tmp_path: Path)
     assert e.snapshot().y[:2] == pytest.approx((33.33 * 0.115 / 10, 33.33 * 0.071 / 10), abs=1e-3)
     assert e.snapshot().y[2:] == (0.0, 0.0)
     assert e.submit(LoadPar("minphase")).result().ok
-    assert e.loop.sim.plant == QuadTank(e.snapshot().params.plant())
+    assert e.loop.sim.plant == QuadTank(e.snapshot().params.quadtank_constants())
     e.step(1)
     assert len(e.loop.sim.levels_cm) == 4

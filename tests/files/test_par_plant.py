@@ -19,7 +19,7 @@ STAMP = datetime(2026, 11, 22, 12, 0, 0)
 def test_old_files_load_as_the_quadruple_tank(name: str) -> None:
     p = read_par(PARAMS / f"{name}.par").params
     assert p.process is None
-    assert p.process_plant() == QuadTank(p.plant())
+    assert p.process_plant() == QuadTank(p.quadtank_constants())
     assert "PLANT" not in (PARAMS / f"{name}.par").read_text()
 
 
@@ -64,7 +64,7 @@ def test_a_partial_plant_section_takes_the_plant_defaults() -> None:
 def test_a_file_without_plant_section_is_the_quadruple_tank_whatever_the_base() -> None:
     text = (PARAMS / "minphase.par").read_text()
     p = parse_par(text, base=PLANT_SETTINGS["coupled-tito"]).params
-    assert p.process is None and p.process_plant() == QuadTank(p.plant())
+    assert p.process is None and p.process_plant() == QuadTank(p.quadtank_constants())
 
 
 def test_kind_quadtank_is_the_simulation_section() -> None:

@@ -39,7 +39,7 @@ class BenchRig(SimBackend):
 
 def bench_engine(make_engine: Callable[..., Recording], params: Parameters = PRESET) -> Recording:
     params = params.with_values({"SAMPLING TIME.TSamp": TSAMP * 1000})
-    rig = BenchRig(PRESET.plant(), PRESET.operating_levels())
+    rig = BenchRig(PRESET.quadtank_constants(), PRESET.operating_levels())
     rig.set_plant(params.process_plant(), params.process_levels())
     engine = make_engine(params, daq=rig)
     assert engine.submit(SetOperation("Active")).result().ok

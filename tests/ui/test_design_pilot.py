@@ -40,6 +40,27 @@ async def _type_model(pilot, screen: DesignScreen, loop: int, text: str) -> None
     await pilot.pause()
 
 
+async def _apply_through_the_preview(pilot, *, confirm: bool = False) -> None:  # type: ignore[no-untyped-def]
+    """A, the preview window simulates (a worker), then its Apply (focused when done);
+    `confirm`: the simulation warned, so Apply asks once more."""
+    from quadtank_tui.ui.windows.base import ChoiceWindow
+    from quadtank_tui.ui.windows.design_preview import DesignPreviewWindow
+
+    await pilot.press("A")
+    await pilot.pause()
+    assert isinstance(pilot.app.screen, DesignPreviewWindow)
+    await pilot.app.workers.wait_for_complete()
+    await pilot.pause()
+    assert pilot.app.screen.result is not None
+    await pilot.press("enter")
+    await pilot.pause()
+    if confirm:
+        assert isinstance(pilot.app.screen, ChoiceWindow)
+        await pilot.press("right", "enter")  # past "Do not apply" to "Apply anyway"
+        await pilot.pause()
+    assert isinstance(pilot.app.screen, DesignScreen)
+
+
 def _box_text(app) -> str:  # type: ignore[no-untyped-def]
     return " ".join(str(c.render()) for c in app.screen.query_one(ControllerBox).query(Static))
 
@@ -55,19 +76,19 @@ async def test_design_2x2_apply_shows_in_the_controller_box(app, engine) -> None
         await pilot.pause()
         mimo = str(screen.query_one("#design-mimo", Static).render())
         assert "closed loop stable" in mimo
+        assert "sampled at h = 0.1 s" in mimo  # the preset's TSamp: the loop as it runs
         assert engine.sent(SetParams) == []  # nothing applied before A
-        await pilot.press("A")
-        await pilot.pause()
+        await _apply_through_the_preview(pilot)
         sent = engine.sent(SetParams)
-        assert len(sent) == 1 and sent[0].values["CONTROLLER ONE.K"] == 1.916
+        assert len(sent) == 1 and sent[0].values["CONTROLLER ONE.K"] == 1.908
         p = engine.snapshot().params
-        assert p.get("CONTROLLER ONE.K") == 1.916 and p.get("CONTROLLER ONE.Ti") == 62.7
-        assert p.get("CONTROLLER FOUR.K") == 1.762 and p.get("CONTROLLER FOUR.Ti") == 90.34
+        assert p.get("CONTROLLER ONE.K") == 1.908 and p.get("CONTROLLER ONE.Ti") == 62.7
+        assert p.get("CONTROLLER FOUR.K") == 1.758 and p.get("CONTROLLER FOUR.Ti") == 90.34
         await pilot.press("escape")
         await pilot.pause()
         assert isinstance(app.screen, MainScreen)
         text = _box_text(app)
-        assert "K 1.916 Ti 62.7" in text and "K 1.762 Ti 90.34" in text
+        assert "K 1.908 Ti 62.7" in text and "K 1.758 Ti 90.34" in text
 
 
 async def test_typed_model_and_chosen_row(app, engine) -> None:  # type: ignore[no-untyped-def]
@@ -76,15 +97,15 @@ async def test_typed_model_and_chosen_row(app, engine) -> None:  # type: ignore[
         await _type_model(pilot, screen, 1, "1.6592*exp(-2.4*s)/(1.07*s+1)^3")
         table = screen.query_one("#design-table", DataTable)
         assert table.row_count == 9
-        assert [str(c) for c in table.get_row_at(4)[:3]] == ["PI Ms 1.4", "0.1468", "2.401"]  # Andersson: 0.1464, 2.394
+        # sampled at the preset's 0.1 s (continuous, Andersson: 0.1464, 2.394; this program 0.1468, 2.401)
+        assert [str(c) for c in table.get_row_at(4)[:3]] == ["PI Ms 1.4", "0.1483", "2.455"]
         table.focus()
         await pilot.press("down", "down", "down", "down", "enter")
         await pilot.pause()
-        assert "loop 1: Kc=0.1468, Ti=2.401  (PI Ms 1.4)" in str(screen.query_one("#design-chosen", Static).render())
-        await pilot.press("A")
-        await pilot.pause()
+        assert "loop 1: Kc=0.1483, Ti=2.455  (PI Ms 1.4)" in str(screen.query_one("#design-chosen", Static).render())
+        await _apply_through_the_preview(pilot)
         p = engine.snapshot().params
-        assert p.get("CONTROLLER ONE.K") == 0.1468 and p.get("CONTROLLER FOUR.K") == 2.7  # loop 2 kept
+        assert p.get("CONTROLLER ONE.K") == 0.1483 and p.get("CONTROLLER FOUR.K") == 2.7  # loop 2 kept
 
 
 async def test_a_bad_model_is_pointed_at(app) -> None:  # type: ignore[no-untyped-def]

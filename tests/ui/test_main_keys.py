@@ -109,7 +109,7 @@ async def test_active_offered_with_a_daq(make_engine) -> None:
 
         kind = "Active"
 
-    engine = make_engine(daq=Rig(PRESET.plant(), PRESET.simulation.operating_levels()))
+    engine = make_engine(daq=Rig(PRESET.quadtank_constants(), PRESET.simulation.operating_levels()))
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
         assert app.main.check_action("active", ()) is True

@@ -94,7 +94,7 @@ async def test_tank_window_links_the_values_and_sets_them_together(app) -> None:
         await pilot.pause()
         sim = app.engine.snapshot().params.simulation
         assert sim.diameters[0] == 6.5 and sim.time_constants[0] == pytest.approx(t_expected, rel=1e-12)
-        assert app.engine.snapshot().params.plant().a1 == pytest.approx(PRESET.plant().a1, rel=1e-7)
+        assert app.engine.snapshot().params.quadtank_constants().a1 == pytest.approx(PRESET.quadtank_constants().a1, rel=1e-7)
 
 
 async def test_tank_window_refuses_a_bad_value_and_default_restores(app) -> None:  # type: ignore[no-untyped-def]

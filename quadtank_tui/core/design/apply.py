@@ -35,3 +35,16 @@ def describe_changes(before: Parameters, values: Mapping[str, Any]) -> list[str]
             out.append(f"{key} {old_v:g} -> {new:g}" if isinstance(new, float) and isinstance(old_v, float)
                        else f"{key} {old_v} -> {new}")
     return out
+
+
+def in_force(params: Parameters, loop: int) -> PID:
+    """The PID element of `loop` (1: CONTROLLER ONE, 2: CONTROLLER FOUR) as the
+    parameters hold it: what Apply leaves on a loop with nothing chosen."""
+    sec = ELEMENT[loop]
+
+    def num(key: str) -> float:
+        v = params.get(f"{sec}.{key}")
+        return float(getattr(v, "value", v))
+
+    ti = num("Ti") if num("I") else float("inf")
+    return PID(num("K"), ti, num("Td") if num("D") else 0.0, num("N"), num("b"))

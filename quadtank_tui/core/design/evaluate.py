@@ -43,6 +43,8 @@ class Evaluation:
     setpoint_overshoot_pct: float
     setpoint_settling: float | None
     stable: bool
+    #: 0: the continuous-time loop (Andersson's figures); else the loop sampled at this h, s
+    sampling_time: float = 0.0
 
     def to_dict(self) -> dict[str, float | bool | None]:
         return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
@@ -87,9 +89,16 @@ def settled_response(g: DelayTF, c: PID, m: Margins, *, r: float = 0.0, d: float
     return resp
 
 
-def evaluate(c: PID, g: DelayTF, w: np.ndarray | None = None, *, setpoint: bool = True) -> Evaluation:
+def evaluate(c: PID, g: DelayTF, w: np.ndarray | None = None, *, setpoint: bool = True,
+             h: float = 0.0) -> Evaluation:
     """All figures of controller `c` on process model `g` (setpoint=False: skip the
-    setpoint step, which Andersson's table does not show; its figures are then nan)."""
+    setpoint step, which Andersson's table does not show; its figures are then nan).
+    h > 0: the figures of the loop sampled at h with core.pid's PID
+    (core.design.sampled_eval); h = 0: the continuous-time loop."""
+    if h > 0.0:
+        from quadtank_tui.core.design.sampled_eval import evaluate_sampled
+
+        return evaluate_sampled(c, g, h, u0=None, setpoint=setpoint).evaluation
     m = margins(c.loop(g), frequency_grid(c.loop(g)) if w is None else w)
     nan = math.nan
     if not m.stable:

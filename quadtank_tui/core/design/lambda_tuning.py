@@ -104,11 +104,16 @@ def lambda_for_tau(fo: FirstOrder, tau: float) -> float:
     return tau * max(fo.L, fo.T)
 
 
-def lambda_pi(fo: FirstOrder, lam: float) -> PID:
-    """The lambda-tuned PI for the closed-loop time constant (or load time) `lam` s."""
+def lambda_pi(fo: FirstOrder, lam: float, h: float = 0.0) -> PID:
+    """The lambda-tuned PI for the closed-loop time constant (or load time) `lam` s.
+
+    h > 0 (a loop sampled at h s): the zero-order hold delays the input by h/2 on
+    average, so the rule sees the dead time L + h/2 (the standard approximation;
+    the exact sampled evaluation, core.design.sampled_eval, then checks the result)."""
     if not math.isfinite(lam) or lam <= 0.0:
         raise DesignError(f"lambda must be a time > 0 s, got {lam:g}")
+    L = fo.L + 0.5 * h
     if fo.integrating:
-        ti = 2.0 * lam + fo.L
-        return PID(ti / (fo.K * (lam + fo.L) ** 2), ti)
-    return PID(fo.T / (fo.K * (lam + fo.L)), fo.T)
+        ti = 2.0 * lam + L
+        return PID(ti / (fo.K * (lam + L) ** 2), ti)
+    return PID(fo.T / (fo.K * (lam + L)), fo.T)

@@ -30,7 +30,7 @@ from typing import Sequence
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import tf2ss
+from scipy.signal import ss2tf, tf2ss
 
 from quadtank_tui.core.analysis import analyze
 from quadtank_tui.core.delaytf import DelayTF
@@ -38,7 +38,9 @@ from quadtank_tui.core.design.controller import PID, DesignError
 from quadtank_tui.core.design.evaluate import Evaluation, evaluate
 from quadtank_tui.core.design.lambda_tuning import first_order, lambda_pi
 from quadtank_tui.core.design.optimize import pi_ms, pid_ms
-from quadtank_tui.core.plant import PlantParams
+from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams
+from quadtank_tui.core.parameters import Parameters
+from quadtank_tui.core.plants.base import Plant
 
 Matrix = tuple[tuple[DelayTF, DelayTF], tuple[DelayTF, DelayTF]]
 
@@ -59,6 +61,38 @@ def physical_model(p: PlantParams, h0: Sequence[float]) -> Matrix:
         return DelayTF((e.gain,), tuple(den))
 
     return ((tf(0, 0), tf(0, 1)), (tf(1, 0), tf(1, 1)))
+
+
+def plant_matrix(plant: Plant, levels: Sequence[float]) -> Matrix:
+    """The 2x2 model of any plant with two pumps and two controlled levels (core.plants),
+    linearized at the steady state through its controlled operating levels, in
+    normalized units (1.0 = a pump's full scale in, 10 V of sensor out): the
+    identified models' and the PID elements' units."""
+    if len(plant.inputs) != 2 or len(plant.controlled) != 2:
+        raise DesignError(f"{plant.title} has {len(plant.inputs)} pump(s) and {len(plant.controlled)} "
+                          "controlled level(s): the 2x2 design needs two of each (design its loop "
+                          "with --model)")
+    given = [float(x) if i in plant.controlled else None for i, x in enumerate(levels)]
+    op = plant.steady_inputs(given)
+    lin = plant.control_model(op.x, op.u)
+    out = []
+    for i in range(2):
+        row = []
+        for j in range(2):
+            num, den = ss2tf(lin.A, lin.B[:, [j]], lin.C[[i]], np.zeros((1, 1)))
+            scale = plant.inputs[j].full_scale / FULL_SCALE_V
+            n, d = _cancel(np.atleast_1d(num[0]) * scale, den)
+            row.append(DelayTF(tuple(n), tuple(d)))
+        out.append((row[0], row[1]))
+    return (out[0], out[1])
+
+
+def model_in_use(params: Parameters) -> Matrix:
+    """The physical 2x2 model of the plant in use at its operating levels: the
+    quadruple tank's analytic linearization, or plant_matrix of a PLANT section."""
+    if params.process is None:
+        return physical_model(params.quadtank_constants(), params.operating_levels())
+    return plant_matrix(params.process_plant(), params.process_levels())
 
 
 def _mul(a: DelayTF, b: DelayTF) -> DelayTF:
@@ -189,6 +223,25 @@ def _pade(delay: float, order: int) -> tuple[np.ndarray, np.ndarray]:
     return num, c[::-1]
 
 
+def sampled_poles(G: Matrix, c1: PID, c2: PID, h: float) -> np.ndarray:
+    """z-plane poles of the 2x2 loop sampled at h: every element behind the ZOH with
+    its dead time exact (whole samples and the fraction), both PIDs as core.pid runs them."""
+    from quadtank_tui.core.design.sampled import closed_loop_matrix, sample
+
+    models = [[sample(G[i][j], h) for j in range(2)] for i in range(2)]
+    return np.linalg.eigvals(closed_loop_matrix(models, [c1, c2], h))
+
+
+def slowest_pole(G: Matrix, c1: PID, c2: PID, h: float = 0.0) -> float:
+    """The real part of the slowest closed-loop pole, 1/s (>= 0: unstable); for h > 0
+    ln max|z| / h of the sampled loop's poles."""
+    if h > 0.0:
+        from quadtank_tui.core.design.sampled import slowest_rate
+
+        return slowest_rate(sampled_poles(G, c1, c2, h), h)
+    return float(np.max(closed_loop_poles(G, c1, c2).real))
+
+
 @dataclass(frozen=True)
 class LoopDesign:
     loop: int
@@ -207,31 +260,35 @@ class MimoCheck:
     stable: bool
     slowest_pole: float
     notes: tuple[str, ...] = field(default=())
+    #: 0: the continuous-time loop; else the sampling time the loop was designed and checked at, s
+    sampling_time: float = 0.0
 
     def pid_pair(self) -> tuple[PID, PID]:
         return self.loops[0].controller, self.loops[1].controller
 
 
-def design_loop(g: DelayTF, method: str, *, lam: float | None = None, ms: float = 1.4) -> PID:
+def design_loop(g: DelayTF, method: str, *, lam: float | None = None, ms: float = 1.4,
+                h: float = 0.0) -> PID:
     """One loop: lambda (default lambda: LAMBDA_FRACTION x the first-order T, or
-    its max(L, T)), pi-ms or pid-ms."""
+    its max(L, T)), pi-ms or pid-ms; h > 0: for the loop sampled at h s."""
     if method == "lambda":
         fo = first_order(g)
         if lam is None:
             lam = LAMBDA_FRACTION * max(fo.L, fo.T) if not fo.integrating else 3.0 * max(fo.L, 1.0)
-        return lambda_pi(fo, lam)
+        return lambda_pi(fo, lam, h)
     if method in ("pi-ms", "pid-ms"):
-        return pi_ms(g, ms) if method == "pi-ms" else pid_ms(g, ms)
+        return pi_ms(g, ms, h=h) if method == "pi-ms" else pid_ms(g, ms, h=h)
     raise DesignError(f"unknown method {method!r}: lambda, pi-ms or pid-ms")
 
 
 def design_2x2(G: Matrix, method: str = "lambda", *, lam: tuple[float | None, float | None] = (None, None),
-               ms: float = 1.4) -> MimoCheck:
-    """Design both diagonal loops and check the 2x2 closed loop (see the module)."""
+               ms: float = 1.4, h: float = 0.0) -> MimoCheck:
+    """Design both diagonal loops and check the 2x2 closed loop (see the module);
+    h > 0: designs, figures and the pole check of the loop sampled at h s."""
     g11, g22 = G[0][0], G[1][1]
     notes: list[str] = []
-    c1 = design_loop(g11, method, lam=lam[0], ms=ms).rounded()
-    c2 = design_loop(g22, method, lam=lam[1], ms=ms).rounded()
+    c1 = design_loop(g11, method, lam=lam[0], ms=ms, h=h).rounded()
+    c2 = design_loop(g22, method, lam=lam[1], ms=ms, h=h).rounded()
     det0 = g11.static_gain * g22.static_gain - G[0][1].static_gain * G[1][0].static_gain
     l0 = float(lambda11(G, 0.0).real)
     how2 = "g22"
@@ -245,24 +302,25 @@ def design_2x2(G: Matrix, method: str = "lambda", *, lam: tuple[float | None, fl
         how2 = "g22 with loop 1 closed"
         # its right-half-plane zero bounds the gain: an Ms-constrained PI fits it (a
         # first-order fit for lambda tuning would hide the inverse response)
-        c2 = pi_ms(model2, ms).rounded()
+        c2 = pi_ms(model2, ms, h=h).rounded()
         notes.append(f"loop 2 designed on {how2} (PI, Ms {ms:g}): gain {model2.static_gain:.3g} "
                      f"at s = 0, so K2 = {c2.Kc:.3g} < 0")
-    poles = closed_loop_poles(G, c1, c2)
-    slowest = float(np.max(poles.real))
+    slowest = slowest_pole(G, c1, c2, h)
     stable = slowest < 0.0
     if not stable:
         notes.append(f"the 2x2 closed loop is unstable (a pole at {slowest:.3g} 1/s)")
-    ev1 = evaluate(c1, g11)
-    ev2 = evaluate(c2, model2)
+    ev1 = evaluate(c1, g11, h=h)
+    ev2 = evaluate(c2, model2, h=h)
     wc = (lambda11(G, ev1.crossover), lambda11(G, ev2.crossover))
     loops = (LoopDesign(1, g11, "g11", c1, ev1), LoopDesign(2, model2, how2, c2, ev2))
-    return MimoCheck(loops, det0, l0, wc, stable, slowest, tuple(notes))
+    return MimoCheck(loops, det0, l0, wc, stable, slowest, tuple(notes), h)
 
 
 def format_check(check: MimoCheck) -> str:
     """The MIMO check as text (CLI and screen)."""
-    lines = [f"det G(0) = {check.det_G0:.4g}   lambda11(0) = {check.lambda11_0:.3f}"]
+    where = (f"sampled at h = {check.sampling_time:g} s (ZOH, core.pid's PID)" if check.sampling_time > 0
+             else "continuous time")
+    lines = [f"det G(0) = {check.det_G0:.4g}   lambda11(0) = {check.lambda11_0:.3f}   {where}"]
     for d, lw in zip(check.loops, check.lambda11_wc):
         e = d.evaluation
         lines.append(

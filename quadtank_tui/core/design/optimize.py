@@ -35,6 +35,7 @@ from scipy.optimize import minimize_scalar
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import DERIVATIVE_FILTER_N, PID, DesignError
 from quadtank_tui.core.design.frequency import frequency_grid
+from quadtank_tui.core.design.sampled import derivative_shape, integral_shape, sample, sampled_grid
 
 #: largest Td/Ti of the PID rule (real controller zeros).
 TD_OVER_TI_MAX = 0.25
@@ -115,13 +116,27 @@ def _best_kc(Gw: np.ndarray, Q: np.ndarray, D: np.ndarray, r: float) -> tuple[fl
     return float(kcs[i]), float(ki[i])
 
 
-def pi_ms(g: DelayTF, ms: float, w: np.ndarray | None = None) -> PID:
-    """PI_opt: the PI with the largest ki = Kc/Ti whose loop keeps max|S| <= Ms."""
-    check_ms(ms)
-    sign = process_sign(g)
+def _loop_shapes(g: DelayTF, h: float, w: np.ndarray | None, sign: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(w, G, Q = G x the integral's shape): G(iw) and 1/(iw) for h = 0; for h > 0 the
+    ZOH model G(e^(iwh)) and core.pid's forward-difference integral h/(z - 1), on
+    0 < w < pi/h: the exact discrete-time design of the loop as it runs."""
+    if h > 0.0:
+        w = sampled_grid(g, h) if w is None else w[w < math.pi / h]
+        Gw = sign * sample(g, h).freqresp(w)
+        return w, Gw, Gw * integral_shape(h, w)
     w = frequency_grid(g) if w is None else w
     Gw = sign * g.freqresp(w)
-    kc, ki = _best_kc(Gw, Gw / (1j * w), np.ones_like(Gw), 1.0 / ms)
+    return w, Gw, Gw / (1j * w)
+
+
+def pi_ms(g: DelayTF, ms: float, w: np.ndarray | None = None, h: float = 0.0) -> PID:
+    """PI_opt: the PI with the largest ki = Kc/Ti whose loop keeps max|S| <= Ms
+    (h > 0: the sampled loop's max|S|, see _loop_shapes)."""
+    check_ms(ms)
+    sign = process_sign(g)
+    w, Gw, Q = _loop_shapes(g, h, w, sign)
+    kc, ki = _best_kc(Gw, Q, np.ones_like(Gw), 1.0 / ms)
     if ki <= 0.0:
         raise DesignError(f"no PI meets Ms = {ms:g} on this model")
     return PID(sign * kc, kc / ki)
@@ -139,28 +154,27 @@ def _binding_frequency(Gw: np.ndarray, Q: np.ndarray, w: np.ndarray, kc: float, 
 
 
 def pid_ms(g: DelayTF, ms: float, w: np.ndarray | None = None,
-           n: float = DERIVATIVE_FILTER_N, td_over_ti_max: float = TD_OVER_TI_MAX) -> PID:
+           n: float = DERIVATIVE_FILTER_N, td_over_ti_max: float = TD_OVER_TI_MAX, h: float = 0.0) -> PID:
     """This program's Ms-constrained PID: max ki over (Kc, Td), Td <= Ti/4 (see module).
 
     The search over Td runs on a band of 600 frequencies around the PI design's
     binding frequency; the chosen Td is then re-optimized over Kc on the full grid,
-    so the constraint is met everywhere, not only on the band."""
+    so the constraint is met everywhere, not only on the band.  h > 0: the sampled
+    loop, with core.pid's backward-difference derivative (see _loop_shapes)."""
     check_ms(ms)
     sign = process_sign(g)
-    w = frequency_grid(g) if w is None else w
-    Gw = sign * g.freqresp(w)
-    Q = Gw / (1j * w)
+    w, Gw, Q = _loop_shapes(g, h, w, sign)
     r = 1.0 / ms
     pi_kc, pi_ki = _best_kc(Gw, Q, np.ones_like(Gw), r)
     if pi_ki <= 0.0:
         raise DesignError(f"no PI or PID meets Ms = {ms:g} on this model")
     wb = _binding_frequency(Gw, Q, w, pi_kc, r)
-    band = np.logspace(math.log10(wb / 100.0), math.log10(wb * 100.0), 600)
-    Gb = sign * g.freqresp(band)
-    Qb = Gb / (1j * band)
+    top = wb * 100.0 if h <= 0.0 else min(wb * 100.0, 0.9999 * math.pi / h)
+    band = np.logspace(math.log10(wb / 100.0), math.log10(top), 600)
+    _, Gb, Qb = _loop_shapes(g, h, band, sign)
 
     def design(td: float, gw: np.ndarray, q: np.ndarray, ww: np.ndarray) -> tuple[float, float]:
-        D = 1.0 + td * 1j * ww / (1.0 + td * 1j * ww / n)
+        D = (1.0 + td * 1j * ww / (1.0 + td * 1j * ww / n)) if h <= 0.0 else derivative_shape(td, n, h, ww)
         kc, ki = _best_kc(gw, q, D, r)
         if ki > 0.0 and td > td_over_ti_max * kc / ki:  # Ti = Kc/ki too short for Td:
             kc = _boundary_kc(gw, q, D, r, td, td_over_ti_max)  # stay on Td = c Ti

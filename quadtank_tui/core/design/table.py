@@ -18,6 +18,8 @@ from quadtank_tui.core.design.controller import PID, DesignError
 from quadtank_tui.core.design.evaluate import Evaluation, evaluate
 from quadtank_tui.core.design.lambda_tuning import FirstOrder, first_order, lambda_for_tau, lambda_pi
 from quadtank_tui.core.design.optimize import pi_ms, pid_ms
+from quadtank_tui.core.design.sampled import sample
+from quadtank_tui.core.design.sampled_eval import LimitCheck, evaluate_sampled
 
 TAUS = (1.0, 2.0, 3.0)
 MS_VALUES = (1.6, 1.4, 1.2)
@@ -30,6 +32,18 @@ class Candidate:
     controller: PID | None
     evaluation: Evaluation | None
     error: str | None = None
+    #: the sampled loop's steps with the pumps limited (h > 0 only)
+    limits: LimitCheck | None = None
+
+    @property
+    def problem(self) -> str | None:
+        """Why this row must not be suggested: no design, unstable, or the limit
+        check's verdict (saturates, chatters, never settles)."""
+        if self.controller is None or self.evaluation is None:
+            return self.error or "no controller"
+        if not self.evaluation.stable:
+            return "unstable"
+        return None if self.limits is None else self.limits.problem
 
     @property
     def label(self) -> str:
@@ -51,15 +65,26 @@ def default_lambdas(fo: FirstOrder) -> tuple[float, ...]:
 
 def candidates(g: DelayTF, *, evaluate_on: DelayTF | None = None,
                lambdas: Sequence[float] | None = None,
-               ms_values: Sequence[float] = MS_VALUES) -> list[Candidate]:
-    """Design and evaluate every candidate (9 with the defaults)."""
+               ms_values: Sequence[float] = MS_VALUES, h: float = 0.0,
+               u0: float | None = 0.5) -> list[Candidate]:
+    """Design and evaluate every candidate (9 with the defaults).
+
+    h = 0: Andersson's continuous-time designs and figures.  h > 0: each design is
+    for the loop sampled at h (core.design.optimize, lambda_tuning) and its figures
+    are the sampled loop's, with the limit check around the operating input u0
+    (normalized, 0..1; None: no check)."""
     target = evaluate_on or g
     rows: list[Candidate] = []
+    sampled = sample(target, h) if h > 0.0 else None
 
     def add(method: str, par: float, make: Callable[[], PID]) -> None:
         try:
             c = make()
-            rows.append(Candidate(method, par, c, evaluate(c, target, setpoint=False)))
+            if sampled is None:
+                rows.append(Candidate(method, par, c, evaluate(c, target, setpoint=False)))
+                return
+            se = evaluate_sampled(c, target, h, u0=u0, setpoint=False, model=sampled)
+            rows.append(Candidate(method, par, c, se.evaluation, limits=se.limits))
         except DesignError as exc:
             rows.append(Candidate(method, par, None, None, str(exc)))
 
@@ -67,14 +92,22 @@ def candidates(g: DelayTF, *, evaluate_on: DelayTF | None = None,
         fo = first_order(g)
         lams = tuple(lambdas) if lambdas is not None else default_lambdas(fo)
         for lam in lams:
-            add("lambda", lam, partial(lambda_pi, fo, lam))
+            add("lambda", lam, partial(lambda_pi, fo, lam, h))
     except DesignError as exc:
         rows.append(Candidate("lambda", 0.0, None, None, str(exc)))
     for ms in ms_values:
-        add("pi-ms", ms, partial(pi_ms, g, ms))
+        add("pi-ms", ms, partial(pi_ms, g, ms, h=h))
     for ms in ms_values:
-        add("pid-ms", ms, partial(pid_ms, g, ms))
+        add("pid-ms", ms, partial(pid_ms, g, ms, h=h))
     return rows
+
+
+def suggested(rows: Sequence[Candidate]) -> int | None:
+    """Index of the row to suggest: the smallest load IAE among the stable rows with
+    no problem (never one that saturates, chatters or does not settle); None if
+    every row has one."""
+    ok = [i for i, r in enumerate(rows) if r.problem is None and r.evaluation is not None]
+    return min(ok, key=lambda i: rows[i].evaluation.IAE) if ok else None  # type: ignore[union-attr]
 
 
 def format_table(rows: Sequence[Candidate]) -> str:
@@ -97,5 +130,10 @@ def format_table(rows: Sequence[Candidate]) -> str:
             continue
         out.append(line(head + [f"{e.IAE:.4g}", f"{e.Emax:.3g}", f"{e.u_overshoot:.2f}",
                                 f"{e.phase_margin_deg:.0f}", f"{e.delay_margin:.3g}",
-                                f"{e.gain_margin:.3g}", f"{e.Ms:.2f}"]))
+                                f"{e.gain_margin:.3g}", f"{e.Ms:.2f}"])
+                   + (f"  {r.problem}" if r.limits is not None and r.problem else ""))
+    best = suggested(rows)
+    if any(r.limits is not None for r in rows):
+        out.append("suggested: " + (rows[best].label if best is not None else
+                                    "none (every row saturates, chatters or does not settle)"))
     return "\n".join(out)

@@ -268,8 +268,12 @@ class Parameters:
         """Whether `key` differs from its default (the UI greys modified values)."""
         return self.get(key) != (_preset() if default is None else default).get(key)
 
-    def plant(self) -> PlantParams:
-        """Physical constants of the simulated process (see SimulationSettings.plant)."""
+    def quadtank_constants(self) -> PlantParams:
+        """The quadruple tank's constants of the SIMULATION section (see
+        SimulationSettings.plant), whatever plant is in use: only for code that
+        works on the quadruple tank alone (after checking ``process is None``).
+        The plant in use is :meth:`process_plant`; there is deliberately no
+        ``plant()`` here, so the two cannot be confused."""
         return self.simulation.plant()
 
     def operating_levels(self) -> Levels:
@@ -278,7 +282,7 @@ class Parameters:
 
     def process_plant(self) -> Plant:
         """The plant in use, through the plant interface (core.plants)."""
-        return QuadTank(self.plant()) if self.process is None else self.process.plant()
+        return QuadTank(self.quadtank_constants()) if self.process is None else self.process.plant()
 
     def process_levels(self) -> tuple[float, ...]:
         """Operating levels of the plant in use, in its own length unit."""

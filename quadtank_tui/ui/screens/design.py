@@ -30,7 +30,8 @@ from textual.widgets import Footer, Input, Label, Static
 from textual_plotext import PlotextPlot
 
 from quadtank_tui.core.delaytf import DelayTF, ModelError
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.plant import PlantError
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
@@ -185,14 +186,15 @@ class DesignScreen(CommandSender):
 
     def action_physical(self) -> None:
         """Both loops' models from the physical linearization of the current setting."""
-        from quadtank_tui.core.design.mimo import physical_model
+        from quadtank_tui.core.design.controller import DesignError
+        from quadtank_tui.core.design.mimo import model_in_use
         from quadtank_tui.core.plant import PlantError
 
         p = self.engine.snapshot().params
         self.source = "the physical linearization"
         try:
-            self.G = physical_model(p.plant(), p.operating_levels())
-        except PlantError as exc:
+            self.G = model_in_use(p)  # the plant in use, not always the quadruple tank
+        except (PlantError, DesignError) as exc:
             self.G = None
             self._status(f"no physical linearization: {exc}")
             return
@@ -306,7 +308,9 @@ class DesignScreen(CommandSender):
             self.app.call_from_thread(self._refused, loop, request, str(exc))
             return
         try:
-            rows = candidates(model, lambdas=lams, ms_values=ms_values)
+            snap = self.engine.snapshot()  # the loop as it runs: its sampling time, its pump's input
+            rows = candidates(model, lambdas=lams, ms_values=ms_values, h=snap.params.tsamp,
+                              u0=snap.u[loop - 1] if snap.state == "Run" else 0.5)
         except ValueError as exc:  # a model the evaluation cannot simulate: one line, no crash
             self.app.call_from_thread(self._status, f"loop {loop}: {exc}", error=True)
             return
@@ -451,7 +455,7 @@ class DesignScreen(CommandSender):
         from quadtank_tui.core.design.mimo import design_2x2, format_check
 
         try:
-            chk = design_2x2(G)
+            chk = design_2x2(G, h=self.engine.snapshot().params.tsamp)
         except DesignError as exc:
             self.app.call_from_thread(self.notify, str(exc), severity="error", markup=False)
             return
@@ -470,24 +474,40 @@ class DesignScreen(CommandSender):
         if self.G is None or c1 is None or c2 is None:
             self.notify("choose a controller for both loops first (Enter on a row, or 2)", severity="warning")
             return
-        from quadtank_tui.core.design.mimo import closed_loop_poles, lambda11
+        from quadtank_tui.core.design.mimo import lambda11, slowest_pole
 
-        poles = closed_loop_poles(self.G, c1, c2)
-        worst = float(poles.real.max())
+        h = self.engine.snapshot().params.tsamp
+        worst = slowest_pole(self.G, c1, c2, h)  # the loop sampled at the Ts in force
         verdict = "stable" if worst < 0 else "UNSTABLE"
         self.query_one("#design-mimo", Static).update(
-            f"2x2 closed loop with the chosen pair: {verdict} (slowest pole {worst:.3g} 1/s)\n"
+            f"2x2 closed loop with the chosen pair, sampled at {h:g} s: {verdict} (slowest pole {worst:.3g} 1/s)\n"
             f"λ11(0) = {lambda11(self.G, 0.0).real:.3f}")
 
     # --- apply ---------------------------------------------------------------------
 
     def action_apply(self) -> None:
-        from quadtank_tui.core.design.apply import controller_values, describe_changes
-
+        """Apply shows the preview on the simulated plant first (ui.windows.design_preview);
+        only its Apply (confirmed when the simulation misbehaves) reaches the engine."""
         pair = (self.loops[1].chosen, self.loops[2].chosen)
         if pair == (None, None):
             self.notify("nothing chosen: Enter on a candidate row, or 2 for the 2x2 design",
                         severity="warning")
+            return
+        from quadtank_tui.ui.windows.design_preview import DesignPreviewWindow, preview_request
+
+        snap = self.engine.snapshot()
+        try:
+            request = preview_request(snap, pair, self.G)
+        except (PlantError, DesignError, ValueError) as exc:
+            self.notify(f"no preview, nothing applied: {exc}", severity="error", markup=False)
+            return
+        self.app.push_screen(DesignPreviewWindow(request), lambda ok: self._apply(pair, ok))
+
+    def _apply(self, pair: tuple[PID | None, PID | None], ok: bool | None) -> None:
+        from quadtank_tui.core.design.apply import controller_values, describe_changes
+
+        if not ok:
+            self.notify("not applied", timeout=3)
             return
         values = controller_values(pair)
         changes = describe_changes(self.engine.snapshot().params, values)
@@ -513,3 +533,4 @@ class DesignScreen(CommandSender):
         names, never read as markup), red for an error."""
         line = Content.assemble(("Design", "bold"), "  ", (text, "red") if error else text)
         self.query_one("#design-status", Static).update(line)
+

@@ -618,6 +618,6 @@ def spilling_tanks(snap: Snapshot) -> frozenset[int]:
     in (else the level would fall) and spills over."""
     if snap.operation != "Simul" or snap.state != "Run":
         return frozenset()
-    plant = snap.params.plant()
-    brim = plant.kc * plant.hmax / FULL_SCALE_V - SPILL_MARGIN
-    return frozenset(n for n, level in enumerate(snap.y, start=1) if level >= brim)
+    sensors = snap.params.process_plant().outputs  # the plant in use: its sensors' full range
+    return frozenset(n for n, (level, s) in enumerate(zip(snap.y, sensors), start=1)
+                     if level >= s.hi / FULL_SCALE_V - SPILL_MARGIN)

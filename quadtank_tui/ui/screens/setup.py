@@ -76,7 +76,7 @@ def operating_point_view(snap: Snapshot) -> Snapshot:
     y = p.simulation.op_points
     try:
         h = p.operating_levels()
-        v = steady_state_inputs(h[0], h[1], p.plant()).v
+        v = steady_state_inputs(h[0], h[1], p.quadtank_constants()).v
         u = (v[0] / FULL_SCALE_V, v[1] / FULL_SCALE_V)
     except PlantError:
         u = snap.u

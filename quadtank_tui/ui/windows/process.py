@@ -158,8 +158,11 @@ class TankWindow(_LiveWindow):
             return
         snap = self.snapshot
         if snap is not None:
-            plant = snap.params.plant()
-            full = plant.kc * plant.hmax / FULL_SCALE_V
+            sensors = snap.params.process_plant().outputs  # the plant in use
+            if self.selected > len(sensors):
+                self.query_one("#amount-error", Static).update(f"the plant has no tank {self.selected}")
+                return
+            full = sensors[self.selected - 1].hi / FULL_SCALE_V
             problem = water_problem(amount, self.selected, snap.y[self.selected - 1], full)
             if problem is not None:
                 self.query_one("#amount-error", Static).update(problem)

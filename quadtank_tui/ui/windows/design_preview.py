@@ -1,0 +1,165 @@
+"""The chosen pair of controllers tried on the simulated plant before Apply (issue 23).
+
+The Design screen's Apply opens this window; it runs core.design.preview in a
+worker (a step of 0.1 on each loop in turn, on the nonlinear model of the plant in
+use, from the levels and inputs of the moment, at the sampling time in force, the
+pumps limited), with a progress bar, then shows the predicted (linear sampled
+design) and simulated curves and figures.  Apply hands back True; when the
+simulation is unstable, limit-cycles or holds a pump at a limit for more than a
+fifth of the window, Apply first asks an explicit question that says so.  Esc or
+Cancel hands back None: nothing is applied.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+from textual import work
+from textual.app import ComposeResult
+from textual.containers import Horizontal
+from textual.widgets import Button, ProgressBar, Static
+from textual_plotext import PlotextPlot
+
+from quadtank_tui.core.delaytf import DelayTF
+from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.preview import Preview, format_preview, preview
+from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.base import Plant
+from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Window
+
+
+@dataclass(frozen=True)
+class PreviewRequest:
+    """What the preview simulates (core.design.preview's arguments)."""
+
+    plant: Plant
+    levels: tuple[float, ...]  # all tanks, the plant's length unit
+    inputs: tuple[float, ...]  # pump volts
+    pair: tuple[PID, PID]
+    h: float
+    window: float
+    model: Sequence[Sequence[DelayTF]] | None
+    tr: tuple[float, float]
+
+
+def preview_request(snap: Snapshot, pair: tuple[PID | None, PID | None],
+                    G: Sequence[Sequence[DelayTF]] | None) -> PreviewRequest:
+    """The preview of `pair` (None: the loop's controller in force) on the plant in use:
+    from the levels and inputs of the moment while the process runs, else from the
+    parameters' operating point; at the sampling time in force; the window four
+    times the slower loop's designed settling time."""
+    from quadtank_tui.core.design.apply import in_force
+    from quadtank_tui.core.design.evaluate import evaluate
+    from quadtank_tui.core.design.preview import window_for
+    from quadtank_tui.core.plant import FULL_SCALE_V
+
+    p = snap.params
+    plant = p.process_plant()
+    chosen = (pair[0] or in_force(p, 1), pair[1] or in_force(p, 2))
+    if snap.state == "Run":
+        levels = tuple(y * FULL_SCALE_V * st.hi / out.hi for y, st, out in zip(snap.y, plant.states, plant.outputs))
+        inputs = tuple(u * s.full_scale for u, s in zip(snap.u, plant.inputs))
+    else:
+        given = [x if i in plant.controlled else None for i, x in enumerate(p.process_levels())]
+        op = plant.steady_inputs(given)
+        levels, inputs = tuple(op.x), tuple(op.u)
+    h = p.tsamp
+    settling = [evaluate(c, G[i][i], h=h).setpoint_settling for i, c in enumerate(chosen)] if G else []
+    tr = (float(getattr(p.get("CONTROLLER ONE.Tr"), "value", p.get("CONTROLLER ONE.Tr"))),
+          float(getattr(p.get("CONTROLLER FOUR.Tr"), "value", p.get("CONTROLLER FOUR.Tr"))))
+    return PreviewRequest(plant, levels, inputs, chosen, h, window_for(settling, h), G, tr)
+
+
+class DesignPreviewWindow(Window[bool]):
+    """Predicted and simulated steps of the chosen pair; Apply or Cancel."""
+
+    DEFAULT_CSS = """
+    DesignPreviewWindow #dialog { width: 96; height: auto; max-height: 100%; }
+    DesignPreviewWindow .preview-plot { height: 9; }
+    DesignPreviewWindow #preview-figures { height: auto; }
+    """
+
+    def __init__(self, request: PreviewRequest) -> None:
+        super().__init__("Preview on the simulated plant")
+        self.request = request
+        self.result: Preview | None = None
+
+    def compose_body(self) -> ComposeResult:
+        r = self.request
+        yield Static(f"{r.plant.title}: step 0.1 on each loop, {r.window:.0f} s each, sampled at {r.h:g} s, "
+                     "pumps 0..10 V; predicted (blue) and simulated (red)", id="preview-what", markup=False)
+        yield ProgressBar(total=100, show_eta=False, id="preview-progress")
+        with Horizontal():
+            for i in (1, 2):
+                yield PlotextPlot(id=f"preview-loop{i}", classes="preview-plot")
+        yield Static("", id="preview-figures", markup=False)
+
+    def compose_buttons(self) -> ComposeResult:
+        yield Button("Apply", id="apply", variant="primary", disabled=True)
+        yield Button("Cancel", id="cancel")
+
+    def on_mount(self) -> None:
+        for i in (1, 2):
+            self.query_one(f"#preview-loop{i}", PlotextPlot).border_title = f"r{i} step: y{i}"
+        self.query_one("#cancel", Button).focus()
+        self._simulate()
+
+    @work(thread=True, exclusive=True, group="preview")
+    def _simulate(self) -> None:
+        r = self.request
+        try:
+            pv = preview(r.plant, r.levels, r.inputs, r.pair, r.h, window=r.window, model=r.model, tr=r.tr,
+                         progress=lambda f: self.app.call_from_thread(self._progress, f))
+        except (DesignError, PlantError, ValueError) as exc:
+            self.app.call_from_thread(self._failed, str(exc))
+            return
+        self.app.call_from_thread(self._show, pv)
+
+    def _progress(self, fraction: float) -> None:
+        self.query_one(ProgressBar).update(progress=round(100 * fraction, 1))
+
+    def _failed(self, why: str) -> None:
+        self.query_one(ProgressBar).display = False
+        self.show_message(f"no preview: {why}")
+
+    def _show(self, pv: Preview) -> None:
+        self.result = pv
+        self.query_one(ProgressBar).display = False
+        for s in pv.steps:
+            plot = self.query_one(f"#preview-loop{s.loop}", PlotextPlot)
+            plt = plot.plt
+            plt.clear_data()
+            step = max(1, len(s.t) // 200)
+            t = s.t[::step].tolist()
+            if s.predicted is not None:
+                plt.plot(t, s.predicted[::step].tolist(), color="blue", marker="braille")
+            plt.plot(t, s.simulated[::step].tolist(), color="red", marker="braille")
+            plot.refresh()
+        self.query_one("#preview-figures", Static).update(format_preview(pv))
+        apply = self.query_one("#apply", Button)
+        apply.disabled = False
+        if pv.warnings:
+            apply.label = "Apply anyway..."
+            apply.variant = "error"
+            self.show_message("; ".join(pv.warnings))
+        apply.focus()
+
+    def action_apply(self) -> None:
+        pv = self.result
+        if pv is None:
+            return
+        if not pv.warnings:
+            self.dismiss(True)
+            return
+        question = ("On the simulated plant:\n" + "\n".join(f"  {w}" for w in pv.warnings)
+                    + "\nApply these controllers to the process anyway?")
+
+        def answered(answer: str | None) -> None:
+            if answer == "apply":
+                self.dismiss(True)
+
+        self.app.push_screen(ChoiceWindow("Apply anyway?", question,
+                                          (Choice("cancel", "Do not apply"),
+                                           Choice("apply", "Apply anyway", "error"))), answered)
