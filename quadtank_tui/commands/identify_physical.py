@@ -78,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
     start = starting_plant(args.par)
     plant = start.plant
     free = _free(args.free, plant)
+    target = _save_path(args, start) if args.save is not None else None
     fitted_logs = experiments(args.logs, plant, args.outputs, args.inputs)
     fit = fit_physical(plant, fitted_logs, free, offsets=args.offsets)
     offsets = [o.value for o in fit.offsets]
@@ -85,9 +86,7 @@ def run(args: argparse.Namespace) -> int:
     for exp in experiments(args.validate_on or [], plant, [f"y{o + 1}" for o in fitted_logs[0].outputs],
                            args.inputs):
         validation += validate_physical(fit.plant, exp, offsets)[0]
-    saved: list[Path] = []
-    if args.save is not None:
-        saved = _save(args, start, fit)
+    saved = _save(target, args.logs, start, fit) if target is not None else []
     if args.json:
         out = to_dict(fit, start, validation)
         out["saved"] = [str(p) for p in saved]
@@ -109,20 +108,25 @@ def _free(names: list[str] | None, plant: Plant) -> tuple[str, ...] | None:
     return tuple(names)
 
 
-def _save(args: argparse.Namespace, start: Start, fit: PhysicalFit) -> list[Path]:
-    """NAME.par (the fitted constants in a copy of the starting file) and
-    NAME.physical.json next to the first log, or at --save PATH."""
-    from quadtank_tui.files.atomic import atomic_write_text
-    from quadtank_tui.files.physical_par import with_fit
-
+def _save_path(args: argparse.Namespace, start: Start) -> Path:
+    """Where --save writes the .par: NAME.par next to the first log, or PATH."""
     first = Path(args.logs[0])
     target = Path(args.save) if args.save else first.with_name(first.name.removesuffix(".log") + ".par")
     if target.suffix != ".par":
         raise UsageError(f"--save {target}: the fitted constants are written to a .par file")
     if start.path is not None and target.resolve() == start.path.resolve():
         raise UsageError(f"--save {target}: that is the .par in use; name another file")
+    return target
+
+
+def _save(target: Path, logs: list[str], start: Start, fit: PhysicalFit) -> list[Path]:
+    """The fitted constants in a copy of the starting file at `target`, and
+    NAME.physical.json beside it."""
+    from quadtank_tui.files.atomic import atomic_write_text
+    from quadtank_tui.files.physical_par import with_fit
+
     notes = {e.name: f"+- {e.stderr:.3g} (1 standard error); was {e.start:.8g}" for e in fit.constants}
-    header = [f"Constants fitted by `quadtank identify --method physical` to {', '.join(args.logs)}",
+    header = [f"Constants fitted by `quadtank identify --method physical` to {', '.join(logs)}",
               f"starting from {start.name}; RMS output error {fit.rms:.4g} V"]
     text = with_fit(start.text, str(target), fit.plant, notes, header)
     atomic_write_text(target, text, encoding="utf-8")

@@ -32,24 +32,31 @@ def _number(x: float) -> str:
 
 
 def par_values(old_text: str, name: str, plant: Plant) -> dict[str, str]:
-    """The "SECTION.Key" texts that put `plant`'s constants in the file `old_text`;
-    ParFileError when the file describes another kind of plant."""
+    """The "SECTION.Key" texts that put those of `plant`'s constants that differ
+    from the file `old_text`'s into it; ParFileError when the file describes
+    another kind of plant."""
     params = parse_par(old_text, name=name).params
-    kind = params.process_plant().kind
-    if kind != plant.kind:
-        raise ParFileError(name, f"describes a {kind}, the fit is of a {plant.kind}")
-    if isinstance(plant, QuadTank):
-        p = plant.params
-        h0 = params.operating_levels()
-        out = {"SIMULATION.Valve1": _number(p.gamma1), "SIMULATION.Valve2": _number(p.gamma2),
-               "SIMULATION.Pump1": _number(p.k1), "SIMULATION.Pump2": _number(p.k2),
-               "SIMULATION.Sensor": _number(p.kc)}
-        for i in range(4):
+    old = params.process_plant()
+    if old.kind != plant.kind:
+        raise ParFileError(name, f"describes a {old.kind}, the fit is of a {plant.kind}")
+    before = old.values()
+    changed = {k for k, v in plant.values().items() if float(v) != float(before[k])}
+    if not isinstance(plant, QuadTank):
+        return {f"PLANT.{k}": _number(plant.values()[k]) for k in plant.values() if k in changed}
+    p = plant.params
+    h0 = params.operating_levels()
+    out = {f"SIMULATION.{key}": _number(getattr(p, const)) for const, key in _QUAD.items() if const in changed}
+    for i in range(4):
+        if {f"a{i + 1}", "kc"} & changed:
             out[f"SIMULATION.TimeConst{i + 1}"] = format_number(round(
                 time_constant(p.area(i), p.outlet(i), h0[i], p.g), 6))
+        if "kc" in changed:
             out[f"SIMULATION.OpPoint{i + 1}"] = format_number(round(p.kc * h0[i] / FULL_SCALE_V, 6))
-        return out
-    return {f"PLANT.{k}": _number(v) for k, v in plant.values().items()}
+    return out
+
+
+#: The quadruple tank's constants that SIMULATION holds as they are, and their keys.
+_QUAD = {"gamma1": "Valve1", "gamma2": "Valve2", "k1": "Pump1", "k2": "Pump2", "kc": "Sensor"}
 
 
 def with_fit(old_text: str, name: str, plant: Plant, notes: Mapping[str, str] = {},
@@ -57,12 +64,7 @@ def with_fit(old_text: str, name: str, plant: Plant, notes: Mapping[str, str] = 
     """`old_text` with `plant`'s constants written in; `notes` (by constant name, as
     the plant calls it) become a comment line under each; `header` lines are added
     as comments after the file's first comment lines.  Checked by the reader."""
-    params = parse_par(old_text, name=name).params
-    old_values = params.process_plant().values()
-    values = par_values(old_text, name, plant)
-    keep = {k: v for k, v in values.items() if _changed(k, v, params.get(k) if k.startswith("SIMULATION.")
-                                                       else old_values.get(k.removeprefix("PLANT.")))}
-    new = with_par_values(old_text, keep, name)
+    new = with_par_values(old_text, par_values(old_text, name, plant), name)
     lines = new.splitlines(keepends=True)
     newline = "\r\n" if lines and lines[0].endswith("\r\n") else "\n"
     for const, note in notes.items():
@@ -79,20 +81,12 @@ def with_fit(old_text: str, name: str, plant: Plant, notes: Mapping[str, str] = 
     return new
 
 
-def _changed(key: str, text: str, old: object) -> bool:
-    try:
-        return old is None or float(text) != float(old)  # type: ignore[arg-type]  # a number from the file
-    except (TypeError, ValueError):
-        return True
-
-
 def _key_of(plant: Plant, const: str) -> str:
     """The file key a constant's note goes under."""
     if not isinstance(plant, QuadTank):
         return const
-    quad = {"gamma1": "Valve1", "gamma2": "Valve2", "k1": "Pump1", "k2": "Pump2", "kc": "Sensor"}
-    if const in quad:
-        return quad[const]
+    if const in _QUAD:
+        return _QUAD[const]
     if const[:1] == "a" and const[1:].isdigit():
         return f"TimeConst{const[1:]}"
     return const

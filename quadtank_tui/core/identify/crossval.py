@@ -57,9 +57,14 @@ def figure(log: str, output: str, y: np.ndarray, ym: np.ndarray, volts_per_log_u
 
 def simulate_element(g: DelayTF, du: np.ndarray, h: float) -> np.ndarray:
     """The response of g to the deviation input du sampled every h s (ZOH), from rest."""
-    num, den, _ = signal.cont2discrete((list(g.num), list(g.den)), h, method="zoh")
-    _, y = signal.dlsim((np.ravel(num), den, h), du)
-    y = np.ravel(y)
+    du = np.asarray(du, float)
+    if len(g.den) == 1:  # a pure gain
+        y = g.num[0] / g.den[0] * du
+    else:
+        A, B, C, D = signal.tf2ss(g.num, g.den)
+        Ad, Bd, Cd, Dd, _ = signal.cont2discrete((A, B, C, D), h, method="zoh")
+        y = signal.dlsim((Ad, Bd, Cd, Dd, h), du)[1]
+        y = np.ravel(y)
     d = int(round(g.delay / h))
     return np.concatenate([np.zeros(min(d, y.size)), y[:y.size - d]]) if d else y
 
