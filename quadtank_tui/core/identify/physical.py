@@ -130,9 +130,8 @@ def predict(plant: Plant, exp: Experiment, x0: Sequence[float] | np.ndarray,
             offsets: Sequence[float] | np.ndarray | None) -> np.ndarray:
     """The sensor voltages the plant predicts for `exp` from levels x0."""
     x = simulate(plant, x0, exp.u, exp.h)
-    gains = sensor_gains(plant)
-    idx = list(exp.outputs)
-    return x[:, idx] * gains[idx] + _offsets(exp, offsets)
+    y = np.array([plant.output(row) for row in x])  # the plant's sensors, with their range
+    return y[:, list(exp.outputs)] + _offsets(exp, offsets)
 
 
 def _offsets(exp: Experiment, offsets: Sequence[float] | np.ndarray | None) -> np.ndarray:
@@ -194,8 +193,12 @@ class PhysicalFit:
 def bounds_of(plant: Plant, name: str) -> tuple[float, float]:
     """Where a constant may lie, from the physics of its role."""
     value = float(plant.values()[name])
-    if name.startswith("gamma"):
+    if name.startswith("gamma") or name.startswith("spill"):
         return 0.0, 1.0
+    if name == "vmin":
+        return 0.0, plant.inputs[0].hi * (1 - 1e-9)
+    if name.startswith("ysat"):
+        return 1e-3, math.inf
     if name in plant.outlet_names:
         i = plant.outlet_names.index(name)
         upper = plant.area(i) if name.startswith("a") and plant.area(i) != 1.0 else (
@@ -204,6 +207,19 @@ def bounds_of(plant: Plant, name: str) -> tuple[float, float]:
     if name.startswith("Cd"):
         return value * 1e-6, 1.0
     return value * 1e-6, math.inf
+
+
+def _start(plant: Plant, name: str, experiments: Sequence[Experiment]) -> float:
+    """A constant's starting value: the plant's, but a sensor range that is off (0)
+    starts at the highest reading of that sensor in the logs."""
+    value = float(plant.values()[name])
+    if name.startswith("ysat") and value == 0.0:
+        o = int(name[4:]) - 1
+        seen = [float(e.y[:, e.outputs.index(o)].max()) for e in experiments if o in e.outputs]
+        if not seen:
+            raise IdentificationError(f"{name}: no log measures y{o + 1}, whose range it is")
+        return max(seen)
+    return value
 
 
 def _check_free(plant: Plant, free: Sequence[str]) -> None:
@@ -239,7 +255,7 @@ def fit_physical(plant: Plant, experiments: Sequence[Experiment], free: Sequence
         raise IdentificationError("every log must hold the same outputs")
     outputs = experiments[0].outputs
     n_states = len(plant.states)
-    start_c = [float(plant.values()[n]) for n in names]
+    start_c = [_start(plant, n, experiments) for n in names]
     offs0 = [0.0] * n_out[0] if offsets else []
     x0s = [initial_levels(plant, e) for e in experiments]
     theta0 = np.array(start_c + offs0 + [v for x in x0s for v in x])

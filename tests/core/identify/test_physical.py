@@ -59,17 +59,24 @@ def test_sensor_noise_constants_within_half_a_percent_and_four_standard_errors()
     assert fit.rms == pytest.approx(0.01, rel=0.2)  # the residual is the noise
 
 
-def test_overflow_episode_and_unmeasured_tank() -> None:
-    """The upper tank brims over for a while (spilled water leaves the process) and
-    only the lower tank is measured: the constants still come back."""
-    u = np.where(np.arange(ROWS) < 25, 22.0, 4.0 + 2.0 * prbs(ROWS, 8, 2))
-    full = cascade_log("a", u, (20.0, 10.0))
-    x = simulate(TRUE, (20.0, 10.0), u[:, None], H)
-    assert x[:, 0].max() == TRUE.hmax  # it did overflow
-    exp = Experiment("a", H, full.u, full.y[:, [1]], (1,))
-    fit = fit_physical(START, [exp])
+def test_overflow_saturated_sensor_and_pump_threshold_are_learnt() -> None:
+    """A rig whose upper tank overflows into the lower one (40 % of the excess), whose
+    lower sensor saturates at 4.5 V (25 cm of 30) and whose pump moves no water below
+    1 V: 70 s at 13 V from nearly full fill tank 1 to the brim and tank 2 past its
+    sensor's range. All six constants come back from 10-25 % off (the sensor range
+    starts at the highest reading, as the fit does when it is off)."""
+    rig = CoupledCascade(spill1=0.4, vmin=1.0, ysat2=4.5)
+    rows = 60
+    u = np.where(np.arange(rows) < 14, 13.0, 8.0 + 2.0 * prbs(rows, 6, 2))
+    x = simulate(rig, (28.0, 5.0), u[:, None], H)
+    y = np.array([rig.output(r) for r in x])
+    assert x[:, 0].max() == rig.hmax and (y[:, 1] == 4.5).sum() >= 10 and x[:, 1].min() < 10
+    start = rig.with_values(alpha1=0.0088, alpha2=0.0109, beta1=0.273, spill1=0.3, vmin=0.8, ysat2=0.0)
+    names = ("alpha1", "alpha2", "beta1", "spill1", "vmin", "ysat2")
+    fit = fit_physical(start, [Experiment("a", H, u[:, None], y, (0, 1))], names)
     for e in fit.constants:
-        assert e.value == pytest.approx(TRUE.values()[e.name], rel=1e-4), e.name
+        assert e.value == pytest.approx(rig.values()[e.name], rel=1e-6), e.name
+    assert fit.constants[-1].start == 4.5
 
 
 def test_validation_of_the_true_constants_is_exact_from_estimated_levels() -> None:
