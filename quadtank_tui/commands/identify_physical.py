@@ -154,9 +154,11 @@ def format_report(fit: PhysicalFit, start: Start, validation: list[Figure]) -> s
              f"  {len(fit.experiments)} log(s), {sum(e.rows for e in fit.experiments)} rows, "
              f"{fit.evaluations} simulations, RMS output error {fit.rms:.4g} V", "",
              f"  {'constant':<10} {'.par value':>12} {'fitted':>14} {'+- (1 s.e.)':>12} {'change':>9}  unit"]
+    in_par = start.plant.values()
     for e in fit.constants:
-        change = f"{100 * (e.value / e.start - 1):+.2f} %" if e.start else ""
-        lines.append(f"  {e.name:<10} {e.start:>12.6g} {e.value:>14.8g} {e.stderr:>12.3g} {change:>9}  "
+        was = in_par[e.name]  # a sensor range that was off (0) started at the highest reading
+        change = f"{100 * (e.value / was - 1):+.2f} %" if was else ""
+        lines.append(f"  {e.name:<10} {was:>12.6g} {e.value:>14.8g} {e.stderr:>12.3g} {change:>9}  "
                      f"{p.units.get(e.name, '')}")
     for e in fit.offsets:
         lines.append(f"  {e.name:<10} {0.0:>12.6g} {e.value:>14.6g} {e.stderr:>12.3g} {'':>9}  V")

@@ -113,6 +113,7 @@ def test_save_writes_a_par_of_the_same_kind_and_keeps_the_one_in_use(
     ("good", ["--free", "A1"], "--free A1: a coupled-cascade has no constant A1"),
     ("good", ["--inputs", "u2"], "--inputs u2: a coupled-cascade has the pumps u1"),
     ("good", ["--save", "x.txt"], "--save x.txt: the fitted constants are written to a .par file"),
+    ("good", ["--save", "IN_USE"], "that is the .par in use; name another file"),
 ])
 def test_bad_input_is_one_line_status_2_and_the_par_untouched(
         tmp_path: Path, cascade_par: Path, capsys: pytest.CaptureFixture[str],
@@ -128,6 +129,7 @@ def test_bad_input_is_one_line_status_2_and_the_par_untouched(
     else:
         cascade_log(path, 1, (10.0, 9.0), rows=20)
     before = cascade_par.read_bytes()
+    extra = [str(cascade_par) if x == "IN_USE" else x for x in extra]
     assert main(["identify", str(path), "--method", "physical", "--par", str(cascade_par), *extra]) == 2
     err = capsys.readouterr().err
     assert message in err, err
