@@ -90,6 +90,18 @@ def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams, str, 
     return read.params.plant(), par, (3.0, 3.0)
 
 
+def _sensor_gains(par: str | None, params: PlantParams) -> tuple[dict[str, float], str]:
+    """Volts per level unit of each sensor of the plant in use (--par names it; else
+    the quadruple tank compared with), and that unit."""
+    from quadtank_tui.commands.identify_physical import starting_plant
+    from quadtank_tui.core.identify.physical import sensor_gains
+    from quadtank_tui.core.plants import Plant, QuadTank
+
+    plant: Plant = starting_plant(par).plant if par is not None else QuadTank(params)
+    gains = sensor_gains(plant)
+    return {f"y{i + 1}": float(g) for i, g in enumerate(gains)}, plant.states[0].unit
+
+
 def read_sampled(path: str) -> tuple[LogData, float]:
     """A log and its sampling time (UsageError without one); its warnings on stderr."""
     from quadtank_tui.files.log import read_log
@@ -101,9 +113,9 @@ def read_sampled(path: str) -> tuple[LogData, float]:
     return log, log.tsamp
 
 
-def cross_validate(ident: Identification, paths: list[str], kc: float) -> list[Figure]:
+def cross_validate(ident: Identification, paths: list[str], gains: dict[str, float], unit: str) -> list[Figure]:
     """The identified model on each log's inputs: fit % and RMS of each output
-    (volts: 10 V per log unit; cm through the sensor gain kc of the physical model)."""
+    (volts: 10 V per log unit; levels through each sensor's gain in V per `unit`)."""
     from quadtank_tui.core.identify.crossval import figure, simulate_linear
     from quadtank_tui.core.plant import FULL_SCALE_V
 
@@ -113,7 +125,8 @@ def cross_validate(ident: Identification, paths: list[str], kc: float) -> list[F
         elements = {key: e.tf for key, e in ident.elements.items()}
         cols = log.columns()
         ym = simulate_linear(elements, ident.outputs, ident.inputs, cols, tsamp, path)
-        out += [figure(path, o, cols[o], ym[o], FULL_SCALE_V, kc, "cm") for o in ident.outputs]
+        out += [figure(path, o, cols[o], ym[o], FULL_SCALE_V, gains.get(o, float("nan")), unit)
+                for o in ident.outputs]
     return out
 
 
@@ -164,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
     if all(k in ("u1", "u2") for k in ident.inputs) and all(k in ("y1", "y2") for k in ident.outputs):
         cmp = compare(ident.operating_point, params, ident.system.static_gains, ident.inputs,
                       ident.outputs, v_default)
-    validation = cross_validate(ident, args.validate_on or [], params.kc)
+    validation = cross_validate(ident, args.validate_on or [], *_sensor_gains(args.par, params))
     saved = None
     if args.save is not None:
         target = Path(args.save) if args.save else model_path(args.logs[0])
