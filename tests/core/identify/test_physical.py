@@ -124,3 +124,15 @@ def test_a_fit_that_does_not_converge_or_cannot_say() -> None:
     still = cascade_log("s", np.zeros(30), (0.0, 0.0))  # pumps off, tanks empty
     with pytest.raises(IdentificationError, match="the logs do not determine"):
         fit_physical(START, [still])
+
+
+def test_sensor_offsets_are_fitted_when_asked() -> None:
+    """Sensors reading 0.1 V high and 0.05 V low: with --offsets the offsets and the
+    constants come back (from 5 % off; offsets and outlets trade off further away)."""
+    exp = cascade_log("a", 7.0 + 2.0 * prbs(ROWS, 8, 1), (10.0, 9.0))
+    exp = Experiment("a", H, exp.u, exp.y + np.array([0.1, -0.05]), (0, 1))
+    fit = fit_physical(TRUE.with_values(alpha1=0.0093, beta1=0.26), [exp], offsets=True)
+    assert [e.name for e in fit.offsets] == ["y1.offset", "y2.offset"]
+    assert [e.value for e in fit.offsets] == pytest.approx([0.1, -0.05], abs=1e-9)
+    for e in fit.constants:
+        assert e.value == pytest.approx(TRUE.values()[e.name], rel=1e-8), e.name
