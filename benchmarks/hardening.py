@@ -15,6 +15,8 @@ Campaigns (each prints: cases run, accepted, refused cleanly, failures):
   kills    SIGKILL of `quadtank run` while logging: the partial log and its recovery
   devices  a killed / frozen / slow / hung / lying Modbus device under `quadtank run --daq`
   paths    hostile path names given to every command that takes a file
+  locks    the DAQ lock forged, its folder's flock held hostage, six programs racing (hardening_locks.py)
+  users    two real users (root: useradd): a forced take-over, a forged record, a held flock
 
 A failure is a traceback, a hang, a wrong exit status, an invalid value accepted or a
 lost row; its input is saved under the output folder (printed at the end).  Not a
@@ -48,7 +50,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PARAMS = ROOT / "params"
 ISSUE_COUNTS = {"keys": 11_724, "fields": 570, "par": 5_009, "scripts": 700, "daq": 500, "kills": 29}
 SMALL_COUNTS = {"keys": 600, "fields": 120, "par": 400, "scripts": 60, "daq": 80, "kills": 3}
-CAMPAIGNS = ("keys", "fields", "par", "scripts", "daq", "kills", "devices", "paths")
+CAMPAIGNS = ("keys", "fields", "par", "scripts", "daq", "kills", "devices", "paths", "locks", "users")
 
 
 # --- bookkeeping ---------------------------------------------------------------------------
@@ -72,6 +74,8 @@ class Tally:
     #: The pilot's wait for the screen ran out in a process the machine starved
     #: (keys campaign): no failure of the program, counted and said.
     starved: list[str] = dataclasses.field(default_factory=list)
+    #: The slowest case and what it was (the locks and users campaigns).
+    worst: str = ""
 
     def fail(self, kind: str, detail: str, data: bytes | str | None = None, suffix: str = ".txt") -> None:
         saved = None
@@ -84,7 +88,8 @@ class Tally:
     def line(self) -> str:
         return (f"{self.name:8s} {self.ran:7d} cases  {self.accepted:6d} accepted  {self.refused:6d} refused cleanly"
                 f"  {len(self.failures):4d} failures  {self.seconds:7.1f} s"
-                + (f"  ({len(self.starved)} starved waits)" if self.starved else ""))
+                + (f"  ({len(self.starved)} starved waits)" if self.starved else "")
+                + (f"  worst case {self.worst}" if self.worst else ""))
 
 
 class Hang(Exception):
@@ -991,6 +996,18 @@ def campaign_paths(t: Tally, work: Path) -> None:
         t.fail("invalid value accepted", "a log was written outside the work folder")
 
 
+def campaign_lock_users(t: Tally, name: str, work: Path, rounds: int = 10) -> None:
+    """benchmarks/hardening_locks.py's campaign `name`, counted in this table."""
+    from hardening_locks import CAMPAIGNS as LOCK_CAMPAIGNS, Campaign  # type: ignore[import-not-found]
+
+    c = Campaign(name)
+    LOCK_CAMPAIGNS[name](c, rounds, work)
+    t.ran, t.accepted = c.runs, c.runs - len(c.failures)
+    for failure in c.failures:
+        t.fail("wrong state", failure)
+    t.worst = f"{c.worst[0]:.2f} s ({c.worst[1]})" if c.runs else ""
+
+
 # --- main ------------------------------------------------------------------------------------
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -1066,6 +1083,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 campaign_devices(t, work)
             elif name == "paths":
                 campaign_paths(t, work)
+            elif name in ("locks", "users"):
+                campaign_lock_users(t, name, work)
             else:
                 raise SystemExit(f"unknown campaign {name!r}; choose from {', '.join(CAMPAIGNS)}")
         finally:

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 from quadtank_tui.commands import UsageError, icad, pause_gc, warn
 from quadtank_tui.commands.design import add_parser as add_design_parser
 from quadtank_tui.commands import logview, statefb
+from quadtank_tui.commands import plot as plot_command
 from quadtank_tui.commands import identify as identify_command
 from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.commands import lab as lab_command
@@ -372,6 +373,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_analyze(sub)
     _add_log(sub)
+    plot_command.add_parser(sub)
     _add_run(sub)
     add_rig_parser(sub)
     add_daq_parser(sub)
@@ -451,7 +453,8 @@ def _holding_the_daq(handler: Handler, args: argparse.Namespace) -> int:
         previous = signal.signal(TAKEN_OVER_SIGNAL, _taken_over)
         main_thread = threading.main_thread().ident
         assert main_thread is not None
-        hold.watch(lambda why: signal.pthread_kill(main_thread, TAKEN_OVER_SIGNAL))
+        hold.watch(lambda why: signal.pthread_kill(main_thread, TAKEN_OVER_SIGNAL),
+                   lambda what: _say(f"quadtank: warning: {what}; this run goes on"))
         try:
             return handler(args)
         finally:

@@ -52,6 +52,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="with --par: skip the step on the nonlinear simulator")
     p.add_argument("--write-par", metavar="OUT.par",
                    help="with --par: save the parameters with the designed controllers")
+    p.add_argument("--figure", metavar="FILE",
+                   help="also draw each designed loop as a figure (.png, .svg or .pdf): the reference step, "
+                   "|S| and |T| with the Ms line, the Nyquist curve with the 1/Ms circle")
     p.add_argument("--json", action="store_true", help="print a JSON object instead of a table")
     p.set_defaults(handler=run)
 
@@ -61,6 +64,10 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--model and --par: choose one (--par designs both loops of the file's process)")
     if args.model is None and args.par is None and args.model_file is None:
         raise ValueError("a model is needed: --model EXPR, --model-file FILE or --par FILE")
+    if args.figure is not None:
+        from quadtank_tui.files.figures import figure_format
+
+        figure_format(args.figure)  # a name that cannot be written is refused before the design
     if args.par is not None or args.model_file is not None:
         return _run_2x2(args)
     if args.write_par:
@@ -100,10 +107,13 @@ def _run_siso(args: argparse.Namespace) -> int:
     method = args.method or "pi-ms"
     c, how = _design_siso(g, method, args.lam, args.ms)
     ev = evaluate(c, target)
+    figure = _figure(args.figure, [(method, target, c)], f"{how}; evaluated on {target}")
     if args.json:
         out = {"model": str(g), "method": method, "how": how, "Kc": c.Kc, "Ti": c.Ti, "Td": c.Td,
                "evaluated_on": str(target),
                "evaluation": _evaluation_json(ev)}
+        if figure is not None:
+            out["figure"] = str(figure)
         print(json.dumps(out, indent=2))
         return 0
     print(f"model      {g}")
@@ -112,7 +122,19 @@ def _run_siso(args: argparse.Namespace) -> int:
           + ("   (derivative Td s/(1 + s Td/10) on y)" if c.Td > 0 else ""))
     print(f"evaluated on {target}" if args.evaluate_on else "evaluated on the design model")
     print(format_evaluation(ev))
+    if figure is not None:
+        print(f"figure     {figure}")
     return 0
+
+
+def _figure(path: str | None, loops: list[tuple[str, Any, Any]], title: str) -> Path | None:
+    """Draw the loops (name, model, PID) into `path`, if one was given."""
+    if path is None:
+        return None
+    from quadtank_tui.files.figures.design import DesignedLoop, design_figure
+    from quadtank_tui.files.figures.style import save
+
+    return save(design_figure([DesignedLoop(*loop) for loop in loops], title), path)
 
 
 def format_evaluation(ev: Any) -> str:
@@ -182,8 +204,13 @@ def _run_2x2(args: argparse.Namespace) -> int:
             raise ValueError(f"--write-par {out}: the file name must end in .par")
         assert params is not None
         written = write_par(out, params.with_values(controller_values(chk.pid_pair())))
+    figure = _figure(args.figure, [(f"loop {d.loop} on {d.how}", d.model, d.controller) for d in chk.loops],
+                     f"{source}, method {method}")
     if args.json:
-        print(json.dumps(_check_json(chk, steps, written), indent=2))
+        report = _check_json(chk, steps, written)
+        if figure is not None:
+            report["figure"] = str(figure)
+        print(json.dumps(report, indent=2))
         return 0
     print(f"{source}, method {method}")
     print(format_check(chk))
@@ -194,6 +221,8 @@ def _run_2x2(args: argparse.Namespace) -> int:
               f"settling (2 %) {settle}, IAE {m.iae:.3f}, peak in y{3 - s.loop} {s.other_peak:.4f}")
     if written:
         print(f"wrote {written}")
+    if figure is not None:
+        print(f"figure written to {figure}")
     return 0
 
 

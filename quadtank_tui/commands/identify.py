@@ -67,6 +67,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--free", nargs="+", metavar="NAME",
                    help="physical: the constants to fit (default: outlets, pumps and valves)")
     p.add_argument("--offsets", action="store_true", help="physical: fit a sensor offset per output too")
+    p.add_argument("--figure", metavar="FILE",
+                   help="also draw the validation as a figure (.png, .svg or .pdf): per element the measured "
+                   "and model output on the validation part, the residual autocorrelation and the coherence")
     p.add_argument("--json", action="store_true", help="print a JSON object instead of a report")
     p.set_defaults(handler=run)
 
@@ -148,6 +151,10 @@ def parse_start(items: list[str] | None) -> dict[str, object] | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.figure is not None:
+        from quadtank_tui.files.figures import figure_format
+
+        figure_format(args.figure)  # a name that cannot be written is refused before the fit
     from quadtank_tui.core.identify.compare import compare
     from quadtank_tui.core.identify.experiment import Options, Record, identify
     from quadtank_tui.core.identify.report import format_report, to_dict
@@ -156,6 +163,8 @@ def run(args: argparse.Namespace) -> int:
     if args.method == "physical":
         from quadtank_tui.commands import identify_physical
 
+        if args.figure is not None:
+            raise UsageError("--figure draws a linear model's validation; --method physical has none yet")
         return identify_physical.run(args)
     if args.free or args.offsets:
         raise UsageError("--free and --offsets belong to --method physical")
@@ -182,11 +191,19 @@ def run(args: argparse.Namespace) -> int:
     if args.save is not None:
         target = Path(args.save) if args.save else model_path(args.logs[0])
         saved = write_model(target, from_identification(ident))
+    figure = None
+    if args.figure is not None:
+        from quadtank_tui.files.figures.identification import identification_figure
+        from quadtank_tui.files.figures.style import save
+
+        figure = save(identification_figure(ident), args.figure)
     if args.json:
         out = to_dict(ident, cmp, name)
         if saved is not None:
             out["model_file"] = str(saved)
         out["validation"] = [v.to_dict() for v in validation]
+        if figure is not None:
+            out["figure"] = str(figure)
         print(json.dumps(out, indent=2))
     else:
         print(format_report(ident, cmp, name))
@@ -198,4 +215,6 @@ def run(args: argparse.Namespace) -> int:
                 print(f"  {figure_line(v)}")
         if saved is not None:
             print(f"Model saved to {saved}")
+        if figure is not None:
+            print(f"Figure written to {figure}")
     return 0

@@ -44,12 +44,13 @@ class DaqHold:
         """Why the program stopped driving the rig (taken over), None while it drives it."""
         return None if self._watch is None else self._watch.reason
 
-    def watch(self, on_lost: Callable[[str], None]) -> None:
-        """Call `on_lost(reason)` (from another thread) if the lock is taken over."""
+    def watch(self, on_lost: Callable[[str], None], on_note: Callable[[str], None] | None = None) -> None:
+        """Call `on_lost(reason)` (from another thread) if the lock is taken over, and
+        `on_note(what)` when a forged or refused record was replaced by ours."""
         from quadtank_tui.session.lockwatch import LockWatch
 
         if self._watch is None:
-            self._watch = LockWatch(self.lock, on_lost).start()
+            self._watch = LockWatch(self.lock, on_lost, on_note=on_note).start()
 
     def stop_watch(self) -> None:
         if self._watch is not None:

@@ -8,10 +8,11 @@ calls :meth:`Clock.tick` with the time the sample really started.  Time is injec
 :class:`ManualClock` instead of sleeping.
 
 Jitter is the actual minus the scheduled start of a sample.  An overrun is a
-deadline that passed without its sample: the loop was so late that the next
-sample's slot had already begun.  The schedule then skips to the next deadline still
-in the future instead of running the missed samples in a burst, and each skipped
-deadline is counted.
+sample that started late: so late that the next sample's slot had already begun.
+The schedule then skips to the next deadline still in the future instead of
+running the missed samples in a burst.  Overruns count samples (never more than
+the samples taken); the deadlines skipped are counted apart (`skipped`), and give
+the speed a virtual clock held: asked x samples / (samples + skipped).
 """
 
 from __future__ import annotations
@@ -83,7 +84,8 @@ class Clock(ABC):
         self._check_period(period)
         self.period = float(period)
         self.now = now
-        self.overruns = 0
+        self.overruns = 0   # samples that started late
+        self.skipped = 0    # deadlines that passed without their sample
         self._next: float | None = None
 
     @staticmethod
@@ -121,7 +123,8 @@ class Clock(ABC):
             if nxt <= actual:
                 missed += 1
                 nxt += step
-        self.overruns += missed
+        self.overruns += int(missed > 0)
+        self.skipped += missed
         self._next = nxt
         return Timing(scheduled, actual, missed)
 
@@ -151,7 +154,7 @@ class VirtualClock(Clock):
 
     Paced runs keep absolute deadlines in wall time like the real-time clock, so a
     slow sample is made up by the next ones' waits; a run that cannot keep up at all
-    skips its deadlines (counted as overruns) rather than piling up.
+    skips its deadlines (counted as skipped) rather than piling up.
     """
 
     realtime = False

@@ -27,7 +27,8 @@ class Summary:
 
     duration: float
     samples: int
-    overruns: int
+    overruns: int                      # samples that started late (<= samples)
+    skipped: int                       # sampling slots that passed without a sample
     jitter_max: float
     jitter_p99: float
     control: str
@@ -36,6 +37,16 @@ class Summary:
     final_y: tuple[float, float]
     final_u: tuple[float, float]
     fault: str | None
+    #: the speed factor asked of a paced virtual clock (None: real time or unpaced)
+    speed: float | None = None
+
+    @property
+    def speed_held(self) -> float | None:
+        """The speed the run kept: a slot skipped is process time that went by
+        without a sample, so asked x samples / (samples + skipped slots)."""
+        if self.speed is None or self.samples + self.skipped == 0:
+            return None
+        return self.speed * self.samples / (self.samples + self.skipped)
 
 
 def event_commands(event: Event, engine: Engine) -> list[Command]:
@@ -96,15 +107,23 @@ def summarize(engine: Engine, duration: float) -> Summary:
         if t.size:
             window = float(t[-1] - t[0] + loop.h)
             loops = tuple(loop_metrics(t, hist[f"y{i}"][keep], hist[f"ref{i}"][keep]) for i in (1, 2))
-    return Summary(duration, snap.stats.samples, snap.stats.overruns, snap.stats.jitter_max,
-                   snap.stats.jitter_p99, snap.control, window, loops, (snap.y[0], snap.y[1]), snap.u, snap.fault)
+    paced = not snap.realtime and math.isfinite(snap.speed)
+    return Summary(duration, snap.stats.samples, snap.stats.overruns, snap.stats.skipped, snap.stats.jitter_max,
+                   snap.stats.jitter_p99, snap.control, window, loops, (snap.y[0], snap.y[1]), snap.u, snap.fault,
+                   speed=snap.speed if paced else None)
 
 
 def format_summary(s: Summary) -> str:
     """One screen of text."""
+    skipped = f" ({s.skipped} sampling slots skipped)" if s.skipped else ""
     lines = [
-        f"ran {s.duration:g} s: {s.samples} samples, {s.overruns} overruns, "
+        f"ran {s.duration:g} s: {s.samples} samples, {s.overruns} overruns{skipped}, "
         f"|jitter| p99 {s.jitter_p99 * 1000:.2f} ms, max {s.jitter_max * 1000:.2f} ms",
+    ]
+    held = s.speed_held
+    if s.speed is not None and held is not None:
+        lines.append(f"speed      x{s.speed:g} asked, x{held:.3g} held")
+    lines += [
         f"final      y1 {s.final_y[0]:.4f}  y2 {s.final_y[1]:.4f}   u1 {s.final_u[0]:.4f}  u2 {s.final_u[1]:.4f}",
     ]
     if s.fault:

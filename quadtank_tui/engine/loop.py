@@ -370,7 +370,8 @@ class ControlLoop:
         self._missed = missed
         self._jitter.add(jitter)
         self.stats = LoopStats(
-            samples=s.samples + 1, overruns=s.overruns + missed, jitter_last=jitter,
+            samples=s.samples + 1, overruns=s.overruns + int(missed > 0), skipped=s.skipped + missed,
+            jitter_last=jitter,
             jitter_max=max(s.jitter_max, abs(jitter)), last_sample_wall=wall,
             jitter_p50=self._jitter.percentile(50), jitter_p99=self._jitter.percentile(99),
         )
@@ -708,8 +709,21 @@ class ControlLoop:
         return prepared if isinstance(prepared, CommandResult) else self._install_par(prepared)
 
     def _install_par(self, cmd: InstallPar) -> CommandResult:
-        self._install(cmd.params)
-        return CommandResult(True, f"loaded {cmd.name}", warnings=cmd.warnings)
+        """Every setting of the file, except what would make the loop jump: in
+        Automatic the references keep the means in force (bumpless, as M3's switches
+        are).  A file's means are the inputs of its setting when it was saved in
+        Manual (nonminphase.par: 0.315), never levels to steer to: taken as
+        references they drained tanks at 0.63 to 0.38 within seconds.  The loop
+        stays in its mode (the file's Mode is not applied either: _install)."""
+        new, note = cmd.params, ""
+        if self.control is ControlMode.AUTOMATIC:
+            kept = tuple(self.params.get(k) for k in MEAN_KEYS)
+            filed = tuple(new.get(k) for k in MEAN_KEYS)
+            new = new.with_values(dict(zip(MEAN_KEYS, kept)))
+            note = f"; Automatic: references kept at {kept[0]:.3f}, {kept[1]:.3f}" + (
+                f" (the file's means {filed[0]:.3f}, {filed[1]:.3f} not applied)" if filed != kept else "")
+        self._install(new)
+        return CommandResult(True, f"loaded {cmd.name}{note}", warnings=cmd.warnings)
 
     def _save_par(self, cmd: SavePar) -> Future[CommandResult]:
         """The parameters in force now, written by the file worker."""

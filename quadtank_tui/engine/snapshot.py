@@ -22,7 +22,11 @@ class LoopStats:
     """Timing of the loop.  jitter = actual minus scheduled start of a sample, s."""
 
     samples: int = 0
+    #: samples that started late (their next slot had begun): at most `samples`
     overruns: int = 0
+    #: sampling deadlines that passed without a sample (a late sample skips them):
+    #: the speed held is the asked one x samples / (samples + skipped)
+    skipped: int = 0
     jitter_last: float = 0.0
     jitter_max: float = 0.0
     #: 50th and 99th percentiles of |jitter| over the run, s (upper bin edges, at

@@ -6,7 +6,8 @@ sockets and the DAQ locks live, and what an unattended Active session does.
 admin_group: teachers        # members may save default.par, set the policy, take over
 share_group: lab             # may connect to others' sessions (omit: owner + admins only)
 runtime_dir: /run/quadtank   # sockets, session records, locks/ (default /tmp/quadtank-sessions)
-defaults: /opt/quadtank/params   # the folder of the lab's default.par (default: params)
+defaults: /opt/quadtank/params   # the folder of the lab's default.par (default: the
+                                 # installation's params/, never the current folder)
 unattended:
   keep_while_logging: true
   grace_minutes: 10
@@ -34,8 +35,12 @@ from quadtank_tui.session.policy import MAX_GRACE_MINUTES, UnattendedPolicy
 SYSTEM_LAB_FILE = Path("/etc/quadtank/lab.yaml")
 #: The runtime folder when neither the lab file nor $QUADTANK_RUNTIME names one.
 DEFAULT_RUNTIME_DIR = Path("/tmp/quadtank-sessions")
-#: Where default.par lives unless the lab file says `defaults:` (the app's params/).
-DEFAULT_PARAMS_DIR = Path("params")
+#: Where the lab's default.par lives unless the lab file says `defaults:`: the
+#: installation's params/ (next to the package), whose writers are the
+#: administrators when no `admin_group` is set.  Never the current folder: a
+#: student in a folder of their own may write its params/default.par, and was an
+#: administrator of the lab for it (issue 24).
+DEFAULT_PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
 
 KEYS = ("admin_group", "share_group", "runtime_dir", "defaults", "unattended")
 POLICY_KEYS = ("keep_while_logging", "grace_minutes")
@@ -65,7 +70,7 @@ class LabConfig:
 
     @property
     def locks_dir(self) -> Path:
-        """Where the DAQ locks are (one file per device)."""
+        """Where the DAQ locks are (one record per device, each owned by its writer)."""
         return self.runtime_dir / "locks"
 
     @property
@@ -195,27 +200,30 @@ def with_policy(text: str, policy: UnattendedPolicy) -> str:
 
 # --- the runtime folder -------------------------------------------------------------------
 
-def ensure_shared_dir(folder: Path) -> Path:
+def ensure_shared_dir(folder: Path, mode: int = 0o1777) -> Path:
     """Create `folder` like /tmp (mode 1777: every user may create entries, nobody
     may remove another's), or check an existing one is a real folder, not a link
-    someone planted.  OSError naming the folder otherwise."""
+    someone planted.  OSError naming the folder otherwise.  An existing folder of
+    ours with another mode (an older version's) is given `mode`."""
     try:
         folder.mkdir(parents=True, exist_ok=False)
     except FileExistsError:
         pass
-    else:
-        try:
-            os.chmod(folder, 0o1777)
-        except PermissionError:
-            pass
     st = os.lstat(folder)
     if not stat.S_ISDIR(st.st_mode):
         raise NotADirectoryError(f"{folder}: the lab's runtime folder is not a folder (a link or a file)")
+    if stat.S_IMODE(st.st_mode) != mode and st.st_uid == os.getuid():
+        try:
+            os.chmod(folder, mode)
+        except PermissionError:
+            pass
     return folder
 
 
 def ensure_runtime_dir(lab: LabConfig) -> Path:
-    """The runtime folder and its locks/ folder, created 1777 sticky if missing."""
+    """The runtime folder (1777 sticky) and its locks/ folder (0777, not sticky:
+    a stale or forged lock record of another user must be replaceable; every
+    record is checked against its file's owner instead, session/lock.py)."""
     ensure_shared_dir(lab.runtime_dir)
-    ensure_shared_dir(lab.locks_dir)
+    ensure_shared_dir(lab.locks_dir, mode=0o777)
     return lab.runtime_dir

@@ -1,24 +1,43 @@
-"""One program at a time drives a given DAQ: a lock file per device in the lab's
+"""One program at a time drives a given DAQ: a lock record per device in the lab's
 runtime folder (`runtime_dir/locks/<address>_<port>_<unit>.lock`, the host resolved
 first: session/riglock.py) that names its holder, so the second program says who
 to ask instead of fighting over the pumps.
 
-The file holds one JSON record: user, uid, pid (and the pid's start time, so a
-recycled pid is not taken for the holder), since, session, and a token.  Every
-read-check-write happens under `flock` on the file, so two programs starting at
-once cannot both win.  The record, not the flock, says who holds the rig: a lock
-outlives the launcher's flock and can be handed to the session process
-(`transfer`).  A holder that died (SIGKILL, a crash) leaves a record whose pid is
-gone: the next program takes it over silently.
+The record is one JSON object: user, uid, pid (and the pid's start time, so a
+recycled pid is not taken for the holder), since, session, and a token.  The
+record, not a flock, says who holds the rig: a lock outlives the launcher and can be
+handed to the session process (`transfer`).  A holder that died (SIGKILL, a crash)
+leaves a record whose pid is gone: the next program takes it over silently.
 
-Permissions: the locks folder is 1777 like /tmp (nobody removes another's file)
-and a lock file is 0666, so every lab user reads who holds a rig and may take over
-a stale lock.  The lock is cooperative: it keeps honest programs from colliding,
-it is not a security boundary (the rig's Modbus port is one anyway).
+Why a record no one can forge (issue 24: lock files were 0666, and anyone could
+write `user teacher, pid 1` and lock everyone out, root included):
+
+- A record is written by its holder as a file of its own (0644, created under a
+  random name, then renamed over the lock's name), so the file's owner is its
+  writer.  A record whose owner (file uid) differs from the user it names, or whose
+  pid belongs to another user, is forged and counts as free; so does one that
+  cannot be read or parsed.  Nobody writes into another's file.
+- The locks folder is writable by every lab user and not sticky (renaming over
+  another's stale record must work); so anyone may replace or remove a record.
+  That is why the holder decides whether it lost the rig (`lost`): only a genuine
+  live record of an administrator - by the holder's own lab rules, never the
+  taker's - or of the holder's own user takes it over; anything else (a student's
+  record, a forged or removed one) is replaced by the holder's record again.
+- Read-check-write in `acquire` happens under `flock` on the locks folder, so two
+  programs starting at once cannot both win.  The flock is waited for at most
+  LOCK_WAIT seconds and a program holding it longer is named (from /proc/locks);
+  an administrator then goes on without it (the rename is atomic), anyone else is
+  refused with that name.  A release or transfer waits at most QUICK_WAIT and never
+  blocks a stopping program.
+
+The lock is cooperative: it keeps honest programs from colliding and lets no one
+end another's run without the lab's say; it is not a security boundary (the rig's
+Modbus port is one anyway).
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import json
@@ -26,20 +45,26 @@ import os
 import re
 import secrets
 import stat
+import time
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 from quadtank_tui.session.lab import LabConfig, ensure_runtime_dir
-from quadtank_tui.session.roles import current_user, user_name
+from quadtank_tui.session.roles import NotPermitted, current_user, is_administrator, user_name
 
 #: A lock record is a few hundred bytes.
 MAX_RECORD = 4096
+#: Seconds `acquire` waits for the locks folder's flock (held for milliseconds by
+#: an honest program) before it names whoever holds it.
+LOCK_WAIT = 3.0
+#: Seconds a release, a transfer or a look at the record waits for it.
+QUICK_WAIT = 1.0
 
 
 class DaqLockError(OSError):
-    """The lock file cannot be used (not a regular file, not writable, ...)."""
+    """The lock cannot be used (its folder not writable, ...)."""
 
 
 class DaqLockHeld(RuntimeError):
@@ -94,7 +119,7 @@ class _Record:
             return cls(str(d["user"]), int(d["uid"]), int(d["pid"]),
                        None if d.get("start") is None else int(d["start"]),
                        datetime.fromisoformat(d["since"]), d.get("session"), str(d.get("token", "")))
-        except (ValueError, KeyError, TypeError):
+        except (ValueError, KeyError, TypeError, RecursionError):
             return None
 
     def held(self, device: str) -> DaqLockHeld:
@@ -121,6 +146,14 @@ def process_start(pid: int) -> int | None:
         return None
 
 
+def process_owner(pid: int) -> int | None:
+    """The user id `pid` runs as (/proc), None where unknown."""
+    try:
+        return os.stat(f"/proc/{pid}").st_uid
+    except OSError:
+        return None
+
+
 def pid_alive(pid: int, start: int | None = None) -> bool:
     """Whether `pid` runs (another user's process counts) and, given its recorded
     start time, is still the same process and not a recycled pid."""
@@ -143,56 +176,144 @@ def pid_alive(pid: int, start: int | None = None) -> bool:
     return True
 
 
-def _alive(rec: _Record) -> bool:
-    return pid_alive(rec.pid, rec.start)
+@dataclass(frozen=True)
+class _Found:
+    """What the lock file holds now: its record (None: none, unreadable or not
+    JSON) and the file's owner (None: no file, or not a regular one)."""
+
+    record: _Record | None
+    owner: int | None
+
+    @property
+    def genuine(self) -> bool:
+        """Written by the user it names, about a process of that user."""
+        rec = self.record
+        if rec is None or self.owner is None or self.owner != rec.uid:
+            return False
+        runs_as = process_owner(rec.pid)
+        return runs_as is None or runs_as == rec.uid
+
+    @property
+    def live(self) -> _Record | None:
+        """The record if it is genuine and its process runs (the holder), else None."""
+        rec = self.record
+        return rec if rec is not None and self.genuine and pid_alive(rec.pid, rec.start) else None
 
 
-def _open(path: Path, *, create: bool) -> int:
-    """The lock file's descriptor (no symlinks followed, regular files only)."""
-    flags = os.O_RDWR | os.O_NOFOLLOW | os.O_CLOEXEC | (os.O_CREAT if create else 0)
+def _look(path: Path) -> _Found:
+    """The record at `path` and its file's owner (no symbolic link followed)."""
     try:
-        fd = os.open(path, flags, 0o666)
-    except PermissionError:
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
-    except OSError as exc:
-        if exc.errno == errno.ELOOP:
-            raise DaqLockError(f"{path}: the lock file is a symbolic link; remove it") from None
-        raise
-    st = os.fstat(fd)
-    if not stat.S_ISREG(st.st_mode):
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError:  # none, a link, or not readable for us: no record
+        return _Found(None, None)
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            return _Found(None, None)
+        return _Found(_Record.from_json(os.read(fd, MAX_RECORD).decode("utf-8", "replace")), st.st_uid)
+    except OSError:
+        return _Found(None, None)
+    finally:
         os.close(fd)
-        raise DaqLockError(f"{path}: the lock file is not a regular file; remove it")
-    if st.st_uid == os.getuid() and stat.S_IMODE(st.st_mode) != 0o666:
-        os.fchmod(fd, 0o666)  # the umask took bits off: others must read and take over
-    return fd
 
 
-def _read(fd: int) -> _Record | None:
-    os.lseek(fd, 0, os.SEEK_SET)
-    return _Record.from_json(os.read(fd, MAX_RECORD).decode("utf-8", "replace"))
-
-
-def _write(fd: int, path: Path, rec: _Record | None) -> None:
+def _put(path: Path, rec: _Record | None) -> None:
+    """Make `rec` (None: an empty, free record) the lock file at `path`: written as a
+    new file of ours (0644) and renamed over the old one, so its owner is its writer
+    and a reader sees the old record or the new one, never half of one."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}")
     try:
-        os.lseek(fd, 0, os.SEEK_SET)
-        os.ftruncate(fd, 0)
-        if rec is not None:
-            os.write(fd, rec.to_json().encode())
-        os.fsync(fd)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
     except OSError as exc:
-        if exc.errno in (errno.EBADF, errno.EINVAL, errno.EACCES, errno.EPERM):
-            owner = user_name(os.fstat(fd).st_uid)
-            raise DaqLockError(f"{path}: the lock file (of {owner}) is not writable for you; "
-                               "an administrator may remove it") from None
+        raise DaqLockError(f"{path.parent}: cannot write a lock record there ({exc.strerror}); "
+                           "an administrator may fix the folder's permissions") from None
+    try:
+        try:
+            os.fchmod(fd, 0o644)  # whatever the umask: everyone reads who holds the rig
+            if rec is not None:
+                os.write(fd, rec.to_json().encode())
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.rename(tmp, path)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if exc.errno in (errno.EPERM, errno.EACCES, errno.EISDIR, errno.ENOTEMPTY, errno.EEXIST):
+            owner = _owner_name(path)
+            raise DaqLockError(f"{path}: the lock file (of {owner}) cannot be replaced by you "
+                               f"({exc.strerror}); an administrator may remove it") from None
         raise
+
+
+def _owner_name(path: Path) -> str:
+    try:
+        return user_name(os.lstat(path).st_uid)
+    except OSError:
+        return "nobody"
+
+
+# --- the flock on the locks folder: serializes read-check-write, never waits for long ------
+
+def _open_folder(folder: Path) -> int:
+    try:
+        return os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    except OSError as exc:
+        raise DaqLockError(f"{folder}: the lock folder cannot be opened ({exc.strerror})") from None
+
+
+def _flock(fd: int, wait: float) -> bool:
+    """An exclusive flock on `fd` within `wait` seconds (whether it was had)."""
+    deadline = time.monotonic() + wait
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except BlockingIOError:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
+
+
+def flock_holders(fd: int) -> list[tuple[int, str]]:
+    """(pid, user) of the processes holding a flock on the file `fd` is open on,
+    from /proc/locks (the kernel's, not a record anyone wrote)."""
+    ino = os.fstat(fd).st_ino
+    out: list[tuple[int, str]] = []
+    try:
+        with open("/proc/locks") as f:
+            lines = f.readlines()
+    except OSError:
+        return out
+    for line in lines:
+        fields = line.split()
+        if "->" in fields:  # a waiter, not a holder
+            continue
+        try:
+            kind, pid, where = fields[1], int(fields[4]), fields[5]
+        except (IndexError, ValueError):
+            continue
+        if kind == "FLOCK" and where.rsplit(":", 1)[-1] == str(ino):
+            uid = process_owner(pid)
+            out.append((pid, user_name(uid) if uid is not None else "someone"))
+    return out
+
+
+def _busy(folder: Path, fd: int, wait: float) -> str:
+    holders = flock_holders(fd)
+    who = ", ".join(f"{user} (pid {pid})" for pid, user in holders) or "another program"
+    return f"{folder}: the lock folder has been held by {who} for more than {wait:g} s"
 
 
 class DaqLock:
     """The right to drive one DAQ device; see the module docstring."""
 
-    def __init__(self, device: str, path: Path, record: _Record) -> None:
-        self.device, self.path, self._record = device, path, record
+    def __init__(self, device: str, path: Path, record: _Record, lab: LabConfig) -> None:
+        self.device, self.path, self._record, self._lab = device, path, record, lab
         self._released = False
+        #: what the holder found instead of its record and replaced (a forged record,
+        #: a student's take-over, a removal), for the program to say; None: nothing
+        self.restored: str | None = None
 
     @property
     def pid(self) -> int:
@@ -206,49 +327,63 @@ class DaqLock:
     def acquire(cls, device: str, lab: LabConfig, *, session: str | None = None,
                 take_over: bool = False) -> DaqLock:
         """The lock of `device` for this process; DaqLockHeld if a live program
-        holds it (unless `take_over`: the caller checked require_administrator).
-        A lock held by this very pid (handed over by `transfer`) is adopted."""
+        holds it (unless `take_over`, for an administrator or the holder's own user:
+        NotPermitted otherwise).  A lock held by this very pid (handed over by
+        `transfer`) is adopted.  A forged, unreadable or dead holder's record is
+        replaced."""
         ensure_runtime_dir(lab)
         path = lock_path(device, lab)
         me = current_user()
-        fd = _open(path, create=True)
+        folder = _open_folder(lab.locks_dir)
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-            old = _read(fd)
-            if old is not None and old.pid != me.pid and _alive(old) and not take_over:
-                raise old.held(device)
-            since = old.since if old is not None and old.pid == me.pid else datetime.now().astimezone().replace(microsecond=0)
+            if not _flock(folder, LOCK_WAIT) and not is_administrator(me.uid, lab):
+                raise DaqLockError(_busy(lab.locks_dir, folder, LOCK_WAIT)
+                                   + "; an administrator may go on without it")
+            old = _look(path).live
+            if old is not None and old.pid != me.pid:
+                if not take_over:
+                    raise old.held(device)
+                if old.uid != me.uid and not is_administrator(me.uid, lab):
+                    raise NotPermitted(f"taking over the rig at {device} from {old.user} needs an "
+                                       f"administrator; you are {me.user}")
+            since = old.since if old is not None and old.pid == me.pid else \
+                datetime.now().astimezone().replace(microsecond=0)
             rec = _Record(me.user, me.uid, me.pid, process_start(me.pid), since, session, secrets.token_hex(8))
-            _write(fd, path, rec)
+            _put(path, rec)
         finally:
-            os.close(fd)  # closing drops the flock
-        return cls(device, path, rec)
+            os.close(folder)  # closing drops the flock
+        return cls(device, path, rec, lab)
+
+    def _ours(self, found: _Found) -> bool:
+        rec = found.record
+        return rec is not None and rec.token == self._record.token and found.owner == os.getuid()
 
     def _update(self, new: _Record | None) -> bool:
-        """Replace our record by `new` if the file still holds ours (a takeover may
+        """Replace our record by `new` if the file still holds ours (a take-over may
         have replaced it); whether it did."""
         try:
-            fd = _open(self.path, create=False)
-        except FileNotFoundError:
+            folder = _open_folder(self.path.parent)
+        except DaqLockError:
             return False
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-            current = _read(fd)
-            if current is None or current.token != self._record.token:
+            _flock(folder, QUICK_WAIT)  # had or not: a stopping program does not wait longer
+            if not self._ours(_look(self.path)):
                 return False
-            _write(fd, self.path, new)
+            _put(self.path, new)
             return True
         finally:
-            os.close(fd)
+            os.close(folder)
 
     def release(self) -> None:
         """Free the device (idempotent; a lock taken over or transferred is left
-        to its new holder).  The file stays, empty: removing it would race with a
-        program that has it open."""
+        to its new holder).  The file stays, empty and ours."""
         if self._released:
             return
         self._released = True
-        self._update(None)
+        try:
+            self._update(None)
+        except DaqLockError:
+            pass  # the folder went wrong: the record names a process that is ending
 
     def transfer(self, pid: int) -> None:
         """Hand the lock to `pid` (the session process this launcher started): the
@@ -260,36 +395,29 @@ class DaqLock:
         self._record = new
         self._released = True
 
-    def _current(self) -> _Record | None:
-        """The record in the file now (under a shared flock: a writer truncates, then
-        writes, and an unlocked reader could see the empty file in between)."""
-        try:
-            fd = _open(self.path, create=False)
-        except FileNotFoundError:
-            return None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_SH)
-            return _read(fd)
-        finally:
-            os.close(fd)
-
     @property
     def held(self) -> bool:
-        """Whether the file still names this lock (an administrator may have taken it over)."""
+        """Whether this program still holds the lock (an administrator may have taken it over)."""
         return self.lost() is None
 
     def lost(self) -> str | None:
-        """None while the file names this lock; else why not, for the user (who took
-        it over and when).  A released or transferred lock is not ours either."""
+        """None while this program holds the lock; else why not, for the user (who
+        took it over and when).  Only a genuine live record of an administrator (by
+        this holder's lab rules) or of our own user takes the lock; a forged, a
+        removed or a student's record is replaced by ours again (`restored` says
+        what was found).  A released or transferred lock is not ours either."""
         if self._released:
             return "the lock was released"
-        current = self._current()
-        if current is not None and current.token == self._record.token:
+        found = _look(self.path)
+        if self._ours(found):
             return None
-        if current is None:
-            return f"the lock of the rig at {self.device} was removed"
-        return (f"the rig at {self.device} was taken over by {current.user} (pid {current.pid}) "
-                f"at {datetime.now():%H:%M:%S}")
+        taker = found.live
+        if taker is not None and (taker.uid == self._record.uid or is_administrator(taker.uid, self._lab)):
+            return (f"the rig at {self.device} was taken over by {taker.user} (pid {taker.pid}) "
+                    f"at {datetime.now():%H:%M:%S}")
+        self.restored = _describe(found, self.device)
+        _put(self.path, self._record)
+        return None
 
     def __enter__(self) -> DaqLock:
         return self
@@ -301,18 +429,18 @@ class DaqLock:
         return f"DaqLock({self.device!r}, pid={self.pid}, since={self.since:%H:%M:%S})"
 
 
+def _describe(found: _Found, device: str) -> str:
+    """What replaced a holder's record, for its user."""
+    rec = found.record
+    if rec is None:
+        return f"the lock of the rig at {device} was removed or made unreadable; put back"
+    writer = user_name(found.owner) if found.owner is not None else "someone"
+    if not found.genuine:
+        return f"a forged lock record (naming {rec.user}, written by {writer}) was replaced"
+    return f"{writer} (not an administrator) tried to take the rig at {device} over; refused"
+
+
 def holder_of(device: str, lab: LabConfig) -> DaqLockHeld | None:
-    """Who drives `device` now (None: nobody, or only a dead holder's record)."""
-    path = lock_path(device, lab)
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
-    except OSError:
-        return None
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return None
-        fcntl.flock(fd, fcntl.LOCK_SH)
-        rec = _read(fd)
-    finally:
-        os.close(fd)
-    return rec.held(device) if rec is not None and _alive(rec) else None
+    """Who drives `device` now (None: nobody, a dead holder's or a forged record)."""
+    rec = _look(lock_path(device, lab)).live
+    return rec.held(device) if rec is not None else None

@@ -1,7 +1,9 @@
 """Noticing that a DAQ lock was taken over: an administrator may take a rig from a
 program left running (`--take-over`); that program must then stop driving it
 (pumps to 0) within a second or so, and say why.  A thread polls the lock file
-(a few hundred bytes, once a second) and calls back once."""
+(a few hundred bytes, twice a second) and calls back once.  A record the holder
+did not yield to (forged, a student's, removed: session/lock.py) and put back is
+told once per new finding (`on_note`), and the program drives on."""
 
 from __future__ import annotations
 
@@ -14,6 +16,9 @@ class Watched(Protocol):
 
     def lost(self) -> str | None: ...
 
+    @property
+    def restored(self) -> str | None: ...
+
 #: Seconds between looks at the lock file.
 INTERVAL = 0.5
 
@@ -22,8 +27,9 @@ class LockWatch:
     """Calls `on_lost(reason)` once, from its own thread, when `lock` is no longer
     this program's; `reason` says who took it (DaqLock.lost)."""
 
-    def __init__(self, lock: Watched, on_lost: Callable[[str], None], *, interval: float = INTERVAL) -> None:
-        self._lock, self._on_lost, self._interval = lock, on_lost, interval
+    def __init__(self, lock: Watched, on_lost: Callable[[str], None], *, interval: float = INTERVAL,
+                 on_note: Callable[[str], None] | None = None) -> None:
+        self._lock, self._on_lost, self._interval, self._on_note = lock, on_lost, interval, on_note
         self._stop = threading.Event()
         self.reason: str | None = None
         self._thread = threading.Thread(target=self._run, name="quadtank-lock-watch", daemon=True)
@@ -38,6 +44,7 @@ class LockWatch:
             self._thread.join(timeout=2.0)
 
     def _run(self) -> None:
+        noted: str | None = None
         while not self._stop.wait(self._interval):
             try:
                 reason = self._lock.lost()
@@ -47,3 +54,7 @@ class LockWatch:
                 self.reason = reason
                 self._on_lost(reason)
                 return
+            note = self._lock.restored
+            if note is not None and note != noted and self._on_note is not None:
+                self._on_note(note)
+            noted = note

@@ -131,6 +131,11 @@ class RigLock:
     def held(self) -> bool:
         return self.lost() is None
 
+    @property
+    def restored(self) -> str | None:
+        """The last record found in place of ours and replaced (DaqLock.restored)."""
+        return next((lock.restored for lock in self._locks if lock.restored is not None), None)
+
     def lost(self) -> str | None:
         """None while every key's lock is ours; else why not (the first one lost)."""
         for lock in self._locks:

@@ -21,6 +21,7 @@ from quadtank_tui.cli import main
 from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.session.client import stop_session_at
 from quadtank_tui.session.lab import load_lab_config
+from quadtank_tui.session import lock as lockmod
 from quadtank_tui.session.lock import holder_of, lock_path
 from quadtank_tui.session.runtime import list_sessions, pid_alive
 
@@ -71,10 +72,16 @@ def test_your_own_session_on_the_rig_is_attached_to(tmp_path: Path, monkeypatch:
         assert main(["--no-session", "--daq", str(cfg)]) == 2
         assert f"is driven by {info.owner} (pid {info.pid}, session {info.id})" in capsys.readouterr().err
 
-        # Another user's session on the rig (its record names another uid): refused as before.
+        # Another user's session on the rig (its record names another uid, in a file of
+        # that user, about a process of that user): refused as before.
+        if os.getuid() != 0:
+            return  # a record of another user needs root to write (chown); a forged one is free
         path = lock_path(device, load_lab_config())
         record = json.loads(path.read_text())
         path.write_text(json.dumps({**record, "uid": os.getuid() + 1}))
+        os.chown(path, os.getuid() + 1, -1)
+        owner = lockmod.process_owner
+        monkeypatch.setattr(lockmod, "process_owner", lambda pid: os.getuid() + 1 if pid == info.pid else owner(pid))
         assert main(["--daq", str(named)]) == 2
         since = held.since.strftime("%H:%M")
         assert capsys.readouterr().err == (

@@ -34,6 +34,9 @@ def _no_env(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     monkeypatch.setattr(labmod, "SYSTEM_LAB_FILE", tmp_path / "no-such-lab.yaml")
 
 
+ROOT = Path(__file__).resolve().parents[2]
+
+
 def write(tmp_path: Path, text: str) -> Path:
     path = tmp_path / "lab.yaml"
     path.write_text(text, encoding="utf-8")
@@ -50,7 +53,7 @@ def test_a_full_file(tmp_path: Path) -> None:
 
 def test_no_file_gives_the_defaults() -> None:
     assert load_lab_config() == LabConfig(None, Path("/tmp/quadtank-sessions"), None, UnattendedPolicy(), None,
-                                          Path("params"))
+                                          ROOT / "params")  # the installation's, not ./params
 
 
 def test_empty_file_and_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -113,9 +116,12 @@ def test_parse_without_a_file() -> None:
 def test_runtime_dir_is_created_like_tmp(tmp_path: Path) -> None:
     lab = LabConfig(runtime_dir=tmp_path / "deep" / "rt")
     assert ensure_runtime_dir(lab) == tmp_path / "deep" / "rt"
-    for folder in (lab.runtime_dir, lab.locks_dir):
-        assert stat.S_IMODE(os.stat(folder).st_mode) == 0o1777
+    assert stat.S_IMODE(os.stat(lab.runtime_dir).st_mode) == 0o1777
+    # not sticky: a stale or forged lock record of another user can be replaced
+    assert stat.S_IMODE(os.stat(lab.locks_dir).st_mode) == 0o777
+    os.chmod(lab.locks_dir, 0o1777)  # an older version's folder of ours
     ensure_runtime_dir(lab)  # a second time: already there
+    assert stat.S_IMODE(os.stat(lab.locks_dir).st_mode) == 0o777
 
 
 def test_a_planted_link_is_not_a_runtime_dir(tmp_path: Path) -> None:

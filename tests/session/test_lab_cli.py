@@ -50,7 +50,7 @@ administrators  member of group teachers
 you             bob (uid 50002), administrator: no
 runtime dir     /run/quadtank
 sessions shared with nobody (owner and administrators)
-defaults        params/default.par
+defaults        {labmod.DEFAULT_PARAMS_DIR / 'default.par'}
 unattended      keep_while_logging: yes, grace_minutes: 10
                 Unattended, an Active session keeps running while its log is being written and for 10 minutes \
 after the last client left (or the log ended), then pauses with the pumps at 0.
@@ -69,7 +69,10 @@ def test_without_a_lab_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     assert main(["lab"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0] == f"lab file        none ({tmp_path / 'lab.yaml'} not found: defaults)"
-    assert out[1] == "administrators  someone who may write params/default.par"
+    installed = labmod.DEFAULT_PARAMS_DIR / "default.par"  # the installation's, not ./params
+    assert installed == Path(labmod.__file__).parents[2] / "params" / "default.par"
+    shown = installed if installed.exists() else installed.parent
+    assert out[1] == f"administrators  someone who may write {shown}"
     assert out[3] == f"runtime dir     {tmp_path / 'rt'}"
 
 

@@ -19,7 +19,7 @@ import pytest
 
 from quadtank_tui.session.lab import LabConfig
 from quadtank_tui.session.lock import (
-    DaqLock, DaqLockError, DaqLockHeld, device_key, holder_of, lock_path, process_start,
+    DaqLock, DaqLockHeld, device_key, holder_of, lock_path, process_start,
 )
 from quadtank_tui.session.roles import current_user
 
@@ -55,7 +55,9 @@ def test_file_names_the_holder(lab: LabConfig) -> None:
     with DaqLock.acquire(DEVICE, lab, session="s-3") as lock:
         path = lock_path(DEVICE, lab)
         assert path == lab.runtime_dir / "locks" / "192.0.2.7_502_1.lock"
-        assert stat.S_IMODE(os.stat(path).st_mode) == 0o666   # others read who holds it
+        st = os.stat(path)
+        assert stat.S_IMODE(st.st_mode) == 0o644 and st.st_uid == os.getuid()  # others read, only we write
+        assert stat.S_IMODE(os.stat(lab.locks_dir).st_mode) == 0o777  # not sticky: a stale record is replaced
         record = json.loads(path.read_text())
         me = current_user()
         assert (record["user"], record["uid"], record["pid"], record["session"]) == (me.user, me.uid, me.pid, "s-3")
@@ -103,7 +105,7 @@ def test_a_sigkilled_holders_lock_is_taken_over(lab: LabConfig) -> None:
 def test_a_recycled_pid_is_not_the_holder(lab: LabConfig) -> None:
     """A record naming a live pid whose start time differs: the pid was reused."""
     lab.locks_dir.mkdir(parents=True)
-    record = {"user": "ghost", "uid": 4242, "pid": os.getppid(), "start": 1, "since": "2026-01-01T10:00:00+00:00",
+    record = {"user": "ghost", "uid": os.getuid(), "pid": os.getppid(), "start": 1, "since": "2026-01-01T10:00:00+00:00",
               "session": None, "token": "t"}
     lock_path(DEVICE, lab).write_text(json.dumps(record))
     assert holder_of(DEVICE, lab) is None
@@ -184,12 +186,15 @@ def test_processes_racing_for_it_one_wins(lab: LabConfig) -> None:
 
 
 def test_a_symlink_is_not_a_lock_file(lab: LabConfig, tmp_path: Path) -> None:
+    """A planted link is no record: it is replaced (renamed over), never followed."""
     lab.locks_dir.mkdir(parents=True)
-    (tmp_path / "victim").write_text("precious")
+    (tmp_path / "victim").write_text(json.dumps({"user": "x", "uid": os.getuid(), "pid": os.getppid(),
+                                                 "since": "2026-01-01T10:00:00+00:00"}))
     lock_path(DEVICE, lab).symlink_to(tmp_path / "victim")
-    with pytest.raises(DaqLockError, match="symbolic link"):
-        DaqLock.acquire(DEVICE, lab)
-    assert (tmp_path / "victim").read_text() == "precious"
+    assert holder_of(DEVICE, lab) is None
+    with DaqLock.acquire(DEVICE, lab) as lock:
+        assert lock.held and not lock_path(DEVICE, lab).is_symlink()
+    assert json.loads((tmp_path / "victim").read_text())["user"] == "x"
 
 
 def test_broken_record_counts_as_free(lab: LabConfig) -> None:

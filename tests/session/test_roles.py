@@ -157,3 +157,21 @@ def test_the_real_lookups_for_a_system_user() -> None:
     assert not is_administrator(nobody.pw_uid, LabConfig(admin_group=grp.getgrgid(0).gr_name))
     assert roles.group_id("no-such-group-here") is None and roles.groups_of(2**31 - 2) == set()
     assert roles.user_name(2**31 - 2) == str(2**31 - 2)
+
+
+@pytest.mark.skipif(ME != 0, reason="needs root (chown to another user)")
+def test_a_params_folder_in_the_current_folder_makes_nobody_administrator(
+        users: None, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 24: stud1, without a lab file, in a folder of their own (whose
+    params/default.par they may write) was 'administrator: yes'.  Without a lab
+    file the installation's params/ decides (root's here), whoever runs where."""
+    params = tmp_path / "params"
+    params.mkdir()
+    (params / "default.par").write_text("% TANK PAR-file\n")
+    os.chown(params, ALICE, TEACHERS)
+    os.chown(params / "default.par", ALICE, TEACHERS)
+    monkeypatch.chdir(tmp_path)
+    assert may_write(ALICE, Path("params/default.par"))
+    lab = LabConfig()
+    assert lab.params_dir == Path(roles.__file__).resolve().parents[2] / "params"
+    assert not is_administrator(ALICE, lab)

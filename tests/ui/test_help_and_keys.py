@@ -93,9 +93,9 @@ async def test_palette_lists_each_action_once_with_key_and_description(engine: R
     assert "--daq" in helps["Active"]
 
 
-def with_stats(snap, speed: float, samples: int, overruns: int):  # type: ignore[no-untyped-def]
+def with_stats(snap, speed: float, samples: int, skipped: int):  # type: ignore[no-untyped-def]
     return dataclasses.replace(snap, speed=speed, realtime=False,
-                               stats=LoopStats(samples=samples, overruns=overruns))
+                               stats=LoopStats(samples=samples, overruns=min(1, skipped), skipped=skipped))
 
 
 async def test_status_line_says_the_speed_asked_and_the_speed_held(engine: Recording) -> None:

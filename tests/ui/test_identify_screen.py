@@ -17,6 +17,8 @@ from quadtank_tui.files.log import format_header, format_row
 from quadtank_tui.files.model import read_model
 from quadtank_tui.ui.screens.identify import IdentifyScreen
 
+from bursts import burst  # noqa: E402
+
 ROWS = 1200
 
 
@@ -125,6 +127,7 @@ async def test_d_designs_on_the_identified_model(app) -> None:  # type: ignore[n
     1.762 on the physical linearization; the identified model gives the same within 1 %)."""
     from textual.widgets import DataTable, Input
 
+    from quadtank_tui.ui.model_text import model_text
     from quadtank_tui.ui.screens.design import DesignScreen
 
     async with app.run_test(size=(120, 40)) as pilot:
@@ -137,9 +140,9 @@ async def test_d_designs_on_the_identified_model(app) -> None:  # type: ignore[n
         screen = pilot.app.screen
         assert isinstance(screen, DesignScreen)
         assert screen.loops[1].model is g11 and screen.loops[2].model is g22
-        assert screen.query_one("#model-1", Input).value == str(g11)
+        assert screen.query_one("#model-1", Input).value == model_text(g11)
         assert screen.source == "the identified model (oe, pminus-u1.log, pminus-u2.log)"
-        assert f"loop 1: 9 candidates on {g11}" in str(screen.query_one("#design-status").render())
+        assert f"loop 1: 9 candidates on {model_text(g11)}" in str(screen.query_one("#design-status").render())
         assert screen.query_one("#design-table", DataTable).row_count == 9
         await pilot.press("2")
         await pilot.app.workers.wait_for_complete()
@@ -147,6 +150,11 @@ async def test_d_designs_on_the_identified_model(app) -> None:  # type: ignore[n
         c1, c2 = screen.loops[1].chosen, screen.loops[2].chosen
         assert c1.Kc == pytest.approx(1.916, rel=0.01) and c2.Kc == pytest.approx(1.762, rel=0.01)
         assert "closed loop stable" in str(screen.query_one("#design-mimo").render())
-        await pilot.press("escape")
-        await pilot.pause()
-        assert isinstance(pilot.app.screen, IdentifyScreen)
+        # Esc goes back to Identify, and the footer says so (it said Main); the keys
+        # typed right behind it are Identify's: m cycles its method (oe -> arx)
+        assert screen.active_bindings["escape"].binding.description == "Identify"
+        assert any("esc Identify" in s.text for s in screen._compositor.render_strips())
+        ident_screen = pilot.app.screen_stack[-2]
+        assert isinstance(ident_screen, IdentifyScreen) and ident_screen.method == "oe"
+        await burst(pilot, "escape", "m")
+        assert pilot.app.screen is ident_screen and ident_screen.method != "oe"

@@ -9,6 +9,11 @@ A small recursive-descent parser (never ``eval``): numbers, the variable ``s``,
 Errors are :class:`ExprError`, whose message shows the expression with a caret
 under the offending character, so a user sees where to fix it.
 
+The work is bounded whatever is typed or pasted: at most MAX_LENGTH characters,
+parentheses nested at most MAX_DEPTH deep (the parser recurses), and polynomials
+of at most MAX_ORDER (each product costs the product of the orders, so an
+expression of thousands of factors would otherwise take seconds).
+
 Example
 -------
 >>> g = parse_model("-0.00652*exp(-2*s)/(s*(49.33*s+1))")
@@ -31,6 +36,12 @@ _TOKEN = re.compile(
     r"|(?P<op>\*\*|[-+*/^()]))"
 )
 MAX_POWER = 20
+#: Characters of an expression (a process model is a few dozen).
+MAX_LENGTH = 1000
+#: Parentheses (and exp( ) nested inside each other.
+MAX_DEPTH = 50
+#: The order of the numerator or denominator polynomial, at any step of the parse.
+MAX_ORDER = 60
 
 
 class ExprError(ModelError):
@@ -50,11 +61,17 @@ class _Tok:
     pos: int
 
 
+_BLANK_TO_END = re.compile(r"\s*\Z")
+
+
 def _tokenize(text: str) -> list[_Tok]:
+    if len(text) > MAX_LENGTH:
+        raise ExprError(text[:60] + "...", 60, f"the expression has {len(text)} characters; "
+                        f"a model has at most {MAX_LENGTH}")
     toks: list[_Tok] = []
     pos = 0
     while pos < len(text):
-        if text[pos:].strip() == "":
+        if _BLANK_TO_END.match(text, pos):
             break
         m = _TOKEN.match(text, pos)
         if m is None or m.end() == pos:
@@ -68,32 +85,46 @@ def _tokenize(text: str) -> list[_Tok]:
     return toks
 
 
+def _poly(c: np.ndarray) -> np.ndarray:
+    """Polynomial coefficients, highest power first, without leading zeros ([0.]
+    for zero).  Plain arrays and np.convolve: np.poly1d costs about 0.4 ms an
+    operation, which made a 900-character product take half a second."""
+    nz = np.flatnonzero(c)
+    return c[nz[0]:] if nz.size else np.zeros(1)
+
+
 @dataclass(frozen=True)
 class _Rat:
-    """num/den in s (numpy poly1d) times exp(-delay s); `delayed` once an exp appeared."""
+    """num/den in s (coefficient arrays, highest power first) times exp(-delay s);
+    `delayed` once an exp appeared."""
 
-    num: np.poly1d
-    den: np.poly1d
+    num: np.ndarray
+    den: np.ndarray
     delay: float = 0.0
     delayed: bool = False
 
+    @property
+    def order(self) -> int:
+        return max(len(self.num), len(self.den)) - 1
+
     def mul(self, o: _Rat) -> _Rat:
-        return _Rat(self.num * o.num, self.den * o.den, self.delay + o.delay,
-                    self.delayed or o.delayed)
+        return _Rat(_poly(np.convolve(self.num, o.num)), _poly(np.convolve(self.den, o.den)),
+                    self.delay + o.delay, self.delayed or o.delayed)
 
     def div(self, o: _Rat) -> _Rat:
-        return _Rat(self.num * o.den, self.den * o.num, self.delay - o.delay,
-                    self.delayed or o.delayed)
+        return _Rat(_poly(np.convolve(self.num, o.den)), _poly(np.convolve(self.den, o.num)),
+                    self.delay - o.delay, self.delayed or o.delayed)
 
     def add(self, o: _Rat, sign: float) -> _Rat:
-        return _Rat(self.num * o.den + sign * o.num * self.den, self.den * o.den)
+        num = np.polyadd(np.convolve(self.num, o.den), sign * np.convolve(o.num, self.den))
+        return _Rat(_poly(num), _poly(np.convolve(self.den, o.den)))
 
     def is_zero(self) -> bool:
-        return not np.any(self.num.coeffs)
+        return not np.any(self.num)
 
 
 def _const(x: float) -> _Rat:
-    return _Rat(np.poly1d([x]), np.poly1d([1.0]))
+    return _Rat(np.array([x]), np.ones(1))
 
 
 class _Parser:
@@ -101,6 +132,19 @@ class _Parser:
         self.text = text
         self.toks = _tokenize(text)
         self.i = 0
+        self.depth = 0
+
+    def nested(self, opened: _Tok) -> None:
+        """One level deeper (a '(' or an exp( ); ExprError beyond MAX_DEPTH."""
+        self.depth += 1
+        if self.depth > MAX_DEPTH:
+            raise self.fail(f"parentheses nested more than {MAX_DEPTH} deep", opened)
+
+    def bounded(self, value: _Rat, at: _Tok) -> _Rat:
+        """`value`, or ExprError if its order passed MAX_ORDER."""
+        if value.order > MAX_ORDER:
+            raise self.fail(f"the model's order grows above {MAX_ORDER} here: not a process model", at)
+        return value
 
     # -- helpers
     @property
@@ -139,7 +183,7 @@ class _Parser:
             rhs = self.product()
             if value.delayed or rhs.delayed:
                 raise self.fail("a delay exp(-L*s) may only multiply the whole model, not a term of a sum", op)
-            value = value.add(rhs, 1.0 if op.text == "+" else -1.0)
+            value = self.bounded(value.add(rhs, 1.0 if op.text == "+" else -1.0), op)
         return value
 
     def starts_factor(self) -> bool:
@@ -149,28 +193,28 @@ class _Parser:
     def product(self) -> _Rat:
         value = self.unary()
         while True:
-            if self.tok.kind == "op" and self.tok.text in ("*", "/"):
-                op = self.tok
+            op = self.tok
+            if op.kind == "op" and op.text in ("*", "/"):
                 self.i += 1
                 rhs = self.unary()
                 if op.text == "*":
-                    value = value.mul(rhs)
+                    value = self.bounded(value.mul(rhs), op)
                 else:
                     if rhs.is_zero():
                         raise self.fail("division by zero", op)
-                    value = value.div(rhs)
+                    value = self.bounded(value.div(rhs), op)
             elif self.starts_factor():  # implicit product: 2s, (s+1)(s+2)
-                value = value.mul(self.unary())
+                value = self.bounded(value.mul(self.unary()), op)
             else:
                 return value
 
     def unary(self) -> _Rat:
-        if self.take("-"):
-            v = self.unary()
-            return _Rat(-v.num, v.den, v.delay, v.delayed)
-        if self.take("+"):
-            return self.unary()
-        return self.power()
+        negative = False
+        while self.tok.kind == "op" and self.tok.text in "+-":  # a loop: "- - -s" does not recurse
+            negative ^= self.tok.text == "-"
+            self.i += 1
+        v = self.power()
+        return _Rat(-v.num, v.den, v.delay, v.delayed) if negative else v
 
     def power(self) -> _Rat:
         base = self.atom()
@@ -186,6 +230,8 @@ class _Parser:
                 raise self.fail(f"a power above {MAX_POWER} is not a process model", t)
             if sign < 0 and base.is_zero():
                 raise self.fail("division by zero", t)
+            if n * base.order > MAX_ORDER:
+                raise self.fail(f"the model's order grows above {MAX_ORDER} here: not a process model", t)
             out = _const(1.0)
             for _ in range(n):
                 out = out.mul(base) if sign > 0 else out.div(base)
@@ -203,13 +249,15 @@ class _Parser:
         if t.kind == "name":
             self.i += 1
             if t.text == "s":
-                return _Rat(np.poly1d([1.0, 0.0]), np.poly1d([1.0]))
+                return _Rat(np.array([1.0, 0.0]), np.ones(1))
             if t.text == "exp":
                 return self.delay_factor(t)
             raise self.fail(f"unknown name {t.text!r}: only s and exp(-L*s) may appear", t)
         if self.take("("):
+            self.nested(t)
             value = self.sum()
             self.expect(")", t)
+            self.depth -= 1
             return value
         found = "the end" if t.kind == "end" else repr(t.text)
         raise self.fail(f"expected a number, s, exp(...) or '(', found {found}")
@@ -217,16 +265,18 @@ class _Parser:
     def delay_factor(self, name: _Tok) -> _Rat:
         opened = self.tok
         self.expect("(")
+        self.nested(opened)
         arg = self.sum()
         self.expect(")", opened)
-        num = np.trim_zeros(arg.num.coeffs, "f")
-        den = np.trim_zeros(arg.den.coeffs, "f")
+        self.depth -= 1
+        num = np.trim_zeros(arg.num, "f")
+        den = np.trim_zeros(arg.den, "f")
         linear = (not arg.delayed and len(den) == 1 and len(num) <= 2
                   and (len(num) < 2 or num[-1] == 0.0))
         if not linear:
             raise self.fail("the argument of exp must be -L*s with a number L >= 0", opened)
         slope = float(num[0] / den[0]) if len(num) == 2 else 0.0
-        return _Rat(np.poly1d([1.0]), np.poly1d([1.0]), -slope, True)
+        return _Rat(np.ones(1), np.ones(1), -slope, True)
 
 
 def parse_model(text: str) -> DelayTF:
@@ -234,8 +284,8 @@ def parse_model(text: str) -> DelayTF:
     value = _Parser(text).parse()
     if value.delay < 0.0:
         raise ExprError(text, 0, f"the total delay is {value.delay:g} s: a dead time must be >= 0")
-    num = np.trim_zeros(value.num.coeffs, "f")
-    den = np.trim_zeros(value.den.coeffs, "f")
+    num = np.trim_zeros(value.num, "f")
+    den = np.trim_zeros(value.den, "f")
     if len(num) == 0:
         raise ExprError(text, 0, "the model is identically zero")
     try:

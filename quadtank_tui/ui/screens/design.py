@@ -4,11 +4,15 @@ applied to the running controller matrix.
 
 The models start as the physical linearization of the current setting (g11 and
 g22 at its operating levels), or as an identified model's G11 and G22 when the
-Identify screen opens this one, and can be typed over (`1.66*exp(-2.4*s)/(1.07*s+1)^3`).
-Designing and evaluating nine candidates takes a second or two, so it runs in a
-worker; the process keeps running underneath.  Nothing reaches the engine until
-Apply (A): then one SetParams, bumpless like any parameter change, and a
-notification of what changed.
+Identify screen opens this one, and can be typed over (`1.66*exp(-2.4*s)/(1.07*s+1)^3`);
+they are shown as gain, dead time and time constants (ui/model_text.py).  The
+lambdas and Ms values of the candidates are typed too, per loop (`T/4 T/2 T`,
+`1.6 1.4 1.2`: ui/design_inputs.py).  Designing and evaluating the candidates
+takes a second or two, so it runs in a worker; the process keeps running
+underneath.  Below 110 columns the table takes the width (`v` swaps in the
+plots).  Esc goes back to the screen that opened this one, and the footer names
+it.  Nothing reaches the engine until Apply (A): then one SetParams, bumpless
+like any parameter change, and a notification of what changed.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
-from textual.widgets import DataTable, Footer, Input, Label, Static
+from textual.widgets import Footer, Input, Label, Static
 from textual_plotext import PlotextPlot
 
 from quadtank_tui.core.delaytf import DelayTF, ModelError
@@ -30,17 +34,20 @@ from quadtank_tui.core.design.controller import PID
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.ui.design_inputs import InputError, format_values, parse_lambdas, parse_ms
+from quadtank_tui.ui.model_text import model_text
 from quadtank_tui.ui.screens.sending import CommandSender
+from quadtank_tui.ui.widgets.candidates_table import CandidatesTable, label
 
 if TYPE_CHECKING:  # the design core loads when the screen first computes (start-up time)
     from quadtank_tui.core.design.mimo import Matrix, MimoCheck
     from quadtank_tui.core.design.simulate import Response
     from quadtank_tui.core.design.table import Candidate
 
-#: Fixed widths (a space included): the header never depends on when the rows came in.
-COLUMNS = (("candidate", 14), ("Kc", 7), ("Ti", 7), ("Td", 5), ("IAE", 7), ("Emax", 6),
-           ("u_os", 5), ("φm", 4), ("Lm", 6), ("Am", 6), ("Ms", 5))
-HELP = "Tab to a model, type it, Enter: its candidates · Enter on a row: choose it for the loop"
+HELP = "Tab: models, λ, Ms; Enter designs · Enter on a row: choose it for the loop"
+#: Below this width the table takes the screen's width and `v` swaps it with the plots.
+NARROW = 110
+MS_DEFAULT = "1.6 1.4 1.2"
 
 
 @dataclass
@@ -53,12 +60,15 @@ class LoopState:
     rows: list[Candidate] = field(default_factory=list)
     chosen: PID | None = None
     chosen_label: str = ""
-
-
-def _num(x: float | None, digits: int = 4) -> str:
-    if x is None or not np.isfinite(x):
-        return "-"
-    return f"{x:.{digits}g}"
+    #: The lambdas typed ("": the method's defaults for the model) and the Ms values.
+    lambdas: str = ""
+    ms: str = MS_DEFAULT
+    #: The first-order T and L (s) the lambdas were taken relative to; the lambdas used.
+    T: float = 0.0
+    L: float = 0.0
+    used: tuple[float, ...] = ()
+    #: Which table request is the newest (an older worker's rows are dropped).
+    request: int = 0
 
 
 class DesignScreen(CommandSender):
@@ -69,12 +79,18 @@ class DesignScreen(CommandSender):
     AUTO_FOCUS = "#design-table"  # letter keys act; Tab or a click reaches a model
 
     BINDINGS = [
-        Binding("escape", "main", "Main"),
+        # One of the two shows, the screen that opened this one (check_action): Esc
+        # goes where the footer says.
+        Binding("escape", "back('Main')", "Main"),
+        Binding("escape", "back('Identify')", "Identify"),
         Binding("l", "switch_loop", "Loop 1/2"),
         Binding("2", "design_2x2", "2x2 design"),
         Binding("x", "check", "2x2 check"),
         Binding("A", "apply", "Apply"),
         Binding("p", "physical", "Physical models", show=False),
+        Binding("v", "plots", "Plots"),  # only below NARROW columns (check_action)
+        Binding("E", "export_figure", "Export figure", show=False,
+                tooltip="The chosen controllers' step, |S| |T| and Nyquist plots as a PNG in the logs folder"),
     ]
 
     def __init__(self, engine: EngineHandle,
@@ -94,14 +110,21 @@ class DesignScreen(CommandSender):
 
     def compose(self) -> ComposeResult:
         yield Static(id="design-status")
-        with Horizontal(id="design-models"):
+        with Vertical(id="design-models"):
             for i in (1, 2):
-                yield Label(f"Loop {i} (y{i} from u{i})", classes="model-label")
-                yield Input(id=f"model-{i}", classes="model")
+                with Horizontal(classes="design-row"):
+                    yield Label(f"Loop {i}  y{i}←u{i}", classes="model-label")
+                    yield Input(id=f"model-{i}", classes="model", compact=True)
+            with Horizontal(classes="design-row"):
+                yield Label("λ", id="lambdas-label", classes="model-label")
+                yield Input(id="lambdas", classes="tuning", compact=True,
+                            tooltip="lambdas in s, or multiples of T or L: T/4 T/2 T, 2L 4L")
+                yield Label("Ms", id="ms-label", classes="model-label")
+                yield Input(id="ms", classes="tuning", compact=True, tooltip="Ms values, > 1: 1.6 1.4 1.2")
+                yield Label(id="tuning-note")
         with Horizontal(id="design-body"):
             with Vertical(id="design-left"):
-                table: DataTable[str] = DataTable(id="design-table", cursor_type="row", zebra_stripes=False,
-                                                  cell_padding=0)
+                table = CandidatesTable(id="design-table")
                 table.border_title = "Candidates"
                 yield table
                 yield Static(id="design-chosen")
@@ -113,15 +136,44 @@ class DesignScreen(CommandSender):
         yield Footer()
 
     def on_mount(self) -> None:
-        table = self.query_one("#design-table", DataTable)
-        for label, width in COLUMNS:
-            table.add_column(label, key=label, width=width)
         self.query_one("#nyquist", PlotextPlot).border_title = "Nyquist L(iω), circle 1/Ms around -1"
         self.query_one("#response", PlotextPlot).border_title = "Load step at the input: y (blue), u (red)"
+        self._show_tuning()
         if self.identified is not None:
             self.action_identified()
         else:
             self.action_physical()
+
+    # --- navigation ------------------------------------------------------------------
+
+    @property
+    def opener(self) -> str:
+        """The screen Esc goes back to: the one under this one (Identify opens it
+        with `d` on a fitted model, Main with `d`)."""
+        stack = self.app.screen_stack
+        below = stack[stack.index(self) - 1] if self in stack and stack.index(self) > 0 else None
+        return "Identify" if type(below).__name__ == "IdentifyScreen" else "Main"
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        if action == "back":
+            return parameters == (self.opener,)
+        if action == "plots":
+            return self.has_class("-narrow")
+        return True
+
+    def action_back(self, to: str) -> None:
+        self.app.pop_screen()
+
+    def on_resize(self) -> None:
+        super().on_resize()
+        narrow = self.size.width < NARROW
+        if narrow != self.has_class("-narrow"):
+            self.set_class(narrow, "-narrow")
+            self.refresh_bindings()
+
+    def action_plots(self) -> None:
+        """Below NARROW columns: the plots in the table's place, or back."""
+        self.toggle_class("-plots")
 
     # --- models ----------------------------------------------------------------------
 
@@ -158,74 +210,130 @@ class DesignScreen(CommandSender):
 
     def _set_models(self, g11: DelayTF | None, g22: DelayTF | None) -> None:
         for i, g in ((1, g11), (2, g22)):
-            self.loops[i] = LoopState(text="" if g is None else str(g), model=g)
-            self.query_one(f"#model-{i}", Input).value = "" if g is None else str(g)
+            self._set_model(i, g, "" if g is None else model_text(g))
+        self._show_tuning()
         self.design_loop(self.loop)
+
+    def _set_model(self, loop: int, g: DelayTF | None, text: str) -> None:
+        """Loop `loop` on model `g` (nothing chosen yet); its lambdas and Ms stay typed."""
+        was = self.loops[loop]
+        self.loops[loop] = LoopState(text=text, model=g, lambdas=was.lambdas, ms=was.ms, request=was.request)
+        self.query_one(f"#model-{loop}", Input).value = text
 
     @on(Input.Submitted, ".model")
     def model_typed(self, event: Input.Submitted) -> None:
         from quadtank_tui.core.design.expr import parse_model
 
         loop = 1 if event.input.id == "model-1" else 2
-        try:
-            g = parse_model(event.value)
-        except ModelError as exc:
-            # The message quotes what was typed: plain text, never markup.
-            self.notify(str(exc), title=f"Loop {loop} model", severity="error", timeout=8, markup=False)
-            return
-        self.loops[loop] = LoopState(text=event.value, model=g)
+        state = self.loops[loop]
+        if event.value == state.text and state.model is not None:  # as shown: the exact model
+            g = state.model
+        else:
+            try:
+                g = parse_model(event.value)
+            except ModelError as exc:
+                # The message quotes what was typed: plain text, never markup.
+                self.notify(str(exc), title=f"Loop {loop} model", severity="error", timeout=8, markup=False)
+                return
+            self._set_model(loop, g, event.value)
         self.loop = loop
+        self._show_tuning()
         self.design_loop(loop)
+        self._show_chosen()
+
+    @on(Input.Submitted, ".tuning")
+    def tuning_typed(self, event: Input.Submitted) -> None:
+        """New lambdas or Ms values for the loop shown: its table anew (checked in
+        the worker, against the model's T and L; a bad entry changes nothing)."""
+        state = self.loops[self.loop]
+        if event.input.id == "ms":
+            self.design_loop(self.loop, ms=event.value)
+            return
+        text = event.value.strip()
+        if not state.lambdas and text == format_values(state.used):
+            text = ""  # the defaults as shown stay the defaults (they follow the model)
+        self.design_loop(self.loop, lambdas=text)
+
+    def _show_tuning(self) -> None:
+        """The lambda and Ms boxes and the note on T and L, for the loop shown."""
+        state = self.loops[self.loop]
+        self.query_one("#lambdas-label", Label).update(f"Loop {self.loop}  λ")
+        for box, text in (("#lambdas", state.lambdas or format_values(state.used)), ("#ms", state.ms)):
+            entry = self.query_one(box, Input)
+            if not entry.has_focus:  # never under the user's typing
+                entry.value = text
+        note = f"s, T/4, 2L: T {state.T:.3g} s, L {state.L:.3g} s" if state.used else "s, or T/4, 2L"
+        self.query_one("#tuning-note", Label).update(note)
 
     # --- the table -------------------------------------------------------------------
 
-    def design_loop(self, loop: int) -> None:
-        self._status(f"designing loop {loop}: nine candidates ...")
-        self.query_one("#design-table", DataTable).clear()
-        self._compute_table(loop, self.loops[loop].model)
+    def design_loop(self, loop: int, *, lambdas: str | None = None, ms: str | None = None) -> None:
+        """Design loop `loop`'s candidates in a worker; `lambdas` / `ms`: new entries
+        (None: those in force).  The table shown stays until the new one is ready."""
+        state = self.loops[loop]
+        state.request += 1
+        if state.model is None:
+            self._status(f"loop {loop}: no model; type one")
+            return
+        self._status(f"designing loop {loop} ...")
+        self._compute_table(loop, state.model, state.request, state.lambdas if lambdas is None else lambdas,
+                            state.ms if ms is None else ms)
 
     @work(thread=True, exclusive=True, group="table")
-    def _compute_table(self, loop: int, model: DelayTF | None) -> None:
-        from quadtank_tui.core.design.table import candidates
+    def _compute_table(self, loop: int, model: DelayTF | None, request: int, lambdas: str, ms: str) -> None:
+        from quadtank_tui.core.design.controller import DesignError
+        from quadtank_tui.core.design.lambda_tuning import first_order
+        from quadtank_tui.core.design.table import candidates, default_lambdas
 
         if model is None:
             return
         try:
-            rows = candidates(model)
+            fo = first_order(model)
+            T, L = (0.0 if fo.integrating else fo.T), fo.L
+        except DesignError:  # no lambda rows (the table says why); the lambdas are not used
+            fo, T, L = None, 0.0, 0.0
+        try:
+            ms_values = parse_ms(ms)
+            lams = (parse_lambdas(lambdas, T, L) if lambdas
+                    else default_lambdas(fo) if fo is not None else ())
+        except InputError as exc:
+            self.app.call_from_thread(self._refused, loop, request, str(exc))
+            return
+        try:
+            rows = candidates(model, lambdas=lams, ms_values=ms_values)
         except ValueError as exc:  # a model the evaluation cannot simulate: one line, no crash
             self.app.call_from_thread(self._status, f"loop {loop}: {exc}", error=True)
             return
-        self.app.call_from_thread(self._show_table, loop, model, rows)
+        self.app.call_from_thread(self._show_table, loop, request, rows, (lambdas, ms, T, L, lams))
 
-    def _show_table(self, loop: int, model: DelayTF, rows: list[Candidate]) -> None:
+    def _refused(self, loop: int, request: int, why: str) -> None:
+        """A bad lambda or Ms entry: said, and the table and the entries in force kept."""
+        if request == self.loops[loop].request:
+            self._status(f"loop {loop}: {why}; the table is as it was", error=True)
+            self.notify(why, title=f"Loop {loop}", severity="error", timeout=8, markup=False)
+
+    def _show_table(self, loop: int, request: int, rows: list[Candidate],
+                    tuning: tuple[str, str, float, float, tuple[float, ...]]) -> None:
         state = self.loops[loop]
-        if state.model is not model:
-            return  # a newer model was typed meanwhile
+        if request != state.request:
+            return  # a newer model or entry came meanwhile
         state.rows = rows
+        state.lambdas, state.ms, state.T, state.L, state.used = tuning
         if loop == self.loop:
             self._fill_table()
-        self._status(f"loop {loop}: {len(rows)} candidates on {model}")
+            self._show_tuning()
+        shown = model_text(state.model) if state.model is not None else ""
+        self._status(f"loop {loop}: {len(rows)} candidates on {shown}")
 
     def _fill_table(self) -> None:
-        table = self.query_one("#design-table", DataTable)
-        table.clear()
+        table = self.query_one(CandidatesTable)
         table.border_title = f"Candidates, loop {self.loop}"
-        for n, r in enumerate(self.loops[self.loop].rows):
-            c, e = r.controller, r.evaluation
-            if c is None or e is None:  # the reason shows when the row is highlighted
-                table.add_row(r.label, "n/a", *["-"] * 9, key=str(n))
-                continue
-            if not e.stable:
-                table.add_row(r.label, _num(c.Kc), _num(c.Ti), _num(c.Td, 3), "unstable",
-                              *[""] * 6, key=str(n))
-                continue
-            table.add_row(r.label, _num(c.Kc), _num(c.Ti), _num(c.Td, 3), _num(e.IAE),
-                          _num(e.Emax, 3), f"{e.u_overshoot:.2f}", f"{e.phase_margin_deg:.0f}",
-                          _num(e.delay_margin, 3), _num(e.gain_margin, 3), f"{e.Ms:.2f}", key=str(n))
+        table.show(self.loops[self.loop].rows)
 
     def action_switch_loop(self) -> None:
         self.loop = 3 - self.loop
         state = self.loops[self.loop]
+        self._show_tuning()
         if state.rows:
             self._fill_table()
         else:
@@ -238,23 +346,23 @@ class DesignScreen(CommandSender):
             return None
         return rows[int(key)]
 
-    @on(DataTable.RowHighlighted, "#design-table")
-    def row_highlighted(self, event: DataTable.RowHighlighted) -> None:
+    @on(CandidatesTable.RowHighlighted, "#design-table")
+    def row_highlighted(self, event: CandidatesTable.RowHighlighted) -> None:
         row = self._row(event.row_key.value)
         model = self.loops[self.loop].model
         if row is not None and row.error:
-            self._status(f"{row.label}: {row.error}")
+            self._status(f"{label(row)}: {row.error}")
         if row is not None and row.controller is not None and model is not None:
             self._compute_plots(model, row.controller, row.parameter if row.method != "lambda" else None)
 
-    @on(DataTable.RowSelected, "#design-table")
-    def row_selected(self, event: DataTable.RowSelected) -> None:
+    @on(CandidatesTable.RowSelected, "#design-table")
+    def row_selected(self, event: CandidatesTable.RowSelected) -> None:
         row = self._row(event.row_key.value)
         if row is None or row.controller is None:
             self.notify("this candidate has no controller", severity="warning")
             return
         state = self.loops[self.loop]
-        state.chosen, state.chosen_label = row.controller.rounded(), row.label
+        state.chosen, state.chosen_label = row.controller.rounded(), label(row)
         self._show_chosen()
 
     def _show_chosen(self) -> None:
@@ -361,8 +469,19 @@ class DesignScreen(CommandSender):
         self.send(SetParams(values))
         self.notify("\n".join(changes) or "already in the matrix", title="Applied", timeout=6)
 
-    def action_main(self) -> None:
-        self.app.pop_screen()
+    def action_export_figure(self) -> None:
+        """Each loop with a chosen controller, on its model, drawn in a worker."""
+        from pathlib import Path
+
+        from quadtank_tui.ui.figure_export import design_builder, export
+
+        loops = [(f"loop {i}", s.model, s.chosen) for i, s in self.loops.items()
+                 if s.chosen is not None and s.model is not None]
+        if not loops:
+            self.notify("choose a controller first (Enter on a row, or 2)", severity="warning")
+            return
+        export(self, Path(getattr(self.engine, "logs_dir", "logs")), "design",
+               design_builder(loops, f"models: {self.source}"))
 
     def _status(self, text: str, *, error: bool = False) -> None:
         """The status line: `text` as it is (it quotes typed models and file

@@ -112,6 +112,8 @@ class IdentifyScreen(Screen[None]):
         Binding("v", "lower_plot", "Residuals/coherence/gain"),
         Binding("k", "keep", "Keep model"),
         Binding("d", "design", "Design"),
+        Binding("E", "export_figure", "Export figure", show=False,
+                tooltip="The fit's validation, residual autocorrelation and coherence as a PNG next to the first log"),
         Binding("F5", "rescan", "Rescan logs", show=False),
     ]
 
@@ -376,6 +378,17 @@ class IdentifyScreen(Screen[None]):
             return
         self._status(f"Model kept in {path}")
         self.notify(f"Model saved to {path}", markup=False)
+
+    def action_export_figure(self) -> None:
+        """Every element's validation, residuals and coherence, drawn in a worker."""
+        from quadtank_tui.ui.figure_export import export, identification_builder
+
+        if self.view is None:
+            self._status("Nothing to draw yet: fit first (f).", error=True)
+            return
+        ident = self.view.ident
+        first = Path(ident.records[0])
+        export(self, first.parent, f"{first.stem}.{ident.method}", identification_builder(ident))
 
     # --- design -----------------------------------------------------------------------
 

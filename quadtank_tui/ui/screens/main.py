@@ -126,6 +126,8 @@ class MainScreen(CommandSender):
         Binding("b", "ghost", "Ghost", show=False,
                 tooltip="Draw a saved .log dimmed behind the trends (the last one by default)"),
         Binding("B", "clear_ghost", "Clear ghost", show=False, tooltip="Remove the ghost run from the trends"),
+        Binding("E", "export_figure", "Export figure", show=False,
+                tooltip="The trends in view as a PNG figure in the logs folder (the name is shown)"),
         Binding("plus", "speed(1)", "Faster", show=False,
                 tooltip="Simul: next speed of 1, 2, 5 ... 1000 x real time"),
         Binding("minus", "speed(-1)", "Slower", show=False, tooltip="Simul: previous speed step"),
@@ -479,6 +481,17 @@ class MainScreen(CommandSender):
 
     def action_clear_ghost(self) -> None:
         self.ghost.clear()
+
+    def action_export_figure(self) -> None:
+        """The trends in view, as shown (window, scroll, units), drawn in a worker."""
+        from pathlib import Path
+
+        from quadtank_tui.ui.figure_export import export, trends_builder
+
+        snap, window = self.snap, WINDOWS[self.window_index]
+        build = trends_builder(self.engine.history(window + self.trend_offset), (snap.params.plots.upper,
+                               snap.params.plots.lower), window, self.trend_offset, snap.params, self.physical)
+        export(self, Path(getattr(self.engine, "logs_dir", "logs")), "trends", build)
 
     # --- logging (M8) and exit (M9) ---------------------------------------------------
 

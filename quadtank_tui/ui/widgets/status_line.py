@@ -47,7 +47,7 @@ SPEED_HELD = 0.99
 
 class SpeedMeter:
     """The speed a virtual clock really keeps.  A clock that cannot keep up skips
-    its deadlines (counted as overruns), so over the last slots the held speed is
+    its deadlines (LoopStats.skipped), so over the last slots the held speed is
     the asked one times samples / (samples + skipped): no wall clock needed, and
     the same on a loaded machine as in a test."""
 
@@ -55,7 +55,7 @@ class SpeedMeter:
         self._seen: deque[tuple[float, int, int]] = deque(maxlen=span)
 
     def add(self, s: Snapshot) -> None:
-        entry = (s.speed, s.stats.samples, s.stats.overruns)
+        entry = (s.speed, s.stats.samples, s.stats.skipped)
         if not self._seen or self._seen[-1] != entry:
             if self._seen and self._seen[-1][0] != s.speed:
                 self._seen.clear()  # a new speed: measure afresh
@@ -66,8 +66,8 @@ class SpeedMeter:
         ticks), once they span SPEED_SLOTS slots (None before)."""
         if len(self._seen) < 2:
             return None
-        speed, samples, overruns = self._seen[-1]
-        done, skipped = samples - self._seen[0][1], overruns - self._seen[0][2]
+        speed, samples, skipped_now = self._seen[-1]
+        done, skipped = samples - self._seen[0][1], skipped_now - self._seen[0][2]
         if done + skipped < SPEED_SLOTS:
             return None
         return speed * done / (done + skipped)

@@ -67,3 +67,32 @@ def test_never_evaluates_python() -> None:
         parse_model("__import__('os').system('true')")
     with pytest.raises(ExprError, match="unknown name '__import__'"):
         parse_model("__import__(s)")
+
+
+# --- bounded work on hostile input (issue 24: a 130 KB expression took 15.8 s) ---------
+
+def test_an_expression_longer_than_the_cap_is_refused_with_its_length() -> None:
+    text = "1/(s+1)" + "+0" * 600
+    with pytest.raises(ExprError, match=f"the expression has {len(text)} characters; a model has at most 1000"):
+        parse_model(text)
+
+
+def test_parentheses_nested_too_deep_are_refused_at_the_parenthesis() -> None:
+    with pytest.raises(ExprError, match="parentheses nested more than 50 deep") as err:
+        parse_model("(" * 60 + "s+1" + ")" * 60)
+    assert err.value.column == 51
+
+
+def test_a_long_run_of_signs_does_not_recurse() -> None:
+    g = parse_model("-" * 993 + "1/(s+1)")  # an odd number of minus signs: -1/(s+1)
+    assert g.num == (-1.0,) and g.den == (1.0, 1.0)
+
+
+@pytest.mark.parametrize("text", [
+    "(s+1)" * 100,               # a product of a hundred factors
+    "1/((s+1)^20)^20",           # powers of powers
+    "(2s+1)^20*(3s+1)^20*(s+1)^20*(4s+1)",
+])
+def test_a_model_whose_order_explodes_is_refused(text: str) -> None:
+    with pytest.raises(ExprError, match="order grows above 60"):
+        parse_model(text)

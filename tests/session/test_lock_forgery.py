@@ -1,0 +1,215 @@
+"""The DAQ lock cannot be forged or held hostage (issue 24): a record whose file
+owner differs from the user it names is forged and counts as free; a student's
+take-over is refused by the holder, which puts its record back; a flock held by
+someone else is waited for a bounded time and its holder named.
+
+Other users are real uids (root chowns files to them and starts processes as them
+with setpriv); the tests are skipped unless run as root, as CI does."""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import subprocess
+import threading
+import time
+from pathlib import Path
+from typing import Iterator
+
+import pytest
+
+from quadtank_tui.session import lock as lockmod
+from quadtank_tui.session.lab import LabConfig
+from quadtank_tui.session.lock import DaqLock, DaqLockError, device_key, holder_of, lock_path, process_start
+
+DEVICE = device_key("192.0.2.7", 502, 1)
+STUDENT = 54000 + os.getpid() % 1000   # no such user needs to exist: a uid is enough
+TEACHER = STUDENT + 1
+
+root_only = pytest.mark.skipif(os.getuid() != 0, reason="needs root (chown, setpriv)")
+
+
+@pytest.fixture
+def lab(tmp_path: Path) -> LabConfig:
+    return LabConfig(runtime_dir=tmp_path / "rt")
+
+
+@pytest.fixture
+def student_process() -> Iterator[subprocess.Popen[bytes]]:
+    """A process running as STUDENT (a non-administrator: the installation's
+    params/ is root's)."""
+    p = subprocess.Popen(["setpriv", f"--reuid={STUDENT}", f"--regid={STUDENT}", "--clear-groups",
+                          "sleep", "60"])
+    deadline = time.monotonic() + 10
+    while lockmod.process_owner(p.pid) != STUDENT and time.monotonic() < deadline:
+        time.sleep(0.01)
+    yield p
+    p.kill()
+    p.wait()
+
+
+def plant(lab: LabConfig, *, user: str, uid: int, pid: int, owner: int) -> Path:
+    """A record naming `user` (`uid`, `pid`) in a file owned by `owner`."""
+    lab.locks_dir.mkdir(parents=True, exist_ok=True)
+    path = lock_path(DEVICE, lab)
+    path.unlink(missing_ok=True)
+    path.write_text(json.dumps({"user": user, "uid": uid, "pid": pid, "start": process_start(pid),
+                                "since": "2026-11-26T10:00:00+00:00", "session": f"{user}-1", "token": "x"}))
+    os.chown(path, owner, owner)
+    return path
+
+
+@root_only
+def test_a_record_naming_another_user_is_forged_and_stops_nobody(lab: LabConfig) -> None:
+    """stud2 writes `user teacher, pid 1`: before, everyone, root included, was told
+    'the rig ... is driven by teacher (pid 1, session teacher-1)'."""
+    plant(lab, user="teacher", uid=TEACHER, pid=1, owner=STUDENT)
+    assert holder_of(DEVICE, lab) is None
+    with DaqLock.acquire(DEVICE, lab) as lock:
+        assert lock.held and holder_of(DEVICE, lab).pid == os.getpid()  # type: ignore[union-attr]
+
+
+@root_only
+def test_a_record_naming_a_process_of_another_user_is_forged(lab: LabConfig) -> None:
+    """The student names themselves but pid 1 (root's): not their process."""
+    plant(lab, user="student", uid=STUDENT, pid=1, owner=STUDENT)
+    assert holder_of(DEVICE, lab) is None
+
+
+@root_only
+def test_a_genuine_record_of_a_live_student_holds(lab: LabConfig, student_process: subprocess.Popen[bytes]) -> None:
+    plant(lab, user="student", uid=STUDENT, pid=student_process.pid, owner=STUDENT)
+    held = holder_of(DEVICE, lab)
+    assert held is not None and (held.holder, held.pid) == ("student", student_process.pid)
+
+
+@root_only
+def test_the_holder_refuses_a_students_take_over_and_puts_its_record_back(
+        lab: LabConfig, student_process: subprocess.Popen[bytes]) -> None:
+    """A copy of the program that skips the client's check writes a genuine record
+    of its student over the holder's: the holder does not stop (before: 'taken over
+    by ...', pumps at 0, the run ended) and its record is back."""
+    lock = DaqLock.acquire(DEVICE, lab, session="teacher-1")
+    try:
+        plant(lab, user="student", uid=STUDENT, pid=student_process.pid, owner=STUDENT)
+        assert lock.lost() is None
+        assert lock.restored == f"{STUDENT} (not an administrator) tried to take the rig at {DEVICE} over; refused"
+        record = json.loads(lock_path(DEVICE, lab).read_text())
+        assert (record["pid"], record["session"]) == (os.getpid(), "teacher-1")
+        assert os.stat(lock_path(DEVICE, lab)).st_uid == 0
+    finally:
+        lock.release()
+
+
+@root_only
+def test_a_forged_or_removed_record_does_not_end_the_holder(lab: LabConfig) -> None:
+    lock = DaqLock.acquire(DEVICE, lab)
+    try:
+        plant(lab, user="root", uid=0, pid=os.getpid(), owner=STUDENT)  # names us, written by a student
+        assert lock.lost() is None and lock.restored is not None and "forged" in lock.restored
+        lock_path(DEVICE, lab).unlink()
+        assert lock.lost() is None and "removed" in (lock.restored or "")
+        assert holder_of(DEVICE, lab) is not None
+    finally:
+        lock.release()
+
+
+def hold_flock(lab: LabConfig) -> subprocess.Popen[str]:
+    """Another process holding flock on the lock folder and on the lock file (the
+    lock of either design), until killed."""
+    lab.locks_dir.mkdir(parents=True, exist_ok=True)
+    lock_path(DEVICE, lab).touch()
+    code = ("import fcntl, os, sys, time\n"
+            "fds = [os.open(p, os.O_RDONLY) for p in sys.argv[1:]]\n"
+            "[fcntl.flock(fd, fcntl.LOCK_EX) for fd in fds]\n"
+            "print('held', flush=True)\n"
+            "time.sleep(60)\n")
+    p = subprocess.Popen(["python3", "-c", code, str(lab.locks_dir), str(lock_path(DEVICE, lab))],
+                         stdout=subprocess.PIPE, text=True)
+    assert p.stdout is not None and p.stdout.readline() == "held\n"
+    return p
+
+
+def test_a_held_flock_is_waited_for_a_bounded_time_and_its_holder_named(
+        lab: LabConfig, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(lockmod, "LOCK_WAIT", 0.3)
+    monkeypatch.setattr(lockmod, "is_administrator", lambda uid, lab: False)
+    holder = hold_flock(lab)
+    outcome: list[BaseException | DaqLock] = []
+
+    def attempt() -> None:
+        try:
+            outcome.append(DaqLock.acquire(DEVICE, lab))
+        except BaseException as exc:  # noqa: BLE001 - handed to the test
+            outcome.append(exc)
+
+    try:
+        t = threading.Thread(target=attempt, daemon=True)
+        t.start()
+        t.join(20)
+        assert outcome, "acquire hung on a flock someone else holds"
+        err = outcome[0]
+        assert isinstance(err, DaqLockError)
+        me = lockmod.user_name(os.getuid())
+        assert str(err) == (f"{lab.locks_dir}: the lock folder has been held by {me} (pid {holder.pid}) for "
+                            "more than 0.3 s; an administrator may go on without it")
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_an_administrator_goes_on_and_a_release_does_not_wait(
+        lab: LabConfig, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(lockmod, "LOCK_WAIT", 0.3)
+    monkeypatch.setattr(lockmod, "QUICK_WAIT", 0.3)
+    monkeypatch.setattr(lockmod, "is_administrator", lambda uid, lab: True)
+    holder = hold_flock(lab)
+    try:
+        done = threading.Event()
+
+        def attempt() -> None:
+            with DaqLock.acquire(DEVICE, lab) as lock:   # root / an administrator
+                assert lock.held
+            done.set()
+
+        t = threading.Thread(target=attempt, daemon=True)
+        t.start()
+        assert done.wait(20), "an administrator was stopped by a held flock"
+        assert lock_path(DEVICE, lab).read_text() == ""  # released, without the flock
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_flock_holders_come_from_the_kernel(tmp_path: Path) -> None:
+    f = tmp_path / "f"
+    f.touch()
+    fd = os.open(f, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        assert (os.getpid(), lockmod.user_name(os.getuid())) in lockmod.flock_holders(fd)
+    finally:
+        os.close(fd)
+
+
+@root_only
+def test_the_watch_tells_a_refused_take_over_once_and_keeps_the_lock(
+        lab: LabConfig, student_process: subprocess.Popen[bytes]) -> None:
+    from quadtank_tui.session.lockwatch import LockWatch
+
+    lock = DaqLock.acquire(DEVICE, lab)
+    lost: list[str] = []
+    notes: list[str] = []
+    noted = threading.Event()
+    watch = LockWatch(lock, lost.append, interval=0.01,
+                      on_note=lambda what: (notes.append(what), noted.set())).start()
+    try:
+        plant(lab, user="student", uid=STUDENT, pid=student_process.pid, owner=STUDENT)
+        assert noted.wait(30)
+        time.sleep(0.1)  # more looks: the same finding is not told again
+        assert notes == [f"{STUDENT} (not an administrator) tried to take the rig at {DEVICE} over; refused"]
+        assert lost == [] and lock.held
+    finally:
+        watch.stop()
+        lock.release()
