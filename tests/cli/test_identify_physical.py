@@ -5,6 +5,7 @@ the same kind and leaves the one in use alone; bad input is one line, status 2."
 from __future__ import annotations
 
 import json
+import re
 from datetime import datetime
 from pathlib import Path
 
@@ -55,9 +56,15 @@ def cascade_par(tmp_path: Path) -> Path:
 def test_pminus_scripts_give_the_presets_constants_back(in_params_copy: Path,
                                                         capsys: pytest.CaptureFixture[str]) -> None:
     """params/identify-pminus-u1/u2.yaml run by `quadtank run` (cut to 80 logged rows
-    each), fitted from the built-in values 10-15 % off; validated on the MIMO script."""
+    each, and without their sensor-noise events: 80 rows of 10 mV noise leave the
+    upper outlets 3-5 % uncertain; benchmarks/identify.py fits the full noisy logs),
+    fitted from the built-in values 10-15 % off; validated on the MIMO script."""
     for e in ("u1", "u2", "mimo"):
-        assert main(["run", "--par", "minphase", "--script", f"params/identify-pminus-{e}.yaml",
+        script = Path(f"params/identify-pminus-{e}.yaml")
+        text, removed = re.subn(r"- at: 0\n  fault: \{kind: sensor_noise[^\n]*\}\n", "", script.read_text())
+        assert removed == 4  # the four sensors' noise
+        script.write_text(text)
+        assert main(["run", "--par", "minphase", "--script", str(script),
                      "--duration", "680", "--log", f"pm-{e}.log"]) == 0
     start = read_par("params/default.par").params
     text = Path("params/default.par").read_text()
@@ -73,7 +80,7 @@ def test_pminus_scripts_give_the_presets_constants_back(in_params_copy: Path,
     true = P_MINUS.params
     for name, e in out["constants"].items():
         assert e["value"] == pytest.approx(getattr(true, name), rel=0.02), name
-        assert e["value"] == pytest.approx(getattr(true, name), rel=1e-4), name  # in fact far better
+        assert e["value"] == pytest.approx(getattr(true, name), rel=1e-4), name  # noise-free: far better
     assert out["constants"]["gamma1"]["start"] == 0.63
     figures = {v["output"]: v for v in out["validation"]}
     assert set(figures) == {"y1", "y2", "y3", "y4"}
