@@ -11,9 +11,10 @@ multi-threaded BLAS on small matrices suffers most).  Targets (issue 12): under 
 for a step or output-error element, under 3 s for the 2x2 subspace model.
 
 Then the physical fit (issue 27), once each: the quadruple tank's eight constants
-from 1,000 rows of the MIMO log (target < 60 s), and the cascade's three from
-2,000 rows of its simulator at 1 s with 10 mV sensor noise (target < 30 s), both
-from constants 10-20 % off; the fitted constants are printed against the true.
+from 1,000 rows of the MIMO log (its 10 mV sensor noise included; target < 60 s),
+and the cascade's three from 2,000 rows of its simulator at 1 s with 10 mV sensor
+noise (target < 30 s), both from constants 10-20 % off; the fitted constants are
+printed against the true.
 """
 
 from __future__ import annotations
