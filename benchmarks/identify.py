@@ -9,6 +9,12 @@ output's two elements fitted together from the MIMO log (oe), and of the 2x2
 subspace model, with the load average beside them (the machine may be shared;
 multi-threaded BLAS on small matrices suffers most).  Targets (issue 12): under 1 s
 for a step or output-error element, under 3 s for the 2x2 subspace model.
+
+Then the physical fit (issue 27), once each: the quadruple tank's eight constants
+from 1,000 rows of the MIMO log (its 10 mV sensor noise included; target < 60 s),
+and the cascade's three from 2,000 rows of its simulator at 1 s with 10 mV sensor
+noise (target < 30 s), both from constants 10-20 % off; the fitted constants are
+printed against the true.
 """
 
 from __future__ import annotations
@@ -28,6 +34,15 @@ import numpy as np  # noqa: E402
 
 from quadtank_tui.core.identify.arx import fit_arx  # noqa: E402
 from quadtank_tui.core.identify.oe import fit_oe, fit_oe_miso  # noqa: E402
+from quadtank_tui.core.identify.physical import (  # noqa: E402
+    Experiment,
+    PhysicalFit,
+    experiment_from_columns,
+    fit_physical,
+    simulate,
+)
+from quadtank_tui.core.plant import P_MINUS  # noqa: E402
+from quadtank_tui.core.plants import CoupledCascade, Plant, QuadTank  # noqa: E402
 from quadtank_tui.core.identify.step import fit_step  # noqa: E402
 from quadtank_tui.core.identify.subspace import fit_subspace  # noqa: E402
 from quadtank_tui.core.identify.system import from_state_space  # noqa: E402
@@ -75,6 +90,36 @@ def main() -> None:
     for name, fn, target in cases:
         t = best(fn, args.repeat)
         print(f"  {name:<36} {t * 1e3:8.0f} ms   (target < {target:g} s{'' if t < target else ', MISSED'})")
+    physical(mimo)
+
+
+def physical(mimo: LogData) -> None:
+    """The physical fits, once each, with the constants against the true ones."""
+    quad = QuadTank(P_MINUS.params)
+    rows = 1000
+    exp = experiment_from_columns("pminus-mimo", 1.0, {k: v[:rows] for k, v in mimo.columns().items()}, quad)
+    start = quad.with_values(a1=0.064, a2=0.063, a3=0.078, a4=0.051, k1=3.0, k2=3.7, gamma1=0.63, gamma2=0.66)
+    _physical_case(f"quadruple tank, 8 constants, {rows} rows", quad, start, [exp], 60.0)
+    cascade = CoupledCascade()
+    rows, rng = 2000, np.random.default_rng(1)
+    u = np.repeat(6.0 + 2.0 * rng.choice([-1.0, 1.0], size=rows // 40 + 1), 40)[:rows, None]
+    y = simulate(cascade, (10.0, 9.0), u, 1.0) * np.array([cascade.kc1, cascade.kc2])
+    y += 0.01 * rng.standard_normal(y.shape)
+    start = cascade.with_values(alpha1=0.009, alpha2=0.0115, beta1=0.27)
+    _physical_case(f"cascade, 3 constants, {rows} rows, noise", cascade, start,
+                   [Experiment("cascade", 1.0, u, y, (0, 1))], 30.0)
+
+
+def _physical_case(name: str, true: Plant, start: Plant, exps: list[Experiment], target: float) -> None:
+    t0 = time.perf_counter()
+    fit: PhysicalFit = fit_physical(start, exps)
+    t = time.perf_counter() - t0
+    print(f"  physical: {name:<38} {t:6.1f} s   (target < {target:g} s{'' if t < target else ', MISSED'}; "
+          f"{fit.evaluations} simulations, RMS {fit.rms:.3g} V)")
+    for e in fit.constants:
+        value = true.values()[e.name]
+        print(f"    {e.name:<7} true {value:<10.6g} start {e.start:<10.6g} fitted {e.value:<12.8g} "
+              f"+- {e.stderr:<9.2g} error {100 * (e.value / value - 1):+.4f} %")
 
 
 def _abc(fit):  # type: ignore[no-untyped-def]

@@ -189,7 +189,11 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--par", metavar="FILE", help="parameters: a .par file or a name in params/ "
                    "(default: params/default.par, else the built-in values)")
     p.add_argument("--script", metavar="EXP.yaml", help="timed events (see README, Headless experiments)")
-    p.add_argument("--duration", metavar="SECONDS", type=float, required=True, help="length of the run, s")
+    p.add_argument("--duration", metavar="SECONDS", type=float,
+                   help="length of the run, s (needed but with --inputs-from)")
+    p.add_argument("--inputs-from", metavar="LOG",
+                   help="drive the simulator open loop with this log's pump signals, from the levels of its "
+                   "first row, and write a log whose rows line up with it (a rig's run and its twin)")
     p.add_argument("--log", metavar="OUT.log", required=True, help="where the .log is written")
     p.add_argument("--seed", metavar="N", type=int, help="seed both PRBS generators (N and N + 1)")
     pace = p.add_mutually_exclusive_group()
@@ -232,6 +236,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from quadtank_tui.engine.headless import run_headless
     from quadtank_tui.files.script import read_script
 
+    if args.inputs_from:
+        from quadtank_tui.commands.replay import replay
+
+        return replay(args)
+    if args.duration is None:
+        raise UsageError("--duration is needed (the length of the run, s)")
     if not args.duration > 0:  # NaN too
         raise UsageError(f"--duration must be a positive number of seconds, got {args.duration:g}")
     if args.speed is not None and not 1.0 <= args.speed <= 1000.0:

@@ -15,9 +15,12 @@ from typing import TYPE_CHECKING
 from quadtank_tui.commands import UsageError, warn
 
 if TYPE_CHECKING:
+    from quadtank_tui.core.identify.crossval import Figure
+    from quadtank_tui.core.identify.experiment import Identification
     from quadtank_tui.core.plant import PlantParams
+    from quadtank_tui.files.log import LogData
 
-METHODS = ("step", "oe", "n4sid", "arx")
+METHODS = ("step", "oe", "n4sid", "arx", "physical")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -31,7 +34,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("logs", nargs="+", metavar="LOG", help=".log files (SIMO: one per excited input)")
     p.add_argument("--method", choices=METHODS, default="oe",
                    help="step: Andersson's step-response structures; oe: output-error transfer functions "
-                   "(default); n4sid: a MIMO state-space model (PO-MOESP); arx: least squares")
+                   "(default); n4sid: a MIMO state-space model (PO-MOESP); arx: least squares; physical: "
+                   "the constants of the plant in use (--par) fitted by its own nonlinear simulator")
     p.add_argument("--inputs", nargs="+", metavar="U", help="inputs to use (default: those that move)")
     p.add_argument("--outputs", nargs="+", metavar="Y", help="outputs to use (default: y1 y2)")
     p.add_argument("--structure", type=int, choices=range(1, 6), default=1, metavar="1..5",
@@ -54,7 +58,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="the physical model to compare with: a .par file or a preset name "
                    "(default: the preset whose steady state matches the log's first row)")
     p.add_argument("--save", nargs="?", const="", metavar="PATH",
-                   help="keep the model as JSON (default path: next to the first log, NAME.model.json)")
+                   help="keep the model as JSON (default path: next to the first log, NAME.model.json); "
+                   "physical: the fitted constants as a .par of the plant's kind (default NAME.par next to "
+                   "the first log) with NAME.physical.json beside it")
+    p.add_argument("--validate-on", nargs="+", metavar="LOG",
+                   help="simulate the model on these logs' inputs and report fit %% and RMS (a linear "
+                   "model from rest at the first row; physical: levels fitted to the first 20 rows)")
+    p.add_argument("--free", nargs="+", metavar="NAME",
+                   help="physical: the constants to fit (default: outlets, pumps and valves)")
+    p.add_argument("--offsets", action="store_true", help="physical: fit a sensor offset per output too")
     p.add_argument("--figure", metavar="FILE",
                    help="also draw the validation as a figure (.png, .svg or .pdf): per element the measured "
                    "and model output on the validation part, the residual autocorrelation and the coherence")
@@ -85,6 +97,46 @@ def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams | None
     return read.params.quadtank_constants(), par, (3.0, 3.0)
 
 
+def _sensor_gains(par: str | None, params: PlantParams) -> tuple[dict[str, float], str]:
+    """Volts per level unit of each sensor of the plant in use (--par names it; else
+    the quadruple tank compared with), and that unit."""
+    from quadtank_tui.commands.identify_physical import starting_plant
+    from quadtank_tui.core.identify.physical import sensor_gains
+    from quadtank_tui.core.plants import Plant, QuadTank
+
+    plant: Plant = starting_plant(par).plant if par is not None else QuadTank(params)
+    gains = sensor_gains(plant)
+    return {f"y{i + 1}": float(g) for i, g in enumerate(gains)}, plant.states[0].unit
+
+
+def read_sampled(path: str) -> tuple[LogData, float]:
+    """A log and its sampling time (UsageError without one); its warnings on stderr."""
+    from quadtank_tui.files.log import read_log
+
+    log = read_log(path)
+    warn(log.warnings)
+    if log.tsamp is None:
+        raise UsageError(f"{path}: no TSamp in the header: the sampling time is needed")
+    return log, log.tsamp
+
+
+def cross_validate(ident: Identification, paths: list[str], gains: dict[str, float], unit: str) -> list[Figure]:
+    """The identified model on each log's inputs: fit % and RMS of each output
+    (volts: 10 V per log unit; levels through each sensor's gain in V per `unit`)."""
+    from quadtank_tui.core.identify.crossval import figure, simulate_linear
+    from quadtank_tui.core.plant import FULL_SCALE_V
+
+    out = []
+    for path in paths:
+        log, tsamp = read_sampled(path)
+        elements = {key: e.tf for key, e in ident.elements.items()}
+        cols = log.columns()
+        ym = simulate_linear(elements, ident.outputs, ident.inputs, cols, tsamp, path)
+        out += [figure(path, o, cols[o], ym[o], FULL_SCALE_V, gains.get(o, float("nan")), unit)
+                for o in ident.outputs]
+    return out
+
+
 def parse_start(items: list[str] | None) -> dict[str, object] | None:
     """`T=60 L=2` or `T=30,90` -> {"T": 60.0, "L": 2.0} / {"T": [30.0, 90.0]}."""
     if not items:
@@ -110,20 +162,24 @@ def run(args: argparse.Namespace) -> int:
     from quadtank_tui.core.identify.compare import compare
     from quadtank_tui.core.identify.experiment import Options, Record, identify
     from quadtank_tui.core.identify.report import format_report, to_dict
-    from quadtank_tui.files.log import read_log
     from quadtank_tui.files.model import from_identification, model_path, write_model
 
+    if args.method == "physical":
+        from quadtank_tui.commands import identify_physical
+
+        if args.figure is not None:
+            raise UsageError("--figure draws a linear model's validation; --method physical has none yet")
+        return identify_physical.run(args)
+    if args.free or args.offsets:
+        raise UsageError("--free and --offsets belong to --method physical")
     if not 0.0 <= args.validate < 1.0:
         raise UsageError(f"--validate must be a fraction in [0, 1), got {args.validate:g}")
     if args.order is not None and args.order < 1:
         raise UsageError(f"--order must be >= 1, got {args.order}")
     records = []
     for path in args.logs:
-        log = read_log(path)
-        warn(log.warnings)
-        if log.tsamp is None:
-            raise UsageError(f"{path}: no TSamp in the header: the sampling time is needed")
-        records.append(Record(path, log.tsamp, log.columns()))
+        log, tsamp = read_sampled(path)
+        records.append(Record(path, tsamp, log.columns()))
     opts = Options(method=args.method, inputs=tuple(args.inputs) if args.inputs else None,
                    outputs=tuple(args.outputs) if args.outputs else None, structure=args.structure,
                    n=args.n, order=args.order, zeros=args.zeros, delay=not args.no_delay,
@@ -136,6 +192,7 @@ def run(args: argparse.Namespace) -> int:
     elif all(k in ("u1", "u2") for k in ident.inputs) and all(k in ("y1", "y2") for k in ident.outputs):
         cmp = compare(ident.operating_point, params, ident.system.static_gains, ident.inputs,
                       ident.outputs, v_default)
+    validation = cross_validate(ident, args.validate_on or [], *_sensor_gains(args.par, params))
     saved = None
     if args.save is not None:
         target = Path(args.save) if args.save else model_path(args.logs[0])
@@ -150,11 +207,18 @@ def run(args: argparse.Namespace) -> int:
         out = to_dict(ident, cmp, name)
         if saved is not None:
             out["model_file"] = str(saved)
+        out["validation"] = [v.to_dict() for v in validation]
         if figure is not None:
             out["figure"] = str(figure)
         print(json.dumps(out, indent=2))
     else:
         print(format_report(ident, cmp, name))
+        if validation:
+            print("Validation on other logs (the model from rest at each log's first row):")
+            from quadtank_tui.commands.identify_physical import figure_line
+
+            for v in validation:
+                print(f"  {figure_line(v)}")
         if saved is not None:
             print(f"Model saved to {saved}")
         if figure is not None:

@@ -252,7 +252,7 @@ def format_par(params: Parameters, created: datetime) -> str:
         out += [f"{key} {text}" for s, key, text in params.extra if s == section]
     if params.process is not None:  # written only for another plant: quadtank files stay as they were
         out += ["", PLANT_SECTION]
-        out += [f"{k} {v if isinstance(v, str) else format_number(v)}" for k, v in params.process.entries()]
+        out += [f"{k} {v if isinstance(v, str) else format_number(v)}" for k, v in params.process.file_entries()]
     return "\n".join(out) + "\n"
 
 

@@ -189,6 +189,9 @@ class Plant(ABC):
     outlet_names: ClassVar[tuple[str, ...]] = ()
     #: Names of the valve splits (a drifting valve moves one), () without valves.
     valve_names: ClassVar[tuple[str, ...]] = ()
+    #: Constants of effects a real rig shows (an overflow, a pump threshold, a
+    #: sensor's range), off at 0: a `.par` file names them only when they are on.
+    effect_names: ClassVar[tuple[str, ...]] = ()
 
     @property
     def gravity(self) -> float:

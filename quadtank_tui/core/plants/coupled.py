@@ -50,6 +50,17 @@ def _positive(obj: object, names: Sequence[str]) -> None:
             raise PlantError(f"{name} must be a finite number > 0, got {value!r}")
 
 
+def _effects(obj: object, fraction: str, volts: Sequence[str], ranges: Sequence[str]) -> None:
+    """The real-rig effects: a fraction in [0, 1], a threshold and sensor ranges >= 0."""
+    value = getattr(obj, fraction)
+    if not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
+        raise PlantError(f"{fraction} must be in [0, 1], got {value!r}")
+    for name in (*volts, *ranges):
+        value = getattr(obj, name)
+        if not isinstance(value, (int, float)) or not 0.0 <= value < float("inf"):
+            raise PlantError(f"{name} must be a finite number >= 0 V, got {value!r}")
+
+
 def _spill(f: float, x: float, hmax: float) -> float:
     """A full tank rises no further: what would raise it leaves the process."""
     return 0.0 if x >= hmax and f > 0.0 else f
@@ -66,6 +77,16 @@ class CoupledCascade(Plant):
     kc1, kc2 : sensor gains, V/cm: the inverse of his calibrated sensor gains
         g1 = 5.4310, g2 = 5.5558 cm/V (2.3; his offsets b1, b2 are left to the DAQ map)
     vmax : pump amplifier range, V (3.2.1: 0 to 22 V)
+
+    What a real rig's logs show, each off at its default (0), so the published
+    figures stay as they are (a physical fit can free them, core.identify.physical):
+
+    spill1 : fraction of the upper tank's overflow that falls into the lower tank
+        (the rest leaves the process), [0, 1]
+    vmin : pump threshold, V: below it the pump moves no water, above it
+        beta1 (u - vmin)
+    ysat1, ysat2 : sensor ranges, V: a reading saturates there (0: the sensor
+        covers the whole tank)
     """
 
     alpha1: float = 0.0097909
@@ -76,18 +97,27 @@ class CoupledCascade(Plant):
     kc1: float = 1.0 / 5.4310
     kc2: float = 1.0 / 5.5558
     vmax: float = 22.0
+    spill1: float = 0.0
+    vmin: float = 0.0
+    ysat1: float = 0.0
+    ysat2: float = 0.0
 
     kind = "coupled-cascade"
     title = "coupled tanks, cascade (Quanser, Desautel)"
     units: ClassVar[dict[str, str]] = {
         "alpha1": "orifice coef.", "alpha2": "orifice coef.", "beta1": "cm/(V s)", "g": "cm/s²",
-        "hmax": "cm", "kc1": "V/cm", "kc2": "V/cm", "vmax": "V"}
+        "hmax": "cm", "kc1": "V/cm", "kc2": "V/cm", "vmax": "V", "spill1": "fraction", "vmin": "V",
+        "ysat1": "V", "ysat2": "V"}
     outlet_names = ("alpha1", "alpha2")
+    effect_names = ("spill1", "vmin", "ysat1", "ysat2")
     #: The loop controls the lower tank (Desautel: c = [0 1]).
     controlled: ClassVar[tuple[int, ...]] = (1,)
 
     def __post_init__(self) -> None:
         _positive(self, ("alpha1", "alpha2", "beta1", "g", "hmax", "kc1", "kc2", "vmax"))
+        _effects(self, "spill1", ("vmin",), ("ysat1", "ysat2"))
+        if self.vmin >= self.vmax:
+            raise PlantError(f"vmin must be below vmax = {self.vmax:g} V, got {self.vmin!r}")
 
     @property
     def states(self) -> tuple[Signal, ...]:
@@ -99,7 +129,9 @@ class CoupledCascade(Plant):
 
     @property
     def outputs(self) -> tuple[Signal, ...]:
-        return (Signal("y1", "V", 0.0, self.kc1 * self.hmax), Signal("y2", "V", 0.0, self.kc2 * self.hmax))
+        top = [k * self.hmax if not s > 0.0 else min(k * self.hmax, s)
+               for k, s in ((self.kc1, self.ysat1), (self.kc2, self.ysat2))]
+        return (Signal("y1", "V", 0.0, top[0]), Signal("y2", "V", 0.0, top[1]))
 
     def layout(self) -> Layout:
         return Layout(
@@ -111,13 +143,28 @@ class CoupledCascade(Plant):
     def _q(self, x: float, alpha: float) -> float:
         return orifice_flow(max(x, 0.0), alpha, self.g, FILM_CM)
 
+    def _pump(self, u: float) -> float:
+        """Pump flow (cm/s of level in tank 1) at u V: beta1 u, less the threshold."""
+        v = min(max(u, 0.0), self.vmax)
+        if self.vmin > 0.0:
+            v = max(v - self.vmin, 0.0)
+        return self.beta1 * v
+
     def rhs(self, x: Sequence[float], u: Sequence[float]) -> Vector:
-        v = min(max(u[0], 0.0), self.vmax)
         q1, q2 = self._q(x[0], self.alpha1), self._q(x[1], self.alpha2)
-        return (_spill(self.beta1 * v - q1, x[0], self.hmax), _spill(q1 - q2, x[1], self.hmax))
+        f1 = self._pump(u[0]) - q1
+        f2 = q1 - q2
+        if self.spill1 > 0.0 and x[0] >= self.hmax and f1 > 0.0:
+            f2 += self.spill1 * f1  # the tanks have one cross-section: level rate = flow
+        return (_spill(f1, x[0], self.hmax), _spill(f2, x[1], self.hmax))
 
     def output(self, x: Sequence[float]) -> Vector:
-        return (self.kc1 * x[0], self.kc2 * x[1])
+        y1, y2 = self.kc1 * x[0], self.kc2 * x[1]
+        if self.ysat1 > 0.0:
+            y1 = min(y1, self.ysat1)
+        if self.ysat2 > 0.0:
+            y2 = min(y2, self.ysat2)
+        return (y1, y2)
 
     def jacobians(self, x0: Sequence[float], u0: Sequence[float]) -> tuple[Any, Any, Any]:
         """Desautel (2.1.13): A = [[-l1, 0], [l1, -l2]], l_i = alpha_i sqrt(g / (2 x_i))."""
@@ -127,8 +174,12 @@ class CoupledCascade(Plant):
 
     def steady_state(self, u: Sequence[float]) -> Vector:
         (v,) = self.saturate(u)
-        x1 = min(head_for_flow(self.beta1 * v, self.alpha1, self.g, FILM_CM), self.hmax)
-        x2 = min(head_for_flow(self._q(x1, self.alpha1), self.alpha2, self.g, FILM_CM), self.hmax)
+        q = self._pump(v)
+        x1 = min(head_for_flow(q, self.alpha1, self.g, FILM_CM), self.hmax)
+        into2 = self._q(x1, self.alpha1)
+        if self.spill1 > 0.0 and x1 >= self.hmax:
+            into2 += self.spill1 * max(q - into2, 0.0)
+        x2 = min(head_for_flow(into2, self.alpha2, self.g, FILM_CM), self.hmax)
         return (x1, x2)
 
     def steady_inputs(self, levels: Sequence[float | None]) -> OperatingPoint:
@@ -146,7 +197,7 @@ class CoupledCascade(Plant):
             _check_level("x2", x2, self.hmax)
             q = self._q(x2, self.alpha2)
             x1 = head_for_flow(q, self.alpha1, self.g, FILM_CM)
-        u = q / self.beta1
+        u = q / self.beta1 + (self.vmin if q > 0.0 else 0.0)
         if x1 > self.hmax or x2 > self.hmax:
             raise SteadyStateError(f"levels ({x1:.3g}, {x2:.3g}) cm: a tank would overflow ({self.hmax:g} cm)")
         if u > self.vmax:

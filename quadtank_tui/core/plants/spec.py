@@ -130,6 +130,12 @@ class PlantSpec:
         return [(KIND_KEY, self.kind), *self.values,
                 *((level_key(i), x) for i, x in enumerate(self.levels))]
 
+    def file_entries(self) -> list[tuple[str, float | str]]:
+        """What a `.par` file writes: the entries less the real-rig effects that are
+        off (Plant.effect_names at 0), so a file without them reads back the same."""
+        off = {k for k in KINDS[self.kind].effect_names if dict(self.values).get(k) == 0.0}
+        return [(k, v) for k, v in self.entries() if k not in off]
+
 
 def spec_from_entries(entries: dict[str, str], number: Callable[[str, str], float]) -> PlantSpec | None:
     """Build the spec from a PLANT section's raw entries; None for `Kind quadtank`
