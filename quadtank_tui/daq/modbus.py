@@ -138,6 +138,7 @@ class ModbusBackend(ProcessBackend):
         self._watch()
         volts = self._read_volts()  # a dead link fails here first, and says so, before the arming
         self._arm_if_pending()
+        self._feed_if_due()
         levels = self.levels_from_volts(volts)
         self.interlock.update(self.height_fractions(volts))
         return levels
@@ -161,6 +162,7 @@ class ModbusBackend(ProcessBackend):
         applied = self.interlock.cut(u)
         self._write_volts([self._output_volts(i, applied[i]) for i in range(len(self._pumps))])
         self.applied = applied
+        self._feed_if_due()
 
     def written(self, requested: Pair) -> Pair:
         return self.applied
@@ -219,7 +221,7 @@ class ModbusBackend(ProcessBackend):
 
     def _watch(self) -> None:
         """Before a sample's request: a silence longer than the watchdog timeout ends
-        Active control (BackendError); the feed is written."""
+        Active control (BackendError)."""
         if self.watch_timeout is None:
             return
         now = self._clock()
@@ -232,9 +234,13 @@ class ModbusBackend(ProcessBackend):
                 f"no request reached the rig for {gap:.1f} s, longer than the watchdog timeout "
                 f"{self.watch_timeout:g} s (this program was stopped or the machine suspended); {wd}. "
                 "Active control ends here: Run starts it again")
-        wd_decl = self.config.watchdog
-        if (wd_decl is not None and wd_decl.feed is not None and not self._arm_pending
-                and now - self._last_feed > self.watch_timeout / 4):
+
+    def _feed_if_due(self) -> None:
+        """After a sample's request (so a dead link is reported by the read or the
+        write it broke, as without a watchdog): the feed, every quarter timeout."""
+        wd_decl, now = self.config.watchdog, self._clock()
+        if (wd_decl is not None and wd_decl.feed is not None and self.watch_timeout is not None
+                and not self._arm_pending and now - self._last_feed > self.watch_timeout / 4):
             feed = wd_decl.feed
             self._request(f"feed of the watchdog (holding register {feed.address})",
                           lambda: self._write(feed.address, encode(feed, 0.0)))
@@ -271,6 +277,7 @@ class ModbusBackend(ProcessBackend):
             except OSError as exc:
                 raise BackendError(f"cannot start the guard process: {exc}") from None
         self._arm_pending = False
+        self._last_feed = self._clock()  # arming has just cleared the device's timer
 
     def _read_setting(self, what: str, reg: Register) -> float:
         words = self._request(f"arming the watchdog: reading {what} (holding register {reg.address})",

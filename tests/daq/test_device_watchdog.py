@@ -107,6 +107,9 @@ def test_active_control_arms_the_watchdog_and_an_orderly_end_disarms_it(device: 
     backend.read_levels()
     assert written == [61600] and wd.enabled
     backend.read_levels()
+    assert written == [61600]                         # arming has just cleared the timer: no feed yet
+    clock.now += 0.6
+    backend.read_levels()
     assert written == [61600, 61614]                  # the feed, as often as a quarter of the timeout
     backend.safe_state()
     backend.close()
