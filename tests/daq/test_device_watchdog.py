@@ -168,3 +168,41 @@ def test_the_guard_of_a_dead_program_stops_the_pumps_and_disarms_the_watchdog(de
         f"or it crashed); pumps (DAC0, DAC1) set to 0 over the guard's own connection to 127.0.0.1:{c.port}; "
         "its watchdog disarmed\n")
     backend.close()
+
+
+def test_a_new_sampling_time_gives_the_guard_the_new_timeout(
+        device: Callable[..., Any], monkeypatch: pytest.MonkeyPatch) -> None:
+    """TSamp 0.1 s -> 5 s while driven: the device's watchdog is re-armed with 10 s,
+    and so must the guard be - with the old 1 s it zeroed the pumps of a program
+    stopped for 4 s, which then drove them again with no fault (review of issue 24)."""
+    import quadtank_tui.daq.modbus as modbus
+
+    started: list[Any] = []
+    released: list[float] = []
+
+    class FakeGuard:
+        def __init__(self, spec: Any) -> None:
+            self.spec = spec
+            started.append(spec)
+
+        def release(self, wait: float = 1.0) -> None:
+            released.append(self.spec.gap)
+
+    monkeypatch.setattr(modbus, "Guard", FakeGuard)
+    clock, rig, _, _ = _rig_and_backend(device)
+    d = device((0.0,) * 4, bank=rig)
+    backend = ModbusBackend(d.config(), clock=clock)
+    backend.arm(0.1)
+    backend.write_pumps((0.3, 0.3))
+    assert [s.gap for s in started] == [1.0] and released == []
+    backend.arm(5.0)
+    backend.read_levels()
+    assert rig.watchdog is not None and rig.watchdog.timeout == 10.0
+    assert [s.gap for s in started] == [1.0, 10.0] and released == [1.0]
+    assert backend.guard is not None and backend.guard.spec.gap == 10.0
+    backend.arm(5.0)                                  # the same timeout: the same guard
+    backend.read_levels()
+    assert len(started) == 2
+    backend.safe_state()
+    backend.close()
+    assert released == [1.0, 10.0]
