@@ -222,6 +222,13 @@ class ModbusBackend(ProcessBackend):
         Active control (BackendError); the feed is written."""
         if self.watch_timeout is None:
             return
+        status = self.guard.ended() if self.guard is not None else None
+        if status is not None:  # nothing would stop the pumps should this program die now
+            self.guard = None
+            self._arm_pending = True  # Run starts a new one
+            raise BackendError(
+                f"the guard process ended (exit status {status}): nothing would stop the pumps if this "
+                "program died. Active control ends here: Run starts it again with a new guard")
         now = self._clock()
         if self._last_exchange is not None and now - self._last_exchange > self.watch_timeout:
             gap = now - self._last_exchange

@@ -185,6 +185,9 @@ def test_a_new_sampling_time_gives_the_guard_the_new_timeout(
             self.spec = spec
             started.append(spec)
 
+        def ended(self) -> int | None:
+            return None
+
         def release(self, wait: float = 1.0) -> None:
             released.append(self.spec.gap)
 
@@ -206,3 +209,58 @@ def test_a_new_sampling_time_gives_the_guard_the_new_timeout(
     backend.safe_state()
     backend.close()
     assert released == [1.0, 10.0]
+
+
+def _wait(cond: Callable[[], bool], seconds: float) -> bool:
+    import time
+
+    deadline = time.monotonic() + seconds
+    while not cond():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True
+
+
+def _driven_with_a_guard(device: Callable[..., Any]) -> tuple[ModbusBackend, Any]:
+    """A backend driving the pumps at TSamp 0.1 s with a real guard process."""
+    clock, rig, _, _ = _rig_and_backend(device)
+    backend = ModbusBackend(device((0.0,) * 4, bank=rig).config(), clock=clock)
+    backend.arm(0.1)
+    backend.write_pumps((0.3, 0.3))
+    assert backend.guard is not None
+    return backend, backend.guard
+
+
+@pytest.mark.wallclock
+def test_a_dead_guard_ends_active_control_and_run_starts_a_new_one(device: Callable[..., Any]) -> None:
+    """The guard killed (its user, the OOM killer) while the program drives on: the
+    next sample says so and pauses, instead of driving unguarded - after which a
+    SIGKILL of the program left a map with `watchdog: none` at 3 V (review of issue 24)."""
+    import os
+    import signal
+
+    backend, guard = _driven_with_a_guard(device)
+    os.kill(guard.pid, signal.SIGKILL)
+    assert _wait(lambda: guard.ended() is not None, 10.0)
+    with pytest.raises(BackendError, match=r"^the guard process ended \(exit status -9\): nothing would stop "
+                       r"the pumps if this program died\. Active control ends here"):
+        backend.read_levels()
+    backend.safe_state()
+    backend.read_levels()                             # the next sample starts a new guard
+    assert backend.guard is not None and backend.guard.pid != guard.pid and backend.guard.ended() is None
+    backend.close()
+
+
+@pytest.mark.wallclock
+def test_the_guard_ignores_a_quadtank_tui_folder_in_the_current_folder(
+        device: Callable[..., Any], tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`quadtank run --daq` started in a folder holding another `quadtank_tui/` (a
+    checkout of another version): the guard imported that one and died at start."""
+    (tmp_path / "quadtank_tui").mkdir()
+    (tmp_path / "quadtank_tui" / "__init__.py").write_text('raise ImportError("another checkout")\n')
+    monkeypatch.chdir(tmp_path)
+    backend, guard = _driven_with_a_guard(device)
+    assert not _wait(lambda: guard._proc.poll() is not None, 2.0), "the guard died at start"
+    backend.safe_state()
+    backend.close()
