@@ -66,9 +66,12 @@ class Guard:
 
     def __init__(self, spec: GuardSpec) -> None:
         self.spec = spec
+        # -P and cwd "/": the guard imports this installation's package, never a
+        # `quadtank_tui/` in the user's current folder (a checkout of another version
+        # killed it at start with an ImportError, and the run drove on unguarded).
         self._proc = subprocess.Popen(
-            [sys.executable, "-m", "quadtank_tui.daq.guard"], stdin=subprocess.PIPE,
-            stdout=subprocess.DEVNULL, start_new_session=True, close_fds=True,
+            [sys.executable, "-P", "-m", "quadtank_tui.daq.guard"], stdin=subprocess.PIPE,
+            stdout=subprocess.DEVNULL, start_new_session=True, close_fds=True, cwd="/",
         )
         assert self._proc.stdin is not None
         self._pipe: IO[bytes] | None = self._proc.stdin
@@ -78,6 +81,12 @@ class Guard:
     @property
     def pid(self) -> int:
         return self._proc.pid
+
+    def ended(self) -> int | None:
+        """The guard's exit status if it has ended (killed, or it failed to start), else None."""
+        if self._pipe is None:
+            return None  # released: its end is the orderly one
+        return self._proc.poll()
 
     def release(self, wait: float = 1.0) -> None:
         """The orderly end (pumps already at 0): the guard ends without writing."""

@@ -224,6 +224,13 @@ class ModbusBackend(ProcessBackend):
         Active control (BackendError)."""
         if self.watch_timeout is None:
             return
+        status = self.guard.ended() if self.guard is not None else None
+        if status is not None:  # nothing would stop the pumps should this program die now
+            self.guard = None
+            self._arm_pending = True  # Run starts a new one
+            raise BackendError(
+                f"the guard process ended (exit status {status}): nothing would stop the pumps if this "
+                "program died. Active control ends here: Run starts it again with a new guard")
         now = self._clock()
         if self._last_exchange is not None and now - self._last_exchange > self.watch_timeout:
             gap = now - self._last_exchange
@@ -266,16 +273,24 @@ class ModbusBackend(ProcessBackend):
                 self._request(f"arming the watchdog: {what} (holding register {reg.address})",
                               lambda reg=reg, value=value: self._write(reg.address, encode(reg, value)))  # type: ignore[misc]
             self._armed = True
-        if self.guard is None and self._use_guard:
+        # A guard watching with another timeout (the sampling time changed while
+        # driven) is replaced: with the old, shorter one it would zero the pumps of a
+        # program that is not late (and they would silently come back); with the old,
+        # longer one a device without a watchdog would pump on for longer.  The new
+        # guard starts before the old one is told its end: never a moment unwatched.
+        if self._use_guard and (self.guard is None or self.guard.spec.gap != timeout):
             c = self.config
             writes_spec = [(c.channels[p], o.register.address, encode(o.register, c.stop_volts(c.channels[p])))
                            for p, o in zip(c.pump_channels, self._pumps)]
             disarm = [] if wd is None else [("watchdog enable", wd.enable.address, encode(wd.enable, 0.0))]
+            old = self.guard
             try:
                 self.guard = Guard(GuardSpec(os.getpid(), c.host, c.port, c.device_id, c.timeout,
                                              writes_spec, timeout, disarm=disarm))
             except OSError as exc:
                 raise BackendError(f"cannot start the guard process: {exc}") from None
+            if old is not None:
+                old.release(wait=0.0)  # it ends at once on the word; a sample does not wait for it
         self._arm_pending = False
         self._last_feed = self._clock()  # arming has just cleared the device's timer
 

@@ -171,3 +171,99 @@ def test_the_guard_of_a_dead_program_stops_the_pumps_and_disarms_the_watchdog(de
         f"or it crashed); pumps (DAC0, DAC1) set to 0 over the guard's own connection to 127.0.0.1:{c.port}; "
         "its watchdog disarmed\n")
     backend.close()
+
+
+def test_a_new_sampling_time_gives_the_guard_the_new_timeout(
+        device: Callable[..., Any], monkeypatch: pytest.MonkeyPatch) -> None:
+    """TSamp 0.1 s -> 5 s while driven: the device's watchdog is re-armed with 10 s,
+    and so must the guard be - with the old 1 s it zeroed the pumps of a program
+    stopped for 4 s, which then drove them again with no fault (review of issue 24)."""
+    import quadtank_tui.daq.modbus as modbus
+
+    started: list[Any] = []
+    released: list[float] = []
+
+    class FakeGuard:
+        def __init__(self, spec: Any) -> None:
+            self.spec = spec
+            started.append(spec)
+
+        def ended(self) -> int | None:
+            return None
+
+        def release(self, wait: float = 1.0) -> None:
+            released.append(self.spec.gap)
+
+    monkeypatch.setattr(modbus, "Guard", FakeGuard)
+    clock, rig, _, _ = _rig_and_backend(device)
+    d = device((0.0,) * 4, bank=rig)
+    backend = ModbusBackend(d.config(), clock=clock)
+    backend.arm(0.1)
+    backend.write_pumps((0.3, 0.3))
+    assert [s.gap for s in started] == [1.0] and released == []
+    backend.arm(5.0)
+    backend.read_levels()
+    assert rig.watchdog is not None and rig.watchdog.timeout == 10.0
+    assert [s.gap for s in started] == [1.0, 10.0] and released == [1.0]
+    assert backend.guard is not None and backend.guard.spec.gap == 10.0
+    backend.arm(5.0)                                  # the same timeout: the same guard
+    backend.read_levels()
+    assert len(started) == 2
+    backend.safe_state()
+    backend.close()
+    assert released == [1.0, 10.0]
+
+
+def _wait(cond: Callable[[], bool], seconds: float) -> bool:
+    import time
+
+    deadline = time.monotonic() + seconds
+    while not cond():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True
+
+
+def _driven_with_a_guard(device: Callable[..., Any]) -> tuple[ModbusBackend, Any]:
+    """A backend driving the pumps at TSamp 0.1 s with a real guard process."""
+    clock, rig, _, _ = _rig_and_backend(device)
+    backend = ModbusBackend(device((0.0,) * 4, bank=rig).config(), clock=clock)
+    backend.arm(0.1)
+    backend.write_pumps((0.3, 0.3))
+    assert backend.guard is not None
+    return backend, backend.guard
+
+
+@pytest.mark.wallclock
+def test_a_dead_guard_ends_active_control_and_run_starts_a_new_one(device: Callable[..., Any]) -> None:
+    """The guard killed (its user, the OOM killer) while the program drives on: the
+    next sample says so and pauses, instead of driving unguarded - after which a
+    SIGKILL of the program left a map with `watchdog: none` at 3 V (review of issue 24)."""
+    import os
+    import signal
+
+    backend, guard = _driven_with_a_guard(device)
+    os.kill(guard.pid, signal.SIGKILL)
+    assert _wait(lambda: guard.ended() is not None, 10.0)
+    with pytest.raises(BackendError, match=r"^the guard process ended \(exit status -9\): nothing would stop "
+                       r"the pumps if this program died\. Active control ends here"):
+        backend.read_levels()
+    backend.safe_state()
+    backend.read_levels()                             # the next sample starts a new guard
+    assert backend.guard is not None and backend.guard.pid != guard.pid and backend.guard.ended() is None
+    backend.close()
+
+
+@pytest.mark.wallclock
+def test_the_guard_ignores_a_quadtank_tui_folder_in_the_current_folder(
+        device: Callable[..., Any], tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`quadtank run --daq` started in a folder holding another `quadtank_tui/` (a
+    checkout of another version): the guard imported that one and died at start."""
+    (tmp_path / "quadtank_tui").mkdir()
+    (tmp_path / "quadtank_tui" / "__init__.py").write_text('raise ImportError("another checkout")\n')
+    monkeypatch.chdir(tmp_path)
+    backend, guard = _driven_with_a_guard(device)
+    assert not _wait(lambda: guard._proc.poll() is not None, 2.0), "the guard died at start"
+    backend.safe_state()
+    backend.close()
