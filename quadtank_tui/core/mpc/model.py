@@ -21,6 +21,7 @@ that names them.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
@@ -89,9 +90,13 @@ class MPCModel:
         with the disturbance d acting; r may be one reference or one per row."""
         rr = np.atleast_2d(r)
         rhs = np.concatenate([np.tile(self.Bd @ d, (rr.shape[0], 1)), rr - self.Czd @ d], axis=1)
-        sol = np.linalg.solve(self._target_matrix(), rhs.T).T
+        sol = rhs @ self._target_inverse.T
         xs, us = sol[:, : self.n], sol[:, self.n:]
         return (xs, us) if np.ndim(r) > 1 else (xs[0], us[0])
+
+    @cached_property
+    def _target_inverse(self) -> np.ndarray:
+        return np.linalg.inv(self._target_matrix())
 
     def _target_matrix(self) -> np.ndarray:
         n, m = self.n, self.m

@@ -192,22 +192,19 @@ class SparseQP:
         and the input applied last (all deviations)."""
         mdl, w, N, n = self.model, self.w, self.N, self.model.n
         q = np.zeros(self.nv)
-        for k in range(1, N):
-            q[self.xi(k)] = -2.0 * w.Q @ xs[k]
-        for k in range(N):
-            q[self.ui(k)] = -2.0 * w.R @ us[k]
+        q[n: N * n] = (-2.0 * xs[1:N] @ w.Q.T).ravel()  # x_1 .. x_{N-1}
+        q[self.nx: self.nx + self.nu] = (-2.0 * us[:N] @ w.R.T).ravel()
         q[self.ui(0)] += -2.0 * w.S @ u_prev
-        zN = np.concatenate([xs[N], us[N]])
-        tN = -2.0 * w.P @ zN
+        tN = -2.0 * w.P @ np.concatenate([xs[N], us[N]])
         q[self.xi(N)] += tN[:n]
         q[self.ui(N - 1)] += tN[n:]
         q[self.si] = self.settings.slack_weight / mdl.y_scale
         lo, hi = self._lo.copy(), self._hi.copy()
-        lo[self._eq_rows["x0"]] = hi[self._eq_rows["x0"]] = x0
-        bd = np.tile(mdl.Bd @ d, N)
-        lo[self._eq_rows["dyn"]] = hi[self._eq_rows["dyn"]] = bd
-        if "rate" in self._eq_rows:
-            first = slice(self._eq_rows["rate"].start, self._eq_rows["rate"].start + mdl.m)
+        rows = self._eq_rows
+        lo[rows["x0"]] = hi[rows["x0"]] = x0
+        lo[rows["dyn"]] = hi[rows["dyn"]] = np.tile(mdl.Bd @ d, N)
+        if "rate" in rows:
+            first = slice(rows["rate"].start, rows["rate"].start + mdl.m)
             lo[first] += u_prev
             hi[first] += u_prev
         return q, lo, hi
