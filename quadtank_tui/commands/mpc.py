@@ -80,10 +80,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def mpc_settings(params: Any) -> Any:
-    """The MPC settings of the parameters (the defaults until a file holds them)."""
-    from quadtank_tui.core.mpc.settings import MPCSettings
-
-    return getattr(params, "mpc", None) or MPCSettings()
+    """The MPC settings of the parameters (the file's MPC section, else the defaults)."""
+    return params.mpc
 
 
 def _replace(s: Any, **changes: Any) -> Any:

@@ -33,7 +33,7 @@ DISTURBANCE_MODELS = ("input", "output")
 ALL = "all"
 
 
-def parse_measured(text: str, key: str = f"{SECTION}.Measured") -> tuple[int, ...]:
+def parse_measured(text: str, key: str = "Measured") -> tuple[int, ...]:
     """1-based tank numbers from text like "1 2" (sorted, no repeats); () for "all"."""
     words = text.replace(",", " ").split()
     if len(words) == 1 and words[0].lower() == ALL:
@@ -66,23 +66,23 @@ class MPCSettings:
     def __post_init__(self) -> None:
         for key, value, lo, hi in (("Horizon", self.horizon, 1, 1000), ("ControlHorizon", self.control_horizon, 0, 1000)):
             if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-                raise ParameterError(f"{SECTION}.{key}", f"must be a whole number in {lo}..{hi}, got {value!r}")
+                raise ParameterError(key, f"must be a whole number in {lo}..{hi}, got {value!r}")
         if self.control_horizon > self.horizon:
-            raise ParameterError(f"{SECTION}.ControlHorizon",
+            raise ParameterError("ControlHorizon",
                                  f"{self.control_horizon} is longer than the horizon ({self.horizon})")
-        check_range(f"{SECTION}.OutputWeight", self.output_weight, 0.0, 1e6, lo_open=True)
-        check_range(f"{SECTION}.InputWeight", self.input_weight, 0.0, 1e6, lo_open=True)
-        check_range(f"{SECTION}.RateWeight", self.rate_weight, 0.0, 1e6)
-        check_range(f"{SECTION}.RateLimit", self.rate_limit, 0.0, 1e3)
-        check_range(f"{SECTION}.LevelMargin", self.level_margin, 0.0, 50.0)
-        check_range(f"{SECTION}.SlackWeight", self.slack_weight, 0.0, 1e9, lo_open=True)
+        check_range("OutputWeight", self.output_weight, 0.0, 1e6, lo_open=True)
+        check_range("InputWeight", self.input_weight, 0.0, 1e6, lo_open=True)
+        check_range("RateWeight", self.rate_weight, 0.0, 1e6)
+        check_range("RateLimit", self.rate_limit, 0.0, 1e3)
+        check_range("LevelMargin", self.level_margin, 0.0, 50.0)
+        check_range("SlackWeight", self.slack_weight, 0.0, 1e9, lo_open=True)
         if not isinstance(self.preview, bool):
-            raise ParameterError(f"{SECTION}.Preview", "must be 0 or 1")
+            raise ParameterError("Preview", "must be 0 or 1")
         if self.disturbance not in DISTURBANCE_MODELS:
-            raise ParameterError(f"{SECTION}.Disturbance",
+            raise ParameterError("Disturbance",
                                  f"must be one of {', '.join(DISTURBANCE_MODELS)}, got {self.disturbance!r}")
         if not isinstance(self.measured, str):
-            raise ParameterError(f"{SECTION}.Measured", f"must be text, got {self.measured!r}")
+            raise ParameterError("Measured", f"must be text, got {self.measured!r}")
         parse_measured(self.measured)
 
     @property

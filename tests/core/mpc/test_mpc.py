@@ -175,9 +175,9 @@ def test_every_shipped_plant_designs(name: str) -> None:
 
 
 @pytest.mark.parametrize("changes, key", [
-    (dict(horizon=0), "MPC.Horizon"), (dict(horizon=10, control_horizon=11), "MPC.ControlHorizon"),
-    (dict(input_weight=0.0), "MPC.InputWeight"), (dict(disturbance="state"), "MPC.Disturbance"),
-    (dict(measured="1 x"), "MPC.Measured"), (dict(preview=2), "MPC.Preview")])
+    (dict(horizon=0), "Horizon"), (dict(horizon=10, control_horizon=11), "ControlHorizon"),
+    (dict(input_weight=0.0), "InputWeight"), (dict(disturbance="state"), "Disturbance"),
+    (dict(measured="1 x"), "Measured"), (dict(preview=2), "Preview")])
 def test_bad_settings_name_the_key(changes: dict, key: str) -> None:
     with pytest.raises(ParameterError) as err:
         MPCSettings(**changes)
