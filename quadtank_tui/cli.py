@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 
 from quadtank_tui.commands import UsageError, icad, pause_gc, warn
 from quadtank_tui.commands.design import add_parser as add_design_parser
-from quadtank_tui.commands import logview, statefb
+from quadtank_tui.commands import logview, mpc, statefb
 from quadtank_tui.commands import plot as plot_command
 from quadtank_tui.commands import identify as identify_command
 from quadtank_tui.commands import sessions as sessions_command
@@ -380,6 +380,7 @@ def build_parser() -> argparse.ArgumentParser:
     icad.add_parser(sub)
     add_design_parser(sub)
     statefb.add_parser(sub)
+    mpc.add_parser(sub)
     identify_command.add_parser(sub)
     sessions_command.add_parsers(sub)
     lab_command.add_parser(sub)

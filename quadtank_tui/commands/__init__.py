@@ -5,7 +5,10 @@ UsageError and warn.  Here rather than in cli.py, which imports these modules.""
 from __future__ import annotations
 
 import sys
-from typing import Iterable
+from typing import TYPE_CHECKING, Iterable
+
+if TYPE_CHECKING:
+    from quadtank_tui.core.parameters import Parameters
 
 
 class UsageError(Exception):
@@ -16,6 +19,20 @@ def warn(warnings: Iterable[str]) -> None:
     """Each warning of a file read (`.par`, `.log`) as one line on stderr."""
     for w in warnings:
         print(f"quadtank: warning: {w}", file=sys.stderr)
+
+
+def params_of(par: str | None) -> tuple[Parameters, str]:
+    """The parameters of a `.par` file (its warnings on stderr) and its name, or the
+    built-in preset without one."""
+    from quadtank_tui.core.parameters import PRESET
+
+    if par is None:
+        return PRESET, "built-in preset"
+    from quadtank_tui.files.par import read_par
+
+    read = read_par(par)
+    warn(read.warnings)
+    return read.params, par
 
 
 def pause_gc() -> None:

@@ -13,7 +13,7 @@ import argparse
 import json
 from typing import Any
 
-from quadtank_tui.commands import warn
+from quadtank_tui.commands import params_of
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -37,17 +37,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from quadtank_tui.core.parameters import PRESET, STATEFB_SECTION, TSAMP, TSAMP_MAX_MS, TSAMP_MIN_MS
+    from quadtank_tui.core.parameters import STATEFB_SECTION, TSAMP, TSAMP_MAX_MS, TSAMP_MIN_MS
     from quadtank_tui.core.statefb.in_use import design_in_use
     from quadtank_tui.core.validation import ParameterError
 
-    params, source = PRESET, "built-in preset"
-    if args.par is not None:
-        from quadtank_tui.files.par import read_par
-
-        read = read_par(args.par)
-        warn(read.warnings)
-        params, source = read.params, args.par
+    params, source = params_of(args.par)
     changes: dict[str, Any] = {}
     if args.ts is not None:
         changes[f"{STATEFB_SECTION}.Ts"] = args.ts

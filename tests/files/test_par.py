@@ -80,7 +80,10 @@ def test_format_starts_like_the_original() -> None:
     assert text.endswith("\nLOGGING\nPoints 5000\nLogFile data\nVariables y1 y2 u1 u2\n\n"
                          "PLOTS\nUpper u1 u2\nLower y1 y2 ref1 ref2\n\n"
                          "STATE FEEDBACK\nTs 60.000000\nPoles zeros\nL3 1.000000\nSmart 1\n"
-                         "LevelMargin 2.000000\nLevel1 12.400000\nLevel2 12.700000\n")
+                         "LevelMargin 2.000000\nLevel1 12.400000\nLevel2 12.700000\n\n"
+                         "MPC\nHorizon 30\nControlHorizon 0\nOutputWeight 1.000000\nInputWeight 0.010000\n"
+                         "RateWeight 0.000000\nRateLimit 0.000000\nLevelMargin 1.000000\nPreview 1\n"
+                         "Disturbance input\nMeasured all\nSlackWeight 1000.000000\n")
 
 
 @pytest.mark.parametrize(
@@ -181,7 +184,7 @@ def test_unknown_sections_and_keys_are_kept_and_reported() -> None:
     )
     out = format_par(read.params, STAMP)
     assert "Sensor 0.500000\nFlowMeter 3.2\n\nLOGGING\n" in out
-    assert out.endswith("\nLevel2 12.700000\n\nWINDOWS\nMainX 10\nMainY 20\n")
+    assert out.endswith("\nSlackWeight 1000.000000\n\nWINDOWS\nMainX 10\nMainY 20\n")
     assert parse_par(out).params == read.params
 
 

@@ -33,8 +33,8 @@ def test_the_type_and_the_section_round_trip() -> None:
     })
     text = format_par(p, STAMP)
     assert "\nCONTROL\nMode Manual\nType State feedback\nStructure Decentralized\n" in text
-    assert text.endswith("\nSTATE FEEDBACK\nTs 45.000000\nPoles -0.0575 -0.0225 -0.2+0.1j -0.2-0.1j\n"
-                         "L3 1.385000\nSmart 0\nLevelMargin 1.500000\nLevel1 10.000000\nLevel2 11.000000\n")
+    assert ("\nSTATE FEEDBACK\nTs 45.000000\nPoles -0.0575 -0.0225 -0.2+0.1j -0.2-0.1j\n"
+            "L3 1.385000\nSmart 0\nLevelMargin 1.500000\nLevel1 10.000000\nLevel2 11.000000\n\nMPC\n") in text
     back = parse_par(text).params
     assert back == p
     assert back.statefb.pole_values() == (-0.0575, -0.0225, -0.2 + 0.1j, -0.2 - 0.1j)

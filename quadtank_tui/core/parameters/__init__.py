@@ -42,6 +42,7 @@ from quadtank_tui.core.parameters.constants import (
     POINTS_MAX,
     POINTS_MAX_ORIGINAL,
     REFERENCE_SECTIONS,
+    MPC_SECTION,
     STATEFB_SECTION,
     TSAMP,
     TSAMP_MAX_MS,
@@ -68,7 +69,7 @@ from quadtank_tui.core.parameters.settings import (
 __all__ = [
     "CONTROLLER_SECTIONS", "KEYS", "MAX_ABS", "NAMED_SETTINGS", "OP_POINT_MIN",
     "PLANT_SETTINGS", "POINTS_MAX", "POINTS_MAX_ORIGINAL", "PRESET", "REFERENCE_SECTIONS",
-    "SECTIONS", "STATEFB_SECTION", "TSAMP", "TSAMP_MAX_MS", "TSAMP_MIN_MS",
+    "MPC_SECTION", "SECTIONS", "STATEFB_SECTION", "TSAMP", "TSAMP_MAX_MS", "TSAMP_MIN_MS",
     "ControlMode", "ControlSettings", "ControllerElement", "Family", "Kind", "KeySpec", "LoggingSettings",
     "Parameters", "PlotSettings", "SimulationSettings", "Structure",
     "from_plant", "from_setting", "iter_keys", "keys_of", "spec",

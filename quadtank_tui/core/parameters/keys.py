@@ -13,11 +13,13 @@ from enum import Enum
 from typing import Any, Iterator
 
 from quadtank_tui.core.matrix import Family, Structure
+from quadtank_tui.core.mpc.settings import DISTURBANCE_MODELS
 from quadtank_tui.core.parameters.checks import whole
 from quadtank_tui.core.parameters.constants import (
     CONTROLLER_SECTIONS,
     MAX_ABS,
     REFERENCE_SECTIONS,
+    MPC_SECTION,
     STATEFB_SECTION,
     ControlMode,
 )
@@ -157,6 +159,20 @@ def _build_keys() -> tuple[KeySpec, ...]:
         KeySpec(STATEFB_SECTION, "LevelMargin", Kind.NUMBER, (*sf, "level_margin")),
         KeySpec(STATEFB_SECTION, "Level1", Kind.NUMBER, (*sf, "level1")),
         KeySpec(STATEFB_SECTION, "Level2", Kind.NUMBER, (*sf, "level2")),
+    ]
+    mpc: tuple[str | int, ...] = ("mpc",)
+    keys += [
+        KeySpec(MPC_SECTION, "Horizon", Kind.INTEGER, (*mpc, "horizon")),
+        KeySpec(MPC_SECTION, "ControlHorizon", Kind.INTEGER, (*mpc, "control_horizon")),
+        KeySpec(MPC_SECTION, "OutputWeight", Kind.NUMBER, (*mpc, "output_weight")),
+        KeySpec(MPC_SECTION, "InputWeight", Kind.NUMBER, (*mpc, "input_weight")),
+        KeySpec(MPC_SECTION, "RateWeight", Kind.NUMBER, (*mpc, "rate_weight")),
+        KeySpec(MPC_SECTION, "RateLimit", Kind.NUMBER, (*mpc, "rate_limit")),
+        KeySpec(MPC_SECTION, "LevelMargin", Kind.NUMBER, (*mpc, "level_margin")),
+        KeySpec(MPC_SECTION, "Preview", Kind.FLAG, (*mpc, "preview")),
+        KeySpec(MPC_SECTION, "Disturbance", Kind.CHOICE, (*mpc, "disturbance"), DISTURBANCE_MODELS),
+        KeySpec(MPC_SECTION, "Measured", Kind.NAME, (*mpc, "measured")),
+        KeySpec(MPC_SECTION, "SlackWeight", Kind.NUMBER, (*mpc, "slack_weight")),
     ]
     return tuple(keys)
 

@@ -36,6 +36,7 @@ from quadtank_tui.core.plant import (
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.core.plants.spec import PlantSpec
 from quadtank_tui.core.signals import WaveParams
+from quadtank_tui.core.mpc.settings import MPCSettings
 from quadtank_tui.core.statefb.settings import StateFeedbackParams
 from quadtank_tui.core.validation import ParameterError, check_range
 
@@ -196,6 +197,7 @@ class Parameters:
     controllers : elements 11, 12, 21, 22 (CONTROLLER ONE..FOUR)
     statefb : the state-feedback controller's settings (STATE FEEDBACK; files
         without the section get the defaults)
+    mpc : the model predictive controller's settings (MPC; defaults without it)
     extra : unknown `(section, key, value)` entries read from a file, kept so that
         saving writes them back; they have no effect
     process : the plant when it is not the quadruple tank of the SIMULATION section
@@ -210,6 +212,7 @@ class Parameters:
     logging: LoggingSettings = LoggingSettings()
     plots: PlotSettings = PlotSettings()
     statefb: StateFeedbackParams = StateFeedbackParams()
+    mpc: MPCSettings = MPCSettings()
     extra: tuple[tuple[str, str, str], ...] = ()
     process: PlantSpec | None = None
 
