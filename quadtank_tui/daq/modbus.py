@@ -25,7 +25,12 @@ to stop the pumps should this process die.  A silence longer than that timeout
 between two requests (this process stopped, the machine suspended: the device's
 watchdog has set the pumps to 0 meanwhile) fails the next sample instead of
 driving the pumps again as if nothing had happened; the engine pauses and says
-why.  `close` (the orderly end, pumps already at 0) disarms both.
+why.  A device that declares strict mode is armed with a key chosen per run, and
+only our feed (every quarter timeout, while paused too: a paused loop still reads
+the levels each tick) carries it.  After each request the guard hears a byte on
+its pipe (rate-limited, never blocking): a frozen or deadlocked program falls
+silent and the guard stops the pumps.  `close` (the orderly end, pumps already at
+0) disarms both.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import secrets
 import time
 from typing import TYPE_CHECKING, Callable, Sequence
 
@@ -85,6 +91,8 @@ class ModbusBackend(ProcessBackend):
         self._armed = False  # the device's watchdog is on (written by us)
         self._last_exchange: float | None = None
         self._last_feed = -math.inf
+        #: the strict key of this run (a LabJack UINT32; 0 is never used)
+        self._key = 1 + secrets.randbelow(2**32 - 1)
         self._use_guard = guard
         self.guard: Guard | None = None
         self.description = f"modbus {config.host}:{config.port}"
@@ -248,9 +256,9 @@ class ModbusBackend(ProcessBackend):
         wd_decl, now = self.config.watchdog, self._clock()
         if (wd_decl is not None and wd_decl.feed is not None and self.watch_timeout is not None
                 and not self._arm_pending and now - self._last_feed > self.watch_timeout / 4):
-            feed = wd_decl.feed
+            feed, key = wd_decl.feed, float(self._key if wd_decl.strict else 0)
             self._request(f"feed of the watchdog (holding register {feed.address})",
-                          lambda: self._write(feed.address, encode(feed, 0.0)))
+                          lambda: self._write(feed.address, encode(feed, key)))
             self._last_feed = now
 
     def _arm_if_pending(self) -> None:
@@ -263,7 +271,7 @@ class ModbusBackend(ProcessBackend):
         wd, timeout = self.config.watchdog, self.watch_timeout
         assert timeout is not None
         if wd is not None:
-            writes = wd.arm_writes(timeout, {o: self.config.stop_volts(o) for o in self.config.outputs})
+            writes = wd.arm_writes(timeout, {o: self.config.stop_volts(o) for o in self.config.outputs}, self._key)
             enable, settings = writes[-1], writes[1:-1]
             held = {id(reg): self._read_setting(what, reg) for what, reg, _ in writes[:-1]}
             differ = [(what, reg, v) for what, reg, v in settings if not math.isclose(held[id(reg)], v, abs_tol=1e-6)]
@@ -282,11 +290,16 @@ class ModbusBackend(ProcessBackend):
             c = self.config
             writes_spec = [(c.channels[p], o.register.address, encode(o.register, c.stop_volts(c.channels[p])))
                            for p, o in zip(c.pump_channels, self._pumps)]
-            disarm = [] if wd is None else [("watchdog enable", wd.enable.address, encode(wd.enable, 0.0))]
+            disarm, ours = [], []
+            if wd is not None:
+                disarm = [("watchdog enable", wd.enable.address, encode(wd.enable, 0.0))]
+                # what the guard reads before disarming: the settings as armed (with the
+                # key when strict); another program's arming since is left alone
+                ours = [(what, reg.address, encode(reg, value)) for what, reg, value in writes[1:]]
             old = self.guard
             try:
                 self.guard = Guard(GuardSpec(os.getpid(), c.host, c.port, c.device_id, c.timeout,
-                                             writes_spec, timeout, disarm=disarm))
+                                             writes_spec, timeout, disarm=disarm, ours=ours))
             except OSError as exc:
                 raise BackendError(f"cannot start the guard process: {exc}") from None
             if old is not None:
@@ -376,6 +389,8 @@ class ModbusBackend(ProcessBackend):
             return self._tries(what, call)
         finally:
             self._last_exchange = self._clock()
+            if self.guard is not None:
+                self.guard.beat()
 
     def _tries(self, what: str, call: Callable[[], list[int]]) -> list[int]:
         reasons: list[str] = []

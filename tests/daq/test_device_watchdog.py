@@ -28,6 +28,8 @@ def test_the_labjack_preset_declares_the_t_series_watchdog_registers() -> None:
     assert wd.enable == Register("holding", 61600, U32)           # WATCHDOG_ENABLE_DEFAULT
     assert wd.timeout_register == Register("holding", 61604, U32)  # WATCHDOG_TIMEOUT_S_DEFAULT
     assert wd.feed == Register("holding", 61614, U32)             # WATCHDOG_STRICT_CLEAR
+    assert wd.strict_enable == Register("holding", 61610, U32)    # WATCHDOG_STRICT_ENABLE_DEFAULT
+    assert wd.strict_key == Register("holding", 61612, U32)       # WATCHDOG_STRICT_KEY_DEFAULT
     assert [(a.output, a.enable, a.value) for a in wd.actions] == [
         ("DAC0", Register("holding", 61640, U32), Register("holding", 61642, "float32")),
         ("DAC1", Register("holding", 61650, U32), Register("holding", 61652, "float32"))]
@@ -90,8 +92,9 @@ def test_active_control_arms_the_watchdog_and_an_orderly_end_disarms_it(device: 
     backend.arm(0.7)                                  # 2 Ts = 1.4 s: 2 whole seconds
     backend.write_pumps((0.3, 0.3))
     assert wd.enabled and wd.timeout == 2.0 and wd.actions() == [("DAC0", 0.0), ("DAC1", 0.0)]
-    # the settings that differ (the values on timeout are 0 V already), then on, then the pumps
-    assert written == [61604, 61640, 61650, 61600, 1000]
+    # the settings that differ (the values on timeout are 0 V already: strict mode, the
+    # run's key), then on, then the pumps
+    assert written == [61604, 61610, 61612, 61640, 61650, 61600, 1000]
     clock.now += 1.9                                  # traffic within the timeout: quiet
     backend.read_levels()
     clock.now += 1.9
@@ -190,6 +193,9 @@ def test_a_new_sampling_time_gives_the_guard_the_new_timeout(
 
         def ended(self) -> int | None:
             return None
+
+        def beat(self) -> None:
+            pass
 
         def release(self, wait: float = 1.0) -> None:
             released.append(self.spec.gap)
