@@ -90,6 +90,8 @@ class ModbusBackend(ProcessBackend):
         self._arm_pending = False
         self._armed = False  # the device's watchdog is on (written by us)
         self._last_exchange: float | None = None
+        #: the longest request since the last sample that outlasted the watchdog timeout, s
+        self._stalled: float | None = None
         self._last_feed = -math.inf
         #: the strict key of this run (a LabJack UINT32; 0 is never used)
         self._key = 1 + secrets.randbelow(2**32 - 1)
@@ -141,6 +143,7 @@ class ModbusBackend(ProcessBackend):
         self.watch_timeout = wd.timeout_for(tsamp) if wd is not None else gap_limit(tsamp)
         self._arm_pending = True
         self._last_exchange = None  # a silence before Active control is none of its business
+        self._stalled = None
 
     def read_levels(self) -> Levels4:
         self._watch()
@@ -240,8 +243,9 @@ class ModbusBackend(ProcessBackend):
                 f"the guard process ended (exit status {status}): nothing would stop the pumps if this "
                 "program died. Active control ends here: Run starts it again with a new guard")
         now = self._clock()
-        if self._last_exchange is not None and now - self._last_exchange > self.watch_timeout:
-            gap = now - self._last_exchange
+        stalled, self._stalled = self._stalled, None
+        if stalled is not None or (self._last_exchange is not None and now - self._last_exchange > self.watch_timeout):
+            gap = stalled if stalled is not None else now - (self._last_exchange or now)
             self._last_exchange = None
             wd = "its watchdog has set the pumps to 0" if self.config.watchdog is not None else \
                 "it has no watchdog: the pumps ran on unwatched"
@@ -384,11 +388,18 @@ class ModbusBackend(ProcessBackend):
     def _request(self, what: str, call: Callable[[], list[int]]) -> list[int]:
         """`call`, tried once more if it failed fast; BackendError naming `what` and
         the reasons after that.  Its end, answered or not, ends a silence: a link
-        that is down is a fault of its own, not this program gone quiet."""
+        that is down is a fault of its own, not this program gone quiet - unless
+        the request itself took longer than the watchdog timeout (this program
+        stopped between sending it and reading the answer: the device heard
+        nothing after it, and its watchdog may have fired), which the next sample
+        then finds as the silence it was."""
+        start = self._clock()
         try:
             return self._tries(what, call)
         finally:
             self._last_exchange = self._clock()
+            if self.watch_timeout is not None and self._last_exchange - start > self.watch_timeout:
+                self._stalled = max(self._stalled or 0.0, self._last_exchange - start)
             if self.guard is not None:
                 self.guard.beat()
 

@@ -139,6 +139,30 @@ def test_a_silence_longer_than_the_timeout_ends_active_control(device: Callable[
     backend.close()
 
 
+def test_a_stop_in_the_middle_of_a_request_is_a_silence_too(device: Callable[..., Any]) -> None:
+    """Stopped between sending a request and reading its answer (test_guard's
+    SIGSTOP under load): the device heard nothing for 1.3 s and its watchdog fired,
+    but the silence was measured from the answer and the run drove on."""
+    clock, rig, backend, _ = _rig_and_backend(device)
+    backend.arm(0.1)
+    backend.write_pumps((0.3, 0.3))
+    read = rig.read
+
+    def stopped_meanwhile(address: int, count: int) -> list[int]:
+        words = read(address, count)
+        clock.now += 1.3                              # the answer read 1.3 s later
+        return words
+
+    rig.read = stopped_meanwhile  # type: ignore[method-assign]
+    backend.read_levels()
+    rig.read = read  # type: ignore[method-assign]
+    with pytest.raises(BackendError, match=r"^no request reached the rig for 1\.3 s, longer than the watchdog "
+                       r"timeout 1 s"):
+        backend.write_pumps((0.3, 0.3))
+    backend.safe_state()
+    backend.close()
+
+
 def test_the_guard_of_a_dead_program_stops_the_pumps_and_disarms_the_watchdog(device: Callable[..., Any]) -> None:
     """The guard's work, in process: the program it watches is gone without a
     'bye'; it writes each pump's stop value and then disarms the watchdog the
