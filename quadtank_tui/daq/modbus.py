@@ -248,7 +248,7 @@ class ModbusBackend(ProcessBackend):
             gap = stalled if stalled is not None else now - (self._last_exchange or now)
             self._last_exchange = None
             wd = "its watchdog has set the pumps to 0" if self.config.watchdog is not None else \
-                "it has no watchdog: the pumps ran on unwatched"
+                "it has no watchdog: its guard has set the pumps to 0 (unless it could not reach the rig)"
             raise BackendError(
                 f"no request reached the rig for {gap:.1f} s, longer than the watchdog timeout "
                 f"{self.watch_timeout:g} s (this program was stopped or the machine suspended); {wd}. "
