@@ -91,14 +91,18 @@ LABJACK: dict[str, Any] = {
     # said): WATCHDOG_ENABLE_DEFAULT 61600, WATCHDOG_TIMEOUT_S_DEFAULT 61604 (whole
     # seconds), WATCHDOG_STRICT_CLEAR 61614 (any write clears it while strict mode
     # is off), WATCHDOG_DAC0_ENABLE_DEFAULT 61640, WATCHDOG_DAC0_DEFAULT 61642
-    # (FLOAT32 volts), WATCHDOG_DAC1_ENABLE_DEFAULT 61650, WATCHDOG_DAC1_DEFAULT 61652.
-    # Any request clears its timer.  The settings live in flash: arming writes them
-    # once per Active start, disarming once per end.
+    # (FLOAT32 volts), WATCHDOG_DAC1_ENABLE_DEFAULT 61650, WATCHDOG_DAC1_DEFAULT 61652,
+    # WATCHDOG_STRICT_ENABLE_DEFAULT 61610, WATCHDOG_STRICT_KEY_DEFAULT 61612 (LJM's
+    # LabJackMModbusMap.h / ljm_constants.json): armed strict with a key per run, only
+    # our feed clears it - not another client's reads.  The settings are power-up
+    # defaults (flash): only those that differ are written (the key, once a run).
     "watchdog": {
         "timeout": "auto",
         "enable": {"address": 61600, "type": "uint32"},
         "timeout_register": {"address": 61604, "type": "uint32"},
         "feed": {"address": 61614, "type": "uint32"},
+        "strict_enable": {"address": 61610, "type": "uint32"},
+        "strict_key": {"address": 61612, "type": "uint32"},
         "outputs": {
             f"DAC{i}": {"enable": {"address": 61640 + 10 * i, "type": "uint32"},
                         "value": {"address": 61642 + 10 * i, "type": "float32"}}
@@ -549,7 +553,8 @@ class _Validator:
             return None
         if not isinstance(value, dict):
             self.fail("watchdog", f"must be the device's watchdog registers (a mapping) or none, got {_show(value)}")
-        m = self.mapping("watchdog", value, ("timeout", "enable", "timeout_register", "feed", "outputs"))
+        m = self.mapping("watchdog", value, ("timeout", "enable", "timeout_register", "feed", "outputs",
+                                             "strict_enable", "strict_key"))
         least = m.get("timeout", "auto")
         timeout = 0.0 if least == "auto" else self.number("watchdog.timeout", least, 0.0, 3600.0, lo_open=True)
         actions = []
@@ -564,13 +569,18 @@ class _Validator:
         missing = [o for o in pump_outputs if o not in {a.output for a in actions}]
         if missing:
             self.fail("watchdog.outputs", f"{', '.join(missing)} missing: the watchdog must stop every pump")
+        strict = {k: self.setting(f"watchdog.{k}", m[k]) if m.get(k) is not None else None
+                  for k in ("strict_enable", "strict_key")}
+        if (strict["strict_enable"] is None) != (strict["strict_key"] is None) or \
+                (strict["strict_enable"] is not None and m.get("feed") is None):
+            self.fail("watchdog.strict_enable", "strict mode needs strict_enable, strict_key and feed together")
         return Watchdog(
             enable=self.setting("watchdog.enable", self.require(m, "watchdog", "enable")),
             timeout_register=self.setting("watchdog.timeout_register",
                                           self.require(m, "watchdog", "timeout_register")),
             actions=tuple(actions),
             feed=self.setting("watchdog.feed", m["feed"]) if m.get("feed") is not None else None,
-            timeout=timeout,
+            timeout=timeout, **strict,
         )
 
     def setting(self, key: str, value: Any, default_type: str = "uint32") -> Register:

@@ -8,13 +8,19 @@ watches that process (a pidfd where Linux has one, else polling) and:
 - when it ends after saying "bye" on the pipe (an orderly end: it has put the
   pumps at 0 and disarmed the watchdog itself), ends without a word;
 - when it ends without it (SIGKILL, a crash, the OOM killer), writes each pump
-  output's stop value over a Modbus TCP connection of its own, and says why on
-  its stderr (a session's `<runtime>/<id>.out`, a headless run's terminal);
-- when it stays stopped (SIGSTOP, a debugger) longer than the watchdog timeout,
-  does the same once per stop - a device without a watchdog would pump on - and
-  the program, when it runs again, finds the gap and pauses (daq/modbus.py).
+  output's stop value over a Modbus TCP connection of its own, then disarms the
+  device's watchdog if its settings are still the ones the program armed (the
+  strict key above all: another program that has armed it since keeps it), and
+  says why on its stderr (a session's `<runtime>/<id>.out`, a headless run's
+  terminal);
+- when it has heard nothing on the pipe for the watchdog timeout - the program
+  writes a byte after its requests (`Guard.beat`), so this is a program stopped
+  (SIGSTOP), frozen (a cgroup freezer, state D) or whose loop is deadlocked,
+  whatever its process state - writes the stop values, once per silence: a
+  device without a watchdog would pump on.  The program, if it runs again, finds
+  the gap itself and pauses (daq/modbus.py); the guard does not write again.
 
-It never writes while the program runs.  It starts its own session (a Ctrl-C or a
+It never writes while the program is heard.  It starts its own session (a Ctrl-C or a
 hang-up of the program's terminal does not reach it) and imports nothing heavy:
 the socket, struct and the few lines of Modbus it needs (function 16), so it is
 watching within a fraction of a second of being started.
@@ -59,6 +65,9 @@ class GuardSpec:
     #: after the program died (it kept it armed; a next program, `daq calibrate` say,
     #: would find its pumps stopped after each silence of the timeout)
     disarm: list[tuple[str, int, list[int]]] = dataclasses.field(default_factory=list)
+    #: (what, address, words) of the watchdog's settings as the program armed them
+    #: (with its strict key): the guard disarms only while they still read so
+    ours: list[tuple[str, int, list[int]]] = dataclasses.field(default_factory=list)
 
 
 class Guard:
@@ -71,12 +80,17 @@ class Guard:
         # killed it at start with an ImportError, and the run drove on unguarded).
         self._proc = subprocess.Popen(
             [sys.executable, "-P", "-m", "quadtank_tui.daq.guard"], stdin=subprocess.PIPE,
-            stdout=subprocess.DEVNULL, start_new_session=True, close_fds=True, cwd="/",
+            stdout=subprocess.DEVNULL, start_new_session=True, close_fds=True, cwd="/", bufsize=0,
         )
         assert self._proc.stdin is not None
         self._pipe: IO[bytes] | None = self._proc.stdin
-        self._pipe.write(json.dumps(asdict(spec)).encode() + b"\n")
-        self._pipe.flush()
+        self._pipe.write(json.dumps(asdict(spec)).encode() + b"\n")  # (well within a pipe's 64 KiB)
+        # From here on a write never blocks the sampling path: a guard that is not
+        # reading (stopped itself) only costs the beats the full pipe refuses.
+        os.set_blocking(self._pipe.fileno(), False)
+        #: at most one beat per this many s: a quarter of the silence the guard allows
+        self._beat_every = spec.gap / 4
+        self._last_beat = time.monotonic()
 
     @property
     def pid(self) -> int:
@@ -87,6 +101,18 @@ class Guard:
         if self._pipe is None:
             return None  # released: its end is the orderly one
         return self._proc.poll()
+
+    def beat(self) -> None:
+        """After a request: one byte on the pipe, at most every quarter of the
+        silence the guard allows; never blocks, never raises."""
+        now = time.monotonic()
+        if self._pipe is None or now - self._last_beat < self._beat_every:
+            return
+        try:
+            os.write(self._pipe.fileno(), b".")
+            self._last_beat = now
+        except OSError:  # full (the guard not reading) or closed (it died: `ended` says so)
+            pass
 
     def release(self, wait: float = 1.0) -> None:
         """The orderly end (pumps already at 0): the guard ends without writing."""
@@ -101,7 +127,9 @@ class Guard:
         try:
             self._proc.wait(wait)
         except subprocess.TimeoutExpired:
-            pass  # it ends by itself; the init process reaps it
+            # It ends by itself on the word; as this process's child it is reaped by
+            # subprocess (the next Popen, or this Popen's __del__, collects it).
+            pass
 
 
 # --- the guard process ------------------------------------------------------------------------
@@ -118,6 +146,34 @@ def write_registers(spec: GuardSpec, address: int, words: list[int], tid: int) -
         body = _recv(sock, length - 1)
     if body[0] & 0x80:
         raise ValueError(f"the device answered exception code {body[1] if len(body) > 1 else '?'}")
+
+
+def read_registers(spec: GuardSpec, address: int, count: int, tid: int) -> list[int]:
+    """One Modbus TCP read of holding registers (function 3); OSError or ValueError."""
+    pdu = struct.pack(">BHH", 3, address, count)
+    with socket.create_connection((spec.host, spec.port), timeout=spec.timeout) as sock:
+        sock.sendall(struct.pack(">HHHB", tid, 0, len(pdu) + 1, spec.device_id) + pdu)
+        head = _recv(sock, 7)
+        length = struct.unpack(">HHHB", head)[2]
+        body = _recv(sock, length - 1)
+    if body[0] & 0x80:
+        raise ValueError(f"the device answered exception code {body[1] if len(body) > 1 else '?'}")
+    if len(body) < 2 + 2 * count:
+        raise ValueError("short answer")
+    return list(struct.unpack(f">{count}H", body[2:2 + 2 * count]))
+
+
+def not_ours(spec: GuardSpec) -> list[str]:
+    """The watchdog settings that no longer read as the program armed them (or
+    could not be read); empty when they are all still its own."""
+    changed = []
+    for tid, (what, address, words) in enumerate(spec.ours, start=100):
+        try:
+            if read_registers(spec, address, len(words), tid) != list(words):
+                changed.append(what)
+        except (OSError, ValueError) as exc:
+            changed.append(f"{what} (unread: {exc or type(exc).__name__})")
+    return changed
 
 
 def _recv(sock: socket.socket, n: int) -> bytes:
@@ -164,8 +220,15 @@ class _Watch:
             self.say(f"{why}; could not set the pumps ({outs}) to 0 at {s.host}:{s.port}: "
                      f"{'; '.join(errors)} - only the device's watchdog stops them now")
             return
-        disarmed = "" if not (gone and s.disarm) else \
-            "; its watchdog disarmed" if not stop_pumps(s, s.disarm) else "; its watchdog left armed (no answer)"
+        disarmed = ""
+        if gone and s.disarm:
+            changed = not_ours(s)
+            if changed:
+                disarmed = (f"; its watchdog left as it is: {', '.join(changed[:3])} no longer as armed by "
+                            "the program (another program has armed it since?)")
+            else:
+                disarmed = "; its watchdog disarmed" if not stop_pumps(s, s.disarm) else \
+                    "; its watchdog left armed (no answer)"
         self.say(f"{why}; pumps ({outs}) set to 0 over the guard's own connection to {s.host}:{s.port}{disarmed}")
 
 
@@ -176,7 +239,8 @@ def guard_main(stdin: IO[bytes], err: IO[str]) -> int:
         return 0
     raw = json.loads(line)
     spec = GuardSpec(**{**raw, "writes": [tuple(w) for w in raw["writes"]],
-                        "disarm": [tuple(w) for w in raw.get("disarm", [])]})
+                        "disarm": [tuple(w) for w in raw.get("disarm", [])],
+                        "ours": [tuple(w) for w in raw.get("ours", [])]})
     watch = _Watch(spec, err)
     fd = stdin.fileno()
     os.set_blocking(fd, False)
@@ -186,50 +250,52 @@ def guard_main(stdin: IO[bytes], err: IO[str]) -> int:
         pidfd = None
     heard = b""
     pipe_open = True
-    stopped_since: float | None = None
-    acted_on_stop = False
+    last_heard = time.monotonic()
+    acted_on_silence = False
     while True:
         watched = ([fd] if pipe_open else []) + ([pidfd] if pidfd is not None else [])
         ready: list[int] = select.select(watched, [], [], POLL_S)[0] if watched else []
         if not watched:
             time.sleep(POLL_S)
         if fd in ready or not pipe_open or pidfd in ready:
-            heard, pipe_open = _drain(fd, heard, pipe_open)
+            heard, pipe_open, got = _drain(fd, heard, pipe_open)
             if BYE.strip() in heard:
                 return 0  # the orderly end: the program put its pumps at 0 itself
+            if got:  # a beat: the program is sampling
+                last_heard, acted_on_silence = time.monotonic(), False
         state = process_state(spec.pid)
         if not state or (pidfd is not None and pidfd in ready):
-            heard, pipe_open = _drain(fd, heard, pipe_open)
+            heard, pipe_open, _ = _drain(fd, heard, pipe_open)
             if BYE.strip() in heard:
                 return 0
             watch.act(f"{spec.who} (pid {spec.pid}) ended without stopping its pumps "
                       "(killed, or it crashed)", gone=True)
             return 0
-        if state in ("T", "t"):
-            now = time.monotonic()
-            stopped_since = now if stopped_since is None else stopped_since
-            if not acted_on_stop and now - stopped_since >= spec.gap:
-                watch.act(f"{spec.who} (pid {spec.pid}) has been stopped for {now - stopped_since:.1f} s, "
-                          f"longer than the watchdog timeout {spec.gap:g} s", gone=False)
-                acted_on_stop = True
-        else:
-            stopped_since, acted_on_stop = None, False
+        silent = time.monotonic() - last_heard
+        if not acted_on_silence and silent >= spec.gap:
+            how = {"T": "stopped", "t": "stopped by a debugger", "D": "frozen (uninterruptible sleep)"}.get(
+                state, "running but not sampling (a deadlocked loop?)")
+            watch.act(f"{spec.who} (pid {spec.pid}) has not been heard from for {silent:.1f} s, longer than "
+                      f"the watchdog timeout {spec.gap:g} s: {how}", gone=False)
+            acted_on_silence = True  # once per silence: if it comes back, it finds the gap and pauses
 
 
-def _drain(fd: int, heard: bytes, pipe_open: bool) -> tuple[bytes, bool]:
-    """What the program wrote since (kept short), and whether the pipe is still open."""
+def _drain(fd: int, heard: bytes, pipe_open: bool) -> tuple[bytes, bool, bool]:
+    """What the program wrote since (kept short), whether the pipe is still open,
+    and whether anything was read."""
     if not pipe_open:
-        return heard, False
+        return heard, False, False
+    got = False
     try:
         while True:
             chunk = os.read(fd, 4096)
             if not chunk:
-                return heard, False
-            heard = (heard + chunk)[-64:]
+                return heard, False, got
+            heard, got = (heard + chunk)[-64:], True
     except BlockingIOError:
-        return heard, True
+        return heard, True, got
     except OSError:
-        return heard, False
+        return heard, False, got
 
 
 if __name__ == "__main__":  # pragma: no cover - the guard process

@@ -25,7 +25,12 @@ to stop the pumps should this process die.  A silence longer than that timeout
 between two requests (this process stopped, the machine suspended: the device's
 watchdog has set the pumps to 0 meanwhile) fails the next sample instead of
 driving the pumps again as if nothing had happened; the engine pauses and says
-why.  `close` (the orderly end, pumps already at 0) disarms both.
+why.  A device that declares strict mode is armed with a key chosen per run, and
+only our feed (every quarter timeout, while paused too: a paused loop still reads
+the levels each tick) carries it.  After each request the guard hears a byte on
+its pipe (rate-limited, never blocking): a frozen or deadlocked program falls
+silent and the guard stops the pumps.  `close` (the orderly end, pumps already at
+0) disarms both.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import secrets
 import time
 from typing import TYPE_CHECKING, Callable, Sequence
 
@@ -84,7 +90,11 @@ class ModbusBackend(ProcessBackend):
         self._arm_pending = False
         self._armed = False  # the device's watchdog is on (written by us)
         self._last_exchange: float | None = None
+        #: the longest request since the last sample that outlasted the watchdog timeout, s
+        self._stalled: float | None = None
         self._last_feed = -math.inf
+        #: the strict key of this run (a LabJack UINT32; 0 is never used)
+        self._key = 1 + secrets.randbelow(2**32 - 1)
         self._use_guard = guard
         self.guard: Guard | None = None
         self.description = f"modbus {config.host}:{config.port}"
@@ -133,6 +143,7 @@ class ModbusBackend(ProcessBackend):
         self.watch_timeout = wd.timeout_for(tsamp) if wd is not None else gap_limit(tsamp)
         self._arm_pending = True
         self._last_exchange = None  # a silence before Active control is none of its business
+        self._stalled = None
 
     def read_levels(self) -> Levels4:
         self._watch()
@@ -232,11 +243,12 @@ class ModbusBackend(ProcessBackend):
                 f"the guard process ended (exit status {status}): nothing would stop the pumps if this "
                 "program died. Active control ends here: Run starts it again with a new guard")
         now = self._clock()
-        if self._last_exchange is not None and now - self._last_exchange > self.watch_timeout:
-            gap = now - self._last_exchange
+        stalled, self._stalled = self._stalled, None
+        if stalled is not None or (self._last_exchange is not None and now - self._last_exchange > self.watch_timeout):
+            gap = stalled if stalled is not None else now - (self._last_exchange or now)
             self._last_exchange = None
             wd = "its watchdog has set the pumps to 0" if self.config.watchdog is not None else \
-                "it has no watchdog: the pumps ran on unwatched"
+                "it has no watchdog: its guard has set the pumps to 0 (unless it could not reach the rig)"
             raise BackendError(
                 f"no request reached the rig for {gap:.1f} s, longer than the watchdog timeout "
                 f"{self.watch_timeout:g} s (this program was stopped or the machine suspended); {wd}. "
@@ -248,9 +260,9 @@ class ModbusBackend(ProcessBackend):
         wd_decl, now = self.config.watchdog, self._clock()
         if (wd_decl is not None and wd_decl.feed is not None and self.watch_timeout is not None
                 and not self._arm_pending and now - self._last_feed > self.watch_timeout / 4):
-            feed = wd_decl.feed
+            feed, key = wd_decl.feed, float(self._key if wd_decl.strict else 0)
             self._request(f"feed of the watchdog (holding register {feed.address})",
-                          lambda: self._write(feed.address, encode(feed, 0.0)))
+                          lambda: self._write(feed.address, encode(feed, key)))
             self._last_feed = now
 
     def _arm_if_pending(self) -> None:
@@ -263,7 +275,7 @@ class ModbusBackend(ProcessBackend):
         wd, timeout = self.config.watchdog, self.watch_timeout
         assert timeout is not None
         if wd is not None:
-            writes = wd.arm_writes(timeout, {o: self.config.stop_volts(o) for o in self.config.outputs})
+            writes = wd.arm_writes(timeout, {o: self.config.stop_volts(o) for o in self.config.outputs}, self._key)
             enable, settings = writes[-1], writes[1:-1]
             held = {id(reg): self._read_setting(what, reg) for what, reg, _ in writes[:-1]}
             differ = [(what, reg, v) for what, reg, v in settings if not math.isclose(held[id(reg)], v, abs_tol=1e-6)]
@@ -282,11 +294,16 @@ class ModbusBackend(ProcessBackend):
             c = self.config
             writes_spec = [(c.channels[p], o.register.address, encode(o.register, c.stop_volts(c.channels[p])))
                            for p, o in zip(c.pump_channels, self._pumps)]
-            disarm = [] if wd is None else [("watchdog enable", wd.enable.address, encode(wd.enable, 0.0))]
+            disarm, ours = [], []
+            if wd is not None:
+                disarm = [("watchdog enable", wd.enable.address, encode(wd.enable, 0.0))]
+                # what the guard reads before disarming: the settings as armed (with the
+                # key when strict); another program's arming since is left alone
+                ours = [(what, reg.address, encode(reg, value)) for what, reg, value in writes[1:]]
             old = self.guard
             try:
                 self.guard = Guard(GuardSpec(os.getpid(), c.host, c.port, c.device_id, c.timeout,
-                                             writes_spec, timeout, disarm=disarm))
+                                             writes_spec, timeout, disarm=disarm, ours=ours))
             except OSError as exc:
                 raise BackendError(f"cannot start the guard process: {exc}") from None
             if old is not None:
@@ -371,11 +388,20 @@ class ModbusBackend(ProcessBackend):
     def _request(self, what: str, call: Callable[[], list[int]]) -> list[int]:
         """`call`, tried once more if it failed fast; BackendError naming `what` and
         the reasons after that.  Its end, answered or not, ends a silence: a link
-        that is down is a fault of its own, not this program gone quiet."""
+        that is down is a fault of its own, not this program gone quiet - unless
+        the request itself took longer than the watchdog timeout (this program
+        stopped between sending it and reading the answer: the device heard
+        nothing after it, and its watchdog may have fired), which the next sample
+        then finds as the silence it was."""
+        start = self._clock()
         try:
             return self._tries(what, call)
         finally:
             self._last_exchange = self._clock()
+            if self.watch_timeout is not None and self._last_exchange - start > self.watch_timeout:
+                self._stalled = max(self._stalled or 0.0, self._last_exchange - start)
+            if self.guard is not None:
+                self.guard.beat()
 
     def _tries(self, what: str, call: Callable[[], list[int]]) -> list[int]:
         reasons: list[str] = []

@@ -167,7 +167,7 @@ class VirtualRig:
 
     def read(self, address: int, count: int) -> list[int]:
         self.tick()
-        self.last_request = self._now
+        self._heard()
         words = dict(self._out_words)
         if self.watchdog is not None:
             words.update(self.watchdog.words())
@@ -187,11 +187,23 @@ class VirtualRig:
         if any(a not in self._out_words and not own for a, own in zip(span, setting)):
             raise IllegalAddress(f"registers {address}..{span[-1]} are not all outputs")
         self.tick()
-        self.last_request = self._now
+        self._heard()
         if wd is not None and any(setting):
-            wd.write([a for a, own in zip(span, setting) if own], [v for v, own in zip(values, setting) if own])
+            was_on = wd.enabled
+            own_span = [a for a, own in zip(span, setting) if own]
+            own_values = [v for v, own in zip(values, setting) if own]
+            if wd.strict and wd.clears(own_span, own_values):
+                self.last_request = self._now  # the feed with the key: a strict watchdog's only clear
+            wd.write(own_span, own_values)
+            if wd.enabled and not was_on:
+                self.last_request = self._now  # armed now: its timer starts from 0
         self._out_words.update((a, v) for a, v, own in zip(span, values, setting) if not own)
         self._pumps_from_words()
+
+    def _heard(self) -> None:
+        """A request: it clears the watchdog's timer unless the watchdog is strict."""
+        if self.watchdog is None or not (self.watchdog.enabled and self.watchdog.strict):
+            self.last_request = self._now
 
     def _pumps_from_words(self) -> None:
         volts = []

@@ -4,7 +4,9 @@ The rig serves the registers of its map's `watchdog:` (daq/watchdog.py; the LabJ
 preset's are the T-series' own) and does what the device does: while enabled, a
 silence of the timeout (no request of any client: a LabJack's timer is cleared
 by any command-response, and by a write to its feed register) sets each output
-whose action is on to its value.  Like a LabJack, the settings cannot be written
+whose action is on to its value.  Armed strict (its strict registers declared and
+set), only a write of the key to the feed register clears the timer, as on a
+T-series: other requests do not.  Like a LabJack, the settings cannot be written
 while it is enabled (disable it first), and it fires again after each further
 timeout of silence.  Out of the box it is off; `quadtank rig --watchdog S` starts
 it armed with S s (a device whose watchdog a program armed and left on).
@@ -33,6 +35,9 @@ class RigWatchdog:
                 self._set(a.enable, 0.0)
         if declared.feed is not None:
             self._set(declared.feed, 0.0)
+        for reg in (declared.strict_enable, declared.strict_key):
+            if reg is not None:
+                self._set(reg, 0.0)
         if armed_for > 0:  # as a program left it: armed, each output to stop its pump
             for a in declared.actions:
                 self._set(a.value, stop_volts[a.output])
@@ -59,6 +64,21 @@ class RigWatchdog:
         if self._power_up_timeout > 0:
             return self._power_up_timeout
         return self._get(self.declared.timeout_register)
+
+    @property
+    def strict(self) -> bool:
+        """Armed strict: only the feed with the key clears the timer."""
+        d = self.declared
+        return d.strict and d.strict_enable is not None and self._get(d.strict_enable) != 0
+
+    def clears(self, span: Sequence[int], values: Sequence[int]) -> bool:
+        """Whether a write of `values` at `span` clears a strict watchdog's timer:
+        the feed register written with the key set in its strict key register."""
+        d = self.declared
+        if d.feed is None or d.strict_key is None or not set(d.feed.span) <= set(span):
+            return False
+        words = dict(zip(span, values))
+        return [words[a] for a in d.feed.span] == [self._words[a] for a in d.strict_key.span]
 
     def owns(self, address: int) -> bool:
         return address in self._words

@@ -13,7 +13,12 @@ section (daq/config.py reads it; the LabJack preset declares the T-series' own):
   timeout (written with the volts that stop its pump) and, optionally, the
   register switching that action on (written 1);
 - `feed` (optional): a register whose write clears the timer (other traffic
-  does on a LabJack: each sample's read and write keeps it quiet);
+  does on a LabJack unless it is strict);
+- `strict_enable`, `strict_key` (optional, together, with `feed`): strict mode.
+  Armed strict with a key chosen per run, only a write of that key to `feed`
+  clears the timer: another client's reads, or `quadtank daq check`, no longer
+  keep it quiet once this program and its guard are gone (without them, any
+  Modbus traffic feeds it);
 - `timeout`: `auto`, or the least timeout in seconds.
 
 The timeout armed is a few samples: at least 2 TSamp and at least 1 s (the
@@ -53,6 +58,14 @@ class Watchdog:
     feed: Register | None = None
     #: the least timeout, s (0: `auto`, the sampling time's rule alone)
     timeout: float = 0.0
+    #: strict mode (LabJack WATCHDOG_STRICT_ENABLE_DEFAULT / _KEY_DEFAULT); None: not declared
+    strict_enable: Register | None = None
+    strict_key: Register | None = None
+
+    @property
+    def strict(self) -> bool:
+        """Only a write of the run's key to `feed` clears its timer."""
+        return self.strict_enable is not None and self.strict_key is not None and self.feed is not None
 
     def timeout_for(self, tsamp: float) -> float:
         """The timeout armed for sampling time `tsamp`, s, as the register holds it."""
@@ -67,13 +80,18 @@ class Watchdog:
                 regs.append((f"watchdog.outputs.{a.output}.enable", a.enable))
         if self.feed is not None:
             regs.append(("watchdog.feed", self.feed))
+        if self.strict_enable is not None and self.strict_key is not None:
+            regs += [("watchdog.strict_enable", self.strict_enable), ("watchdog.strict_key", self.strict_key)]
         return regs
 
-    def arm_writes(self, timeout: float, stop_volts: dict[str, float]) -> list[tuple[str, Register, float]]:
-        """The writes that arm it, in order: off, the timeout, each output's safe
-        value (`stop_volts`: output name -> the volts that stop its pump) and action,
-        then on.  (what, register, value) each."""
+    def arm_writes(self, timeout: float, stop_volts: dict[str, float],
+                   key: int = 0) -> list[tuple[str, Register, float]]:
+        """The writes that arm it, in order: off, the timeout, strict mode with `key`
+        (when declared), each output's safe value (`stop_volts`: output name -> the
+        volts that stop its pump) and action, then on.  (what, register, value) each."""
         writes = [("disable", self.enable, 0.0), ("timeout", self.timeout_register, timeout)]
+        if self.strict and self.strict_enable is not None and self.strict_key is not None:
+            writes += [("strict mode", self.strict_enable, 1.0), ("strict key", self.strict_key, float(key))]
         for a in self.actions:
             writes.append((f"{a.output} value on timeout", a.value, stop_volts[a.output]))
             if a.enable is not None:
@@ -85,8 +103,10 @@ class Watchdog:
         """e.g. "enable at holding 61600, timeout at 61604, DAC0/DAC1 to their stop value"."""
         outs = "/".join(a.output for a in self.actions)
         least = "auto" if self.timeout == 0 else f"at least {self.timeout:g} s"
+        mode = ("strict: only this program's feed with its key clears it" if self.strict
+                else "non-strict: any Modbus traffic feeds it")
         return (f"enable at holding register {self.enable.address}, timeout ({least}) at "
-                f"{self.timeout_register.address}, sets {outs} to stop their pumps")
+                f"{self.timeout_register.address}, sets {outs} to stop their pumps; {mode}")
 
 
 def gap_limit(tsamp: float, least: float = 0.0) -> float:

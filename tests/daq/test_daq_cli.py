@@ -39,7 +39,8 @@ def test_check_reads_and_writes_nothing(rig: Callable, tmp_path: Path, capsys: p
     assert lines[0].startswith(f"modbus 127.0.0.1:{r.port}")
     assert [ln.split()[:3] for ln in lines[1:5]] == [["tank", str(i), f"AIN{i - 1}"] for i in range(1, 5)]
     assert lines[5:] == ["watchdog: enable at holding register 61600, timeout (auto) at 61604, "
-                         "sets DAC0/DAC1 to stop their pumps"]  # the LabJack's, which check leaves alone
+                         "sets DAC0/DAC1 to stop their pumps; strict: only this program's feed with its key "
+                         "clears it"]  # the LabJack's, which check leaves alone
     assert r.dacs() == pytest.approx((2.5, 3.5))  # the pumps were left alone
     driver.safe_state()
     driver.close()

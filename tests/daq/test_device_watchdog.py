@@ -28,6 +28,8 @@ def test_the_labjack_preset_declares_the_t_series_watchdog_registers() -> None:
     assert wd.enable == Register("holding", 61600, U32)           # WATCHDOG_ENABLE_DEFAULT
     assert wd.timeout_register == Register("holding", 61604, U32)  # WATCHDOG_TIMEOUT_S_DEFAULT
     assert wd.feed == Register("holding", 61614, U32)             # WATCHDOG_STRICT_CLEAR
+    assert wd.strict_enable == Register("holding", 61610, U32)    # WATCHDOG_STRICT_ENABLE_DEFAULT
+    assert wd.strict_key == Register("holding", 61612, U32)       # WATCHDOG_STRICT_KEY_DEFAULT
     assert [(a.output, a.enable, a.value) for a in wd.actions] == [
         ("DAC0", Register("holding", 61640, U32), Register("holding", 61642, "float32")),
         ("DAC1", Register("holding", 61650, U32), Register("holding", 61652, "float32"))]
@@ -90,8 +92,9 @@ def test_active_control_arms_the_watchdog_and_an_orderly_end_disarms_it(device: 
     backend.arm(0.7)                                  # 2 Ts = 1.4 s: 2 whole seconds
     backend.write_pumps((0.3, 0.3))
     assert wd.enabled and wd.timeout == 2.0 and wd.actions() == [("DAC0", 0.0), ("DAC1", 0.0)]
-    # the settings that differ (the values on timeout are 0 V already), then on, then the pumps
-    assert written == [61604, 61640, 61650, 61600, 1000]
+    # the settings that differ (the values on timeout are 0 V already: strict mode, the
+    # run's key), then on, then the pumps
+    assert written == [61604, 61610, 61612, 61640, 61650, 61600, 1000]
     clock.now += 1.9                                  # traffic within the timeout: quiet
     backend.read_levels()
     clock.now += 1.9
@@ -132,6 +135,30 @@ def test_a_silence_longer_than_the_timeout_ends_active_control(device: Callable[
     backend.safe_state()
     backend.write_pumps((0.3, 0.3))                   # Run again: it drives again
     assert rig.pump_volts == (3.0, 3.0)
+    backend.safe_state()
+    backend.close()
+
+
+def test_a_stop_in_the_middle_of_a_request_is_a_silence_too(device: Callable[..., Any]) -> None:
+    """Stopped between sending a request and reading its answer (test_guard's
+    SIGSTOP under load): the device heard nothing for 1.3 s and its watchdog fired,
+    but the silence was measured from the answer and the run drove on."""
+    clock, rig, backend, _ = _rig_and_backend(device)
+    backend.arm(0.1)
+    backend.write_pumps((0.3, 0.3))
+    read = rig.read
+
+    def stopped_meanwhile(address: int, count: int) -> list[int]:
+        words = read(address, count)
+        clock.now += 1.3                              # the answer read 1.3 s later
+        return words
+
+    rig.read = stopped_meanwhile  # type: ignore[method-assign]
+    backend.read_levels()
+    rig.read = read  # type: ignore[method-assign]
+    with pytest.raises(BackendError, match=r"^no request reached the rig for 1\.3 s, longer than the watchdog "
+                       r"timeout 1 s"):
+        backend.write_pumps((0.3, 0.3))
     backend.safe_state()
     backend.close()
 
@@ -190,6 +217,9 @@ def test_a_new_sampling_time_gives_the_guard_the_new_timeout(
 
         def ended(self) -> int | None:
             return None
+
+        def beat(self) -> None:
+            pass
 
         def release(self, wait: float = 1.0) -> None:
             released.append(self.spec.gap)
