@@ -247,7 +247,13 @@ def _run_2x2(args: argparse.Namespace) -> int:
         source = f"{args.model_file}: identified model"
     else:
         assert params is not None
-        G = model_in_use(params)  # the plant in use (a PLANT section counts)
+        from quadtank_tui.core.plants.base import SteadyStateError
+
+        try:
+            G = model_in_use(params)  # the plant in use (a PLANT section counts)
+        except SteadyStateError as e:
+            raise ValueError(f"{args.par}: PLANT.Level1/Level2: {e}; no linearization there (an "
+                             "identified model, --model-file, brings its own operating point)") from None
         source = f"{args.par}: physical linearization at its operating levels"
     # the sampling time in force: asked for; else the identification experiment's (the
     # rate the lab runs the rig at, and --write-par sets TSamp to it); else the .par's
