@@ -216,7 +216,7 @@ def did_what_the_preview_said(did: Any, said: dict, loop: int) -> None:  # type:
 #: output-error fit costs ~1 ms a point; 900 points still hold 45 PRBS holds); the
 #: two-input rig's keeps its 3600 (its slow mode, 170 s, needs them) and is fitted by
 #: the subspace method (one pass; the lab's output-error fit with --order 2 --zeros 1,
-#: the script's command, takes 10 s here, with gains within 4 %, against 10 %).
+#: the script's command, takes 10 s here, with gains within 2-6 % of the physical ones, against 8-12 %).
 RIGS = {
     "cascade": ("coupled-cascade", "identify-cascade-u1.yaml", 900, 1100, []),
     "tito": ("coupled-tito", "identify-tito-mimo.yaml", 3600, 4400, ["--method", "n4sid", "--order", "2"]),
