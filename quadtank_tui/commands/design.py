@@ -224,7 +224,7 @@ def identified_matrix(path: str | Path) -> Any:
 def _run_2x2(args: argparse.Namespace) -> int:
     from quadtank_tui.core.design.apply import controller_values
     from quadtank_tui.core.design.mimo import design_2x2, format_check, model_in_use
-    from quadtank_tui.files.par import read_par, write_par
+    from quadtank_tui.files.par import read_par
 
     if args.evaluate_on:
         raise ValueError("--evaluate-on is for --model; --par and --model-file check the 2x2 loop itself")
@@ -236,6 +236,8 @@ def _run_2x2(args: argparse.Namespace) -> int:
         read = read_par(args.par)
         warn(read.warnings)  # unknown keys or sections: said, as every command that reads a .par does
         params = read.params
+    if params is not None and len(params.process_plant().inputs) == 1:
+        return _run_one_pump(args, params)
     h_file = None
     if args.model_file is not None:
         from quadtank_tui.files.model import read_model
@@ -245,7 +247,13 @@ def _run_2x2(args: argparse.Namespace) -> int:
         source = f"{args.model_file}: identified model"
     else:
         assert params is not None
-        G = model_in_use(params)  # the plant in use (a PLANT section counts)
+        from quadtank_tui.core.plants.base import SteadyStateError
+
+        try:
+            G = model_in_use(params)  # the plant in use (a PLANT section counts)
+        except SteadyStateError as e:
+            raise ValueError(f"{args.par}: PLANT.Level1/Level2: {e}; no linearization there (an "
+                             "identified model, --model-file, brings its own operating point)") from None
         source = f"{args.par}: physical linearization at its operating levels"
     # the sampling time in force: asked for; else the identification experiment's (the
     # rate the lab runs the rig at, and --write-par sets TSamp to it); else the .par's
@@ -261,27 +269,27 @@ def _run_2x2(args: argparse.Namespace) -> int:
     if not args.no_step and chk.stable and params is not None:
         if h <= 0.0:
             raise ValueError("the preview on the simulator needs a sampling time: --sampling > 0")
-        pv = _preview(params, chk, G, h, args.window)
+        pv = _preview(params, chk.pid_pair(), [d.evaluation for d in chk.loops], G, h, args.window,
+                      _model_inputs(args.model_file))
     written = None
     if args.write_par:
-        out = Path(args.write_par)
-        if out.suffix.lower() != ".par":
-            raise ValueError(f"--write-par {out}: the file name must end in .par")
         assert params is not None
-        values = controller_values(chk.pid_pair())
-        if h > 0.0:  # the controllers run at the sampling time they were designed for
-            values["SAMPLING TIME.TSamp"] = h * 1000.0
-        written = write_par(out, params.with_values(values))
+        written = _write(args.write_par, params, controller_values(chk.pid_pair()), h)
     figure = _figure(args.figure, [(f"loop {d.loop} on {d.how}", d.model, d.controller) for d in chk.loops],
                      f"{source}, method {method}")
-    if args.json:
-        report = _check_json(chk, pv, written)
+    return _report(args.json, _check_json(chk, pv, written), [f"{source}, method {method}", format_check(chk)],
+                   pv, written, figure)
+
+
+def _report(as_json: bool, report: dict[str, Any], lines: list[str], pv: Any, written: Path | None,
+            figure: Path | None) -> int:
+    """The design's JSON object, or its lines, the preview and what was written."""
+    if as_json:
         if figure is not None:
             report["figure"] = str(figure)
         print(json.dumps(report, indent=2))
         return 0
-    print(f"{source}, method {method}")
-    print(format_check(chk))
+    print("\n".join(lines))
     if pv is not None:
         from quadtank_tui.core.design.preview import format_preview
 
@@ -293,18 +301,106 @@ def _run_2x2(args: argparse.Namespace) -> int:
     return 0
 
 
-def _preview(params: Any, chk: Any, G: Any, h: float, window: float | None) -> Any:
-    """The designed pair on the nonlinear plant in use from its operating point."""
+def _write(path: str, params: Any, values: dict[str, Any], h: float) -> Path:
+    """--write-par: the parameters with the designed controllers, TSamp at the
+    sampling time they were designed for."""
+    from quadtank_tui.files.par import write_par
+
+    out = Path(path)
+    if out.suffix.lower() != ".par":
+        raise ValueError(f"--write-par {out}: the file name must end in .par")
+    if h > 0.0:  # the controllers run at the sampling time they were designed for
+        values["SAMPLING TIME.TSamp"] = h * 1000.0
+    return write_par(out, params.with_values(values))
+
+
+def _model_inputs(path: str | None) -> list[float] | None:
+    """The pumps (0..1 of full scale) of a saved model's operating point, the rest
+    its experiment started from; None without a model file or with an input missing."""
+    if path is None:
+        return None
+    from quadtank_tui.files.model import read_model
+
+    op = read_model(path).operating_point
+    us = [op.get(f"u{i}") for i in (1, 2)]
+    return [u for u in us if u is not None] or None
+
+
+def _start(plant: Any, params: Any, inputs: list[float] | None) -> tuple[Any, Any]:
+    """Levels and pump volts the preview starts from: the identification experiment's
+    rest (a model is linear about it) when the model gives all the plant's inputs,
+    else the steady state of the parameters' operating levels."""
+    if inputs is not None and len(inputs) >= len(plant.inputs):
+        volts = [u * s.full_scale for u, s in zip(inputs, plant.inputs)]
+        return plant.steady_state(volts), volts
+    levels = params.process_levels()
+    op = plant.steady_inputs([x if i in plant.controlled else None for i, x in enumerate(levels)])
+    return op.x, op.u
+
+
+def _preview(params: Any, pair: Any, evaluations: Any, G: Any, h: float, window: float | None,
+             inputs: list[float] | None = None, tr_keys: tuple[str, ...] = ("CONTROLLER ONE.Tr",
+                                                                            "CONTROLLER FOUR.Tr")) -> Any:
+    """The designed controllers on the nonlinear plant in use from its operating point."""
     from quadtank_tui.core.design.preview import preview, window_for
 
     plant = params.process_plant()
-    levels = params.process_levels()
-    op = plant.steady_inputs([x if i in plant.controlled else None for i, x in enumerate(levels)])
-    tr = (params.get("CONTROLLER ONE.Tr"), params.get("CONTROLLER FOUR.Tr"))
+    x0, u0 = _start(plant, params, inputs)
+    tr = [params.get(k) for k in tr_keys]
     if window is None:
-        window = window_for([d.evaluation.setpoint_settling for d in chk.loops], h)
-    return preview(plant, op.x, op.u, chk.pid_pair(), h, window=window, model=G,
+        window = window_for([ev.setpoint_settling for ev in evaluations], h)
+    return preview(plant, x0, u0, pair, h, window=window, model=G,
                    tr=tuple(float(getattr(x, "value", x)) for x in tr))
+
+
+def _run_one_pump(args: argparse.Namespace, params: Any) -> int:
+    """A one-pump plant (the cascade): one loop, the controlled level from the pump,
+    designed, previewed and written as element 12 of the matrix (core.design.apply)."""
+    from quadtank_tui.core.design.apply import ONE_PUMP_ELEMENT, one_pump_values
+    from quadtank_tui.core.design.evaluate import evaluate
+    from quadtank_tui.core.design.mimo import design_loop, plant_loop
+
+    plant = params.process_plant()
+    (c,) = plant.controlled
+    y = f"y{c + 1}"
+    h_file = None
+    if args.model_file is not None:
+        from quadtank_tui.files.model import ModelFileError, read_model
+
+        m = read_model(args.model_file)
+        g = m.element(y, "u1")
+        if g is None:
+            raise ModelFileError(args.model_file, f"no element {y}/u1 (the model has {', '.join(m.inputs)} -> "
+                                 f"{', '.join(m.outputs)}): {plant.title} controls {y} with its one pump u1")
+        h_file = m.sampling_time
+        source = f"{args.model_file}: identified model"
+    else:
+        g = plant_loop(plant, params.process_levels())
+        source = f"{args.par}: physical linearization at its operating levels"
+    h = args.sampling if args.sampling is not None else (h_file or params.tsamp)
+    method = args.method or "lambda"
+    ctrl = design_loop(g, method, lam=args.lam, ms=args.ms, h=h).rounded()
+    ev = evaluate(ctrl, g, h=h)
+    note = (f"{plant.title} has one pump: one loop is designed, {y} <- u1 (matrix element 12, "
+            f"{ONE_PUMP_ELEMENT}, reference 2, in the full matrix)")
+    pv = None
+    if not args.no_step and ev.stable:
+        if h <= 0.0:
+            raise ValueError("the preview on the simulator needs a sampling time: --sampling > 0")
+        pv = _preview(params, [ctrl], [ev], ((g,),), h, args.window, _model_inputs(args.model_file),
+                      (f"{ONE_PUMP_ELEMENT}.Tr",))
+    written = _write(args.write_par, params, one_pump_values(ctrl), h) if args.write_par else None
+    figure = _figure(args.figure, [(f"{y} <- u1", g, ctrl)], f"{source}, method {method}")
+    report = {"stable": ev.stable, "sampling_time": h, "notes": [note],
+              "loops": [{"loop": 1, "output": y, "input": "u1", "element": ONE_PUMP_ELEMENT,
+                         "designed_on": f"g{c + 1}1", "model": str(g), "Kc": ctrl.Kc, "Ti": ctrl.Ti,
+                         "Td": ctrl.Td, "evaluation": _evaluation_json(ev)}],
+              "preview": None if pv is None else pv.to_dict(),
+              "written": None if written is None else str(written)}
+    lines = [f"{source}, method {method}", note,
+             f"loop {y} <- u1 on {g}: Kc = {ctrl.Kc:.4g}   Ti = {ctrl.Ti:.4g} s   Td = {ctrl.Td:.4g} s"
+             + (f"   (sampled at h = {h:g} s)" if h > 0 else "   (continuous time)"), format_evaluation(ev)]
+    return _report(args.json, report, lines, pv, written, figure)
 
 
 def _check_json(chk: Any, pv: Any, written: Path | None) -> dict[str, Any]:

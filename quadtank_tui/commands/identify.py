@@ -104,8 +104,12 @@ def _sensor_gains(par: str | None, params: PlantParams | None) -> tuple[dict[str
     from quadtank_tui.core.identify.physical import sensor_gains
     from quadtank_tui.core.plants import Plant, QuadTank
 
-    plant: Plant = (starting_plant(par).plant if par is not None
-                    else QuadTank(params) if params is not None else QuadTank())
+    if par is not None:
+        plant: Plant = starting_plant(par).plant
+    elif params is not None:
+        plant = QuadTank(params)
+    else:  # _physical gives a quadruple tank whenever --par is absent
+        raise ValueError("no plant to take the sensors' gains from: give --par")
     gains = sensor_gains(plant)
     return {f"y{i + 1}": float(g) for i, g in enumerate(gains)}, plant.states[0].unit
 

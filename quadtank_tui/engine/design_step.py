@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from quadtank_tui.core.design.apply import controller_values
+from quadtank_tui.core.design.apply import controller_values, one_pump_values
 from quadtank_tui.core.design.controller import PID
 from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
 from quadtank_tui.core.plant import FULL_SCALE_V
@@ -43,29 +43,39 @@ class StepCheck:
 
 def run_step(pair: Sequence[PID], *, par: str | Path | None = None, loop: int = 1,
              duration: float = 600.0, params_dir: Path = Path("params"),
-             logs_dir: Path = Path("logs"), tsamp_ms: float | None = None) -> StepCheck:
+             logs_dir: Path = Path("logs"), tsamp_ms: float | None = None,
+             inputs: Sequence[float] | None = None, settle: float = SETTLE_BEFORE) -> StepCheck:
     """Step reference `loop` by STEP with the pair running; figures after the step.
-    The engine samples at `tsamp_ms` (None: the parameters' own TSamp)."""
+    The engine samples at `tsamp_ms` (None: the parameters' own TSamp).  `inputs`
+    (0..1 of each pump's full scale): the Manual pumps before the step, e.g. an
+    identification experiment's rest (None: those holding the operating levels),
+    for `settle` s.  A one-pump plant's loop (the cascade) is its controlled level on
+    reference 2 with the pump u1 (core.design.apply.one_pump_values)."""
     params, _ = load_parameters(par, ParStore(params_dir))
     plant = params.process_plant()  # the plant in use: its pumps hold its operating levels
-    levels = params.process_levels()
-    op = plant.steady_inputs([x if i in plant.controlled else None for i, x in enumerate(levels)])
-    v = [u / s.full_scale * FULL_SCALE_V for u, s in zip(op.u, plant.inputs)]
+    if inputs is None:
+        levels = params.process_levels()
+        op = plant.steady_inputs([x if i in plant.controlled else None for i, x in enumerate(levels)])
+        inputs = [u / s.full_scale for u, s in zip(op.u, plant.inputs)]
+    v = [float(u) * FULL_SCALE_V for u in inputs] + [0.0] * (2 - len(inputs))
+    one_pump = len(plant.inputs) == 1
     tsamp = params.tsamp_ms if tsamp_ms is None else tsamp_ms
-    rows = int((SETTLE_BEFORE + AUTO_BEFORE_STEP + duration) / (tsamp / 1000.0)) + 100
+    rows = int((settle + AUTO_BEFORE_STEP + duration) / (tsamp / 1000.0)) + 100
     engine: Engine = build_engine(par, clock="manual", params_dir=params_dir,
                                   logs_dir=logs_dir, threaded=False,
                                   history_capacity=max(DEFAULT_CAPACITY, rows))
     try:
-        setup = {"SAMPLING TIME.TSamp": tsamp, **controller_values(pair)}
+        setup = {"SAMPLING TIME.TSamp": tsamp,
+                 **(one_pump_values(pair[0]) if one_pump else controller_values(pair))}
         for i, sec in ((0, "REFERENCE ONE"), (1, "REFERENCE TWO")):
             setup.update({f"{sec}.Mean": v[i] / FULL_SCALE_V, f"{sec}.On": 0})
         for command in (SetControlMode("Manual"), SetParams(setup), SetState("Run")):
             must(engine.submit(command).result())
-        engine.run_for(SETTLE_BEFORE)
+        engine.run_for(settle)
         must(engine.submit(SetControlMode("Automatic")).result())
         engine.run_for(AUTO_BEFORE_STEP)  # as the sample session: the step 10 s later
-        key = f"REFERENCE {'ONE' if loop == 1 else 'TWO'}.Mean"
+        ref = 2 if one_pump else loop  # the cascade's loop: error 2 (y2) drives pump 1
+        key = f"REFERENCE {'ONE' if ref == 1 else 'TWO'}.Mean"
         mean = engine.snapshot().params.get(key)
         must(engine.submit(SetParams({key: mean + STEP})).result())
         engine.run_for(duration)
@@ -73,11 +83,11 @@ def run_step(pair: Sequence[PID], *, par: str | Path | None = None, loop: int = 
     finally:
         engine.stop()
     t = hist["t"]
-    after = t >= SETTLE_BEFORE - 1e-9
-    i, o = loop, 3 - loop
+    after = t >= settle - 1e-9
+    i, o = ref, 3 - ref
     y_other = hist[f"y{o}"][after]
     m = loop_metrics(t[after], hist[f"y{i}"][after], hist[f"ref{i}"][after])
-    stepped = t >= (m.step_time if m.step_time is not None else SETTLE_BEFORE) - 1e-9
+    stepped = t >= (m.step_time if m.step_time is not None else settle) - 1e-9
     u = np.column_stack([hist["u1"][stepped], hist["u2"][stepped]])
     return StepCheck(loop, m, float(np.max(np.abs(y_other - y_other[0]))), duration, u,
                      t[stepped] - t[stepped][0], hist[f"y{i}"][stepped])

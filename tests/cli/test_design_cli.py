@@ -107,6 +107,8 @@ def test_bad_model_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixtur
         (["--model-file", str(whole), "--write-par", "x.par"], "--write-par with --model-file needs --par"),
         (["--model", P1, "--par", str(PARAMS / "minphase.par")], "--model and --par: choose one"),
         ([], "a model is needed"),
+        (["--par", str(PARAMS / "coupled-tito.par")],  # Murray-Smith's levels need pump 2 backwards
+         "coupled-tito.par: PLANT.Level1/Level2: levels (0.115, 0.071) m need pump voltages (3.22, -0.435) V"),
     ]
     for argv, words in cases:
         assert main(["design", *argv]) == 2
@@ -134,3 +136,23 @@ def test_design_par_prints_the_par_warnings_on_stderr(tmp_path: Path, capsys: py
     captured = capsys.readouterr()
     assert f"quadtank: warning: {par}, line" in captured.err and "unknown key 'Foo' in CONTROL" in captured.err
     assert "closed loop stable" in captured.out
+
+
+def test_the_cascade_has_one_loop_y2_from_the_pump(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """One pump: one loop on the lower level, designed on the physical linearization,
+    previewed, and written as matrix element 12 (u1 from error 2, the full matrix)."""
+    out = tmp_path / "cascade.par"
+    assert main(["design", "--par", str(PARAMS / "coupled-cascade.par"), "--sampling", "1",
+                 "--write-par", str(out), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    (loop,) = d["loops"]
+    assert (loop["output"], loop["input"], loop["element"]) == ("y2", "u1", "CONTROLLER TWO")
+    assert "has one pump: one loop is designed, y2 <- u1" in d["notes"][0]
+    # G21 = 1.723 / (313.2 s^2 + 35.40 s + 1) at x1 = 15 cm (Desautel's operating point)
+    assert loop["model"].startswith("(1.72303)/(313.214*s^2 + 35.3972*s + 1)")
+    assert (loop["Kc"], loop["Ti"]) == (pytest.approx(1.109, abs=1e-3), pytest.approx(28.05, abs=0.01))
+    (step,) = d["preview"]["steps"]
+    assert d["preview"]["warnings"] == [] and step["simulated"]["settling_time"] is not None
+    p = read_par(out).params
+    assert p.tsamp == 1.0 and p.get("CONTROLLER TWO.K") == loop["Kc"] and p.get("CONTROLLER ONE.K") == 0.0
+    assert p.get("CONTROL.Structure").value == "FullMatrix"

@@ -8,6 +8,7 @@ import json
 import os
 import shutil
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -176,7 +177,6 @@ def test_identify_design_write_par_and_the_plant_does_what_the_preview_said(
         models: dict[str, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path, s: str, method: str) -> None:
     from quadtank_tui.engine.design_step import run_step
     from quadtank_tui.core.design.controller import PID
-    from quadtank_tui.core.design.sampled_eval import reversals
     from quadtank_tui.files.par import read_par
 
     out_par = tmp_path / "designed.par"
@@ -191,10 +191,98 @@ def test_identify_design_write_par_and_the_plant_does_what_the_preview_said(
         said = step["simulated"]
         did = run_step(pair, par=out_par, loop=step["loop"], duration=step["window"],
                        params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
-        assert did.step.step == pytest.approx(0.1)
-        assert abs(did.step.overshoot - said["overshoot_pct"]) <= 5.0
-        assert did.step.settling_time is not None and said["settling_time"] is not None
-        assert did.step.settling_time == pytest.approx(said["settling_time"], rel=0.2)
-        assert did.step.iae == pytest.approx(said["IAE"], rel=0.2)
-        assert reversals(did.u[:, step["loop"] - 1], 0.1) < 0.5  # no chatter
-        assert np.all((did.u >= 0.0) & (did.u <= 1.0))  # the pumps within 0..10 V
+        did_what_the_preview_said(did, said, step["loop"])
+
+
+def did_what_the_preview_said(did: Any, said: dict, loop: int) -> None:  # type: ignore[type-arg]
+    """The issue's tolerances: overshoot within 5 points, settling and IAE within 20 %,
+    no chatter, the pumps within their range."""
+    from quadtank_tui.core.design.sampled_eval import reversals
+
+    assert did.step.step == pytest.approx(0.1)
+    assert abs(did.step.overshoot - said["overshoot_pct"]) <= 5.0
+    assert did.step.settling_time is not None and said["settling_time"] is not None
+    assert did.step.settling_time == pytest.approx(said["settling_time"], rel=0.2)
+    assert did.step.iae == pytest.approx(said["IAE"], rel=0.2)
+    assert reversals(did.u[:, loop - 1], 0.1) < 0.5  # no chatter
+    assert np.all((did.u >= 0.0) & (did.u <= 1.0))  # the pumps within 0..10 V
+
+
+# --- the same on the coupled rigs: the cascade (one pump: one loop, y2 <- u1) and the
+# two-input rig (the 2x2), from their shipped scripts
+
+#: rig: (.par, script, points logged here, the run's duration, identify's options).  The
+#: test's budget: the cascade's log is cut from the shipped 1800 points to 900 (the
+#: output-error fit costs ~1 ms a point; 900 points still hold 45 PRBS holds); the
+#: two-input rig's keeps its 3600 (its slow mode, 170 s, needs them) and is fitted by
+#: the subspace method (one pass; the lab's output-error fit with --order 2 --zeros 1,
+#: the script's command, takes 10 s here, with gains within 2-6 % of the physical ones, against 8-12 %).
+RIGS = {
+    "cascade": ("coupled-cascade", "identify-cascade-u1.yaml", 900, 1100, []),
+    "tito": ("coupled-tito", "identify-tito-mimo.yaml", 3600, 4400, ["--method", "n4sid", "--order", "2"]),
+}
+
+
+@pytest.fixture(scope="module")
+def coupled_models(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Each rig's experiment run as shipped and identified, once for the module."""
+    out = tmp_path_factory.mktemp("coupled")
+    shutil.copytree(ROOT / "params", out / "params")  # run from a copy, never from the checkout
+    cwd = Path.cwd()
+    os.chdir(out)
+    made = {}
+    try:
+        for rig, (par, script, points, duration, opts) in RIGS.items():
+            path = out / "params" / script
+            text = path.read_text()
+            shipped = "1800" if rig == "cascade" else "3600"
+            assert f'"LOGGING.Points": {shipped}' in text
+            path.write_text(text.replace(f'"LOGGING.Points": {shipped}', f'"LOGGING.Points": {points}'))
+            log = out / f"{rig}.log"
+            assert main(["run", "--par", par, "--script", f"params/{script}", "--duration", str(duration),
+                         "--log", str(log)]) == 0
+            made[rig] = out / f"{rig}.model.json"
+            assert main(["identify", str(log), *opts, "--save", str(made[rig])]) == 0
+    finally:
+        os.chdir(cwd)
+    return made
+
+
+@pytest.mark.parametrize("rig,method,extra", [
+    ("cascade", "lambda", []), ("cascade", "pi-ms", []),
+    # the 2x2 lambda row (Ti = the slow mode's 170 s) settles in ~1000 s with the other
+    # loop's coupling (lambda11(0) 3.2): a longer preview than the default 4 x 160 s
+    ("tito", "lambda", ["--window", "1600"]), ("tito", "pi-ms", []),
+])
+def test_the_coupled_rigs_identify_design_write_par_and_do_what_the_preview_said(
+        coupled_models: dict[str, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path,
+        rig: str, method: str, extra: list[str]) -> None:
+    from quadtank_tui.core.design.controller import PID
+    from quadtank_tui.engine.design_step import run_step
+    from quadtank_tui.files.par import read_par
+
+    out_par = tmp_path / "designed.par"
+    d = _design(capsys, "--model-file", str(coupled_models[rig]),
+                "--par", str(ROOT / "params" / f"{RIGS[rig][0]}.par"),
+                "--method", method, "--write-par", str(out_par), *extra)
+    model = json.loads(coupled_models[rig].read_text())
+    assert d["sampling_time"] == 1.0 == model["sampling_time"]  # the script's Ts, and the design's
+    written = read_par(out_par).params
+    assert written.tsamp == 1.0
+    assert d["stable"] and d["preview"]["warnings"] == []
+    pair = [PID(loop["Kc"], loop["Ti"], loop["Td"]) for loop in d["loops"]]
+    if rig == "cascade":  # one pump: one loop, y2 <- u1, element 12 of the matrix
+        assert len(d["loops"]) == 1 and d["loops"][0]["output"] == "y2"
+        assert "one pump: one loop is designed" in d["notes"][0]
+        assert written.get("CONTROLLER TWO.K") == pair[0].Kc and written.get("CONTROLLER TWO.Ti") == pair[0].Ti
+        assert written.get("CONTROLLER ONE.K") == 0.0 and written.get("CONTROL.Structure").value == "FullMatrix"
+    else:
+        assert written.get("CONTROLLER ONE.K") == pair[0].Kc and written.get("CONTROLLER FOUR.Ti") == pair[1].Ti
+    inputs = [model["operating_point"][u] for u in ("u1", "u2") if u in model["operating_point"]]
+    assert len(d["preview"]["steps"]) == len(pair)
+    for step in d["preview"]["steps"]:
+        said = step["simulated"]
+        did = run_step(pair, par=out_par, loop=step["loop"], duration=step["window"], inputs=inputs,
+                       settle=1200.0 if rig == "tito" else 200.0,
+                       params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
+        did_what_the_preview_said(did, said, step["loop"])

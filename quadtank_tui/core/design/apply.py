@@ -25,6 +25,27 @@ def controller_values(pair: Sequence[PID | None]) -> dict[str, Any]:
     return values
 
 
+#: A one-pump plant's loop (the cascade: u1 from the lower level y2, reference 2) is
+#: element 12 of the matrix, u1 from error 2: CONTROLLER TWO, in the full matrix.
+#: CONTROLLER ONE keeps K 0 with its integrator: it holds the input the Manual ->
+#: Automatic switch found (bumpless) and takes the pump's saturation excess, the
+#: anti-windup the matrix gives the element that owns input 1 (core.matrix).
+ONE_PUMP_ELEMENT = "CONTROLLER TWO"
+
+
+def one_pump_values(c: PID) -> dict[str, Any]:
+    """The `.par` keys (and values) for a one-pump plant's loop on its controlled
+    level; the elements on the missing pump 2 are zeroed."""
+    values: dict[str, Any] = {"CONTROL.Type": "PID", "CONTROL.Structure": "FullMatrix"}
+    sec = ONE_PUMP_ELEMENT
+    values.update({f"{sec}.K": c.Kc, f"{sec}.Ti": c.Ti, f"{sec}.Td": c.Td,
+                   f"{sec}.N": c.N, f"{sec}.b": c.b, f"{sec}.I": 1, f"{sec}.D": int(c.Td > 0)})
+    values.update({"CONTROLLER ONE.K": 0.0, "CONTROLLER ONE.I": 1, "CONTROLLER ONE.D": 0})
+    for other in ("CONTROLLER THREE", "CONTROLLER FOUR"):
+        values.update({f"{other}.K": 0.0, f"{other}.I": 0, f"{other}.D": 0})
+    return values
+
+
 def describe_changes(before: Parameters, values: Mapping[str, Any]) -> list[str]:
     """'CONTROLLER ONE.K 3 -> 1.149' for each value that changes."""
     out = []

@@ -25,12 +25,13 @@ ratio of the program's normalized signals (1.0 = 10 V), so Kc is the PID element
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import ss2tf, tf2ss
+from scipy.signal import BadCoefficients, ss2tf, tf2ss
 
 from quadtank_tui.core.analysis import analyze
 from quadtank_tui.core.delaytf import DelayTF
@@ -85,6 +86,23 @@ def plant_matrix(plant: Plant, levels: Sequence[float]) -> Matrix:
             row.append(DelayTF(tuple(n), tuple(d)))
         out.append((row[0], row[1]))
     return (out[0], out[1])
+
+
+def plant_loop(plant: Plant, levels: Sequence[float]) -> DelayTF:
+    """A one-pump plant's loop (the cascade: the lower level from the pump), linearized
+    at the steady state its controlled level sets, in normalized units as plant_matrix."""
+    if len(plant.inputs) != 1 or len(plant.controlled) != 1:
+        raise DesignError(f"{plant.title} has {len(plant.inputs)} pumps: the one-loop design is for one pump")
+    (c,) = plant.controlled
+    op = plant.steady_inputs([float(x) if i == c else None for i, x in enumerate(levels)])
+    lin = plant.control_model(op.x, op.u)
+    with warnings.catch_warnings():  # the cascade's numerator has a zero leading term: stripped below
+        warnings.simplefilter("ignore", BadCoefficients)
+        num, den = ss2tf(lin.A, lin.B[:, [0]], lin.C[[0]], np.zeros((1, 1)))  # C: the controlled row only
+    num = np.atleast_1d(num[0])
+    num = np.trim_zeros(np.where(np.abs(num) < 1e-9 * np.abs(num).max(), 0.0, num), "f")
+    n, d = _cancel(num * plant.inputs[0].full_scale / FULL_SCALE_V, den)
+    return DelayTF(tuple(n), tuple(d))
 
 
 def model_in_use(params: Parameters) -> Matrix:

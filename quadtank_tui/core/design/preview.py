@@ -195,7 +195,8 @@ def format_preview(pv: Preview) -> str:
                 continue
             settle = "not settled" if f.settling is None else f"{f.settling:.0f} s"
             lines.append(f"  r{s.loop} {name:9}: overshoot {f.overshoot_pct:.1f} %, settling (2 %) {settle}, "
-                         f"IAE {f.iae:.3f}, peak in y{3 - s.loop} {f.other_peak:.4f}, at a pump limit "
+                         f"IAE {f.iae:.3f}, " + (f"peak in y{3 - s.loop} {f.other_peak:.4f}, "
+                                                 if s.u.shape[1] == 2 else "") + "at a pump limit "
                          f"{f.at_limit:.0f} s, reversals {f.reversals:.0%}")
     lines.extend(f"WARNING: {w}" for w in pv.warnings)
     return "\n".join(lines)
