@@ -9,7 +9,6 @@ import os
 import shutil
 import stat
 import subprocess
-import tempfile
 import time
 from pathlib import Path
 from typing import Iterator
@@ -18,6 +17,7 @@ import pytest
 from otherusers import ROOT, made_users
 from otherusers import as_user as run_as
 from test_two_users import HOLD, ask
+from test_two_users import shared as shared_folder
 
 from quadtank_tui.commands import UsageError
 from quadtank_tui.commands import lab as lab_command
@@ -28,20 +28,13 @@ pytestmark = pytest.mark.skipif(os.getuid() != 0 or shutil.which("useradd") is N
                                 or shutil.which("runuser") is None, reason="needs root, useradd and runuser")
 
 DEVICE = "127.0.0.1:15021/1"
+shared = shared_folder  # the fixture: a folder every user may write
 
 
 @pytest.fixture(scope="module")
 def users() -> Iterator[tuple[str, ...]]:
     with made_users(f"qtl{os.getpid()}a", f"qtl{os.getpid()}b") as names:
         yield names
-
-
-@pytest.fixture
-def shared() -> Iterator[Path]:
-    folder = Path(tempfile.mkdtemp(prefix="qtl-"))
-    os.chmod(folder, 0o1777)
-    yield folder
-    shutil.rmtree(folder, ignore_errors=True)
 
 
 def as_user(user: str, shared: Path, code: str, *args: str, **env: str) -> subprocess.Popen[str]:
