@@ -103,8 +103,9 @@ def lock_path(device: str, lab: LabConfig, uid: int | None = None) -> Path:
     return lab.locks_dir / f"{_stem(device)}~{os.getuid() if uid is None else uid}.lock"
 
 
-#: More entries than this for one device in the locks folder are not looked at (junk).
-MAX_ENTRIES = 1000
+#: Records of one user for one device looked at (more are junk of that user's own:
+#: counted per user, after the owner check, so nobody's junk hides another's record).
+MAX_PER_USER = 8
 
 
 @dataclass(frozen=True)
@@ -243,21 +244,21 @@ def _records(device: str, lab: LabConfig) -> list[_Found]:
         entries = os.scandir(lab.locks_dir)
     except OSError:
         return out
-    seen = 0
+    seen: dict[int, int] = {}
     with entries:
         for entry in entries:
             uid = _name_uid(entry.name, stem)
             if uid is None:
                 continue
-            seen += 1
-            if seen > MAX_ENTRIES:
-                break
             try:
                 st = entry.stat(follow_symlinks=False)
             except OSError:
                 continue
             if not stat.S_ISREG(st.st_mode) or st.st_uid != uid:
                 continue  # forged, a directory, a link: never a record
+            seen[uid] = seen.get(uid, 0) + 1
+            if seen[uid] > MAX_PER_USER:
+                continue
             got = _read(Path(entry.path), uid)
             if got is not None and _genuine(got[0]):
                 out.append(_Found(got[0], Path(entry.path), got[1]))

@@ -218,3 +218,26 @@ def test_the_watch_tells_a_refused_take_over_once_and_keeps_the_lock(
     finally:
         watch.stop()
         lock.release()
+
+
+@root_only
+def test_junk_of_another_user_hides_no_record(lab: LabConfig) -> None:
+    """A student's thousand entries under the device's name (their own, and named
+    as root's) are looked past: the holder is still found, and a second program refused."""
+    child = subprocess.Popen(["sleep", "60"])
+    try:
+        lab.locks_dir.mkdir(parents=True)
+        for n in range(500):
+            for uid in (STUDENT, 0):
+                junk = lab.locks_dir / f"{lock_path(DEVICE, lab, uid).stem}.{n}.lock"
+                junk.write_text("{}")
+                os.chown(junk, STUDENT, STUDENT)
+        with DaqLock.acquire(DEVICE, lab) as lock:
+            lock.transfer(child.pid)
+            held = holder_of(DEVICE, lab)
+            assert held is not None and held.pid == child.pid
+            with pytest.raises(lockmod.DaqLockHeld):
+                DaqLock.acquire(DEVICE, lab)
+    finally:
+        child.kill()
+        child.wait()
