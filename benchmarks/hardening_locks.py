@@ -255,7 +255,7 @@ def _forged_by(names: tuple[str, str], runtime: str) -> str | None:
 def _hostage_by(names: tuple[str, str], runtime: str) -> str | None:
     Path(runtime, "locks").mkdir(parents=True, exist_ok=True)
     os.chmod(runtime, 0o1777)
-    os.chmod(Path(runtime, "locks"), 0o777)
+    os.chmod(Path(runtime, "locks"), 0o1777)
     hostage = as_user(names[1], FLOCK_HOLDER, str(Path(runtime, "locks")))
     try:
         assert hostage.stdout is not None

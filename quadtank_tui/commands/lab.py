@@ -73,7 +73,8 @@ def hold_daq(config: str | None, *, take_over: bool = False, say: Callable[[str]
     """The DAQ lock of the rig the DAQ configuration `config` names, for the
     duration of the block (None without a configuration).  UsageError naming the
     holder if another program drives it; NotPermitted for a take-over by a
-    non-administrator."""
+    non-administrator; UsageError if the holder did not stop within TAKE_OVER_WAIT
+    (by its lab's rules the taker is no administrator): the lock is given back."""
     if config is None:
         yield None
         return
@@ -100,6 +101,12 @@ def hold_daq(config: str | None, *, take_over: bool = False, say: Callable[[str]
         deadline = time.monotonic() + TAKE_OVER_WAIT
         while pid_alive(held.pid) and time.monotonic() < deadline:
             time.sleep(0.1)
+        why = lock.lost()
+        if pid_alive(held.pid) or why is not None:  # it did not yield (its lab's rules): never both drive
+            lock.release()
+            raise UsageError(f"the holder refused the take-over: {held.holder} (pid {held.pid}) still drives "
+                             f"the rig at {device} after {TAKE_OVER_WAIT:g} s" + (f" ({why})" if why else "")
+                             + "; this program did not touch it")
     hold = DaqHold(lock)
     try:
         yield hold

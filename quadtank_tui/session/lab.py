@@ -25,7 +25,7 @@ import re
 import stat
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 
 from quadtank_tui.files.yamltext import key_lines, parse_yaml, read_text
@@ -200,11 +200,14 @@ def with_policy(text: str, policy: UnattendedPolicy) -> str:
 
 # --- the runtime folder -------------------------------------------------------------------
 
-def ensure_shared_dir(folder: Path, mode: int = 0o1777) -> Path:
+def ensure_shared_dir(folder: Path, mode: int = 0o1777, *, trusted: Callable[[int], bool] | None = None) -> Path:
     """Create `folder` like /tmp (mode 1777: every user may create entries, nobody
     may remove another's), or check an existing one is a real folder, not a link
-    someone planted.  OSError naming the folder otherwise.  An existing folder of
-    ours with another mode (an older version's) is given `mode`."""
+    someone planted.  Whoever creates a folder owns it and could close it to the
+    others (issue 24: a student made locks/ 0755): root makes it root's; an owner
+    fixes the mode of its own; a folder of someone else with another mode is
+    accepted only from root or an administrator (`trusted(uid)`), else refused
+    naming its owner.  OSError naming the folder otherwise."""
     try:
         folder.mkdir(parents=True, exist_ok=False)
     except FileExistsError:
@@ -212,18 +215,31 @@ def ensure_shared_dir(folder: Path, mode: int = 0o1777) -> Path:
     st = os.lstat(folder)
     if not stat.S_ISDIR(st.st_mode):
         raise NotADirectoryError(f"{folder}: the lab's runtime folder is not a folder (a link or a file)")
-    if stat.S_IMODE(st.st_mode) != mode and st.st_uid == os.getuid():
-        try:
-            os.chmod(folder, mode)
-        except PermissionError:
-            pass
-    return folder
+    me = os.getuid()
+    if me == 0 and st.st_uid != 0:
+        os.chown(folder, 0, 0, follow_symlinks=False)  # a shared folder is nobody's but root's
+    if stat.S_IMODE(st.st_mode) == mode:
+        return folder
+    if st.st_uid == me or me == 0:
+        os.chmod(folder, mode)
+        return folder
+    if st.st_uid == 0 or (trusted is not None and trusted(st.st_uid)):
+        return folder  # the administrators made it so
+    from quadtank_tui.session.roles import user_name
+
+    raise PermissionError(f"{folder}: this shared folder belongs to {user_name(st.st_uid)} (not an "
+                          f"administrator) and has mode {stat.S_IMODE(st.st_mode):o}, not {mode:o}: they could "
+                          "shut the others out; an administrator may remove it, or make the lab's runtime_dir")
 
 
 def ensure_runtime_dir(lab: LabConfig) -> Path:
-    """The runtime folder (1777 sticky) and its locks/ folder (0777, not sticky:
-    a stale or forged lock record of another user must be replaceable; every
-    record is checked against its file's owner instead, session/lock.py)."""
-    ensure_shared_dir(lab.runtime_dir)
-    ensure_shared_dir(lab.locks_dir, mode=0o777)
+    """The runtime folder and its locks/ folder, both 1777 (sticky: nobody removes
+    or replaces another's lock record, session/lock.py)."""
+    from quadtank_tui.session.roles import is_administrator
+
+    def trusted(uid: int) -> bool:
+        return is_administrator(uid, lab)
+
+    ensure_shared_dir(lab.runtime_dir, trusted=trusted)
+    ensure_shared_dir(lab.locks_dir, trusted=trusted)
     return lab.runtime_dir

@@ -1,44 +1,46 @@
-"""One program at a time drives a given DAQ: a lock record per device in the lab's
-runtime folder (`runtime_dir/locks/<address>_<port>_<unit>.lock`, the host resolved
-first: session/riglock.py) that names its holder, so the second program says who
-to ask instead of fighting over the pumps.
+"""One program at a time drives a given DAQ: lock records per device in the lab's
+runtime folder (`runtime_dir/locks/<address>_<port>_<unit>~<uid>.lock`, one per
+user, the host resolved first: session/riglock.py) that name the holder, so the
+second program says who to ask instead of fighting over the pumps.
 
-The record is one JSON object: user, uid, pid (and the pid's start time, so a
-recycled pid is not taken for the holder), since, session, and a token.  The
-record, not a flock, says who holds the rig: a lock outlives the launcher and can be
-handed to the session process (`transfer`).  A holder that died (SIGKILL, a crash)
-leaves a record whose pid is gone: the next program takes it over silently.
+A record is one JSON object: user, uid, pid (and the pid's start time, so a
+recycled pid is not taken for the holder), since, session, take_over and a token.
+The record, not a flock, says who holds the rig: a lock outlives the launcher and
+can be handed to the session process (`transfer`).  A holder that died (SIGKILL, a
+crash) leaves a record whose pid is gone: it counts for nothing.
 
-Why a record no one can forge (issue 24: lock files were 0666, and anyone could
-write `user teacher, pid 1` and lock everyone out, root included):
+Why nobody can forge, remove or block a record (issue 24):
 
-- A record is written by its holder as a file of its own (0644, created under a
-  random name, then renamed over the lock's name), so the file's owner is its
-  writer.  A record whose owner (file uid) differs from the user it names, or whose
-  pid belongs to another user, is forged and counts as free; so does one that
-  cannot be read or parsed.  Nobody writes into another's file.
-- The locks folder is writable by every lab user and not sticky (renaming over
-  another's stale record must work); so anyone may replace or remove a record.
-  That is why the holder decides whether it lost the rig (`lost`): only a genuine
-  live record of an administrator - by the holder's own lab rules, never the
-  taker's - or of the holder's own user takes it over; anything else (a student's
-  record, a forged or removed one) is replaced by the holder's record again.
+- The locks folder is sticky (1777, like /tmp): everyone may create entries,
+  nobody but their owner (and root) may remove or rename them.  Each user writes a
+  record of their own (`~<uid>` in its name; a name someone else's entry occupies
+  gets a random suffix), so a record is never replaced by another user.
+- A record counts (is genuine) only if its file's owner is the user it names and
+  its pid is a live process of that user.  Anything else - a forged record, a
+  directory, a link, junk - is ignored.
+- Of the live genuine records, the one written first holds the rig, ranked by the
+  file's change time (ctime: set by the kernel on every write, never moved back
+  by its owner; a `since` or a pid are written by the student and could name an
+  old process).  A later record holds instead only if it is a take-over by an
+  administrator (by the reader's lab rules) or by the holder's own user.  Every
+  other program sees it lost (`lost`) and stops: two honest programs never drive
+  at once, even if one went on without the flock.
 - Read-check-write in `acquire` happens under `flock` on the locks folder, so two
   programs starting at once cannot both win.  The flock is waited for at most
   LOCK_WAIT seconds and a program holding it longer is named (from /proc/locks);
-  an administrator then goes on without it (the rename is atomic), anyone else is
-  refused with that name.  A release or transfer waits at most QUICK_WAIT and never
-  blocks a stopping program.
+  an administrator then goes on without it (the ranking still decides), anyone
+  else is refused with that name.  A release or transfer waits at most QUICK_WAIT.
 
-The lock is cooperative: it keeps honest programs from colliding and lets no one
-end another's run without the lab's say; it is not a security boundary (the rig's
-Modbus port is one anyway).
+What it cannot prevent: a student may name any live process of their own (a
+`sleep`) and so "reserve" a free rig; the message names them and an administrator
+may take it over.  The lock is cooperative: it keeps honest programs from
+colliding and lets no one end another's run without the lab's say; it is not a
+security boundary (the rig's Modbus port is one anyway).
 """
 
 from __future__ import annotations
 
 import contextlib
-import errno
 import fcntl
 import json
 import os
@@ -91,9 +93,19 @@ def device_key(host: str, port: int, unit: int) -> str:
     return f"{host}:{port}/{unit}"
 
 
-def lock_path(device: str, lab: LabConfig) -> Path:
-    """The lock file of `device` (any character but letters, digits, '.', '-' -> '_')."""
-    return lab.locks_dir / (re.sub(r"[^A-Za-z0-9.-]", "_", device) + ".lock")
+def _stem(device: str) -> str:
+    """`device` as a file name (any character but letters, digits, '.', '-' -> '_')."""
+    return re.sub(r"[^A-Za-z0-9.-]", "_", device)
+
+
+def lock_path(device: str, lab: LabConfig, uid: int | None = None) -> Path:
+    """The lock record of `device` for the user `uid` (default: ours)."""
+    return lab.locks_dir / f"{_stem(device)}~{os.getuid() if uid is None else uid}.lock"
+
+
+#: Records of one user for one device looked at (more are junk of that user's own:
+#: counted per user, after the owner check, so nobody's junk hides another's record).
+MAX_PER_USER = 8
 
 
 @dataclass(frozen=True)
@@ -105,11 +117,12 @@ class _Record:
     since: datetime
     session: str | None
     token: str
+    take_over: bool = False
 
     def to_json(self) -> str:
         return json.dumps({"user": self.user, "uid": self.uid, "pid": self.pid, "start": self.start,
                            "since": self.since.isoformat(timespec="seconds"), "session": self.session,
-                           "token": self.token}) + "\n"
+                           "token": self.token, "take_over": self.take_over}) + "\n"
 
     @classmethod
     def from_json(cls, text: str) -> _Record | None:
@@ -118,7 +131,8 @@ class _Record:
             d: Any = json.loads(text)
             return cls(str(d["user"]), int(d["uid"]), int(d["pid"]),
                        None if d.get("start") is None else int(d["start"]),
-                       datetime.fromisoformat(d["since"]), d.get("session"), str(d.get("token", "")))
+                       datetime.fromisoformat(d["since"]), d.get("session"), str(d.get("token", "")),
+                       bool(d.get("take_over", False)))
         except (ValueError, KeyError, TypeError, RecursionError):
             return None
 
@@ -178,49 +192,94 @@ def pid_alive(pid: int, start: int | None = None) -> bool:
 
 @dataclass(frozen=True)
 class _Found:
-    """What the lock file holds now: its record (None: none, unreadable or not
-    JSON) and the file's owner (None: no file, or not a regular one)."""
+    """A live genuine record, its file and the file's change time (the rank)."""
 
-    record: _Record | None
-    owner: int | None
-
-    @property
-    def genuine(self) -> bool:
-        """Written by the user it names, about a process of that user."""
-        rec = self.record
-        if rec is None or self.owner is None or self.owner != rec.uid:
-            return False
-        runs_as = process_owner(rec.pid)
-        return runs_as is None or runs_as == rec.uid
+    record: _Record
+    path: Path
+    ctime_ns: int
 
     @property
-    def live(self) -> _Record | None:
-        """The record if it is genuine and its process runs (the holder), else None."""
-        rec = self.record
-        return rec if rec is not None and self.genuine and pid_alive(rec.pid, rec.start) else None
+    def rank(self) -> tuple[int, int, str]:
+        return (self.ctime_ns, self.record.uid, self.path.name)
 
 
-def _look(path: Path) -> _Found:
-    """The record at `path` and its file's owner (no symbolic link followed)."""
+def _name_uid(name: str, stem: str) -> int | None:
+    """The uid a record's file name says it is of (`<stem>~<uid>[.<x>].lock`)."""
+    if not name.startswith(stem + "~") or not name.endswith(".lock"):
+        return None
+    digits = name[len(stem) + 1:-len(".lock")].split(".", 1)[0]
+    return int(digits) if digits.isdigit() and len(digits) < 11 else None
+
+
+def _read(path: Path, uid: int) -> tuple[_Record, int] | None:
+    """The record at `path` and its ctime if the file is a regular file of `uid`
+    naming `uid` (no symbolic link followed), else None."""
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
-    except OSError:  # none, a link, or not readable for us: no record
-        return _Found(None, None)
+    except OSError:
+        return None
     try:
         st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            return _Found(None, None)
-        return _Found(_Record.from_json(os.read(fd, MAX_RECORD).decode("utf-8", "replace")), st.st_uid)
+        if not stat.S_ISREG(st.st_mode) or st.st_uid != uid:
+            return None
+        rec = _Record.from_json(os.read(fd, MAX_RECORD).decode("utf-8", "replace"))
+        return None if rec is None or rec.uid != uid else (rec, st.st_ctime_ns)
     except OSError:
-        return _Found(None, None)
+        return None
     finally:
         os.close(fd)
 
 
-def _put(path: Path, rec: _Record | None) -> None:
-    """Make `rec` (None: an empty, free record) the lock file at `path`: written as a
-    new file of ours (0644) and renamed over the old one, so its owner is its writer
-    and a reader sees the old record or the new one, never half of one."""
+def _genuine(rec: _Record) -> bool:
+    """Whether the record's process runs, as the user the record names."""
+    runs_as = process_owner(rec.pid)
+    return (runs_as is None or runs_as == rec.uid) and pid_alive(rec.pid, rec.start)
+
+
+def _records(device: str, lab: LabConfig) -> list[_Found]:
+    """The live genuine records of `device`, earliest written first."""
+    stem = _stem(device)
+    out: list[_Found] = []
+    try:
+        entries = os.scandir(lab.locks_dir)
+    except OSError:
+        return out
+    seen: dict[int, int] = {}
+    with entries:
+        for entry in entries:
+            uid = _name_uid(entry.name, stem)
+            if uid is None:
+                continue
+            try:
+                st = entry.stat(follow_symlinks=False)
+            except OSError:
+                continue
+            if not stat.S_ISREG(st.st_mode) or st.st_uid != uid:
+                continue  # forged, a directory, a link: never a record
+            seen[uid] = seen.get(uid, 0) + 1
+            if seen[uid] > MAX_PER_USER:
+                continue
+            got = _read(Path(entry.path), uid)
+            if got is not None and _genuine(got[0]):
+                out.append(_Found(got[0], Path(entry.path), got[1]))
+    return sorted(out, key=lambda f: f.rank)
+
+
+def _winner(found: list[_Found], lab: LabConfig) -> _Found | None:
+    """Who holds the rig: the earliest record, unless a later one is a take-over
+    by an administrator or by the holder's own user."""
+    if not found:
+        return None
+    win = found[0]
+    for f in found[1:]:
+        if f.record.take_over and (f.record.uid == win.record.uid or is_administrator(f.record.uid, lab)):
+            win = f
+    return win
+
+
+def _put(path: Path, rec: _Record) -> None:
+    """Make `rec` our record at `path`: written as a new file of ours (0644) and
+    renamed over the old one, so a reader sees the old record or the new one."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}")
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
@@ -230,8 +289,7 @@ def _put(path: Path, rec: _Record | None) -> None:
     try:
         try:
             os.fchmod(fd, 0o644)  # whatever the umask: everyone reads who holds the rig
-            if rec is not None:
-                os.write(fd, rec.to_json().encode())
+            os.write(fd, rec.to_json().encode())
             os.fsync(fd)
         finally:
             os.close(fd)
@@ -239,18 +297,41 @@ def _put(path: Path, rec: _Record | None) -> None:
     except OSError as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
-        if exc.errno in (errno.EPERM, errno.EACCES, errno.EISDIR, errno.ENOTEMPTY, errno.EEXIST):
-            owner = _owner_name(path)
-            raise DaqLockError(f"{path}: the lock file (of {owner}) cannot be replaced by you "
-                               f"({exc.strerror}); an administrator may remove it") from None
-        raise
+        raise DaqLockError(f"{path}: cannot write the lock record ({exc.strerror})") from None
 
 
-def _owner_name(path: Path) -> str:
+def _own_path(device: str, lab: LabConfig) -> Path:
+    """Where this user's record of `device` goes: `<stem>~<uid>.lock`, or, if
+    someone else's entry (a directory, a file of another user) sits there, a name
+    of ours with a random suffix."""
+    path = lock_path(device, lab)
     try:
-        return user_name(os.lstat(path).st_uid)
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return path
     except OSError:
-        return "nobody"
+        st = None
+    if st is not None and stat.S_ISREG(st.st_mode) and st.st_uid == os.getuid():
+        return path
+    uid = os.getuid()
+    for entry in _own_entries(device, lab):
+        if entry != path:
+            return entry  # an earlier one of ours with a suffix
+    return path.with_name(f"{_stem(device)}~{uid}.{secrets.token_hex(4)}.lock")
+
+
+def _own_entries(device: str, lab: LabConfig) -> list[Path]:
+    """Our regular files among `device`'s records (stale ones included)."""
+    stem, uid = _stem(device), os.getuid()
+    out = []
+    with contextlib.suppress(OSError), os.scandir(lab.locks_dir) as entries:
+        for entry in entries:
+            if _name_uid(entry.name, stem) == uid:
+                with contextlib.suppress(OSError):
+                    st = entry.stat(follow_symlinks=False)
+                    if stat.S_ISREG(st.st_mode) and st.st_uid == uid:
+                        out.append(Path(entry.path))
+    return sorted(out)
 
 
 # --- the flock on the locks folder: serializes read-check-write, never waits for long ------
@@ -311,9 +392,9 @@ class DaqLock:
     def __init__(self, device: str, path: Path, record: _Record, lab: LabConfig) -> None:
         self.device, self.path, self._record, self._lab = device, path, record, lab
         self._released = False
-        #: what the holder found instead of its record and replaced (a forged record,
-        #: a student's take-over, a removal), for the program to say; None: nothing
-        self.restored: str | None = None
+        #: another program's record found and not yielded to (a student's take-over,
+        #: a later start), for the program to say; None: nothing
+        self.note: str | None = None
 
     @property
     def pid(self) -> int:
@@ -329,69 +410,82 @@ class DaqLock:
         """The lock of `device` for this process; DaqLockHeld if a live program
         holds it (unless `take_over`, for an administrator or the holder's own user:
         NotPermitted otherwise).  A lock held by this very pid (handed over by
-        `transfer`) is adopted.  A forged, unreadable or dead holder's record is
-        replaced."""
+        `transfer`) is adopted."""
         ensure_runtime_dir(lab)
-        path = lock_path(device, lab)
         me = current_user()
         folder = _open_folder(lab.locks_dir)
         try:
             if not _flock(folder, LOCK_WAIT) and not is_administrator(me.uid, lab):
                 raise DaqLockError(_busy(lab.locks_dir, folder, LOCK_WAIT)
                                    + "; an administrator may go on without it")
-            old = _look(path).live
-            if old is not None and old.pid != me.pid:
+            found = _records(device, lab)
+            mine = next((f for f in found if f.record.pid == me.pid and f.record.uid == me.uid), None)
+            others = [f for f in found if f is not mine]
+            old = _winner(others, lab)
+            if old is not None:
                 if not take_over:
-                    raise old.held(device)
-                if old.uid != me.uid and not is_administrator(me.uid, lab):
-                    raise NotPermitted(f"taking over the rig at {device} from {old.user} needs an "
-                                       f"administrator; you are {me.user}")
-            since = old.since if old is not None and old.pid == me.pid else \
-                datetime.now().astimezone().replace(microsecond=0)
-            rec = _Record(me.user, me.uid, me.pid, process_start(me.pid), since, session, secrets.token_hex(8))
+                    raise old.record.held(device)
+                for f in others:
+                    if f.record.uid != me.uid and not is_administrator(me.uid, lab):
+                        raise NotPermitted(f"taking over the rig at {device} from {f.record.user} needs an "
+                                           f"administrator; you are {me.user}")
+            since = mine.record.since if mine is not None else datetime.now().astimezone().replace(microsecond=0)
+            rec = _Record(me.user, me.uid, me.pid, process_start(me.pid), since, session, secrets.token_hex(8),
+                          take_over=old is not None or (mine is not None and mine.record.take_over))
+            path = _own_path(device, lab)
             _put(path, rec)
+            for stale in _own_entries(device, lab):
+                if stale != path:  # ours, of programs gone or taken over by this one
+                    with contextlib.suppress(OSError):
+                        os.unlink(stale)
+            lock = cls(device, path, rec, lab)
+            won = _winner(_records(device, lab), lab)
+            if won is not None and not lock._ours(won):  # one went on without the flock, and was first
+                lock._remove()
+                raise won.record.held(device)
         finally:
             os.close(folder)  # closing drops the flock
-        return cls(device, path, rec, lab)
+        return lock
 
     def _ours(self, found: _Found) -> bool:
-        rec = found.record
-        return rec is not None and rec.token == self._record.token and found.owner == os.getuid()
+        return found.record.token == self._record.token and found.path == self.path
 
-    def _update(self, new: _Record | None) -> bool:
-        """Replace our record by `new` if the file still holds ours (a take-over may
-        have replaced it); whether it did."""
-        try:
-            folder = _open_folder(self.path.parent)
-        except DaqLockError:
-            return False
-        try:
-            _flock(folder, QUICK_WAIT)  # had or not: a stopping program does not wait longer
-            if not self._ours(_look(self.path)):
-                return False
-            _put(self.path, new)
-            return True
-        finally:
-            os.close(folder)
+    def _remove(self) -> None:
+        got = _read(self.path, os.getuid())
+        if got is not None and got[0].token == self._record.token:
+            with contextlib.suppress(OSError):
+                os.unlink(self.path)
 
     def release(self) -> None:
-        """Free the device (idempotent; a lock taken over or transferred is left
-        to its new holder).  The file stays, empty and ours."""
+        """Free the device (idempotent; a lock taken over by our own user or
+        transferred is left to its new holder): our record is removed."""
         if self._released:
             return
         self._released = True
         try:
-            self._update(None)
+            folder = _open_folder(self.path.parent)
         except DaqLockError:
-            pass  # the folder went wrong: the record names a process that is ending
+            return  # the folder went wrong: the record names a process that is ending
+        try:
+            _flock(folder, QUICK_WAIT)  # had or not: a stopping program does not wait longer
+            self._remove()
+        finally:
+            os.close(folder)
 
     def transfer(self, pid: int) -> None:
         """Hand the lock to `pid` (the session process this launcher started): the
         record names it from now on, and this object's release does nothing."""
         rec = self._record
-        new = _Record(rec.user, rec.uid, pid, process_start(pid), rec.since, rec.session, rec.token)
-        if not self._update(new):
-            raise DaqLockError(f"{self.path}: the lock of {self.device} is no longer ours (taken over)")
+        new = _Record(rec.user, rec.uid, pid, process_start(pid), rec.since, rec.session, rec.token, rec.take_over)
+        folder = _open_folder(self.path.parent)
+        try:
+            _flock(folder, QUICK_WAIT)
+            got = _read(self.path, os.getuid())
+            if got is None or got[0].token != rec.token:
+                raise DaqLockError(f"{self.path}: the lock of {self.device} is no longer ours (taken over)")
+            _put(self.path, new)
+        finally:
+            os.close(folder)
         self._record = new
         self._released = True
 
@@ -402,21 +496,34 @@ class DaqLock:
 
     def lost(self) -> str | None:
         """None while this program holds the lock; else why not, for the user (who
-        took it over and when).  Only a genuine live record of an administrator (by
-        this holder's lab rules) or of our own user takes the lock; a forged, a
-        removed or a student's record is replaced by ours again (`restored` says
-        what was found).  A released or transferred lock is not ours either."""
+        took it over, or drove it first).  A later record that does not win (a
+        student's take-over, a program that went on without the flock) is told in
+        `note`; that program stops by itself.  A released or transferred lock is
+        not ours either."""
         if self._released:
             return "the lock was released"
-        found = _look(self.path)
-        if self._ours(found):
-            return None
-        taker = found.live
-        if taker is not None and (taker.uid == self._record.uid or is_administrator(taker.uid, self._lab)):
-            return (f"the rig at {self.device} was taken over by {taker.user} (pid {taker.pid}) "
-                    f"at {datetime.now():%H:%M:%S}")
-        self.restored = _describe(found, self.device)
-        _put(self.path, self._record)
+        found = _records(self.device, self._lab)
+        mine = next((f for f in found if self._ours(f)), None)
+        if mine is None:
+            got = _read(self.path, os.getuid())
+            if got is not None and _genuine(got[0]):  # our own user's take-over
+                return (f"the rig at {self.device} was taken over by {got[0].user} (pid {got[0].pid}) "
+                        f"at {datetime.now():%H:%M:%S}")
+            return f"the lock record of the rig at {self.device} ({self.path}) was removed"
+        win = _winner(found, self._lab)
+        assert win is not None
+        if win is not mine:
+            w = win.record
+            if win.rank > mine.rank:
+                return f"the rig at {self.device} was taken over by {w.user} (pid {w.pid}) at {datetime.now():%H:%M:%S}"
+            return f"{w.held(self.device)}, and that program started first"
+        later = [f.record for f in found if f is not mine]
+        if later:
+            r = later[-1]
+            self.note = (f"{r.user} (not an administrator) tried to take the rig at {self.device} over; refused"
+                         if r.take_over else
+                         f"{r.user} (pid {r.pid}) started on the rig at {self.device} after this program; "
+                         "it must stop")
         return None
 
     def __enter__(self) -> DaqLock:
@@ -429,18 +536,7 @@ class DaqLock:
         return f"DaqLock({self.device!r}, pid={self.pid}, since={self.since:%H:%M:%S})"
 
 
-def _describe(found: _Found, device: str) -> str:
-    """What replaced a holder's record, for its user."""
-    rec = found.record
-    if rec is None:
-        return f"the lock of the rig at {device} was removed or made unreadable; put back"
-    writer = user_name(found.owner) if found.owner is not None else "someone"
-    if not found.genuine:
-        return f"a forged lock record (naming {rec.user}, written by {writer}) was replaced"
-    return f"{writer} (not an administrator) tried to take the rig at {device} over; refused"
-
-
 def holder_of(device: str, lab: LabConfig) -> DaqLockHeld | None:
-    """Who drives `device` now (None: nobody, a dead holder's or a forged record)."""
-    rec = _look(lock_path(device, lab)).live
-    return rec.held(device) if rec is not None else None
+    """Who drives `device` now (None: nobody; dead holders' and forged records count for nothing)."""
+    win = _winner(_records(device, lab), lab)
+    return win.record.held(device) if win is not None else None

@@ -1,9 +1,9 @@
 """Noticing that a DAQ lock was taken over: an administrator may take a rig from a
 program left running (`--take-over`); that program must then stop driving it
 (pumps to 0) within a second or so, and say why.  A thread polls the lock file
-(a few hundred bytes, twice a second) and calls back once.  A record the holder
-did not yield to (forged, a student's, removed: session/lock.py) and put back is
-told once per new finding (`on_note`), and the program drives on."""
+(a few hundred bytes each, twice a second) and calls back once.  Another
+program's record that did not win (a student's take-over, a later start:
+session/lock.py) is told once per new finding (`on_note`), and the program drives on."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ class Watched(Protocol):
     def lost(self) -> str | None: ...
 
     @property
-    def restored(self) -> str | None: ...
+    def note(self) -> str | None: ...
 
 #: Seconds between looks at the lock file.
 INTERVAL = 0.5
@@ -54,7 +54,7 @@ class LockWatch:
                 self.reason = reason
                 self._on_lost(reason)
                 return
-            note = self._lock.restored
+            note = self._lock.note
             if note is not None and note != noted and self._on_note is not None:
                 self._on_note(note)
             noted = note

@@ -132,9 +132,9 @@ class RigLock:
         return self.lost() is None
 
     @property
-    def restored(self) -> str | None:
-        """The last record found in place of ours and replaced (DaqLock.restored)."""
-        return next((lock.restored for lock in self._locks if lock.restored is not None), None)
+    def note(self) -> str | None:
+        """The last record found that did not win over ours (DaqLock.note)."""
+        return next((lock.note for lock in self._locks if lock.note is not None), None)
 
     def lost(self) -> str | None:
         """None while every key's lock is ours; else why not (the first one lost)."""

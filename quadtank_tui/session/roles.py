@@ -90,18 +90,48 @@ def current_user() -> Peer:
     return Peer(uid=uid, gid=os.getgid(), pid=os.getpid(), user=user_name(uid))
 
 
+def untrusted_lab_file(lab: LabConfig) -> str | None:
+    """Why the lab file in use gives no one rights (None: it does, or there is
+    none): only a file owned by root that no one else may write (but a group: the
+    admin group it names, or any without one) says who administers; a student's own lab file with
+    `admin_group: <their group>` made them one (issue 24)."""
+    if lab.source is None:
+        return None
+    try:
+        st = os.stat(lab.source)
+    except OSError as exc:
+        return f"the lab file {lab.source} cannot be checked ({exc.strerror})"
+    if st.st_uid != 0:
+        return f"the lab file {lab.source} is {user_name(st.st_uid)}'s, not root's, so it gives no one rights"
+    # group-writable: by the admin group it names, or (none named) its writers administer
+    group_ok = lab.admin_group is None or group_id(lab.admin_group) == st.st_gid
+    if st.st_mode & stat.S_IWOTH or (st.st_mode & stat.S_IWGRP and not group_ok):
+        return f"the lab file {lab.source} may be written by others, so it gives no one rights"
+    return None
+
+
+def _rules(lab: LabConfig) -> LabConfig:
+    """`lab` as far as it may say who administers: an untrusted lab file's
+    admin_group and defaults count for nothing (the installation's rule holds)."""
+    if untrusted_lab_file(lab) is None:
+        return lab
+    return LabConfig(runtime_dir=lab.runtime_dir, share_group=lab.share_group, unattended=lab.unattended)
+
+
 def defaults_of(lab: LabConfig) -> list[Path]:
     """What writing makes one an administrator when no group is configured:
     default.par (its folder while it does not exist) and the lab file in use."""
+    lab = _rules(lab)
     par = lab.default_par if lab.default_par.exists() else lab.params_dir
     return [par] + ([lab.source] if lab.source is not None else [])
 
 
 def is_administrator(uid: int, lab: LabConfig) -> bool:
     """Root, a member of the lab's admin group, or (no group configured) whoever
-    may write the lab's defaults."""
+    may write the lab's defaults; a lab file root does not own decides nothing."""
     if uid == 0:
         return True
+    lab = _rules(lab)
     if lab.admin_group is not None:
         gid = group_id(lab.admin_group)
         return gid is not None and gid in groups_of(uid)
@@ -110,6 +140,9 @@ def is_administrator(uid: int, lab: LabConfig) -> bool:
 
 def who_administers(lab: LabConfig) -> str:
     """Who the administrators are, for messages."""
+    why = untrusted_lab_file(lab)
+    if why is not None:
+        return f"{who_administers(_rules(lab))}; {why}"
     if lab.admin_group is not None:
         missing = "" if group_id(lab.admin_group) is not None else ", which does not exist on this machine"
         return f"member of group {lab.admin_group}{missing}"

@@ -39,8 +39,10 @@ def runtime_dir(configured: Path | None = None) -> Path:
     """The runtime folder (`configured`, else the lab configuration's), created
     sticky and world-writable (1777) if missing."""
     from quadtank_tui.session.lab import ensure_shared_dir, load_lab_config
+    from quadtank_tui.session.roles import is_administrator
 
-    return ensure_shared_dir(configured or load_lab_config().runtime_dir)
+    lab = load_lab_config()
+    return ensure_shared_dir(configured or lab.runtime_dir, trusted=lambda uid: is_administrator(uid, lab))
 
 
 def pid_alive(pid: int) -> bool:

@@ -280,8 +280,8 @@ def test_a_terminated_run_gives_the_rig_back(rig: Callable, poll: Callable, tmp_
     finally:
         child.kill()
         child.communicate()
-    lock_file = load_lab_config().locks_dir / f"127.0.0.1_{r.port}_1.lock"
-    assert lock_file.read_text() == ""  # released, not merely stale
+    lock_file = load_lab_config().locks_dir / f"127.0.0.1_{r.port}_1~{os.getuid()}.lock"
+    assert child.pid and not lock_file.exists()  # released (removed), not merely stale
     assert r.dacs() == (0.0, 0.0)
 
 

@@ -76,9 +76,9 @@ def test_your_own_session_on_the_rig_is_attached_to(tmp_path: Path, monkeypatch:
         # that user, about a process of that user): refused as before.
         if os.getuid() != 0:
             return  # a record of another user needs root to write (chown); a forged one is free
-        path = lock_path(device, load_lab_config())
-        record = json.loads(path.read_text())
-        path.write_text(json.dumps({**record, "uid": os.getuid() + 1}))
+        record = json.loads(lock_path(device, load_lab_config()).read_text())
+        path = lock_path(device, load_lab_config(), os.getuid() + 1)  # beside the session's own record,
+        path.write_text(json.dumps({**record, "uid": os.getuid() + 1}))  # which is no longer genuine here
         os.chown(path, os.getuid() + 1, -1)
         owner = lockmod.process_owner
         monkeypatch.setattr(lockmod, "process_owner", lambda pid: os.getuid() + 1 if pid == info.pid else owner(pid))

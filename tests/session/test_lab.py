@@ -117,11 +117,11 @@ def test_runtime_dir_is_created_like_tmp(tmp_path: Path) -> None:
     lab = LabConfig(runtime_dir=tmp_path / "deep" / "rt")
     assert ensure_runtime_dir(lab) == tmp_path / "deep" / "rt"
     assert stat.S_IMODE(os.stat(lab.runtime_dir).st_mode) == 0o1777
-    # not sticky: a stale or forged lock record of another user can be replaced
-    assert stat.S_IMODE(os.stat(lab.locks_dir).st_mode) == 0o777
-    os.chmod(lab.locks_dir, 0o1777)  # an older version's folder of ours
+    # sticky too: nobody removes or replaces another's lock record
+    assert stat.S_IMODE(os.stat(lab.locks_dir).st_mode) == 0o1777
+    os.chmod(lab.locks_dir, 0o777)  # an older version's folder of ours
     ensure_runtime_dir(lab)  # a second time: already there
-    assert stat.S_IMODE(os.stat(lab.locks_dir).st_mode) == 0o777
+    assert stat.S_IMODE(os.stat(lab.locks_dir).st_mode) == 0o1777
 
 
 def test_a_planted_link_is_not_a_runtime_dir(tmp_path: Path) -> None:

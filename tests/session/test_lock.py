@@ -54,17 +54,17 @@ def hold_in_child(lab: LabConfig, session: str | None = None) -> subprocess.Pope
 def test_file_names_the_holder(lab: LabConfig) -> None:
     with DaqLock.acquire(DEVICE, lab, session="s-3") as lock:
         path = lock_path(DEVICE, lab)
-        assert path == lab.runtime_dir / "locks" / "192.0.2.7_502_1.lock"
+        assert path == lock.path == lab.runtime_dir / "locks" / f"192.0.2.7_502_1~{os.getuid()}.lock"
         st = os.stat(path)
         assert stat.S_IMODE(st.st_mode) == 0o644 and st.st_uid == os.getuid()  # others read, only we write
-        assert stat.S_IMODE(os.stat(lab.locks_dir).st_mode) == 0o777  # not sticky: a stale record is replaced
+        assert stat.S_IMODE(os.stat(lab.locks_dir).st_mode) == 0o1777  # sticky: nobody removes another's
         record = json.loads(path.read_text())
         me = current_user()
         assert (record["user"], record["uid"], record["pid"], record["session"]) == (me.user, me.uid, me.pid, "s-3")
         assert record["start"] == process_start(me.pid) is not None
         assert datetime.fromisoformat(record["since"]) == lock.since
         assert holder_of(DEVICE, lab).pid == os.getpid()  # type: ignore[union-attr]
-    assert path.read_text() == ""  # released: the file stays, empty
+    assert not path.exists()  # released
     assert holder_of(DEVICE, lab) is None
 
 
@@ -130,7 +130,7 @@ def test_take_over_and_the_old_holders_release(lab: LabConfig) -> None:
     assert json.loads(lock_path(DEVICE, lab).read_text())["pid"] == os.getpid()
     mine.release()
     mine.release()  # idempotent
-    assert lock_path(DEVICE, lab).read_text() == ""
+    assert not lock_path(DEVICE, lab).exists()
 
 
 def test_transfer_to_the_session_process(lab: LabConfig) -> None:
@@ -192,8 +192,9 @@ def test_a_symlink_is_not_a_lock_file(lab: LabConfig, tmp_path: Path) -> None:
                                                  "since": "2026-01-01T10:00:00+00:00"}))
     lock_path(DEVICE, lab).symlink_to(tmp_path / "victim")
     assert holder_of(DEVICE, lab) is None
-    with DaqLock.acquire(DEVICE, lab) as lock:
-        assert lock.held and not lock_path(DEVICE, lab).is_symlink()
+    with DaqLock.acquire(DEVICE, lab) as lock:  # a name of its own beside the link
+        assert lock.held and lock.path != lock_path(DEVICE, lab) and not lock.path.is_symlink()
+    assert lock_path(DEVICE, lab).is_symlink()
     assert json.loads((tmp_path / "victim").read_text())["user"] == "x"
 
 

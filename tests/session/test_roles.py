@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from quadtank_tui.session import roles
-from quadtank_tui.session.lab import LabConfig
+from quadtank_tui.session.lab import DEFAULT_PARAMS_DIR, LabConfig
 from quadtank_tui.session.roles import (
     NotPermitted, Peer, current_user, is_administrator, may_write, peer_of, require_administrator,
 )
@@ -100,12 +100,38 @@ def test_may_write_reads_the_group_bits(users: None, tmp_path: Path, monkeypatch
     assert not may_write(carol, tmp_path / "missing")
 
 
+root_only = pytest.mark.skipif(ME != 0, reason="needs root (chown)")
+
+
+@root_only
 def test_lab_file_write_access_counts_too(users: None, tmp_path: Path) -> None:
+    """Its group's members may write root's lab file: they administer; a file
+    everyone may write gives no one rights."""
     source = tmp_path / "lab.yaml"
     source.write_text("")
-    os.chmod(source, 0o646)
+    os.chown(source, 0, TEACHERS)
+    os.chmod(source, 0o664)
     lab = LabConfig(params_dir=tmp_path / "none", source=source)
-    assert is_administrator(BOB, lab)
+    assert [is_administrator(u, lab) for u in (ALICE, BOB)] == [True, False]
+    os.chmod(source, 0o646)
+    assert not is_administrator(BOB, lab)
+
+
+@root_only
+def test_a_students_own_lab_file_gives_no_rights(users: None, tmp_path: Path) -> None:
+    """Issue 24: QUADTANK_LAB=mylab.yaml with `admin_group: <their group>` made a
+    student an administrator (and `run --take-over` drove a rig beside its holder)."""
+    source = tmp_path / "mylab.yaml"
+    source.write_text("admin_group: students\n")
+    os.chown(source, BOB, STUDENTS)
+    os.chmod(source, 0o644)
+    lab = LabConfig(admin_group="students", params_dir=tmp_path / "none", source=source)
+    assert not is_administrator(BOB, lab) and is_administrator(0, lab)
+    with pytest.raises(NotPermitted) as caught:
+        require_administrator(BOB, lab, "taking over the rig")
+    assert str(caught.value) == (f"taking over the rig needs an administrator (someone who may write "
+                                 f"{DEFAULT_PARAMS_DIR / 'default.par'}; the lab file {source} is bob's, not root's, so it gives "
+                                 "no one rights); you are bob")
 
 
 def test_peer_of_a_socketpair_is_this_process() -> None:

@@ -68,7 +68,7 @@ HOLD = """
     lock = DaqLock.acquire(sys.argv[1], lab, session="run-1")
     print("held", flush=True)
     for line in sys.stdin:   # each line: look at the lock (as LockWatch does)
-        print(lock.lost() or "ours", "|", lock.restored or "-", flush=True)
+        print(lock.lost() or "ours", "|", lock.note or "-", flush=True)
 """
 
 #: A copy of the program that skips every check and writes its own record over the
