@@ -38,13 +38,14 @@ def test_a_run_too_fast_for_the_machine_says_the_speed_it_held(make_engine: Call
         src.sleep(dt)
 
     engine = make_engine(clock="virtual", speed=1000.0, now=src.now, sleep=slow_sleep)
-    step = engine.loop.step
+    sim = engine.loop.backend                 # the simulator: one write of the pumps a sample
+    write = sim.write_pumps
 
-    def costly_step() -> None:  # every sample takes 250 us of wall time
-        step()
+    def costly_write(u: tuple[float, float]) -> None:  # every sample takes 250 us of wall time
+        write(u)
         src.advance(250e-6)
 
-    monkeypatch.setattr(engine.loop, "step", costly_step)
+    monkeypatch.setattr(sim, "write_pumps", costly_write)
     engine.submit(SetState("Run"))
     samples = engine.run_for(20.0)
     s = summarize(engine, 20.0)
