@@ -97,14 +97,18 @@ def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams | None
     return read.params.quadtank_constants(), par, (3.0, 3.0)
 
 
-def _sensor_gains(par: str | None, params: PlantParams) -> tuple[dict[str, float], str]:
+def _sensor_gains(par: str | None, params: PlantParams | None) -> tuple[dict[str, float], str]:
     """Volts per level unit of each sensor of the plant in use (--par names it; else
     the quadruple tank compared with), and that unit."""
     from quadtank_tui.commands.identify_physical import starting_plant
     from quadtank_tui.core.identify.physical import sensor_gains
     from quadtank_tui.core.plants import Plant, QuadTank
 
-    plant: Plant = starting_plant(par).plant if par is not None else QuadTank(params)
+    if par is not None:
+        plant: Plant = starting_plant(par).plant
+    else:  # without --par, _physical's params are the nearest preset's, never None
+        assert params is not None
+        plant = QuadTank(params)
     gains = sensor_gains(plant)
     return {f"y{i + 1}": float(g) for i, g in enumerate(gains)}, plant.states[0].unit
 
