@@ -117,6 +117,7 @@ class DesignScreen(CommandSender):
         self.frequency_view = False  # b: |S| |T| and the load step instead of Nyquist and the steps
         self._plots: DesignPlots | None = None
         self._plot_args: tuple[DelayTF, PID, float | None] | None = None  # the candidate on show
+        self._told_best = False  # a new table's status named its suggested row
 
     def compose(self) -> ComposeResult:
         yield Static(id="design-status")
@@ -341,7 +342,11 @@ class DesignScreen(CommandSender):
             self._fill_table(to_best=True)
             self._show_tuning()
         shown = model_text(state.model) if state.model is not None else ""
-        self._status(f"loop {loop}: {len(rows)} candidates on {shown}")
+        best_text = (f"; suggested {label(rows[best])}" if best is not None
+                     else "; none suggested (each fails the check)")
+        # the table's highlight of its suggested row comes next: this line stays
+        self._told_best = loop == self.loop and best is not None
+        self._status(f"loop {loop}: {len(rows)} candidates on {shown}{best_text}")
 
     def _fill_table(self, *, to_best: bool = False) -> None:
         """The loop's rows; `to_best`: a new table, the cursor on its suggested row."""
@@ -377,7 +382,10 @@ class DesignScreen(CommandSender):
         elif row is not None and row.problem is not None:  # the check column's word, in full
             self._status(f"{label(row)}: {row.problem}")
         elif row is not None and event.cursor_row == state.best:
-            self._status(f"{label(row)} suggested: least load IAE of the rows that hold")
+            if self._told_best:  # the new table's status says it already
+                self._told_best = False
+            else:
+                self._status(f"{label(row)} suggested: least load IAE of the rows that hold")
         if row is not None and row.controller is not None and model is not None:
             self._plot_args = (model, row.controller, row.parameter if row.method != "lambda" else None)
             self._compute_plots(*self._plot_args)
