@@ -99,8 +99,13 @@ async def test_typed_model_and_chosen_row(app, engine) -> None:  # type: ignore[
         assert table.row_count == 9
         # sampled at the preset's 0.1 s (continuous, Andersson: 0.1464, 2.394; this program 0.1468, 2.401)
         assert [str(c) for c in table.get_row_at(4)[:3]] == ["PI Ms 1.4", "0.1483", "2.455"]
+        # the new table opens on its suggested row, marked "best"
+        best = screen.loops[1].best
+        assert best is not None and table.cursor_row == best and str(table.get_row_at(best)[-1]) == "best"
+        assert all(str(table.get_row_at(i)[-1]) in ("ok", "best") for i in range(9)
+                   if screen.loops[1].rows[i].problem is None)
         table.focus()
-        await pilot.press("down", "down", "down", "down", "enter")
+        await pilot.press(*["up"] * best, "down", "down", "down", "down", "enter")  # to the top, then row 4
         await pilot.pause()
         assert "loop 1: Kc=0.1483, Ti=2.455  (PI Ms 1.4)" in str(screen.query_one("#design-chosen", Static).render())
         await _apply_through_the_preview(pilot)

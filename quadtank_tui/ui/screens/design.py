@@ -70,6 +70,9 @@ class LoopState:
     T: float = 0.0
     L: float = 0.0
     used: tuple[float, ...] = ()
+    #: The sampling time the rows were designed and evaluated at (s), the suggested row.
+    h: float = 0.0
+    best: int | None = None
     #: Which table request is the newest (an older worker's rows are dropped).
     request: int = 0
 
@@ -114,6 +117,7 @@ class DesignScreen(CommandSender):
         self.frequency_view = False  # b: |S| |T| and the load step instead of Nyquist and the steps
         self._plots: DesignPlots | None = None
         self._plot_args: tuple[DelayTF, PID, float | None] | None = None  # the candidate on show
+        self._told_best = False  # a new table's status named its suggested row
 
     def compose(self) -> ComposeResult:
         yield Static(id="design-status")
@@ -177,6 +181,7 @@ class DesignScreen(CommandSender):
         if narrow != self.has_class("-narrow"):
             self.set_class(narrow, "-narrow")
             self.refresh_bindings()
+            self._show_tuning()
 
     def action_plots(self) -> None:
         """Below NARROW columns: the plots in the table's place, or back."""
@@ -270,7 +275,9 @@ class DesignScreen(CommandSender):
             entry = self.query_one(box, Input)
             if not entry.has_focus:  # never under the user's typing
                 entry.value = text
-        note = f"s, T/4, 2L: T {state.T:.3g} s, L {state.L:.3g} s" if state.used else "s, or T/4, 2L"
+        # The model's T and L the multiples are of; what a λ may be when there is room
+        what = "" if self.has_class("-narrow") else "λ in s or as T/4, 2L "
+        note = f"{what}(T {state.T:.3g} s, L {state.L:.3g} s)" if state.used else what.strip()
         self.query_one("#tuning-note", Label).update(note)
 
     # --- the table -------------------------------------------------------------------
@@ -291,7 +298,7 @@ class DesignScreen(CommandSender):
     def _compute_table(self, loop: int, model: DelayTF | None, request: int, lambdas: str, ms: str) -> None:
         from quadtank_tui.core.design.controller import DesignError
         from quadtank_tui.core.design.lambda_tuning import first_order
-        from quadtank_tui.core.design.table import candidates, default_lambdas
+        from quadtank_tui.core.design.table import candidates, default_lambdas, suggested
 
         if model is None:
             return
@@ -307,14 +314,16 @@ class DesignScreen(CommandSender):
         except InputError as exc:
             self.app.call_from_thread(self._refused, loop, request, str(exc))
             return
+        snap = self.engine.snapshot()  # the loop as it runs: its sampling time, its pump's input
+        h = snap.params.tsamp
         try:
-            snap = self.engine.snapshot()  # the loop as it runs: its sampling time, its pump's input
-            rows = candidates(model, lambdas=lams, ms_values=ms_values, h=snap.params.tsamp,
+            rows = candidates(model, lambdas=lams, ms_values=ms_values, h=h,
                               u0=snap.u[loop - 1] if snap.state == "Run" else 0.5)
         except ValueError as exc:  # a model the evaluation cannot simulate: one line, no crash
             self.app.call_from_thread(self._status, f"loop {loop}: {exc}", error=True)
             return
-        self.app.call_from_thread(self._show_table, loop, request, rows, (lambdas, ms, T, L, lams))
+        self.app.call_from_thread(self._show_table, loop, request, rows, suggested(rows), h,
+                                  (lambdas, ms, T, L, lams))
 
     def _refused(self, loop: int, request: int, why: str) -> None:
         """A bad lambda or Ms entry: said, and the table and the entries in force kept."""
@@ -322,23 +331,30 @@ class DesignScreen(CommandSender):
             self._status(f"loop {loop}: {why}; the table is as it was", error=True)
             self.notify(why, title=f"Loop {loop}", severity="error", timeout=8, markup=False)
 
-    def _show_table(self, loop: int, request: int, rows: list[Candidate],
+    def _show_table(self, loop: int, request: int, rows: list[Candidate], best: int | None, h: float,
                     tuning: tuple[str, str, float, float, tuple[float, ...]]) -> None:
         state = self.loops[loop]
         if request != state.request:
             return  # a newer model or entry came meanwhile
-        state.rows = rows
+        state.rows, state.best, state.h = rows, best, h
         state.lambdas, state.ms, state.T, state.L, state.used = tuning
         if loop == self.loop:
-            self._fill_table()
+            self._fill_table(to_best=True)
             self._show_tuning()
         shown = model_text(state.model) if state.model is not None else ""
-        self._status(f"loop {loop}: {len(rows)} candidates on {shown}")
+        best_text = (f"; suggested {label(rows[best])}" if best is not None
+                     else "; none suggested (each fails the check)")
+        # the table's highlight of its suggested row comes next: this line stays
+        self._told_best = loop == self.loop and best is not None
+        self._status(f"loop {loop}: {len(rows)} candidates on {shown}{best_text}")
 
-    def _fill_table(self) -> None:
+    def _fill_table(self, *, to_best: bool = False) -> None:
+        """The loop's rows; `to_best`: a new table, the cursor on its suggested row."""
+        state = self.loops[self.loop]
         table = self.query_one(CandidatesTable)
-        table.border_title = f"Candidates, loop {self.loop}"
-        table.show(self.loops[self.loop].rows)
+        sampled = f", sampled at {state.h:g} s" if state.h > 0 else ", continuous time"
+        table.border_title = f"Candidates, loop {self.loop}{sampled}"
+        table.show(state.rows, best=state.best, to_best=to_best)
 
     def action_switch_loop(self) -> None:
         self.loop = 3 - self.loop
@@ -359,9 +375,17 @@ class DesignScreen(CommandSender):
     @on(CandidatesTable.RowHighlighted, "#design-table")
     def row_highlighted(self, event: CandidatesTable.RowHighlighted) -> None:
         row = self._row(event.row_key.value)
-        model = self.loops[self.loop].model
+        state = self.loops[self.loop]
+        model = state.model
         if row is not None and row.error:
             self._status(f"{label(row)}: {row.error}")
+        elif row is not None and row.problem is not None:  # the check column's word, in full
+            self._status(f"{label(row)}: {row.problem}")
+        elif row is not None and event.cursor_row == state.best:
+            if self._told_best:  # the new table's status says it already
+                self._told_best = False
+            else:
+                self._status(f"{label(row)} suggested: least load IAE of the rows that hold")
         if row is not None and row.controller is not None and model is not None:
             self._plot_args = (model, row.controller, row.parameter if row.method != "lambda" else None)
             self._compute_plots(*self._plot_args)
@@ -531,6 +555,7 @@ class DesignScreen(CommandSender):
     def _status(self, text: str, *, error: bool = False) -> None:
         """The status line: `text` as it is (it quotes typed models and file
         names, never read as markup), red for an error."""
-        line = Content.assemble(("Design", "bold"), "  ", (text, "red") if error else text)
+        # The blanks end the bold run (a viewer may drop a run's leading blanks)
+        line = Content.assemble(("Design  ", "bold"), (text, "red") if error else text)
         self.query_one("#design-status", Static).update(line)
 

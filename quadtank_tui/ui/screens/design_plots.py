@@ -42,8 +42,9 @@ class DesignPlots:
 
 
 def draw_nyquist(plot: PlotextPlot, p: DesignPlots, dark: bool, no_color: bool) -> None:
-    """L(iω) over the 1/Ms circle around -1 (solid, its own hue) and -1 marked."""
-    circle, loop, critical = kit.styles([Series("1/Ms circle", ORANGE), Series("L(iω)", BLUE),
+    """L(iω) over the 1/Ms circle around -1 (solid, its own hue) and -1 marked x."""
+    # The Ms in the circle's own label: a title run of its own could lose its leading blank
+    circle, loop, critical = kit.styles([Series(f"1/Ms circle, Ms {p.ms:.2f}", ORANGE), Series("L(iω)", BLUE),
                                          Series("-1", RED)], dark=dark, no_color=no_color)
     width, height = plot.size.width, plot.size.height
     th = np.linspace(0, 2 * np.pi, 240)
@@ -52,7 +53,7 @@ def draw_nyquist(plot: PlotextPlot, p: DesignPlots, dark: bool, no_color: bool) 
     plot.plt.plot(p.L.real.tolist(), p.L.imag.tolist(), marker=loop.marker, color=loop.color)
     plot.plt.scatter([-1.0], [0.0], marker="x", color=critical.color)
     kit.axes(plot.plt, NYQUIST_RE, NYQUIST_IM, width, height)
-    plot.border_title = kit.legend([loop, circle]) + f" Ms {p.ms:.2f}, x -1"
+    plot.border_title = kit.legend([loop, circle])  # -1 is the red x on the axis
 
 
 def draw_sensitivity(plot: PlotextPlot, p: DesignPlots, dark: bool, no_color: bool) -> None:

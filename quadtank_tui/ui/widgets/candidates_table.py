@@ -6,6 +6,11 @@ fewer, or a short exponent, never cut: `0.006800.01890.38` and `1.87e+1.00` were
 numbers cut off by the column next to them).  The units are in the header.  A
 candidate without a controller says why across its row (`n/a: Ms 1.2
 unreachable`); the full reason is the status line's when the row is highlighted.
+The last column is the sampled loop's verdict with the pumps limited (issue 23):
+`best` on the suggested row (core.design.table.suggested), and on a row that must
+not be suggested a word for why: `sat` (at a pump limit more than a fifth of its
+settling time), `chatter` (the pump reverses on most samples), `settle?` (a step
+does not settle); the status line says it in full.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ if TYPE_CHECKING:  # the design core loads when the screen first computes (start
 #: (key, header, width with its blank); the candidate column is left-aligned, the rest right.
 COLUMNS = (("candidate", "candidate", 12), ("Kc", "Kc", 7), ("Ti", "Ti[s]", 7), ("Td", "Td[s]", 6),
            ("IAE", "IAE", 7), ("Emax", "Emax", 6), ("u_os", "u_os", 5), ("phi", "φm°", 4),
-           ("Lm", "Lm[s]", 6), ("Am", "Am", 5), ("Ms", "Ms", 5))
+           ("Lm", "Lm[s]", 6), ("Am", "Am", 5), ("Ms", "Ms", 5), ("check", "check", 8))
 WIDTH = sum(w for _, _, w in COLUMNS)
 
 #: Short reasons for a candidate without a controller, by what core.design's message says.
@@ -92,6 +97,22 @@ def short_reason(c: Candidate) -> str:
     return re.split(r"[:;(]", error, maxsplit=1)[0].strip() or error
 
 
+#: The verdict column's word, by what core.design.sampled_eval's LimitCheck.problem says.
+_VERDICTS = (("chatters", "chatter"), ("does not settle", "settle?"), ("pump limit", "sat"))
+BEST = "best"
+
+
+def verdict(c: Candidate) -> str:
+    """The check column's word for a designed, stable row: "ok" when it holds, ""
+    when it was not checked (h = 0), else a word from _VERDICTS."""
+    if c.limits is None:
+        return ""
+    why = c.limits.problem
+    if why is None:
+        return "ok"
+    return next((word for words, word in _VERDICTS if words in why), why[: COLUMNS[-1][2] - 2])
+
+
 def _span(text: str, first: int) -> list[Text]:
     """`text` laid across the columns from `first` on (one blank before it), cut with
     … where it would not fit."""
@@ -112,8 +133,9 @@ def _right(text: str) -> Text:
     return Text(text, justify="right", no_wrap=True)
 
 
-def cells(c: Candidate) -> list[Text]:
-    """The row of `c`: every cell narrower than its column (one blank at least)."""
+def cells(c: Candidate, best: bool = False) -> list[Text]:
+    """The row of `c`: every cell narrower than its column (one blank at least);
+    `best`: the suggested row."""
     room = [w - 1 for _, _, w in COLUMNS]
     first = Text(label(c), no_wrap=True)
     ctrl, e = c.controller, c.evaluation
@@ -126,6 +148,7 @@ def cells(c: Candidate) -> list[Text]:
         _right(fit(e.IAE, room[4])), _right(fit(e.Emax, room[5], 3)), _right(fixed(e.u_overshoot, 2, room[6])),
         _right(fixed(e.phase_margin_deg, 0, room[7])), _right(fit(e.delay_margin, room[8], 3)),
         _right(fit(e.gain_margin, room[9], 3)), _right(fixed(e.Ms, 2, room[10])),
+        Text(BEST if best else verdict(c), justify="right", no_wrap=True, style="bold" if best else "italic"),
     ]
 
 
@@ -139,11 +162,13 @@ class CandidatesTable(DataTable[Text]):
         for key, header, width in COLUMNS:
             self.add_column(Text(header, justify="left" if key == "candidate" else "right"), key=key, width=width)
 
-    def show(self, rows: Sequence[Candidate]) -> None:
-        """Replace the rows, keeping the cursor's row where there still is one."""
-        at = self.cursor_row
+    def show(self, rows: Sequence[Candidate], *, best: int | None = None, to_best: bool = False) -> None:
+        """Replace the rows; `best`: the suggested row's index, marked.  The cursor
+        goes to it when `to_best` (a new table), else keeps its row where there
+        still is one."""
+        at = best if to_best and best is not None else self.cursor_row
         self.clear()
         for n, c in enumerate(rows):
-            self.add_row(*cells(c), key=str(n))
+            self.add_row(*cells(c, n == best), key=str(n))
         if rows:
             self.move_cursor(row=min(at, len(rows) - 1))
