@@ -17,7 +17,7 @@ run: $(STAMP)
 	$(BIN)/quadtank
 
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest --durations=25
 
 # Errors (ruff), types of the whole package (mypy: core to ui, commands, cli), the layer contract (import-linter).
 lint: $(STAMP)
