@@ -135,29 +135,27 @@ class Guard:
 # --- the guard process ------------------------------------------------------------------------
 
 
-def write_registers(spec: GuardSpec, address: int, words: list[int], tid: int) -> None:
-    """One Modbus TCP write (function 16) on a connection of its own; OSError or
-    ValueError (an exception answer) when it fails."""
-    pdu = struct.pack(f">BHHB{len(words)}H", 16, address, len(words), 2 * len(words), *words)
+def _transact(spec: GuardSpec, pdu: bytes, tid: int) -> bytes:
+    """One Modbus TCP request on a connection of its own and the answer's PDU;
+    OSError, or ValueError for an exception answer."""
     with socket.create_connection((spec.host, spec.port), timeout=spec.timeout) as sock:
         sock.sendall(struct.pack(">HHHB", tid, 0, len(pdu) + 1, spec.device_id) + pdu)
-        head = _recv(sock, 7)
-        length = struct.unpack(">HHHB", head)[2]
+        length = struct.unpack(">HHHB", _recv(sock, 7))[2]
         body = _recv(sock, length - 1)
     if body[0] & 0x80:
         raise ValueError(f"the device answered exception code {body[1] if len(body) > 1 else '?'}")
+    return body
+
+
+def write_registers(spec: GuardSpec, address: int, words: list[int], tid: int) -> None:
+    """One Modbus TCP write (function 16) on a connection of its own; OSError or
+    ValueError (an exception answer) when it fails."""
+    _transact(spec, struct.pack(f">BHHB{len(words)}H", 16, address, len(words), 2 * len(words), *words), tid)
 
 
 def read_registers(spec: GuardSpec, address: int, count: int, tid: int) -> list[int]:
     """One Modbus TCP read of holding registers (function 3); OSError or ValueError."""
-    pdu = struct.pack(">BHH", 3, address, count)
-    with socket.create_connection((spec.host, spec.port), timeout=spec.timeout) as sock:
-        sock.sendall(struct.pack(">HHHB", tid, 0, len(pdu) + 1, spec.device_id) + pdu)
-        head = _recv(sock, 7)
-        length = struct.unpack(">HHHB", head)[2]
-        body = _recv(sock, length - 1)
-    if body[0] & 0x80:
-        raise ValueError(f"the device answered exception code {body[1] if len(body) > 1 else '?'}")
+    body = _transact(spec, struct.pack(">BHH", 3, address, count), tid)
     if len(body) < 2 + 2 * count:
         raise ValueError("short answer")
     return list(struct.unpack(f">{count}H", body[2:2 + 2 * count]))

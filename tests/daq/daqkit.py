@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).parents[2]
 VIRTUAL_RIG = ROOT / "params" / "virtual-rig.yaml"
@@ -40,3 +41,26 @@ def missed_before_the_last_row(log: Path, tsamp: float) -> int:
     count of slots past the duration by these."""
     lines = [line for line in log.read_text().splitlines() if line.strip()]
     return missed_slots(log, tsamp)[-1] if len(lines) >= 2 and lines[-2].startswith("% late:") else 0
+
+
+def recording_guard() -> tuple[type, list[Any], list[float]]:
+    """A stand-in for daq.guard.Guard (monkeypatched into daq.modbus) that starts no
+    process: the class, the specs it was started with, and the gaps of those released."""
+    started: list[Any] = []
+    released: list[float] = []
+
+    class FakeGuard:
+        def __init__(self, spec: Any) -> None:
+            self.spec = spec
+            started.append(spec)
+
+        def ended(self) -> int | None:
+            return None
+
+        def beat(self) -> None:
+            pass
+
+        def release(self, wait: float = 1.0) -> None:
+            released.append(self.spec.gap)
+
+    return FakeGuard, started, released

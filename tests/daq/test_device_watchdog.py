@@ -16,7 +16,7 @@ from quadtank_tui.daq.registers import Register
 from quadtank_tui.daq.rig import VirtualRig
 from quadtank_tui.engine.backend import BackendError
 from quadtank_tui.session.info import SessionInfo
-from daqkit import VIRTUAL_RIG
+from daqkit import VIRTUAL_RIG, recording_guard
 
 U32 = "uint32"
 
@@ -207,22 +207,7 @@ def test_a_new_sampling_time_gives_the_guard_the_new_timeout(
     stopped for 4 s, which then drove them again with no fault (review of issue 24)."""
     import quadtank_tui.daq.modbus as modbus
 
-    started: list[Any] = []
-    released: list[float] = []
-
-    class FakeGuard:
-        def __init__(self, spec: Any) -> None:
-            self.spec = spec
-            started.append(spec)
-
-        def ended(self) -> int | None:
-            return None
-
-        def beat(self) -> None:
-            pass
-
-        def release(self, wait: float = 1.0) -> None:
-            released.append(self.spec.gap)
+    FakeGuard, started, released = recording_guard()
 
     monkeypatch.setattr(modbus, "Guard", FakeGuard)
     clock, rig, _, _ = _rig_and_backend(device)

@@ -20,6 +20,8 @@ from typing import Any, Callable
 
 import pytest
 
+from daqkit import recording_guard
+
 import quadtank_tui.daq.modbus as modbus
 from quadtank_tui.daq.config import DaqConfigError, parse_daq_config
 from quadtank_tui.daq.guard import GuardSpec, guard_main
@@ -91,21 +93,7 @@ def test_without_strict_registers_any_traffic_feeds_it(device: Callable[..., Any
 
 def _spec_of_the_run(device: Callable[..., Any], monkeypatch: pytest.MonkeyPatch) -> tuple[Any, Any, GuardSpec]:
     """A run driving the rig, and the spec its guard was given."""
-    started: list[GuardSpec] = []
-
-    class FakeGuard:
-        def __init__(self, spec: GuardSpec) -> None:
-            self.spec = spec
-            started.append(spec)
-
-        def ended(self) -> int | None:
-            return None
-
-        def beat(self) -> None:
-            pass
-
-        def release(self, wait: float = 1.0) -> None:
-            pass
+    FakeGuard, started, released = recording_guard()
 
     monkeypatch.setattr(modbus, "Guard", FakeGuard)
     clock, rig, _, _ = _rig_and_backend(device)
