@@ -201,3 +201,48 @@ def test_every_hue_of_the_palette_is_readable_on_its_theme_background() -> None:
         surface = Color.parse(theme.to_color_system().generate()["surface"]).rgb
         for hue in hues:
             assert contrast(hue.rgb(theme.dark), surface) >= 3.0, (name, hue.name)
+
+
+@pytest.mark.parametrize("size", [(120, 40), (80, 24)])
+async def test_the_design_preview_draws_prediction_and_simulation_and_reads_back(
+        engine: Any, size: tuple[int, int]) -> None:
+    """Apply's preview (issue 23) follows issue 28's rules: the legend names the
+    colours drawn (no colour in words), prediction and simulation both visible
+    where they agree, at least three round x ticks, the simulated level read off
+    the right-most column where the simulation ended; and at 80x24 Apply and
+    Cancel are on the screen."""
+    from quadtank_tui.core.design.mimo import design_2x2, model_in_use
+    from quadtank_tui.core.parameters import PRESET
+    from quadtank_tui.ui.windows.design_preview import DesignPreviewWindow, PreviewRequest
+
+    G = model_in_use(PRESET)
+    pair = tuple(loop.controller for loop in design_2x2(G, h=1.0).loops)
+    plant = PRESET.process_plant()
+    levels = PRESET.process_levels()
+    op = plant.steady_inputs([levels[0], levels[1], None, None])
+    request = PreviewRequest(plant, tuple(op.x), tuple(op.u), pair, 1.0, 300.0, G, (1.0, 1.0))  # type: ignore[arg-type]
+    app = make_app(engine)
+    async with app.run_test(size=size) as pilot:
+        pilot.app.push_screen(DesignPreviewWindow(request))
+        await pilot.pause()
+        await pilot.app.workers.wait_for_complete()
+        await pilot.pause()
+        window = pilot.app.screen
+        assert isinstance(window, DesignPreviewWindow) and window.result is not None
+        dark = app.current_theme.dark
+        what = str(window.query_one("#preview-what").render())
+        assert not re.search(r"\b(blue|red)\b", what), what
+        for step in window.result.steps:
+            plot = window.query_one(f"#preview-loop{step.loop}", PlotextPlot)
+            assert legend_colours(plot) == {"simulated": RED.rgb(dark), "predicted": BLUE.rgb(dark)}
+            rows = plot_cells(plot)
+            assert colours_drawn(rows) == {RED.rgb(dark), BLUE.rgb(dark)}
+            axis = next(line for r in reversed(rows) if re.search(r"\d", line := "".join(c for c, _ in r)))
+            assert len(re.findall(r"\d+", axis)) >= 3, axis
+            last = max(j for j in range(len(rows[0])) if rows_of(rows, RED.rgb(dark), j))
+            row = rows_of(rows, RED.rgb(dark), last)[-1]
+            labelled = y_labels(rows)
+            per_row = abs(float(labelled[-1][1]) - float(labelled[0][1])) / max(1, labelled[-1][0] - labelled[0][0])
+            assert value_of_row(rows, row) == pytest.approx(float(step.simulated[-1]), abs=1.5 * per_row)
+        for button in ("#apply", "#cancel"):
+            assert window.query_one(button).region.bottom <= size[1] - 1  # above the footer

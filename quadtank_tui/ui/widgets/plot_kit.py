@@ -146,8 +146,10 @@ def axes(plt: Any, xlim: tuple[float, float], ylim: tuple[float, float], width: 
     rows = height - FRAME_ROWS - (xlabel is not None)
     ya = y_axis(y_lo, y_hi, rows, min_span=(y_hi - y_lo) * 1e-3)
     x_lo, x_hi = xlim
-    xv, xl = round_ticks(x_lo, x_hi, max(2, (width - max(map(len, ya.labels), default=1) - 3) // 8),
-                         whole=whole_x)
+    most = max(3, (width - max(map(len, ya.labels), default=1) - 3) // 8)
+    xv, xl = round_ticks(x_lo, x_hi, most, whole=whole_x)
+    if len(xv) < 3:  # 0..300 in three: 0 200 (steps of 100 make four); take the four
+        xv, xl = round_ticks(x_lo, x_hi, most + 1, whole=whole_x)
     plt.xlim(x_lo, x_hi)
     plt.ylim(ya.lo, ya.hi)
     plt.xticks(xv, xl)

@@ -15,18 +15,24 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence
 
+import numpy as np
+
 from textual import work
 from textual.app import ComposeResult
-from textual.containers import Horizontal
+from textual.containers import Horizontal, VerticalScroll
+from textual.events import Resize
 from textual.widgets import Button, ProgressBar, Static
 from textual_plotext import PlotextPlot
 
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import PID, DesignError
-from quadtank_tui.core.design.preview import Preview, format_preview, preview
+from quadtank_tui.core.design.preview import Preview, PreviewStep, format_preview, preview
 from quadtank_tui.core.plant import PlantError
 from quadtank_tui.core.plants.base import Plant
 from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.ui.colours import BLUE, RED
+from quadtank_tui.ui.widgets import plot_kit as kit
+from quadtank_tui.ui.widgets.plot_kit import Series
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Window
 
 
@@ -72,14 +78,12 @@ def preview_request(snap: Snapshot, pair: tuple[PID | None, PID | None],
     return PreviewRequest(plant, levels, inputs, chosen, h, window_for(settling, h), G, tr)
 
 
+#: Terminal rows below which the window is laid out short (windows.tcss).
+SHORT = 32
+
+
 class DesignPreviewWindow(Window[bool]):
     """Predicted and simulated steps of the chosen pair; Apply or Cancel."""
-
-    DEFAULT_CSS = """
-    DesignPreviewWindow #dialog { width: 96; height: auto; max-height: 100%; }
-    DesignPreviewWindow .preview-plot { height: 9; }
-    DesignPreviewWindow #preview-figures { height: auto; }
-    """
 
     def __init__(self, request: PreviewRequest) -> None:
         super().__init__("Preview on the simulated plant")
@@ -89,12 +93,15 @@ class DesignPreviewWindow(Window[bool]):
     def compose_body(self) -> ComposeResult:
         r = self.request
         yield Static(f"{r.plant.title}: step 0.1 on each loop, {r.window:.0f} s each, sampled at {r.h:g} s, "
-                     "pumps 0..10 V; predicted (blue) and simulated (red)", id="preview-what", markup=False)
+                     "pumps 0..10 V; y1 after the r1 step, y2 after the r2 step; the design's prediction "
+                     "dotted over the nonlinear simulation",
+                     id="preview-what", markup=False)
         yield ProgressBar(total=100, show_eta=False, id="preview-progress")
-        with Horizontal():
+        with Horizontal(id="preview-plots"):
             for i in (1, 2):
                 yield PlotextPlot(id=f"preview-loop{i}", classes="preview-plot")
-        yield Static("", id="preview-figures", markup=False)
+        with VerticalScroll(id="preview-figures-box"):
+            yield Static("", id="preview-figures", markup=False)
 
     def compose_buttons(self) -> ComposeResult:
         yield Button("Apply", id="apply", variant="primary", disabled=True)
@@ -102,9 +109,14 @@ class DesignPreviewWindow(Window[bool]):
 
     def on_mount(self) -> None:
         for i in (1, 2):
-            self.query_one(f"#preview-loop{i}", PlotextPlot).border_title = f"r{i} step: y{i}"
+            self.query_one(f"#preview-loop{i}", PlotextPlot).border_title = f"y{i}: simulating"
         self.query_one("#cancel", Button).focus()
         self._simulate()
+
+    def on_resize(self, event: Resize) -> None:
+        """Below SHORT rows the plots shrink and the figures scroll, so Apply and
+        Cancel stay on the screen (at 80x24 they were below its edge)."""
+        self.set_class(event.size.height < SHORT, "-short")
 
     @work(thread=True, exclusive=True, group="preview")
     def _simulate(self) -> None:
@@ -127,16 +139,9 @@ class DesignPreviewWindow(Window[bool]):
     def _show(self, pv: Preview) -> None:
         self.result = pv
         self.query_one(ProgressBar).display = False
+        dark, no_color = self.app.current_theme.dark, self.app.no_color
         for s in pv.steps:
-            plot = self.query_one(f"#preview-loop{s.loop}", PlotextPlot)
-            plt = plot.plt
-            plt.clear_data()
-            step = max(1, len(s.t) // 200)
-            t = s.t[::step].tolist()
-            if s.predicted is not None:
-                plt.plot(t, s.predicted[::step].tolist(), color="blue", marker="braille")
-            plt.plot(t, s.simulated[::step].tolist(), color="red", marker="braille")
-            plot.refresh()
+            draw_preview_step(self.query_one(f"#preview-loop{s.loop}", PlotextPlot), s, dark, no_color)
         self.query_one("#preview-figures", Static).update(format_preview(pv))
         apply = self.query_one("#apply", Button)
         apply.disabled = False
@@ -163,3 +168,28 @@ class DesignPreviewWindow(Window[bool]):
         self.app.push_screen(ChoiceWindow("Apply anyway?", question,
                                           (Choice("cancel", "Do not apply"),
                                            Choice("apply", "Apply anyway", "error"))), answered)
+
+
+def draw_preview_step(plot: PlotextPlot, step: PreviewStep, dark: bool, no_color: bool) -> None:
+    """One loop's step: the simulation solid and the design's prediction dotted
+    over it (plot_kit's lines, ticks and legend, as on the Design screen: issue
+    28).  Unlike a reference, the prediction is drawn last: a good design's
+    prediction lies on the simulation, and drawn first it vanished under it (a
+    braille cell takes the colour drawn last), so the student could not see
+    that the two agree; its dots, a few columns apart, leave the line readable."""
+    predicted, simulated = kit.styles([Series("predicted", BLUE, dotted=True), Series("simulated", RED)],
+                                      dark=dark, no_color=no_color)
+    width, height = plot.size.width, plot.size.height
+    plot.plt.clear_data()
+    curves = [step.simulated]
+    kit.draw(plot.plt, step.t, step.simulated, simulated, width)
+    if step.predicted is not None:  # last: where the two agree, its dots still show
+        kit.draw(plot.plt, step.t, step.predicted, predicted, width)
+        curves.append(step.predicted)
+    both = np.concatenate(curves)
+    both = both[np.isfinite(both)]
+    lo, hi = (float(both.min()), float(both.max())) if len(both) else (0.0, 1.0)
+    kit.axes(plot.plt, (0.0, float(step.t[-1])), (lo, hi), width, height, xlabel="t (s)")
+    shown = [simulated, predicted] if step.predicted is not None else [simulated]
+    plot.border_title = kit.legend(shown, f"y{step.loop}: ")  # the window's line says which step
+    plot.refresh()
