@@ -22,10 +22,11 @@ from __future__ import annotations
 
 import math
 import re
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Protocol, Sequence
+from typing import Callable, Protocol, Sequence, TypeVar
 
 from quadtank_tui.core.calibration import (
     CalibrationError,
@@ -49,6 +50,10 @@ class RawSensors(Protocol):
     def read_raw_volts(self) -> tuple[float, ...]: ...
     def write_pumps(self, u: tuple[float, float]) -> None: ...
     def safe_state(self) -> None: ...
+    def arm(self, tsamp: float) -> None: ...
+
+
+T = TypeVar("T")
 
 
 @dataclass
@@ -155,11 +160,15 @@ def run_procedure(sensors: RawSensors, pump_volts: Sequence[tuple[float, float]]
     read on the scales (cm)."""
     pairs = Pairs()
     try:
+        # Armed as a run is (the device's watchdog and the guard process, for one
+        # exchange every `poll` s): killed mid-procedure, the pumps stop.
+        sensors.arm(rule.poll)
         for v in pump_volts:
             report(f"pumps at {v[0]:g} V / {v[1]:g} V: waiting for the levels to settle ...")
-            settled = settle(sensors, (v[0] / FULL_SCALE_V, v[1] / FULL_SCALE_V), rule, sleep=sleep, now=now)
+            u = (v[0] / FULL_SCALE_V, v[1] / FULL_SCALE_V)
+            settled = settle(sensors, u, rule, sleep=sleep, now=now)
             report("settled: sensors " + " ".join(f"{x:.4f}" for x in settled) + " V")
-            levels = [float(h) for h in heights(v, settled)]
+            levels = [float(h) for h in hold_while(sensors, u, rule.poll, lambda: heights(v, settled))]
             if len(levels) != 4:
                 raise CalibrationError(f"four heights are needed, got {len(levels)}")
             pairs.add({"u1": v[0], "u2": v[1], **{f"volts{i + 1}": settled[i] for i in range(4)},
@@ -167,6 +176,34 @@ def run_procedure(sensors: RawSensors, pump_volts: Sequence[tuple[float, float]]
     finally:
         sensors.safe_state()
     return pairs
+
+
+def hold_while(sensors: RawSensors, u: tuple[float, float], poll: float, ask: Callable[[], T]) -> T:
+    """`ask()` (the operator reading the scales: minutes, perhaps) on a thread of
+    its own while this one keeps the pumps at `u` and the link alive every `poll`
+    s: the levels must stay where they settled while they are read, and the rig's
+    watchdog, armed for `poll`, must keep hearing from us.  The question's thread
+    is a daemon: Ctrl-C here ends the procedure (pumps to 0) without waiting for
+    an answer."""
+    answer: list[T] = []
+    failed: list[BaseException] = []
+    done = threading.Event()
+
+    def question() -> None:
+        try:
+            answer.append(ask())
+        except BaseException as exc:  # handed to the procedure's thread, raised there
+            failed.append(exc)
+        finally:
+            done.set()
+
+    threading.Thread(target=question, name="calibration-question", daemon=True).start()
+    while not done.wait(poll):
+        sensors.write_pumps(u)
+        sensors.read_raw_volts()
+    if failed:
+        raise failed[0]
+    return answer[0]
 
 
 @dataclass(frozen=True)

@@ -4,8 +4,13 @@ sensor gain and offset it was given; pairs from a file reproduce Desautel's Tabl
 from __future__ import annotations
 
 import io
+import subprocess
+import sys
+import time
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
+
+import numpy as np
 
 import pytest
 
@@ -13,9 +18,9 @@ import pytest
 from quadtank_tui.cli import main
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.core.plant import steady_state_levels
-from quadtank_tui.daq.calibrate import Pairs, fit_pairs, parse_pairs
+from quadtank_tui.daq.calibrate import Pairs, Settle, fit_pairs, parse_pairs, run_procedure
 from quadtank_tui.files.par import write_par
-from daqkit import rig_yaml
+from daqkit import VIRTUAL_RIG, rig_yaml
 
 ROOT = Path(__file__).parents[2]
 TABLE_1 = """# Desautel Table 1 (coupled tanks: one pump)
@@ -222,3 +227,83 @@ def test_a_daq_file_without_a_calibration_section_gets_one() -> None:
                     "  tank1: {gain: 2.1, offset: -0.3}\n  tank3: {gain: 1.9, offset: 0.25}\n")
     c = parse_daq_config(text)
     assert (c.sensors[0].gain, c.sensors[0].offset, c.sensors[2].offset) == (2.1, -0.3, 0.25)
+
+
+class _Recorder:
+    """A rig's sensors that settle at once, recording every request with its time."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[str, object, float]] = []
+
+    def _note(self, what: str, value: object = None) -> None:
+        self.calls.append((what, value, time.monotonic()))
+
+    def arm(self, tsamp: float) -> None:
+        self._note("arm", tsamp)
+
+    def read_raw_volts(self) -> tuple[float, ...]:
+        self._note("read")
+        return (1.0, 1.0, 1.0, 1.0)
+
+    def write_pumps(self, u: tuple[float, float]) -> None:
+        self._note("write", u)
+
+    def safe_state(self) -> None:
+        self._note("safe")
+
+
+def test_the_procedure_is_armed_and_holds_the_pumps_while_the_operator_reads_the_scales() -> None:
+    """Armed before the first pump write (so a kill stops the pumps: the next
+    test), and while the operator takes 0.4 s to answer the pumps are still
+    written every poll: the levels stay settled and a watchdog armed for the poll
+    keeps hearing from us (before, nothing was written until the answer came)."""
+    sensors = _Recorder()
+    asked: list[float] = []
+
+    def slow_operator(volts: tuple[float, float], settled: tuple[float, ...]) -> list[float]:
+        asked.append(time.monotonic())
+        time.sleep(0.4)
+        return [1.0, 2.0, 3.0, 4.0]
+
+    pairs = run_procedure(sensors, [(3.0, 3.0)], Settle(poll=0.05, window=2, tol=0.01, timeout=5.0), slow_operator,
+                          sleep=lambda s: None)
+    assert pairs.columns["level4"] == [4.0]
+    kinds = [c[0] for c in sensors.calls]
+    assert kinds[0] == "arm" and sensors.calls[0][1] == 0.05 and kinds[-1] == "safe"
+    during = [c for c in sensors.calls if c[0] == "write" and c[2] > asked[0]]
+    assert len(during) >= 5 and all(c[1] == (0.3, 0.3) for c in during), during
+    gaps = np.diff([asked[0]] + [c[2] for c in during])
+    assert gaps.max() < 0.05 + 0.1, gaps  # one poll, and some slack for a loaded machine
+
+
+@pytest.mark.wallclock
+def test_killed_while_asking_for_the_heights_the_guard_stops_the_pumps(
+        rig: Callable[..., Any], tmp_path: Path, poll: Callable[..., bool]) -> None:
+    """`daq calibrate` killed while it waits for the operator (the pumps at the
+    first voltage) on a device without a watchdog: the guard, started by the
+    arming, sets the pumps to 0 (before, they ran on at 2 V until someone came)."""
+    bare = tmp_path / "bare.yaml"
+    bare.write_text(VIRTUAL_RIG.read_text() + "watchdog: none\n")
+    r = rig("--map", str(bare), "--speed", "4000")
+    config = tmp_path / "rig.yaml"
+    config.write_text(rig_yaml(r.port, bare))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "quadtank_tui", "daq", "calibrate", str(config), "--volts", "2",
+         "--poll", "0.05", "--window", "5", "--tol", "0.05"],
+        cwd=Path(__file__).parents[2], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True)
+    try:
+        assert poll(lambda: min(r.dacs()) > 1.9 or proc.poll() is not None, 60.0), r.dacs()
+        assert proc.stderr is not None
+        assert "waiting for the levels to settle" in proc.stderr.readline()
+        line = proc.stderr.readline()  # the settled sensors, then the question (no newline)
+        assert line.startswith("settled: sensors"), line
+        time.sleep(0.5)  # the operator walks to the scales; the pumps run on
+        assert min(r.dacs()) > 1.9 and proc.poll() is None
+        proc.kill()
+        t0 = time.monotonic()
+        assert poll(lambda: r.dacs() == (0.0, 0.0), 30.0), r.dacs()
+        assert time.monotonic() - t0 < 1.0 + 0.1 + 0.5  # the guard's gap at a 0.05 s poll (1 s), one exchange
+    finally:
+        proc.kill()
+        proc.communicate(timeout=30)
