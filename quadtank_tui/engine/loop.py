@@ -25,7 +25,9 @@ One sample (Run)::
 
 C is the PID/General matrix on y1, y2, or the state feedback (core.statefb) on every
 level of the plant; while the state feedback runs, the matrix tracks u so that switching
-back to its family is bumpless too.
+back to its family is bumpless too.  Making and changing C is engine/controllers.py's;
+the calibration on the rig, which replaces the sample while it holds the pumps, is
+engine/calibration_step.py's.
 
 Pause: a simulation freezes (no time passes, nothing is logged); a real process gets
 its pumps at 0.  Any exception in a sample puts the pumps at 0, pauses and shows why.
@@ -43,23 +45,22 @@ from pathlib import Path
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Callable, Mapping, TypeVar
 
-from quadtank_tui.core.calibration import CalibrationError
-from quadtank_tui.core.calibration_run import CalibrationRun, CalibrationStatus, SettleRule
 from quadtank_tui.core.faults import Fault
-from quadtank_tui.core.general import tustin
-from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, Family, saturate
+from quadtank_tui.core.matrix import ControllerMatrix, Family, saturate
 from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantError
+from quadtank_tui.core.plant import PlantError
 from quadtank_tui.core.plants import Plant
 from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
 from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend
+from quadtank_tui.engine.calibration_step import RigCalibration
 from quadtank_tui.engine.commands import (
     AddWater, CalibrationHeights, CancelCalibration, Command, CommandResult, InstallPar, LoadPar, LogDiscard, LogOff,
     LogOn, LogSave, NudgeMean, ResetControllers, SavePar, SetControlMode, SetDefaults, SetFault, SetOperation,
     SetParams, SetSpeed, SetState, StartCalibration,
 )
+from quadtank_tui.engine.controllers import Controllers
 from quadtank_tui.engine.filework import FileWorker
 from quadtank_tui.engine.handle import SIGNALS
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, History
@@ -72,45 +73,14 @@ from quadtank_tui.files.log import LogFileError
 from quadtank_tui.files.names import check_names
 from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 
-if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is chosen
-    from quadtank_tui.core.statefb.design import Design
-    from quadtank_tui.core.statefb.plants import PlantStateFeedback
-    from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
-
-    AnyStateFeedback = QuadTankStateFeedback | PlantStateFeedback
+if TYPE_CHECKING:
+    from quadtank_tui.engine.controllers import AnyStateFeedback
 
 T = TypeVar("T")
 
 MODE_KEY = "CONTROL.Mode"
 MEAN_KEYS = ("REFERENCE ONE.Mean", "REFERENCE TWO.Mean")
 _FAMILY_KEYS = ("CONTROL.Type", "CONTROL.Structure")
-
-
-def _new_statefb(p: Parameters) -> AnyStateFeedback:
-    """The state feedback `p` asks for, on its plant (ParameterError: no such design)."""
-    if p.process is None:
-        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
-
-        return QuadTankStateFeedback(p.quadtank_constants(), p.statefb, p.tsamp)
-    from quadtank_tui.core.statefb.plants import PlantStateFeedback
-
-    return PlantStateFeedback(p.process_plant(), p.process_levels(), p.statefb, p.tsamp)
-
-
-def _statefb_design(p: Parameters) -> Design:
-    """A new design for the state feedback running on `p`'s plant."""
-    from quadtank_tui.core.statefb.in_use import design_in_use
-
-    return design_in_use(p)
-
-
-def _matrix_for(p: Parameters) -> ControllerMatrix:
-    family = Family.PID if p.control.family is Family.STATE_FEEDBACK else p.control.family
-    return ControllerMatrix(
-        p.tsamp, family, p.control.structure,
-        pid={e: c.pid for e, c in zip(ELEMENTS, p.controllers)},
-        general={e: c.general for e, c in zip(ELEMENTS, p.controllers)},
-    )
 
 
 class ControlLoop:
@@ -152,19 +122,16 @@ class ControlLoop:
         self.on_publish: Callable[[Snapshot], None] | None = None
         self._gens = (Generator(params.references[0], params.tsamp),
                       Generator(params.references[1], params.tsamp))
-        self._matrix = _matrix_for(params)
-        self._sf: AnyStateFeedback | None = None
         sf_refused = None
-        if params.control.family is Family.STATE_FEEDBACK:
-            try:
-                self._sf = _new_statefb(params)
-            except ParameterError as exc:  # a file asked for a design there is none of
-                sf_refused = f"State feedback: {exc}; the PID controllers are in force"
-                params = self.params = params.with_value("CONTROL.Type", Family.PID.value)
+        try:
+            self.controllers = Controllers(params)
+        except ParameterError as exc:  # a file asked for a state feedback there is no design for
+            sf_refused = f"State feedback: {exc}; the PID controllers are in force"
+            params = self.params = params.with_value("CONTROL.Type", Family.PID.value)
+            self.controllers = Controllers(params)
         self.running = False
         #: The calibration procedure on the rig (StartCalibration), and where its result goes.
-        self._cal: CalibrationRun | None = None
-        self._cal_files = ("", "")
+        self.calibration = RigCalibration()
         #: Process time at which Automatic began (None in Manual): the window the
         #: headless summary measures the loops over.
         self.automatic_since: float | None = None
@@ -207,12 +174,12 @@ class ControlLoop:
 
     @property
     def matrix(self) -> ControllerMatrix:
-        return self._matrix
+        return self.controllers.matrix
 
     @property
     def statefb(self) -> AnyStateFeedback | None:
         """The state-feedback controller while it is the type in force."""
-        return self._sf
+        return self.controllers.statefb
 
     def snapshot(self) -> Snapshot:
         return self._snapshot
@@ -226,7 +193,7 @@ class ControlLoop:
         self._sampled_last = False
         try:
             self.log.check()  # a write the file worker failed (disk full): fault now
-            if self._cal is not None and self._cal.active:
+            if self.calibration.active:
                 self._calibration_tick()
             elif self.running:
                 self._sample(missed)
@@ -235,24 +202,15 @@ class ControlLoop:
                 self._y = self.backend.read_levels()  # a paused rig still shows its levels
         except Exception as exc:  # noqa: BLE001 - any fault: pumps safe, Pause, say why
             self._fail(exc)
-            if self._cal is not None and self._cal.active:
-                self._cal.fail(f"stopped: {self.fault}")
+            self.calibration.fail(f"stopped: {self.fault}")
         return self.publish()
 
     def _calibration_tick(self) -> None:
-        """One sample of the calibration: the pumps held (every sample, so a rig's
-        watchdog sees the link alive), the raw sensors read while settling."""
-        cal, daq = self._cal, self.backend
-        assert cal is not None
-        v = cal.pumps()
-        scales = [s.full_scale for s in self.params.process_plant().inputs] + [FULL_SCALE_V, FULL_SCALE_V]
-        u = [v[i] / scales[i] if i < cal.pumps_used else 0.0 for i in range(2)]
-        self._u = (u[0], u[1])
-        daq.write_pumps(self._u)
-        volts = daq.read_raw_volts()  # type: ignore[attr-defined]  # checked at StartCalibration
-        self._y = daq.levels_from_volts(volts)  # type: ignore[attr-defined]
-        if cal.feed(volts) not in ("settling", "heights"):
-            self._safe(daq)  # timed out: pumps at 0
+        """One sample of the calibration (engine/calibration_step.py): the pumps held,
+        the raw sensors read while settling; pumps at 0 when it stops holding them."""
+        self._u, self._y, holding = self.calibration.tick(self.backend, self.params.process_plant())
+        if not holding:
+            self._safe(self.backend)  # timed out: pumps at 0
             self._u = (0.0, 0.0)
 
     def _sample(self, missed: int = 0) -> None:
@@ -263,7 +221,7 @@ class ControlLoop:
         self._y = y
         y12 = (y[0], y[1])
         w = (self._gens[0].value(), self._gens[1].value())
-        m, sf = self._matrix, self._sf
+        m, sf = self.controllers.matrix, self.controllers.statefb
         if self.params.control.mode is ControlMode.AUTOMATIC:
             r = w
             u = self._write(saturate(sf.compute(r, y) if sf is not None else m.compute(r, y12)))
@@ -338,9 +296,8 @@ class ControlLoop:
             backend=self.backend.description or self.backend.kind,
             log=self.log.status(self.params.logging),
             stats=self.stats, fault=self.fault,
-            statefb=self._sf.info if self._sf is not None else None,
-            calibration=(CalibrationStatus.of(self._cal, daq_file=self._cal_files[0], par_dir=self._cal_files[1])
-                         if self._cal is not None else None),
+            statefb=sf.info if (sf := self.controllers.statefb) is not None else None,
+            calibration=self.calibration.status(),
             alarms=tuple(getattr(self.backend, "alarms", ()) or ()),
             faults=self.sim.faults.labels() if self.backend is self.sim else "",
         )
@@ -485,17 +442,15 @@ class ControlLoop:
         if h != old.tsamp and self.log.running:
             raise ParameterError(TSAMP, "stop logging (LogOff) before changing the sampling time: "
                                  "the log's TSamp would no longer be true")
-        for e in new.controllers:
-            tustin(e.general.numerator, e.general.denominator, h)
+        self.controllers.check(new)
         changed = new.simulation != old.simulation or new.process != old.process
         plant = new.process_plant() if changed else None
         refused = _plant_refused(self.daq, plant) if plant is not None else None
         if refused is not None:
             raise ParameterError("PLANT.Kind", refused)
-        sf_design = self._statefb_for(new, old)
+        change = self.controllers.prepare(new, old)
         # --- nothing below refuses ---
         if h != old.tsamp:
-            self._matrix.set_sampling_time(h)
             self._fixed_h = False
         for g, a, b in zip(self._gens, old.references, new.references):
             # Each step must be valid on its own: the period is checked against the
@@ -506,51 +461,12 @@ class ControlLoop:
                 g.set_sampling_time(h)
             if h < old.tsamp and a != b:
                 g.set_params(b)
-        if new.control.family is not Family.STATE_FEEDBACK and (
-                (new.control.family, new.control.structure) != (self._matrix.family, self._matrix.structure)):
-            self._matrix.set_type(new.control.family, new.control.structure)
-        self._install_statefb(new, sf_design)
-        for ij, (was, now) in zip(ELEMENTS, zip(old.controllers, new.controllers)):
-            if was.pid != now.pid:
-                self._matrix.set_element_params(*ij, now.pid)
-            if was.general != now.general:
-                self._matrix.set_element_params(*ij, now.general)
+        self.controllers.install(new, old, change, self._y, self._u)
         if plant is not None:
             self.sim.set_plant(plant, new.process_levels())
         self.params = new
         if h != old.tsamp and self.backend is not self.sim:
             _arm(self.backend, h)  # the rig's watchdog timeout follows the sampling time
-
-    def _statefb_for(self, new: Parameters, old: Parameters) -> AnyStateFeedback | Design | None:
-        """What the state feedback needs for `new`, designed (or refused) before anything
-        moves: a new controller (switched to it, or another plant's), a new design for
-        the one running, or None (nothing to do)."""
-        if new.control.family is not Family.STATE_FEEDBACK:
-            return None
-        if self._sf is None or _plant_shape(new) != _plant_shape(old):
-            return _new_statefb(new)
-        if (new.statefb, new.simulation, new.process, new.tsamp) == (
-                old.statefb, old.simulation, old.process, old.tsamp):
-            return None
-        return _statefb_design(new)
-
-    def _install_statefb(self, new: Parameters, change: AnyStateFeedback | Design | None) -> None:
-        """Switch to, redesign (between samples, bumpless) or drop the state feedback."""
-        if new.control.family is not Family.STATE_FEEDBACK:
-            self._sf = None
-            return
-        from quadtank_tui.core.statefb.design import Design
-        from quadtank_tui.core.statefb.plants import PlantStateFeedback
-
-        if change is None:
-            return
-        if not isinstance(change, Design):
-            self._sf = change
-            self._sf.track(self._y, self._u)  # start where the pumps are (3.1.10)
-        elif isinstance(self._sf, PlantStateFeedback):
-            self._sf.configure(new.process_plant(), new.process_levels(), new.statefb, change)
-        elif self._sf is not None:
-            self._sf.configure(new.quadtank_constants(), new.statefb, change)
 
     def _switch_mode(self, mode: ControlMode, *, adjust_means: bool = True) -> None:
         """Manual <-> Automatic, bumpless (M3): Manual -> Automatic sets the reference
@@ -575,7 +491,7 @@ class ControlLoop:
         return self._set_params(SetParams({k: self.defaults.get(k) for k in keys}))
 
     def _set_state(self, cmd: SetState) -> CommandResult:
-        if self._cal is not None and self._cal.active and cmd.state == "Run":
+        if self.calibration.active and cmd.state == "Run":
             return CommandResult.refused("a calibration is holding the pumps: finish or cancel it first")
         if cmd.state == "Run":
             self.running = True
@@ -596,9 +512,7 @@ class ControlLoop:
         self.running = False
         self._cancel_calibration(CancelCalibration())
         self._safe(self.backend)
-        self._matrix.reset()
-        if self._sf is not None:
-            self._sf.reset()
+        self.controllers.reset()
         for g in self._gens:
             g.reset()
         self.sim.reset()
@@ -623,7 +537,7 @@ class ControlLoop:
         else:
             return CommandResult.refused(f"operation must be Simul or Active, got {cmd.operation!r}")
         if target is not self.backend:
-            self._cal = None  # a calibration belongs to the rig it ran on
+            self.calibration.forget()  # a calibration belongs to the rig it ran on
             self._safe(self.backend)
             self.running = False
             self.backend = target
@@ -672,12 +586,7 @@ class ControlLoop:
         return CommandResult(True)
 
     def _reset_controllers(self, cmd: ResetControllers) -> CommandResult:
-        if cmd.element is None:
-            self._matrix.reset()
-            if self._sf is not None:
-                self._sf.reset()
-        else:
-            self._matrix.reset_element(*cmd.element)
+        self.controllers.reset(cmd.element)
         return CommandResult(True)
 
     # --- logging --------------------------------------------------------------------------
@@ -746,50 +655,26 @@ class ControlLoop:
     def _start_calibration(self, cmd: StartCalibration) -> CommandResult:
         """Pause the control loop and start holding the pumps (refused in Simul: the
         simulation's sensors need no calibration, and a rig without raw reads)."""
-        daq = self.backend
-        if daq is self.sim or not hasattr(daq, "read_raw_volts"):
+        if self.backend is self.sim:
             return CommandResult.refused("calibration runs on the rig: switch to Active first "
                                          "(the simulation's sensors are exact)")
-        if self._cal is not None and self._cal.active:
-            return CommandResult.refused("a calibration is running: cancel it first")
-        try:
-            if not (isinstance(cmd.window, (int, float)) and math.isfinite(cmd.window) and cmd.window > 0):
-                raise CalibrationError(f"the settling window must be a time > 0 s, got {cmd.window!r}")
-            reads = max(2, round(cmd.window / self.h))
-            plant = self.params.process_plant()
-            run = CalibrationRun(tuple(cmd.volts), SettleRule(reads, cmd.tol, cmd.timeout), self.h,
-                                 tanks=len(plant.states), pumps=len(plant.inputs))
-        except CalibrationError as exc:
-            return CommandResult.refused(str(exc))
-        self.running = False
-        self._cal = run
-        config = getattr(daq, "config", None)
-        source = str(getattr(config, "source", ""))
-        self._cal_files = (source if Path(source).is_file() else "", str(self.store.folder))
-        return CommandResult(True)
+        result = self.calibration.start(self.backend, cmd, self.params.process_plant(), self.h, self.store.folder)
+        if result.ok:
+            self.running = False
+        return result
 
     def _calibration_heights(self, cmd: CalibrationHeights) -> CommandResult:
-        if self._cal is None:
-            return CommandResult.refused("no calibration is running")
-        try:
-            self._cal.heights(tuple(cmd.levels))
-        except (CalibrationError, TypeError, ValueError) as exc:
-            return CommandResult.refused(str(exc))
-        if not self._cal.active:  # done: pumps at 0
+        result = self.calibration.heights(cmd)
+        if result.ok and not self.calibration.active:  # done: pumps at 0
             self._safe(self.backend)
             self._u = (0.0, 0.0)
-        return CommandResult(True)
+        return result
 
     def _cancel_calibration(self, cmd: CancelCalibration) -> CommandResult:
         """Pumps at 0 while it runs; afterwards, forget it (the window closed)."""
-        if self._cal is None:
-            return CommandResult(True)
-        if self._cal.active:
-            self._cal.cancel()
+        if self.calibration.cancel():
             self._safe(self.backend)
             self._u = (0.0, 0.0)
-        else:
-            self._cal = None
         return CommandResult(True)
 
     def _set_speed(self, cmd: SetSpeed) -> CommandResult:
@@ -812,11 +697,6 @@ def _arm(backend: ProcessBackend, tsamp: float) -> None:
     arm = getattr(backend, "arm", None)
     if arm is not None:
         arm(tsamp)
-
-
-def _plant_shape(p: Parameters) -> str:
-    """The plant kind: a state feedback is made anew, not redesigned, when it changes."""
-    return "quadtank" if p.process is None else p.process.kind
 
 
 def _plant_refused(daq: ProcessBackend | None, plant: Plant) -> str | None:

@@ -1,0 +1,137 @@
+"""The loop's controllers, C: the PID/General matrix on y1, y2 and, while it is the
+type in force, the state feedback on every level of the plant (core.statefb).
+
+Split from engine/loop.py (issue 25) along the seam the loop has: the sample uses
+the controllers (`matrix`, `statefb`: loop.py's `_sample` calls them directly, the
+hot path), this module makes and changes them.  A change of parameters is two
+steps so the loop changes all or nothing: :meth:`Controllers.check` and
+:meth:`Controllers.prepare` refuse (a General pole at 2/h, a state feedback there
+is no design for) or design before anything moves; :meth:`Controllers.install`
+then cannot refuse.  While the state feedback runs the matrix tracks u, so
+switching back to its family is bumpless, and a new state feedback starts from
+the pumps in force (3.1.10).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Union
+
+from quadtank_tui.core.general import tustin
+from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, Family
+from quadtank_tui.core.parameters import Parameters
+from quadtank_tui.engine.backend import Levels4, Pair
+
+if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is chosen
+    from quadtank_tui.core.statefb.design import Design
+    from quadtank_tui.core.statefb.plants import PlantStateFeedback
+    from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+
+    AnyStateFeedback = Union[QuadTankStateFeedback, PlantStateFeedback]
+    #: What `prepare` hands `install`: a new state feedback, a new design for the
+    #: running one, or None (nothing to do).
+    StateFbChange = Union[AnyStateFeedback, Design, None]
+
+
+def new_statefb(p: Parameters) -> AnyStateFeedback:
+    """The state feedback `p` asks for, on its plant (ParameterError: no such design)."""
+    if p.process is None:
+        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+
+        return QuadTankStateFeedback(p.quadtank_constants(), p.statefb, p.tsamp)
+    from quadtank_tui.core.statefb.plants import PlantStateFeedback
+
+    return PlantStateFeedback(p.process_plant(), p.process_levels(), p.statefb, p.tsamp)
+
+
+def _statefb_design(p: Parameters) -> Design:
+    """A new design for the state feedback running on `p`'s plant."""
+    from quadtank_tui.core.statefb.in_use import design_in_use
+
+    return design_in_use(p)
+
+
+def _matrix_for(p: Parameters) -> ControllerMatrix:
+    family = Family.PID if p.control.family is Family.STATE_FEEDBACK else p.control.family
+    return ControllerMatrix(
+        p.tsamp, family, p.control.structure,
+        pid={e: c.pid for e, c in zip(ELEMENTS, p.controllers)},
+        general={e: c.general for e, c in zip(ELEMENTS, p.controllers)},
+    )
+
+
+def _plant_shape(p: Parameters) -> str:
+    """The plant kind: a state feedback is made anew, not redesigned, when it changes."""
+    return "quadtank" if p.process is None else p.process.kind
+
+
+class Controllers:
+    """The controllers of `params` (ParameterError if it asks for a state feedback
+    there is no design for: the loop then falls back to the PID family)."""
+
+    def __init__(self, params: Parameters) -> None:
+        self.matrix = _matrix_for(params)
+        self.statefb: AnyStateFeedback | None = None
+        if params.control.family is Family.STATE_FEEDBACK:
+            self.statefb = new_statefb(params)
+
+    def check(self, new: Parameters) -> None:
+        """Refuse (ParameterError) what no controller of `new` can be: a General
+        element with a pole at 2/h (Tustin's z = -1)."""
+        for e in new.controllers:
+            tustin(e.general.numerator, e.general.denominator, new.tsamp)
+
+    def prepare(self, new: Parameters, old: Parameters) -> StateFbChange:
+        """What the state feedback needs for `new`, designed (or refused) before
+        anything moves: a new controller (switched to it, or another plant's), a new
+        design for the one running, or None (nothing to do)."""
+        if new.control.family is not Family.STATE_FEEDBACK:
+            return None
+        if self.statefb is None or _plant_shape(new) != _plant_shape(old):
+            return new_statefb(new)
+        if (new.statefb, new.simulation, new.process, new.tsamp) == (
+                old.statefb, old.simulation, old.process, old.tsamp):
+            return None
+        return _statefb_design(new)
+
+    def install(self, new: Parameters, old: Parameters, change: StateFbChange, y: Levels4, u: Pair) -> None:
+        """Make `new`'s controllers those in force, between samples and bumpless
+        (`y`, `u`: the levels and pump inputs of the moment); never refuses."""
+        m = self.matrix
+        if new.tsamp != old.tsamp:
+            m.set_sampling_time(new.tsamp)
+        if new.control.family is not Family.STATE_FEEDBACK and (
+                (new.control.family, new.control.structure) != (m.family, m.structure)):
+            m.set_type(new.control.family, new.control.structure)
+        self._install_statefb(new, change, y, u)
+        for ij, (was, now) in zip(ELEMENTS, zip(old.controllers, new.controllers)):
+            if was.pid != now.pid:
+                m.set_element_params(*ij, now.pid)
+            if was.general != now.general:
+                m.set_element_params(*ij, now.general)
+
+    def _install_statefb(self, new: Parameters, change: StateFbChange, y: Levels4, u: Pair) -> None:
+        """Switch to, redesign (between samples, bumpless) or drop the state feedback."""
+        if new.control.family is not Family.STATE_FEEDBACK:
+            self.statefb = None
+            return
+        from quadtank_tui.core.statefb.design import Design
+        from quadtank_tui.core.statefb.plants import PlantStateFeedback
+
+        if change is None:
+            return
+        if not isinstance(change, Design):
+            self.statefb = change
+            self.statefb.track(y, u)  # start where the pumps are (3.1.10)
+        elif isinstance(self.statefb, PlantStateFeedback):
+            self.statefb.configure(new.process_plant(), new.process_levels(), new.statefb, change)
+        elif self.statefb is not None:
+            self.statefb.configure(new.quadtank_constants(), new.statefb, change)
+
+    def reset(self, element: tuple[int, int] | None = None) -> None:
+        """Every controller's state cleared, or one element's of the matrix."""
+        if element is not None:
+            self.matrix.reset_element(*element)
+            return
+        self.matrix.reset()
+        if self.statefb is not None:
+            self.statefb.reset()
