@@ -55,6 +55,9 @@ if TYPE_CHECKING:
 
 #: An output buffer holding more than this many bytes: the device does not read.
 STUCK_OUTPUT = 64
+#: s to let the answer of an interrupted request arrive before it is flushed
+#: (14 bytes at 9600 baud take 15 ms)
+STALE_WAIT = 0.05
 
 
 def open_serial(port: str, timeout: float) -> Any:
@@ -97,6 +100,7 @@ class IstBackend(ProcessBackend):
         self._keepalive: threading.Thread | None = None
         self._stop = threading.Event()
         self._keepalive_error = ""
+        self._interrupted = False  # an exchange was cut by a signal's exception
         #: the disturbance pumps' PWM codes (0..255) sent with every pump frame
         self.disturbance: tuple[int, int] = (0, 0)
         self.full_scale = 1.0
@@ -245,6 +249,10 @@ class IstBackend(ProcessBackend):
 
     def _request_levels(self) -> tuple[int, int, int, int, int]:
         def ask(port: Any) -> bytes:
+            if self._interrupted:  # the answer to the interrupted '$' may be on its way
+                self._sleep(STALE_WAIT)
+                self._interrupted = False
+            port.reset_input_buffer()  # no stray or stale byte is taken for this answer
             self._write_whole(port, p.REQUEST)
             return bytes(port.read(p.LEVELS_REPLY_LEN))
 
@@ -275,6 +283,9 @@ class IstBackend(ProcessBackend):
         except Exception as exc:  # noqa: BLE001 - pyserial's SerialException, OSError, ...
             self._drop()
             raise BackendError(f"{what} on {self.config.port} failed: {exc}") from None
+        except BaseException:  # Ctrl-C, a stop signal: the port stays open for safe_state
+            self._interrupted = True
+            raise
 
     def _write_whole(self, port: Any, frame: bytes) -> None:
         """`frame` by one write system call, signals held in this thread, into an
