@@ -231,7 +231,7 @@ def test_the_host_polls_within_2_s_at_ts_5_s_and_a_sigkilled_host_leaves_the_pum
     host = subprocess.Popen([sys.executable, "-c", HOST, dev.path], stdout=subprocess.PIPE, text=True, cwd=ROOT)
     try:
         assert host.stdout is not None and host.stdout.readline() == "driving\n"
-        time.sleep(3.0)  # longer than the firmware's 2 s: only the keep-alive feeds it
+        time.sleep(2.5)  # longer than the firmware's 2 s: only the keep-alive feeds it
         assert dev.firmware.pwm == (68, 76, 0, 0)
         gaps = [b - a for a, b in zip(seen, seen[1:])]
         assert len(gaps) >= 2 and max(gaps) < 1.5, gaps
