@@ -265,9 +265,9 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
             raise ValueError(f"--window must be >= 2 reads, got {args.window}")
         if any(not 0 <= v <= 10 for v in args.volts):
             raise ValueError("--volts must be within 0..10 V")
-        from quadtank_tui.daq.modbus import ModbusBackend
+        from quadtank_tui.daq.ist.commands import calibration_backend
 
-        backend = ModbusBackend(load_daq_config(args.config))
+        backend = calibration_backend(args.config, args.write)
         try:
             pairs = run_procedure(
                 backend, [(v, v) for v in args.volts], Settle(args.poll, args.window, args.tol, args.timeout),
@@ -280,6 +280,11 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
         print("# the settled states (save them to refit with --pairs FILE)")
         print(pairs.format(), end="")
     result = fit_pairs(pairs, plant)
+    if args.config is not None and is_ist(args.config):
+        from quadtank_tui.daq.ist.commands import format_ist_result
+
+        print(format_ist_result(result, plant))
+        return 0
     print(format_result(result, plant))
     if args.write is not None:
         return _write_calibration(result, args.write or _daq_file(args.config), args.par, yes=args.yes)

@@ -135,3 +135,14 @@ def test_the_tui_refuses_an_ist_file_in_one_line(tmp_path: Path, capsys: pytest.
     assert main(["--daq", str(cfg), "--no-session"]) != 0
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "is driven by `quadtank run --daq" in err
+
+
+def test_calibrate_write_is_refused_for_an_ist_file_in_one_line(tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    cfg = config_for(tmp_path, "/dev/null")
+    before = cfg.read_text()
+    assert main(["daq", "calibrate", str(cfg), "--write", "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"quadtank: error: {cfg}: --write does not edit an IST file yet; copy the dh_dr and h0 lines "
+                   "the fit prints into its calibration: section\n")
+    assert cfg.read_text() == before

@@ -204,6 +204,16 @@ class IstBackend(ProcessBackend):
 
     # --- the link --------------------------------------------------------------------
 
+    def read_raw_volts(self) -> tuple[float, ...]:
+        """The calibration procedure's raw readings (daq/calibrate.py): the four
+        sensors' ratios r = (Vcc - v) / v, the quantity the level is linear in (its
+        fit's gain is dh_dr, its offset h0)."""
+        codes = self.read_codes()
+        try:
+            return tuple(p.ratio(code, codes[4]) for code in codes[:4])
+        except p.FrameError as exc:
+            raise BackendError(f"sensor fault: {exc}") from None
+
     def read_codes(self) -> tuple[int, int, int, int, int]:
         """One '$' exchange: the raw codes v1..v4, Vcc (for `daq check`)."""
         with self._lock:
