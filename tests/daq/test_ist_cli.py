@@ -82,11 +82,12 @@ def test_daq_check_reads_the_levels_and_names_the_port_and_the_conversion(
     assert out[7].startswith("watchdog: the firmware's own, 2 s")
 
 
-def test_run_drives_the_device_and_leaves_its_pumps_at_0(ist_rig: IstRig, tmp_path: Path,
+def test_run_drives_the_device_and_its_disturbances_and_leaves_its_pumps_at_0(ist_rig: IstRig, tmp_path: Path,
                                                           capsys: pytest.CaptureFixture[str]) -> None:
     script = tmp_path / "exp.yaml"
     script.write_text('- at: 0\n  set: {"REFERENCE ONE.On": 1, "REFERENCE TWO.On": 1}\n'
-                      '- at: 0\n  mode: Automatic\n- at: 0\n  log: on\n- at: 0\n  state: Run\n')
+                      '- at: 0\n  mode: Automatic\n- at: 0\n  log: on\n- at: 0\n  state: Run\n'
+                      '- at: 3\n  disturbance: {d1: 1.0}\n- at: 6\n  disturbance: {d2: 0.5}\n')
     out = tmp_path / "active.log"
     status = main(["run", "--par", str(ROOT / "params" / "ist-lisbon.par"), "--daq",
                    str(config_for(tmp_path, ist_rig.path)), "--speed", "10", "--duration", "10",
@@ -100,6 +101,7 @@ def test_run_drives_the_device_and_leaves_its_pumps_at_0(ist_rig: IstRig, tmp_pa
     time.sleep(0.3)
     status = [line for line in ist_rig.lines if "pwm u =" in line]
     assert any(not line.rstrip().endswith("pwm u =    0    0  d =   0   0") for line in status)  # it pumped
+    assert any(line.rstrip().endswith("d = 255 128") for line in status)  # the script's disturbances
     assert status[-1].rstrip().endswith("pwm u =    0    0  d =   0   0")  # and stopped: the zero frame
 
 
@@ -146,3 +148,17 @@ def test_calibrate_write_is_refused_for_an_ist_file_in_one_line(tmp_path: Path,
     assert err == (f"quadtank: error: {cfg}: --write does not edit an IST file yet; copy the dh_dr and h0 lines "
                    "the fit prints into its calibration: section\n")
     assert cfg.read_text() == before
+
+
+@pytest.mark.parametrize("body, error", [
+    ("disturbance: {d1: 0.5}", "event 1 (line 1): simulator has no disturbance pumps (an IST rig has two, in Active)"),
+    ("disturbance: {d3: 0.5}", "event 1 (line 1): disturbance needs {d1: 0..1, d2: 0..1} (one may be left out)"),
+    ("disturbance: {d2: 1.5}", "event 1 (line 1): disturbance.d2 must be a number in 0..1 (a fraction of full "
+                               "PWM), got 1.5"),
+])
+def test_a_disturbance_event_the_process_cannot_take_is_one_line(body: str, error: str, tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    script = tmp_path / "d.yaml"
+    script.write_text(f"- at: 1\n  {body}\n")
+    assert main(["run", "--script", str(script), "--duration", "3", "--log", str(tmp_path / "d.log")]) == 2
+    assert capsys.readouterr().err == f"quadtank: error: {script}, {error}\n"

@@ -165,12 +165,17 @@ class IstBackend(ProcessBackend):
     def interlock_holds(self) -> tuple[InterlockHold, ...]:
         return self.interlock.holds(self.full_scale)
 
-    def set_disturbances(self, d1: float, d2: float) -> None:
-        """The disturbance pumps at fractions d1, d2 of full PWM from the next pump frame."""
-        for name, d in (("d1", d1), ("d2", d2)):
+    def set_disturbances(self, d1: float | None, d2: float | None) -> None:
+        """The disturbance pumps at fractions d1, d2 of full PWM (None: as it is)
+        from the next pump frame (a pause's safe_state stops them)."""
+        codes = list(self.disturbance)
+        for i, (name, d) in enumerate((("d1", d1), ("d2", d2))):
+            if d is None:
+                continue
             if not (0.0 <= d <= 1.0):
                 raise ValueError(f"{name} must be in 0..1 (a fraction of full PWM), got {d}")
-        self.disturbance = (round(d1 * p.DISTURBANCE_MAX), round(d2 * p.DISTURBANCE_MAX))
+            codes[i] = round(d * p.DISTURBANCE_MAX)
+        self.disturbance = (codes[0], codes[1])
 
     def safe_state(self) -> None:
         """One whole zero frame (all four pumps) on the open port; never raises."""
