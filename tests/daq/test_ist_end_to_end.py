@@ -20,6 +20,7 @@ from quadtank_tui.daq.ist.backend import IstBackend
 from quadtank_tui.daq.ist.config import IstConfig
 from quadtank_tui.daq.ist.device import Firmware, PtyDevice, serve
 from quadtank_tui.engine.backend import Levels4
+from quadtank_tui.engine.commands import SetOperation
 from quadtank_tui.engine.runner import Engine, build_engine
 from quadtank_tui.files.log import read_log
 from quadtank_tui.files.par import read_par
@@ -98,3 +99,35 @@ def test_active_on_the_virtual_ist_device_matches_simul(tmp_path: Path) -> None:
         assert np.max(np.abs(diff)) < 0.008 and np.sqrt(np.mean(diff**2)) < 0.003, name
     # the PWM really quantized the pumps: the rig's u is not the simulator's to the bit
     assert np.max(np.abs(a["u1"] - s["u1"])) > 1e-4
+
+
+def test_an_answer_lost_on_the_line_pauses_the_run_within_the_sample_pumps_at_0(tmp_path: Path) -> None:
+    params = read_par(PAR).params
+    firmware = Firmware(IstConfig(port=""), params.quadtank_constants(), params.process_levels(), reset_s=0.0)
+    device = PtyDevice(firmware)
+    stop = threading.Event()
+    server = threading.Thread(target=serve, args=(device,), kwargs={"stop": stop.is_set}, daemon=True)
+    server.start()
+    backend = IstBackend(IstConfig(port=device.path, open_wait=0.05, timeout=0.3))
+    engine = build_engine(PAR, daq=backend, clock="manual", params_dir=ROOT / "params", logs_dir=tmp_path)
+    try:
+        assert engine.submit(SetOperation("Active")).result().ok
+        start_experiment(engine, {"REFERENCE ONE.On": 1, "REFERENCE TWO.On": 1})
+        for _ in range(3):
+            engine.step()
+        time.sleep(0.1)
+        assert firmware.pwm[:2] != (0, 0) and engine.snapshot().fault is None
+        firmware.mute = True      # the '$' is heard, its answer never comes
+        t0 = time.monotonic()
+        snap = engine.step()
+        took = time.monotonic() - t0
+        assert snap.fault is not None and "no answer within 0.3 s" in snap.fault and snap.state == "Pause"
+        assert took < 0.3 + 0.05 + 1.0  # the timeout, the reopening's wait, slack for a loaded machine
+        time.sleep(0.1)
+        assert firmware.pwm == (0, 0, 0, 0) and not firmware.hung  # reopened (reset) and a zero frame
+        assert backend.safe_state_error == ""
+    finally:
+        engine.stop()
+        stop.set()
+        server.join(2.0)
+        device.close()

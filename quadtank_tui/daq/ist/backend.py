@@ -20,8 +20,8 @@ Each sample the engine calls `read_levels` (one ``$``, one 14-byte answer) and
 An answer that does not come within `timeout`, or comes short, or foreign, is a
 BackendError at once (within the sample), and the port is closed so that no late
 byte is taken for the next answer; the engine then pauses with the pumps to 0
-(`safe_state`, one whole zero frame, on the port if it is open; if it is not, the
-firmware's watchdog stops them within 2 s).  A silence longer than the 2 s watchdog
+(`safe_state`, one whole zero frame; a port closed by the fault is opened again
+for it, and the opening itself resets the Nano, pumps off).  A silence longer than the 2 s watchdog
 between two samples (this program stopped, the machine suspended) fails the next
 sample: the firmware has stopped the pumps meanwhile.
 
@@ -178,14 +178,13 @@ class IstBackend(ProcessBackend):
         self.disturbance = (codes[0], codes[1])
 
     def safe_state(self) -> None:
-        """One whole zero frame (all four pumps) on the open port; never raises."""
+        """One whole zero frame (all four pumps); never raises.  A port closed by a
+        fault is opened again first: the opening resets the Nano, which stops the
+        pumps by itself and clears a firmware hung in a frame cut on the line,
+        which its watchdog would never stop."""
         self.disturbance = (0, 0)
         try:
             with self._lock:
-                if self._port is None:
-                    self.safe_state_error = (f"the port {self.config.port} is closed: the rig's watchdog stops "
-                                             "the pumps within 2 s")
-                    return
                 self._write_frame((0, 0, 0, 0))
             self.applied = (0.0, 0.0)
             self.safe_state_error = ""
