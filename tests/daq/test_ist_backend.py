@@ -244,3 +244,16 @@ def test_the_host_polls_within_2_s_at_ts_5_s_and_a_sigkilled_host_leaves_the_pum
         host.kill()
         host.wait()
     assert dev.firmware.pwm == (0, 0, 0, 0) and stopped <= 2.0 + 0.1, stopped
+
+
+def test_the_port_is_exclusive_a_second_program_cannot_open_it(served: Callable[..., Served]) -> None:
+    dev = served()
+    first, second = backend_for(dev.path), backend_for(dev.path)
+    try:
+        first.read_levels()
+        with pytest.raises(BackendError, match=f"cannot open the serial port {dev.path}: .*exclusively lock"):
+            second.read_levels()
+        first.read_levels()  # the first one's link is untouched
+    finally:
+        second.close()
+        first.close()
