@@ -16,11 +16,11 @@ from quadtank_tui.daq.ist.commands import IST_PLANT, IST_VOLTS, format_ist_resul
 from quadtank_tui.daq.ist.config import IstConfig
 from quadtank_tui.daq.ist.device import Firmware, PtyDevice, serve
 
-pytestmark = pytest.mark.wallclock  # the device in real time, x1500
+pytestmark = pytest.mark.wallclock  # the device in real time, x3000
 
 
 def test_the_procedure_fits_the_sensors_ratio_law_and_the_outlets() -> None:
-    fw = Firmware(IstConfig(port=""), IST_PLANT, steady_state_levels(IST_VOLTS, IST_PLANT), speed=1500.0,
+    fw = Firmware(IstConfig(port=""), IST_PLANT, steady_state_levels(IST_VOLTS, IST_PLANT), speed=3000.0,
                   reset_s=0.0)
     device = PtyDevice(fw)
     stop = threading.Event()
