@@ -84,10 +84,23 @@ def hold_daq(config: str | None, *, take_over: bool = False, say: Callable[[str]
     from quadtank_tui.session.lock import DaqLockHeld, pid_alive
     from quadtank_tui.session.riglock import RigLock
 
-    daq = load_daq_config(config)  # a bad file is reported here, before anything else
+    from quadtank_tui.daq.ist.config import is_ist, load_ist_config
+    from quadtank_tui.session.lock import DaqLock
+
+    ist = load_ist_config(config) if is_ist(config) else None  # a serial rig, locked by its device
+    daq = load_daq_config(config) if ist is None else None  # a bad file is reported here, before anything else
     lab = load_lab_config()
+
+    def acquire(take_over: bool = False) -> RigLock:
+        if daq is None:
+            from quadtank_tui.daq.ist.commands import lock_key
+
+            assert ist is not None
+            return RigLock(lock_key(ist), [DaqLock.acquire(lock_key(ist), lab, take_over=take_over)])
+        return RigLock.acquire(daq.host, daq.port, daq.device_id, lab, take_over=take_over)
+
     try:  # under every address the host resolves to (a name that does not: refused)
-        lock = RigLock.acquire(daq.host, daq.port, daq.device_id, lab)
+        lock = acquire()
     except DaqLockHeld as held:
         device = held.device
         if not take_over:
@@ -95,7 +108,7 @@ def hold_daq(config: str | None, *, take_over: bool = False, say: Callable[[str]
                              "(--take-over)") from None
         me = roles.current_user()
         roles.require_administrator(me.uid, lab, f"taking over the rig at {device} from {held.holder}")
-        lock = RigLock.acquire(daq.host, daq.port, daq.device_id, lab, take_over=True)
+        lock = acquire(take_over=True)
         (say or _say)(f"quadtank: took the rig at {device} over from {held.holder} (pid {held.pid}); "
                       "waiting for that program to stop ...")
         deadline = time.monotonic() + TAKE_OVER_WAIT

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Literal
 from quadtank_tui.commands import warn
 from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.daq.config import PRESETS, load_daq_config
+from quadtank_tui.daq.ist.config import is_ist
 from quadtank_tui.engine.backend import BackendError
 
 # The commands import what they run inside their handlers (the rig: asyncio; the
@@ -24,6 +25,7 @@ from quadtank_tui.engine.backend import BackendError
 if TYPE_CHECKING:  # pymodbus is imported only when a DAQ is used
     from quadtank_tui.core.plants import Plant
     from quadtank_tui.daq.calibrate import Result
+    from quadtank_tui.daq.ist.backend import IstBackend
     from quadtank_tui.daq.modbus import ModbusBackend
 
 
@@ -58,6 +60,11 @@ def add_rig_parser(sub: argparse._SubParsersAction) -> None:
                    help="answer every request S seconds late (to try a slow link)")
     p.add_argument("--status", type=float, default=0.0, metavar="S",
                    help="print the levels and pumps every S seconds (default 0: never)")
+    p.add_argument("--protocol", choices=("modbus", "ist"), default="modbus",
+                   help="modbus (default): a Modbus TCP server; ist: the IST Lisbon rig's Arduino on a new "
+                   "pseudo-terminal (its path is printed; --map may give params/daq-ist.yaml's constants)")
+    p.add_argument("--reset", type=float, default=1.0, metavar="S",
+                   help="with --protocol ist: the seconds the device is deaf after the port opens (default 1)")
     p.add_argument("--fault", action="append", default=[], metavar="KIND:N[:VALUE]",
                    help="inject a fault from the start, e.g. leak:1:0.02, clog:2:0.7, weak_pump:1:0.5, "
                    "sensor_bias:1:0.05 (normalized), sensor_stuck:2; repeatable")
@@ -82,6 +89,10 @@ def cmd_rig(args: argparse.Namespace) -> int:
     from quadtank_tui.daq.rig import SensorModel, VirtualRig, serve_rig
     from quadtank_tui.files.par import read_par  # files layer, only when a .par is given
 
+    if args.protocol == "ist":
+        from quadtank_tui.daq.ist.commands import cmd_rig_ist
+
+        return cmd_rig_ist(args)
     if args.par is not None:
         read = read_par(args.par)
         warn(read.warnings)
@@ -179,6 +190,11 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
     """Read-only on purpose: checking a link must never move a pump."""
     from quadtank_tui.daq.modbus import ModbusBackend
 
+    if is_ist(args.config):
+        from quadtank_tui.daq.ist.commands import cmd_check_ist
+
+        return cmd_check_ist(args)
+
     config = load_daq_config(args.config, _par_plant(args.par))
     backend = ModbusBackend(config)
     try:
@@ -249,9 +265,9 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
             raise ValueError(f"--window must be >= 2 reads, got {args.window}")
         if any(not 0 <= v <= 10 for v in args.volts):
             raise ValueError("--volts must be within 0..10 V")
-        from quadtank_tui.daq.modbus import ModbusBackend
+        from quadtank_tui.daq.ist.commands import calibration_backend
 
-        backend = ModbusBackend(load_daq_config(args.config))
+        backend = calibration_backend(args.config, args.write)
         try:
             pairs = run_procedure(
                 backend, [(v, v) for v in args.volts], Settle(args.poll, args.window, args.tol, args.timeout),
@@ -264,6 +280,11 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
         print("# the settled states (save them to refit with --pairs FILE)")
         print(pairs.format(), end="")
     result = fit_pairs(pairs, plant)
+    if args.config is not None and is_ist(args.config):
+        from quadtank_tui.daq.ist.commands import format_ist_result
+
+        print(format_ist_result(result, plant))
+        return 0
     print(format_result(result, plant))
     if args.write is not None:
         return _write_calibration(result, args.write or _daq_file(args.config), args.par, yes=args.yes)
@@ -363,6 +384,9 @@ def open_daq(config: str | None, plant: Plant | None = None, *, quiet: bool = Fa
     first sample.  A device without a watchdog is said to have none (unless `quiet`)."""
     if config is None:
         return None
+    if is_ist(config):  # the sessions' records and locks are a Modbus rig's (host, port, unit)
+        raise ValueError(f"{config}: an IST rig (protocol: ist) is driven by `quadtank run --daq {config}` "
+                         "in this version; the TUI and sessions drive Modbus rigs only")
     from quadtank_tui.daq.modbus import ModbusBackend  # pymodbus only when asked for
 
     daq_config = load_daq_config(config, plant)
@@ -372,11 +396,18 @@ def open_daq(config: str | None, plant: Plant | None = None, *, quiet: bool = Fa
 
 
 def run_clock(*, realtime: bool, speed: float | None, config: str | None,
-              plant: Plant | None = None) -> tuple[Literal["realtime", "virtual", "manual"], ModbusBackend | None]:
+              plant: Plant | None = None
+              ) -> tuple[Literal["realtime", "virtual", "manual"], ModbusBackend | IstBackend | None]:
     """The clock and the DAQ backend of `quadtank [--daq C] run [--daq C]`.  A real
     process is never run unpaced: with a DAQ the run is real time, unless --speed
     gives the virtual rig's speed factor."""
-    daq = open_daq(config, plant)
+    daq: ModbusBackend | IstBackend | None
+    if config is not None and is_ist(config):  # the IST rig's serial protocol (daq/ist/)
+        from quadtank_tui.daq.ist.commands import open_ist
+
+        daq = open_ist(config, plant)
+    else:
+        daq = open_daq(config, plant)
     if realtime or (daq is not None and speed is None):
         return "realtime", daq
     return ("virtual" if speed is not None else "manual"), daq

@@ -67,6 +67,8 @@ def event_commands(event: Event, engine: Engine) -> list[Command]:
         return [LogOn() if v == "on" else LogOff()]
     if a == "fault":
         return [SetFault(*v)]
+    if a == "disturbance":
+        return []  # no command: the backend's own (_disturb)
     raise ValueError(f"unknown action {a!r}")
 
 
@@ -87,10 +89,24 @@ def apply_due(engine: Engine, events: collections.deque[Event], elapsed: LoopTim
 
 
 def _apply(engine: Engine, event: Event, name: str) -> None:
+    if event.action == "disturbance":
+        _disturb(engine, event, name)
     for command in event_commands(event, engine):
         result = engine.submit(command).result()
         if not result.ok:
             raise event.where(name, result.message)
+
+
+def _disturb(engine: Engine, event: Event, name: str) -> None:
+    """The disturbance pumps of the process in use (an IST rig's, daq/ist/), set
+    between two samples; the pump frame of the next sample carries them.  A process
+    without them (the simulator, a Modbus rig) refuses the event."""
+    backend = engine.loop.backend
+    drive = getattr(backend, "set_disturbances", None)
+    if drive is None:
+        raise event.where(name, f"{backend.description or 'the simulator'} has no disturbance pumps "
+                                "(an IST rig has two, in Active)")
+    drive(*event.value)
 
 
 def summarize(engine: Engine, duration: float) -> Summary:

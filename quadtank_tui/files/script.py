@@ -19,6 +19,8 @@ one action::
       fault: {kind: clog, target: 2, value: 0.5}   # Simul only (core.faults)
     - at: 1200
       fault: {kind: clog, target: 2, on: off}      # switch it off again
+    - at: 1300
+      disturbance: {d1: 0.5, d2: 0}   # an IST rig's disturbance pumps, 0..1 of full PWM (Active)
 
 Keys are the `.par` "SECTION.Key" names.  Everything that can be checked without
 running is checked here: unknown keys, values of the wrong kind, times, actions; a
@@ -39,7 +41,7 @@ from quadtank_tui.core.validation import ParameterError, is_finite_number
 from quadtank_tui.files.names import check_names
 from quadtank_tui.files.yamltext import parse_yaml, read_text
 
-ACTIONS = ("mode", "state", "set", "step", "add_water", "log", "fault")
+ACTIONS = ("mode", "state", "set", "step", "add_water", "log", "fault", "disturbance")
 MODES = ("Manual", "Automatic")
 STATES = ("Run", "Pause", "Reset")
 
@@ -61,7 +63,7 @@ class ScriptError(ValueError):
 class Event:
     """One timed action.  `value` by action: mode/state: the name; set/step: a
     {key: value} map; add_water: (tank, amount); log: "on" | "off"; fault:
-    (kind, target, value, on)."""
+    (kind, target, value, on); disturbance: (d1, d2), None for one left as it is."""
 
     at: float
     action: str
@@ -142,7 +144,20 @@ def _check_value(action: str, value: Any, fail: Any) -> Any:
         return (int(tank), float(amount))
     if action == "fault":
         return _fault(value, fail)
+    if action == "disturbance":
+        return _disturbance(value, fail)
     return _params(action, value, fail)
+
+
+def _disturbance(value: Any, fail: Any) -> tuple[float | None, float | None]:
+    """{d1: X, d2: Y} (either may be left out: unchanged), each 0..1 of full PWM."""
+    if not isinstance(value, dict) or not value or not set(value) <= {"d1", "d2"}:
+        raise fail("disturbance needs {d1: 0..1, d2: 0..1} (one may be left out)")
+    for k, x in value.items():
+        if not is_finite_number(x) or not 0.0 <= float(x) <= 1.0:
+            raise fail(f"disturbance.{k} must be a number in 0..1 (a fraction of full PWM), got {x!r}")
+    d1, d2 = value.get("d1"), value.get("d2")
+    return (None if d1 is None else float(d1), None if d2 is None else float(d2))
 
 
 def _fault(value: Any, fail: Any) -> tuple[str, int, float, bool]:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 ROOT = Path(__file__).parents[2]
 VIRTUAL_RIG = ROOT / "params" / "virtual-rig.yaml"
@@ -64,3 +64,67 @@ def recording_guard() -> tuple[type, list[Any], list[float]]:
             released.append(self.spec.gap)
 
     return FakeGuard, started, released
+
+
+def simul_twin(active_log: Path, start: Callable[[Any], None], duration: float, tmp_path: Path,
+               par: Path | None = None) -> dict[str, Any]:
+    """The columns of the Simul run of an Active run's experiment (`start` issues it),
+    from the levels the rig had at the active log's first row, as a user fills the
+    tanks; the two logs' slots are checked to be the same."""
+    import numpy as np
+
+    from quadtank_tui.engine.commands import AddWater, LogSave
+    from quadtank_tui.engine.runner import build_engine
+    from quadtank_tui.files.log import read_log
+
+    a = read_log(active_log).columns()
+    simul = build_engine(par, clock="manual", params_dir=ROOT / "params", logs_dir=tmp_path)
+    try:
+        y_sim = simul.snapshot().y
+        for tank in range(4):
+            assert simul.submit(AddWater(tank + 1, float(a[f"y{tank + 1}"][0]) - y_sim[tank])).result().ok
+        start(simul)
+        simul.run_for(duration)
+        assert simul.submit(LogSave("simul")).result().ok
+    finally:
+        simul.stop()
+    s = read_log(tmp_path / "simul.log").columns()
+    assert len(s["y1"]) == len(a["y1"])
+    np.testing.assert_allclose(a["t"], s["t"], atol=1e-9)  # the same slots, every one
+    return s
+
+
+def ok(engine: Any, command: object) -> None:
+    """`command` submitted to `engine`, and accepted."""
+    result = engine.submit(command).result()
+    assert result.ok, result.message
+
+
+def start_experiment(engine: Any, experiment: dict[str, Any]) -> None:
+    """The same sequence a user does on the Main screen: Automatic, the experiment's
+    settings (references on), LogOn, Run."""
+    from quadtank_tui.engine.commands import LogOn, SetControlMode, SetParams, SetState
+
+    ok(engine, SetControlMode("Automatic"))
+    ok(engine, SetParams(experiment))
+    ok(engine, LogOn())
+    ok(engine, SetState("Run"))
+
+
+def active_run(engine: Any, backend: str, start: Callable[[Any], None], duration: float) -> None:
+    """The experiment `start` issues, in Active on `engine` (its backend described
+    as `backend`) for `duration` process seconds without a fault, saved as
+    active.log; the engine stopped (pumps to 0) in any case."""
+    from quadtank_tui.engine.commands import LogSave, SetOperation
+
+    try:
+        ok(engine, SetOperation("Active"))
+        first = engine.step()          # a paused Active loop shows the rig's levels
+        assert first.operation == "Active" and first.backend == backend
+        start(engine)
+        engine.run_for(duration)
+        snap = engine.snapshot()
+        assert snap.fault is None and snap.state == "Run" and snap.alarms == ()
+        ok(engine, LogSave("active"))
+    finally:
+        engine.stop()

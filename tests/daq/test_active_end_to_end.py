@@ -24,12 +24,9 @@ from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.rig import SensorModel, VirtualRig
-from quadtank_tui.engine.commands import (
-    AddWater, LogOn, LogSave, SetControlMode, SetOperation, SetParams, SetState,
-)
 from quadtank_tui.engine.runner import Engine, build_engine
 from quadtank_tui.files.log import read_log
-from daqkit import VIRTUAL_RIG
+from daqkit import VIRTUAL_RIG, active_run, simul_twin, start_experiment
 
 ROOT = Path(__file__).parents[2]
 H = 0.1                    # the sampling time of params/default.par, s
@@ -57,18 +54,8 @@ class Lockstep(ModbusBackend):
         return super().read_levels()
 
 
-def ok(engine: Engine, command: object) -> None:
-    result = engine.submit(command).result()  # type: ignore[arg-type]
-    assert result.ok, result.message
-
-
 def start(engine: Engine) -> None:
-    """The same sequence a user does on the Main screen: Automatic, references on,
-    LogOn, Run."""
-    ok(engine, SetControlMode("Automatic"))
-    ok(engine, SetParams(EXPERIMENT))
-    ok(engine, LogOn())
-    ok(engine, SetState("Run"))
+    start_experiment(engine, EXPERIMENT)
 
 
 def test_active_on_the_rig_matches_simul(device: Callable, tmp_path: Path) -> None:
@@ -79,36 +66,12 @@ def test_active_on_the_rig_matches_simul(device: Callable, tmp_path: Path) -> No
     rig = device((0.0,) * 4, bank=model)
     backend = Lockstep(rig.config(), clock)
     active = build_engine(None, daq=backend, clock="manual", params_dir=ROOT / "params", logs_dir=tmp_path)
-    try:
-        ok(active, SetOperation("Active"))
-        first = active.step()          # a paused Active loop shows the rig's levels
-        assert first.operation == "Active" and first.backend == f"modbus 127.0.0.1:{rig.port}"
-        start(active)
-        active.run_for(DURATION)
-        snap = active.snapshot()
-        assert snap.fault is None and snap.state == "Run" and snap.alarms == ()
-        ok(active, LogSave("active"))
-    finally:
-        active.stop()
+    active_run(active, f"modbus 127.0.0.1:{rig.port}", start, DURATION)
     assert backend.reads == 1 + int(DURATION / H) and model.t == DURATION  # one read a slot, none missed
 
     a = read_log(tmp_path / "active.log").columns()
-    simul = build_engine(None, clock="manual", params_dir=ROOT / "params", logs_dir=tmp_path)
-    try:
-        # The rig ran (pumps at 0) before the first sample; start the simulation from
-        # the levels the rig had at the first logged sample, as a user fills the tanks.
-        y_sim = simul.snapshot().y
-        for tank in range(4):
-            ok(simul, AddWater(tank + 1, float(a[f"y{tank + 1}"][0]) - y_sim[tank]))
-        start(simul)
-        simul.run_for(DURATION)
-        ok(simul, LogSave("simul"))
-    finally:
-        simul.stop()
-
-    s = read_log(tmp_path / "simul.log").columns()
-    assert len(s["y1"]) == len(a["y1"]) == int(DURATION / H)
-    np.testing.assert_allclose(a["t"], s["t"], atol=1e-9)  # the same slots, every one
+    s = simul_twin(tmp_path / "active.log", start, DURATION, tmp_path)
+    assert len(a["y1"]) == int(DURATION / H)
     # Measured (seed 3; the same numbers on every run): max |diff| 3.2-5.3
     # sigma, RMS 1.00-1.12 sigma, 2-s mean 0.7-2.3 sigma (tank 3, whose start is aligned
     # on one noisy reading).  In real time these were 3.3-10.3, 1.02-2.0 and 0.8-2.6

@@ -1,0 +1,133 @@
+"""The IST rig's side of `quadtank rig --protocol ist`, `quadtank daq check` and
+`--daq`: daq/cli.py dispatches here on the configuration's `protocol: ist`."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import sys
+from typing import TYPE_CHECKING
+
+from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams, steady_state_levels
+from quadtank_tui.daq.ist import protocol as p
+from quadtank_tui.daq.ist.config import IstConfig, load_ist_config
+from quadtank_tui.engine.backend import BackendError
+
+if TYPE_CHECKING:
+    from quadtank_tui.core.plants import Plant
+    from quadtank_tui.daq.calibrate import Result
+    from quadtank_tui.daq.ist.backend import IstBackend
+    from quadtank_tui.daq.modbus import ModbusBackend
+
+#: The rig's published plant (protocol.py): what the virtual device serves without --par.
+IST_PLANT = PlantParams(
+    A1=p.TANK_AREAS[0], A2=p.TANK_AREAS[1], A3=p.TANK_AREAS[2], A4=p.TANK_AREAS[3],
+    a1=p.OUTLET_AREAS[0], a2=p.OUTLET_AREAS[1], a3=p.OUTLET_AREAS[2], a4=p.OUTLET_AREAS[3],
+    k1=p.PUMP_K[0], k2=p.PUMP_K[1], gamma1=p.GAMMAS[0], gamma2=p.GAMMAS[1], kc=0.25, g=p.G, hmax=40.0)
+#: Its operating point (params/ist-lisbon.par): both pumps at 6 V.
+IST_VOLTS = (6.0, 6.0)
+
+
+def lock_key(config: IstConfig) -> str:
+    """The name the rig is locked under: its serial device, links resolved."""
+    return f"serial:{os.path.realpath(config.port)}"
+
+
+def cmd_rig_ist(args: argparse.Namespace) -> int:
+    """`quadtank rig --protocol ist`: the virtual device on a new pseudo-terminal."""
+    from quadtank_tui.daq.ist.device import Firmware, PtyDevice, serve
+
+    if args.par is not None:
+        from quadtank_tui.files.par import read_par
+
+        params = read_par(args.par).params
+        if params.process is not None:
+            raise ValueError(f"--par {args.par}: the IST rig is a quadruple tank, not {params.process.kind}")
+        plant, levels = params.quadtank_constants(), params.process_levels()
+    else:
+        plant, levels = IST_PLANT, steady_state_levels(IST_VOLTS, IST_PLANT)
+    config = IstConfig(port="") if args.map in (None, "labjack") else load_ist_config(args.map)
+    firmware = Firmware(config, plant, levels, speed=args.speed, reset_s=args.reset,
+                        report=lambda text: print(f"quadtank rig: {text}", flush=True))
+    device = PtyDevice(firmware)
+    print(f"quadtank rig: IST device on {device.path} (9600 8N1; point port: of params/daq-ist.yaml at it)",
+          flush=True)
+    try:
+        serve(device, status_every=args.status)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        device.close()
+    return 0
+
+
+def open_ist(config: str, plant: Plant | None = None) -> IstBackend:
+    """The backend of an IST configuration file (read and checked now)."""
+    from quadtank_tui.daq.ist.backend import IstBackend
+
+    backend = IstBackend(load_ist_config(config))
+    if plant is not None and (why := backend.plant_refused(plant)):
+        raise ValueError(why)
+    return backend
+
+
+def cmd_check_ist(args: argparse.Namespace) -> int:
+    """`quadtank daq check` of an IST rig: one level request, nothing written."""
+    from quadtank_tui.daq.ist.backend import IstBackend
+
+    config = load_ist_config(args.config)
+    with contextlib.closing(IstBackend(config)) as backend:
+        try:
+            codes = backend.read_codes()
+        except BackendError as exc:
+            print(f"quadtank: {exc}", file=sys.stderr)
+            return 1
+    print(f"ist serial {config.port}  (9600 8N1, timeout {config.timeout:g} s, waited {config.open_wait:g} s "
+          f"after opening; quadtank: 4 level, 2 pump channels)")
+    print(f"Vcc   code {codes[4]:5d}  {p.adc_volts(codes[4]):7.4f} V")
+    faults = 0
+    for i, (s, code) in enumerate(zip(config.sensors, codes), start=1):
+        lo, hi = config.plausible_range(i)
+        try:
+            r = p.ratio(code, codes[4])
+        except p.FrameError as exc:
+            print(f"tank {i}  code {code:5d}  SENSOR FAULT: {exc}")
+            faults += 1
+            continue
+        h = s.level(r)
+        mark = "" if lo <= h <= hi else f"  SENSOR FAULT: outside its plausible {lo:g}..{hi:g} cm"
+        faults += bool(mark)
+        print(f"tank {i}  code {code:5d}  {p.adc_volts(code):7.4f} V  r = {r:.4f}  {h:7.2f} cm  "
+              f"y = {config.sensor_gain * h / FULL_SCALE_V:.4f}{mark}")
+    print(config.conversion_line())
+    print(f"watchdog: the firmware's own, {p.WATCHDOG_S:g} s without a level request stops all four pumps "
+          "(fed by this program's samples and keep-alive; no guard process: the port is exclusive)")
+    return 1 if faults else 0
+
+
+def calibration_backend(config: str, write: str | None) -> IstBackend | ModbusBackend:
+    """The backend `daq calibrate CONFIG` holds the pumps with: an IST rig's or a
+    Modbus one's.  For an IST rig the sensors' "volts" are their ratios r (its level
+    is linear in r), and --write is refused: its file's keys are dh_dr and h0."""
+    from quadtank_tui.daq.config import load_daq_config
+    from quadtank_tui.daq.ist.backend import IstBackend
+    from quadtank_tui.daq.ist.config import is_ist
+    from quadtank_tui.daq.modbus import ModbusBackend
+
+    if not is_ist(config):
+        return ModbusBackend(load_daq_config(config))
+    if write is not None:
+        raise ValueError(f"{config}: --write does not edit an IST file yet; copy the dh_dr and h0 "
+                         "lines the fit prints into its calibration: section")
+    return IstBackend(load_ist_config(config))
+
+
+def format_ist_result(result: Result, plant: Plant | None = None) -> str:
+    """The fit of an IST rig: per tank h = dh_dr r + h0 as the file's lines, then the
+    outlets (with the plant) as for any rig."""
+    from quadtank_tui.daq.calibrate import format_result
+
+    lines = ["# the sensors, h = dh_dr r + h0 (paste into the calibration: section of the IST file)"]
+    lines += [f"  tank{i}: {{dh_dr: {cal.gain:.6g}, h0: {cal.offset:.6g}}}" for i, cal in sorted(result.sensors.items())]
+    return "\n".join(lines) + "\n" + format_result(result, plant, config_lines=False)
