@@ -17,6 +17,7 @@ from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
 from quadtank_tui.engine.commands import (
     AddWater, Command, LogOff, LogOn, SetControlMode, SetFault, SetParams, SetState,
 )
+from quadtank_tui.engine.inputs_from import replay_events
 from quadtank_tui.engine.runner import Engine, LoopTime
 from quadtank_tui.files.script import Event, Script
 
@@ -85,7 +86,13 @@ def apply_due(engine: Engine, events: collections.deque[Event], elapsed: LoopTim
     """Apply (and drop) the script's events due at `elapsed` loop time; a refused
     command is the script's error, naming its file and line."""
     while events and elapsed.reached(events[0].at):
-        _apply(engine, events.popleft(), name)
+        event = events.popleft()
+        if event.action == "inputs_from":  # one event per row of the log, from now on
+            merged = sorted([*events, *replay_events(engine, event, name)], key=lambda e: e.at)
+            events.clear()
+            events.extend(merged)
+            continue
+        _apply(engine, event, name)
 
 
 def _apply(engine: Engine, event: Event, name: str) -> None:

@@ -10,7 +10,8 @@ or an outlet while running, and jump back to the operating point on Reset.
 Any plant of core.plants runs behind it (:meth:`SimBackend.for_plant`): its sensors
 are read as y = volts / 10 (y3, y4 read 0 on a two-tank rig) and pump i gets
 u_i times the pump's full scale (22 V on a Quanser amplifier).  The quadruple tank
-built from PlantParams keeps calling core.plant directly, bit for bit as before.
+built from PlantParams keeps calling core.plant directly, bit for bit as before
+(one with a real-rig effect on runs through the plant interface).
 """
 
 from __future__ import annotations
@@ -53,7 +54,7 @@ class SimBackend(ProcessBackend):
     @classmethod
     def for_plant(cls, plant: Plant, levels: tuple[float, ...]) -> SimBackend:
         """Any plant of core.plants, at `levels` (its own length unit)."""
-        if isinstance(plant, QuadTank):
+        if isinstance(plant, QuadTank) and not plant.effects_on:
             return cls(plant.params, levels)
         sim = cls(PlantParams(), (0.0, 0.0, 0.0, 0.0))
         sim.set_plant(plant, levels)
@@ -140,7 +141,7 @@ class SimBackend(ProcessBackend):
         """Another plant (or new constants of it) with the water where it is, when the
         tank count agrees; the operating levels when given (Reset goes there)."""
         n = len(plant.states)
-        if isinstance(plant, QuadTank):
+        if isinstance(plant, QuadTank) and not plant.effects_on:  # with an effect: through the interface
             if len(self._h) != 4:
                 self._h = tuple(float(x) for x in (operating_levels or (0.0,) * 4))
                 self._v = (0.0, 0.0)

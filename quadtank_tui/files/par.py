@@ -38,7 +38,7 @@ from quadtank_tui.core.parameters import (
     keys_of,
 )
 from quadtank_tui.core.plants.spec import SECTION as PLANT_SECTION
-from quadtank_tui.core.plants.spec import PlantSpec, spec_from_entries
+from quadtank_tui.core.plants.spec import KIND_KEY, PlantSpec, quadtank_effects, spec_from_entries
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.files.atomic import atomic_write_text
 from quadtank_tui.files.names import check_file_name, check_names
@@ -150,6 +150,9 @@ def parse_par(data: bytes | str, *, name: str = "<par>", base: Parameters = PRES
     # No PLANT section is the quadruple tank, whatever the base: an old file always
     # loads as what it was written for.
     process = _read_plant(plant_entries, plant_lines, name) if plant_lines else None
+    if process is None and plant_lines:  # Kind quadtank: the real-rig effects (checked by _read_plant)
+        effects = quadtank_effects(plant_entries, lambda k, t: float(t))
+        params = dataclasses.replace(params, simulation=dataclasses.replace(params.simulation, effects=effects))
     return ParRead(dataclasses.replace(params, extra=tuple(extra), process=process), tuple(warnings))
 
 
@@ -253,6 +256,9 @@ def format_par(params: Parameters, created: datetime) -> str:
     if params.process is not None:  # written only for another plant: quadtank files stay as they were
         out += ["", PLANT_SECTION]
         out += [f"{k} {v if isinstance(v, str) else format_number(v)}" for k, v in params.process.file_entries()]
+    elif params.simulation.effects:  # the quadruple tank's real-rig effects, only when one is on
+        out += ["", PLANT_SECTION, f"{KIND_KEY} quadtank"]
+        out += [f"{k} {format_number(v)}" for k, v in params.simulation.effects]
     return "\n".join(out) + "\n"
 
 

@@ -10,7 +10,9 @@ by a comment with its uncertainty and the value it replaced::
 The quadruple tank keeps its constants in SIMULATION as the Setup screen shows
 them: an outlet area becomes the time constant at the file's operating level
 (a = A sqrt(2 h0 / g) / T), pumps, valves and the sensor gain are written as they
-are (a new sensor gain keeps the operating levels in cm).  The result is read back
+are (a new sensor gain keeps the operating levels in cm); a fitted real-rig effect
+(spill3, vmin1, ysat2, ...) goes into a PLANT section of Kind quadtank, added when
+the file has none.  The result is read back
 by the file reader before it is returned: nothing it would refuse is written.
 """
 
@@ -46,6 +48,7 @@ def par_values(old_text: str, name: str, plant: Plant) -> dict[str, str]:
     p = plant.params
     h0 = params.operating_levels()
     out = {f"SIMULATION.{key}": _number(getattr(p, const)) for const, key in _QUAD.items() if const in changed}
+    out |= {f"PLANT.{k}": _number(plant.values()[k]) for k in plant.effect_names if k in changed}
     for i in range(4):
         if {f"a{i + 1}", "kc"} & changed:
             out[f"SIMULATION.TimeConst{i + 1}"] = format_number(round(
@@ -64,7 +67,12 @@ def with_fit(old_text: str, name: str, plant: Plant, notes: Mapping[str, str] = 
     """`old_text` with `plant`'s constants written in; `notes` (by constant name, as
     the plant calls it) become a comment line under each; `header` lines are added
     as comments after the file's first comment lines.  Checked by the reader."""
-    new = with_par_values(old_text, par_values(old_text, name, plant), name)
+    values = par_values(old_text, name, plant)
+    if any(k.startswith("PLANT.") for k in values) and not any(
+            ln.strip() == "PLANT" for ln in old_text.splitlines()):  # a quadtank's first effect
+        newline = "\r\n" if "\r\n" in old_text else "\n"
+        old_text = old_text.rstrip("\r\n") + f"{newline}{newline}PLANT{newline}Kind quadtank{newline}"
+    new = with_par_values(old_text, values, name)
     lines = new.splitlines(keepends=True)
     newline = "\r\n" if lines and lines[0].endswith("\r\n") else "\n"
     for const, note in notes.items():

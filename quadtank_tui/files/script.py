@@ -21,6 +21,8 @@ one action::
       fault: {kind: clog, target: 2, on: off}      # switch it off again
     - at: 1300
       disturbance: {d1: 0.5, d2: 0}   # an IST rig's disturbance pumps, 0..1 of full PWM (Active)
+    - at: 1400
+      inputs_from: logs/rig.log   # Manual, the pumps driven by the log's u1, u2 row by row
 
 Keys are the `.par` "SECTION.Key" names.  Everything that can be checked without
 running is checked here: unknown keys, values of the wrong kind, times, actions; a
@@ -41,7 +43,7 @@ from quadtank_tui.core.validation import ParameterError, is_finite_number
 from quadtank_tui.files.names import check_names
 from quadtank_tui.files.yamltext import parse_yaml, read_text
 
-ACTIONS = ("mode", "state", "set", "step", "add_water", "log", "fault", "disturbance")
+ACTIONS = ("mode", "state", "set", "step", "add_water", "log", "fault", "disturbance", "inputs_from")
 MODES = ("Manual", "Automatic")
 STATES = ("Run", "Pause", "Reset")
 
@@ -63,7 +65,8 @@ class ScriptError(ValueError):
 class Event:
     """One timed action.  `value` by action: mode/state: the name; set/step: a
     {key: value} map; add_water: (tank, amount); log: "on" | "off"; fault:
-    (kind, target, value, on); disturbance: (d1, d2), None for one left as it is."""
+    (kind, target, value, on); disturbance: (d1, d2), None for one left as it is;
+    inputs_from: the log's path."""
 
     at: float
     action: str
@@ -146,6 +149,10 @@ def _check_value(action: str, value: Any, fail: Any) -> Any:
         return _fault(value, fail)
     if action == "disturbance":
         return _disturbance(value, fail)
+    if action == "inputs_from":  # the log is read when the event comes (engine.inputs_from)
+        if not isinstance(value, str) or not value.strip():
+            raise fail(f"inputs_from needs the path of a log, got {value!r}")
+        return value.strip()
     return _params(action, value, fail)
 
 

@@ -77,3 +77,46 @@ def test_bad_input_is_one_line_and_status_2(rig_log: Path, capsys: pytest.Captur
     assert message in err, err
     assert [ln for ln in err.splitlines() if not ln.startswith("quadtank: warning")] == [f"quadtank: error: {err.split('error: ')[1].strip()}"]
     assert not Path("out.log").exists()
+
+
+#: The same run as a script event: TSamp first (the log's), then the log's inputs.
+REPLAY = """\
+- at: 0
+  set:
+    "SAMPLING TIME.TSamp": 1000
+    "LOGGING.Variables": y1 y2 u1 u2 y3 y4
+- at: 0
+  inputs_from: rig.log
+- at: 0
+  state: Run
+- at: 0
+  log: on
+"""
+
+
+def test_the_script_event_reproduces_a_logged_simulator_run_exactly(rig_log: Path) -> None:
+    """`inputs_from` in a script drives the engine's own loop (Manual, the waves off,
+    each row's u1 u2 as the references' means before its sample): the rig's 150 rows
+    come back byte for byte, data and header (the virtual clock's start)."""
+    Path("replay.yaml").write_text(REPLAY)
+    assert main(["run", "--par", "minphase", "--script", "replay.yaml", "--duration", "150",
+                 "--log", "again.log"]) == 0
+    assert Path("again.log").read_bytes() == rig_log.read_bytes()
+
+
+@pytest.mark.parametrize(("script", "message"), [
+    (REPLAY.replace('"SAMPLING TIME.TSamp": 1000', '"SAMPLING TIME.TSamp": 500'),
+     "replay.yaml, event 2 (line 5): inputs_from rig.log: TSamp 1 s, the loop samples every 0.5 s"),
+    (REPLAY.replace("inputs_from: rig.log", "inputs_from: none.log"), "replay.yaml, event 2 (line 5): "
+     "inputs_from none.log: "),
+    (REPLAY.replace("inputs_from: rig.log", "inputs_from: [1]"),
+     "replay.yaml, event 2 (line 5): inputs_from needs the path of a log, got [1]"),
+])
+def test_a_log_that_cannot_drive_the_loop_is_one_line(rig_log: Path, capsys: pytest.CaptureFixture[str],
+                                                       script: str, message: str) -> None:
+    Path("replay.yaml").write_text(script)
+    capsys.readouterr()
+    assert main(["run", "--par", "minphase", "--script", "replay.yaml", "--duration", "150",
+                 "--log", "again.log"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1

@@ -122,8 +122,10 @@ def simulate(plant: Plant, x0: Sequence[float] | np.ndarray, u: np.ndarray, h: f
 
 
 def sensor_gains(plant: Plant) -> np.ndarray:
-    """Volts per level unit of each output (every plant's sensors are linear)."""
-    return np.asarray(plant.output(tuple(1.0 for _ in plant.states)), dtype=float)
+    """Volts per level unit of each output (every plant's sensors are linear below
+    their range: read at a thousandth of each tank, where none saturates)."""
+    low = tuple(1e-3 * s.hi for s in plant.states)
+    return np.asarray(plant.output(low), dtype=float) / np.asarray(low)
 
 
 def predict(plant: Plant, exp: Experiment, x0: Sequence[float] | np.ndarray,
@@ -195,8 +197,9 @@ def bounds_of(plant: Plant, name: str) -> tuple[float, float]:
     value = float(plant.values()[name])
     if name.startswith("gamma") or name.startswith("spill"):
         return 0.0, 1.0
-    if name == "vmin":
-        return 0.0, plant.inputs[0].hi * (1 - 1e-9)
+    if name.startswith("vmin"):  # vmin (the one pump), vmin1, vmin2: below that pump's range
+        pump = plant.inputs[int(name[4:]) - 1 if name[4:] else 0]
+        return 0.0, pump.hi * (1 - 1e-9)
     if name.startswith("ysat"):
         return 1e-3, math.inf
     if name in plant.outlet_names:
@@ -299,7 +302,10 @@ def fit_physical(plant: Plant, experiments: Sequence[Experiment], free: Sequence
             base = residual(theta)
         J = np.zeros((base.size, theta.size))
         for c in range(theta.size):
-            step = DIFF_STEP * max(abs(theta[c]), 1e-3 * (hi_a[c] - lo_a[c]) if math.isfinite(hi_a[c]) else 1.0)
+            # relative to the value (a pump constant in m^3/(s V) is 7e-6), or to the
+            # range of one that starts at 0 (an offset, a threshold)
+            step = DIFF_STEP * (max(abs(theta[c]), 1e-3 * (hi_a[c] - lo_a[c])) if math.isfinite(hi_a[c])
+                                else abs(theta[c]) or 1.0)
             t = theta.copy()
             t[c] = theta[c] + step if theta[c] + step <= hi_a[c] else theta[c] - step
             d = t[c] - theta[c]

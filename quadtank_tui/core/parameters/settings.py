@@ -34,7 +34,7 @@ from quadtank_tui.core.plant import (
     time_constant,
 )
 from quadtank_tui.core.plants import Plant, QuadTank
-from quadtank_tui.core.plants.spec import PlantSpec
+from quadtank_tui.core.plants.spec import PlantSpec, check_quadtank_effects
 from quadtank_tui.core.signals import WaveParams
 from quadtank_tui.core.mpc.settings import MPCSettings
 from quadtank_tui.core.statefb.settings import StateFeedbackParams
@@ -93,8 +93,14 @@ class SimulationSettings:
     valves: tuple[float, float]
     pumps: tuple[float, float]
     sensor: float
+    #: The real-rig effects that are on, (name, value) (core.plants.quadtank:
+    #: spill3, vmin1, ysat2, ...); a `.par` file holds them in a PLANT section of
+    #: Kind quadtank, written only when one is on.
+    effects: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
+        if self.effects:
+            check_quadtank_effects(self.effects)
         if not (len(self.diameters) == len(self.op_points) == len(self.time_constants) == 4):
             raise ParameterError("Diameter1", "four tanks are needed")
         for i in range(4):
@@ -285,7 +291,9 @@ class Parameters:
 
     def process_plant(self) -> Plant:
         """The plant in use, through the plant interface (core.plants)."""
-        return QuadTank(self.quadtank_constants()) if self.process is None else self.process.plant()
+        if self.process is not None:
+            return self.process.plant()
+        return QuadTank(self.quadtank_constants(), **dict(self.simulation.effects))
 
     def process_levels(self) -> tuple[float, ...]:
         """Operating levels of the plant in use, in its own length unit."""

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, Sequence
 
 from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants import effects as fx
 from quadtank_tui.core.plants.base import (
     Layout,
     OperatingPoint,
@@ -227,16 +228,27 @@ class CoupledTITO(Plant):
     Gd: float = 33.33
     hmax: float = 0.3
     qmax: float = 5e-5
+    spill1: float = 0.0
+    spill2: float = 0.0
+    vmin1: float = 0.0
+    vmin2: float = 0.0
+    ysat1: float = 0.0
+    ysat2: float = 0.0
 
     kind = "coupled-tito"
     title = "coupled tanks, two inputs (Murray-Smith)"
     units: ClassVar[dict[str, str]] = {
         "A1": "m²", "A2": "m²", "a1": "m² orifice", "a2": "m² drain", "Cd1": "discharge coef.",
         "Cd2": "discharge coef.", "H3": "m, drain height", "g": "m/s²", "Gp": "m³/(s V)", "Gd": "V/m",
-        "hmax": "m", "qmax": "m³/s"}
+        "hmax": "m", "qmax": "m³/s", "spill1": "fraction", "spill2": "fraction", "vmin1": "V", "vmin2": "V",
+        "ysat1": "V", "ysat2": "V"}
     controlled: ClassVar[tuple[int, ...]] = (0, 1)
     #: Tank 1 empties through the orifice into tank 2, tank 2 through the drain.
     outlet_names = ("a1", "a2")
+    #: What a real rig's logs show, off at 0 (core.plants.effects): spill1 (spill2)
+    #: the fraction of tank 1's (2's) overflow that falls over the wall into the
+    #: other tank, vmin1/vmin2 the pump thresholds, ysat1/ysat2 the sensor ranges, V.
+    effect_names = ("spill1", "spill2", "vmin1", "vmin2", "ysat1", "ysat2")
 
     def area(self, i: int) -> float:
         return (self.A1, self.A2)[i]
@@ -248,6 +260,18 @@ class CoupledTITO(Plant):
         for a, area in (("a1", "A1"), ("a2", "A2")):
             if getattr(self, a) >= getattr(self, area):
                 raise PlantError(f"{a} must be smaller than the tank's cross-section {area} = {getattr(self, area):g}")
+        fx.check_effects(self, ("spill1", "spill2"), ("vmin1", "vmin2"), self.vmax, ("ysat1", "ysat2"))
+
+    @property
+    def effects_on(self) -> bool:
+        """Whether a real-rig effect is on (else the plain model runs, bit for bit)."""
+        return fx.any_on(self, self.effect_names)
+
+    def _inflows(self, u: Sequence[float]) -> tuple[float, float]:
+        """Pump flows, m^3/s: Gp v within the range, less the thresholds."""
+        vmax = self.vmax
+        v1, v2 = min(max(u[0], 0.0), vmax), min(max(u[1], 0.0), vmax)
+        return self.Gp * fx.pump_volts(v1, self.vmin1), self.Gp * fx.pump_volts(v2, self.vmin2)
 
     @property
     def vmax(self) -> float:
@@ -264,7 +288,9 @@ class CoupledTITO(Plant):
 
     @property
     def outputs(self) -> tuple[Signal, ...]:
-        return (Signal("y1", "V", 0.0, self.Gd * self.hmax), Signal("y2", "V", 0.0, self.Gd * self.hmax))
+        top = self.Gd * self.hmax
+        return (Signal("y1", "V", 0.0, fx.sensor_top(top, self.ysat1)),
+                Signal("y2", "V", 0.0, fx.sensor_top(top, self.ysat2)))
 
     def layout(self) -> Layout:
         return Layout(
@@ -280,6 +306,8 @@ class CoupledTITO(Plant):
         return q12, q2
 
     def rhs(self, x: Sequence[float], u: Sequence[float]) -> Vector:
+        if self.effects_on:
+            return self._rhs_effects(x, u)
         vmax = self.vmax
         q1 = self.Gp * min(max(u[0], 0.0), vmax)
         q2in = self.Gp * min(max(u[1], 0.0), vmax)
@@ -287,7 +315,20 @@ class CoupledTITO(Plant):
         return (_spill((q1 - q12) / self.A1, x[0], self.hmax),
                 _spill((q2in + q12 - q2) / self.A2, x[1], self.hmax))
 
+    def _rhs_effects(self, x: Sequence[float], u: Sequence[float]) -> Vector:
+        """The model with thresholds, and a full tank's excess (m^3/s) falling in the
+        fractions spill1, spill2 into the other tank (if that one is full too, it leaves)."""
+        q1, q2in = self._inflows(u)
+        q12, q2 = self.flows(x)
+        f1, f2 = q1 - q12, q2in + q12 - q2
+        over1 = f1 if x[0] >= self.hmax and f1 > 0.0 else 0.0
+        over2 = f2 if x[1] >= self.hmax and f2 > 0.0 else 0.0
+        f1, f2 = f1 - over1 + self.spill2 * over2, f2 - over2 + self.spill1 * over1
+        return (_spill(f1 / self.A1, x[0], self.hmax), _spill(f2 / self.A2, x[1], self.hmax))
+
     def output(self, x: Sequence[float]) -> Vector:
+        if self.effects_on:
+            return (fx.sensor(self.Gd * x[0], self.ysat1), fx.sensor(self.Gd * x[1], self.ysat2))
         return (self.Gd * x[0], self.Gd * x[1])
 
     def jacobians(self, x0: Sequence[float], u0: Sequence[float]) -> tuple[Any, Any, Any]:
@@ -305,18 +346,20 @@ class CoupledTITO(Plant):
         """Tank 1 passes all of pump 1 to tank 2; the drain passes both pumps.  With
         both pumps off the tanks keep what lies below the drain: H3 here."""
         v1, v2 = self.saturate(u)
-        q1, q2 = self.Gp * v1, self.Gp * v2
+        q1, q2 = (self.Gp * v1, self.Gp * v2) if not self.effects_on else self._inflows((v1, v2))
         h2 = self.H3 + head_for_flow(q1 + q2, self.Cd2 * self.a2, self.g, FILM_M)
         h1 = h2 + head_for_flow(q1, self.Cd1 * self.a1, self.g, FILM_M)
         if h1 <= self.hmax:
             return (h1, h2)
-        # tank 1 brims over and spills; F(H2) = q12(hmax - H2) + Qi2 - drain(H2) = 0,
+        # tank 1 brims over and spills (spill1 of the excess into tank 2);
+        # F(H2) = q12(hmax - H2) + spill1 (Qi1 - q12) + Qi2 - drain(H2) = 0,
         # F decreasing in H2: bisect on [H3, hmax] (H2 = hmax when tank 2 spills too)
         lo, hi = self.H3, self.hmax
         for _ in range(100):
             mid = 0.5 * (lo + hi)
             q12, drain = self.flows((self.hmax, mid))
-            if q12 + q2 - drain > 0.0:
+            over = self.spill1 * max(q1 - q12, 0.0) if self.spill1 > 0.0 else 0.0
+            if q12 + over + q2 - drain > 0.0:
                 lo = mid
             else:
                 hi = mid
@@ -344,4 +387,10 @@ class CoupledTITO(Plant):
         if max(v1, v2) > self.vmax:
             raise SteadyStateError(f"levels ({h1:g}, {h2:g}) m need pump voltages ({v1:.3g}, {v2:.3g}) V, "
                                    f"above the pumps' {self.vmax:.3g} V")
-        return OperatingPoint((h1, h2), (v1, max(v2, 0.0)))
+        v = (v1, max(v2, 0.0))
+        if self.effects_on:  # a pump below its threshold moves nothing: what it needs comes on top
+            v = tuple(x + t if x > 0.0 else x for x, t in zip(v, (self.vmin1, self.vmin2)))  # type: ignore[assignment]
+            if max(v) > self.vmax:
+                raise SteadyStateError(f"levels ({h1:g}, {h2:g}) m need pump voltages ({v[0]:.3g}, {v[1]:.3g}) V "
+                                       f"with the thresholds, above the pumps' {self.vmax:.3g} V")
+        return OperatingPoint((h1, h2), v)

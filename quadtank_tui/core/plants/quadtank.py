@@ -22,6 +22,7 @@ from typing import Any, ClassVar, Sequence
 
 from quadtank_tui.core import plant as qt
 from quadtank_tui.core.plant import FULL_SCALE_V, PlantError, PlantParams
+from quadtank_tui.core.plants import effects as fx
 from quadtank_tui.core.plants.base import (
     Layout,
     OperatingPoint,
@@ -36,13 +37,73 @@ from quadtank_tui.core.plants.base import (
 )
 
 _LEVELS = ("h1", "h2", "h3", "h4")
+#: The real-rig effects of a four-tank plant (off at 0; core.plants.effects):
+#: spill3/spill4 the fraction of upper tank 3's/4's overflow that falls into the
+#: lower tank 1/2 below it (a lower tank's overflow leaves the process), vmin1/vmin2
+#: the pump thresholds, V, ysat1..ysat4 the sensor ranges, V.
+FOUR_TANK_EFFECTS = ("spill3", "spill4", "vmin1", "vmin2", "ysat1", "ysat2", "ysat3", "ysat4")
+FOUR_TANK_EFFECT_UNITS = {"spill3": "fraction", "spill4": "fraction", "vmin1": "V", "vmin2": "V",
+                          **{f"ysat{i}": "V" for i in range(1, 5)}}
 
 
-class _FourTanks(Plant):
-    """What both parameterizations share: the model is core.plant's."""
+@dataclass(frozen=True, kw_only=True)
+class _FourTankEffects:
+    """The effects' constants (keyword-only: QuadTank(params) stays as it was)."""
+
+    spill3: float = 0.0
+    spill4: float = 0.0
+    vmin1: float = 0.0
+    vmin2: float = 0.0
+    ysat1: float = 0.0
+    ysat2: float = 0.0
+    ysat3: float = 0.0
+    ysat4: float = 0.0
+
+
+class _FourTanks(_FourTankEffects, Plant):
+    """What both parameterizations share: the model is core.plant's, and with an
+    effect on, that model with the effect (the plain model runs while all are off)."""
+
+    effect_names = FOUR_TANK_EFFECTS
+
+    def values(self) -> dict[str, float]:
+        """The constants in the class's order, the effects last."""
+        every = super().values()
+        return {**{k: v for k, v in every.items() if k not in FOUR_TANK_EFFECTS},
+                **{k: every[k] for k in FOUR_TANK_EFFECTS}}
 
     def plant_params(self) -> PlantParams:
         raise NotImplementedError
+
+    def _check_effects(self) -> None:
+        fx.check_effects(self, ("spill3", "spill4"), ("vmin1", "vmin2"), self.pump_max,
+                         ("ysat1", "ysat2", "ysat3", "ysat4"))
+
+    @property
+    def effects_on(self) -> bool:
+        """Whether any real-rig effect is on (else the plain model runs, bit for bit)."""
+        return fx.any_on(self, FOUR_TANK_EFFECTS)
+
+    def _rhs_effects(self, x: Sequence[float], u: Sequence[float]) -> Vector:
+        """core.plant.rhs with the pump thresholds and the upper tanks' overflow
+        falling (in the fractions spill3, spill4) into the tanks below them."""
+        p = self.plant_params()
+        v1 = fx.pump_volts(max(float(u[0]), 0.0), self.vmin1)
+        v2 = fx.pump_volts(max(float(u[1]), 0.0), self.vmin2)
+        q = [qt.outflow(x[i], p.outlet(i), p.g) for i in range(4)]
+        f3 = -q[2] + (1.0 - p.gamma2) * p.k2 * v2  # cm^3/s
+        f4 = -q[3] + (1.0 - p.gamma1) * p.k1 * v1
+        f1 = -q[0] + q[2] + p.gamma1 * p.k1 * v1
+        f2 = -q[1] + q[3] + p.gamma2 * p.k2 * v2
+        if x[2] >= p.hmax and f3 > 0.0:
+            f1, f3 = f1 + self.spill3 * f3, 0.0
+        if x[3] >= p.hmax and f4 > 0.0:
+            f2, f4 = f2 + self.spill4 * f4, 0.0
+        if x[0] >= p.hmax and f1 > 0.0:
+            f1 = 0.0
+        if x[1] >= p.hmax and f2 > 0.0:
+            f2 = 0.0
+        return (f1 / p.A1, f2 / p.A2, f3 / p.A3, f4 / p.A4)
 
     @property
     def pump_max(self) -> float:
@@ -61,7 +122,8 @@ class _FourTanks(Plant):
     @property
     def outputs(self) -> tuple[Signal, ...]:
         p = self.plant_params()
-        return tuple(Signal(f"y{i + 1}", "V", 0.0, p.kc * p.hmax) for i in range(4))
+        ranges = (self.ysat1, self.ysat2, self.ysat3, self.ysat4)
+        return tuple(Signal(f"y{i + 1}", "V", 0.0, fx.sensor_top(p.kc * p.hmax, ranges[i])) for i in range(4))
 
     def layout(self) -> Layout:
         tanks = (TankView("1", 0, 0, 0), TankView("2", 1, 1, 0), TankView("3", 2, 0, 1), TankView("4", 3, 1, 1))
@@ -71,13 +133,20 @@ class _FourTanks(Plant):
         return Layout(tanks, pumps, pipes)
 
     def rhs(self, x: Sequence[float], u: Sequence[float]) -> Vector:
+        if self.effects_on:
+            return self._rhs_effects(x, u)
         return qt.rhs(x, u, self.plant_params())
 
     def advance(self, x: Sequence[float], u: Sequence[float], dt: float) -> Vector:
+        if self.effects_on:  # the same Dormand-Prince step and tolerance, over the rhs with effects
+            return Plant.advance(self, x, u, dt)
         return qt.advance(x, self.saturate(u), dt, self.plant_params())
 
     def output(self, x: Sequence[float]) -> Vector:
         kc = self.plant_params().kc
+        if self.effects_on:
+            ranges = (self.ysat1, self.ysat2, self.ysat3, self.ysat4)
+            return tuple(fx.sensor(kc * h, r) for h, r in zip(x, ranges))
         return tuple(kc * h for h in x)
 
     def jacobians(self, x0: Sequence[float], u0: Sequence[float]) -> tuple[Any, Any, Any]:
@@ -101,7 +170,24 @@ class _FourTanks(Plant):
         return A, B, C
 
     def steady_state(self, u: Sequence[float]) -> Vector:
-        return qt.steady_state_levels(self.saturate(u), self.plant_params())
+        if not self.effects_on:
+            return qt.steady_state_levels(self.saturate(u), self.plant_params())
+        p = self.plant_params()
+        v = self.saturate(u)
+        v1, v2 = fx.pump_volts(v[0], self.vmin1), fx.pump_volts(v[1], self.vmin2)
+        h = list(qt.steady_state_levels((v1, v2), p))
+        # an upper tank at its brim passes its outflow and spills the rest, of which
+        # spill3 (spill4) reaches the tank below
+        extra = [0.0, 0.0]
+        for upper, lower, inflow, share in ((2, 0, (1 - p.gamma2) * p.k2 * v2, self.spill3),
+                                            (3, 1, (1 - p.gamma1) * p.k1 * v1, self.spill4)):
+            if h[upper] >= p.hmax:
+                extra[lower] = share * max(inflow - qt.outflow(p.hmax, p.outlet(upper), p.g), 0.0)
+        for i, inflow in ((0, p.gamma1 * p.k1 * v1 + qt.outflow(h[2], p.a3, p.g)),
+                          (1, p.gamma2 * p.k2 * v2 + qt.outflow(h[3], p.a4, p.g))):
+            if extra[i] > 0.0:
+                h[i] = min(qt._level_for_outflow(inflow + extra[i], p.outlet(i), p.g), p.hmax)
+        return (h[0], h[1], h[2], h[3])
 
     def steady_inputs(self, levels: Sequence[float | None]) -> OperatingPoint:
         """The lower levels (h1, h2) set, the upper ones follow (None or omitted)."""
@@ -112,15 +198,20 @@ class _FourTanks(Plant):
             op = qt.steady_state_inputs(float(levels[0]), float(levels[1]), self.plant_params())
         except qt.SteadyStateError as exc:
             raise SteadyStateError(str(exc)) from None
-        if max(op.v) > self.pump_max:
+        v = tuple(op.v)
+        if self.effects_on:  # a pump below its threshold moves nothing: what it needs comes on top
+            v = tuple(x + t if x > 0.0 else x for x, t in zip(v, (self.vmin1, self.vmin2)))
+        if max(v) > self.pump_max:
             raise SteadyStateError(f"levels ({levels[0]:g}, {levels[1]:g}) cm need pump voltages "
-                                   f"({op.v[0]:.3g}, {op.v[1]:.3g}) V, above the pumps' {self.pump_max:g} V")
-        return OperatingPoint(tuple(op.h), tuple(op.v))
+                                   f"({v[0]:.3g}, {v[1]:.3g}) V, above the pumps' {self.pump_max:g} V")
+        return OperatingPoint(tuple(op.h), v)
 
 
 @dataclass(frozen=True)
 class QuadTank(_FourTanks):
-    """Johansson's quadruple tank (Lund), constants as core.plant.PlantParams."""
+    """Johansson's quadruple tank (Lund), constants as core.plant.PlantParams, and
+    the real-rig effects (:data:`FOUR_TANK_EFFECTS`, off at 0: then every method is
+    core.plant's, bit for bit)."""
 
     params: PlantParams = PlantParams()
 
@@ -129,6 +220,9 @@ class QuadTank(_FourTanks):
     outlet_names = ("a1", "a2", "a3", "a4")
     valve_names = ("gamma1", "gamma2")
 
+    def __post_init__(self) -> None:
+        self._check_effects()
+
     def area(self, i: int) -> float:
         return self.params.area(i)
 
@@ -136,13 +230,22 @@ class QuadTank(_FourTanks):
         return self.params
 
     def values(self) -> dict[str, float]:
-        return {f.name: getattr(self.params, f.name) for f in fields(self.params)}
+        """The SIMULATION section's constants, then the effects (a `.par` file's
+        PLANT section holds those, files.par)."""
+        return {**{f.name: getattr(self.params, f.name) for f in fields(self.params)},
+                **{n: getattr(self, n) for n in FOUR_TANK_EFFECTS}}
+
+    def effects(self) -> dict[str, float]:
+        """The effects that are on, by name."""
+        return {n: getattr(self, n) for n in FOUR_TANK_EFFECTS if getattr(self, n) != 0.0}
 
     def with_values(self, **changes: float) -> Plant:
         unknown = sorted(set(changes) - set(self.values()))
         if unknown:
             raise PlantError(f"{self.kind} has no constant {', '.join(unknown)}")
-        return QuadTank(replace(self.params, **changes))
+        effects = {k: v for k, v in changes.items() if k in FOUR_TANK_EFFECTS}
+        constants = {k: v for k, v in changes.items() if k not in FOUR_TANK_EFFECTS}
+        return replace(self, params=replace(self.params, **constants) if constants else self.params, **effects)
 
 
 @dataclass(frozen=True)
@@ -155,6 +258,8 @@ class DesautelQTP(_FourTanks):
     kc : sensor gain, V/cm.  Desautel gives none for the QTP (his states are cm); the
         default maps the 30 cm tank onto the program's 10 V input range.
     vmax : pump amplifier range, V (0..22 V, as his CTP's)
+    spill3, spill4, vmin1, vmin2, ysat1..ysat4 : the real-rig effects, off at 0
+        (see :data:`FOUR_TANK_EFFECTS`)
     """
 
     alpha1: float = 0.010949
@@ -174,7 +279,7 @@ class DesautelQTP(_FourTanks):
     title = "quadruple tank (Quanser, Desautel)"
     units: ClassVar[dict[str, str]] = {
         **{f"alpha{i}": "a/A" for i in range(1, 5)}, **{f"beta{i}": "cm/(V s)" for i in range(1, 5)},
-        "g": "cm/s²", "hmax": "cm", "kc": "V/cm", "vmax": "V"}
+        "g": "cm/s²", "hmax": "cm", "kc": "V/cm", "vmax": "V", **FOUR_TANK_EFFECT_UNITS}
     outlet_names = ("alpha1", "alpha2", "alpha3", "alpha4")
 
     def __post_init__(self) -> None:
@@ -184,6 +289,7 @@ class DesautelQTP(_FourTanks):
             if getattr(self, name) < 0:
                 raise PlantError(f"{name} must be >= 0, got {getattr(self, name)}")
         self.plant_params()  # validates the rest
+        self._check_effects()
 
     @property
     def pump_max(self) -> float:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
 from quadtank_tui.core.plant import PlantError
-from quadtank_tui.core.plants import KINDS, Plant, make_plant
+from quadtank_tui.core.plants import KINDS, Plant, QuadTank, make_plant
 from quadtank_tui.core.validation import ParameterError, check_number
 
 SECTION = "PLANT"
@@ -146,9 +146,7 @@ def spec_from_entries(entries: dict[str, str], number: Callable[[str, str], floa
         raise ParameterError(f"{SECTION}.{KIND_KEY}", "the PLANT section must name the plant (Kind ...)")
     kind = kind.strip()
     if kind == "quadtank":
-        extra = [k for k in entries if k != KIND_KEY]
-        if extra:
-            raise ParameterError(f"{SECTION}.{extra[0]}", "the quadruple tank's values live in SIMULATION")
+        quadtank_effects(entries, number)
         return None
     if kind not in KINDS:
         raise ParameterError(f"{SECTION}.{KIND_KEY}", f"must be one of {', '.join(KINDS)}; got {kind!r}")
@@ -165,3 +163,30 @@ def spec_from_entries(entries: dict[str, str], number: Callable[[str, str], floa
     values = tuple((k, number(k, entries[k]) if k in entries else float(v)) for k, v in defaults.items())
     return PlantSpec(kind, values, tuple(number(k, entries[k]) for k in levels_keys))
 
+
+
+def quadtank_effects(entries: dict[str, str], number: Callable[[str, str], float]) -> tuple[tuple[str, float], ...]:
+    """The real-rig effects a PLANT section of `Kind quadtank` sets (its constants
+    live in SIMULATION), in the plant's order; ParameterError names the key."""
+    names = QuadTank.effect_names
+    for key in entries:
+        if key != KIND_KEY and key not in names:
+            raise ParameterError(f"{SECTION}.{key}", "the quadruple tank's values live in SIMULATION; its PLANT "
+                                 f"section holds only the real-rig effects ({', '.join(names)})")
+    values = tuple((k, v) for k in names if k in entries and (v := number(k, entries[k])) != 0.0)
+    check_quadtank_effects(values)
+    return values
+
+
+def check_quadtank_effects(values: Sequence[tuple[str, float]]) -> None:
+    """ParameterError("PLANT.<key>") unless `values` are valid effects of a quadruple tank."""
+    for name, value in values:
+        if name not in QuadTank.effect_names:
+            raise ParameterError(f"{SECTION}.{name}", f"a quadtank has no effect {name!r} "
+                                 f"(it has {', '.join(QuadTank.effect_names)})")
+        check_number(f"{SECTION}.{name}", value)
+    try:
+        QuadTank().with_values(**dict(values))
+    except PlantError as exc:
+        field = str(exc).split()[0]
+        raise ParameterError(f"{SECTION}.{field}", str(exc)) from None

@@ -8,6 +8,12 @@ the coherence or the gain of the spectral estimate against the model's, and the 
 zeros beside the physical linearization.  `k` keeps the model as JSON next to the
 first log (what design reads); `d` opens the Design screen on the fitted G11 and G22.  All numbers come from core/identify; this screen
 only renders them.
+
+The method "physical" fits the constants ticked in a second list (those of the
+plant in use) with the plant's own simulator, a progress bar while it runs; the
+last of two or more ticked logs is held out and the model is overlaid on it; `k`
+saves the constants as NAME.par next to the first log, of the kind of the `.par`
+in use, and asks (a second `k`) before overwriting one (ui/screens/identify_physical).
 """
 
 from __future__ import annotations
@@ -24,11 +30,12 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, SelectionList, Static
+from textual.widgets import DataTable, Footer, ProgressBar, SelectionList, Static
 from textual.worker import get_current_worker
 from textual_plotext import PlotextPlot
 
 from quadtank_tui.ui.colours import BLUE, GREY, RED, SIGNALS
+from quadtank_tui.ui.screens import identify_physical as fitui
 from quadtank_tui.ui.screens.sending import COMPACT_WIDTH
 from quadtank_tui.ui.widgets import plot_kit as kit
 from quadtank_tui.ui.widgets.plot_kit import Series
@@ -37,8 +44,10 @@ if TYPE_CHECKING:  # the analysis stack loads with the first fit, not with the a
     from quadtank_tui.engine.handle import EngineHandle
     from quadtank_tui.core.identify.compare import Comparison
     from quadtank_tui.core.identify.experiment import Element, Identification
+    from quadtank_tui.core.parameters import Parameters
+    from quadtank_tui.core.plants import Plant
 
-METHODS = ("oe", "step", "n4sid", "arx")
+METHODS = ("oe", "step", "n4sid", "arx", "physical")
 LOWER_PLOTS = ("residuals", "coherence", "frequency")
 
 
@@ -132,15 +141,20 @@ class IdentifyScreen(Screen[None]):
         self.element_index = 0
         self.lower = LOWER_PLOTS[0]
         self.view: FitView | None = None
+        #: the last physical fit (method "physical"), and a .par that `k` would overwrite
+        self.physical: fitui.PhysicalView | None = None
+        self._overwrite: Path | None = None
         self._cancel = threading.Event()
         self._fitting = False
 
     def compose(self) -> ComposeResult:
         yield Static("", id="identify-status")
+        yield ProgressBar(id="fit-progress", show_eta=False)
         with Horizontal(id="identify-body"):
             with Vertical(id="identify-left"):
                 yield SelectionList[str](id="logs")
                 yield Static("", id="choice")
+                yield SelectionList[str](id="free")
                 yield DataTable(id="compare", cursor_type="none", zebra_stripes=True)
                 yield Static("", id="zeros")
             with Vertical(id="identify-right"):
@@ -154,6 +168,14 @@ class IdentifyScreen(Screen[None]):
     def on_mount(self) -> None:
         self.query_one("#logs", SelectionList).border_title = Content(f"Logs in {self.logs_dir}/ (space ticks)")
         self.query_one("#compare", DataTable).border_title = "Identified | physical"
+        free = self.query_one("#free", SelectionList)
+        plant = self._params().process_plant()
+        free.border_title = Content(f"Constants to fit ({plant.kind}; space ticks)")
+        free.border_subtitle = "2+ logs ticked: the last validates"
+        ticked = fitui.default_free(plant)
+        for name in plant.values():
+            free.add_option((Content(name), name, name in ticked))
+        self.query_one("#fit-progress", ProgressBar).display = False
         self.action_rescan()
         self._show_choice()
         self._status("Tick the logs (SIMO: one per input; n4sid: one MIMO log), choose the method, f to fit.")
@@ -206,18 +228,36 @@ class IdentifyScreen(Screen[None]):
 
     def _show_choice(self) -> None:
         extra = f"  structure {self.structure} (n)" if self.method == "step" else ""
+        if self.method == "physical":
+            extra = "  Tab: the constants"
         self.query_one("#choice", Static).update(f"Method [b]{self.method}[/] (m){extra}")
+        self.query_one("#free", SelectionList).display = self.method == "physical"
+        self.query_one("#compare", DataTable).display = self.method != "physical" or self.physical is not None
+
+    def _params(self) -> Parameters:
+        """The parameters in use: the running process's, the built-in ones without it."""
+        from quadtank_tui.core.parameters import PRESET
+
+        return self.engine.snapshot().params if self.engine is not None else PRESET
 
     def action_method(self) -> None:
+        if self._fitting:
+            return
         self.method = METHODS[(METHODS.index(self.method) + 1) % len(METHODS)]
         self._show_choice()
+        if self.method == "physical" or self.method == METHODS[0]:
+            self._table()
+            self._draw()
 
     def action_structure(self) -> None:
         self.structure = self.structure % 5 + 1
         self._show_choice()
 
     def action_element(self) -> None:
-        if self.view is not None:
+        if self.method == "physical" and self.physical is not None:
+            self.element_index += 1
+            self._draw()
+        elif self.view is not None:
             self.element_index = (self.element_index + 1) % len(self.view.ident.elements)
             self._draw()
 
@@ -238,10 +278,60 @@ class IdentifyScreen(Screen[None]):
             return
         if self._fitting:
             return
+        if self.method == "physical":
+            self._fit_physical(paths)
+            return
         self._cancel = threading.Event()
         self._fitting = True
         self._status(f"Fitting {self.method} to {', '.join(Path(p).name for p in paths)} ... (c cancels)")
         self._run_fit(paths, self.method, self.structure, self._cancel)
+
+    def _fit_physical(self, paths: list[str]) -> None:
+        free = tuple(self.query_one("#free", SelectionList).selected)
+        if not free:
+            self._status("Tick at least one constant to fit (Tab to the constants, space).", error=True)
+            return
+        plant = self._params().process_plant()
+        bar = self.query_one("#fit-progress", ProgressBar)
+        bar.update(total=fitui.evaluations_bound(len(free), 4), progress=0)
+        bar.display = True
+        self._cancel = threading.Event()
+        self._fitting = True
+        self._overwrite = None
+        self._status(f"Fitting {', '.join(free)} of the {plant.kind} to "
+                     f"{', '.join(Path(p).name for p in paths)} ... (c cancels)")
+        self._run_physical(paths, plant, free, self._cancel)
+
+    @work(thread=True, exclusive=True, group="fit")
+    def _run_physical(self, paths: list[str], plant: Plant, free: tuple[str, ...],
+                      cancel: threading.Event) -> None:
+        def progress(k: int, rms: float) -> None:
+            self.app.call_from_thread(self._progress, k, rms)
+
+        try:
+            view = fitui.compute_physical(paths, plant, free, cancel, progress)
+        except ValueError as exc:  # bad logs, another plant's log, no convergence, cancelled: one line
+            self.app.call_from_thread(self._failed, "cancelled" if cancel.is_set() else str(exc))
+            return
+        if cancel.is_set():
+            self.app.call_from_thread(self._failed, "cancelled")
+        else:
+            self.app.call_from_thread(self._done_physical, view)
+
+    def _progress(self, k: int, rms: float) -> None:
+        if self._fitting:
+            self.query_one("#fit-progress", ProgressBar).update(progress=k)
+            self._status(f"Fitting physical: {k} simulations, RMS {rms:.3g} V ... (c cancels)")
+
+    def _done_physical(self, view: fitui.PhysicalView) -> None:
+        self._fitting = False
+        self.query_one("#fit-progress", ProgressBar).display = False
+        self.physical = view
+        self.element_index = 0
+        self._status(fitui.summary(view) + "  e: next output  k: save as .par")
+        self._show_choice()
+        self._table()
+        self._draw()
 
     @work(thread=True, exclusive=True, group="fit")
     def _run_fit(self, paths: list[str], method: str, structure: int, cancel: threading.Event) -> None:
@@ -265,6 +355,7 @@ class IdentifyScreen(Screen[None]):
 
     def _failed(self, message: str) -> None:
         self._fitting = False
+        self.query_one("#fit-progress", ProgressBar).display = False
         self._status(message, error=True)
 
     def _done(self, view: FitView) -> None:
@@ -292,9 +383,20 @@ class IdentifyScreen(Screen[None]):
         from quadtank_tui.core.identify.report import zero_text
         from quadtank_tui.core.identify.system import time_constants
 
-        assert self.view is not None
-        ident, cmp = self.view.ident, self.view.comparison
         t = self.query_one("#compare", DataTable)
+        if self.method == "physical":
+            t.clear(columns=True)
+            if self.physical is not None:
+                t.add_columns("constant", "fitted", "±", ".par", "unit")
+                for row in fitui.constant_rows(self.physical):
+                    t.add_row(*row)
+                t.border_subtitle = f"{self.physical.start.kind}: the .par in use"
+            self.query_one("#zeros", Static).update("")
+            return
+        if self.view is None:
+            t.clear(columns=True)
+            return
+        ident, cmp = self.view.ident, self.view.comparison
         t.clear(columns=True)
         t.add_columns("G", "gain", "phys", "T (s)", "phys T", "fit %")
         gains = ident.system.static_gains
@@ -330,6 +432,9 @@ class IdentifyScreen(Screen[None]):
         for plot in (top, low):
             plot.plt.clear_figure()
             plot.plt.theme("clear")
+        if self.method == "physical" and self.physical is not None:
+            self._draw_physical(top, low, self.physical)
+            return
         shown = self._element()
         if shown is None:
             top.border_title = "Measured and model output"
@@ -393,11 +498,63 @@ class IdentifyScreen(Screen[None]):
         top.refresh()
         low.refresh()
 
+    def _draw_physical(self, top: PlotextPlot, low: PlotextPlot, view: fitui.PhysicalView) -> None:
+        """The measured and simulated sensor on the held-out log, and their difference."""
+        name, t, y, ym, where = fitui.overlay(view, self.element_index)
+        dark, no_color = self.app.current_theme.dark, self.app.no_color
+        drawn = kit.styles([Series("model", RED, dotted=True), Series(name, BLUE)], dark=dark, no_color=no_color)
+        for st, v in zip(drawn, (ym, y)):
+            kit.draw(top.plt, t, v, st, top.size.width)
+        both = np.concatenate([y, ym])
+        kit.axes(top.plt, (0.0, float(t[-1])), (float(both.min()), float(both.max())), top.size.width,
+                 top.size.height, xlabel="t (s)")
+        top.border_title = kit.legend(drawn[::-1], f"{where}, V: ")
+        (st,) = kit.styles([Series(f"{name} measured - model", BLUE)], dark=dark, no_color=no_color)
+        r = y - ym
+        kit.draw(low.plt, t, r, st, low.size.width)
+        kit.axes(low.plt, (0.0, float(t[-1])), (float(r.min()), float(r.max())), low.size.width, low.size.height,
+                 xlabel="t (s)")
+        low.border_title = kit.legend([st], "Output error, V: ")
+        top.refresh()
+        low.refresh()
+
     # --- keep -------------------------------------------------------------------------
+
+    def _save_physical(self, view: fitui.PhysicalView) -> None:
+        """NAME.par next to the first fitted log, of the kind of the .par in use; an
+        existing file only on a second `k` (the status asks)."""
+        from datetime import datetime
+
+        from quadtank_tui.files.par import format_par
+
+        target = fitui.par_target(view)
+        if target.exists() and self._overwrite != target:
+            self._overwrite = target
+            self._status(f"{target} exists: k again overwrites it, any other key keeps it.", error=True)
+            return
+        self._overwrite = None
+        try:
+            path = fitui.save_par(view, format_par(self._params(), datetime.now()), target)
+        except (OSError, ValueError) as exc:
+            self._status(f"Cannot save the .par: {exc}", error=True)
+            return
+        self._status(f"Fitted constants saved in {path} ({view.fit.plant.kind})")
+        self.notify(f"Saved {path}", markup=False)
+
+    def on_key(self, event: object) -> None:
+        """Any key but `k` withdraws an overwrite the status asked about."""
+        if getattr(event, "key", None) != "k":
+            self._overwrite = None
 
     def action_keep(self) -> None:
         from quadtank_tui.files.model import from_identification, model_path, write_model
 
+        if self.method == "physical":
+            if self.physical is None:
+                self._status("Nothing to save yet: fit first (f).", error=True)
+            else:
+                self._save_physical(self.physical)
+            return
         if self.view is None:
             self._status("Nothing to keep yet: fit first (f).", error=True)
             return

@@ -4,6 +4,8 @@ figures on a case with a known answer; what a fit refuses."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -15,7 +17,8 @@ from quadtank_tui.core.identify.physical import (
     simulate,
     validate_physical,
 )
-from quadtank_tui.core.plants import CoupledCascade, CoupledTITO
+from quadtank_tui.core.plant import P_PLUS
+from quadtank_tui.core.plants import CoupledCascade, CoupledTITO, QuadTank
 
 TRUE = CoupledCascade()  # Desautel's constants
 H = 5.0
@@ -77,6 +80,48 @@ def test_overflow_saturated_sensor_and_pump_threshold_are_learnt() -> None:
     for e in fit.constants:
         assert e.value == pytest.approx(rig.values()[e.name], rel=1e-6), e.name
     assert fit.constants[-1].start == 4.5
+
+
+def test_quadruple_tank_overflow_saturated_sensor_and_pump_threshold_are_learnt() -> None:
+    """P+ with wider lower outlets (a1 0.12, a2 0.10 cm^2, so tank 1 stays below its
+    brim while tank 3 overflows): half of tank 3's overflow falls into tank 1, the
+    tank 1 sensor saturates at 6.5 V (13 cm), pump 1 moves nothing below 0.5 V.
+    100 s at (1, 9) V fill tank 3 to the brim (16 rows), 75 s at (9, 5) V take tank 1
+    past its sensor's range (18 rows), then PRBS. The nine free constants come back
+    to 1e-7 from 10 % off (ysat1 starts at the highest reading)."""
+    params = replace(P_PLUS.params, a1=0.12, a2=0.10)
+    rig = QuadTank(params, spill3=0.5, ysat1=6.5, vmin1=0.5)
+    k = np.arange(80)
+    u = np.column_stack([np.where(k < 20, 1.0, np.where(k < 35, 9.0, 4.0 + 1.5 * prbs(80, 7, 1))),
+                         np.where(k < 20, 9.0, np.where(k < 35, 5.0, 4.0 + 1.5 * prbs(80, 9, 2)))])
+    x = simulate(rig, (12.0, 10.0, 15.0, 5.0), u, H)
+    y = np.array([rig.output(r) for r in x])
+    assert (x[:, 2] == 20.0).sum() == 16 and (y[:, 0] == 6.5).sum() == 18 and x[:, 0].max() < 20.0
+    names = ("a1", "a2", "k1", "k2", "gamma1", "gamma2", "spill3", "vmin1", "ysat1")
+    start = rig.with_values(a1=0.108, a2=0.11, k1=3.45, k2=3.0, gamma1=0.47, gamma2=0.31, spill3=0.35, vmin1=0.3,
+                            ysat1=0.0)
+    fit = fit_physical(start, [Experiment("a", H, u, y, (0, 1, 2, 3))], names)
+    for e in fit.constants:
+        assert e.value == pytest.approx(rig.values()[e.name], rel=1e-7), e.name
+        assert e.stderr < 1e-6 * rig.values()[e.name], e.name
+    assert fit.rms < 1e-8 and fit.constants[-1].start == 6.5
+
+
+def test_two_input_rig_overflow_saturated_sensor_and_pump_threshold_are_learnt() -> None:
+    """Murray-Smith's rig: 60 % of tank 1's overflow falls into tank 2, sensor 2
+    saturates at 5.8 V (0.174 m), pump 2 moves nothing below 0.4 V. 100 s of pump 1
+    at its 6.9 V top bring tank 1 to the brim; Cd1, Cd2, Gp and the three effects
+    come back from 5-10 % off."""
+    rig = CoupledTITO(spill1=0.6, vmin2=0.4, ysat2=5.8)
+    k = np.arange(60)
+    u = np.column_stack([np.where(k < 20, 6.9, 3.0 + prbs(60, 5, 1)), np.where(k < 20, 0.5, 2.0 + prbs(60, 6, 2))])
+    x = simulate(rig, (0.2, 0.15), u, H)
+    y = np.array([rig.output(r) for r in x])
+    assert (x[:, 0] == rig.hmax).sum() == 6 and (y[:, 1] == 5.8).sum() == 18
+    start = rig.with_values(Cd1=0.6, Cd2=0.6, Gp=7.0e-6, spill1=0.4, vmin2=0.3, ysat2=0.0)
+    fit = fit_physical(start, [Experiment("a", H, u, y, (0, 1))], ("Cd1", "Cd2", "Gp", "spill1", "vmin2", "ysat2"))
+    for e in fit.constants:
+        assert e.value == pytest.approx(rig.values()[e.name], rel=1e-7), e.name
 
 
 def test_validation_of_the_true_constants_is_exact_from_estimated_levels() -> None:
