@@ -3,18 +3,15 @@
 One preallocated (capacity x signals) float array: appending a sample writes one row
 and never allocates, so an 8-hour run at 50 ms uses the same memory as a minute.
 
-The loop writes and the UI reads, on another thread or in another process (the
-arrays may live in memory both processes map, see :mod:`engine.shared`).  The writer
-never waits for a reader: it announces the row, writes it, then bumps the count of
-rows ever written.  A reader copies what it saw as complete and afterwards drops the rows the
-writer may have overwritten meanwhile, so a reader can lose a few of its oldest rows
-to a fast writer but never gets a half-written one.  A clear (Reset) bumps a
-generation counter twice, seqlock style; a reader that sees it change starts over.
-The stores are plain 8-byte writes in program order, which x86-64 makes visible
-to the other process in that order (a row before its count).  A weakly ordered CPU
-(aarch64) gives no such promise: there a reader may, rarely, show one stale row for
-one frame.  Only the display could be wrong; the loop's own data and its log are
-written by the loop alone.  (The snapshot slot has a checksum: engine/shared.py.)
+One thread writes (the loop, or a session client's reader appending what its
+session sent) and another may read (the UI).  The writer never waits for a reader:
+it announces the row, writes it, then bumps the count of rows ever written.  A
+reader copies what it saw as complete and afterwards drops the rows the writer may
+have overwritten meanwhile, so a reader can lose a few of its oldest rows to a fast
+writer but never gets a half-written one.  A clear (Reset) bumps a generation
+counter twice, seqlock style; a reader that sees it change starts over.  Only the
+display could be wrong; the loop's own data and its log are written by the loop
+alone.
 """
 
 from __future__ import annotations
@@ -44,23 +41,12 @@ def check_capacity(capacity: int) -> int:
 
 
 class History:
-    """The last `capacity` samples of :data:`SIGNALS` ("t" first).
+    """The last `capacity` samples of :data:`SIGNALS` ("t" first)."""
 
-    header, rows : where to keep them (int64[HEADER_WORDS] and float64[capacity,
-        len(SIGNALS)], e.g. views of shared memory); private arrays by default.  A
-        reader attached to another process's buffers must not write.
-    """
-
-    def __init__(self, capacity: int = DEFAULT_CAPACITY, *,
-                 header: np.ndarray | None = None, rows: np.ndarray | None = None) -> None:
+    def __init__(self, capacity: int = DEFAULT_CAPACITY) -> None:
         self.capacity = check_capacity(capacity)
-        if header is None or rows is None:
-            header = np.zeros(HEADER_WORDS, dtype=np.int64)
-            rows = np.zeros((self.capacity, len(SIGNALS)), dtype=float)
-        if header.shape != (HEADER_WORDS,) or rows.shape != (self.capacity, len(SIGNALS)):
-            raise ValueError("history buffers do not match the capacity")
-        self._hdr = header
-        self._buf = rows
+        self._hdr = np.zeros(HEADER_WORDS, dtype=np.int64)
+        self._buf = np.zeros((self.capacity, len(SIGNALS)), dtype=float)
 
     def __len__(self) -> int:
         total, start = int(self._hdr[_TOTAL]), int(self._hdr[_START])
@@ -110,7 +96,7 @@ class History:
         hdr[_START] = hdr[_TOTAL]
         hdr[_GEN] += 1
 
-    # --- readers (any thread or process) ---------------------------------------------------
+    # --- readers (any thread) ---------------------------------------------------
 
     def last(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
         """Copies of the samples with t >= t_last - seconds (all kept if None)."""
@@ -124,10 +110,6 @@ class History:
             col.flags.writeable = False
             out[name] = col
         return out
-
-    def copy(self) -> History:
-        """A private copy (the shared memory can then go)."""
-        return History(self.capacity, header=self._hdr.copy(), rows=self._buf.copy())
 
     def _consistent_rows(self, attempts: int = 100) -> np.ndarray:
         hdr, cap = self._hdr, self.capacity

@@ -12,6 +12,10 @@ SIGKILL), the snapshot says so, the commands are refused, and - for an operator 
 an Active session whose DAQ configuration it can read - the pumps are commanded to
 0 over a link of its own, as the loop process's parent does; the rig's watchdog is
 the last line.
+
+A private session's client (`private`, `quadtank --no-session`) is its session's
+only screen: it offers no lab session (nothing to detach from), its close stops
+the session, and then lets go of the session's lifeline (session/launch.py).
 """
 
 from __future__ import annotations
@@ -23,14 +27,16 @@ import time
 from concurrent.futures import Future
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Mapping
 
+import numpy as np
 
 from quadtank_tui.core.parameters import Parameters
-from quadtank_tui.engine.client_side import HeldLocally
 from quadtank_tui.engine.commands import Command, CommandResult
+from quadtank_tui.engine.handle import LabSession
 from quadtank_tui.engine.history import History
 from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.files.log import log_path
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.session.protocol import (
     MAX_SESSION_LINE, Ended, Hello, LineReader, ProtocolError, Refused, Result, Role, Roster, SessionInfo,
@@ -47,15 +53,19 @@ class SessionError(OSError):
     """The session could not be reached, or refused us; the message says why."""
 
 
-class SessionClient(HeldLocally):
-    """Implements :class:`quadtank_tui.engine.handle.EngineHandle` on a session.
+class SessionClient:
+    """Implements :class:`quadtank_tui.engine.handle.EngineHandle` on a session, and
+    :class:`~quadtank_tui.engine.handle.LabSession` on a lab session.
 
     path : the session's socket;  role : "operator" (drive it) or "observer"
     take_over : an administrator takes the operator's place
+    private : the session is this client's own (it stops when this client closes);
+        `let_go` is called once it has (the session's lifeline)
     """
 
     def __init__(self, path: str | Path, *, role: Role = "operator", take_over: bool = False,
-                 client: str = "tui", timeout: float = ATTACH_TIMEOUT) -> None:
+                 client: str = "tui", timeout: float = ATTACH_TIMEOUT, private: bool = False,
+                 let_go: Callable[[], None] | None = None) -> None:
         self.warnings: tuple[str, ...] = ()
         sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         sock.settimeout(timeout)
@@ -101,8 +111,10 @@ class SessionClient(HeldLocally):
         self._closing = False
         self.ended: str | None = None       # the session's own reason, when it stopped in order
         self.rescue: str | None = None
+        self.private = private
+        self._let_go = let_go
         #: What Exit chose: stop the session when this client closes (else detach).
-        self.stop_on_close = False
+        self.stop_on_close = private
         self._thread = threading.Thread(target=self._listen, name="quadtank-session-client", daemon=True)
         self._thread.start()
 
@@ -158,6 +170,44 @@ class SessionClient(HeldLocally):
     def _send(self, message: Any) -> None:
         with self._send_lock:
             self._sock.sendall(encode(message))
+
+    def history(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
+        return self._history.last(seconds)
+
+    def defaults(self) -> Parameters:
+        return self._defaults
+
+    def par_names(self) -> list[str]:
+        return self._store.names()
+
+    def log_exists(self, name: str) -> bool:
+        return log_path(self._logs_dir, name).exists()
+
+    @property
+    def logs_dir(self) -> Path:
+        """The session's logs folder (the ghost run's window lists it)."""
+        return Path(self._logs_dir)
+
+    def lab_session(self) -> LabSession | None:
+        """This client's lab session; None for a private one (nothing to detach from)."""
+        return None if self.private else self
+
+    # --- LabSession ------------------------------------------------------------------------------
+
+    @property
+    def session_id(self) -> str:
+        return self.info.id
+
+    @property
+    def started(self) -> str:
+        return self.info.started
+
+    @property
+    def operating(self) -> bool:
+        return self.role == "operator"
+
+    def stop_on_exit(self) -> None:
+        self.stop_on_close = True
 
     # --- the session's side ----------------------------------------------------------------------
 
@@ -275,6 +325,8 @@ class SessionClient(HeldLocally):
             self._sock.close()
         except OSError:
             pass
+        if self._let_go is not None:
+            self._let_go()
 
     def __enter__(self) -> SessionClient:
         return self
