@@ -99,19 +99,28 @@ class History:
     # --- readers (any thread) ---------------------------------------------------
 
     def last(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
-        """Copies of the samples with t >= t_last - seconds (all kept if None)."""
-        rows = self._consistent_rows()
-        if seconds is not None and len(rows):
-            t = rows[:, 0]
-            rows = rows[np.searchsorted(t, t[-1] - seconds, side="left"):]
-        out = {}
-        for i, name in enumerate(SIGNALS):
-            col = np.ascontiguousarray(rows[:, i])
-            col.flags.writeable = False
-            out[name] = col
-        return out
+        """Copies of the samples with t >= t_last - seconds (all kept if None).
 
-    def _consistent_rows(self, attempts: int = 100) -> np.ndarray:
+        One copy, of the window only, column by column: the screen asks for its
+        trends' window 20 times a second out of a ring of an hour."""
+        cols = self._consistent_columns(seconds)
+        cols.flags.writeable = False
+        return {name: cols[i] for i, name in enumerate(SIGNALS)}
+
+    def _first_since(self, lo: int, total: int, seconds: float) -> int:
+        """The absolute index of the first row in [lo, total) whose t is at least the
+        newest t less `seconds` (t rises along the ring, in two pieces once it wraps)."""
+        cap, t = self.capacity, self._buf[:, 0]
+        edge = t[(total - 1) % cap] - seconds
+        a = lo % cap
+        head = min(total - lo, cap - a)  # rows lo.. up to the end of the array
+        i = int(np.searchsorted(t[a:a + head], edge, side="left"))
+        if i < head:
+            return lo + i
+        return lo + head + int(np.searchsorted(t[:total - lo - head], edge, side="left"))
+
+    def _consistent_columns(self, seconds: float | None, attempts: int = 100) -> np.ndarray:
+        """(len(SIGNALS), n) C-ordered: each signal a contiguous row."""
         hdr, cap = self._hdr, self.capacity
         for attempt in range(attempts):
             last = attempt == attempts - 1  # a writer that died half-way: take what is there
@@ -121,17 +130,21 @@ class History:
                 continue
             total, start = int(hdr[_TOTAL]), int(hdr[_START])
             lo = min(max(start, total - cap), total)
+            if seconds is not None and total > lo:
+                lo = self._first_since(lo, total, seconds)
             a, b = lo % cap, total % cap
             if total - lo == 0:
-                rows = self._buf[:0].copy()
+                cols = np.empty((len(SIGNALS), 0))
             elif a < b:
-                rows = self._buf[a:b].copy()
-            else:
-                rows = np.concatenate((self._buf[a:], self._buf[:b]))
+                cols = self._buf[a:b].T.copy()
+            else:  # (np.concatenate would keep the transposes' column order)
+                cols = np.empty((len(SIGNALS), total - lo))
+                cols[:, :cap - a] = self._buf[a:].T
+                cols[:, cap - a:] = self._buf[:b].T
             if int(hdr[_GEN]) != gen and not last:
                 continue
             # Rows the writer began while we copied may hold newer samples: drop
             # them from the old end.
             safe_lo = int(hdr[_BEGUN]) - cap
-            return rows[max(0, safe_lo - lo):]
+            return cols[:, max(0, safe_lo - lo):]
         raise AssertionError("unreachable: the last attempt returns")

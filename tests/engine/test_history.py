@@ -96,3 +96,20 @@ def test_a_writer_that_died_in_a_clear_does_not_hang_the_reader() -> None:
         h.append([float(k)] * len(SIGNALS))
     h._hdr[2] += 1  # the generation left odd, as by a writer killed between its stores
     assert list(h.last()["y1"]) == [float(k) for k in range(10)]
+
+
+@pytest.mark.parametrize("rows", [300, 5000, 5000 + 1234, 3 * 5000 + 17])
+def test_a_window_is_the_tail_of_the_whole_whether_the_ring_wrapped_or_not(rows: int) -> None:
+    """last(seconds) copies only the window (the screen's 20 reads a second), and
+    it is exactly the samples of the whole ring with t >= t_last - seconds."""
+    h = History(5000)
+    data = np.arange(rows, dtype=float)[:, None] * np.ones(len(SIGNALS))
+    data[:, 0] *= 0.05
+    h.extend(data)
+    whole = h.last()
+    for seconds in (0.0, 0.05, 0.07, 12.5, 249.95, 250.0, 1e9):
+        window = h.last(seconds)
+        keep = whole["t"] >= whole["t"][-1] - seconds
+        for name in SIGNALS:
+            assert np.array_equal(window[name], whole[name][keep]), (rows, seconds, name)
+            assert window[name].flags.c_contiguous and not window[name].flags.writeable
