@@ -163,7 +163,6 @@ class Spawned:
         by itself when it finds nobody listening for its "ready"."""
         if self._handed_over:
             self._stop_handed_over()
-            self.let_go()
         else:
             try:
                 if self._proc.stdin is not None:
@@ -171,6 +170,7 @@ class Spawned:
             except OSError:
                 pass
         self._close_ready()
+        self.let_go()
 
     def _stop_handed_over(self) -> None:
         if self._ready < 0:

@@ -58,6 +58,7 @@ def test_no_session_is_a_private_session_on_a_virtual_clock(tmp_path: Path, monk
         assert list_sessions(runtime) == [] and lab_session_of(engine) is None
         (folder,) = runtime.iterdir()  # its own, the owner's only
         assert folder.name.startswith("private-") and folder.stat().st_mode & 0o777 == 0o700
+        assert Path(engine.info.socket).parent == folder and Path(engine.info.socket).stat().st_mode & 0o777 == 0o600
         pid = engine.info.pid
     finally:
         engine.stop()
