@@ -321,7 +321,8 @@ def build_tui(args: argparse.Namespace) -> tuple[SessionClient, QuadTankApp]:
         spawned.cancel()
         raise
     client.warnings = tuple(spec.warnings)
-    return client, build_app(client, refresh_interval=args.refresh, resume_gc=not gc.isenabled())
+    return client, build_app(client, refresh_interval=args.refresh, resume_gc=not gc.isenabled(),
+                             read_on=client.read_on)
 
 
 def _cmd_tui(args: argparse.Namespace) -> int:

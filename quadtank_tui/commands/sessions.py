@@ -313,7 +313,7 @@ def run_tui_on(client: SessionClient, refresh: float) -> int:
     from quadtank_tui.ui.app import build_app
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
-    app = build_app(client, refresh_interval=refresh, resume_gc=not gc.isenabled())
+    app = build_app(client, refresh_interval=refresh, resume_gc=not gc.isenabled(), read_on=client.read_on)
     watch = TerminalWatch(app.exit_soon, client.close)
     watch.start()
     try:
