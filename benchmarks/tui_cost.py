@@ -154,7 +154,7 @@ def session_records(runtime: Path) -> list[dict]:
 
 def loop_process(parent: int, runtime: Path, timeout: float = 10.0) -> int | None:
     """The loop process: the session process named in the runtime folder, else (with
-    --no-session) the parent's child started by multiprocessing's spawn."""
+    --no-session, a private session) the parent's child running session.launch."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         for record in session_records(runtime):
@@ -167,7 +167,7 @@ def loop_process(parent: int, runtime: Path, timeout: float = 10.0) -> int | Non
                 cmd = (entry / "cmdline").read_bytes()
             except OSError:
                 continue
-            if int(stat[1]) == parent and b"spawn_main" in cmd:
+            if int(stat[1]) == parent and b"quadtank_tui.session.launch" in cmd:
                 return int(entry.name)
         time.sleep(0.05)
     return None

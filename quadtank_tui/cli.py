@@ -9,7 +9,6 @@ a traceback never reaches the user.
 from __future__ import annotations
 
 import argparse
-import functools
 import gc
 import json
 import os
@@ -43,8 +42,7 @@ EXPORT_FORMATS = ("mat", "csv")
 if TYPE_CHECKING:  # the TUI's modules load only when it starts
     from quadtank_tui.core.parameters import Parameters
     from quadtank_tui.core.plants import Plant
-    from quadtank_tui.engine.process import EngineProcess
-    from quadtank_tui.engine.runner import Engine
+    from quadtank_tui.session.client import SessionClient
     from quadtank_tui.ui.app import QuadTankApp
 
 
@@ -288,46 +286,43 @@ def _add_tui_options(parser: argparse.ArgumentParser) -> None:
                      help="simulated seconds per wall second at start (1..1000; keys + and - change it)")
     tui.add_argument("--refresh", metavar="SECONDS", type=float, default=0.05,
                      help="screen refresh interval (default 0.05; raise it on a slow link)")
-    tui.add_argument("--loop", choices=("process", "thread"), default=None,
-                     help="where the control loop runs: its own process (default; the screen "
-                     "cannot delay a sample) or a thread of this one (for debugging); "
-                     "either implies --no-session")
     tui.add_argument("--no-session", action="store_true",
-                     help="run the loop for this terminal only (it stops when the TUI ends) instead "
-                     "of in a lab session that outlives the terminal (see quadtank sessions)")
+                     help="run the loop in a private session for this terminal only (unlisted; it "
+                     "stops, pumps at 0, when the TUI ends) instead of in a lab session that "
+                     "outlives the terminal (see quadtank sessions)")
 
 
-def build_tui(args: argparse.Namespace) -> tuple[Engine | EngineProcess, QuadTankApp]:
-    """The engine (not started) and the app the TUI runs, from the options.  A rig
-    (--daq) keeps wall time; the simulator runs on a virtual clock so a student
-    can speed it up.  The loop runs in a process of its own unless `--loop thread`."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from quadtank_tui.engine.process import EngineProcess
-    from quadtank_tui.engine.runner import ClockKind, build_engine, engine_spec
+def build_tui(args: argparse.Namespace) -> tuple[SessionClient, QuadTankApp]:
+    """`--no-session`: a private session (the session process and protocol of the
+    default, for this terminal only: unlisted, it stops with this process) and the
+    app on it.  A rig (--daq) keeps wall time; the simulator runs on a virtual clock
+    so a student can speed it up.  The rig's lock stays with this process."""
+    from quadtank_tui.engine.runner import engine_spec
+    from quadtank_tui.session.launch import SessionSpec, Spawned
 
     if not 1.0 <= args.tui_speed <= 1000.0:
         raise UsageError(f"--speed must be 1..1000, got {args.tui_speed:g}")
     if not 0.01 <= args.refresh <= 5.0:
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.refresh:g}")
-    # the configuration is checked here, in any case, for the plant of the parameters
-    daq = open_daq(args.daq_global, _plant_in_use(args.tui_par) if args.daq_global else None)
-    clock: ClockKind = "realtime" if daq is not None else "virtual"
-    engine: Engine | EngineProcess
-    if args.loop == "thread":
+    # The session process boots (a fresh interpreter, numpy) while this one checks
+    # the files and loads the UI: the first frame comes that much sooner.
+    spawned = Spawned(private=True)
+    try:
+        spec = engine_spec(args.tui_par, clock="realtime" if args.daq_global else "virtual", speed=args.tui_speed)
+        # the configuration is checked here, in any case, for the plant of the parameters
+        open_daq(args.daq_global, spec.params.process_plant() if args.daq_global else None)
+        daq = args.daq_global and str(Path(args.daq_global).resolve())
+        spawned.hand_over(SessionSpec(spec, str(sessions_command.runtime_folder()), daq, private=True))
+        from quadtank_tui.session.client import SessionClient
         from quadtank_tui.ui.app import build_app
 
-        engine = build_engine(args.tui_par, daq=daq, clock=clock, speed=args.tui_speed)
-    else:  # a backend holds sockets and locks: the loop process opens its own
-        factory = None if daq is None else functools.partial(type(daq), daq.config)
-        spec = engine_spec(args.tui_par, clock=clock, speed=args.tui_speed)
-        # The loop process boots (a fresh interpreter, numpy) while this one loads
-        # the UI: the first frame comes that much sooner (benchmarks/tui_cost.py).
-        with ThreadPoolExecutor(1, thread_name_prefix="quadtank-start") as pool:
-            starting = pool.submit(EngineProcess, spec, daq_factory=factory)
-            from quadtank_tui.ui.app import build_app
-            engine = starting.result()
-    return engine, build_app(engine, refresh_interval=args.refresh, resume_gc=not gc.isenabled())
+        client = SessionClient(spawned.wait_ready().socket, private=True, let_go=spawned.let_go)
+    except BaseException:
+        spawned.cancel()
+        raise
+    client.warnings = tuple(spec.warnings)
+    return client, build_app(client, refresh_interval=args.refresh, resume_gc=not gc.isenabled(),
+                             read_on=client.read_on)
 
 
 def _cmd_tui(args: argparse.Namespace) -> int:
@@ -336,7 +331,7 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     terminal is put back and the loop stopped with the pumps at 0."""
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
-    if not args.no_session and args.loop is None:
+    if not args.no_session:
         return sessions_command.cmd_tui_session(args)
     pause_gc()
     engine, app = build_tui(args)
@@ -354,7 +349,7 @@ def _cmd_tui(args: argparse.Namespace) -> int:
         # A hung DAQ holds the loop for a timeout or two: say what the wait is for.
         slow = threading.Timer(0.5, _say, ("quadtank: stopping the control loop (pumps to 0) ...",))
         slow.start()
-        engine.stop()  # stops the loop, pumps to 0
+        engine.stop()  # stops the private session: the loop, pumps to 0
         slow.cancel()
     if watch.reason is not None:
         _say(f"quadtank: stopped: {watch.reason}")
@@ -457,7 +452,7 @@ def _driven_daq(args: argparse.Namespace) -> str | None:
     """The DAQ configuration of the rig this command drives (writes pumps to), if any:
     the TUI and `run` with --daq, `daq calibrate` on a rig; `daq check` only reads."""
     if args.command is None:  # the TUI; on a rig your own session drives, it attaches to that session
-        session = not args.no_session and args.loop is None
+        session = not args.no_session
         # Looked up once (a DAQ file read, a name resolved): cmd_tui_session attaches to it.
         args.own_rig_session = sessions_command.own_session_on_rig(args.daq_global) if session else None
         return None if args.own_rig_session else args.daq_global

@@ -80,7 +80,7 @@ def in_params_copy(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 @pytest.fixture(scope="session")
 def pty_kit() -> ModuleType:
     """The pseudo-terminal harness of tests/ui/test_terminal_hangup.py (Tui,
-    _wait_gone, _shared_blocks, GONE_WITHIN), for the session and rig tests that
+    _wait_gone, GONE_WITHIN), for the session and rig tests that
     run `quadtank` in a terminal too: one copy of it, loaded once."""
     spec = importlib.util.spec_from_file_location("hangup_kit", ROOT / "tests" / "ui" / "test_terminal_hangup.py")
     assert spec is not None and spec.loader is not None

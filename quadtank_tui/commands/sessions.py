@@ -53,7 +53,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     s.set_defaults(handler=cmd_stop)
 
 
-def _runtime() -> Path:
+def runtime_folder() -> Path:
     from quadtank_tui.session.runtime import runtime_dir
 
     return runtime_dir()
@@ -68,7 +68,7 @@ def cmd_sessions(args: argparse.Namespace) -> int:
 
     from quadtank_tui.session.runtime import ended_sessions, list_sessions
 
-    runtime = _runtime()
+    runtime = runtime_folder()
     ended = ended_sessions(runtime)  # first: marks the dead ones ended
     sessions = list_sessions(runtime, prune=False)
     if args.json:
@@ -119,7 +119,7 @@ def cmd_stop(args: argparse.Namespace) -> int:
     from quadtank_tui.session.runtime import NoSession, find_session, pid_alive
 
     try:
-        info = find_session(_runtime(), args.session, os.getuid())
+        info = find_session(runtime_folder(), args.session, os.getuid())
         reason = stop_session_at(info.socket)
     except (NoSession, SessionError) as exc:
         raise UsageError(str(exc)) from None
@@ -142,7 +142,7 @@ def cmd_attach(args: argparse.Namespace) -> int:
         raise UsageError(f"--refresh must be 0.01..5 s, got {args.attach_refresh:g}")
     pause_gc()
     try:
-        info = find_session(_runtime(), args.session, os.getuid())
+        info = find_session(runtime_folder(), args.session, os.getuid())
         client = _connect(info, "observer" if args.observe else "operator", take_over=args.take_over)
     except (NoSession, SessionError) as exc:
         raise UsageError(str(exc)) from None
@@ -167,7 +167,7 @@ def cmd_tui_session(args: argparse.Namespace) -> int:
     if attached is not None:
         return attached
     pause_gc()
-    runtime = _runtime()
+    runtime = runtime_folder()
     try:
         info = find_session(runtime, None, os.getuid(), interactive=True)
     except NoSession as exc:
@@ -212,7 +212,7 @@ def own_session_on_rig(config: str | None) -> tuple[SessionInfo, str] | None:
         held = holder_of(device, lab)
         if held is None or held.uid != os.getuid() or held.session is None:
             continue
-        for info in list_sessions(_runtime()):
+        for info in list_sessions(runtime_folder()):
             if info.id == held.session and info.pid == held.pid:
                 return info, device
     return None
@@ -298,7 +298,7 @@ def start_detached_run(args: argparse.Namespace, script: Script | None, clock: C
     warn([partly] if partly else [])
     run = HeadlessArgs(args.par, script, args.duration, str(Path(args.log).resolve()), args.seed, clock,
                        args.speed, str(Path("params").resolve()))
-    runtime = _runtime()
+    runtime = runtime_folder()
     info = start_session(SessionSpec(None, str(runtime), config and str(Path(config).resolve()), run),
                          lock=_held_lock(args))
     print(f"session {info.id} runs the experiment ({args.duration:g} s) and will save {run.out}; "
@@ -313,7 +313,7 @@ def run_tui_on(client: SessionClient, refresh: float) -> int:
     from quadtank_tui.ui.app import build_app
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
-    app = build_app(client, refresh_interval=refresh, resume_gc=not gc.isenabled())
+    app = build_app(client, refresh_interval=refresh, resume_gc=not gc.isenabled(), read_on=client.read_on)
     watch = TerminalWatch(app.exit_soon, client.close)
     watch.start()
     try:

@@ -3,18 +3,15 @@
 One preallocated (capacity x signals) float array: appending a sample writes one row
 and never allocates, so an 8-hour run at 50 ms uses the same memory as a minute.
 
-The loop writes and the UI reads, on another thread or in another process (the
-arrays may live in memory both processes map, see :mod:`engine.shared`).  The writer
-never waits for a reader: it announces the row, writes it, then bumps the count of
-rows ever written.  A reader copies what it saw as complete and afterwards drops the rows the
-writer may have overwritten meanwhile, so a reader can lose a few of its oldest rows
-to a fast writer but never gets a half-written one.  A clear (Reset) bumps a
-generation counter twice, seqlock style; a reader that sees it change starts over.
-The stores are plain 8-byte writes in program order, which x86-64 makes visible
-to the other process in that order (a row before its count).  A weakly ordered CPU
-(aarch64) gives no such promise: there a reader may, rarely, show one stale row for
-one frame.  Only the display could be wrong; the loop's own data and its log are
-written by the loop alone.  (The snapshot slot has a checksum: engine/shared.py.)
+One thread writes (the loop, or a session client's reader appending what its
+session sent) and another may read (the UI).  The writer never waits for a reader:
+it announces the row, writes it, then bumps the count of rows ever written.  A
+reader copies what it saw as complete and afterwards drops the rows the writer may
+have overwritten meanwhile, so a reader can lose a few of its oldest rows to a fast
+writer but never gets a half-written one.  A clear (Reset) bumps a generation
+counter twice, seqlock style; a reader that sees it change starts over.  Only the
+display could be wrong; the loop's own data and its log are written by the loop
+alone.
 """
 
 from __future__ import annotations
@@ -44,23 +41,12 @@ def check_capacity(capacity: int) -> int:
 
 
 class History:
-    """The last `capacity` samples of :data:`SIGNALS` ("t" first).
+    """The last `capacity` samples of :data:`SIGNALS` ("t" first)."""
 
-    header, rows : where to keep them (int64[HEADER_WORDS] and float64[capacity,
-        len(SIGNALS)], e.g. views of shared memory); private arrays by default.  A
-        reader attached to another process's buffers must not write.
-    """
-
-    def __init__(self, capacity: int = DEFAULT_CAPACITY, *,
-                 header: np.ndarray | None = None, rows: np.ndarray | None = None) -> None:
+    def __init__(self, capacity: int = DEFAULT_CAPACITY) -> None:
         self.capacity = check_capacity(capacity)
-        if header is None or rows is None:
-            header = np.zeros(HEADER_WORDS, dtype=np.int64)
-            rows = np.zeros((self.capacity, len(SIGNALS)), dtype=float)
-        if header.shape != (HEADER_WORDS,) or rows.shape != (self.capacity, len(SIGNALS)):
-            raise ValueError("history buffers do not match the capacity")
-        self._hdr = header
-        self._buf = rows
+        self._hdr = np.zeros(HEADER_WORDS, dtype=np.int64)
+        self._buf = np.zeros((self.capacity, len(SIGNALS)), dtype=float)
 
     def __len__(self) -> int:
         total, start = int(self._hdr[_TOTAL]), int(self._hdr[_START])
@@ -110,26 +96,31 @@ class History:
         hdr[_START] = hdr[_TOTAL]
         hdr[_GEN] += 1
 
-    # --- readers (any thread or process) ---------------------------------------------------
+    # --- readers (any thread) ---------------------------------------------------
 
     def last(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
-        """Copies of the samples with t >= t_last - seconds (all kept if None)."""
-        rows = self._consistent_rows()
-        if seconds is not None and len(rows):
-            t = rows[:, 0]
-            rows = rows[np.searchsorted(t, t[-1] - seconds, side="left"):]
-        out = {}
-        for i, name in enumerate(SIGNALS):
-            col = np.ascontiguousarray(rows[:, i])
-            col.flags.writeable = False
-            out[name] = col
-        return out
+        """Copies of the samples with t >= t_last - seconds (all kept if None).
 
-    def copy(self) -> History:
-        """A private copy (the shared memory can then go)."""
-        return History(self.capacity, header=self._hdr.copy(), rows=self._buf.copy())
+        One copy, of the window only, column by column: the screen asks for its
+        trends' window 20 times a second out of a ring of an hour."""
+        cols = self._consistent_columns(seconds)
+        cols.flags.writeable = False
+        return {name: cols[i] for i, name in enumerate(SIGNALS)}
 
-    def _consistent_rows(self, attempts: int = 100) -> np.ndarray:
+    def _first_since(self, lo: int, total: int, seconds: float) -> int:
+        """The absolute index of the first row in [lo, total) whose t is at least the
+        newest t less `seconds` (t rises along the ring, in two pieces once it wraps)."""
+        cap, t = self.capacity, self._buf[:, 0]
+        edge = t[(total - 1) % cap] - seconds
+        a = lo % cap
+        head = min(total - lo, cap - a)  # rows lo.. up to the end of the array
+        i = int(np.searchsorted(t[a:a + head], edge, side="left"))
+        if i < head:
+            return lo + i
+        return lo + head + int(np.searchsorted(t[:total - lo - head], edge, side="left"))
+
+    def _consistent_columns(self, seconds: float | None, attempts: int = 100) -> np.ndarray:
+        """(len(SIGNALS), n) C-ordered: each signal a contiguous row."""
         hdr, cap = self._hdr, self.capacity
         for attempt in range(attempts):
             last = attempt == attempts - 1  # a writer that died half-way: take what is there
@@ -139,17 +130,21 @@ class History:
                 continue
             total, start = int(hdr[_TOTAL]), int(hdr[_START])
             lo = min(max(start, total - cap), total)
+            if seconds is not None and total > lo:
+                lo = self._first_since(lo, total, seconds)
             a, b = lo % cap, total % cap
             if total - lo == 0:
-                rows = self._buf[:0].copy()
+                cols = np.empty((len(SIGNALS), 0))
             elif a < b:
-                rows = self._buf[a:b].copy()
-            else:
-                rows = np.concatenate((self._buf[a:], self._buf[:b]))
+                cols = self._buf[a:b].T.copy()
+            else:  # (np.concatenate would keep the transposes' column order)
+                cols = np.empty((len(SIGNALS), total - lo))
+                cols[:, :cap - a] = self._buf[a:].T
+                cols[:, cap - a:] = self._buf[:b].T
             if int(hdr[_GEN]) != gen and not last:
                 continue
             # Rows the writer began while we copied may hold newer samples: drop
             # them from the old end.
             safe_lo = int(hdr[_BEGUN]) - cap
-            return rows[max(0, safe_lo - lo):]
+            return cols[:, max(0, safe_lo - lo):]
         raise AssertionError("unreachable: the last attempt returns")

@@ -4,7 +4,10 @@ On attach the session sends everything at once - its whole ring buffer, the
 snapshot, the defaults - so the trends are complete (nothing sampled while no client
 was attached is missing) and the screen is live at once.  Then a reader thread
 appends each update's rows to a private copy of the ring buffer and keeps the newest
-snapshot; `snapshot()` and `history()` read those, never the socket.
+snapshot; `snapshot()` and `history()` read those, never the socket.  A screen
+may take the reading over on its own event loop (`read_on`): then an update or a
+command's answer reaches it with no thread in between; closing goes back to a
+thread (the loop may be gone by then) to hear the session's last words.
 
 Closing a client never stops the session (that is `stop_session`, or the Exit
 window's "Stop the session").  If the session process dies without saying so (a
@@ -12,25 +15,34 @@ SIGKILL), the snapshot says so, the commands are refused, and - for an operator 
 an Active session whose DAQ configuration it can read - the pumps are commanded to
 0 over a link of its own, as the loop process's parent does; the rig's watchdog is
 the last line.
+
+A private session's client (`private`, `quadtank --no-session`) is its session's
+only screen: it offers no lab session (nothing to detach from), its close stops
+the session, and then lets go of the session's lifeline (session/launch.py).
 """
 
 from __future__ import annotations
 
+import asyncio
 import itertools
+import os
+import select
 import socket
 import threading
 import time
 from concurrent.futures import Future
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Mapping
 
+import numpy as np
 
 from quadtank_tui.core.parameters import Parameters
-from quadtank_tui.engine.client_side import HeldLocally
 from quadtank_tui.engine.commands import Command, CommandResult
+from quadtank_tui.engine.handle import LabSession
 from quadtank_tui.engine.history import History
 from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.files.log import log_path
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.session.protocol import (
     MAX_SESSION_LINE, Ended, Hello, LineReader, ProtocolError, Refused, Result, Role, Roster, SessionInfo,
@@ -47,15 +59,19 @@ class SessionError(OSError):
     """The session could not be reached, or refused us; the message says why."""
 
 
-class SessionClient(HeldLocally):
-    """Implements :class:`quadtank_tui.engine.handle.EngineHandle` on a session.
+class SessionClient:
+    """Implements :class:`quadtank_tui.engine.handle.EngineHandle` on a session, and
+    :class:`~quadtank_tui.engine.handle.LabSession` on a lab session.
 
     path : the session's socket;  role : "operator" (drive it) or "observer"
     take_over : an administrator takes the operator's place
+    private : the session is this client's own (it stops when this client closes);
+        `let_go` is called once it has (the session's lifeline)
     """
 
     def __init__(self, path: str | Path, *, role: Role = "operator", take_over: bool = False,
-                 client: str = "tui", timeout: float = ATTACH_TIMEOUT) -> None:
+                 client: str = "tui", timeout: float = ATTACH_TIMEOUT, private: bool = False,
+                 let_go: Callable[[], None] | None = None) -> None:
         self.warnings: tuple[str, ...] = ()
         sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         sock.settimeout(timeout)
@@ -99,10 +115,17 @@ class SessionClient(HeldLocally):
         self._send_lock = threading.Lock()
         self._gone = threading.Event()
         self._closing = False
+        #: Who reads the socket: the thread, or (read_on) an event loop; one at a time
+        #: reads under _read_lock, so a handover in either direction loses nothing.
+        self._read_lock = threading.Lock()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._wake_r, self._wake_w = os.pipe()
         self.ended: str | None = None       # the session's own reason, when it stopped in order
         self.rescue: str | None = None
+        self.private = private
+        self._let_go = let_go
         #: What Exit chose: stop the session when this client closes (else detach).
-        self.stop_on_close = False
+        self.stop_on_close = private
         self._thread = threading.Thread(target=self._listen, name="quadtank-session-client", daemon=True)
         self._thread.start()
 
@@ -159,6 +182,44 @@ class SessionClient(HeldLocally):
         with self._send_lock:
             self._sock.sendall(encode(message))
 
+    def history(self, seconds: float | None = None) -> Mapping[str, np.ndarray]:
+        return self._history.last(seconds)
+
+    def defaults(self) -> Parameters:
+        return self._defaults
+
+    def par_names(self) -> list[str]:
+        return self._store.names()
+
+    def log_exists(self, name: str) -> bool:
+        return log_path(self._logs_dir, name).exists()
+
+    @property
+    def logs_dir(self) -> Path:
+        """The session's logs folder (the ghost run's window lists it)."""
+        return Path(self._logs_dir)
+
+    def lab_session(self) -> LabSession | None:
+        """This client's lab session; None for a private one (nothing to detach from)."""
+        return None if self.private else self
+
+    # --- LabSession ------------------------------------------------------------------------------
+
+    @property
+    def session_id(self) -> str:
+        return self.info.id
+
+    @property
+    def started(self) -> str:
+        return self.info.started
+
+    @property
+    def operating(self) -> bool:
+        return self.role == "operator"
+
+    def stop_on_exit(self) -> None:
+        self.stop_on_close = True
+
     # --- the session's side ----------------------------------------------------------------------
 
     @property
@@ -184,18 +245,52 @@ class SessionClient(HeldLocally):
         return f"session {self.info.id} of {self.info.owner}: {self.controller}; {you}"
 
     def _listen(self) -> None:
-        lines = self._pending
+        """The reader thread: until the session hangs up, or `read_on` hands the
+        reading to an event loop (a byte on the wake pipe)."""
+        with self._read_lock:
+            lines, self._pending = self._pending, []
+            ok = self._act_on(lines)
+        while ok:
+            try:
+                ready, _, _ = select.select([self._sock.fileno(), self._wake_r], [], [])
+            except (OSError, ValueError):
+                break
+            if self._wake_r in ready:
+                return  # handed over: the loop reads from here on
+            with self._read_lock:
+                ok = self._receive()
+        self._finish()
+
+    def _receive(self) -> bool:
+        """Act on what the socket holds now; False once the session hung up."""
         try:
-            while True:
-                for line in lines:
-                    self._handle(decode(line))
-                data = self._sock.recv(1 << 20)
-                if not data:
-                    break
-                lines = self._reader.feed(data)
-        except (OSError, ProtocolError):
-            pass
+            data = self._sock.recv(1 << 20, socket.MSG_DONTWAIT)
+        except (BlockingIOError, InterruptedError):
+            return True  # the other reader of a handover took it
+        except OSError:
+            return False
+        if not data:
+            return False
+        try:
+            lines = self._reader.feed(data)
+        except ProtocolError:
+            return False
+        return self._act_on(lines)
+
+    def _act_on(self, lines: list[bytes]) -> bool:
+        try:
+            for line in lines:
+                self._handle(decode(line))
+        except ProtocolError:
+            return False
+        return True
+
+    def _finish(self) -> None:
+        """The session hung up (or we did): the commands still waiting are refused;
+        an Active session that died without a word gets its pumps put at 0."""
         with self._lock:
+            if self._gone.is_set():
+                return
             self._gone.set()
             waiting, self._futures = list(self._futures.values()), {}
         for fut in waiting:
@@ -203,6 +298,50 @@ class SessionClient(HeldLocally):
                 fut.set_result(CommandResult.refused(f"session {self.info.id} is gone"))
         if self.ended is None and not self._closing:
             self._pumps_to_zero()
+
+    def read_on(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Read the session on `loop` (the screen's, from its own thread) instead of
+        this client's thread: one thread fewer between the session and the screen;
+        futures then complete on that loop's thread."""
+        if self._loop is not None or self._gone.is_set() or self._closing:
+            return
+        os.write(self._wake_w, b"!")
+        self._thread.join()
+        if self._gone.is_set():
+            return
+        self._loop = loop
+        loop.add_reader(self._sock.fileno(), self._readable)
+
+    def _readable(self) -> None:
+        with self._read_lock:
+            ok = self._receive()
+        if not ok and self._loop is not None:
+            self._loop.remove_reader(self._sock.fileno())
+            self._loop = None
+            # (pumps to 0 over a DAQ link of our own may take a timeout: not on the screen's thread)
+            threading.Thread(target=self._finish, name="quadtank-session-gone", daemon=True).start()
+
+    def _read_on_a_thread(self) -> None:
+        """Back from an event loop (it may be closed, or still running on another
+        thread) to a thread of this client's."""
+        loop, self._loop = self._loop, None
+        if loop is None:
+            return
+        fd = self._sock.fileno()
+        try:
+            if loop.is_running():
+                loop.call_soon_threadsafe(loop.remove_reader, fd)
+            elif not loop.is_closed():
+                loop.remove_reader(fd)
+        except (RuntimeError, ValueError, OSError):
+            pass  # closed meanwhile: its registrations went with it
+        try:
+            while os.read(self._wake_r, 512) and select.select([self._wake_r], [], [], 0)[0]:
+                pass
+        except OSError:
+            pass
+        self._thread = threading.Thread(target=self._listen, name="quadtank-session-client", daemon=True)
+        self._thread.start()
 
     def _handle(self, message: Any) -> None:
         if isinstance(message, Update):
@@ -263,6 +402,7 @@ class SessionClient(HeldLocally):
 
     def close(self) -> None:
         """Detach (or stop the session if `stop_on_close`); idempotent."""
+        self._read_on_a_thread()
         if self.stop_on_close and not self._gone.is_set():
             self.stop_session()
         self._closing = True
@@ -275,6 +415,14 @@ class SessionClient(HeldLocally):
             self._sock.close()
         except OSError:
             pass
+        for fd in (self._wake_r, self._wake_w):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self._wake_r = self._wake_w = -1
+        if self._let_go is not None:
+            self._let_go()
 
     def __enter__(self) -> SessionClient:
         return self

@@ -9,6 +9,14 @@ there, never on the socket), and waits on a pipe for "ready" with the session's
 record, or "failed" with why.  The session's stdout and stderr go to
 `<runtime>/<id>.out`, whose last line says why it stopped; it is kept with the
 session's ended record (runtime.ENDED_KEPT).
+
+A private session (`quadtank --no-session`) is the same process and protocol for
+one terminal: its socket, record and output live in a folder of its own (mode 0700)
+that `quadtank sessions` does not list, only its owner may connect, and it ends
+with the `quadtank` that started it - by that one's StopSession on Exit, or, when
+that process dies any way at all (killed, its terminal gone), by its lifeline: a
+pipe whose only writer is the launcher, read to its end by the session.  The rig's
+lock stays with the launcher, which watches it as the screen's own.
 """
 
 from __future__ import annotations
@@ -16,14 +24,16 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import shutil
 import subprocess
+import tempfile
 import sys
 import threading
 import time
 from dataclasses import asdict, dataclass, replace
 from datetime import datetime
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 from quadtank_tui.session.info import SessionInfo
 
@@ -63,6 +73,9 @@ class SessionSpec:
     runtime: str
     daq_config: str | None = None
     run: HeadlessArgs | None = None
+    #: One terminal's own session (`--no-session`): unlisted, its owner's only, it
+    #: ends with its launcher (see the module's docstring).
+    private: bool = False
 
 
 class Spawned:
@@ -70,21 +83,29 @@ class Spawned:
     interpreter importing numpy and the engine, about 0.3 s) while the launcher
     checks the files and loads the UI, then waits on its stdin for the spec.
     `send` hands it over and waits for "ready"; `cancel` ends it unseen (it
-    reads an empty spec and exits without a record)."""
+    reads an empty spec and exits without a record).
 
-    def __init__(self) -> None:
+    private : the process is given the read end of a lifeline whose write end only
+        this process holds (`let_go` closes it; so does this process's end)."""
+
+    def __init__(self, *, private: bool = False) -> None:
         r, w = os.pipe()
+        life_r, self._lifeline = os.pipe() if private else (-1, -1)
+        passed = (w, life_r) if private else (w,)
         try:
             self._proc = subprocess.Popen(
-                [sys.executable, "-m", "quadtank_tui.session.launch", str(w)],
+                [sys.executable, "-m", "quadtank_tui.session.launch", *map(str, passed)],
                 stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                pass_fds=(w,), start_new_session=True, close_fds=True,
+                pass_fds=passed, start_new_session=True, close_fds=True,
             )
         except OSError:
             os.close(r)
+            self.let_go()
             raise
         finally:
             os.close(w)
+            if life_r >= 0:
+                os.close(life_r)
         self._ready = r
         self._handed_over = False
         # Reap it whenever it ends, so a session that stops while we run is no zombie.
@@ -149,6 +170,7 @@ class Spawned:
             except OSError:
                 pass
         self._close_ready()
+        self.let_go()
 
     def _stop_handed_over(self) -> None:
         if self._ready < 0:
@@ -171,6 +193,20 @@ class Spawned:
         if self._ready >= 0:
             os.close(self._ready)
             self._ready = -1
+
+    def let_go(self) -> None:
+        """Close the lifeline: a private session stops (pumps at 0) on its own."""
+        if self._lifeline >= 0:
+            os.close(self._lifeline)
+            self._lifeline = -1
+
+    def wait_ended(self, timeout: float) -> bool:
+        """Whether the process has exited within `timeout` s."""
+        try:
+            self._proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            return False
+        return True
 
 
 def start_session(spec: SessionSpec, *, lock: RigLock | None = None,
@@ -202,8 +238,9 @@ def _read_reply(fd: int, timeout: float) -> bytes:
 # --- the session process -----------------------------------------------------------------------
 
 
-def session_main(ready_fd: int) -> int:
-    """Build the engine, take the DAQ's lock, listen, say ready, serve until stopped."""
+def session_main(ready_fd: int, lifeline: int = -1) -> int:
+    """Build the engine, take the DAQ's lock, listen, say ready, serve until stopped.
+    `lifeline`: a private session's (its launcher's end closing stops it)."""
     from quadtank_tui.engine.runner import assemble
     from quadtank_tui.session.host import Access, SessionHost
     from quadtank_tui.session.lab import load_lab_config
@@ -220,6 +257,8 @@ def session_main(ready_fd: int) -> int:
     ready = os.fdopen(ready_fd, "wb", buffering=0)
     lab = replace(load_lab_config(), runtime_dir=Path(spec.runtime))
     runtime = runtime_dir(lab.runtime_dir)
+    if spec.private:  # a folder of its own, unlisted, its owner's only; gone with the session
+        runtime = Path(tempfile.mkdtemp(prefix="private-", dir=runtime))
     uid = os.getuid()
     sid = claim_id(runtime, user_name(uid))
     out_path = output_of(runtime, sid)
@@ -241,7 +280,8 @@ def session_main(ready_fd: int) -> int:
             daq = open_daq(spec.daq_config, wired, quiet=True)  # the launcher said it; the record says it
             assert daq is not None
             c = daq.config
-            lock = RigLock.acquire(c.host, c.port, c.device_id, lab, session=sid)  # adopts the launcher's
+            if not spec.private:  # a private session's launcher keeps the lock (and watches it)
+                lock = RigLock.acquire(c.host, c.port, c.device_id, lab, session=sid)  # adopts the launcher's
         scripted = None
         if spec.run is not None:
             from quadtank_tui.engine.headless import prepare_headless
@@ -259,7 +299,7 @@ def session_main(ready_fd: int) -> int:
         # Every local user may connect and the session checks each one (Access):
         # a mode of 0660 with the share or admin group shut out a teacher outside
         # that group, and the group could not be set at all by an owner outside it.
-        listener = listen(str(sock_path), anyone=True)
+        listener = listen(str(sock_path), anyone=not spec.private)
         params = engine.loop.params
         plant = params.process.kind if params.process is not None else "quadtank"
         info = SessionInfo(id=sid, owner=user_name(uid), uid=uid, pid=os.getpid(),
@@ -267,9 +307,13 @@ def session_main(ready_fd: int) -> int:
                            socket=str(sock_path), cwd=os.getcwd(), daq=spec.daq_config or "",
                            headless=scripted is not None,
                            watchdog="" if daq is None else "device" if daq.config.watchdog else "none")
-        host = SessionHost(engine, listener, info, runtime=runtime, access=Access.for_lab(uid, lab),
+        access = Access(uid, is_admin=lambda peer: False) if spec.private else Access.for_lab(uid, lab)
+        host = SessionHost(engine, listener, info, runtime=runtime, access=access,
                            policy=lab.unattended, scripted=scripted)
         host.install_signal_handlers()
+        if lifeline >= 0:
+            threading.Thread(target=_hold_on, args=(lifeline, host.request_stop), name="quadtank-lifeline",
+                             daemon=True).start()
         if lock is not None:  # an administrator may take the rig over: then stop, pumps at 0
             from quadtank_tui.session.lockwatch import LockWatch
 
@@ -279,6 +323,8 @@ def session_main(ready_fd: int) -> int:
         if lock is not None:
             lock.release()
         remove_files(runtime, sid, output=True)  # it never ran: the launcher says why
+        if spec.private:
+            shutil.rmtree(runtime, ignore_errors=True)
         ready.write(f"failed {exc}".encode())
         ready.close()
         return 1
@@ -294,7 +340,20 @@ def session_main(ready_fd: int) -> int:
             lock.release()  # after the pumps went to 0
     # The reason is in the record too (SessionHost); here it is the output's last line.
     print(f"{datetime.now():%Y-%m-%d %H:%M:%S} session {sid} stopped: {reason}", flush=True)
+    if spec.private:  # its client heard why (Ended); nobody else will look
+        shutil.rmtree(runtime, ignore_errors=True)
     return 0
+
+
+def _hold_on(lifeline: int, stop: Callable[[str], None]) -> None:
+    """Wait for the lifeline's end (its launcher closed it, or exited, killed or not),
+    then stop the session: pumps at 0, log kept."""
+    try:
+        while os.read(lifeline, 512):
+            pass
+    except OSError:
+        pass
+    stop("its terminal's quadtank ended")
 
 
 def _redirect_stdio(out_path: Path) -> None:
@@ -308,4 +367,4 @@ def _redirect_stdio(out_path: Path) -> None:
 
 
 if __name__ == "__main__":  # pragma: no cover - the session process
-    raise SystemExit(session_main(int(sys.argv[1])))
+    raise SystemExit(session_main(*map(int, sys.argv[1:3])))

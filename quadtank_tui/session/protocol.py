@@ -31,8 +31,6 @@ import numpy as np
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine import commands as engine_commands
 from quadtank_tui.engine.commands import Command, CommandResult
-# A command and its answer, by id: the same on the session's socket as on the loop process's pipe.
-from quadtank_tui.engine.messages import Result, Submit
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.session.info import SessionInfo
 
@@ -75,6 +73,22 @@ class Hello:
             raise ValueError("client must be a short string")
         if not isinstance(self.take_over, bool):
             raise ValueError("take_over must be true or false")
+
+
+@dataclass(frozen=True)
+class Submit:
+    """Apply `command` between samples and answer with a :class:`Result` of the same id."""
+
+    id: int
+    command: Command
+
+
+@dataclass(frozen=True)
+class Result:
+    """What became of the :class:`Submit` with this `id`."""
+
+    id: int
+    result: CommandResult
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,8 @@ class QuadTankApp(OrderedKeys):
                 Binding("f1", "help", "Help", show=False, priority=True)]
 
     def __init__(self, engine: EngineHandle, *, refresh_interval: float = 0.05,
-                 wall_clock: Callable[[], float] = time.monotonic, resume_gc: bool = False) -> None:
+                 wall_clock: Callable[[], float] = time.monotonic, resume_gc: bool = False,
+                 read_on: Callable[[asyncio.AbstractEventLoop], None] | None = None) -> None:
         # NO_COLOR (no-color.org): Textual then strips every colour (its NoColor
         # filter) only with native ANSI colours; otherwise it paints in greys.
         super().__init__(ansi_color=True if "NO_COLOR" in os.environ else None)
@@ -50,6 +51,7 @@ class QuadTankApp(OrderedKeys):
         self._exit_lock = threading.Lock()
         self._early_exit: int | None = None
         self._resume_gc = resume_gc
+        self._read_on = read_on
 
     def on_mount(self) -> None:
         with self._exit_lock:
@@ -58,6 +60,8 @@ class QuadTankApp(OrderedKeys):
         if early is not None:
             self.exit(None, early)
             return
+        if self._read_on is not None:  # the session's client reads on this loop from now on
+            self._read_on(self._aloop)
         self.push_screen(self.main)
         self._check_size()
         if self._resume_gc:
@@ -150,9 +154,12 @@ def resume_gc() -> None:
 
 
 def build_app(engine: EngineHandle, *, refresh_interval: float = 0.05,
-              wall_clock: Callable[[], float] = time.monotonic, resume_gc: bool = False) -> QuadTankApp:
+              wall_clock: Callable[[], float] = time.monotonic, resume_gc: bool = False,
+              read_on: Callable[[asyncio.AbstractEventLoop], None] | None = None) -> QuadTankApp:
     """The app on `engine`; `refresh_interval` is the UI timer in seconds (raise it
     on a slow link); `wall_clock` is injected so tests are deterministic;
     `resume_gc`: the caller paused the garbage collector for the start
-    (commands.pause_gc)."""
-    return QuadTankApp(engine, refresh_interval=refresh_interval, wall_clock=wall_clock, resume_gc=resume_gc)
+    (commands.pause_gc); `read_on`: given the app's event loop once it runs (a
+    session client then reads its socket there: session/client.py read_on)."""
+    return QuadTankApp(engine, refresh_interval=refresh_interval, wall_clock=wall_clock, resume_gc=resume_gc,
+                       read_on=read_on)

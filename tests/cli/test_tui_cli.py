@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import pytest
 
+import time
+from pathlib import Path
+
 from quadtank_tui.cli import build_parser, build_tui, main
-from quadtank_tui.engine.process import EngineProcess
-from quadtank_tui.engine.runner import Engine
+from quadtank_tui.engine.handle import lab_session_of
+from quadtank_tui.session.runtime import list_sessions, pid_alive
 
 
 @pytest.mark.parametrize("argv, word", [
@@ -33,14 +36,35 @@ def test_tui_options_do_not_shadow_run_options() -> None:
     assert (args.tui_par, args.par) == ("minphase", "nonminphase")
 
 
-@pytest.mark.parametrize("loop, kind", [([], EngineProcess), (["--loop", "thread"], Engine)])
-def test_the_tui_runs_the_simulator_on_a_virtual_clock(loop: list[str], kind: type) -> None:
-    engine, app = build_tui(build_parser().parse_args(["--speed", "4", "--refresh", "0.2", *loop]))
+def test_loop_thread_is_gone(capsys: pytest.CaptureFixture[str]) -> None:
+    """One way to run the loop in a terminal: a session (lab or private)."""
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["--loop", "thread"])
+    assert "--loop" not in build_parser().format_help()
+
+
+def test_no_session_is_a_private_session_on_a_virtual_clock(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """--no-session: the session process and protocol, for this terminal alone: not
+    listed, nothing to detach from (Exit stops it), gone with its client."""
+    runtime = tmp_path / "run"
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
+    monkeypatch.chdir(tmp_path)
+    engine, app = build_tui(build_parser().parse_args(["--no-session", "--speed", "4", "--refresh", "0.2"]))
     try:
-        assert isinstance(engine, kind)  # its own process unless asked otherwise
         s = engine.snapshot()
         assert (s.operation, s.state, s.control) == ("Simul", "Pause", "Manual")
         assert not s.realtime and s.speed == 4.0 and not s.active_available
         assert app.main.refresh_interval == 0.2
+        assert list_sessions(runtime) == [] and lab_session_of(engine) is None
+        (folder,) = runtime.iterdir()  # its own, the owner's only
+        assert folder.name.startswith("private-") and folder.stat().st_mode & 0o777 == 0o700
+        assert Path(engine.info.socket).parent == folder and Path(engine.info.socket).stat().st_mode & 0o777 == 0o600
+        pid = engine.info.pid
     finally:
         engine.stop()
+    assert engine.ended == "stopped by " + engine.info.owner
+    deadline = time.monotonic() + 30
+    while pid_alive(pid) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert not pid_alive(pid)
+    assert sorted(runtime.iterdir()) == []  # its socket, record and output went with it

@@ -61,3 +61,29 @@ def test_a_hang_up_under_active_puts_the_rigs_pumps_at_0(
         tui.kill()
         if session is not None and pid_alive(session.pid):
             stop_session_at(session.socket)
+
+
+def test_a_private_session_puts_the_rigs_pumps_at_0_when_its_tui_is_killed(
+        tmp_path: Path, rig: Callable[..., Any], poll: Callable[..., bool], pty_kit: Any) -> None:
+    """`quadtank --no-session --daq`: the loop is in a private session, which ends
+    with its terminal's TUI even when that one is killed outright (SIGKILL: no
+    clean-up of its own; the session's lifeline ends), with the rig's pumps at 0
+    and no process left.  (A hang-up, SIGHUP, SIGTERM: tests/ui/test_terminal_hangup.py.)"""
+    kit = pty_kit
+    r = rig("--watchdog", "0")  # the rig's own last line off: the 0 must come from the session
+    runtime = tmp_path / "run"
+    tui = kit.Tui(tmp_path, args=("--no-session", "--daq", str(_config_for(r, tmp_path))),
+                  env={"QUADTANK_RUNTIME": str(runtime)})
+    try:
+        pid = tui.wait_started()
+        tree = kit._tree(pid)
+        assert len(tree) == 2 and list_sessions(runtime) == []  # the TUI and its unlisted session
+        for key in (b"A", b"r"):  # Active, Run (Manual at 0.3 of full scale: both pumps on)
+            os.write(tui.master, key)
+            time.sleep(0.3)
+        assert poll(lambda: min(r.dacs()) > 0.5, 60.0), f"the pumps never ran: {r.dacs()}"
+        os.kill(pid, 9)
+        kit._wait_gone(tree, kit.GONE_WITHIN)
+        assert poll(lambda: r.dacs() == (0.0, 0.0), 60.0), f"pumps still at {r.dacs()} after the kill"
+    finally:
+        tui.kill()

@@ -23,10 +23,11 @@ from quadtank_tui.engine.commands import LogOn, LogSave, SavePar, SetOperation, 
 from quadtank_tui.engine.filework import FileWorker
 from quadtank_tui.engine.headless import run_headless
 from quadtank_tui.engine.logsession import LogExists, LogSession
-from quadtank_tui.engine.process import EngineProcess
 from quadtank_tui.engine.runner import Engine, engine_spec
 from quadtank_tui.files.log import read_log
 from quadtank_tui.files.par import read_par
+from quadtank_tui.session.client import SessionClient
+from quadtank_tui.session.launch import SessionSpec, Spawned
 
 MakeEngine = Callable[..., Engine]
 
@@ -211,13 +212,15 @@ def test_a_real_time_run_whose_disk_fills_on_the_writer_thread_exits_non_zero(
     assert read_log(tmp_path / "full.log").rows == 10
 
 
-def _loop_process(tmp_path: Path) -> EngineProcess:
-    e = EngineProcess(engine_spec(clock="virtual", speed=1000.0, params_dir=tmp_path / "params",
-                                  logs_dir=tmp_path / "logs"))
+def _private_session(tmp_path: Path) -> tuple[SessionClient, Spawned]:
+    """A private session (`quadtank --no-session`) logging and running at x1000."""
+    spawned = Spawned(private=True)
+    spec = engine_spec(clock="virtual", speed=1000.0, params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
+    info = spawned.send(SessionSpec(spec, os.environ["QUADTANK_RUNTIME"], private=True))
+    e = SessionClient(info.socket, private=True, let_go=spawned.let_go)
     for c in (LogOn(), SetState("Run")):
         assert e.submit(c).result(timeout=10).ok
-    e.start()
-    return e
+    return e, spawned
 
 
 def _wait_for(condition: Callable[[], bool], timeout: float = 60.0) -> None:
@@ -227,23 +230,24 @@ def _wait_for(condition: Callable[[], bool], timeout: float = 60.0) -> None:
         time.sleep(0.01)
 
 
-def test_the_loop_process_stopping_writes_every_row_it_took(tmp_path: Path) -> None:
-    """The parent goes away: the child's stop drains the writer thread, so the
-    partial file holds exactly the rows the last snapshot counts."""
-    e = _loop_process(tmp_path)
+def test_a_private_session_whose_screen_goes_writes_every_row_it_took(tmp_path: Path) -> None:
+    """The screen's process goes away (its lifeline ends): the session's stop drains
+    the writer thread, so the partial file holds exactly the rows the last snapshot
+    counts."""
+    e, spawned = _private_session(tmp_path)
     try:
         _wait_for(lambda: e.snapshot().log.rows > 300)
-        e._inbox.close()  # the parent's end of the pipe closes: the child stops, pumps at 0
-        e._proc.join(timeout=60)
+        spawned.let_go()  # as the screen's process ending does: the session stops, pumps at 0
+        assert e.wait_gone(60) and spawned.wait_ended(60)
         s = e.snapshot()
         log = read_log(tmp_path / "logs" / "data.log.partial")
         assert s.log.unsaved and log.rows == s.log.rows > 300 and log.warnings == ()
     finally:
-        e.stop()
+        e.close()
 
 
-def test_a_loop_process_killed_while_logging_leaves_whole_rows(tmp_path: Path) -> None:
-    e = _loop_process(tmp_path)
+def test_a_session_process_killed_while_logging_leaves_whole_rows(tmp_path: Path) -> None:
+    e, spawned = _private_session(tmp_path)
     try:
         _wait_for(lambda: e.snapshot().log.rows > 300)
         taken = e.snapshot().log.rows
@@ -253,14 +257,12 @@ def test_a_loop_process_killed_while_logging_leaves_whole_rows(tmp_path: Path) -
         # a kill must not lose or tear.
         partial = tmp_path / "logs" / "data.log.partial"
         _wait_for(lambda: read_log(partial).rows >= taken)
-        pid = e._proc.pid
-        assert pid is not None
-        os.kill(pid, signal.SIGKILL)
-        _wait_for(lambda: not e.running)
+        os.kill(spawned.pid, signal.SIGKILL)
+        assert e.wait_gone(60)
         log = read_log(partial)
         assert log.rows >= taken and log.warnings == ()  # no torn row, nothing handed over lost
     finally:
-        e.stop()
+        e.close()
 
 
 def test_a_refused_save_on_the_thread_leaves_the_log_unsaved_before_it_answers(tmp_path: Path) -> None:

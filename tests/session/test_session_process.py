@@ -77,16 +77,13 @@ def test_a_killed_session_is_reported_by_its_client(tmp_path: Path) -> None:
 
 
 def test_quadtank_stop_leaves_no_process_nor_socket_and_says_why(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                             capsys: pytest.CaptureFixture[str], pty_kit: Any) -> None:
+                                             capsys: pytest.CaptureFixture[str]) -> None:
     runtime = tmp_path / "run"
     monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
     info = _start(tmp_path, runtime)
     # Any local user may reach the socket and the session decides who is let in (a
     # mode naming one group shut out a teacher outside it; tried with real users).
     assert stat.S_IMODE(os.stat(info.socket).st_mode) == 0o666
-    # The session's trends travel on its socket: it maps no shared memory at all
-    # (/dev/shm is the machine's: other programs' blocks are none of our business).
-    assert pty_kit._shared_blocks([info.pid]) == set()
     with SessionClient(info.socket) as client:
         assert client.submit(c.SetState("Run")).result(30).ok
         assert client.submit(c.LogOn(points=100000)).result(30).ok

@@ -109,3 +109,36 @@ def _stop_from_outside(s: ThreadSession, client: SessionClient, reason: str) -> 
     s.host.request_stop(reason)
     s.thread.join(30)
     assert client.wait_gone(30)
+
+
+async def test_the_screen_reads_its_session_on_its_own_loop_and_the_thread_comes_back_to_stop_it(
+        thread_session) -> None:
+    """read_on: no thread of the client's between the session and the screen - the
+    updates and a key's answer are read on the app's event loop (the future
+    completes on its thread); after the app is gone, closing reads on a thread
+    again to hear the session stop."""
+    import threading
+
+    s: ThreadSession = thread_session(speed=1.0)  # see IDLE
+    client = SessionClient(s.path)
+    app = build_app(client, refresh_interval=0.05, read_on=client.read_on)
+    ui = threading.get_ident()
+    answered: list[int] = []
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        assert not any(t.name == "quadtank-session-client" for t in threading.enumerate())
+        fut = client.submit(c.SetState("Run"))
+        fut.add_done_callback(lambda f: answered.append(threading.get_ident()))
+        end = time.monotonic() + 30
+        while not (fut.done() and app.main.snap.state == "Run" and client.snapshot().t > 0.3):
+            assert time.monotonic() < end, "the session's answer or updates never came"
+            await pilot.pause(0.05)
+        assert answered == [ui] and fut.result().ok
+        await pilot.press("q")
+        await pilot.pause()
+        await pilot.click("#choice-1")  # "Stop the session"
+        await pilot.pause()
+    client.close()  # the app's loop is gone: a thread hears the session stop
+    assert client.gone and client.ended == "stopped by alice"
+    s.thread.join(10)
+    assert s.reason == "stopped by alice"

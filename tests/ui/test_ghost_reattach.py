@@ -18,10 +18,22 @@ from quadtank_tui.ui.ghost.window import GhostWindow
 
 
 class Attached:
-    """The engine as a session client shows it: with the session's record."""
+    """The engine as a lab session's client shows it: it offers the session
+    (engine.handle.LabSession), whose id and start are those of `info`."""
 
     def __init__(self, engine: Recording, info: SessionInfo) -> None:
         self.engine, self.info = engine, info
+        self.session_id, self.started = info.id, info.started
+        self.operating, self.gone, self.ended, self.policy = True, False, None, ""
+
+    def lab_session(self) -> Attached:
+        return self
+
+    def session_banner(self) -> str:
+        return f"session {self.info.id} of {self.info.owner}"
+
+    def stop_on_exit(self) -> None:
+        pass
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.engine, name)

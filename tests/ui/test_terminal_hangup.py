@@ -1,13 +1,13 @@
 """The TUI in a real pseudo-terminal: losing the terminal ends it, and its loop.
 
-`quadtank` (the simulator) runs in a pty as in a terminal window.  The terminal then
-goes away the ways it does in a lab: hung up under a shell that keeps the SIGHUP to
-itself (`ssh -t host 'make run'` whose link drops, a tmux window killed: make is the
-session leader and only it is signalled), SIGHUP, SIGTERM.  The whole process tree
-(the TUI, the loop process, multiprocessing's helper) must be gone within a
-bounded time, the shared-memory block must not outlive it, the exit status must say
-why, and a terminal that is still there must be given back as it was (alternate
-screen and mouse tracking off).  A crash must exit non-zero.
+`quadtank --no-session` (the simulator, on a private session) runs in a pty as in a
+terminal window.  The terminal then goes away the ways it does in a lab: hung up
+under a shell that keeps the SIGHUP to itself (`ssh -t host 'make run'` whose link
+drops, a tmux window killed: make is the session leader and only it is signalled),
+SIGHUP, SIGTERM (SIGKILL, on a rig: tests/daq/test_active_hangup.py).  The whole process tree (the TUI, its private session)
+must be gone within a bounded time, the session's private folder with it, the exit
+status must say why, and a terminal that is still there must be given back as it
+was (alternate screen and mouse tracking off).  A crash must exit non-zero.
 """
 
 from __future__ import annotations
@@ -28,6 +28,8 @@ from typing import Any
 
 import pytest
 
+from quadtank_tui.session.runtime import list_sessions
+
 pytestmark = [pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and Linux ptys"),
               pytest.mark.wallclock]
 
@@ -35,7 +37,7 @@ ROOT = Path(__file__).parents[2]
 #: Seconds the tree may take to go once the terminal is gone (the program's own bound
 #: is about 1 s; the rest is margin for a loaded 2-core machine).
 GONE_WITHIN = 15.0
-#: Seconds the TUI may take to start (Textual, and a loop process that imports numpy).
+#: Seconds the TUI may take to start (Textual, and a session process that imports numpy).
 START_WITHIN = 90.0
 
 ALT_ON, ALT_OFF = b"\x1b[?1049h", b"\x1b[?1049l"
@@ -87,7 +89,7 @@ class Tui:
             self.output += data
 
     def wait_started(self) -> int:
-        """Wait for the screen and the loop process; the TUI's pid (under the shell or not)."""
+        """Wait for the screen and the session process; the TUI's pid (under the shell or not)."""
         deadline = time.monotonic() + START_WITHIN
         while time.monotonic() < deadline:
             tui = self.tui_pid()
@@ -101,7 +103,6 @@ class Tui:
     def started_session(self, runtime: Path) -> tuple[int, Any]:
         """Wait for the screen; (the TUI's pid, the one session in `runtime`, which
         it started and attached to)."""
-        from quadtank_tui.session.runtime import list_sessions
 
         pid = self.wait_started()
         sessions = list_sessions(runtime)
@@ -175,20 +176,6 @@ def _alive(pid: int) -> bool:
     return stat.rsplit(")", 1)[1].split()[0] != "Z"
 
 
-def _shared_blocks(pids: list[int]) -> set[str]:
-    """The shared-memory files the processes have mapped."""
-    found = set()
-    for pid in pids:
-        try:
-            maps = Path(f"/proc/{pid}/maps").read_text()
-        except OSError:
-            continue
-        for line in maps.splitlines():
-            if "quadtank-" in line and line.rstrip().endswith((".shm", ".shm (deleted)")):
-                found.add(line.split(None, 5)[5].removesuffix(" (deleted)"))
-    return found
-
-
 def _wait_gone(pids: list[int], within: float) -> float:
     """Seconds until none of `pids` runs; fails after `within`."""
     start = time.monotonic()
@@ -208,11 +195,13 @@ def _wait_gone(pids: list[int], within: float) -> float:
 def test_losing_the_terminal_ends_the_tui_and_its_loop(tmp_path: Path, how: str, shell: bool,
                                                        status: int | None) -> None:
     tui = Tui(tmp_path, shell=shell)
+    runtime = Path(os.environ["QUADTANK_RUNTIME"])
     try:
         pid = tui.wait_started()
         tree = _tree(tui.proc.pid)
-        assert len(tree) >= (4 if shell else 3), tree  # (sh,) TUI, loop process, resource tracker
-        blocks = _shared_blocks(tree)
+        assert len(tree) == (3 if shell else 2), tree  # (sh,) the TUI, its private session
+        assert list_sessions(runtime) == []  # private: not listed
+        (folder,) = [p for p in runtime.iterdir() if p.name.startswith("private-")]
         if how.startswith("hang-up"):
             tui.hang_up()
         else:
@@ -222,7 +211,7 @@ def test_losing_the_terminal_ends_the_tui_and_its_loop(tmp_path: Path, how: str,
         code = tui.proc.wait(timeout=5)
         if status is not None:
             assert code == status
-        assert not [b for b in blocks if os.path.exists(b)]
+        assert not folder.exists()
         if tui.master is not None:  # the terminal is still there: given back as it was
             output = tui.drained()
             tail = output[output.rfind(ALT_ON):]

@@ -17,6 +17,7 @@ from typing import Any, Protocol
 
 from textual.app import App
 
+from quadtank_tui.engine.handle import EngineHandle, lab_session_of
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.ghost import LoggedRun, load_run, logs_newest_first
 from quadtank_tui.files.ghost_memory import RememberedGhost, recall, remember
@@ -29,7 +30,7 @@ class GhostHost(Protocol):
     depends on it."""
 
     @property
-    def engine(self) -> object: ...  # read-only: any engine handle (the screen's is an EngineHandle)
+    def engine(self) -> EngineHandle: ...  # read-only
 
     @property
     def app(self) -> App[Any]: ...
@@ -74,7 +75,7 @@ class GhostControl:
         self._rows = log.rows
 
     def folder(self) -> Path:
-        return Path(getattr(self.screen.engine, "logs_dir", "logs"))
+        return Path(self.screen.engine.logs_dir)
 
     def choose(self) -> None:
         now = self.screen.current().t
@@ -83,10 +84,9 @@ class GhostControl:
 
     def session(self) -> str | None:
         """The key the ghost is remembered under: the session's id and start, when
-        the screen shows a session (its engine is a session client), else None."""
-        info = getattr(self.screen.engine, "info", None)
-        ident, started = getattr(info, "id", None), getattr(info, "started", None)
-        return f"{ident} {started}" if isinstance(ident, str) and isinstance(started, str) else None
+        the screen shows a lab session (its handle offers one), else None."""
+        session = lab_session_of(self.screen.engine)
+        return f"{session.session_id} {session.started}" if session is not None else None
 
     def restore(self) -> None:
         """Draw again the ghost this user showed on this session (a re-attach)."""

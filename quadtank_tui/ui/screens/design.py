@@ -549,7 +549,7 @@ class DesignScreen(CommandSender):
         if not loops:
             self.notify("choose a controller first (Enter on a row, or 2)", severity="warning")
             return
-        export(self, Path(getattr(self.engine, "logs_dir", "logs")), "design",
+        export(self, Path(self.engine.logs_dir), "design",
                design_builder(loops, f"models: {self.source}"))
 
     def _status(self, text: str, *, error: bool = False) -> None:

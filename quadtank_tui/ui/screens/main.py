@@ -29,7 +29,7 @@ from quadtank_tui.engine.commands import (
     SetOperation, SetParams, SetSpeed, SetState,
 )
 from quadtank_tui.engine.clock import next_speed
-from quadtank_tui.engine.handle import EngineHandle
+from quadtank_tui.engine.handle import EngineHandle, LabSession, lab_session_of
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
 from quadtank_tui.ui.asked_speed import AskedSpeed
 from quadtank_tui.ui.screens.sending import CommandSender
@@ -184,8 +184,8 @@ class MainScreen(CommandSender):
         yield Footer()
 
     def _session_banner(self) -> str | None:
-        banner = getattr(self.engine, "session_banner", None)
-        return banner() if callable(banner) else None
+        session = lab_session_of(self.engine)
+        return session.session_banner() if session is not None else None
 
     def on_mount(self) -> None:
         # The widgets the timer feeds, found once: a DOM query costs milliseconds,
@@ -502,7 +502,7 @@ class MainScreen(CommandSender):
         snap, window = self.snap, WINDOWS[self.window_index]
         build = trends_builder(self.engine.history(window + self.trend_offset), (snap.params.plots.upper,
                                snap.params.plots.lower), window, self.trend_offset, snap.params, self.physical)
-        export(self, Path(getattr(self.engine, "logs_dir", "logs")), "trends", build)
+        export(self, Path(self.engine.logs_dir), "trends", build)
 
     # --- logging (M8) and exit (M9) ---------------------------------------------------
 
@@ -534,33 +534,28 @@ class MainScreen(CommandSender):
         from quadtank_tui.ui.screens.identify import IdentifyScreen
 
         # The engine's logs folder (a session's, wherever this terminal started), as
-        # the ghost window lists; ./logs only for an engine that names none.
-        logs = getattr(self.engine, "logs_dir", "logs")
+        # the ghost window lists.
+        logs = self.engine.logs_dir
         self.app.push_screen(IdentifyScreen(logs, last_log=self.current().log.saved_path, engine=self.engine))
 
     def action_exit(self) -> None:
         """Exit, asking first; an unsaved log is saved by default (Enter), never
         thrown away without a second choice.  On a lab session: detach (it keeps
         running, as its policy says) or stop it."""
-        if self._session_banner() is not None:
-            self._exit_session()
+        session = lab_session_of(self.engine)
+        if session is not None:
+            self._exit_session(session)
             return
         self._exit_stopping(confirm=True)
 
-    def _exit_session(self) -> None:
-        from quadtank_tui.session.client import SessionClient  # loaded already: the engine is one
-
-        engine = self.engine
-        if not isinstance(engine, SessionClient):  # a banner without a session: an ordinary exit
-            self._exit_stopping(confirm=True)
-            return
-        sid = engine.info.id
+    def _exit_session(self, engine: LabSession) -> None:
+        sid = engine.session_id
         if engine.gone:  # it ended (or died): nothing of it to stop, and its id is no one else's to offer
             why = engine.ended or "its process is gone"
             self.app.push_screen(ConfirmWindow("Exit", f"Session {sid} has ended: {why}.\nExit?", yes="Exit"),
                                  lambda yes: self.app.exit() if yes else None)
             return
-        if engine.role != "operator":
+        if not engine.operating:
             self.app.push_screen(ConfirmWindow("Exit", f"Stop watching session {sid} and exit?\n"
                                                "It keeps running.", yes="Exit"),
                                  lambda yes: self.app.exit() if yes else None)
@@ -579,7 +574,7 @@ class MainScreen(CommandSender):
                 self._exit_stopping(confirm=False, leave=stop_and_exit)
 
         def stop_and_exit() -> None:
-            engine.stop_on_close = True  # the CLI stops it once the app is down
+            engine.stop_on_exit()  # the CLI stops it once the app is down
             self.app.exit()
 
         self.app.push_screen(ChoiceWindow("Exit", question, choices), answered)
