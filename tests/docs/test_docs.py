@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import pkgutil
 import re
 from collections.abc import Iterator
 from pathlib import Path
@@ -147,15 +146,21 @@ SPELLING = {
 
 
 def _subclasses(cls: type) -> Iterator[type]:
+    sub: type
     for sub in cls.__subclasses__():
         yield sub
         yield from _subclasses(sub)
 
 
 def bound_classes() -> dict[str, list[Binding]]:
-    """Every class of the interface that declares BINDINGS -> its own bindings."""
-    for module in pkgutil.walk_packages(quadtank_tui.ui.__path__, "quadtank_tui.ui."):
-        importlib.import_module(module.name)
+    """Every class of the interface that declares BINDINGS -> its own bindings.
+    Only the modules whose text says BINDINGS are imported (the others, such as the
+    design preview with python-control, take seconds and declare none)."""
+    package = Path(quadtank_tui.ui.__file__).parent
+    for source in sorted(package.rglob("*.py")):
+        if "BINDINGS" in source.read_text():
+            parts = source.relative_to(package).with_suffix("").parts
+            importlib.import_module(".".join(("quadtank_tui.ui", *parts)).removesuffix(".__init__"))
     found: dict[str, list[Binding]] = {}
     for cls in set(_subclasses(DOMNode)):
         if cls.__module__.startswith("quadtank_tui.") and cls.__dict__.get("BINDINGS"):
