@@ -186,7 +186,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--par", metavar="FILE", help="parameters: a .par file or a name in params/ "
                    "(default: params/default.par, else the built-in values)")
-    p.add_argument("--script", metavar="EXP.yaml", help="timed events (see README, Headless experiments)")
+    p.add_argument("--script", metavar="EXP.yaml", help="timed events (see docs/headless.md)")
     p.add_argument("--duration", metavar="SECONDS", type=float,
                    help="length of the run, s (needed but with --inputs-from)")
     p.add_argument("--inputs-from", metavar="LOG",

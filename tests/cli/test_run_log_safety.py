@@ -86,7 +86,7 @@ def test_a_run_saving_the_same_log_meanwhile_is_not_overwritten(
 
 def test_without_a_script_every_sample_is_logged_beyond_the_points_limit(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The README's promise: a run without a script logs every sample.  With the
+    """docs/headless.md's promise: a run without a script logs every sample.  With the
     Logging window's limit lowered to 5,000 (it is 100,000: 8 h at 50 ms is 576,000
     samples; 11 s to run), a 6,000-sample run still logs 6,000 rows."""
     monkeypatch.setattr(parameter_settings, "POINTS_MAX", 5000)

@@ -1,4 +1,4 @@
-"""Model files: what identification writes and design reads (formats as README says)."""
+"""Model files: what identification writes and design reads (the formats docs/identification.md states)."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ import pytest
 
 from quadtank_tui.session.policy import UnattendedPolicy, describe, unattended_action
 
-DEFAULT = UnattendedPolicy(keep_while_logging=True, grace_minutes=10)  # the README's example
+DEFAULT = UnattendedPolicy(keep_while_logging=True, grace_minutes=10)  # docs/sessions.md's lab file example
 STRICT = UnattendedPolicy(keep_while_logging=False, grace_minutes=0)
 GRACE_ONLY = UnattendedPolicy(keep_while_logging=False, grace_minutes=5)
 
