@@ -1,12 +1,10 @@
 """Loop timing: the real-time clock at 50 ms and 10 ms while the same process renders.
 
-    .venv/bin/python benchmarks/loop_timing.py [--seconds 60] [--runner process|thread|both]
-                                               [--switch-interval MS] [--log]
+    .venv/bin/python benchmarks/loop_timing.py [--seconds 60] [--switch-interval MS] [--log]
 
 For each period the engine (real-time clock, simulator, PI in Automatic) runs for
-`--seconds`, in its own process as the TUI runs it (`process`) and on a thread of
-this process (`thread`, the TUI's `--loop thread`), while another thread of this
-process does UI-like work: building plotext charts of 4 series at 20 Hz.  Three
+`--seconds` on a thread of this process (`Engine.start`: the driver on a thread,
+the TUI's `--loop thread`), while another thread of this process does UI-like work: building plotext charts of 4 series at 20 Hz.  Three
 loads: none (the clock alone), 4 x 200 points (5000 samples decimated to a
 terminal's width, what a trend widget should draw) and 4 x 5000 points (the issue's
 load: one such frame takes far longer than 50 ms in pure Python, so that thread
@@ -17,13 +15,13 @@ The 10 ms clock is below the interface's 50 ms minimum sampling time: it stresse
 the scheduler only (the simulator still advances the 50 ms sampling time per
 sample).  `--log` logs every sample to a `.log` in a temporary folder meanwhile (the
 disk's part: rows written as they come, fsynced each second).  Figures are printed,
-not asserted.
+not asserted.  The loop in a process of its own, as the TUI runs it (a session),
+is benchmarks/session_timing.py's.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
 import sys
 import tempfile
 import threading
@@ -36,8 +34,7 @@ import plotext
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from quadtank_tui.engine.commands import LogOn, SetControlMode, SetParams, SetState  # noqa: E402
-from quadtank_tui.engine.process import EngineProcess  # noqa: E402
-from quadtank_tui.engine.runner import REALTIME_SWITCH_INTERVAL, Engine, build_engine, engine_spec  # noqa: E402
+from quadtank_tui.engine.runner import REALTIME_SWITCH_INTERVAL, Engine, build_engine  # noqa: E402
 
 POINTS = 5000
 UI_HZ = 20.0
@@ -65,9 +62,7 @@ def ui_work(stop: threading.Event, frames: list[float], points: int) -> None:
 
 
 def prepare(period: float, log: bool, engine: Engine) -> None:
-    """Simulator, PI in Automatic on a moving reference, clock at `period`, logging
-    if `log` (run in the loop's own process when it has one, so it must be a
-    module-level function)."""
+    """Simulator, PI in Automatic on a moving reference, clock at `period`, logging if `log`."""
     engine.submit(SetParams({"SAMPLING TIME.TSamp": 50, "REFERENCE ONE.On": 1,
                              "REFERENCE ONE.Amplitude": 0.05, "REFERENCE ONE.Period": 20}))
     engine.submit(SetState("Run"))
@@ -77,15 +72,10 @@ def prepare(period: float, log: bool, engine: Engine) -> None:
     engine.clock.set_period(period)  # after the last command (commands resync it to TSamp)
 
 
-def measure(runner: str, period: float, seconds: float, points: int, log: bool = False) -> dict[str, float]:
+def measure(period: float, seconds: float, points: int, log: bool = False) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as tmp:
-        dirs = {"params_dir": Path(tmp), "logs_dir": Path(tmp)}
-        engine: Engine | EngineProcess
-        if runner == "process":
-            engine = EngineProcess(engine_spec(clock="realtime", **dirs), setup=functools.partial(prepare, period, log))
-        else:
-            engine = build_engine(clock="realtime", **dirs)
-            prepare(period, log, engine)
+        engine = build_engine(clock="realtime", params_dir=Path(tmp), logs_dir=Path(tmp))
+        prepare(period, log, engine)
         stop = threading.Event()
         frames: list[float] = []
         ui = threading.Thread(target=ui_work, args=(stop, frames, points), daemon=True)
@@ -110,11 +100,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--switch-interval", type=float, default=None, metavar="MS",
-                    help="override the GIL switch interval the engine sets in this process "
-                    "(ms; the thread runner only)")
-    ap.add_argument("--runner", choices=("process", "thread", "both"), default="both",
-                    help="the loop in its own process (what the TUI uses), in a thread of "
-                    "this one, or both (default)")
+                    help="override the GIL switch interval the engine sets in this process (ms)")
     ap.add_argument("--log", action="store_true", help="log every sample to a temporary .log meanwhile")
     args = ap.parse_args()
     print(f"real-time clock, {args.seconds:g} s per run; UI load: another thread of this process "
@@ -124,19 +110,18 @@ def main() -> None:
     print("jitter = |actual - scheduled sample start|, percentiles as the engine reports them "
           "(upper bin edges, <= 4.7 % high)")
     loads = (("no UI thread", 0), ("UI 4 x 200 (decimated)", 200), ("UI 4 x 5000 (full)", POINTS))
-    runners = ("process", "thread") if args.runner == "both" else (args.runner,)
-    for runner in runners:
-        for period in (0.050, 0.010):
-            for label, points in loads:
-                if args.switch_interval is not None:
-                    sys.setswitchinterval(args.switch_interval / 1000.0)
-                r = measure(runner, period, args.seconds, points, args.log)
-                ui = f"{r['frames']} frames, {r['frame_ms']:.0f} ms each" if points else "-"
-                print(f"{runner:7s} {period * 1000:3.0f} ms  {label:24s} samples {r['samples']:5d}  "
-                      f"jitter p50 {r['p50']:6.3f}  p99 {r['p99']:7.3f}  max {r['max']:7.3f} ms  "
-                      f"overruns {r['overruns']:4d}  (UI: {ui})", flush=True)
-    print(f"GIL switch interval: {sys.getswitchinterval() * 1000:.2f} ms here (the thread runner's), "
-          f"{REALTIME_SWITCH_INTERVAL * 1000:.2f} ms in the loop process; target: p99 < 2 ms, no overruns at 50 ms")
+    for period in (0.050, 0.010):
+        for label, points in loads:
+            if args.switch_interval is not None:
+                sys.setswitchinterval(args.switch_interval / 1000.0)
+            r = measure(period, args.seconds, points, args.log)
+            ui = f"{r['frames']} frames, {r['frame_ms']:.0f} ms each" if points else "-"
+            print(f"thread  {period * 1000:3.0f} ms  {label:24s} samples {r['samples']:5d}  "
+                  f"jitter p50 {r['p50']:6.3f}  p99 {r['p99']:7.3f}  max {r['max']:7.3f} ms  "
+                  f"overruns {r['overruns']:4d}  (UI: {ui})", flush=True)
+    print(f"GIL switch interval: {sys.getswitchinterval() * 1000:.2f} ms "
+          f"(the engine's thread asks for {REALTIME_SWITCH_INTERVAL * 1000:.2f} ms); "
+          "target: p99 < 2 ms, no overruns at 50 ms")
 
 
 if __name__ == "__main__":
