@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import sys
-import time
 from pathlib import Path
 from typing import Any, Callable
 
@@ -41,33 +40,24 @@ if os.environ.get("QUADTANK_DRIVES"):
 '''
 
 
-def _wait(condition: Callable[[], bool], timeout: float = 30.0) -> bool:
-    end = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > end:
-            return False
-        time.sleep(0.01)
-    return True
-
-
 def _drives(action: Callable[[], Any]) -> int:
     before = Driver.started
     action()
     return Driver.started - before
 
 
-def test_a_thread_session_is_served_by_the_driver(thread_session) -> None:  # type: ignore[no-untyped-def]
+def test_a_thread_session_is_served_by_the_driver(thread_session, poll) -> None:  # type: ignore[no-untyped-def]
     before = Driver.started
     s = thread_session()
-    assert _wait(lambda: Driver.started == before + 1)
+    assert poll(lambda: Driver.started == before + 1, 30.0)
     assert s.host.driver.engine is s.engine and s.host.driver.aloop is not None
 
 
-def test_the_engine_thread_is_the_driver(tmp_path: Path) -> None:
+def test_the_engine_thread_is_the_driver(tmp_path: Path, poll: Callable[..., bool]) -> None:
     """`--loop thread` and the loop process of `--no-session` run Engine.start."""
     e = build_engine(clock="virtual", speed=100.0, params_dir=tmp_path, logs_dir=tmp_path)
     try:
-        assert _drives(lambda: (e.start(), _wait(lambda: e.snapshot().stats.samples > 2))) == 1
+        assert _drives(lambda: (e.start(), poll(lambda: e.snapshot().stats.samples > 2, 30.0))) == 1
         assert e.submit(SetState("Run")).result(10).ok
     finally:
         e.stop()
@@ -95,7 +85,8 @@ def test_a_benchmark_is_the_driver(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="session processes")
-def test_the_session_processes_are_the_driver(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_session_processes_are_the_driver(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                             poll: Callable[..., bool]) -> None:
     """The default session (the TUI's) and `quadtank run --detach` (its script
     rehearsed here first, by the driver too): each process drives once."""
     hook = tmp_path / "hook"
@@ -111,7 +102,7 @@ def test_the_session_processes_are_the_driver(tmp_path: Path, monkeypatch: pytes
     with SessionClient(info.socket) as client:
         assert client.submit(SetState("Run")).result(30).ok
     stop_session_at(info.socket)
-    assert _wait(lambda: noted.exists() and f"serve {info.pid}\n" in noted.read_text())
+    assert poll(lambda: noted.exists() and f"serve {info.pid}\n" in noted.read_text(), 30.0)
 
     script = tmp_path / "exp.yaml"
     script.write_text("- at: 1\n  mode: Manual\n")
@@ -119,8 +110,8 @@ def test_the_session_processes_are_the_driver(tmp_path: Path, monkeypatch: pytes
     assert main(["run", "--detach", "--script", str(script), "--duration", "2",
                  "--log", str(tmp_path / "detached.log")]) == 0
     assert Driver.started == before + 1  # the rehearsal, in this process
-    assert _wait(lambda: len(noted.read_text().splitlines()) == 2)
-    assert _wait(lambda: not list_sessions(runtime))  # the detached run is over
+    assert poll(lambda: len(noted.read_text().splitlines()) == 2, 30.0)
+    assert poll(lambda: not list_sessions(runtime), 30.0)  # the detached run is over
     lines = noted.read_text().splitlines()
     assert len(lines) == 2 and all(line.startswith("serve ") for line in lines)
     assert len({line.split()[1] for line in lines}) == 2  # two processes, one drive each
