@@ -192,6 +192,9 @@ class Driver:
         monotonic = time.monotonic
         turned = monotonic()
         while not self._done():
+            if aloop is not None and monotonic() - turned > YIELD_AFTER:
+                await asyncio.sleep(0)  # the clients and the signals get a turn (not between a fine wait and its sample)
+                turned = monotonic()
             if between is not None:
                 between()
             deadline = clock.deadline()
@@ -208,10 +211,6 @@ class Driver:
                     delay = deadline - clock.now()
                     if delay > 0:
                         sleep(delay)
-            if aloop is not None and monotonic() - turned > YIELD_AFTER:
-                await asyncio.sleep(0)  # the clients and the signals get a turn
-                turned = monotonic()
-                continue
             if before is not None:
                 before(elapsed)
                 if self._stopping:
