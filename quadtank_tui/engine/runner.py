@@ -42,8 +42,6 @@ from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log import log_path
 from quadtank_tui.files.par import ParRead, ParStore, read_par
 
-__all__ = ["ClockKind", "Engine", "LoopTime", "build_engine", "assemble", "engine_spec", "load_parameters"]
-
 ClockKind = Literal["realtime", "virtual", "manual"]
 
 #: GIL switch interval while a real-time loop runs on a thread, s.  A thread waking for
