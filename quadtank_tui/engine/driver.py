@@ -8,10 +8,10 @@ benchmarks).  The pacing and the loop-time accounting are here and nowhere else.
 
 Waiting (a clock on the wall, time.monotonic): a sample due more than FINE_WAIT
 from now is waited for on the event loop (`loop.call_at`), so the clients'
-messages are served meanwhile; the last FINE_WAIT is a plain sleep, then a spin
-of at most SPIN (epoll rounds its timeout up to whole milliseconds, and a sleep
-overshoots by the kernel's timer slack), so the jitter is the sleep's, not the
-event loop's.  A virtual clock at x1000 and 50 ms has a sample due every 50 us:
+messages are served meanwhile; the last FINE_WAIT is a plain sleep (epoll rounds
+its timeout up to whole milliseconds), so the jitter is the sleep's, not the
+event loop's; a wait shorter than SPIN polls the clock instead (a sleep
+overshoots by the kernel's timer slack).  A virtual clock at x1000 and 50 ms has a sample due every 50 us:
 every wait is a fine one, and the event loop gets a turn every YIELD_AFTER of
 wall time.  An injected time source (a ManualClock: tests, rehearsals) is waited
 on with the engine's own `sleep`, which only moves that time on.
@@ -36,9 +36,11 @@ if TYPE_CHECKING:
 #: Below this, the last part of a wait is a sleep and a spin, not the event loop's
 #: timer (whose epoll timeout rounds up to whole milliseconds), s.
 FINE_WAIT = 0.002
-#: The last part of a fine wait is spent polling the clock (a sleep this short
-#: overshoots by the kernel's timer slack, 50 us, a whole x1000 sampling period), s.
-SPIN = 0.0003
+#: A fine wait this short is spent polling the clock, not sleeping: a sleep
+#: overshoots by the kernel's timer slack (50 us, a whole x1000 sampling period).
+#: Longer ones sleep, as before: a thread that spins on a loaded machine is the
+#: one the scheduler preempts at its deadline, s.
+SPIN = 0.0001
 #: Longest wall time the driver samples without giving its event loop a turn
 #: (the clients' messages, the signals), s.
 YIELD_AFTER = 0.002
@@ -69,10 +71,11 @@ class LoopTime:
 
 
 def fine_wait(deadline: float) -> None:
-    """Until `deadline` (time.monotonic): a sleep, then a spin of at most SPIN."""
+    """Until `deadline` (time.monotonic): a sleep, or a spin if it is under SPIN away."""
     rest = deadline - time.monotonic()
     if rest > SPIN:
-        time.sleep(rest - SPIN)
+        time.sleep(rest)
+        return
     while time.monotonic() < deadline:
         pass
 

@@ -107,7 +107,7 @@ def test_realtime_without_a_thread_waits_for_each_deadline(make_engine: MakeEngi
         slept.append(dt)
         src.sleep(dt + 0.0005)  # wakes half a millisecond late
 
-    e = make_engine(clock="realtime", threaded=False, now=src.now, sleep=sleep)
+    e = make_engine(clock="realtime", now=src.now, sleep=sleep)
     e.submit(SetState("Run"))
     e.step(10)
     s = e.snapshot()
