@@ -112,7 +112,7 @@ class SessionHost:
         kwargs = {} if peer_of is None else {"peer_of": peer_of}
         self._ranks: dict[int, tuple[float, Rank]] = {}
         self.server = Server(listener, self.aloop, self._on_message, self._on_gone, rank=self._rank, **kwargs)
-        self.driver = Driver(engine, after=self._after,
+        self.driver = Driver(engine, after=self._after, urgent=lambda: self.server.writing > 0,
                              before=self._before if scripted is not None else None,
                              duration=scripted.duration if scripted is not None else None)
         self.policy = policy if policy is not None else UnattendedPolicy()

@@ -105,6 +105,8 @@ class Server:
         self._backoff = 0.0
         self._listening = False
         self._closed = False
+        #: Connections with lines queued that the socket has not taken yet.
+        self.writing = 0
         #: Connections turned away (limits, a silent peer, a bad line) and accept's pauses, for the record.
         self.refused = 0
         self.paused = 0
@@ -248,10 +250,12 @@ class Server:
             if not conn.writing:
                 self.aloop.add_writer(conn.sock.fileno(), self._write, conn)
                 conn.writing = True
+                self.writing += 1
             return
         if conn.writing:
             self.aloop.remove_writer(conn.sock.fileno())
             conn.writing = False
+            self.writing -= 1
         if conn.closing:
             self.drop(conn)
 
@@ -271,6 +275,7 @@ class Server:
         if conn.writing:
             self.aloop.remove_writer(fd)
             conn.writing = False
+            self.writing -= 1
         if conn.silence is not None:
             conn.silence.cancel()
         conn.sock.close()
