@@ -1,14 +1,18 @@
-"""Session timing: the loop's jitter in a session process, and the cost of attaching.
+"""Session timing: the loop's jitter in a session process, the speed the driver
+holds at x1000, and the cost of attaching.
 
     .venv/bin/python benchmarks/session_timing.py [--seconds 30]
 
-1. A session process (real-time clock, 50 ms, simulator, PI in Automatic on a
-   moving reference) with one client attached whose process does UI-like work
-   (plotext charts of 4 x 200 points at 20 Hz, as benchmarks/loop_timing.py's
-   "decimated" load) or none: p50 / p99 / max |jitter| and overruns, as LoopStats
-   reports them.  Compare with loop_timing.py's `process` rows (the loop process
-   the TUI used before sessions).
-2. Attaching to a session whose ring buffer is full (36000 samples, 1 h at 0.1 s):
+1. A session process (real-time clock at 50 ms and at 10 ms, simulator, PI in
+   Automatic on a moving reference) with one client attached whose process does
+   UI-like work (plotext charts of 4 x 200 points at 20 Hz, as
+   benchmarks/loop_timing.py's "decimated" load) or none: p50 / p99 / max |jitter|
+   and overruns, as LoopStats reports them.  (At 10 ms the simulator still
+   advances its 50 ms sampling time per sample: the scheduler's stress only.)
+2. x1000 at Ts = 50 ms with every sample logged, headless (`quadtank run --speed
+   1000`) and in a session process with a client attached: the speed held, asked
+   x samples / (samples + slots skipped), as the run's summary states it.
+3. Attaching to a session whose ring buffer is full (36000 samples, 1 h at 0.1 s):
    wall time from connect to a live client holding the whole history.
 
 Figures are printed, not asserted (the machine may be shared).
@@ -17,50 +21,132 @@ Figures are printed, not asserted (the machine may be shared).
 from __future__ import annotations
 
 import argparse
+import multiprocessing
+import os
 import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from loop_timing import ui_work  # noqa: E402
 
-from quadtank_tui.engine.commands import SetControlMode, SetParams, SetSpeed, SetState  # noqa: E402
+from quadtank_tui.engine.commands import LogOn, SetControlMode, SetParams, SetSpeed, SetState  # noqa: E402
+from quadtank_tui.engine.headless import run_headless  # noqa: E402
 from quadtank_tui.engine.history import DEFAULT_CAPACITY  # noqa: E402
 from quadtank_tui.engine.runner import engine_spec  # noqa: E402
 from quadtank_tui.session.client import SessionClient, stop_session_at  # noqa: E402
 from quadtank_tui.session.launch import SessionSpec, start_session  # noqa: E402
 
 
-def jitter(seconds: float, points: int) -> dict[str, float]:
-    with tempfile.TemporaryDirectory() as tmp:
-        spec = engine_spec(clock="realtime", params_dir=Path(tmp), logs_dir=Path(tmp))
-        info = start_session(SessionSpec(spec, str(Path(tmp) / "run")))
-        client = SessionClient(info.socket)
-        for command in (SetParams({"SAMPLING TIME.TSamp": 50, "REFERENCE ONE.On": 1,
-                                   "REFERENCE ONE.Amplitude": 0.05, "REFERENCE ONE.Period": 20}),
-                        SetState("Run"), SetControlMode("Automatic")):
-            assert client.submit(command).result(10).ok
+#: The session's files may outlive `stop_session_at` by a moment: a temporary
+#: folder that is not empty then is no reason for a benchmark to fail.
+def _folder() -> tempfile.TemporaryDirectory[str]:
+    return tempfile.TemporaryDirectory(ignore_cleanup_errors=True)
+
+
+def _host(period: float, tmp: str, ready: Any) -> None:
+    """A session's host in a process of its own with its clock at `period` (the
+    interface allows 50 ms at least: below that the clock is set by hand, after the
+    last command, as loop_timing.py does), serving until stopped."""
+    from quadtank_tui.engine.runner import build_engine
+    from quadtank_tui.session.host import Access, SessionHost
+    from quadtank_tui.session.info import SessionInfo
+    from quadtank_tui.session.server import listen
+
+    engine = build_engine(clock="realtime", params_dir=Path(tmp), logs_dir=Path(tmp))
+    for command in PREPARE:
+        assert engine.submit(command).result().ok
+    engine.clock.set_period(period)
+    path = str(Path(tmp) / "s.sock")
+    info = SessionInfo(id="bench-1", owner="bench", uid=os.getuid(), pid=os.getpid(), started="", plant="quadtank",
+                       socket=path)
+    host = SessionHost(engine, listen(path), info, runtime=Path(tmp), access=Access(os.getuid()))
+    host.install_signal_handlers()
+    ready.put(path)
+    host.serve()
+
+
+#: The loop the jitter is measured on: PI in Automatic on a moving reference.
+PREPARE = (SetParams({"SAMPLING TIME.TSamp": 50, "REFERENCE ONE.On": 1, "REFERENCE ONE.Amplitude": 0.05,
+                      "REFERENCE ONE.Period": 20}), SetState("Run"), SetControlMode("Automatic"))
+
+
+def jitter(seconds: float, points: int, tsamp_ms: int = 50) -> dict[str, float]:
+    """A session process at `tsamp_ms` (50: as `quadtank` starts it; 10: a host
+    process of this benchmark's, see _host) with a client drawing `points`."""
+    with _folder() as tmp:
+        proc = None
+        if tsamp_ms == 50:
+            spec = engine_spec(clock="realtime", params_dir=Path(tmp), logs_dir=Path(tmp))
+            sock = start_session(SessionSpec(spec, str(Path(tmp) / "run"))).socket
+        else:
+            ctx = multiprocessing.get_context("fork")
+            ready = ctx.Queue()
+            proc = ctx.Process(target=_host, args=(tsamp_ms / 1000.0, tmp, ready))
+            proc.start()
+            sock = ready.get(timeout=30)
+        client = SessionClient(sock)
+        if proc is None:
+            for command in PREPARE:
+                assert client.submit(command).result(10).ok
         stop = threading.Event()
         frames: list[float] = []
         ui = threading.Thread(target=ui_work, args=(stop, frames, points), daemon=True)
         if points:
             ui.start()
+        first = client.snapshot().stats.samples
         time.sleep(seconds)
         stats = client.snapshot().stats
         stop.set()
         client.close()
-        stop_session_at(info.socket)
+        stop_session_at(sock)
+        if proc is not None:
+            proc.join(10)
     ms = 1000.0
-    return {"samples": stats.samples, "p50": stats.jitter_p50 * ms, "p99": stats.jitter_p99 * ms,
+    return {"samples": stats.samples - first, "p50": stats.jitter_p50 * ms, "p99": stats.jitter_p99 * ms,
             "max": stats.jitter_max * ms, "overruns": stats.overruns, "frames": len(frames)}
 
 
+def _ts50(folder: Path) -> Path:
+    par = folder / "ts50.par"
+    par.write_text("SAMPLING TIME\nTSamp 50\n")
+    return par
+
+
+def headless_speed(seconds: float) -> str:
+    """`quadtank run --speed 1000` at 50 ms for `seconds` of wall time, logging
+    every sample: its summary's speed line."""
+    with _folder() as tmp:
+        folder = Path(tmp)
+        result = run_headless(par=str(_ts50(folder)), script=None, duration=1000.0 * seconds,
+                              out=folder / "run.log", clock="virtual", speed=1000.0, params_dir=folder)
+    return next(line for line in result.text.splitlines() if line.startswith("speed"))
+
+
+def session_speed(seconds: float) -> dict[str, float]:
+    """A session process at x1000 and 50 ms for `seconds`, logging, a client attached."""
+    with _folder() as tmp:
+        spec = engine_spec(clock="virtual", speed=1000.0, params_dir=Path(tmp), logs_dir=Path(tmp))
+        info = start_session(SessionSpec(spec, str(Path(tmp) / "run")))
+        with SessionClient(info.socket) as client:
+            for command in (SetParams({"SAMPLING TIME.TSamp": 50}), SetSpeed(1000.0), LogOn(points=10**7),
+                            SetState("Run")):
+                assert client.submit(command).result(10).ok
+            first = client.snapshot().stats
+            time.sleep(seconds)
+            last = client.snapshot().stats
+        stop_session_at(info.socket)
+    samples, skipped = last.samples - first.samples, last.skipped - first.skipped
+    return {"samples": samples, "skipped": skipped, "held": 1000.0 * samples / max(1, samples + skipped)}
+
+
 def attach_cost() -> tuple[float, int]:
-    with tempfile.TemporaryDirectory() as tmp:
+    with _folder() as tmp:
         spec = engine_spec(clock="virtual", speed=1000.0, params_dir=Path(tmp), logs_dir=Path(tmp))
         info = start_session(SessionSpec(spec, str(Path(tmp) / "run")))
         with SessionClient(info.socket) as filler:
@@ -81,10 +167,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=30.0)
     args = ap.parse_args()
-    for label, points in (("no UI work", 0), ("client UI 4 x 200", 200)):
-        r = jitter(args.seconds, points)
-        print(f"session  50 ms  {label:18s} samples {r['samples']:5d}  jitter p50 {r['p50']:6.3f}  "
-              f"p99 {r['p99']:7.3f}  max {r['max']:7.3f} ms  overruns {r['overruns']:4d}", flush=True)
+    for tsamp_ms in (50, 10):
+        for label, points in (("no UI work", 0), ("client UI 4 x 200", 200)):
+            r = jitter(args.seconds, points, tsamp_ms)
+            print(f"session  {tsamp_ms:2d} ms  {label:18s} samples {r['samples']:5d}  jitter p50 {r['p50']:6.3f}  "
+                  f"p99 {r['p99']:7.3f}  max {r['max']:7.3f} ms  overruns {r['overruns']:4d}", flush=True)
+    print(f"headless x1000 at 50 ms, logging, {args.seconds:g} s: {headless_speed(args.seconds)}", flush=True)
+    r = session_speed(args.seconds)
+    print(f"session  x1000 at 50 ms, logging, a client, {args.seconds:g} s: {r['samples']:.0f} samples, "
+          f"{r['skipped']:.0f} slots skipped: x{r['held']:.0f} held", flush=True)
     took, rows = attach_cost()
     print(f"attach with a full ring buffer: {rows} samples in {took * 1000:.0f} ms")
 

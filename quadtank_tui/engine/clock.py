@@ -1,9 +1,9 @@
 """When samples are due: real time, virtual time, and a hand-driven time source.
 
-A clock only *schedules*; it never sleeps.  The driver (the engine thread's asyncio
-loop, or the synchronous headless driver) asks :meth:`Clock.deadline` for the
-monotonic wall time at which the next sample is due, waits however suits it, and
-calls :meth:`Clock.tick` with the time the sample really started.  Time is injected
+A clock only *schedules*; it never sleeps.  The driver (engine/driver.py, the one
+for sessions, the engine's thread and headless runs) asks :meth:`Clock.deadline`
+for the monotonic wall time at which the next sample is due, waits however suits
+it, and calls :meth:`Clock.tick` with the time the sample really started.  Time is injected
 (style.md habit 2): every clock takes a ``now`` function, so tests drive a
 :class:`ManualClock` instead of sleeping.
 

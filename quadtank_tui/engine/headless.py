@@ -102,7 +102,7 @@ def prepare_headless(
     params, _ = load_parameters(par, ParStore(params_dir))
     capacity = min(MAX_HISTORY, max(DEFAULT_CAPACITY, math.ceil(duration / params.tsamp) + 2))
     engine = build_engine(par, clock=clock, speed=speed, seed=seed, params_dir=params_dir,
-                          logs_dir=out.parent, threaded=False, history_capacity=capacity,
+                          logs_dir=out.parent, history_capacity=capacity,
                           epoch=virtual_epoch(), daq=daq)
     try:
         # The partial file of an interrupted run sits next to OUT, named after it.

@@ -1,21 +1,16 @@
-"""The engine: a ControlLoop driven by a clock, on its own thread and event loop.
+"""The engine: a ControlLoop, its clock, and the one door commands come in by.
 
-The UI must never delay a sample, so the loop does not share the UI's event loop
-(architecture.md, "Timing"): :meth:`Engine.start` runs it on a private asyncio loop
-in a daemon thread.  Commands come in through :meth:`Engine.submit` (any thread):
-they are queued, the loop thread is woken, and it applies them between samples,
-resolving the returned Future with the CommandResult (once its file operations,
-which the loop's writer thread does, are done).  Snapshots and ring buffers go out
-as immutable values and copies.
+Nothing here paces: the one driver (engine/driver.py) waits for each deadline and
+calls :meth:`Engine.sample`.  A session's host drives the engine on its asyncio
+event loop and applies the clients' commands between samples
+(:meth:`Engine.submit`, applied at once on the driver's thread); the runs without
+clients drive it inline (:meth:`Engine.run_for`, :meth:`Engine.step`).
 
-The thread runner is what the TUI's `--loop thread`, the UI tests (an in-process
-engine they can drive and read) and the loop process (engine/process.py runs this
-engine in its child) use.
-
-Without a thread (``threaded=False``: tests and headless runs) the same engine is
-stepped by hand: :meth:`Engine.step` / :meth:`Engine.run_for` wait for each deadline
-with the injected ``sleep`` (instant with a ManualClock or an unpaced virtual
-clock), and :meth:`Engine.submit` applies the command at once.
+:meth:`Engine.start` puts the same driver on a thread of this process (the TUI's
+`--loop thread`, the loop process of engine/process.py): commands submitted from
+other threads are then queued, the driver is woken, and it applies them between
+samples, resolving the returned Future with the CommandResult (once its file
+operations, which the loop's writer thread does, are done).
 """
 
 from __future__ import annotations
@@ -39,6 +34,7 @@ from quadtank_tui.core.parameters import Parameters, REFERENCE_SECTIONS
 from quadtank_tui.engine.backend import ProcessBackend
 from quadtank_tui.engine.clock import Clock, ManualClock, RealTimeClock, VirtualClock
 from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, LoadPar, SetSpeed
+from quadtank_tui.engine.driver import Driver, LoopTime
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, check_capacity
 from quadtank_tui.engine.loop import ControlLoop
 from quadtank_tui.engine.parload import ParReading
@@ -48,38 +44,10 @@ from quadtank_tui.files.par import ParRead, ParStore, read_par
 
 ClockKind = Literal["realtime", "virtual", "manual"]
 
-#: GIL switch interval while a real-time loop runs, s.  A thread waking for its
-#: deadline must wait for the GIL until the running thread is asked to drop it:
+#: GIL switch interval while a real-time loop runs on a thread, s.  A thread waking for
+#: its deadline must wait for the GIL until the running thread is asked to drop it:
 #: Python's default 5 ms would be the jitter floor whenever the UI thread computes.
 REALTIME_SWITCH_INTERVAL = 0.0005
-
-#: Below this, the last part of a wait is a plain sleep rather than the event loop's
-#: timer (whose epoll timeout rounds up to whole milliseconds).
-_FINE_WAIT = 0.002
-
-
-class LoopTime:
-    """Seconds of loop time as whole samples per sampling time (base + n h), so that
-    8 h of 50 ms samples is exactly 576000 of them, not one more from summed rounding."""
-
-    def __init__(self, h: float) -> None:
-        self._base, self._n, self._h = 0.0, 0, h
-        self.samples = 0
-
-    @property
-    def seconds(self) -> float:
-        return self._base + self._n * self._h
-
-    def add(self, h: float, slots: int = 1) -> None:
-        """One sample went by, and with it `slots` sampling periods of `h` s (more than
-        one when a real process's sample came late: its missed slots passed too)."""
-        if h != self._h:
-            self._base, self._n, self._h = self.seconds, 0, h
-        self._n += slots
-        self.samples += 1
-
-    def reached(self, t: float) -> bool:
-        return t - self.seconds <= 1e-6 * self._h
 
 
 def _pass_on(to: Future[CommandResult], began: Future[CommandResult]) -> None:
@@ -95,22 +63,20 @@ class Engine:
         loop: ControlLoop,
         clock: Clock,
         *,
-        threaded: bool = True,
         sleep: Callable[[float], None] = time.sleep,
         warnings: tuple[str, ...] = (),
     ) -> None:
         self.loop = loop
         self.clock = clock
-        self.threaded = threaded
         self.warnings = warnings
-        self._sleep = sleep
+        #: How the driver waits for a deadline of an injected time source (a
+        #: ManualClock's sleep moves that time on).
+        self.sleep = sleep
         self._pending: collections.deque[tuple[Command | InstallPar | ParReading, Future[CommandResult]]] = \
             collections.deque()
-        self._lock = threading.Lock()  # guards the loop in no-thread mode
+        self._lock = threading.Lock()  # one sample or one command at a time
         self._thread: threading.Thread | None = None
-        self._aloop: asyncio.AbstractEventLoop | None = None
-        self._wake: asyncio.Event | None = None
-        self._stopping = False
+        self._driver: Driver | None = None  # the driver on the engine's thread (start)
         self._stopped = False
         self.crash: str | None = None
         loop.set_clock_info(clock.realtime, clock.speed)
@@ -147,35 +113,34 @@ class Engine:
 
     @property
     def running(self) -> bool:
-        """The loop thread is alive."""
+        """The engine's thread (start) is alive."""
         return self._thread is not None and self._thread.is_alive()
+
+    @property
+    def wall_paced(self) -> bool:
+        """The clock's deadlines are on the wall's monotonic clock (not an injected
+        time source): the driver waits for them for real."""
+        return self.sleep is time.sleep and self.clock.now is time.monotonic
 
     # --- the one write door ------------------------------------------------------------
 
     def submit(self, command: Command | InstallPar) -> Future[CommandResult]:
-        """Queue `command` (threaded) or apply it now (no thread); thread-safe."""
+        """Apply `command` now, or (the engine's thread runs) queue it for the
+        driver, which applies it between samples; thread-safe."""
         fut: Future[CommandResult] = Future()
         if self._stopped:
             fut.set_result(CommandResult.refused("the engine has stopped"))
             return fut
-        if not self.threaded or not self.running:
+        driver = self._driver
+        if driver is None or not self.running:
             with self._lock:
                 return self._begin(command)
         if isinstance(command, LoadPar):  # the file is read off this thread and the loop's
-            self._pending.append((ParReading.start(self.loop.store, command, self._wake_up), fut))
+            self._pending.append((ParReading.start(self.loop.store, command, driver.poke_threadsafe), fut))
         else:
             self._pending.append((command, fut))
-        self._wake_up()
+        driver.poke_threadsafe()
         return fut
-
-    def _wake_up(self) -> None:
-        """Have the loop's thread look at the commands now (from any thread)."""
-        aloop, wake = self._aloop, self._wake
-        if aloop is not None and wake is not None:
-            try:
-                aloop.call_soon_threadsafe(wake.set)
-            except RuntimeError:  # the loop closed in between: stop() drains below
-                pass
 
     def _begin(self, command: Command | InstallPar) -> Future[CommandResult]:
         """Apply `command` to the loop (its file operations may still run: the
@@ -200,6 +165,7 @@ class Engine:
         return CommandResult(True)
 
     def _drain(self) -> None:
+        """The commands queued from other threads, in order (the engine's thread)."""
         while self._pending:
             command, fut = self._pending[0]
             if isinstance(command, ParReading):
@@ -221,111 +187,61 @@ class Engine:
                     f"{type(command).__name__} failed: {type(exc).__name__}: {exc}"))
             began.add_done_callback(functools.partial(_pass_on, fut))
 
-    # --- one sample ------------------------------------------------------------------------
+    # --- samples ------------------------------------------------------------------------------
 
-    def _sample(self) -> None:
-        timing = self.clock.tick()
-        self.loop.record_timing(timing.jitter, timing.missed, timing.actual)
-        self.loop.step()
-
-    # --- no-thread mode ------------------------------------------------------------------
+    def sample(self) -> None:
+        """Take one sample now (the driver calls this at its deadline)."""
+        with self._lock:
+            timing = self.clock.tick()
+            self.loop.record_timing(timing.jitter, timing.missed, timing.actual)
+            self.loop.step()
 
     def step(self, n: int = 1) -> Snapshot:
-        """Do `n` samples now, each at its deadline (no-thread mode)."""
+        """Do `n` samples, each at its deadline (the driver, inline)."""
         if self.running:
             raise RuntimeError("the engine runs on its own thread; use submit()")
-        with self._lock:
-            for _ in range(n):
-                deadline = self.clock.deadline()
-                if deadline is not None:
-                    delay = deadline - self.clock.now()
-                    if delay > 0:
-                        self._sleep(delay)
-                self._sample()
+        Driver(self, samples=n).run()
         return self.loop.snapshot()
 
     def run_for(self, seconds: float, before: Callable[[LoopTime], None] | None = None) -> int:
         """Sample for `seconds` of loop time (sum of the sampling periods, paused or
         not); returns the number of samples.  `before(elapsed)` runs ahead of each
         sample (a script applies its due events there).  On a real process the
-        periods the loop missed count too: its time passes whether or not the loop
-        keeps up, so a run against a slow or hung device still ends on time."""
-        elapsed = LoopTime(self.loop.h)
-        while not elapsed.reached(seconds):
-            if before is not None:
-                before(elapsed)
-            h = self.loop.h
-            self.step()
-            real = self.loop.backend is not self.loop.sim
-            elapsed.add(h, 1 + self.missed if real else 1)
-        return elapsed.samples
+        periods the loop missed count too (engine/driver.py)."""
+        if self.running:
+            raise RuntimeError("the engine runs on its own thread; use submit()")
+        return Driver(self, duration=seconds, before=before).run()
 
-    # --- the thread --------------------------------------------------------------------------
+    # --- the engine's thread -------------------------------------------------------------
 
     def start(self) -> None:
-        """Run the loop on its own thread and event loop (idempotent)."""
+        """Run the driver on a thread of its own and its event loop (idempotent)."""
         if self.running or self._stopped:
             return
-        self.threaded = True
         self.loop.use_file_thread()  # no sample waits for the disk
         if self.clock.realtime and sys.getswitchinterval() > REALTIME_SWITCH_INTERVAL:
             sys.setswitchinterval(REALTIME_SWITCH_INTERVAL)
-        ready = threading.Event()
-        self._thread = threading.Thread(target=self._thread_main, args=(ready,),
+        self.clock.start()
+        driver = Driver(self, between=self._drain)
+        self._driver = driver
+        self._thread = threading.Thread(target=driver.serve, args=(asyncio.new_event_loop(), self._ended),
                                         name="quadtank-loop", daemon=True)
         self._thread.start()
-        ready.wait()
 
-    def _thread_main(self, ready: threading.Event) -> None:
-        aloop = asyncio.new_event_loop()
-        self._aloop = aloop
-        try:
-            aloop.run_until_complete(self._main(ready))
-        except Exception as exc:  # noqa: BLE001 - last line of defence: pumps safe, say why
-            self.crash = f"{type(exc).__name__}: {exc}"
-            self.loop.halt(f"engine stopped: {self.crash}")
-        finally:
-            ready.set()
-            self._aloop = None
-            aloop.close()
-
-    async def _main(self, ready: threading.Event) -> None:
-        self._wake = asyncio.Event()
-        ready.set()
-        self.clock.start()
-        while not self._stopping:
-            self._drain()
-            deadline = self.clock.deadline()
-            if deadline is not None:
-                delay = deadline - self.clock.now()
-                if delay > _FINE_WAIT:
-                    try:
-                        async with asyncio.timeout(delay - _FINE_WAIT):
-                            await self._wake.wait()
-                    except TimeoutError:
-                        pass
-                    self._wake.clear()
-                    continue  # commands may have come in; look at the deadline again
-                if delay > 0:
-                    self._sleep(delay)
-            else:
-                await asyncio.sleep(0)  # unpaced: still let commands in
-            self._sample()
+    async def _ended(self, failure: BaseException | None) -> None:
         # Commands still queued are refused by stop(), not applied: after a stop was
         # asked for, a Run or a Pause on a hung device would only delay it.
+        if failure is not None:  # last line of defence: pumps safe, say why
+            self.crash = f"{type(failure).__name__}: {failure}"
+            self.loop.halt(f"engine stopped: {self.crash}")
 
     def stop(self) -> None:
         """Stop the loop, pumps to 0, logging stopped (rows kept), backends closed.
-        Idempotent; safe to call from any thread but the loop's own."""
+        Idempotent; safe to call from any thread but the driver's own."""
         if self._stopped:
             return
-        self._stopping = True
-        aloop, wake = self._aloop, self._wake
-        if aloop is not None and wake is not None:
-            try:
-                aloop.call_soon_threadsafe(wake.set)
-            except RuntimeError:
-                pass
+        if self._driver is not None:
+            self._driver.stop()
         if self._thread is not None:
             self._thread.join(timeout=10.0)
         self._stopped = True
@@ -433,7 +349,8 @@ def assemble(
     now: Callable[[], float] | None = None,
     sleep: Callable[[float], None] | None = None,
 ) -> Engine:
-    """The engine `spec` describes, in the start-up state (Simul, Pause, Manual)."""
+    """The engine `spec` describes, in the start-up state (Simul, Pause, Manual);
+    `threaded` is ignored (see build_engine)."""
     if spec.clock == "manual" and now is None and sleep is None:
         fake = ManualClock()
         now, sleep = fake.now, fake.sleep
@@ -453,8 +370,7 @@ def assemble(
     control = ControlLoop(spec.params, defaults=spec.defaults, store=ParStore(spec.params_dir),
                           logs_dir=spec.logs_dir, daq=daq, history_capacity=spec.history_capacity,
                           now=lambda: stamp())
-    return Engine(control, clk, threaded=(spec.clock != "manual") if threaded is None else threaded,
-                  sleep=sleep, warnings=spec.warnings)
+    return Engine(control, clk, sleep=sleep, warnings=spec.warnings)
 
 
 def build_engine(
@@ -476,7 +392,8 @@ def build_engine(
 
     clock : "realtime" (absolute deadlines), "virtual" (`speed` 1..1000, None = as
         fast as possible) or "manual" (no thread, unpaced: step it by hand)
-    threaded : whether :meth:`Engine.start` is expected (default: not for "manual")
+    threaded : ignored (whether the engine gets a thread is its caller's: Engine.start);
+        still accepted from the callers that pass it
     epoch : with a virtual or manual clock the logs are stamped epoch + process
         time, so a fixed epoch makes the `.log` reproducible (default: none, the
         wall clock at LogOn, as a user at the TUI expects)

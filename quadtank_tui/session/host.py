@@ -1,15 +1,16 @@
-"""The session process's one synchronous driver: sample, serve, publish.
+"""A session: the one driver (engine/driver.py) on an asyncio event loop, serving clients.
 
-One thread does everything, in this order, forever: wait (a selector) until the next
-sample is due or a client says something; apply the commands that came in (between
-samples, so a sample never sees half a change); take the sample when it is due;
-publish what changed to every attached client (the new ring-buffer rows and the
-snapshot, at most every PUBLISH_INTERVAL, and always before a command's result, so
-a client sees the effect of its command when it hears that it was applied).
+One thread does everything, in this order, forever: wait (the event loop) until the
+next sample is due or a client says something; apply the commands that came in
+(between samples, so a sample never sees half a change); take the sample when it
+is due; publish what changed to every attached client (the new ring-buffer rows
+and the snapshot, at most every PUBLISH_INTERVAL, and always before a command's
+result, so a client sees the effect of its command when it hears that it was
+applied).
 
-The engine is the runner's in no-thread mode (``Engine.step`` / ``Engine.submit``:
-a sample is taken only once its deadline is here, so step never sleeps, and a
-command is applied at once).  Nobody else touches it.
+The driver samples the engine (``Engine.sample`` at each deadline); the host
+applies the clients' commands on the same thread (``Engine.submit`` applies at
+once).  Nobody else touches it.
 
 Stops (pumps at 0, logging stopped with the rows kept, backends closed): a client's
 StopSession from someone allowed to, SIGTERM / SIGHUP / SIGINT, or the loop failing.
@@ -21,10 +22,9 @@ server drops a client whose line is not a message, or whose message fails).
 
 from __future__ import annotations
 
+import asyncio
 import collections
 import dataclasses
-import os
-import selectors
 import signal
 import socket
 import time
@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, LoadPar, SetState
+from quadtank_tui.engine.driver import Driver, LoopTime
 from quadtank_tui.engine.parload import ParReading
 from quadtank_tui.engine.runner import Engine
 from quadtank_tui.engine.snapshot import Snapshot
@@ -50,8 +51,6 @@ from quadtank_tui.session.server import Connection, Rank, Server
 #: Least wall time between two updates to the clients, s (a 1000x virtual clock
 #: samples 20000 times a second; a screen redraws 20).
 PUBLISH_INTERVAL = 0.02
-#: Below this the last part of a wait is a plain sleep (epoll rounds up to 1 ms).
-FINE_WAIT = 0.002
 #: Least wall time between two rewrites of the record for logging progress alone, s.
 RECORD_INTERVAL = 1.0
 #: Seconds a peer's rank (administrator or not: a look at the lab's group or files)
@@ -108,10 +107,14 @@ class SessionHost:
         self.info = info
         self.runtime = runtime
         self.access = access
-        self.selector = selectors.DefaultSelector()
+        self.aloop = asyncio.new_event_loop()
+        self.aloop.set_exception_handler(self._loop_failed)
         kwargs = {} if peer_of is None else {"peer_of": peer_of}
         self._ranks: dict[int, tuple[float, Rank]] = {}
-        self.server = Server(listener, self.selector, self._on_message, self._on_gone, rank=self._rank, **kwargs)
+        self.server = Server(listener, self.aloop, self._on_message, self._on_gone, rank=self._rank, **kwargs)
+        self.driver = Driver(engine, after=self._after, urgent=lambda: self.server.writing > 0,
+                             before=self._before if scripted is not None else None,
+                             duration=scripted.duration if scripted is not None else None)
         self.policy = policy if policy is not None else UnattendedPolicy()
         self.scripted = scripted
         self._log_ended: float | None = None  # when a log ended while nobody operated
@@ -120,10 +123,6 @@ class SessionHost:
         self._operator: Connection | None = None
         self._operator_left = time.monotonic()  # a session starts unattended until its launcher attaches
         self._stop_reason: str | None = None
-        self._wake_r, self._wake_w = os.pipe()
-        os.set_blocking(self._wake_r, False)
-        os.set_blocking(self._wake_w, False)
-        self.selector.register(self._wake_r, selectors.EVENT_READ, self._woken)
         #: Commands waiting behind a LoadPar whose file is being read (engine/parload.py).
         self._waiting: collections.deque[tuple[Connection, int, Command | ParReading]] = collections.deque()
         # What the clients have been sent: history rows up to `_sent_total` of
@@ -141,47 +140,30 @@ class SessionHost:
     def serve(self) -> str:
         """Run until stopped; returns why it stopped.  The engine is stopped (pumps at
         0, log kept) and the socket and record removed before this returns."""
-        clock = self.engine.clock
         self._write_record(force=True)
-        try:
-            while self._stop_reason is None:
-                deadline = clock.deadline()
-                delay = 0.0 if deadline is None else deadline - clock.now()
-                self._serve_io(min(max(0.0, delay - FINE_WAIT), self.server.next_timer()))
-                if self._stop_reason is not None:
-                    break
-                deadline = clock.deadline()
-                delay = 0.0 if deadline is None else deadline - clock.now()
-                if delay > FINE_WAIT:
-                    continue  # woken by a client: look at the deadline again
-                if delay > 0:
-                    time.sleep(delay)
-                self._sample()
-                self._publish()
-                self._housekeeping()
-        except Exception as exc:  # noqa: BLE001 - stop in order and say why
-            self._stop_reason = f"the session failed: {type(exc).__name__}: {exc}"
-        finally:
-            self._shutdown()
+        self.driver.serve(self.aloop, self._end)
         return self._stop_reason or "stopped"
 
-    def _sample(self) -> None:
-        if self.scripted is None:
-            self.engine.step()
-            return
+    def _before(self, elapsed: LoopTime) -> None:
+        """A detached run: the script's due events ahead of the sample."""
+        assert self.scripted is not None
         try:
-            over = self.scripted.step()
+            self.scripted.before(elapsed)
         except ValueError as exc:  # a refused command of the script (ScriptError names file and line)
             self.request_stop(f"the script stopped: {exc}")
-            return
-        if over:
-            self._publish(force=True)
-            self.request_stop(self.scripted.finish())
 
-    def _serve_io(self, timeout: float) -> None:
-        for key, mask in self.selector.select(timeout):
-            key.data(mask)
-        self.server.tick()
+    def _after(self) -> None:
+        """After a sample: publish and look after the record, at most every PUBLISH_INTERVAL."""
+        if time.monotonic() - self._last_publish >= PUBLISH_INTERVAL:
+            self._publish(force=True)
+            self._housekeeping()
+
+    def _loop_failed(self, aloop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+        """Something the event loop ran failed (not a client's message: the server
+        drops that client): stop in order and say why."""
+        exc = context.get("exception")
+        why = f"{type(exc).__name__}: {exc}" if exc is not None else str(context.get("message"))
+        self.request_stop(f"the session failed: {why}")
 
     def _rank(self, peer: Peer) -> Rank:
         """An administrator (no per-user limit), the owner (the reserve), or another."""
@@ -197,23 +179,15 @@ class SessionHost:
         return rank
 
     def request_stop(self, reason: str) -> None:
-        """From any thread or a signal handler: stop at the next turn."""
+        """From any thread: stop at the next turn."""
         if self._stop_reason is None:
             self._stop_reason = reason
-        self._wake()
+        self.driver.stop()
 
     def install_signal_handlers(self) -> None:
         """SIGTERM, SIGHUP, SIGINT stop the session in order (main thread only)."""
         for sig in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
-            signal.signal(sig, lambda signum, frame: self.request_stop(f"{signal.Signals(signum).name}"))
-
-    def _woken(self, mask: int) -> None:
-        try:
-            while os.read(self._wake_r, 512):
-                pass
-        except BlockingIOError:
-            pass
-        self._apply_waiting()
+            self.aloop.add_signal_handler(sig, self.request_stop, sig.name)
 
     # --- publishing ------------------------------------------------------------------------
 
@@ -245,6 +219,7 @@ class SessionHost:
             self.server.send(conn, encode(Refused("say Hello first")), close=True)
         elif isinstance(message, Submit):
             self._submit(conn, message.id, message.command)
+            self.driver.poke()  # the command may have moved the next deadline (SetSpeed, TSamp)
         elif isinstance(message, StopSession):
             self._stop_asked(conn)
 
@@ -338,10 +313,10 @@ class SessionHost:
                 self._answer(conn, cid, self._apply(command))
 
     def _wake(self) -> None:
-        """Wake the driver's select (from any thread)."""
+        """A LoadPar's file has been read (from its thread): the commands behind it go on."""
         try:
-            os.write(self._wake_w, b"!")
-        except OSError:
+            self.aloop.call_soon_threadsafe(self._apply_waiting)
+        except RuntimeError:  # the session is over
             pass
 
     def _stop_asked(self, conn: Connection) -> None:
@@ -430,7 +405,19 @@ class SessionHost:
 
     # --- the end -------------------------------------------------------------------------------
 
-    def _shutdown(self) -> None:
+    async def _end(self, failure: BaseException | None) -> None:
+        """The drive is over: stopped, failed, or a detached run's time is up."""
+        if failure is not None:
+            self._stop_reason = f"the session failed: {type(failure).__name__}: {failure}"
+        elif self._stop_reason is None and self.scripted is not None:
+            self._publish(force=True)
+            try:
+                self._stop_reason = self.scripted.finish()
+            except Exception as exc:  # noqa: BLE001 - stop in order and say why
+                self._stop_reason = f"the session failed: {type(exc).__name__}: {exc}"
+        await self._shutdown()
+
+    async def _shutdown(self) -> None:
         reason = self._stop_reason or "stopped"
         self.ended = reason
         try:
@@ -439,12 +426,9 @@ class SessionHost:
             try:
                 self._publish(force=True)
                 self.server.broadcast(encode(Ended(reason)))
-                self.server.flush_all(1.0)
+                await self.server.flush_all(1.0)
             finally:
                 self.server.close()
-                self.selector.close()
-                for fd in (self._wake_r, self._wake_w):
-                    os.close(fd)
                 self._operator = None
                 try:
                     end_record(self.runtime, self._info(), reason)

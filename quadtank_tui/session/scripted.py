@@ -23,7 +23,7 @@ from pathlib import Path
 from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend
 from quadtank_tui.engine.experiment import apply_due
 from quadtank_tui.engine.headless import HeadlessRun, finish_headless, prepare_headless
-from quadtank_tui.engine.runner import LoopTime
+from quadtank_tui.engine.driver import Driver, LoopTime
 from quadtank_tui.files.script import Script
 
 #: Wall seconds the launcher spends rehearsing a detached run's script at most.
@@ -31,12 +31,14 @@ REHEARSAL_BUDGET = 3.0
 
 
 class ScriptedRun:
+    """The script of a detached run: its due events ahead of each sample of the
+    driver, which ends the drive once the run's duration has passed."""
+
     def __init__(self, run: HeadlessRun) -> None:
         self.run = run
         script = run.script
         self._events = collections.deque(script.events if script else ())
         self._name = script.file if script else ""
-        self._elapsed = LoopTime(run.engine.loop.h)
 
     @property
     def pending(self) -> bool:
@@ -44,19 +46,13 @@ class ScriptedRun:
         return bool(self._events)
 
     @property
-    def elapsed(self) -> float:
-        """Loop time run so far, s."""
-        return self._elapsed.seconds
+    def duration(self) -> float:
+        return self.run.duration
 
-    def step(self) -> bool:
-        """The script's due events, then one sample; True once the run is over."""
-        engine = self.run.engine
-        apply_due(engine, self._events, self._elapsed, self._name)
-        h = engine.loop.h
-        engine.step()
-        real = engine.loop.backend is not engine.loop.sim
-        self._elapsed.add(h, 1 + engine.missed if real else 1)
-        return self._elapsed.reached(self.run.duration)
+    def before(self, elapsed: LoopTime) -> None:
+        """The script's events due at `elapsed` (ValueError: a refused one, the
+        script's error naming its file and line)."""
+        apply_due(self.run.engine, self._events, elapsed, self._name)
 
     def finish(self) -> str:
         """Save the log and print the summary (to the session's output); the
@@ -102,12 +98,23 @@ def rehearse(*, par: str | None, script: Script | None, duration: float, out: Pa
                                     daq=_StandIn() if active else None)
         run = ScriptedRun(prepared)
         end = time.monotonic() + budget
+        checked: list[str] = []
+        driver: Driver
+
+        def before(elapsed: LoopTime) -> None:
+            run.before(elapsed)
+            if not run.pending:
+                driver.stop()
+            elif time.monotonic() > end:
+                last = max(e.at for e in prepared.script.events) if prepared.script else 0.0
+                checked.append(f"the script was checked up to {elapsed.seconds:g} s of its last event at "
+                               f"{last:g} s (a refusal after that ends the session: quadtank sessions says why)")
+                driver.stop()
+
+        driver = Driver(prepared.engine, duration=duration, before=before)
         try:
-            while run.pending and not run.step():
-                if time.monotonic() > end and run.pending:
-                    last = max(e.at for e in run.run.script.events) if run.run.script else 0.0
-                    return (f"the script was checked up to {run.elapsed:g} s of its last event at {last:g} s "
-                            f"(a refusal after that ends the session: quadtank sessions says why)")
+            if run.pending:
+                driver.run()
         finally:
             prepared.engine.stop()
-    return None
+    return checked[0] if checked else None

@@ -1,6 +1,13 @@
 """The session's socket: connections that never make the loop wait, and that no
 other user can use to end the session or crowd its owner out.
 
+The server lives on the session driver's asyncio event loop: the listener and
+each connection are non-blocking sockets watched by the loop (`add_reader`,
+`add_writer`), and the timers (a silent peer, accept's pause) are the loop's.
+Not asyncio's own Unix server and transports: their accept retries after running
+out of descriptors at a fixed second with a traceback in the output, and their
+write buffers grow without the per-user accounting below.
+
 Every connection is non-blocking.  What a client sends is split into lines and
 decoded (a line that is not a message drops that client, never the session: the
 same for anything its message makes go wrong); what the session sends is queued
@@ -22,9 +29,9 @@ claims.
 
 from __future__ import annotations
 
+import asyncio
 import errno
 import os
-import selectors
 import socket
 import sys
 import time
@@ -66,6 +73,8 @@ class Connection:
     since: float = 0.0             # wall time (time.time) it attached
     opened: float = field(default_factory=time.monotonic)
     closing: bool = False          # close once `out` is written
+    writing: bool = False          # the loop watches it for room to write `out`
+    silence: asyncio.TimerHandle | None = None  # drops it if it has not said Hello by then
 
     @property
     def name(self) -> str:
@@ -73,19 +82,19 @@ class Connection:
 
 
 class Server:
-    """The listening socket and the connections, on the host's selector.
+    """The listening socket and the connections, on the driver's event loop.
 
     on_message(conn, message) : a decoded client message
     on_gone(conn) : a connection closed (after its Hello or not)
     rank(peer) : an administrator, the owner, or anyone else (who may use the reserve)
     """
 
-    def __init__(self, listener: socket.socket, selector: selectors.BaseSelector,
+    def __init__(self, listener: socket.socket, aloop: asyncio.AbstractEventLoop,
                  on_message: Callable[[Connection, Any], None], on_gone: Callable[[Connection], None], *,
                  peer_of: Callable[[socket.socket], Peer] = kernel_peer,
                  rank: Callable[[Peer], Rank] = lambda peer: "other") -> None:
         self.listener = listener
-        self.selector = selector
+        self.aloop = aloop
         self.connections: list[Connection] = []
         self._on_message = on_message
         self._on_gone = on_gone
@@ -94,14 +103,27 @@ class Server:
         self._per_user: dict[int, int] = {}
         self._others_queued = 0   # bytes in the `out` of connections of rank "other"
         self._backoff = 0.0
-        self._resume_at: float | None = None   # accept paused (out of descriptors) until then
+        self._listening = False
+        self._closed = False
+        #: Connections with lines queued that the socket has not taken yet.
+        self.writing = 0
         #: Connections turned away (limits, a silent peer, a bad line) and accept's pauses, for the record.
         self.refused = 0
         self.paused = 0
         listener.setblocking(False)
-        selector.register(listener, selectors.EVENT_READ, self._accept)
+        self._listen()
 
-    def _accept(self, mask: int) -> None:
+    def _listen(self) -> None:
+        if not self._listening and not self._closed:
+            self.aloop.add_reader(self.listener.fileno(), self._accept)
+            self._listening = True
+
+    def _unlisten(self) -> None:
+        if self._listening:
+            self.aloop.remove_reader(self.listener.fileno())
+            self._listening = False
+
+    def _accept(self) -> None:
         while True:
             try:
                 sock, _ = self.listener.accept()
@@ -132,7 +154,8 @@ class Server:
             conn = Connection(sock, peer, rank)
             self.connections.append(conn)
             self._per_user[peer.uid] = self._per_user.get(peer.uid, 0) + 1
-            self.selector.register(sock, selectors.EVENT_READ, lambda m, c=conn: self._ready(c, m))
+            self.aloop.add_reader(sock.fileno(), self._read, conn)
+            conn.silence = self.aloop.call_later(HELLO_TIMEOUT, self._silent, conn)
 
     def _no_room(self, peer: Peer, rank: Rank) -> str | None:
         """Why `peer` is turned away now (None: let in)."""
@@ -151,38 +174,22 @@ class Server:
         """Out of descriptors or memory: stop listening for a while (a readable
         listener whose accept fails would wake the loop at once, forever)."""
         self._backoff = min(ACCEPT_BACKOFF[1], max(ACCEPT_BACKOFF[0], 2 * self._backoff))
-        self._resume_at = time.monotonic() + self._backoff
         self.paused += 1
-        try:
-            self.selector.unregister(self.listener)
-        except (KeyError, ValueError):
-            pass
+        self._unlisten()
+        self.aloop.call_later(self._backoff, self._resume_accept)
         if self.paused == 1 or exc.errno not in (errno.EMFILE, errno.ENFILE):
             _note(f"accept paused {self._backoff:g} s: {exc}")
 
-    def tick(self) -> None:
-        """Timers: accept again after a pause; drop a connection silent past HELLO_TIMEOUT."""
-        now = time.monotonic()
-        if self._resume_at is not None and now >= self._resume_at:
-            self._resume_at = None
-            self.selector.register(self.listener, selectors.EVENT_READ, self._accept)
-            self._accept(selectors.EVENT_READ)
-        for conn in [c for c in self.connections if c.role is None and now - c.opened > HELLO_TIMEOUT]:
+    def _resume_accept(self) -> None:
+        if not self._closed:
+            self._listen()
+            self._accept()
+
+    def _silent(self, conn: Connection) -> None:
+        """HELLO_TIMEOUT after it connected: a peer that has not said Hello goes."""
+        if conn.role is None and conn in self.connections:
             self.refused += 1
             self.drop(conn)
-
-    def next_timer(self) -> float:
-        """Seconds until `tick` has something to do (at most HELLO_TIMEOUT)."""
-        now = time.monotonic()
-        due = [self._resume_at - now] if self._resume_at is not None else []
-        due += [c.opened + HELLO_TIMEOUT - now for c in self.connections if c.role is None]
-        return max(0.0, min(due, default=HELLO_TIMEOUT))
-
-    def _ready(self, conn: Connection, mask: int) -> None:
-        if mask & selectors.EVENT_WRITE:
-            self._write(conn)
-        if mask & selectors.EVENT_READ and conn in self.connections:
-            self._read(conn)
 
     def _read(self, conn: Connection) -> None:
         try:
@@ -240,13 +247,17 @@ class Server:
             if conn.rank == "other":
                 self._others_queued -= n
         if conn.out:
-            self.selector.modify(conn.sock, selectors.EVENT_READ | selectors.EVENT_WRITE,
-                                 lambda m, c=conn: self._ready(c, m))
-        else:
-            if conn.closing:
-                self.drop(conn)
-                return
-            self.selector.modify(conn.sock, selectors.EVENT_READ, lambda m, c=conn: self._ready(c, m))
+            if not conn.writing:
+                self.aloop.add_writer(conn.sock.fileno(), self._write, conn)
+                conn.writing = True
+                self.writing += 1
+            return
+        if conn.writing:
+            self.aloop.remove_writer(conn.sock.fileno())
+            conn.writing = False
+            self.writing -= 1
+        if conn.closing:
+            self.drop(conn)
 
     def drop(self, conn: Connection) -> None:
         if conn not in self.connections:
@@ -259,29 +270,30 @@ class Server:
             self._per_user[conn.peer.uid] = left
         else:
             self._per_user.pop(conn.peer.uid, None)
-        try:
-            self.selector.unregister(conn.sock)
-        except (KeyError, ValueError):
-            pass
+        fd = conn.sock.fileno()
+        self.aloop.remove_reader(fd)
+        if conn.writing:
+            self.aloop.remove_writer(fd)
+            conn.writing = False
+            self.writing -= 1
+        if conn.silence is not None:
+            conn.silence.cancel()
         conn.sock.close()
         self._on_gone(conn)
 
-    def flush_all(self, timeout: float) -> None:
-        """At the end: let the queued lines go out for up to `timeout` s."""
+    async def flush_all(self, timeout: float) -> None:
+        """At the end: no one new; let the queued lines go out for up to `timeout` s."""
+        self._unlisten()
         end = time.monotonic() + timeout
         while any(c.out for c in self.connections) and time.monotonic() < end:
-            for key, mask in self.selector.select(max(0.0, end - time.monotonic())):
-                if key.fileobj is not self.listener:
-                    key.data(mask)
+            await asyncio.sleep(0.01)
 
     def close(self) -> None:
+        self._unlisten()
+        self._closed = True
         for conn in list(self.connections):
             conn.closing = True
             self.drop(conn)
-        try:
-            self.selector.unregister(self.listener)
-        except (KeyError, ValueError):
-            pass
         self.listener.close()
 
 

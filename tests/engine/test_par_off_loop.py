@@ -35,8 +35,7 @@ def blocking_reads(monkeypatch: pytest.MonkeyPatch, store: ParStore) -> tuple[th
 
 
 def engine_with_a_par(tmp_path: Path) -> Engine:
-    e = build_engine(clock="virtual", speed=50.0, params_dir=tmp_path / "params", logs_dir=tmp_path / "logs",
-                     threaded=False)
+    e = build_engine(clock="virtual", speed=50.0, params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
     assert e.submit(SetParams({K: 2.5})).result().ok
     assert e.submit(SavePar("mine", overwrite=True)).result().ok
     assert e.submit(SetParams({K: 1.0})).result().ok

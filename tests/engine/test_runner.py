@@ -1,4 +1,5 @@
-"""The engine's own thread and event loop, commands through futures, clean stops.
+"""The engine and its driver (engine/driver.py): the driver on the engine's thread and
+event loop, commands through futures, clean stops; the driver inline.
 
 Counts, not timing: nothing here depends on how fast the machine is.
 """
@@ -106,7 +107,7 @@ def test_realtime_without_a_thread_waits_for_each_deadline(make_engine: MakeEngi
         slept.append(dt)
         src.sleep(dt + 0.0005)  # wakes half a millisecond late
 
-    e = make_engine(clock="realtime", threaded=False, now=src.now, sleep=sleep)
+    e = make_engine(clock="realtime", now=src.now, sleep=sleep)
     e.submit(SetState("Run"))
     e.step(10)
     s = e.snapshot()
@@ -190,3 +191,32 @@ def test_a_stored_name_without_default_par_warns_once(tmp_path) -> None:  # type
     shutil.copy(Path(__file__).resolve().parents[2] / "params" / "minphase.par", tmp_path)
     _, warnings = load_parameters("minphase", ParStore(tmp_path))
     assert warnings == (f"{tmp_path / 'default.par'} not found: using the built-in (preset) values",)
+
+
+def test_a_command_ends_the_drivers_wait_and_is_applied_between_samples(make_engine: MakeEngine,
+                                                                       poll: Callable[..., bool]) -> None:
+    """A sample 10 s away is waited for on the event loop: a command (and a stop)
+    from another thread is taken at once, not after the wait."""
+    import time
+
+    e = make_engine(clock="realtime")
+    assert e.submit(SetParams({"SAMPLING TIME.TSamp": 10000})).result(TIMEOUT).ok
+    e.start()
+    assert poll(lambda: e.snapshot().stats.samples == 1, TIMEOUT, 0.001)  # the first sample is due at once
+    t0 = time.monotonic()
+    assert e.submit(SetParams({"REFERENCE ONE.Mean": 0.5})).result(TIMEOUT).ok
+    assert e.snapshot().params.get("REFERENCE ONE.Mean") == 0.5 and e.snapshot().stats.samples == 1
+    e.stop()
+    assert not e.running and time.monotonic() - t0 < 5.0  # not the 10 s to the next sample
+
+
+def test_the_driver_runs_inline_inside_a_running_event_loop(make_engine: MakeEngine) -> None:
+    """run_for / step from a coroutine (the UI tests drive engines from Textual's
+    loop): the driver without clients needs no event loop of its own."""
+    e = make_engine()
+    e.submit(SetState("Run"))
+
+    async def drive() -> int:
+        return e.run_for(1.0) + e.step(5).stats.samples
+
+    assert asyncio.run(drive()) == 10 + 15

@@ -41,7 +41,7 @@ class ThreadSession:
         self.runtime = tmp_path / "run"
         self.runtime.mkdir(exist_ok=True)
         self.engine = build_engine(clock="virtual", speed=speed, params_dir=tmp_path / "params",
-                                   logs_dir=tmp_path / "logs", threaded=False, daq=daq)
+                                   logs_dir=tmp_path / "logs", daq=daq)
         if tsamp_ms is not None:
             assert self.engine.submit(_set({"SAMPLING TIME.TSamp": tsamp_ms})).result().ok
         self.path = socket_path(self.runtime, "alice-1")

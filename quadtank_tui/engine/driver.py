@@ -1,0 +1,253 @@
+"""The one driver of the control loop: wait for the next sample, sample, hand it on.
+
+Every way the loop runs goes through :class:`Driver`: a session (its host serves
+the clients on the driver's asyncio event loop: the TUI's session, `quadtank run
+--detach`, the tests' ThreadSession), the engine's own thread (`Engine.start`), and
+the runs without clients (`quadtank run`, `Engine.run_for` / `Engine.step`, the
+benchmarks).  The pacing and the loop-time accounting are here and nowhere else.
+
+Waiting (a clock on the wall, time.monotonic): a sample due more than FINE_WAIT
+from now is waited for on the event loop (`loop.call_at`), so the clients'
+messages are served meanwhile; the last FINE_WAIT is a plain sleep (epoll rounds
+its timeout up to whole milliseconds), so the jitter is the sleep's, not the
+event loop's.  On Linux the driving thread's timer slack is set to 1 us first: a
+sleep overshoots by the slack, 50 us by default, a whole x1000 sampling period
+(measured: time.sleep(20 us) takes 80 us by default, 28 us at 1 us slack).  The
+thread sleeps rather than spins, so a loaded machine's scheduler does not
+preempt it at its deadline, nor does it take a core from the clients.  A virtual clock at x1000 and 50 ms has a sample due every 50 us:
+every wait is a fine one, and the event loop gets a turn every YIELD_AFTER of
+wall time.  An injected time source (a ManualClock: tests, rehearsals) is waited
+on with the engine's own `sleep`, which only moves that time on.
+
+Without an event loop (:meth:`Driver.run`: no clients) the same coroutine is
+stepped inline: it never has to give the event loop a turn, so it never awaits.
+
+Loop time: `elapsed` counts sampling periods (LoopTime); on a real process the
+slots the clock skipped count too (its time passes whether or not the loop keeps
+up), so a run against a slow or hung device still ends on time.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import ctypes
+import sys
+import time
+from typing import TYPE_CHECKING, Awaitable, Callable, ClassVar
+
+if TYPE_CHECKING:
+    from quadtank_tui.engine.runner import Engine
+
+#: Below this, the last part of a wait is a sleep and a spin, not the event loop's
+#: timer (whose epoll timeout rounds up to whole milliseconds), s.
+FINE_WAIT = 0.002
+#: The driving thread's timer slack, ns (Linux prctl PR_SET_TIMERSLACK).
+TIMER_SLACK_NS = 1000
+_PR_SET_TIMERSLACK = 29
+#: Longest wall time the driver samples without giving its event loop a turn
+#: (the clients' messages, the signals), s.
+YIELD_AFTER = 0.002
+
+
+class LoopTime:
+    """Seconds of loop time as whole samples per sampling time (base + n h), so that
+    8 h of 50 ms samples is exactly 576000 of them, not one more from summed rounding."""
+
+    def __init__(self, h: float) -> None:
+        self._base, self._n, self._h = 0.0, 0, h
+        self.samples = 0
+
+    @property
+    def seconds(self) -> float:
+        return self._base + self._n * self._h
+
+    def add(self, h: float, slots: int = 1) -> None:
+        """One sample went by, and with it `slots` sampling periods of `h` s (more than
+        one when a real process's sample came late: its missed slots passed too)."""
+        if h != self._h:
+            self._base, self._n, self._h = self.seconds, 0, h
+        self._n += slots
+        self.samples += 1
+
+    def reached(self, t: float) -> bool:
+        return t - self.seconds <= 1e-6 * self._h
+
+
+def fine_wait(deadline: float) -> None:
+    """Until `deadline` (time.monotonic): a sleep."""
+    rest = deadline - time.monotonic()
+    if rest > 0:
+        time.sleep(rest)
+
+
+def tight_timer_slack() -> None:
+    """This thread's sleeps end within TIMER_SLACK_NS of their time (Linux; elsewhere
+    and if refused, the system's slack stays)."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_TIMERSLACK, TIMER_SLACK_NS, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
+def _release(waiter: asyncio.Future[None]) -> None:
+    if not waiter.done():
+        waiter.set_result(None)
+
+
+class Driver:
+    """Drives `engine` until stopped, or until `duration` s of loop time / `samples`
+    samples have been taken.
+
+    between() : at every turn, before the deadline is looked at (the engine's
+        thread applies the commands queued from other threads there)
+    before(elapsed) : ahead of each sample (a script applies its due events); an
+        exception ends the drive and is raised by run / handed to serve's finish
+    after() : after each sample (a session publishes, at most every so often)
+    urgent() : the event loop has work that should not wait YIELD_AFTER (a
+        session's lines queued for a client: a full ring buffer on attach goes
+        out a socket buffer per turn)
+    """
+
+    #: Drives started since the program began (the test that every mode goes through here counts them).
+    started: ClassVar[int] = 0
+
+    def __init__(self, engine: Engine, *, duration: float | None = None, samples: int | None = None,
+                 between: Callable[[], None] | None = None,
+                 before: Callable[[LoopTime], None] | None = None,
+                 after: Callable[[], None] | None = None, urgent: Callable[[], bool] | None = None) -> None:
+        self.engine = engine
+        self.duration = duration
+        self.samples = samples
+        self.between = between
+        self.before = before
+        self.after = after
+        self.urgent = urgent
+        self.elapsed = LoopTime(engine.loop.h)
+        self.aloop: asyncio.AbstractEventLoop | None = None
+        self._stopping = False
+        self._waiter: asyncio.Future[None] | None = None
+
+    # --- the two ways to run it ---------------------------------------------------------------
+
+    def run(self) -> int:
+        """Drive here, without an event loop (no clients); returns the samples taken."""
+        Driver.started += 1
+        coro = self._drive()
+        try:
+            coro.send(None)  # it never awaits without an event loop: one send runs it to the end
+        except StopIteration:
+            return self.elapsed.samples
+        coro.close()
+        raise RuntimeError("the driver awaited without an event loop")
+
+    def serve(self, aloop: asyncio.AbstractEventLoop,
+              finish: Callable[[BaseException | None], Awaitable[None]] | None = None) -> None:
+        """Drive on `aloop` (whatever else is registered on it is served during the
+        waits) until stopped; then `finish(failure)` runs on it (failure: what ended
+        the drive, None when it was stopped or its time was up).  The loop is closed
+        afterwards."""
+        Driver.started += 1
+        self.aloop = aloop
+        try:
+            aloop.run_until_complete(self._serve(finish))
+        finally:
+            self.aloop = None
+            self._waiter = None
+            aloop.close()
+
+    async def _serve(self, finish: Callable[[BaseException | None], Awaitable[None]] | None) -> None:
+        failure: BaseException | None = None
+        try:
+            await self._drive()
+        except Exception as exc:  # noqa: BLE001 - handed to finish, which stops in order and says why
+            failure = exc
+        if finish is not None:
+            await finish(failure)
+
+    # --- stopping and waking ----------------------------------------------------------------
+
+    def stop(self) -> None:
+        """End the drive at its next turn (any thread, a signal handler)."""
+        self._stopping = True
+        self.poke_threadsafe()
+
+    @property
+    def stopping(self) -> bool:
+        return self._stopping
+
+    def poke(self) -> None:
+        """On the event loop's thread: end the current wait (the schedule or the
+        commands may have changed)."""
+        if self._waiter is not None:
+            _release(self._waiter)
+
+    def poke_threadsafe(self) -> None:
+        """From any thread: end the current wait."""
+        aloop = self.aloop
+        if aloop is not None:
+            try:
+                aloop.call_soon_threadsafe(self.poke)
+            except RuntimeError:  # the loop closed in between: the drive is over
+                pass
+
+    # --- the drive --------------------------------------------------------------------------
+
+    def _done(self) -> bool:
+        if self._stopping:
+            return True
+        if self.duration is not None and self.elapsed.reached(self.duration):
+            return True
+        return self.samples is not None and self.elapsed.samples >= self.samples
+
+    async def _drive(self) -> None:
+        engine, clock, loop = self.engine, self.engine.clock, self.engine.loop
+        wall = engine.wall_paced
+        if wall:
+            tight_timer_slack()
+        sleep = engine.sleep
+        between, before, after, urgent, elapsed = self.between, self.before, self.after, self.urgent, self.elapsed
+        aloop = self.aloop
+        monotonic = time.monotonic
+        turned = monotonic()
+        while not self._done():
+            if aloop is not None and (monotonic() - turned > YIELD_AFTER or urgent is not None and urgent()):
+                await asyncio.sleep(0)  # the clients and the signals get a turn (not between a fine wait and its sample)
+                turned = monotonic()
+            if between is not None:
+                between()
+            deadline = clock.deadline()
+            if deadline is not None:
+                if wall:
+                    delay = deadline - monotonic()
+                    if delay > FINE_WAIT and aloop is not None:
+                        await self._wait(aloop, deadline - FINE_WAIT)
+                        turned = monotonic()
+                        continue  # woken early maybe: look at the commands and the deadline again
+                    if delay > 0:
+                        fine_wait(deadline)
+                else:
+                    delay = deadline - clock.now()
+                    if delay > 0:
+                        sleep(delay)
+            if before is not None:
+                before(elapsed)
+                if self._stopping:
+                    break
+            h = loop.h
+            engine.sample()
+            elapsed.add(h, 1 + loop.missed if loop.backend is not loop.sim else 1)
+            if after is not None:
+                after()
+
+    async def _wait(self, aloop: asyncio.AbstractEventLoop, until: float) -> None:
+        """Until `until` (monotonic, the event loop's own time) or a poke."""
+        waiter: asyncio.Future[None] = aloop.create_future()
+        self._waiter = waiter
+        timer = aloop.call_at(until, _release, waiter)
+        try:
+            await waiter
+        finally:
+            timer.cancel()
+            self._waiter = None
