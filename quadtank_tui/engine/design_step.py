@@ -62,7 +62,7 @@ def run_step(pair: Sequence[PID], *, par: str | Path | None = None, loop: int = 
     tsamp = params.tsamp_ms if tsamp_ms is None else tsamp_ms
     rows = int((settle + AUTO_BEFORE_STEP + duration) / (tsamp / 1000.0)) + 100
     engine: Engine = build_engine(par, clock="manual", params_dir=params_dir,
-                                  logs_dir=logs_dir, threaded=False,
+                                  logs_dir=logs_dir,
                                   history_capacity=max(DEFAULT_CAPACITY, rows))
     try:
         setup = {"SAMPLING TIME.TSamp": tsamp,

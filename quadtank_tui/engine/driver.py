@@ -2,8 +2,7 @@
 
 Every way the loop runs goes through :class:`Driver`: a session (its host serves
 the clients on the driver's asyncio event loop: the TUI's session, `quadtank run
---detach`, the tests' ThreadSession), the engine's own thread (`Engine.start`), and
-the runs without clients (`quadtank run`, `Engine.run_for` / `Engine.step`, the
+--detach`, the tests' ThreadSession) and the runs without clients (`quadtank run`, `Engine.run_for` / `Engine.step`, the
 benchmarks).  The pacing and the loop-time accounting are here and nowhere else.
 
 Waiting (a clock on the wall, time.monotonic): a sample due more than FINE_WAIT
@@ -100,8 +99,6 @@ class Driver:
     """Drives `engine` until stopped, or until `duration` s of loop time / `samples`
     samples have been taken.
 
-    between() : at every turn, before the deadline is looked at (the engine's
-        thread applies the commands queued from other threads there)
     before(elapsed) : ahead of each sample (a script applies its due events); an
         exception ends the drive and is raised by run / handed to serve's finish
     after() : after each sample (a session publishes, at most every so often)
@@ -114,13 +111,11 @@ class Driver:
     started: ClassVar[int] = 0
 
     def __init__(self, engine: Engine, *, duration: float | None = None, samples: int | None = None,
-                 between: Callable[[], None] | None = None,
                  before: Callable[[LoopTime], None] | None = None,
                  after: Callable[[], None] | None = None, urgent: Callable[[], bool] | None = None) -> None:
         self.engine = engine
         self.duration = duration
         self.samples = samples
-        self.between = between
         self.before = before
         self.after = after
         self.urgent = urgent
@@ -207,7 +202,7 @@ class Driver:
         if wall:
             tight_timer_slack()
         sleep = engine.sleep
-        between, before, after, urgent, elapsed = self.between, self.before, self.after, self.urgent, self.elapsed
+        before, after, urgent, elapsed = self.before, self.after, self.urgent, self.elapsed
         aloop = self.aloop
         monotonic = time.monotonic
         turned = monotonic()
@@ -215,8 +210,6 @@ class Driver:
             if aloop is not None and (monotonic() - turned > YIELD_AFTER or urgent is not None and urgent()):
                 await asyncio.sleep(0)  # the clients and the signals get a turn (not between a fine wait and its sample)
                 turned = monotonic()
-            if between is not None:
-                between()
             deadline = clock.deadline()
             if deadline is not None:
                 if wall:

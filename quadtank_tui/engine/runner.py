@@ -4,22 +4,13 @@ Nothing here paces: the one driver (engine/driver.py) waits for each deadline an
 calls :meth:`Engine.sample`.  A session's host drives the engine on its asyncio
 event loop and applies the clients' commands between samples
 (:meth:`Engine.submit`, applied at once on the driver's thread); the runs without
-clients drive it inline (:meth:`Engine.run_for`, :meth:`Engine.step`).
-
-:meth:`Engine.start` puts the same driver on a thread of this process (the TUI's
-`--loop thread`, the loop process of engine/process.py): commands submitted from
-other threads are then queued, the driver is woken, and it applies them between
-samples, resolving the returned Future with the CommandResult (once its file
-operations, which the loop's writer thread does, are done).
+clients drive it inline (:meth:`Engine.run_for`, :meth:`Engine.step`).  The engine
+has no thread of its own.
 """
 
 from __future__ import annotations
 
-import asyncio
-import collections
-import functools
 import os
-import sys
 import threading
 import time
 from concurrent.futures import Future
@@ -33,27 +24,15 @@ import numpy as np
 from quadtank_tui.core.parameters import Parameters, REFERENCE_SECTIONS
 from quadtank_tui.engine.backend import ProcessBackend
 from quadtank_tui.engine.clock import Clock, ManualClock, RealTimeClock, VirtualClock
-from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, LoadPar, SetSpeed
+from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, SetSpeed
 from quadtank_tui.engine.driver import Driver, LoopTime
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, check_capacity
 from quadtank_tui.engine.loop import ControlLoop
-from quadtank_tui.engine.parload import ParReading
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log import log_path
 from quadtank_tui.files.par import ParRead, ParStore, read_par
 
 ClockKind = Literal["realtime", "virtual", "manual"]
-
-#: GIL switch interval while a real-time loop runs on a thread, s.  A thread waking for
-#: its deadline must wait for the GIL until the running thread is asked to drop it:
-#: Python's default 5 ms would be the jitter floor whenever the UI thread computes.
-REALTIME_SWITCH_INTERVAL = 0.0005
-
-
-def _pass_on(to: Future[CommandResult], began: Future[CommandResult]) -> None:
-    if not to.done():
-        to.set_result(began.result())
-
 
 class Engine:
     """Implements :class:`quadtank_tui.engine.handle.EngineHandle`."""
@@ -72,13 +51,8 @@ class Engine:
         #: How the driver waits for a deadline of an injected time source (a
         #: ManualClock's sleep moves that time on).
         self.sleep = sleep
-        self._pending: collections.deque[tuple[Command | InstallPar | ParReading, Future[CommandResult]]] = \
-            collections.deque()
         self._lock = threading.Lock()  # one sample or one command at a time
-        self._thread: threading.Thread | None = None
-        self._driver: Driver | None = None  # the driver on the engine's thread (start)
         self._stopped = False
-        self.crash: str | None = None
         loop.set_clock_info(clock.realtime, clock.speed)
         if clock.realtime:  # a rig's time, stepped by hand or not: no sample waits for the disk
             loop.use_file_thread()
@@ -112,11 +86,6 @@ class Engine:
         return self.loop.missed
 
     @property
-    def running(self) -> bool:
-        """The engine's thread (start) is alive."""
-        return self._thread is not None and self._thread.is_alive()
-
-    @property
     def wall_paced(self) -> bool:
         """The clock's deadlines are on the wall's monotonic clock (not an injected
         time source): the driver waits for them for real."""
@@ -125,22 +94,14 @@ class Engine:
     # --- the one write door ------------------------------------------------------------
 
     def submit(self, command: Command | InstallPar) -> Future[CommandResult]:
-        """Apply `command` now, or (the engine's thread runs) queue it for the
-        driver, which applies it between samples; thread-safe."""
-        fut: Future[CommandResult] = Future()
+        """Apply `command` now, between two samples (a session's host calls this on
+        its driver's thread); the Future resolves when its file operations are done."""
         if self._stopped:
+            fut: Future[CommandResult] = Future()
             fut.set_result(CommandResult.refused("the engine has stopped"))
             return fut
-        driver = self._driver
-        if driver is None or not self.running:
-            with self._lock:
-                return self._begin(command)
-        if isinstance(command, LoadPar):  # the file is read off this thread and the loop's
-            self._pending.append((ParReading.start(self.loop.store, command, driver.poke_threadsafe), fut))
-        else:
-            self._pending.append((command, fut))
-        driver.poke_threadsafe()
-        return fut
+        with self._lock:
+            return self._begin(command)
 
     def _begin(self, command: Command | InstallPar) -> Future[CommandResult]:
         """Apply `command` to the loop (its file operations may still run: the
@@ -164,29 +125,6 @@ class Engine:
         self.loop.set_clock_info(self.clock.realtime, self.clock.speed)
         return CommandResult(True)
 
-    def _drain(self) -> None:
-        """The commands queued from other threads, in order (the engine's thread)."""
-        while self._pending:
-            command, fut = self._pending[0]
-            if isinstance(command, ParReading):
-                if not command.done:
-                    return  # the commands behind it wait their turn; the samples do not
-                prepared = command.future.result()
-                if isinstance(prepared, CommandResult):  # the file's refusal
-                    self._pending.popleft()
-                    if not fut.done():
-                        fut.set_result(prepared)
-                    continue
-                command = prepared
-            self._pending.popleft()
-            try:
-                began = self._begin(command)
-            except Exception as exc:  # noqa: BLE001 - a bug must not kill the loop
-                began = Future()
-                began.set_result(CommandResult.refused(
-                    f"{type(command).__name__} failed: {type(exc).__name__}: {exc}"))
-            began.add_done_callback(functools.partial(_pass_on, fut))
-
     # --- samples ------------------------------------------------------------------------------
 
     def sample(self) -> None:
@@ -198,8 +136,6 @@ class Engine:
 
     def step(self, n: int = 1) -> Snapshot:
         """Do `n` samples, each at its deadline (the driver, inline)."""
-        if self.running:
-            raise RuntimeError("the engine runs on its own thread; use submit()")
         Driver(self, samples=n).run()
         return self.loop.snapshot()
 
@@ -208,48 +144,15 @@ class Engine:
         not); returns the number of samples.  `before(elapsed)` runs ahead of each
         sample (a script applies its due events there).  On a real process the
         periods the loop missed count too (engine/driver.py)."""
-        if self.running:
-            raise RuntimeError("the engine runs on its own thread; use submit()")
         return Driver(self, duration=seconds, before=before).run()
-
-    # --- the engine's thread -------------------------------------------------------------
-
-    def start(self) -> None:
-        """Run the driver on a thread of its own and its event loop (idempotent)."""
-        if self.running or self._stopped:
-            return
-        self.loop.use_file_thread()  # no sample waits for the disk
-        if self.clock.realtime and sys.getswitchinterval() > REALTIME_SWITCH_INTERVAL:
-            sys.setswitchinterval(REALTIME_SWITCH_INTERVAL)
-        self.clock.start()
-        driver = Driver(self, between=self._drain)
-        self._driver = driver
-        self._thread = threading.Thread(target=driver.serve, args=(asyncio.new_event_loop(), self._ended),
-                                        name="quadtank-loop", daemon=True)
-        self._thread.start()
-
-    async def _ended(self, failure: BaseException | None) -> None:
-        # Commands still queued are refused by stop(), not applied: after a stop was
-        # asked for, a Run or a Pause on a hung device would only delay it.
-        if failure is not None:  # last line of defence: pumps safe, say why
-            self.crash = f"{type(failure).__name__}: {failure}"
-            self.loop.halt(f"engine stopped: {self.crash}")
 
     def stop(self) -> None:
         """Stop the loop, pumps to 0, logging stopped (rows kept), backends closed.
-        Idempotent; safe to call from any thread but the driver's own."""
+        Idempotent; the driver must be over (a session's host stops it first)."""
         if self._stopped:
             return
-        if self._driver is not None:
-            self._driver.stop()
-        if self._thread is not None:
-            self._thread.join(timeout=10.0)
         self._stopped = True
         with self._lock:
-            while self._pending:
-                _, fut = self._pending.popleft()
-                if not fut.done():
-                    fut.set_result(CommandResult.refused("the engine has stopped"))
             self.loop.shut_down()
 
     def __enter__(self) -> Engine:
@@ -345,12 +248,10 @@ def assemble(
     spec: EngineSpec,
     *,
     daq: ProcessBackend | None = None,
-    threaded: bool | None = None,
     now: Callable[[], float] | None = None,
     sleep: Callable[[float], None] | None = None,
 ) -> Engine:
-    """The engine `spec` describes, in the start-up state (Simul, Pause, Manual);
-    `threaded` is ignored (see build_engine)."""
+    """The engine `spec` describes, in the start-up state (Simul, Pause, Manual)."""
     if spec.clock == "manual" and now is None and sleep is None:
         fake = ManualClock()
         now, sleep = fake.now, fake.sleep
@@ -382,18 +283,15 @@ def build_engine(
     seed: int | None = None,
     params_dir: Path | str = Path("params"),
     logs_dir: Path | str = Path("logs"),
-    threaded: bool | None = None,
     history_capacity: int = DEFAULT_CAPACITY,
     epoch: datetime | None = None,
     now: Callable[[], float] | None = None,
     sleep: Callable[[float], None] | None = None,
 ) -> Engine:
-    """An engine in the start-up state (Simul, Pause, Manual), not yet started.
+    """An engine in the start-up state (Simul, Pause, Manual); a driver runs it.
 
     clock : "realtime" (absolute deadlines), "virtual" (`speed` 1..1000, None = as
         fast as possible) or "manual" (no thread, unpaced: step it by hand)
-    threaded : ignored (whether the engine gets a thread is its caller's: Engine.start);
-        still accepted from the callers that pass it
     epoch : with a virtual or manual clock the logs are stamped epoch + process
         time, so a fixed epoch makes the `.log` reproducible (default: none, the
         wall clock at LogOn, as a user at the TUI expects)
@@ -403,4 +301,4 @@ def build_engine(
     """
     spec = engine_spec(par, clock=clock, speed=speed, seed=seed, params_dir=params_dir,
                        logs_dir=logs_dir, history_capacity=history_capacity, epoch=epoch)
-    return assemble(spec, daq=daq, threaded=threaded, now=now, sleep=sleep)
+    return assemble(spec, daq=daq, now=now, sleep=sleep)

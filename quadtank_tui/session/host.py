@@ -104,6 +104,8 @@ class SessionHost:
                  policy: UnattendedPolicy | None = None, scripted: ScriptedRun | None = None,
                  wall: Callable[[], float] = time.time) -> None:
         self.engine = engine
+        if scripted is None:  # clients on a paced clock: no sample waits for the disk (a rig's engine does this itself)
+            engine.loop.use_file_thread()
         self.info = info
         self.runtime = runtime
         self.access = access

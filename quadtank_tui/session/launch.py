@@ -294,7 +294,7 @@ def session_main(ready_fd: int, lifeline: int = -1) -> int:
             engine, scripted = prepared.engine, ScriptedRun(prepared)
         else:
             assert spec.engine is not None
-            engine = assemble(spec.engine, daq=daq, threaded=False)
+            engine = assemble(spec.engine, daq=daq)
         sock_path = socket_path(runtime, sid)
         # Every local user may connect and the session checks each one (Access):
         # a mode of 0660 with the share or admin group shut out a teacher outside

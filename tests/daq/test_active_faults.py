@@ -28,7 +28,7 @@ def ok(engine: Engine, command: object) -> None:
 def active_engine(backend: ModbusBackend, tmp_path: Path, **kw: object) -> Engine:
     """An engine in Active on `backend`, paced at x20 unless told otherwise."""
     options: dict[str, object] = {"clock": "virtual", "speed": 20.0, **kw}
-    engine = build_engine(None, daq=backend, threaded=False, params_dir=ROOT / "params",
+    engine = build_engine(None, daq=backend, params_dir=ROOT / "params",
                           logs_dir=tmp_path, **options)  # type: ignore[arg-type]
     ok(engine, SetOperation("Active"))
     return engine

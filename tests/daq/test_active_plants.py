@@ -106,7 +106,7 @@ def test_an_engine_on_a_daq_of_another_plant_is_refused() -> None:
     program reads the configuration for the plant; a mix-up still stops here)."""
     backend = ModbusBackend(load_daq_config("labjack"))
     with pytest.raises(ValueError, match="wired for the quadtank plant, but the plant in use is coupled-cascade"):
-        build_engine(CASCADE_PAR, daq=backend, clock="manual", threaded=False)
+        build_engine(CASCADE_PAR, daq=backend, clock="manual")
 
 
 def test_run_daq_on_the_cascade_logs_the_plants_columns(rig: Callable, tmp_path: Path,
@@ -154,7 +154,7 @@ def test_loading_another_plants_par_under_a_daq_is_refused() -> None:
     from quadtank_tui.engine.commands import LoadPar
 
     engine = build_engine(ROOT / "params" / "default.par", daq=ModbusBackend(load_daq_config("labjack")),
-                          clock="manual", threaded=False, params_dir=ROOT / "params")
+                          clock="manual", params_dir=ROOT / "params")
     before = engine.loop.params
     result = engine.submit(LoadPar("coupled-cascade")).result()
     assert not result.ok

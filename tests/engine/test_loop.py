@@ -135,7 +135,7 @@ def test_other_refusals_name_the_reason(make_engine: MakeEngine) -> None:
     ]:
         result = e.submit(command).result()
         assert not result.ok and words in result.message, (command, result.message)
-    realtime = make_engine(clock="realtime", threaded=False)
+    realtime = make_engine(clock="realtime")
     assert "virtual" in realtime.submit(SetSpeed(10)).result().message
 
 

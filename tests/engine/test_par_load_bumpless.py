@@ -78,23 +78,6 @@ def test_loading_in_automatic_keeps_the_references(make_engine: MakeEngine, para
     assert "the file's means 0.315, 0.315 not applied" in message
 
 
-def test_loading_off_the_loops_thread_keeps_them_too(make_engine: MakeEngine, params_dir: Path) -> None:
-    """A running engine reads the file on a thread of its own and installs it
-    between samples (InstallPar): the same rule."""
-    e = make_engine(params_dir=params_dir, clock="virtual", speed=200.0)
-    ok(e, SetControlMode("Automatic"))
-    r0 = e.snapshot().params.get(MEANS[0]), e.snapshot().params.get(MEANS[1])
-    e.start()
-    try:
-        ok(e, SetState("Run"))
-        assert "references kept" in ok(e, LoadPar("nonminphase"))
-        p = e.snapshot().params
-        assert (p.get(MEANS[0]), p.get(MEANS[1])) == pytest.approx(r0)
-        assert p.get("CONTROLLER ONE.Ti") == 110.0
-    finally:
-        e.stop()
-
-
 def test_loading_in_manual_sets_the_files_inputs(make_engine: MakeEngine, params_dir: Path) -> None:
     """Manual: the file's means are the inputs of its operating point, as before."""
     e = make_engine(params_dir=params_dir)

@@ -39,7 +39,7 @@ def cascade_engine(tmp_path: Path):  # type: ignore[no-untyped-def]
     folder.mkdir()
     (folder / "default.par").write_text((PARAMS / "default.par").read_text())
     return build_engine(PARAMS / "coupled-cascade.par", clock="manual", params_dir=folder,
-                        logs_dir=tmp_path / "logs", threaded=False)
+                        logs_dir=tmp_path / "logs")
 
 
 def test_a_plant_value_set_while_running_changes_the_process_and_the_saved_par(tmp_path: Path) -> None:
@@ -82,7 +82,7 @@ def test_a_refused_plant_value_changes_nothing_and_says_why(tmp_path: Path, valu
 
 
 def test_the_quadruple_tank_has_no_plant_section_values(tmp_path: Path) -> None:
-    engine = build_engine(PARAMS / "default.par", clock="manual", params_dir=PARAMS, threaded=False)
+    engine = build_engine(PARAMS / "default.par", clock="manual", params_dir=PARAMS)
     result = engine.submit(SetParams({"PLANT.alpha1": 0.01})).result()
     assert not result.ok and result.message.startswith("PLANT.alpha1: the quadruple tank's values are set in SIMULATION")
 
@@ -90,7 +90,7 @@ def test_the_quadruple_tank_has_no_plant_section_values(tmp_path: Path) -> None:
 def test_the_two_input_rig_redesigned_between_samples(tmp_path: Path) -> None:
     """Murray-Smith's orifice a1 enlarged 10 %: the loop's next sample runs the new
     plant (his robustness tests change exactly these areas)."""
-    engine = build_engine(PARAMS / "coupled-tito.par", clock="manual", params_dir=PARAMS, threaded=False)
+    engine = build_engine(PARAMS / "coupled-tito.par", clock="manual", params_dir=PARAMS)
     assert engine.submit(SetParams({"PLANT.a1": 3.956e-5 * 1.1})).result().ok
     assert engine.loop.sim.plant.values()["a1"] == pytest.approx(4.3516e-5)
     process = engine.loop.params.process

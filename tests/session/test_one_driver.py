@@ -53,17 +53,6 @@ def test_a_thread_session_is_served_by_the_driver(thread_session, poll) -> None:
     assert s.host.driver.engine is s.engine and s.host.driver.aloop is not None
 
 
-def test_the_engine_thread_is_the_driver(tmp_path: Path, poll: Callable[..., bool]) -> None:
-    """`--loop thread` and the loop process of `--no-session` run Engine.start."""
-    e = build_engine(clock="virtual", speed=100.0, params_dir=tmp_path, logs_dir=tmp_path)
-    try:
-        assert _drives(lambda: (e.start(), poll(lambda: e.snapshot().stats.samples > 2, 30.0))) == 1
-        assert e.submit(SetState("Run")).result(10).ok
-    finally:
-        e.stop()
-    assert not e.running
-
-
 def test_quadtank_run_and_the_engine_by_hand_are_the_driver(tmp_path: Path) -> None:
     out = tmp_path / "out.log"
     assert _drives(lambda: main(["run", "--duration", "2", "--log", str(out)])) == 1

@@ -5,6 +5,7 @@ it, in order; a bad file is refused with the message the loop gives."""
 
 from __future__ import annotations
 
+import shutil
 import threading
 from pathlib import Path
 from typing import Any, Callable
@@ -54,3 +55,22 @@ def test_the_session_samples_while_a_par_file_hangs(thread_session, monkeypatch:
         assert s.engine.snapshot().params.get(K) == 7.0
     finally:
         client.close()
+
+
+def test_a_session_loading_in_automatic_keeps_the_references(thread_session) -> None:  # type: ignore[no-untyped-def]
+    """The session reads the file off its driver's thread and installs it between
+    samples (InstallPar): the bumpless rule of tests/engine/test_par_load_bumpless.py
+    holds there too - the references in force stay, the rest of the file applies."""
+    s: ThreadSession = thread_session(speed=200.0)
+    (s.runtime.parent / "params").mkdir(exist_ok=True)
+    shutil.copy(Path(__file__).parents[2] / "params" / "nonminphase.par", s.runtime.parent / "params")
+    means = ("REFERENCE ONE.Mean", "REFERENCE TWO.Mean")
+    with SessionClient(s.path) as client:
+        assert client.submit(c.SetControlMode("Automatic")).result(10).ok
+        r0 = tuple(s.engine.snapshot().params.get(m) for m in means)
+        assert client.submit(c.SetState("Run")).result(10).ok
+        said = client.submit(c.LoadPar("nonminphase")).result(10)
+        assert said.ok and "references kept" in said.message, said.message
+    p = s.engine.snapshot().params
+    assert tuple(p.get(m) for m in means) == pytest.approx(r0)
+    assert p.get("CONTROLLER ONE.Ti") == 110.0

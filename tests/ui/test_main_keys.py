@@ -227,7 +227,7 @@ async def test_command_palette_lists_the_screen_actions(engine: Recording) -> No
 
 async def test_speed_keys_step_1_2_5_in_virtual_simul(make_engine, engine: Recording) -> None:
     assert make_app(engine).main.check_action("speed", (1,)) is None  # manual: unpaced
-    engine = make_engine(clock="virtual", speed=1.0, threaded=False)
+    engine = make_engine(clock="virtual", speed=1.0)
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("minus", *["plus"] * 11, "minus", "minus")

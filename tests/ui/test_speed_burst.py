@@ -39,7 +39,7 @@ class Lagging:
 
 
 async def test_ten_plus_arriving_together_give_x1000(make_engine: Any) -> None:
-    engine = Lagging(make_engine(clock="virtual", speed=1.0, threaded=False))
+    engine = Lagging(make_engine(clock="virtual", speed=1.0))
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
         await burst(pilot, *["plus"] * 10)
@@ -50,7 +50,7 @@ async def test_ten_plus_arriving_together_give_x1000(make_engine: Any) -> None:
 
 
 async def test_a_burst_of_mixed_keys_acts_in_order(make_engine: Any) -> None:
-    engine = Lagging(make_engine(clock="virtual", speed=1.0, threaded=False))
+    engine = Lagging(make_engine(clock="virtual", speed=1.0))
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
         await burst(pilot, "plus", "plus", "plus", "minus", "plus", "plus", "minus", "minus", "minus")
