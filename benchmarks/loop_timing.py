@@ -1,10 +1,10 @@
-"""Loop timing: the real-time clock at 50 ms and 10 ms while the same process renders.
+"""Loop timing: the driver on the real-time clock at 50 ms and 10 ms while the same process renders.
 
     .venv/bin/python benchmarks/loop_timing.py [--seconds 60] [--switch-interval MS] [--log]
 
-For each period the engine (real-time clock, simulator, PI in Automatic) runs for
-`--seconds` on a thread of this process (the thread runner), while another thread
-of this process does UI-like work: building plotext charts of 4 series at 20 Hz.  Three
+For each period the one driver (engine/driver.py, inline: the real-time clock,
+simulator, PI in Automatic) runs for `--seconds` on this process's main thread,
+while another thread of this process does UI-like work: building plotext charts of 4 series at 20 Hz.  Three
 loads: none (the clock alone), 4 x 200 points (5000 samples decimated to a
 terminal's width, what a trend widget should draw) and 4 x 5000 points (the issue's
 load: one such frame takes far longer than 50 ms in pure Python, so that thread
@@ -15,8 +15,9 @@ The 10 ms clock is below the interface's 50 ms minimum sampling time: it stresse
 the scheduler only (the simulator still advances the 50 ms sampling time per
 sample).  `--log` logs every sample to a `.log` in a temporary folder meanwhile (the
 disk's part: rows written as they come, fsynced each second).  Figures are printed,
-not asserted.  The TUI's loop runs in a session process (lab or private, the same
-driver): benchmarks/session_timing.py measures that one.
+not asserted.  This is the driver's pacing against the GIL; the TUI's loop runs in
+a session process (lab or private, the same driver, serving its clients on its
+event loop): benchmarks/session_timing.py measures that, with a client drawing.
 """
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ import plotext
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from quadtank_tui.engine.commands import LogOn, SetControlMode, SetParams, SetState  # noqa: E402
-from quadtank_tui.engine.runner import REALTIME_SWITCH_INTERVAL, Engine, build_engine  # noqa: E402
+from quadtank_tui.engine.driver import Driver  # noqa: E402
+from quadtank_tui.engine.runner import Engine, build_engine  # noqa: E402
 
 POINTS = 5000
 UI_HZ = 20.0
@@ -81,10 +83,11 @@ def measure(period: float, seconds: float, points: int, log: bool = False) -> di
         ui = threading.Thread(target=ui_work, args=(stop, frames, points), daemon=True)
         if points:
             ui.start()
-        engine.start()
-        time.sleep(seconds)
-        engine.stop()
-        stop.set()
+        try:
+            Driver(engine, samples=round(seconds / period)).run()  # paced by the real-time clock
+        finally:
+            engine.stop()
+            stop.set()
         if points:
             ui.join()
         stats = engine.snapshot().stats
@@ -100,8 +103,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--switch-interval", type=float, default=None, metavar="MS",
-                    help="override the GIL switch interval the engine sets in this process "
-                    "(ms)")
+                    help="set the GIL switch interval of this process (ms; Python's default: 5)")
     ap.add_argument("--log", action="store_true", help="log every sample to a temporary .log meanwhile")
     args = ap.parse_args()
     print(f"real-time clock, {args.seconds:g} s per run; UI load: another thread of this process "
@@ -117,11 +119,11 @@ def main() -> None:
                 sys.setswitchinterval(args.switch_interval / 1000.0)
             r = measure(period, args.seconds, points, args.log)
             ui = f"{r['frames']} frames, {r['frame_ms']:.0f} ms each" if points else "-"
-            print(f"thread  {period * 1000:3.0f} ms  {label:24s} samples {r['samples']:5d}  "
+            print(f"driver  {period * 1000:3.0f} ms  {label:24s} samples {r['samples']:5d}  "
                   f"jitter p50 {r['p50']:6.3f}  p99 {r['p99']:7.3f}  max {r['max']:7.3f} ms  "
                   f"overruns {r['overruns']:4d}  (UI: {ui})", flush=True)
-    print(f"GIL switch interval: {sys.getswitchinterval() * 1000:.2f} ms here "
-          f"(REALTIME_SWITCH_INTERVAL {REALTIME_SWITCH_INTERVAL * 1000:.2f} ms); target: p99 < 2 ms, no overruns at 50 ms")
+    print(f"GIL switch interval: {sys.getswitchinterval() * 1000:.2f} ms here; "
+          "target: p99 < 2 ms, no overruns at 50 ms")
 
 
 if __name__ == "__main__":
