@@ -10,7 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 from textual.pilot import Pilot
 
 from quadtank_tui.core.parameters import PRESET

@@ -24,7 +24,7 @@ from textual.color import Color
 from textual.theme import BUILTIN_THEMES
 
 from bursts import burst, pause_until
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 from test_repaint_cost import Wire, paused_app, ticks
 from test_trust import read_constant
 

@@ -14,7 +14,7 @@ from pathlib import Path
 from textual.widgets import Input
 
 from bursts import burst
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.files.log import read_log
