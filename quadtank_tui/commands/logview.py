@@ -96,8 +96,8 @@ def render_plot(log: LogData, t: np.ndarray, names: Sequence[str], width: int, h
     import plotext as plt
 
     from quadtank_tui.ui.colours import BLUE, CYAN, GREEN, GREY, MAGENTA, ORANGE, RED, SIGNALS
-    from quadtank_tui.ui.widgets.plot_kit import DOT_GAP, DOTTED_MARKER, MARKERS
-    from quadtank_tui.ui.widgets.trends import AXIS_ROWS, decimate, y_axis
+    from quadtank_tui.ui.plot_axes import AXIS_ROWS, decimate, y_axis
+    from quadtank_tui.ui.widgets.trend_style import DOT_GAP, DOTTED_MARKER, MARKERS
 
     # The trends' own colours (as on a dark terminal), so a curve has the same
     # colour here as on Main; other columns take the palette's hues in turn.

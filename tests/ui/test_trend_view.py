@@ -32,7 +32,8 @@ from quadtank_tui.engine import commands as c
 from quadtank_tui.files.log import format_header, format_row
 from quadtank_tui.ui.ghost.window import GhostWindow
 from quadtank_tui.ui.widgets.trend_style import DARK, GHOST_FADE, LIGHT, MARKERS, blend, contrast
-from quadtank_tui.ui.widgets.trends import XDOTS, Trend, x_axis
+from quadtank_tui.ui.plot_axes import XDOTS, x_axis
+from quadtank_tui.ui.widgets.trends import Trend
 
 Cell = tuple[str, Style]
 
