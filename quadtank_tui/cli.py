@@ -138,7 +138,8 @@ def _add_log(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_log_info(args: argparse.Namespace) -> int:
-    from quadtank_tui.files.log import format_tsamp, read_log
+    from quadtank_tui.files.log_writer import format_tsamp
+    from quadtank_tui.files.log_reader import read_log
 
     log = read_log(args.file)
     warn(log.warnings)
@@ -165,7 +166,7 @@ def _same_file(a: str, b: str) -> bool:
 
 def _cmd_log_export(args: argparse.Namespace) -> int:
     from quadtank_tui.files.export import export_log
-    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.log_reader import read_log
 
     log = read_log(args.file)
     warn(log.warnings)

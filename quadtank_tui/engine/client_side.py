@@ -15,7 +15,7 @@ import numpy as np
 
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.history import History
-from quadtank_tui.files.log import log_path
+from quadtank_tui.files.log_writer import log_path
 from quadtank_tui.files.par import ParStore
 
 

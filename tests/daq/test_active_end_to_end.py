@@ -28,7 +28,7 @@ from quadtank_tui.engine.commands import (
     AddWater, LogOn, LogSave, SetControlMode, SetOperation, SetParams, SetState,
 )
 from quadtank_tui.engine.runner import Engine, build_engine
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from daqkit import VIRTUAL_RIG
 
 ROOT = Path(__file__).parents[2]

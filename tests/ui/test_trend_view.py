@@ -29,7 +29,7 @@ from test_repaint_cost import Wire, paused_app, ticks
 from test_trust import read_constant
 
 from quadtank_tui.engine import commands as c
-from quadtank_tui.files.log import format_header, format_row
+from quadtank_tui.files.log_writer import format_header, format_row
 from quadtank_tui.ui.ghost.window import GhostWindow
 from quadtank_tui.ui.widgets.trend_style import DARK, GHOST_FADE, LIGHT, MARKERS, blend, contrast
 from quadtank_tui.ui.plot_axes import XDOTS, x_axis

@@ -17,7 +17,7 @@ from bursts import burst
 from uikit import Recording, make_app
 
 from quadtank_tui.engine import commands as c
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.ui.widgets.process_image import ALARM, ProcessImage
 from quadtank_tui.ui.plot_axes import DOTS, y_axis
 from quadtank_tui.ui.widgets.trends import Trend

@@ -20,7 +20,7 @@ from textual.app import App
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.ghost import LoggedRun, load_run, logs_newest_first
 from quadtank_tui.files.ghost_memory import RememberedGhost, recall, remember
-from quadtank_tui.files.log import LogFileError
+from quadtank_tui.files.log_reader import LogFileError
 from quadtank_tui.ui.ghost.window import GhostChoice, GhostWindow
 
 class GhostHost(Protocol):
