@@ -27,9 +27,8 @@ from quadtank_tui.commands import identify as identify_command
 from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.commands import lab as lab_command
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
-from quadtank_tui.daq.cli import (
-    add_daq_option, add_daq_parser, add_rig_parser, open_daq, run_clock,
-)
+from quadtank_tui.commands.daq import add_daq_option, add_daq_parser, add_rig_parser, run_clock
+from quadtank_tui.daq.open import open_daq
 
 # Each subcommand imports what it needs inside its handler: the analysis stack
 # (python-control, scipy: over a second), numpy and yaml would otherwise be paid by

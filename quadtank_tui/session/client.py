@@ -231,7 +231,7 @@ class SessionClient(HeldLocally):
         if self.role != "operator" or self._snap.operation != "Active" or not self.info.daq:
             return
         try:
-            from quadtank_tui.daq.cli import open_daq
+            from quadtank_tui.daq.open import open_daq
 
             backend = open_daq(self.info.daq)
             assert backend is not None
