@@ -69,7 +69,7 @@ from quadtank_tui.engine.logsession import LogRefused, LogSession
 from quadtank_tui.engine.safety import InterlockRecord
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
-from quadtank_tui.files.log import LogFileError
+from quadtank_tui.files.log_writer import LogFileError
 from quadtank_tui.files.names import check_names
 from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 

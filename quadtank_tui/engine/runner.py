@@ -39,7 +39,7 @@ from quadtank_tui.engine.history import DEFAULT_CAPACITY, check_capacity
 from quadtank_tui.engine.loop import ControlLoop
 from quadtank_tui.engine.parload import ParReading
 from quadtank_tui.engine.snapshot import Snapshot
-from quadtank_tui.files.log import log_path
+from quadtank_tui.files.log_writer import log_path
 from quadtank_tui.files.par import ParRead, ParStore, read_par
 
 ClockKind = Literal["realtime", "virtual", "manual"]

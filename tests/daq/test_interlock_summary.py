@@ -21,7 +21,7 @@ from quadtank_tui.daq.config import DaqConfig, load_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.rig import VirtualRig
 from quadtank_tui.engine.headless import INTERLOCK_ACTED, prepare_headless, run_headless
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.files.par import read_par
 from quadtank_tui.files.script import read_script
 from quadtank_tui.session.scripted import ScriptedRun

@@ -39,7 +39,8 @@ from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.status_line import StatusLine
 from quadtank_tui.ui.widgets.trend_clock import ClockMap
-from quadtank_tui.ui.widgets.trends import WINDOWS, Scale, Trend, TrendView, physical_scales, scroll_step
+from quadtank_tui.ui.plot_axes import scroll_step
+from quadtank_tui.ui.widgets.trends import WINDOWS, Scale, Trend, TrendView, physical_scales
 from quadtank_tui.ui.ghost import GhostControl
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, ConfirmWindow, free_log_name
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
