@@ -7,7 +7,7 @@ from typing import Any, Callable
 from conftest import Recording, make_app
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.engine.commands import SetParams
+from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
 from quadtank_tui.ui.widgets.controller_box import MPCCell
 from quadtank_tui.ui.windows.mpc import MPCWindow
 
@@ -67,3 +67,22 @@ async def test_a_control_horizon_past_the_horizon_is_refused_at_its_field(make_e
         assert isinstance(app.screen, MPCWindow) and len(engine.sent(SetParams)) == sent
         assert "50 is longer than the horizon (30)" in str(app.screen.query_one("#e-1").render())
         assert engine.snapshot().params.mpc.control_horizon == 0
+
+
+async def test_switching_a_running_loop_from_pi_to_mpc_and_back_has_no_bump(engine: Recording) -> None:
+    """The keys a user presses (t 6, t 1) on a running, settled PI loop in Automatic:
+    the pumps move less than 0.005 of full scale at each switch sample."""
+    for command in (SetState("Run"), SetControlMode("Automatic")):
+        assert engine.submit(command).result().ok
+    engine.run_for(300.0)
+    app = make_app(engine)
+    async with app.run_test(size=(80, 24)) as pilot:
+        for keys, family in ((("t", "6"), "MPC"), (("t", "1"), "PID")):
+            before = engine.snapshot().u
+            await pilot.press(*keys)
+            await pilot.pause()
+            assert engine.snapshot().params.control.family.value == family
+            engine.run_for(0.1)
+            after = engine.snapshot().u
+            assert max(abs(a - b) for a, b in zip(after, before)) < 0.005, (family, before, after)
+            engine.run_for(5.0)
