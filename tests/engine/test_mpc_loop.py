@@ -102,3 +102,23 @@ def test_a_bad_mpc_setting_is_refused_and_nothing_changes() -> None:
     result = loop.apply(SetParams({"MPC.Horizon": 10, "MPC.ControlHorizon": 20}))
     assert not result.ok and "ControlHorizon" in result.message
     assert loop.params is was and loop.controllers.mpc.horizon == 30
+
+
+def _before_a_reference_edge(preview: int) -> float:
+    """How far u1 moved over the 5 s before a square wave's edge on r1 (h = 0.5 s: the
+    horizon sees 15 s ahead)."""
+    loop = ControlLoop(PRESET.with_values({"CONTROL.Type": "MPC", "MPC.Preview": preview,
+                                           "SAMPLING TIME.TSamp": 500}))
+    ok(loop, SetState("Run"))
+    ok(loop, SetControlMode("Automatic"))
+    ok(loop, SetParams({"REFERENCE ONE.On": 1, "REFERENCE ONE.Amplitude": 0.02, "REFERENCE ONE.Period": 20.0}))
+    rows = run(loop, 25)
+    edge = int(np.flatnonzero(np.abs(np.diff(rows[:, 6])) > 0.01)[-1]) + 1  # first sample at the new r1
+    return float(np.ptp(rows[edge - 10:edge, 4]))  # 5 s
+
+
+def test_with_preview_the_mpc_moves_before_the_reference_does() -> None:
+    """The wave is known ahead: with Preview the pumps start within the horizon
+    before the edge; without it they wait for it."""
+    assert _before_a_reference_edge(1) > 0.1  # measured 0.18
+    assert _before_a_reference_edge(0) < 0.03  # 0.015: the settling after the wave's first edge
