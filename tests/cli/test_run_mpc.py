@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from quadtank_tui.cli import main
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 
 SCRIPT = """\
 - at: 0

@@ -19,7 +19,7 @@ from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.rig import SensorModel, VirtualRig
 from quadtank_tui.engine import mpc_control  # noqa: F401 - loaded before the run: see below
 from quadtank_tui.engine.runner import Engine, build_engine
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from daqkit import VIRTUAL_RIG, active_run, simul_twin, start_experiment
 from test_active_end_to_end import H, NOISE_V, Lockstep
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
