@@ -15,6 +15,8 @@ from the pumps in force (3.1.10) and, for the MPC, the measured levels.
 
 from __future__ import annotations
 
+import importlib
+import threading
 from typing import TYPE_CHECKING, Union
 
 from quadtank_tui.core.general import tustin
@@ -34,6 +36,31 @@ if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is cho
     StateFbChange = Union[AnyStateFeedback, Design, LoopMPC, None]
     #: The controller that owns the 2x2 as a whole (what `_sample` calls instead of the matrix).
     Whole = Union[AnyStateFeedback, LoopMPC]
+
+
+#: What a state feedback's or an MPC's first design imports (scipy's linalg and
+#: signal, OSQP): a second or more on a loaded machine.  Imported on the loop's
+#: thread at the first switch, that stalled a rig's samples past its watchdog (the
+#: guard set the pumps to 0); so a loop on a rig imports them on a thread of their
+#: own as it starts (preload_designs).
+DESIGN_MODULES = ("quadtank_tui.core.statefb.in_use", "quadtank_tui.core.statefb.quadtank",
+                  "quadtank_tui.core.statefb.plants", "quadtank_tui.engine.mpc_control", "osqp")
+
+
+def preload_designs() -> threading.Thread:
+    """Import DESIGN_MODULES on a daemon thread (started, returned): a switch to
+    state feedback or MPC later finds them loaded.  An import that fails here fails
+    again, and is reported, where the design is asked for."""
+    def load() -> None:
+        for name in DESIGN_MODULES:
+            try:
+                importlib.import_module(name)
+            except Exception:  # noqa: BLE001 - said when a design needs it
+                pass
+
+    thread = threading.Thread(target=load, name="design-preload", daemon=True)
+    thread.start()
+    return thread
 
 
 def new_statefb(p: Parameters) -> AnyStateFeedback:
