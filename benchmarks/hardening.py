@@ -777,7 +777,7 @@ def campaign_fields(t: Tally, n: int, rng: random.Random, work: Path) -> None:
 # --- SIGKILL while logging -------------------------------------------------------------------
 
 def campaign_kills(t: Tally, n: int, rng: random.Random, work: Path) -> None:
-    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.log_reader import read_log
 
     par = work / "t.par"
     par.write_text("LOGGING\nVariables t y1 y2 u1 u2\nPoints 100000\n")

@@ -52,7 +52,7 @@ from quadtank_tui.core.identify.step import fit_step  # noqa: E402
 from quadtank_tui.core.identify.subspace import fit_subspace  # noqa: E402
 from quadtank_tui.core.identify.system import from_state_space  # noqa: E402
 from quadtank_tui.engine.headless import run_headless  # noqa: E402
-from quadtank_tui.files.log import LogData, read_log  # noqa: E402
+from quadtank_tui.files.log_reader import LogData, read_log  # noqa: E402
 from quadtank_tui.files.script import read_script  # noqa: E402
 
 

@@ -26,9 +26,8 @@ from quadtank_tui.commands import identify as identify_command
 from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.commands import lab as lab_command
 from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
-from quadtank_tui.daq.cli import (
-    add_daq_option, add_daq_parser, add_rig_parser, open_daq, run_clock,
-)
+from quadtank_tui.commands.daq import add_daq_option, add_daq_parser, add_rig_parser, run_clock
+from quadtank_tui.daq.open import open_daq
 
 # Each subcommand imports what it needs inside its handler: the analysis stack
 # (python-control, scipy: over a second), numpy and yaml would otherwise be paid by
@@ -136,7 +135,8 @@ def _add_log(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_log_info(args: argparse.Namespace) -> int:
-    from quadtank_tui.files.log import format_tsamp, read_log
+    from quadtank_tui.files.log_writer import format_tsamp
+    from quadtank_tui.files.log_reader import read_log
 
     log = read_log(args.file)
     warn(log.warnings)
@@ -163,7 +163,7 @@ def _same_file(a: str, b: str) -> bool:
 
 def _cmd_log_export(args: argparse.Namespace) -> int:
     from quadtank_tui.files.export import export_log
-    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.log_reader import read_log
 
     log = read_log(args.file)
     warn(log.warnings)

@@ -1,5 +1,5 @@
 """One module per `quadtank` subcommand that grew beyond a handler in cli.py, and
-the two helpers every command shares (cli.py, daq/cli.py and the modules here):
+the two helpers every command shares (cli.py and the modules here):
 UsageError and warn.  Here rather than in cli.py, which imports these modules."""
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from quadtank_tui.core.identify.crossval import Figure
     from quadtank_tui.core.identify.experiment import Identification
     from quadtank_tui.core.plant import PlantParams
-    from quadtank_tui.files.log import LogData
+    from quadtank_tui.files.log_reader import LogData
 
 METHODS = ("step", "oe", "n4sid", "arx", "physical")
 
@@ -116,7 +116,7 @@ def _sensor_gains(par: str | None, params: PlantParams | None) -> tuple[dict[str
 
 def read_sampled(path: str) -> tuple[LogData, float]:
     """A log and its sampling time (UsageError without one); its warnings on stderr."""
-    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.log_reader import read_log
 
     log = read_log(path)
     warn(log.warnings)

@@ -22,7 +22,7 @@ from quadtank_tui.commands import UsageError, warn
 if TYPE_CHECKING:
     import numpy as np
 
-    from quadtank_tui.files.log import LogData
+    from quadtank_tui.files.log_reader import LogData
 
 #: The plot's default size when the terminal's is unknown (a pipe).
 DEFAULT_SIZE = (100, 25)
@@ -46,7 +46,7 @@ def add_parsers(logsub: argparse._SubParsersAction) -> None:
 
 
 def _read(path: str) -> LogData:
-    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.log_reader import read_log
 
     log = read_log(path)
     warn(log.warnings)
@@ -96,8 +96,8 @@ def render_plot(log: LogData, t: np.ndarray, names: Sequence[str], width: int, h
     import plotext as plt
 
     from quadtank_tui.ui.colours import BLUE, CYAN, GREEN, GREY, MAGENTA, ORANGE, RED, SIGNALS
-    from quadtank_tui.ui.widgets.plot_kit import DOT_GAP, DOTTED_MARKER, MARKERS
-    from quadtank_tui.ui.widgets.trends import AXIS_ROWS, decimate, y_axis
+    from quadtank_tui.ui.plot_axes import AXIS_ROWS, decimate, y_axis
+    from quadtank_tui.ui.widgets.trend_style import DOT_GAP, DOTTED_MARKER, MARKERS
 
     # The trends' own colours (as on a dark terminal), so a curve has the same
     # colour here as on Main; other columns take the palette's hues in turn.
@@ -200,7 +200,7 @@ ROWS = ("last step", "rise 10-90 %", "overshoot", "settling 2 %", "IAE", "final 
 
 def compare_text(logs: Sequence[tuple[str, LogData]]) -> str:
     """The two logs' figures, one column each."""
-    from quadtank_tui.files.log import format_tsamp
+    from quadtank_tui.files.log_writer import format_tsamp
 
     table: list[list[str]] = [["", *(path for path, _ in logs)]]
     table.append(["rows x TSamp", *(f"{log.rows} x " + ("?" if log.tsamp is None else f"{format_tsamp(log.tsamp)} s")

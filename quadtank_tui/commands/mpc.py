@@ -176,7 +176,7 @@ def format_design(source: str, r: dict[str, Any]) -> str:
 def compare(params: Any, plant: Any, d: Any, phase: float) -> dict[str, Any]:
     """MPC and (when the file has one for this plant) the PI matrix on the standard
     scenario; the figures of each as JSON values."""
-    from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix
+    from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, Family
     from quadtank_tui.core.mpc.controller import MPC
     from quadtank_tui.core.mpc.simulate import figures, run_mpc, run_pi, standard_scenario
 
@@ -194,7 +194,8 @@ def compare(params: Any, plant: Any, d: Any, phase: float) -> dict[str, Any]:
         result["PI"] = None
         result["PI_missing"] = why
     else:
-        matrix = ControllerMatrix(params.tsamp, params.control.family, params.control.structure,
+        family = Family.PID if params.control.family is Family.MPC else params.control.family  # its PID settings
+        matrix = ControllerMatrix(params.tsamp, family, params.control.structure,
                                   pid={e: c.pid for e, c in zip(ELEMENTS, params.controllers)},
                                   general={e: c.general for e, c in zip(ELEMENTS, params.controllers)})
         pi = run_pi(plant, matrix, mdl.x_e, mdl.u_e, scn)

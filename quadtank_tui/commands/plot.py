@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     figure_format(args.out)  # the suffix first: nothing is read for a name that cannot be written
     chosen = _names(args.vars)
     from quadtank_tui.commands.logview import times
-    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.log_reader import read_log
     from quadtank_tui.files.figures.runs import DEFAULT_VARS, Run, align, runs_figure, scales
     from quadtank_tui.files.figures.style import save
 

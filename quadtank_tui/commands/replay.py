@@ -28,7 +28,7 @@ def replay(args: argparse.Namespace) -> int:
     from quadtank_tui.core.plant import FULL_SCALE_V
     from quadtank_tui.engine.runner import load_parameters, virtual_epoch
     from quadtank_tui.files.atomic import atomic_write_text
-    from quadtank_tui.files.log import format_header, format_row
+    from quadtank_tui.files.log_writer import format_header, format_row
     from quadtank_tui.files.par import ParStore
 
     for option, given in (("--script", args.script), ("--daq", args.daq or getattr(args, "daq_global", None)),

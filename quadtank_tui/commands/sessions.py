@@ -258,7 +258,7 @@ def _start_while_loading_the_ui(args: argparse.Namespace, runtime: Path) -> Sess
 def _checked_spec(args: argparse.Namespace, runtime: Path) -> SessionSpec:
     """The session spec for the TUI's options; a bad .par or DAQ file is refused here,
     in the terminal, with the usual message."""
-    from quadtank_tui.daq.cli import open_daq
+    from quadtank_tui.daq.open import open_daq
     from quadtank_tui.engine.runner import engine_spec
     from quadtank_tui.session.launch import SessionSpec
 

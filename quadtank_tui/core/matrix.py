@@ -44,12 +44,19 @@ U_MIN, U_MAX = 0.0, 1.0
 class Family(str, Enum):
     """Controller family, spelled as the `.par` file's CONTROL `Type`.
 
-    State feedback is a controller type but not a matrix of SISO elements: the loop
-    runs it from core.statefb, and the matrix keeps its own family meanwhile."""
+    State feedback and MPC are controller types but not matrices of SISO elements:
+    the loop runs them from core.statefb and core.mpc, and the matrix keeps its own
+    family meanwhile."""
 
     PID = "PID"
     GENERAL = "General"
     STATE_FEEDBACK = "State feedback"
+    MPC = "MPC"
+
+    @property
+    def whole(self) -> bool:
+        """The type owns the 2x2 as a whole (not a matrix of elements)."""
+        return self in (Family.STATE_FEEDBACK, Family.MPC)
 
 
 class Structure(str, Enum):
@@ -66,8 +73,8 @@ def saturate(u: Sequence[float]) -> Pair:
 
 def _matrix_family(family: Family | str) -> Family:
     family = Family(family)
-    if family is Family.STATE_FEEDBACK:
-        raise ParameterError("Type", "state feedback is not a matrix family (core.statefb runs it)")
+    if family.whole:
+        raise ParameterError("Type", f"{family.value} is not a matrix family (core.statefb, core.mpc run it)")
     return family
 
 

@@ -5,7 +5,7 @@ half a second, ten sampling periods at 50 ms.  The loop hands every write (log
 rows, the log's LogOn/Save/Discard, a `.par` save) to a :class:`FileWorker` and
 carries on; the worker runs them one after another, in the order given, on a thread
 of its own, and each one's Future tells how it went.  The row-by-row promise of
-files/log.py holds there: each row is written (handed to the OS) as the worker gets
+files/log_writer.py holds there: each row is written (handed to the OS) as the worker gets
 it, and fsynced at most a second after the last sync.
 
 Until :meth:`FileWorker.start_thread` the worker runs each operation at once, on the

@@ -19,7 +19,7 @@ from quadtank_tui.engine.experiment import format_summary, run_experiment, summa
 from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.logsession import LogExists, LogRefused, LogSession
 from quadtank_tui.engine.runner import ClockKind, Engine, build_engine, load_parameters, virtual_epoch
-from quadtank_tui.files.log import SUFFIX, check_log_folder, file_identity
+from quadtank_tui.files.log_writer import SUFFIX, check_log_folder, file_identity
 from quadtank_tui.files.names import check_file_name
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.files.script import Script

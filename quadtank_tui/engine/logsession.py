@@ -1,6 +1,6 @@
 """The Logging window's state in the loop: LogOn .. LogOff .. Save / Discard (M8).
 
-Rows go to the partial file as they are taken (files/log.py), so nothing logged is
+Rows go to the partial file as they are taken (files/log_writer.py), so nothing logged is
 lost if the program dies; Save moves it to `logs/<name>.log`.  The loop owns one
 session and hands it a row per sample while it is on.  The partial file is this
 run's alone (locked, and named apart from another run's of the same name), so two
@@ -23,7 +23,7 @@ from typing import Callable, Sequence
 from quadtank_tui.core.parameters import LoggingSettings
 from quadtank_tui.engine.filework import FileWorker
 from quadtank_tui.engine.snapshot import LogStatus
-from quadtank_tui.files.log import LogFileError, LogWriter, log_path
+from quadtank_tui.files.log_writer import LogFileError, LogWriter, log_path
 from quadtank_tui.files.names import check_file_name
 
 

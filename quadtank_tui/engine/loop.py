@@ -69,7 +69,7 @@ from quadtank_tui.engine.logsession import LogRefused, LogSession
 from quadtank_tui.engine.safety import InterlockRecord
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
-from quadtank_tui.files.log import LogFileError
+from quadtank_tui.files.log_writer import LogFileError
 from quadtank_tui.files.names import check_names
 from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
 
@@ -126,7 +126,7 @@ class ControlLoop:
         try:
             self.controllers = Controllers(params)
         except ParameterError as exc:  # a file asked for a state feedback there is no design for
-            sf_refused = f"State feedback: {exc}; the PID controllers are in force"
+            sf_refused = f"{params.control.family.value}: {exc}; the PID controllers are in force"
             params = self.params = params.with_value("CONTROL.Type", Family.PID.value)
             self.controllers = Controllers(params)
         self.running = False
@@ -221,9 +221,11 @@ class ControlLoop:
         self._y = y
         y12 = (y[0], y[1])
         w = (self._gens[0].value(), self._gens[1].value())
-        m, sf = self.controllers.matrix, self.controllers.statefb
+        m, sf = self.controllers.matrix, self.controllers.whole  # sf: state feedback or MPC
         if self.params.control.mode is ControlMode.AUTOMATIC:
             r = w
+            if (mpc := self.controllers.mpc) is not None and mpc.wants_preview:
+                mpc.preview(self._gens)  # the references over its horizon (waves are known ahead)
             u = self._write(saturate(sf.compute(r, y) if sf is not None else m.compute(r, y12)))
             if sf is not None:
                 sf.update(r, y, u)
@@ -297,6 +299,7 @@ class ControlLoop:
             log=self.log.status(self.params.logging),
             stats=self.stats, fault=self.fault,
             statefb=sf.info if (sf := self.controllers.statefb) is not None else None,
+            mpc=mpc.info if (mpc := self.controllers.mpc) is not None else None,
             calibration=self.calibration.status(),
             alarms=tuple(getattr(self.backend, "alarms", ()) or ()),
             faults=self.sim.faults.labels() if self.backend is self.sim else "",

@@ -25,11 +25,12 @@ from quadtank_tui.core.parameters import Parameters, REFERENCE_SECTIONS
 from quadtank_tui.engine.backend import ProcessBackend
 from quadtank_tui.engine.clock import Clock, ManualClock, RealTimeClock, VirtualClock
 from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, SetSpeed
+from quadtank_tui.engine.controllers import preload_designs
 from quadtank_tui.engine.driver import Driver, LoopTime
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, check_capacity
 from quadtank_tui.engine.loop import ControlLoop
 from quadtank_tui.engine.snapshot import Snapshot
-from quadtank_tui.files.log import log_path
+from quadtank_tui.files.log_writer import log_path
 from quadtank_tui.files.par import ParRead, ParStore, read_par
 
 ClockKind = Literal["realtime", "virtual", "manual"]
@@ -268,6 +269,8 @@ def assemble(
         if spec.epoch is not None:
             origin = spec.epoch
             stamp = lambda: origin + timedelta(seconds=round(control.t, 6))  # noqa: E731
+    if daq is not None:  # on a rig, a first design must not stall the samples (controllers.py)
+        preload_designs()
     control = ControlLoop(spec.params, defaults=spec.defaults, store=ParStore(spec.params_dir),
                           logs_dir=spec.logs_dir, daq=daq, history_capacity=spec.history_capacity,
                           now=lambda: stamp())

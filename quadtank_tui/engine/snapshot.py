@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from quadtank_tui.core.calibration_run import CalibrationStatus
+from quadtank_tui.core.mpc.info import MPCInfo
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.backend import Levels4, Pair
 
@@ -86,5 +87,7 @@ class Snapshot:
     faults: str = ""           # injected faults acting on the simulation (core.faults), for the status line
     #: The state feedback's gains, poles and delta while it is the controller type.
     statefb: StateFeedbackInfo | None = None
+    #: The MPC's horizons, solve counts, faults and solve times while it is the controller type.
+    mpc: MPCInfo | None = None
     #: The calibration procedure on the rig, while one runs or its last result is shown.
     calibration: CalibrationStatus | None = None

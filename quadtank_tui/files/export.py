@@ -14,7 +14,7 @@ import io
 from pathlib import Path
 
 from quadtank_tui.files.atomic import atomic_write_bytes
-from quadtank_tui.files.log import LogData
+from quadtank_tui.files.log_reader import LogData
 from quadtank_tui.files.par import RESERVED
 from quadtank_tui.files.par import SUFFIX as PAR_SUFFIX
 

@@ -13,7 +13,7 @@ from typing import Mapping
 
 import numpy as np
 
-from quadtank_tui.files.log import LogFileError, read_log
+from quadtank_tui.files.log_reader import LogFileError, read_log
 
 #: The log's column name for each trend signal that differs.
 _LOG_NAMES = {"ref1": "r1", "ref2": "r2"}

@@ -42,7 +42,7 @@ from quadtank_tui.engine.commands import Command, CommandResult
 from quadtank_tui.engine.handle import LabSession
 from quadtank_tui.engine.history import History
 from quadtank_tui.engine.snapshot import Snapshot
-from quadtank_tui.files.log import log_path
+from quadtank_tui.files.log_writer import log_path
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.session.protocol import (
     MAX_SESSION_LINE, Ended, Hello, LineReader, ProtocolError, Refused, Result, Role, Roster, SessionInfo,
@@ -370,7 +370,7 @@ class SessionClient:
         if self.role != "operator" or self._snap.operation != "Active" or not self.info.daq:
             return
         try:
-            from quadtank_tui.daq.cli import open_daq
+            from quadtank_tui.daq.open import open_daq
 
             backend = open_daq(self.info.daq)
             assert backend is not None

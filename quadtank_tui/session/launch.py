@@ -267,7 +267,7 @@ def session_main(ready_fd: int, lifeline: int = -1) -> int:
         _redirect_stdio(out_path)
         daq = None
         if spec.daq_config is not None:
-            from quadtank_tui.daq.cli import open_daq
+            from quadtank_tui.daq.open import open_daq
 
             if spec.engine is not None:
                 wired = spec.engine.params.process_plant()

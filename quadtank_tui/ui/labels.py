@@ -13,14 +13,15 @@ from quadtank_tui.engine.snapshot import LogStatus
 #: Element index 0..3 -> its name in the matrix (row = input i, column = error j).
 ELEMENT_NAMES = ("11", "12", "21", "22")
 
-#: The four structures and the state feedback (one type on all four levels, whatever
-#: the structure), in the order the Type window lists them.
+#: The four structures, the state feedback and the MPC (types on the 2x2 as a whole,
+#: whatever the structure), in the order the Type window lists them.
 TYPES: tuple[tuple[Family, Structure, str], ...] = (
     (Family.PID, Structure.DECENTRALIZED, "PID decentralized"),
     (Family.PID, Structure.FULL_MATRIX, "PID full matrix"),
     (Family.GENERAL, Structure.DECENTRALIZED, "General decentral."),
     (Family.GENERAL, Structure.FULL_MATRIX, "General full matrix"),
     (Family.STATE_FEEDBACK, Structure.DECENTRALIZED, "State feedback"),
+    (Family.MPC, Structure.DECENTRALIZED, "MPC"),
 )
 
 
@@ -28,7 +29,7 @@ def type_index(p: Parameters) -> int:
     """The row of TYPES the parameters' family and structure are."""
     c = p.control
     return next(n for n, (f, s, _) in enumerate(TYPES)
-                if f is c.family and (s is c.structure or f is Family.STATE_FEEDBACK))
+                if f is c.family and (s is c.structure or f.whole))
 
 
 def type_modified(p: Parameters, defaults: Parameters) -> bool:

@@ -10,7 +10,7 @@ import pytest
 
 from quadtank_tui.cli import main
 from quadtank_tui.core.identify.sampling import simulate
-from quadtank_tui.files.log import format_header, format_row
+from quadtank_tui.files.log_writer import format_header, format_row
 from quadtank_tui.files.model import read_model
 
 

@@ -17,7 +17,7 @@ from quadtank_tui.cli import main
 from quadtank_tui.core.analysis import analyze
 from quadtank_tui.core.identify.compare import operating_levels
 from quadtank_tui.core.plant import P_MINUS, P_PLUS, Setting
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 
 ROOT = Path(__file__).resolve().parents[2]
 PAR = {"pminus": "minphase", "pplus": "nonminphase"}

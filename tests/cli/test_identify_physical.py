@@ -17,7 +17,7 @@ from quadtank_tui.core.identify.physical import simulate
 from quadtank_tui.core.identify.sampling import simulate as simulate_tf
 from quadtank_tui.core.plant import P_MINUS
 from quadtank_tui.core.plants import CoupledCascade
-from quadtank_tui.files.log import format_header, format_row
+from quadtank_tui.files.log_writer import format_header, format_row
 from quadtank_tui.files.par import read_par
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -10,7 +10,7 @@ import pytest
 
 from quadtank_tui.cli import main
 from quadtank_tui.engine.headless import run_headless
-from quadtank_tui.files.log import format_header, format_row
+from quadtank_tui.files.log_writer import format_header, format_row
 from quadtank_tui.files.script import parse_script
 
 ROOT = Path(__file__).parents[2]

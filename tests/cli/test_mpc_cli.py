@@ -64,3 +64,18 @@ def test_bad_input_is_one_line_and_exit_2(capsys: pytest.CaptureFixture[str], ar
     assert main(["mpc", *argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("quadtank: error: ") and message in err[0]
+
+
+def test_a_file_whose_type_is_mpc_is_compared_with_its_pid_settings(capsys: pytest.CaptureFixture[str],
+                                                                   tmp_path: Path) -> None:
+    """CONTROL.Type MPC round-trips through a .par file; the comparison uses the
+    file's PID settings (the matrix cannot be of family MPC)."""
+    from quadtank_tui.core.matrix import Family
+    from quadtank_tui.files.par import read_par, write_par
+
+    src = read_par(PARAMS / "minphase.par").params.with_values({"CONTROL.Type": "MPC", "MPC.Horizon": 12})
+    path = write_par(tmp_path / "mpc.par", src)
+    back = read_par(path).params
+    assert back.control.family is Family.MPC and back.mpc == src.mpc
+    out = _json(capsys, "--par", str(path), "--sampling", "5", "--phase", "150")
+    assert out["design"]["horizon"] == 12 and out["comparison"]["PI"] is not None

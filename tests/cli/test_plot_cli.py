@@ -13,7 +13,7 @@ import pytest
 
 from quadtank_tui.cli import main
 from quadtank_tui.commands import plot as plot_command
-from quadtank_tui.files.log import format_header, format_row
+from quadtank_tui.files.log_writer import format_header, format_row
 
 ROOT = Path(__file__).resolve().parents[2]
 

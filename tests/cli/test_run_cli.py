@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from quadtank_tui.cli import main
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from quadtank_tui.cli import main
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 
 #: Manual mode, a PRBS on pump 1 from the operating point, every sensor logged from t = 0.
 SCRIPT = """\

@@ -13,9 +13,10 @@ import pytest
 
 import quadtank_tui.core.parameters.settings as parameter_settings
 import quadtank_tui.engine.headless as headless
-import quadtank_tui.files.log as log_module
+import quadtank_tui.files.log_writer as log_module
 from quadtank_tui.cli import main
-from quadtank_tui.files.log import LogFileError, LogWriter, read_log
+from quadtank_tui.files.log_writer import LogWriter
+from quadtank_tui.files.log_reader import LogFileError, read_log
 
 SCRIPT_LOGGING_AS_DATA = """
 - at: 0

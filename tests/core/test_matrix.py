@@ -17,11 +17,13 @@ def gain(k: float) -> PIDParams:
 
 
 def test_enum_spellings_match_the_par_file() -> None:
-    assert [f.value for f in Family] == ["PID", "General", "State feedback"]
+    assert [f.value for f in Family] == ["PID", "General", "State feedback", "MPC"]
     assert [s.value for s in Structure] == ["Decentralized", "FullMatrix"]
     assert Family("General") is Family.GENERAL
     with pytest.raises(ParameterError, match="not a matrix family"):
         ControllerMatrix(1.0, Family.STATE_FEEDBACK)
+    with pytest.raises(ParameterError, match="not a matrix family"):
+        ControllerMatrix(1.0, Family.MPC)
 
 
 def test_saturate_clips_to_the_pump_range() -> None:

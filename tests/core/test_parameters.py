@@ -86,15 +86,15 @@ def test_with_value_returns_a_new_model_and_keeps_the_old() -> None:
     p = PRESET.with_value("REFERENCE ONE.Mean", 0.4)
     assert p.get("REFERENCE ONE.Mean") == 0.4
     assert PRESET.get("REFERENCE ONE.Mean") == 0.3
-    assert p.modified_keys() == {"REFERENCE ONE.Mean"}
-    assert p.is_modified("REFERENCE ONE.Mean") and not p.is_modified("REFERENCE TWO.Mean")
-    assert PRESET.modified_keys() == frozenset()
+    assert p.modified_keys(PRESET) == {"REFERENCE ONE.Mean"}
+    assert p.is_modified("REFERENCE ONE.Mean", PRESET) and not p.is_modified("REFERENCE TWO.Mean", PRESET)
+    assert PRESET.modified_keys(PRESET) == frozenset()
 
 
 def test_with_defaults_resets_a_window() -> None:
     p = PRESET.with_values({"CONTROLLER ONE.K": 1.0, "CONTROLLER ONE.Ti": 10, "CONTROLLER FOUR.K": 2.0})
-    back = p.with_defaults(k.name for k in keys_of("CONTROLLER ONE"))
-    assert back.modified_keys() == {"CONTROLLER FOUR.K"}
+    back = p.with_defaults((k.name for k in keys_of("CONTROLLER ONE")), PRESET)
+    assert back.modified_keys(PRESET) == {"CONTROLLER FOUR.K"}
     other = NAMED_SETTINGS["nonminphase"]
     assert PRESET.with_defaults(["SIMULATION.Valve1"], other).get("SIMULATION.Valve1") == 0.43
 

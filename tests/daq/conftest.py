@@ -35,9 +35,9 @@ class RigProcess:
     """`quadtank rig ...` running; `lines` collects its stdout."""
 
     def __init__(self, *args: str, port: int = 0, full_cli: bool = False) -> None:
-        # `python -m quadtank_tui.daq rig` is the same command through the DAQ
-        # layer's own entry point; one test starts the full `quadtank rig`.
-        entry = "quadtank_tui" if full_cli else "quadtank_tui.daq"
+        # `python -m quadtank_tui.commands.daq rig` is the same command through
+        # its module's own entry point; one test starts the full `quadtank rig`.
+        entry = "quadtank_tui" if full_cli else "quadtank_tui.commands.daq"
         cmd = [sys.executable, "-m", entry, "rig", "--port", str(port),
                "--map", str(VIRTUAL_RIG), *args]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -75,7 +75,7 @@ def simul_twin(active_log: Path, start: Callable[[Any], None], duration: float, 
 
     from quadtank_tui.engine.commands import AddWater, LogSave
     from quadtank_tui.engine.runner import build_engine
-    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.log_reader import read_log
 
     a = read_log(active_log).columns()
     simul = build_engine(par, clock="manual", params_dir=ROOT / "params", logs_dir=tmp_path)

@@ -25,7 +25,7 @@ from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.rig import SensorModel, VirtualRig
 from quadtank_tui.engine.runner import Engine, build_engine
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from daqkit import VIRTUAL_RIG, active_run, simul_twin, start_experiment
 
 ROOT = Path(__file__).parents[2]

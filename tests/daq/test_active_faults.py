@@ -15,7 +15,7 @@ from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.registers import Register
 from quadtank_tui.engine.commands import LogOn, LogSave, SetOperation, SetParams, SetState
 from quadtank_tui.engine.runner import Engine, build_engine
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 
 ROOT = Path(__file__).parents[2]
 

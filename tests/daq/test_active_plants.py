@@ -17,7 +17,7 @@ from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.registers import decode
 from quadtank_tui.engine.runner import build_engine
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from daqkit import rig_yaml
 
 ROOT = Path(__file__).parents[2]

@@ -21,7 +21,7 @@ import pytest
 
 from quadtank_tui import cli
 from quadtank_tui.cli import main
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.session import roles
 from quadtank_tui.session.lab import load_lab_config
 from quadtank_tui.session.lock import DaqLock, device_key, holder_of

@@ -57,7 +57,7 @@ def test_a_device_without_one_is_said_to_have_none(capsys: pytest.CaptureFixture
     assert plc.watchdog is None
     assert plc.watchdog_line() == ("watchdog: none declared by params/daq-plc-example.yaml: if this program dies "
                                    "its guard stops the pumps; if the computer dies or hangs, nothing does")
-    from quadtank_tui.daq.cli import open_daq
+    from quadtank_tui.daq.open import open_daq
 
     open_daq("params/daq-plc-example.yaml")
     assert capsys.readouterr().err == f"quadtank: warning: {plc.watchdog_line()}\n"

@@ -21,9 +21,10 @@ from quadtank_tui.daq.config import DaqConfig, load_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.rig import VirtualRig
 from quadtank_tui.engine.headless import INTERLOCK_ACTED, prepare_headless, run_headless
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.files.par import read_par
 from quadtank_tui.files.script import read_script
+from quadtank_tui.engine.driver import Driver
 from quadtank_tui.session.scripted import ScriptedRun
 
 ROOT = Path(__file__).parents[2]
@@ -114,8 +115,7 @@ def test_a_detached_runs_summary_says_it_too(overflowing: tuple[RigHere, Path], 
                                 clock="manual", daq=backend)
     run = ScriptedRun(prepared)
     try:
-        while not run.step():
-            pass
+        Driver(prepared.engine, duration=run.duration, before=run.before).run()  # as the session drives it
         printed = io.StringIO()
         with redirect_stdout(printed):
             reason = run.finish()

@@ -16,7 +16,7 @@ from typing import Iterator
 import pytest
 
 from quadtank_tui.cli import main
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.session import roles
 
 pytestmark = pytest.mark.wallclock  # a device subprocess in real time

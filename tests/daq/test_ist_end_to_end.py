@@ -22,7 +22,7 @@ from quadtank_tui.daq.ist.device import Firmware, PtyDevice, serve
 from quadtank_tui.engine.backend import Levels4
 from quadtank_tui.engine.commands import SetOperation
 from quadtank_tui.engine.runner import Engine, build_engine
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.files.par import read_par
 from daqkit import active_run, simul_twin, start_experiment
 

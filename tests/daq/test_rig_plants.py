@@ -9,7 +9,7 @@ from quadtank_tui.core import faults as fx
 from quadtank_tui.core.faults import Fault
 from quadtank_tui.core.plant import P_MINUS, steady_state_levels
 from quadtank_tui.core.plants import CoupledCascade, QuadTank
-from quadtank_tui.daq.cli import parse_fault
+from quadtank_tui.commands.daq import parse_fault
 from quadtank_tui.daq.config import DaqConfigError, load_daq_config
 from quadtank_tui.daq.registers import decode, encode
 from quadtank_tui.daq.rig import VirtualRig, describe

@@ -11,7 +11,7 @@ import pytest
 
 from quadtank_tui.cli import build_parser, build_tui, main
 from quadtank_tui.engine.commands import SetOperation, SetParams, SetState
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from daqkit import missed_before_the_last_row, rig_yaml
 
 pytestmark = pytest.mark.wallclock  # a rig subprocess, real time

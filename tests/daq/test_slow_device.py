@@ -28,7 +28,7 @@ from quadtank_tui.cli import main
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.engine.commands import SetOperation, SetState
 from quadtank_tui.engine.runner import build_engine
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 
 ROOT = Path(__file__).parents[2]
 PAR = str(ROOT / "params" / "default.par")  # TSamp 0.1 s

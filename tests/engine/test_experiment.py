@@ -15,7 +15,7 @@ from quadtank_tui.engine.commands import LogOn, LogSave, SetParams, SetState
 from quadtank_tui.engine.experiment import format_summary, run_experiment, summarize
 from quadtank_tui.engine.headless import run_headless
 from quadtank_tui.engine.runner import Engine
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.files.script import parse_script, read_script
 
 SAMPLE = Path(__file__).resolve().parents[2] / "params" / "sample_session.yaml"

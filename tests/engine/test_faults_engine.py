@@ -9,7 +9,7 @@ import pytest
 
 from quadtank_tui.cli import main
 from quadtank_tui.engine.commands import LogOn, SetFault, SetState
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.files.script import ScriptError, parse_script
 
 PARAMS = Path(__file__).resolve().parents[2] / "params"

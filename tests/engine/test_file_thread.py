@@ -17,14 +17,14 @@ from typing import Any, Callable
 import numpy as np
 import pytest
 
-import quadtank_tui.files.log as log_module
+import quadtank_tui.files.log_writer as log_module
 from quadtank_tui.core.parameters import LoggingSettings
 from quadtank_tui.engine.commands import LogOn, LogSave, SavePar, SetOperation, SetParams, SetState
 from quadtank_tui.engine.filework import FileWorker
 from quadtank_tui.engine.headless import run_headless
 from quadtank_tui.engine.logsession import LogExists, LogSession
 from quadtank_tui.engine.runner import Engine, engine_spec
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.files.par import read_par
 from quadtank_tui.session.client import SessionClient
 from quadtank_tui.session.launch import SessionSpec, Spawned

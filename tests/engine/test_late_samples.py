@@ -16,7 +16,7 @@ from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.engine.backend import Pair, ProcessBackend
 from quadtank_tui.engine.commands import LogOn, LogSave, SetOperation, SetState
 from quadtank_tui.engine.loop import ControlLoop
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 
 H = PRESET.tsamp  # 0.1 s
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.engine.runner import build_engine
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.files.shipped import write_shipped
 
 

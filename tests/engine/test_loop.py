@@ -16,7 +16,7 @@ from quadtank_tui.engine.commands import (
 )
 from quadtank_tui.engine.loop import ControlLoop
 from quadtank_tui.engine.runner import Engine
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 
 MakeEngine = Callable[..., Engine]
 

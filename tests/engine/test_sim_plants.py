@@ -10,7 +10,7 @@ from quadtank_tui.cli import main
 from quadtank_tui.core import plant as qt
 from quadtank_tui.core.plants import CoupledCascade, CoupledTITO, QuadTank
 from quadtank_tui.engine.sim import SimBackend
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 
 PARAMS = Path(__file__).resolve().parents[2] / "params"
 

@@ -11,7 +11,7 @@ import pytest
 import scipy.io
 
 from quadtank_tui.files.export import csv_text, export_log
-from quadtank_tui.files.log import parse_log, read_log
+from quadtank_tui.files.log_reader import parse_log, read_log
 
 GOLDEN = Path(__file__).parent / "golden"
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
-MODULES = ["quadtank_tui.files.par", "quadtank_tui.files.log", "quadtank_tui.files.export",
+MODULES = ["quadtank_tui.files.par", "quadtank_tui.files.log_writer", "quadtank_tui.files.log_reader", "quadtank_tui.files.export",
            "quadtank_tui.files.shipped", "quadtank_tui.core.parameters"]
 
 

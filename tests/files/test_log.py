@@ -16,14 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from quadtank_tui.files.log import (
-    LogFileError,
-    LogWriter,
-    format_header,
-    format_tsamp,
-    parse_log,
-    read_log,
-)
+from quadtank_tui.files.log_writer import LogWriter, format_header, format_tsamp
+from quadtank_tui.files.log_reader import LogFileError, parse_log, read_log
 
 GOLDEN = Path(__file__).parent / "golden"
 THESIS_STAMP = datetime(1997, 6, 20, 0, 30, 50)
@@ -194,7 +188,7 @@ def test_two_writers_of_one_name_keep_their_own_rows(tmp_path: Path) -> None:
 
 _HOLDER = """
 import sys
-from quadtank_tui.files.log import LogWriter
+from quadtank_tui.files.log_writer import LogWriter
 w = LogWriter(sys.argv[1], ("y1",), 1.0, 100)
 w.append({"y1": 0.25})
 print(w.partial_path.name, flush=True)
@@ -348,7 +342,7 @@ def test_missing_file() -> None:
 
 _CHILD = """
 import sys
-from quadtank_tui.files.log import LogWriter
+from quadtank_tui.files.log_writer import LogWriter
 w = LogWriter(sys.argv[1], ("t", "y1"), 0.1, 100000, flush_rows=10)
 i = 0
 while True:

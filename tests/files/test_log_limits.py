@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from quadtank_tui.cli import main
-from quadtank_tui.files.log import LogFileError, format_header, format_row, read_log
+from quadtank_tui.files.log_writer import format_header, format_row
+from quadtank_tui.files.log_reader import LogFileError, read_log
 from quadtank_tui.files.stamp import parse_stamp
 
 CREATED = parse_stamp("Nov 26 12:00:00 2026")
@@ -62,7 +63,7 @@ def test_a_header_of_too_many_variables_is_refused(tmp_path: Path) -> None:
 
 def test_the_cli_says_it_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                      monkeypatch: pytest.MonkeyPatch) -> None:
-    import quadtank_tui.files.log as logmod
+    import quadtank_tui.files.log_reader as logmod
 
     monkeypatch.setattr(logmod, "MAX_LINE", 64)
     log = tmp_path / "wide.log"
@@ -85,7 +86,7 @@ def test_the_rows_read_are_the_values_written(tmp_path: Path) -> None:
 #: peak while reading (the peak is reset first: /proc/self/clear_refs, Linux >= 4.0).
 PEAK = textwrap.dedent("""
     import sys
-    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.log_reader import read_log
 
     def status(field):
         with open("/proc/self/status") as f:

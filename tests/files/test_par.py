@@ -33,14 +33,14 @@ def test_thesis_fragment_with_header_loads() -> None:
     ref = p.references[0]
     assert (ref.mean, ref.period, ref.amplitude) == (0.3, 6.0, 0.15)
     assert (p.logging.points, p.logging.log_file) == (120, "data")
-    assert p.modified_keys() == {"REFERENCE ONE.Period", "REFERENCE ONE.Amplitude", "LOGGING.Points"}
+    assert p.modified_keys(PRESET) == {"REFERENCE ONE.Period", "REFERENCE ONE.Amplitude", "LOGGING.Points"}
 
 
 def test_thesis_simulation_fragment_loads() -> None:
     p = read_par(GOLDEN / "thesis_fragment2.par").params
     assert p.simulation.diameters[0] == 5.93
     assert (p.simulation.op_points[0], p.simulation.valves) == (0.62, (0.7, 0.6))
-    assert p.modified_keys() == {"SIMULATION.Diameter1"}
+    assert p.modified_keys(PRESET) == {"SIMULATION.Diameter1"}
 
 
 def test_thesis_controller_fragment_loads() -> None:
@@ -48,13 +48,13 @@ def test_thesis_controller_fragment_loads() -> None:
     c = p.controllers[0]
     assert (c.pid.K, c.pid.Ti, c.pid.Td, c.pid.Tr) == (3.0, 30.0, 0.0, 1.0)
     assert (c.general.r[0], c.general.s[0]) == (1.0, 1.0)
-    assert p.modified_keys() == {"CONTROLLER ONE.r1", "CONTROLLER ONE.s0"}
+    assert p.modified_keys(PRESET) == {"CONTROLLER ONE.r1", "CONTROLLER ONE.s0"}
 
 
 def test_the_three_fragments_together() -> None:
     text = "".join((GOLDEN / f"thesis_fragment{i}.par").read_text() + "\n" for i in (1, 2, 3))
     p = parse_par(text).params
-    assert p.modified_keys() == {
+    assert p.modified_keys(PRESET) == {
         "REFERENCE ONE.Period", "REFERENCE ONE.Amplitude", "LOGGING.Points",
         "SIMULATION.Diameter1", "CONTROLLER ONE.r1", "CONTROLLER ONE.s0",
     }

@@ -19,7 +19,7 @@ from sessionkit import STUDENT, TEACHER, Rig, ThreadSession
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.engine.handle import SIGNALS
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.session.client import SessionClient, SessionError, stop_session_at
 from quadtank_tui.session.policy import UnattendedPolicy, describe
 from quadtank_tui.session.protocol import (

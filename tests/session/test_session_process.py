@@ -170,7 +170,7 @@ def test_run_detach_is_a_session_one_watches_until_the_run_is_over(tmp_path: Pat
     """`quadtank run ... --detach` returns at once; a client attaching to the session
     watches it read-only (the script is the operator); at the end the log has every
     sample of the duration and the session is gone, leaving only its summary."""
-    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.log_reader import read_log
 
     runtime = tmp_path / "run"
     monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))

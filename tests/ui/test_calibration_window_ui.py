@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from conftest import Recording, make_app, open_setup
+from uikit import Recording, make_app, open_setup
 
 import pytest
 

@@ -11,7 +11,7 @@ from quadtank_tui.ui.screens.design import DesignScreen
 from quadtank_tui.ui.screens.main import MainScreen
 from quadtank_tui.ui.widgets.controller_box import ControllerBox
 
-from conftest import make_app  # noqa: E402
+from uikit import make_app  # noqa: E402
 
 
 @pytest.fixture

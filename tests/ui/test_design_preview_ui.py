@@ -11,7 +11,7 @@ from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.ui.windows.base import ChoiceWindow
 from quadtank_tui.ui.windows.design_preview import DesignPreviewWindow, PreviewRequest
 
-from conftest import make_app  # noqa: E402
+from uikit import make_app  # noqa: E402
 
 
 @pytest.fixture

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import make_app  # noqa: E402
+from uikit import make_app  # noqa: E402
 
 
 @pytest.fixture

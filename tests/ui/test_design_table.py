@@ -25,7 +25,7 @@ from quadtank_tui.ui.screens.main import MainScreen
 from quadtank_tui.ui.widgets.candidates_table import COLUMNS, CandidatesTable, fit, short_reason
 
 from bursts import burst  # noqa: E402
-from conftest import make_app  # noqa: E402
+from uikit import make_app  # noqa: E402
 
 #: Models whose figures span 1e-6 .. 3e5, negative gains and n/a rows: the table's worst cases.
 WILD = ("0.0068*exp(-0.5*s)/(1870*s+1)", "-187*exp(-30*s)/(0.05*s+1)")

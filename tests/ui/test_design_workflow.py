@@ -30,7 +30,7 @@ from quadtank_tui.ui.windows.base import ChoiceWindow
 from quadtank_tui.ui.windows.design_preview import DesignPreviewWindow
 
 from bursts import burst  # noqa: E402
-from conftest import make_app  # noqa: E402
+from uikit import make_app  # noqa: E402
 import test_identify_screen  # noqa: E402
 from test_identify_screen import fit_both, simo_logs  # noqa: E402
 

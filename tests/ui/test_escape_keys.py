@@ -12,7 +12,7 @@ import pytest
 from textual.drivers import linux_driver
 from textual.widgets import Input
 
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.ui.escape_keys import EscapeThenKeyParser
@@ -100,7 +100,7 @@ async def test_esc_digit_closes_the_window_then_opens_the_element(engine: Record
 async def test_esc_f_closes_the_sampling_window_then_opens_files(setup_app: Any) -> None:
     """ESC f is also what some terminals send for Option+right (a word jump), which
     Textual reads as ctrl+right: the window stayed open with its cursor moved."""
-    from conftest import open_setup
+    from uikit import open_setup
 
     from quadtank_tui.ui.windows.par_files import ParFileWindow
     from quadtank_tui.ui.windows.sampling import SamplingTimeWindow

@@ -13,7 +13,7 @@ from concurrent.futures import Future
 from typing import Any
 
 import pytest
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.engine.commands import CommandResult

@@ -12,7 +12,7 @@ from quadtank_tui.engine import commands as c
 from quadtank_tui.ui.screens.design import DesignScreen
 from quadtank_tui.ui.screens.identify import IdentifyScreen
 
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 from test_identify_screen import simo_logs
 
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 from bursts import pause_until
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 from test_trend_view import write_log
 
 from quadtank_tui.files.ghost_memory import recall, state_file

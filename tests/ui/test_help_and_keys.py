@@ -8,7 +8,7 @@ import dataclasses
 import io
 import re
 
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 from rich.console import Console
 from textual.binding import Binding
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 from textual.widgets import SelectionList
 from test_trend_view import write_log
 

@@ -13,7 +13,7 @@ import pytest
 from quadtank_tui.core.analysis import analyze
 from quadtank_tui.core.identify.sampling import simulate
 from quadtank_tui.core.plant import P_MINUS, steady_state_levels
-from quadtank_tui.files.log import format_header, format_row
+from quadtank_tui.files.log_writer import format_header, format_row
 from quadtank_tui.files.model import read_model
 from quadtank_tui.ui.screens.identify import IdentifyScreen
 from test_plot_kit import check_identify_plots

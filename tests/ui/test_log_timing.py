@@ -8,7 +8,7 @@ from datetime import datetime
 from textual.widgets import Static
 
 from bursts import burst
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.engine.snapshot import LogStatus

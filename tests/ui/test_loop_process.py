@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import make_app, write_params
+from uikit import make_app, write_params
 from textual.pilot import Pilot
 
 from quadtank_tui.core.parameters import PRESET

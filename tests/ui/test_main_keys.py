@@ -6,7 +6,7 @@ shows afterwards.
 
 from __future__ import annotations
 
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.engine import commands as c

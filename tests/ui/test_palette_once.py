@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from conftest import make_app
+from uikit import make_app
 from textual.command import CommandPalette
 
 

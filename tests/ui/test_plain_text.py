@@ -14,7 +14,7 @@ from typing import Any
 from textual.widgets import SelectionList, Static
 from textual.widgets._toast import Toast
 
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 from test_trend_view import write_log
 
 from quadtank_tui.ui.screens.identify import IdentifyScreen

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import pytest
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from textual.widgets import Input, Static
 

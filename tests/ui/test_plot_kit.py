@@ -17,7 +17,7 @@ from rich.style import Style as RichStyle
 from rich.text import Text
 from textual_plotext import PlotextPlot
 
-from conftest import make_app
+from uikit import make_app
 from quadtank_tui.ui.colours import BLUE, RED
 from quadtank_tui.ui.screens.design import DesignScreen
 from quadtank_tui.ui.widgets import plot_kit as kit

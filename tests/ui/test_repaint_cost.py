@@ -12,7 +12,7 @@ import re
 from typing import Any
 
 import pytest
-from conftest import Recording
+from uikit import Recording
 
 from textual._compositor import CompositorUpdate
 

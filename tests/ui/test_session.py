@@ -10,12 +10,12 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 from textual.pilot import Pilot
 
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.engine import commands as c
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.windows.logging import LoggingWindow

@@ -9,10 +9,10 @@ from textual.widgets import Input
 
 from quadtank_tui.engine.commands import LogOn, LogSave, NudgeMean, SetControlMode, SetParams, SetState
 from quadtank_tui.engine.runner import Engine
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.ui.screens.setup import SetupScreen
 
-from conftest import make_app, manual_engine, open_setup  # noqa: E402
+from uikit import make_app, manual_engine, open_setup  # noqa: E402
 from quadtank_tui.ui.screens.main import MainScreen
 
 H = 0.1  # the default sampling time, s

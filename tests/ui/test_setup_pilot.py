@@ -17,7 +17,7 @@ from quadtank_tui.ui.windows.tank_setup import TankSetupWindow
 from quadtank_tui.ui.windows.wave import WaveWindow
 
 from bursts import pause_until  # noqa: E402
-from conftest import open_setup  # noqa: E402
+from uikit import open_setup  # noqa: E402
 
 
 @pytest.fixture

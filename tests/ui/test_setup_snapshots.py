@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from textual.widgets import Input
 
-from conftest import open_setup  # noqa: E402
+from uikit import open_setup  # noqa: E402
 
 
 @pytest.fixture

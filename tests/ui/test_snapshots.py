@@ -9,7 +9,7 @@ report's pictures by eye.
 from __future__ import annotations
 
 import pytest
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 from textual.pilot import Pilot
 
 from quadtank_tui.engine.commands import LogOn, SetParams, SetState

@@ -8,7 +8,7 @@ from concurrent.futures import Future
 from typing import Any
 
 from bursts import burst
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.ui.asked_speed import AskedSpeed

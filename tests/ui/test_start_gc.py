@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import gc
 
-from conftest import Recording
+from uikit import Recording
 
 from quadtank_tui.ui.app import build_app
 from quadtank_tui.ui.widgets.status_line import StatusLine

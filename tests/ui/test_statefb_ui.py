@@ -6,7 +6,7 @@ import dataclasses
 from typing import Any, Callable
 
 import pytest
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from quadtank_tui.core.parameters import PLANT_SETTINGS, PRESET, Parameters
 from quadtank_tui.core.plants.spec import PlantSpec

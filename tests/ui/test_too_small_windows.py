@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from quadtank_tui.ui.screens.help import HelpScreen
 from quadtank_tui.ui.screens.too_small import TooSmallScreen

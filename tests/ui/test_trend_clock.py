@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.ui.widgets.trend_clock import (

@@ -24,15 +24,16 @@ from textual.color import Color
 from textual.theme import BUILTIN_THEMES
 
 from bursts import burst, pause_until
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 from test_repaint_cost import Wire, paused_app, ticks
 from test_trust import read_constant
 
 from quadtank_tui.engine import commands as c
-from quadtank_tui.files.log import format_header, format_row
+from quadtank_tui.files.log_writer import format_header, format_row
 from quadtank_tui.ui.ghost.window import GhostWindow
 from quadtank_tui.ui.widgets.trend_style import DARK, GHOST_FADE, LIGHT, MARKERS, blend, contrast
-from quadtank_tui.ui.widgets.trends import XDOTS, Trend, x_axis
+from quadtank_tui.ui.plot_axes import XDOTS, x_axis
+from quadtank_tui.ui.widgets.trends import Trend
 
 Cell = tuple[str, Style]
 

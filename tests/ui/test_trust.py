@@ -14,12 +14,13 @@ from pathlib import Path
 from textual.widgets import Input
 
 from bursts import burst
-from conftest import Recording, make_app
+from uikit import Recording, make_app
 
 from quadtank_tui.engine import commands as c
-from quadtank_tui.files.log import read_log
+from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.ui.widgets.process_image import ALARM, ProcessImage
-from quadtank_tui.ui.widgets.trends import DOTS, Trend, y_axis
+from quadtank_tui.ui.plot_axes import DOTS, y_axis
+from quadtank_tui.ui.widgets.trends import Trend
 from quadtank_tui.ui.windows.base import ChoiceWindow
 from quadtank_tui.ui.windows.process import TankWindow
 

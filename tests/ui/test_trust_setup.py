@@ -7,7 +7,7 @@ from __future__ import annotations
 import re
 
 from bursts import burst
-from conftest import open_setup
+from uikit import open_setup
 
 from textual.widgets import Input, Static
 

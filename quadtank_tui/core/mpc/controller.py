@@ -97,10 +97,24 @@ class MPC:
 
     def track(self, levels: Sequence[float] | np.ndarray, u_applied: Sequence[float] | np.ndarray) -> None:
         """Start from the present levels (all tanks, plant units) and the pumps as they
-        are (a switch to MPC is bumpless: the first move is from them)."""
+        are: a switch to MPC is bumpless.  The estimate starts at the measured levels
+        with the disturbance that makes them a steady state under these pumps, so the
+        model's steady input is the one in force and the first move is from it (with a
+        zero disturbance the target input would be the operating point's, a jump)."""
         mdl = self.design.model
-        self.kf.reset(np.asarray(levels, dtype=float) - mdl.x_e)
-        self._u_prev = np.asarray(u_applied, dtype=float).copy()
+        n = mdl.n
+        y = np.asarray(levels, dtype=float)[list(mdl.measured)] - mdl.x_e[list(mdl.measured)]
+        u = np.asarray(u_applied, dtype=float)
+        M = np.block([[np.eye(n) - mdl.A, -mdl.Bd], [mdl.Cm, mdl.Cd]])
+        rhs = np.concatenate([mdl.B @ (u - mdl.u_e), y])
+        sol = np.linalg.lstsq(M, rhs, rcond=None)[0] if np.all(np.isfinite(rhs)) else np.zeros(n + mdl.nd)
+        self.kf.reset(sol[:n], sol[n:])
+        self._u_prev = u.copy()
+
+    def forget_disturbance(self) -> None:
+        """Keep the state estimate, start the disturbance estimate again from zero (the
+        controller's Reset)."""
+        self.kf.reset(self.kf.estimate[: self.design.model.n])
 
     def _refs(self, r: np.ndarray) -> np.ndarray:
         """References for steps 0..N (rows), deviations: the preview padded with its
@@ -149,7 +163,7 @@ class MPC:
         self.stats.last_status = status
         self.stats.times.append(dt)
         self.stats.cpu_times.append(cpu)
-        self._applied(u)
+        self.applied(u)
         return MPCStep(u, fault, slack, dt)
 
     def _limit(self, u: np.ndarray) -> np.ndarray:
@@ -159,7 +173,10 @@ class MPC:
             u = np.clip(u, self._u_prev - du, self._u_prev + du)
         return np.clip(u, mdl.u_lo, mdl.u_hi)
 
-    def _applied(self, u: np.ndarray) -> None:
-        """The input went out: the estimator predicts with it, the rate terms start from it."""
+    def applied(self, u: Sequence[float] | np.ndarray) -> None:
+        """The input went out (V): the estimator predicts with it, the rate terms start
+        from it.  `step` calls it with its own result; the loop calls it again with
+        what the pumps really got (an interlock may have held one), which replaces that."""
+        u = np.asarray(u, dtype=float)
         self._u_prev = u.copy()
         self.kf.predict(u - self.design.model.u_e)

@@ -55,6 +55,11 @@ class KalmanFilter:
         self._pred = np.concatenate([x, np.zeros(self.model.nd) if d is None else d])
         self._est = self._pred.copy()
 
+    @property
+    def estimate(self) -> np.ndarray:
+        """The last estimate [x; d] (deviations)."""
+        return self._est.copy()
+
     def correct(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The estimate given this sample's measured levels: (x_hat, d_hat)."""
         est = self._pred + self.L @ (y - self.Ca @ self._pred)

@@ -28,7 +28,7 @@ of files and screens (log columns, plot types, file names) are checked by
 Example
 -------
 >>> p = PRESET.with_value("CONTROLLER ONE.K", 2.5)
->>> p.get("CONTROLLER ONE.K"), sorted(p.modified_keys())
+>>> p.get("CONTROLLER ONE.K"), sorted(p.modified_keys(PRESET))
 (2.5, ['CONTROLLER ONE.K'])
 """
 

@@ -41,14 +41,6 @@ from quadtank_tui.core.statefb.settings import StateFeedbackParams
 from quadtank_tui.core.validation import ParameterError, check_range
 
 
-def _preset() -> Parameters:
-    """The built-in values, the default of every comparison (imported when first
-    needed: the presets are built from these classes)."""
-    from quadtank_tui.core.parameters.presets import PRESET
-
-    return PRESET
-
-
 @dataclass(frozen=True)
 class ControlSettings:
     """CONTROL section: mode and the controller matrix's type."""
@@ -262,20 +254,21 @@ class Parameters:
             set_leaf(tree, k.path, k.coerce(value))
         return from_tree(self, tree, ())
 
-    def with_defaults(self, keys: Iterable[str], default: Parameters | None = None) -> Parameters:
-        """A copy with `keys` back at their default values (a window's Default
-        button: e.g. ``p.with_defaults(k.name for k in keys_of("CONTROLLER ONE"))``)."""
-        base = _preset() if default is None else default
-        return self.with_values({key: base.get(key) for key in keys})
+    # `default` is always given (the preset, or a params folder's default.par):
+    # presets.py builds PRESET from these classes, so this module never imports it.
+    def with_defaults(self, keys: Iterable[str], default: Parameters) -> Parameters:
+        """A copy with `keys` back at their values in `default` (a window's Default
+        button: e.g. ``p.with_defaults((k.name for k in keys_of("CONTROLLER ONE")), PRESET)``)."""
+        return self.with_values({key: default.get(key) for key in keys})
 
-    def modified_keys(self, default: Parameters | None = None) -> frozenset[str]:
-        """Keys whose value differs from `default` (the built-in preset if None)."""
-        base = (_preset() if default is None else default).values()
+    def modified_keys(self, default: Parameters) -> frozenset[str]:
+        """Keys whose value differs from `default` (e.g. the built-in PRESET)."""
+        base = default.values()
         return frozenset(k for k, v in self.values().items() if v != base[k])
 
-    def is_modified(self, key: str, default: Parameters | None = None) -> bool:
-        """Whether `key` differs from its default (the UI greys modified values)."""
-        return self.get(key) != (_preset() if default is None else default).get(key)
+    def is_modified(self, key: str, default: Parameters) -> bool:
+        """Whether `key` differs from its value in `default` (the UI greys modified values)."""
+        return self.get(key) != default.get(key)
 
     def quadtank_constants(self) -> PlantParams:
         """The quadruple tank's constants of the SIMULATION section (see

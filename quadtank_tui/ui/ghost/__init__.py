@@ -21,7 +21,7 @@ from quadtank_tui.engine.handle import EngineHandle, lab_session_of
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.ghost import LoggedRun, load_run, logs_newest_first
 from quadtank_tui.files.ghost_memory import RememberedGhost, recall, remember
-from quadtank_tui.files.log import LogFileError
+from quadtank_tui.files.log_reader import LogFileError
 from quadtank_tui.ui.ghost.window import GhostChoice, GhostWindow
 
 class GhostHost(Protocol):

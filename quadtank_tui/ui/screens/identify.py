@@ -72,7 +72,7 @@ def compute(paths: list[str], method: str, structure: int, cancel: threading.Eve
     from quadtank_tui.core.identify.compare import closest_setting, compare
     from quadtank_tui.core.identify.experiment import Options, Record, identify
     from quadtank_tui.core.identify.validation import autocorrelation, coherence, spectral_estimate
-    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.log_reader import read_log
 
     records = []
     for p in paths:
@@ -189,7 +189,7 @@ class IdentifyScreen(Screen[None]):
             self._preview(str(event.selection.value))
 
     def _preview(self, path: str) -> None:
-        from quadtank_tui.files.log import read_log
+        from quadtank_tui.files.log_reader import read_log
 
         top = self.query_one("#outputs", PlotextPlot)
         top.plt.clear_figure()

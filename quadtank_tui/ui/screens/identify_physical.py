@@ -57,7 +57,7 @@ def compute_physical(paths: list[str], plant: Plant, free: tuple[str, ...], canc
     out), validate there (run in a worker; IdentificationError "cancelled" when
     `cancel` is set)."""
     from quadtank_tui.core.identify.physical import experiment_from_columns, fit_physical, validate_physical
-    from quadtank_tui.files.log import read_log
+    from quadtank_tui.files.log_reader import read_log
 
     logs = []
     for p in paths:

@@ -39,11 +39,13 @@ from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.status_line import StatusLine
 from quadtank_tui.ui.widgets.trend_clock import ClockMap
-from quadtank_tui.ui.widgets.trends import WINDOWS, Scale, Trend, TrendView, physical_scales, scroll_step
+from quadtank_tui.ui.plot_axes import scroll_step
+from quadtank_tui.ui.widgets.trends import WINDOWS, Scale, Trend, TrendView, physical_scales
 from quadtank_tui.ui.ghost import GhostControl
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, ConfirmWindow, free_log_name
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
 from quadtank_tui.ui.windows.faults import FaultWindow
+from quadtank_tui.ui.windows.mpc import MPCWindow
 from quadtank_tui.ui.windows.statefb import StateFeedbackWindow
 from quadtank_tui.ui.windows.logging import LoggingWindow
 from quadtank_tui.ui.windows.process import PumpWindow, TankWindow
@@ -246,6 +248,7 @@ class MainScreen(CommandSender):
             status.snapshot = snap
             # Each widget repaints only if what it shows changed.
             self._controller.statefb = snap.statefb
+            self._controller.mpc = snap.mpc
             self._controller.params = snap.params
             self._image.snapshot = snap
             self._spill_alarm(snap)
@@ -407,7 +410,8 @@ class MainScreen(CommandSender):
         p = snap.params
         if not element_used(p, index):
             return
-        window = {"PID": PIDWindow, "State feedback": StateFeedbackWindow}.get(p.control.family.value, GeneralWindow)
+        window = {"PID": PIDWindow, "State feedback": StateFeedbackWindow,
+                  "MPC": MPCWindow}.get(p.control.family.value, GeneralWindow)
         self.app.push_screen(window(index, p, self.defaults, opener=str(index + 1)), self.send_all)
 
     def action_reset_controllers(self) -> None:

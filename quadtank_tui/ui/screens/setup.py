@@ -39,6 +39,7 @@ from quadtank_tui.ui.windows.base import Commands, ConfirmWindow
 from quadtank_tui.ui.labels import type_modified
 from quadtank_tui.ui.windows.calibration import CalibrationWindow
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow
+from quadtank_tui.ui.windows.mpc import MPCWindow
 from quadtank_tui.ui.windows.statefb import StateFeedbackWindow
 from quadtank_tui.ui.windows.par_files import ParFileWindow
 from quadtank_tui.ui.windows.pid_extras import PIDExtrasWindow
@@ -209,8 +210,8 @@ class SetupScreen(CommandSender):
     def action_element(self, index: int) -> None:
         """An element's window: PID with the extras, or Main's General window."""
         p = self.current().params
-        window = {"PID": PIDExtrasWindow, "State feedback": StateFeedbackWindow}.get(p.control.family.value,
-                                                                                   GeneralWindow)
+        window = {"PID": PIDExtrasWindow, "State feedback": StateFeedbackWindow,
+                  "MPC": MPCWindow}.get(p.control.family.value, GeneralWindow)
         self.app.push_screen(window(index, p, self.defaults, opener=str(index + 1)), self.send_all)
 
     def action_calibration(self) -> None:

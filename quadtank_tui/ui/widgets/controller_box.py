@@ -4,7 +4,8 @@ element with its main parameters, the type, Type and Reset.
 Element ij maps error j to input i.  In a decentralized structure only 11 and 22
 take part; 12 and 21 are shown as unused.  Values that differ from the defaults
 are dim italic (the original's gray).  The state feedback has no elements: the box
-shows its gains L1, L2, the placed poles (z) and delta instead.
+shows its gains L1, L2, the placed poles (z) and delta instead; the MPC its
+horizons and weights, its solves, faults and solve times.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from textual.content import Content
 from textual.reactive import reactive
 from textual.widgets import Static
 
+from quadtank_tui.core.mpc.info import MPCInfo
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Parameters
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fmt
@@ -76,16 +78,45 @@ def statefb_lines(info: StateFeedbackInfo, p: Parameters) -> list[str]:
     return lines
 
 
-class StateFeedbackCell(Static):
-    """The state feedback's design in use; a click opens its window."""
+class WholeCell(Static):
+    """The cell of a type that owns the 2x2 as a whole: its lines, or "no design
+    yet"; a click opens its window (element 1's key)."""
 
-    def show(self, info: StateFeedbackInfo | None, p: Parameters) -> None:
-        body = statefb_lines(info, p) if info is not None else ["[dim]no design yet[/]"]
-        self.update(Content.from_markup("\n".join(body)))
+    def show_lines(self, lines: list[str] | None) -> None:
+        self.update(Content.from_markup("\n".join(lines if lines is not None else ["[dim]no design yet[/]"])))
 
     def on_click(self, event: events.Click) -> None:
         event.stop()
         self.post_message(ActionRequested("element(0)"))
+
+
+class StateFeedbackCell(WholeCell):
+    """The state feedback's design in use."""
+
+    def show(self, info: StateFeedbackInfo | None, p: Parameters) -> None:
+        self.show_lines(statefb_lines(info, p) if info is not None else None)
+
+
+def mpc_lines(info: MPCInfo, p: Parameters) -> list[str]:
+    """Markup lines of the MPC in use: horizons and weights, solves and faults, the
+    solve times (ms) and the solver's status when it is not "solved"."""
+    s = p.mpc
+    faults = f"[reverse]faults {info.faults}[/]" if info.faults else "faults 0"
+    lines = [f"[b]N[/] {info.horizon} [b]Nu[/] {info.moves}",
+             f"[b]Q[/] {s.output_weight:g} [b]R[/] {s.input_weight:g} [b]S[/] {s.rate_weight:g}",
+             f"solves {info.solves} {faults}",
+             f"p50 {info.p50_ms:.2f} p99 {info.p99_ms:.2f} ms",
+             f"slow {info.slow} (> Ts/10)"]
+    if info.status and info.status != "solved":
+        lines.append(f"[dim]{Content(info.status).markup}[/]")
+    return lines
+
+
+class MPCCell(WholeCell):
+    """The MPC in use."""
+
+    def show(self, info: MPCInfo | None, p: Parameters) -> None:
+        self.show_lines(mpc_lines(info, p) if info is not None else None)
 
 
 class ElementCell(Static):
@@ -113,6 +144,8 @@ class ControllerBox(Vertical):
     params: reactive[Parameters | None] = reactive(None)
     #: The state feedback in use (from the snapshot), None with the other types.
     statefb: reactive[StateFeedbackInfo | None] = reactive(None)
+    #: The MPC in use (from the snapshot), None with the other types.
+    mpc: reactive[MPCInfo | None] = reactive(None)
 
     def __init__(self, defaults: Parameters, **kwargs: Any) -> None:
         super().__init__(**kwargs)
@@ -126,6 +159,7 @@ class ControllerBox(Vertical):
             for n in range(4):
                 yield ElementCell(n)
         yield StateFeedbackCell(id="statefb", classes="element")
+        yield MPCCell(id="mpc", classes="element")
 
     def watch_params(self, p: Parameters | None) -> None:
         if p is None:
@@ -136,11 +170,17 @@ class ControllerBox(Vertical):
             f"[{style} @click=screen.controller_type]{label}[/]  "
             "[@click=screen.reset_controllers]Reset[/]"))
         sf = p.control.family.value == "State feedback"
-        self.query_one("#matrix").display = not sf
+        mpc = p.control.family.value == "MPC"
+        self.query_one("#matrix").display = not (sf or mpc)
         cell_sf = self.query_one(StateFeedbackCell)
         cell_sf.display = sf
+        cell_mpc = self.query_one(MPCCell)
+        cell_mpc.display = mpc
         if sf:
             cell_sf.show(self.statefb, p)
+            return
+        if mpc:
+            cell_mpc.show(self.mpc, p)
             return
         for cell in self.query(ElementCell):
             cell.show(p, self.defaults)
@@ -148,3 +188,7 @@ class ControllerBox(Vertical):
     def watch_statefb(self, info: StateFeedbackInfo | None) -> None:
         if self.params is not None and self.params.control.family.value == "State feedback":
             self.query_one(StateFeedbackCell).show(info, self.params)
+
+    def watch_mpc(self, info: MPCInfo | None) -> None:
+        if self.params is not None and self.params.control.family.value == "MPC":
+            self.query_one(MPCCell).show(info, self.params)

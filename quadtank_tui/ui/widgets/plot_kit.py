@@ -24,12 +24,9 @@ import numpy as np
 from textual.content import Content
 
 from quadtank_tui.ui.colours import RGB, Hue
-from quadtank_tui.ui.widgets.trend_style import DOT_GAP
-from quadtank_tui.ui.widgets.trends import y_axis
+from quadtank_tui.ui.plot_axes import y_axis
+from quadtank_tui.ui.widgets.trend_style import DOT_GAP, DOTTED_MARKER, MARKERS
 
-#: Without colour, series draw with these characters in turn; dotted ones with dots.
-MARKERS = ("*", "+", "o", "x")
-DOTTED_MARKER = "·"
 #: A legend's sample of a solid and of a dotted line.
 LINE_SOLID, LINE_DOTTED = "━", "┈"
 #: Rows of a framed plotext plot that are not canvas: the frame's top and bottom
@@ -136,7 +133,7 @@ def axes(plt: Any, xlim: tuple[float, float], ylim: tuple[float, float], width: 
          whole_x: bool = False, xlabel: str | None = None) -> None:
     """Limits and round ticks on both axes for a framed plot of width x height
     cells (a label every 8 columns or more), and the x label.  The y axis is laid
-    out as the trends' (trends.y_axis): each row stands for one round value and
+    out as the trends' (plot_axes.y_axis): each row stands for one round value and
     every label sits on the row whose dots show its value, so a curve is read
     off its labels to within a row (plotext's own rounding put a label up to a
     row away from its value)."""

@@ -22,6 +22,8 @@ LIGHT: dict[str, RGB] = {name: hue.light for name, hue in SIGNALS.items()}
 #: order of the plot type: "y1 y2 ref1 ref2" -> * + o x) and a ghost with dots.
 MARKERS = ("*", "+", "o", "x")
 GHOST_MARKER = "·"
+#: A reference's or a model's dots in the small plots and `quadtank log` (Identify, Design).
+DOTTED_MARKER = "·"
 #: Columns between the dots of a dotted curve (a reference, a model).
 DOT_GAP = 2
 #: How far a ghost's colour goes towards the background (0 = the trace's own).

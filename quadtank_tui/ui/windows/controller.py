@@ -10,7 +10,7 @@ from textual.widgets import Button, Input, Label, OptionList
 from textual.widgets.option_list import Option
 
 from quadtank_tui.core.general import MAX_DEGREE
-from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Family, Parameters
+from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Parameters
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import ResetControllers, SetParams
 from quadtank_tui.ui.labels import ELEMENT_NAMES, TYPES, type_index
@@ -44,7 +44,7 @@ class ControllerTypeWindow(Window[Commands]):
             options.append(Option(f"{n + 1}  {label}{note}", id=f"type-{n}"))
         yield OptionList(*options, id="types")
         yield Label("States are kept only between the two structures of one family; "
-                    "state feedback starts from the pumps' u.", classes="hint")
+                    "state feedback and MPC start from the pumps' u.", classes="hint")
 
     def compose_buttons(self) -> ComposeResult:
         yield from set_default_cancel()
@@ -57,7 +57,7 @@ class ControllerTypeWindow(Window[Commands]):
     def action_choose(self, n: int) -> None:
         family, structure, _ = TYPES[n]
         values = {"CONTROL.Type": family.value}
-        if family is not Family.STATE_FEEDBACK:
+        if not family.whole:
             values["CONTROL.Structure"] = structure.value
         self.dismiss(() if n == self.current else (SetParams(values),))
 

@@ -2,7 +2,9 @@
 cli.py's way.
 
 cli.py adds the subcommands with `add_rig_parser` / `add_daq_parser` and the
-option with `add_daq_option`; everything about them lives here next to the DAQ.
+option with `add_daq_option`.  Building a backend from a DAQ configuration is
+not a command: it is daq/open.py's `open_daq`, which the session process uses
+too.  `python -m quadtank_tui.commands.daq rig ...` runs the rig alone.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from quadtank_tui.commands import warn
 from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.daq.config import PRESETS, load_daq_config
 from quadtank_tui.daq.ist.config import is_ist
+from quadtank_tui.daq.open import open_daq
 from quadtank_tui.engine.backend import BackendError
 
 # The commands import what they run inside their handlers (the rig: asyncio; the
@@ -343,9 +346,9 @@ def _ask_heights(volts: tuple[float, float], settled: tuple[float, ...]) -> list
 
 
 def main(argv: list[str] | None = None) -> int:
-    """`python -m quadtank_tui.daq rig ...`: the rig alone, through the DAQ layer's
-    own parser (the `quadtank` command builds the CLI layer's parser as well)."""
-    parser = argparse.ArgumentParser(prog="python -m quadtank_tui.daq")
+    """`python -m quadtank_tui.commands.daq rig ...`: the rig alone, through this
+    module's own parser (the `quadtank` command builds cli.py's parser as well)."""
+    parser = argparse.ArgumentParser(prog="python -m quadtank_tui.commands.daq")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     add_rig_parser(sub)
     args = parser.parse_args(argv)
@@ -377,24 +380,6 @@ def _par_plant(par: str | None) -> Plant | None:
     return read_par(par).params.process_plant()
 
 
-def open_daq(config: str | None, plant: Plant | None = None, *, quiet: bool = False) -> ModbusBackend | None:
-    """The Modbus backend a `--daq CONFIG` asks for (None without one), wired for
-    `plant` (the quadruple tank when None).  The file is read and checked now, so a
-    bad one stops the program before anything runs; the link is opened on the
-    first sample.  A device without a watchdog is said to have none (unless `quiet`)."""
-    if config is None:
-        return None
-    if is_ist(config):  # the sessions' records and locks are a Modbus rig's (host, port, unit)
-        raise ValueError(f"{config}: an IST rig (protocol: ist) is driven by `quadtank run --daq {config}` "
-                         "in this version; the TUI and sessions drive Modbus rigs only")
-    from quadtank_tui.daq.modbus import ModbusBackend  # pymodbus only when asked for
-
-    daq_config = load_daq_config(config, plant)
-    if daq_config.watchdog is None and not quiet:
-        warn([daq_config.watchdog_line()])
-    return ModbusBackend(daq_config)
-
-
 def run_clock(*, realtime: bool, speed: float | None, config: str | None,
               plant: Plant | None = None
               ) -> tuple[Literal["realtime", "virtual", "manual"], ModbusBackend | IstBackend | None]:
@@ -411,3 +396,7 @@ def run_clock(*, realtime: bool, speed: float | None, config: str | None,
     if realtime or (daq is not None and speed is None):
         return "realtime", daq
     return ("virtual" if speed is not None else "manual"), daq
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

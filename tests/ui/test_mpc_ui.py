@@ -1,0 +1,88 @@
+"""The MPC in the TUI: the Type window's row, the Controller box, its window."""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from uikit import Recording, make_app
+
+from quadtank_tui.core.parameters import PRESET
+from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
+from quadtank_tui.ui.widgets.controller_box import MPCCell
+from quadtank_tui.ui.windows.mpc import MPCWindow
+
+MPC = PRESET.with_values({"CONTROL.Type": "MPC"})
+
+
+def test_main_with_mpc_80x24(snap_compare, make_engine: Callable[..., Recording]) -> None:
+    assert snap_compare(make_app(make_engine(MPC)), terminal_size=(80, 24))
+
+
+def test_mpc_window_80x24(snap_compare, make_engine: Callable[..., Recording]) -> None:
+    assert snap_compare(make_app(make_engine(MPC)), terminal_size=(80, 24), press=["1"])
+
+
+def test_mpc_window_120x40(snap_compare, make_engine: Callable[..., Recording]) -> None:
+    assert snap_compare(make_app(make_engine(MPC)), terminal_size=(120, 40), press=["1"])
+
+
+async def test_choosing_mpc_shows_it_and_its_window_applies_a_horizon(engine: Recording) -> None:
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.press("t", "6")
+        await pilot.pause()
+        assert engine.sent(SetParams)[-1].values == {"CONTROL.Type": "MPC"}
+        app.main.refresh_view()
+        await pilot.pause()
+        cell = app.main.query_one(MPCCell)
+        assert cell.display and "N 30 Nu 30" in str(cell.render())
+        await pilot.press("1")
+        await pilot.pause()
+        assert isinstance(app.screen, MPCWindow)
+        app.screen.field_widget("MPC.Horizon").focus()
+        await pilot.press("end", "ctrl+u", "4", "0", "tab", "end", "ctrl+u", "1", "5", "enter")  # a burst
+        await pilot.pause()
+        assert engine.sent(SetParams)[-1].values == {"MPC.Horizon": 40, "MPC.ControlHorizon": 15}
+        app.main.refresh_view()
+        await pilot.pause()
+        info = engine.snapshot().mpc
+        assert info is not None and (info.horizon, info.moves) == (40, 15)
+        assert "N 40 Nu 15" in str(app.main.query_one(MPCCell).render())
+        await pilot.press("t", "1")  # back to PID
+        await pilot.pause()
+        assert engine.sent(SetParams)[-1].values == {"CONTROL.Type": "PID", "CONTROL.Structure": "Decentralized"}
+        assert engine.snapshot().mpc is None
+
+
+async def test_a_control_horizon_past_the_horizon_is_refused_at_its_field(make_engine: Any) -> None:
+    engine = make_engine(MPC)
+    app = make_app(engine)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("1")
+        await pilot.pause()
+        sent = len(engine.sent(SetParams))
+        app.screen.field_widget("MPC.ControlHorizon").value = "50"
+        await pilot.press("enter")
+        await pilot.pause()
+        assert isinstance(app.screen, MPCWindow) and len(engine.sent(SetParams)) == sent
+        assert "50 is longer than the horizon (30)" in str(app.screen.query_one("#e-1").render())
+        assert engine.snapshot().params.mpc.control_horizon == 0
+
+
+async def test_switching_a_running_loop_from_pi_to_mpc_and_back_has_no_bump(engine: Recording) -> None:
+    """The keys a user presses (t 6, t 1) on a running, settled PI loop in Automatic:
+    the pumps move less than 0.005 of full scale at each switch sample."""
+    for command in (SetState("Run"), SetControlMode("Automatic")):
+        assert engine.submit(command).result().ok
+    engine.run_for(300.0)
+    app = make_app(engine)
+    async with app.run_test(size=(80, 24)) as pilot:
+        for keys, family in ((("t", "6"), "MPC"), (("t", "1"), "PID")):
+            before = engine.snapshot().u
+            await pilot.press(*keys)
+            await pilot.pause()
+            assert engine.snapshot().params.control.family.value == family
+            engine.run_for(0.1)
+            after = engine.snapshot().u
+            assert max(abs(a - b) for a, b in zip(after, before)) < 0.005, (family, before, after)
+            engine.run_for(5.0)
