@@ -26,6 +26,7 @@ from typing import Any, Mapping
 
 from quadtank_tui.daq.config import PLAUSIBLE_MARGIN, QUADTANK_CHANNELS, PlantChannels, _error, _Validator
 from quadtank_tui.daq.ist import protocol as p
+from quadtank_tui.files.regular import read_regular
 from quadtank_tui.files.yamltext import key_lines, parse_yaml, read_text
 
 PROTOCOL = "ist"
@@ -79,9 +80,10 @@ class IstConfig:
 
 def is_ist(path: Path | str) -> bool:
     """Whether the DAQ file at `path` says `protocol: ist` (False for a preset name,
-    a missing or unreadable file: the Modbus reader then says what is wrong)."""
-    try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
+    a missing or unreadable file, a FIFO or a directory: the Modbus reader then says
+    what is wrong)."""
+    try:  # a FIFO or a device must not block here, nor a huge file fill memory (hostile files)
+        text = read_regular(path, limit=1 << 20).decode("utf-8", errors="replace")
     except OSError:
         return False
     return any(line.split("#", 1)[0].strip().replace(" ", "") in ("protocol:ist", 'protocol:"ist"')
