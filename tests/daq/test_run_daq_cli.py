@@ -156,8 +156,8 @@ def test_the_tuis_loop_process_drives_the_rig_and_leaves_its_pumps_at_0(rig: Cal
 
 
 def test_when_the_loop_process_is_killed_the_tui_commands_the_pumps_to_0(rig: Callable, tmp_path: Path) -> None:
-    """kill -9 of the loop process (the OOM killer, say): it cannot stop in order, so
-    the TUI's process opens a link of its own and commands the pumps to 0 (the rig's
+    """kill -9 of the loop's process (a private session's; the OOM killer, say): it
+    cannot stop in order, so the TUI's process opens a link of its own and commands the pumps to 0 (the rig's
     watchdog is off here), and the screen's fault line says so."""
     import os
     import signal
@@ -172,12 +172,13 @@ def test_when_the_loop_process_is_killed_the_tui_commands_the_pumps_to_0(rig: Ca
         while r.dacs()[0] == 0.0 and time.monotonic() < deadline:
             time.sleep(0.05)
         assert r.dacs()[0] == pytest.approx(4.0, abs=1e-4)
-        os.kill(engine._proc.pid, signal.SIGKILL)
+        os.kill(engine.info.pid, signal.SIGKILL)  # the private session's process
         deadline = time.monotonic() + 60
         while "commanded to 0" not in (engine.snapshot().fault or "") and time.monotonic() < deadline:
             time.sleep(0.05)
         fault = engine.snapshot().fault or ""
-        assert "stopped unexpectedly (exit code -9); the pumps were commanded to 0 from here" in fault
+        assert (f"the session process {engine.info.id} (pid {engine.info.pid}) stopped unexpectedly; "
+                "the pumps were commanded to 0 from this client") in fault
         assert r.dacs() == (0.0, 0.0)
     finally:
         engine.stop()
