@@ -186,7 +186,13 @@ class LogSession:
                     self._failure = (exc, self._writer.rows)
                 raise
 
-        self.files.submit(write)
+        if self.files.threaded:
+            self.files.submit(write)
+        else:  # inline, as submit() would run it, without a Future per row
+            try:
+                write()
+            except Exception:  # noqa: BLE001 - kept in _failure: check() raises it
+                pass
         self.check()
 
     def off(self) -> Future[None]:
