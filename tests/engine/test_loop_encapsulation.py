@@ -5,6 +5,7 @@ ControlLoop.  An AST scan over the package, the tests and the benchmarks."""
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 from typing import Any
 
@@ -19,22 +20,34 @@ from quadtank_tui.engine.snapshot import Snapshot
 
 ROOT = Path(__file__).resolve().parents[2]
 LOOP_MODULE = ROOT / "quadtank_tui" / "engine" / "loop.py"
+#: A write the scan reports goes through `loop`, `control`, `control_loop` (names or
+#: attributes) or a name bound to a ControlLoop: a source without these words has none.
+MENTIONS_A_LOOP = re.compile(r"\b(loop|control|control_loop)\b|ControlLoop")
 
 
-def _loop_names(tree: ast.AST) -> set[str]:
+def _loop_names(nodes: list[ast.AST]) -> set[str]:
     """Names that hold a ControlLoop in this module: `loop`, `control`, whatever is
     annotated ControlLoop or assigned ControlLoop(...)."""
     names = {"loop", "control", "control_loop"}
-    for node in ast.walk(tree):
+    for node in nodes:
         if isinstance(node, (ast.arg, ast.AnnAssign)):
             ann = node.annotation
             target = node.arg if isinstance(node, ast.arg) else getattr(node.target, "id", None)
             if ann is not None and target and "ControlLoop" in ast.unparse(ann):
                 names.add(target)
         if isinstance(node, ast.Assign) and isinstance(node.value, ast.Call):
-            if ast.unparse(node.value.func).split(".")[-1] == "ControlLoop":
+            if _called(node.value.func) == "ControlLoop":
                 names.update(t.id for t in node.targets if isinstance(t, ast.Name))
     return names
+
+
+def _called(func: ast.expr) -> str:
+    """The last name of what a call calls: `setattr` for `setattr(...)` and for
+    `monkeypatch.setattr(...)` (what `ast.unparse(func).split(".")[-1]` gives, without
+    unparsing every call of the tree)."""
+    if isinstance(func, ast.Name):
+        return func.id
+    return func.attr if isinstance(func, ast.Attribute) else ""
 
 
 def _is_loop(expr: ast.expr, names: set[str]) -> bool:
@@ -47,10 +60,12 @@ def _is_loop(expr: ast.expr, names: set[str]) -> bool:
 def outside_writes(source: str, filename: str = "<source>") -> list[str]:
     """Every assignment (=, +=, annotated, del, setattr, monkeypatch.setattr) to an
     attribute of a ControlLoop in `source`, as 'file:line: text'."""
-    tree = ast.parse(source, filename)
-    names = _loop_names(tree)
+    if not MENTIONS_A_LOOP.search(source):  # no name a write could go through: nothing to parse
+        return []
+    nodes = list(ast.walk(ast.parse(source, filename)))  # one walk for both passes
+    names = _loop_names(nodes)
     found: list[str] = []
-    for node in ast.walk(tree):
+    for node in nodes:
         targets: list[ast.expr] = []
         if isinstance(node, ast.Assign):
             targets = list(node.targets)
@@ -58,7 +73,7 @@ def outside_writes(source: str, filename: str = "<source>") -> list[str]:
             targets = [node.target]
         elif isinstance(node, ast.Delete):
             targets = list(node.targets)
-        elif isinstance(node, ast.Call) and ast.unparse(node.func).split(".")[-1] == "setattr" and node.args:
+        elif isinstance(node, ast.Call) and _called(node.func) == "setattr" and node.args:
             if _is_loop(node.args[0], names):
                 found.append(f"{filename}:{node.lineno}: {ast.unparse(node)}")
             continue
