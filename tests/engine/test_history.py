@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -48,6 +49,8 @@ def write_rows(h: History, count: int, enough: threading.Event) -> None:
     it can, a clear now and then, until `count` rows or `enough` is set."""
     for k in range(count):
         h.append([float(k)] * len(SIGNALS))
+        if k % 64 == 63:  # let the reader in between rows, as a socket's reads do: unyielding,
+            time.sleep(0)  # it wrote thousands a GIL slice and the reader saw mostly fresh rings
         if k % 7919 == 7918:
             h.clear()
             if enough.is_set():

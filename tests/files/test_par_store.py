@@ -24,7 +24,8 @@ def store(tmp_path: Path) -> ParStore:
 
 
 def test_names_of_the_shipped_folder(store: ParStore) -> None:
-    assert store.names() == ["coupled-cascade", "coupled-tito", "default", "desautel-qtp", "minphase", "nonminphase"]
+    assert store.names() == ["coupled-cascade", "coupled-tito", "default", "desautel-qtp", "ist-lisbon", "minphase",
+                             "nonminphase"]
     assert ParStore(store.folder / "missing").names() == []
 
 
