@@ -130,9 +130,8 @@ class CoupledCascade(Plant):
 
     @property
     def outputs(self) -> tuple[Signal, ...]:
-        top = [k * self.hmax if not s > 0.0 else min(k * self.hmax, s)
-               for k, s in ((self.kc1, self.ysat1), (self.kc2, self.ysat2))]
-        return (Signal("y1", "V", 0.0, top[0]), Signal("y2", "V", 0.0, top[1]))
+        return (Signal("y1", "V", 0.0, fx.sensor_top(self.kc1 * self.hmax, self.ysat1)),
+                Signal("y2", "V", 0.0, fx.sensor_top(self.kc2 * self.hmax, self.ysat2)))
 
     def layout(self) -> Layout:
         return Layout(
@@ -146,10 +145,7 @@ class CoupledCascade(Plant):
 
     def _pump(self, u: float) -> float:
         """Pump flow (cm/s of level in tank 1) at u V: beta1 u, less the threshold."""
-        v = min(max(u, 0.0), self.vmax)
-        if self.vmin > 0.0:
-            v = max(v - self.vmin, 0.0)
-        return self.beta1 * v
+        return self.beta1 * fx.pump_volts(min(max(u, 0.0), self.vmax), self.vmin)
 
     def rhs(self, x: Sequence[float], u: Sequence[float]) -> Vector:
         q1, q2 = self._q(x[0], self.alpha1), self._q(x[1], self.alpha2)
@@ -160,12 +156,7 @@ class CoupledCascade(Plant):
         return (_spill(f1, x[0], self.hmax), _spill(f2, x[1], self.hmax))
 
     def output(self, x: Sequence[float]) -> Vector:
-        y1, y2 = self.kc1 * x[0], self.kc2 * x[1]
-        if self.ysat1 > 0.0:
-            y1 = min(y1, self.ysat1)
-        if self.ysat2 > 0.0:
-            y2 = min(y2, self.ysat2)
-        return (y1, y2)
+        return (fx.sensor(self.kc1 * x[0], self.ysat1), fx.sensor(self.kc2 * x[1], self.ysat2))
 
     def jacobians(self, x0: Sequence[float], u0: Sequence[float]) -> tuple[Any, Any, Any]:
         """Desautel (2.1.13): A = [[-l1, 0], [l1, -l2]], l_i = alpha_i sqrt(g / (2 x_i))."""
