@@ -51,17 +51,6 @@ def _positive(obj: object, names: Sequence[str]) -> None:
             raise PlantError(f"{name} must be a finite number > 0, got {value!r}")
 
 
-def _effects(obj: object, fraction: str, volts: Sequence[str], ranges: Sequence[str]) -> None:
-    """The real-rig effects: a fraction in [0, 1], a threshold and sensor ranges >= 0."""
-    value = getattr(obj, fraction)
-    if not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
-        raise PlantError(f"{fraction} must be in [0, 1], got {value!r}")
-    for name in (*volts, *ranges):
-        value = getattr(obj, name)
-        if not isinstance(value, (int, float)) or not 0.0 <= value < float("inf"):
-            raise PlantError(f"{name} must be a finite number >= 0 V, got {value!r}")
-
-
 def _spill(f: float, x: float, hmax: float) -> float:
     """A full tank rises no further: what would raise it leaves the process."""
     return 0.0 if x >= hmax and f > 0.0 else f
@@ -116,7 +105,8 @@ class CoupledCascade(Plant):
 
     def __post_init__(self) -> None:
         _positive(self, ("alpha1", "alpha2", "beta1", "g", "hmax", "kc1", "kc2", "vmax"))
-        _effects(self, "spill1", ("vmin",), ("ysat1", "ysat2"))
+        # vmin checked as >= 0 here and against vmax below, in this plant's own words
+        fx.check_effects(self, ("spill1",), (), self.vmax, ("vmin", "ysat1", "ysat2"))
         if self.vmin >= self.vmax:
             raise PlantError(f"vmin must be below vmax = {self.vmax:g} V, got {self.vmin!r}")
 
