@@ -3,7 +3,7 @@ cli.py's way.
 
 cli.py adds the subcommands with `add_rig_parser` / `add_daq_parser` and the
 option with `add_daq_option`.  Building a backend from a DAQ configuration is
-not a command: it is daq/open.py's `open_daq`, which the session process uses
+not a command: it is daq/open.py's (`open_rig`, and `open_daq` for a TUI or session, which the session process uses
 too.  `python -m quadtank_tui.commands.daq rig ...` runs the rig alone.
 """
 
@@ -17,9 +17,9 @@ from typing import TYPE_CHECKING, Literal
 
 from quadtank_tui.commands import warn
 from quadtank_tui.core.plant import FULL_SCALE_V
-from quadtank_tui.daq.config import PRESETS, load_daq_config
-from quadtank_tui.daq.ist.config import is_ist
-from quadtank_tui.daq.open import open_daq
+from quadtank_tui.daq.config import PRESETS, DaqConfig, load_daq_config
+from quadtank_tui.daq.ist.config import IstConfig
+from quadtank_tui.daq.open import load_rig_config, open_rig
 from quadtank_tui.engine.backend import BackendError
 
 # The commands import what they run inside their handlers (the rig: asyncio; the
@@ -193,12 +193,11 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
     """Read-only on purpose: checking a link must never move a pump."""
     from quadtank_tui.daq.modbus import ModbusBackend
 
-    if is_ist(args.config):
+    config = load_rig_config(args.config, _par_plant(args.par))
+    if isinstance(config, IstConfig):
         from quadtank_tui.daq.ist.commands import cmd_check_ist
 
-        return cmd_check_ist(args)
-
-    config = load_daq_config(args.config, _par_plant(args.par))
+        return cmd_check_ist(config)
     backend = ModbusBackend(config)
     try:
         volts = backend.read_raw_volts()
@@ -256,10 +255,11 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
         read = read_par(args.par)
         warn(read.warnings)
         plant = read.params.process_plant()
+    rig = load_rig_config(args.config) if args.config is not None else None
     if args.pairs is not None:
         pairs = read_pairs(args.pairs)
     else:
-        if args.config is None:
+        if rig is None:
             raise ValueError("give the rig's DAQ configuration, or --pairs FILE")
         for name in ("poll", "tol", "timeout"):
             if not getattr(args, name) > 0:
@@ -268,9 +268,7 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
             raise ValueError(f"--window must be >= 2 reads, got {args.window}")
         if any(not 0 <= v <= 10 for v in args.volts):
             raise ValueError("--volts must be within 0..10 V")
-        from quadtank_tui.daq.ist.commands import calibration_backend
-
-        backend = calibration_backend(args.config, args.write)
+        backend = _calibration_backend(rig, args.config, args.write)
         try:
             pairs = run_procedure(
                 backend, [(v, v) for v in args.volts], Settle(args.poll, args.window, args.tol, args.timeout),
@@ -283,7 +281,7 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
         print("# the settled states (save them to refit with --pairs FILE)")
         print(pairs.format(), end="")
     result = fit_pairs(pairs, plant)
-    if args.config is not None and is_ist(args.config):
+    if isinstance(rig, IstConfig):
         from quadtank_tui.daq.ist.commands import format_ist_result
 
         print(format_ist_result(result, plant))
@@ -292,6 +290,22 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
     if args.write is not None:
         return _write_calibration(result, args.write or _daq_file(args.config), args.par, yes=args.yes)
     return 0
+
+
+def _calibration_backend(rig: DaqConfig | IstConfig, config: str, write: str | None) -> ModbusBackend | IstBackend:
+    """The backend `daq calibrate CONFIG` holds the pumps with.  For an IST rig the
+    sensors' "volts" are their ratios r (its level is linear in r), and --write is
+    refused: its file's keys are dh_dr and h0."""
+    if isinstance(rig, DaqConfig):
+        from quadtank_tui.daq.modbus import ModbusBackend
+
+        return ModbusBackend(rig)
+    if write is not None:
+        raise ValueError(f"{config}: --write does not edit an IST file yet; copy the dh_dr and h0 "
+                         "lines the fit prints into its calibration: section")
+    from quadtank_tui.daq.ist.backend import IstBackend
+
+    return IstBackend(rig)
 
 
 def _daq_file(config: str | None) -> str | None:
@@ -386,13 +400,7 @@ def run_clock(*, realtime: bool, speed: float | None, config: str | None,
     """The clock and the DAQ backend of `quadtank [--daq C] run [--daq C]`.  A real
     process is never run unpaced: with a DAQ the run is real time, unless --speed
     gives the virtual rig's speed factor."""
-    daq: ModbusBackend | IstBackend | None
-    if config is not None and is_ist(config):  # the IST rig's serial protocol (daq/ist/)
-        from quadtank_tui.daq.ist.commands import open_ist
-
-        daq = open_ist(config, plant)
-    else:
-        daq = open_daq(config, plant)
+    daq = open_rig(config, plant)
     if realtime or (daq is not None and speed is None):
         return "realtime", daq
     return ("virtual" if speed is not None else "manual"), daq

@@ -78,17 +78,18 @@ def hold_daq(config: str | None, *, take_over: bool = False, say: Callable[[str]
     if config is None:
         yield None
         return
-    from quadtank_tui.daq.config import load_daq_config
     from quadtank_tui.session import roles
     from quadtank_tui.session.lab import load_lab_config
     from quadtank_tui.session.lock import DaqLockHeld, pid_alive
     from quadtank_tui.session.riglock import RigLock
 
-    from quadtank_tui.daq.ist.config import is_ist, load_ist_config
+    from quadtank_tui.daq.ist.config import IstConfig
+    from quadtank_tui.daq.open import load_rig_config
     from quadtank_tui.session.lock import DaqLock
 
-    ist = load_ist_config(config) if is_ist(config) else None  # a serial rig, locked by its device
-    daq = load_daq_config(config) if ist is None else None  # a bad file is reported here, before anything else
+    rig = load_rig_config(config)  # a bad file is reported here, before anything else
+    ist = rig if isinstance(rig, IstConfig) else None  # a serial rig, locked by its device
+    daq = rig if not isinstance(rig, IstConfig) else None
     lab = load_lab_config()
 
     def acquire(take_over: bool = False) -> RigLock:

@@ -1,20 +1,55 @@
-"""Building the Modbus backend a DAQ configuration asks for (`--daq CONFIG`).
+"""Reading the rig a DAQ configuration describes (`--daq CONFIG`) and building its
+backend: a Modbus map, or an IST serial rig when the file says `protocol: ist`.
 
-Not a command: the CLI (commands/daq.py, cli.py) and the session process
-(session/launch.py, session/client.py) both open a rig from a configuration,
-and the session layer must not import a CLI module to do it.
+Not a command: the CLI (commands/daq.py, commands/lab.py, cli.py) and the session
+process (session/launch.py, session/client.py) both open a rig from a
+configuration, and the session layer must not import a CLI module to do it.  The
+file is read once, here, and its text decides the protocol (load_rig_config):
+the callers ask the configuration it returns, never the file again.
 """
 
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
-from quadtank_tui.daq.config import load_daq_config
+from quadtank_tui.daq.config import PRESETS, DaqConfig, _error, load_daq_config, parse_daq_config
+from quadtank_tui.daq.ist.config import IstConfig, parse_ist_config, says_ist
+from quadtank_tui.files.yamltext import read_text
 
 if TYPE_CHECKING:
     from quadtank_tui.core.plants import Plant
+    from quadtank_tui.daq.ist.backend import IstBackend
     from quadtank_tui.daq.modbus import ModbusBackend
+
+
+def load_rig_config(path: Path | str, plant: Plant | None = None) -> DaqConfig | IstConfig:
+    """The configuration of the rig a DAQ file (or a preset name) describes, read
+    and checked once: an IST serial rig's when it says `protocol: ist`, else the
+    Modbus map for the channels of `plant` (the quadruple tank when None)."""
+    if str(path) in PRESETS:
+        return load_daq_config(path, plant)
+    text = read_text(path, _error)  # the hostile-file checks: no FIFO, no huge file
+    if says_ist(text):
+        return parse_ist_config(text, name=str(path))
+    return parse_daq_config(text, name=str(path), plant=plant)
+
+
+def open_rig(config: str | None, plant: Plant | None = None) -> ModbusBackend | IstBackend | None:
+    """The backend of any rig `quadtank run --daq CONFIG` may drive (None without
+    one), wired for `plant`; the file is read and checked now."""
+    if config is None:
+        return None
+    rig = load_rig_config(config, plant)
+    if isinstance(rig, DaqConfig):
+        return _modbus(rig, quiet=False)
+    from quadtank_tui.daq.ist.backend import IstBackend
+
+    backend = IstBackend(rig)
+    if plant is not None and (why := backend.plant_refused(plant)):
+        raise ValueError(why)
+    return backend
 
 
 def open_daq(config: str | None, plant: Plant | None = None, *, quiet: bool = False) -> ModbusBackend | None:
@@ -25,14 +60,16 @@ def open_daq(config: str | None, plant: Plant | None = None, *, quiet: bool = Fa
     the CLI's warnings are (unless `quiet`)."""
     if config is None:
         return None
-    from quadtank_tui.daq.ist.config import is_ist
-
-    if is_ist(config):  # the sessions' records and locks are a Modbus rig's (host, port, unit)
+    rig = load_rig_config(config, plant)
+    if isinstance(rig, IstConfig):  # the sessions' records and locks are a Modbus rig's (host, port, unit)
         raise ValueError(f"{config}: an IST rig (protocol: ist) is driven by `quadtank run --daq {config}` "
                          "in this version; the TUI and sessions drive Modbus rigs only")
+    return _modbus(rig, quiet=quiet)
+
+
+def _modbus(config: DaqConfig, *, quiet: bool) -> ModbusBackend:
     from quadtank_tui.daq.modbus import ModbusBackend  # pymodbus only when asked for
 
-    daq_config = load_daq_config(config, plant)
-    if daq_config.watchdog is None and not quiet:
-        print(f"quadtank: warning: {daq_config.watchdog_line()}", file=sys.stderr)
-    return ModbusBackend(daq_config)
+    if config.watchdog is None and not quiet:
+        print(f"quadtank: warning: {config.watchdog_line()}", file=sys.stderr)
+    return ModbusBackend(config)

@@ -17,8 +17,6 @@ from quadtank_tui.engine.backend import BackendError
 if TYPE_CHECKING:
     from quadtank_tui.core.plants import Plant
     from quadtank_tui.daq.calibrate import Result
-    from quadtank_tui.daq.ist.backend import IstBackend
-    from quadtank_tui.daq.modbus import ModbusBackend
 
 #: The rig's published plant (protocol.py): what the virtual device serves without --par.
 IST_PLANT = PlantParams(
@@ -62,21 +60,10 @@ def cmd_rig_ist(args: argparse.Namespace) -> int:
     return 0
 
 
-def open_ist(config: str, plant: Plant | None = None) -> IstBackend:
-    """The backend of an IST configuration file (read and checked now)."""
-    from quadtank_tui.daq.ist.backend import IstBackend
-
-    backend = IstBackend(load_ist_config(config))
-    if plant is not None and (why := backend.plant_refused(plant)):
-        raise ValueError(why)
-    return backend
-
-
-def cmd_check_ist(args: argparse.Namespace) -> int:
+def cmd_check_ist(config: IstConfig) -> int:
     """`quadtank daq check` of an IST rig: one level request, nothing written."""
     from quadtank_tui.daq.ist.backend import IstBackend
 
-    config = load_ist_config(args.config)
     with contextlib.closing(IstBackend(config)) as backend:
         try:
             codes = backend.read_codes()
@@ -104,23 +91,6 @@ def cmd_check_ist(args: argparse.Namespace) -> int:
     print(f"watchdog: the firmware's own, {p.WATCHDOG_S:g} s without a level request stops all four pumps "
           "(fed by this program's samples and keep-alive; no guard process: the port is exclusive)")
     return 1 if faults else 0
-
-
-def calibration_backend(config: str, write: str | None) -> IstBackend | ModbusBackend:
-    """The backend `daq calibrate CONFIG` holds the pumps with: an IST rig's or a
-    Modbus one's.  For an IST rig the sensors' "volts" are their ratios r (its level
-    is linear in r), and --write is refused: its file's keys are dh_dr and h0."""
-    from quadtank_tui.daq.config import load_daq_config
-    from quadtank_tui.daq.ist.backend import IstBackend
-    from quadtank_tui.daq.ist.config import is_ist
-    from quadtank_tui.daq.modbus import ModbusBackend
-
-    if not is_ist(config):
-        return ModbusBackend(load_daq_config(config))
-    if write is not None:
-        raise ValueError(f"{config}: --write does not edit an IST file yet; copy the dh_dr and h0 "
-                         "lines the fit prints into its calibration: section")
-    return IstBackend(load_ist_config(config))
 
 
 def format_ist_result(result: Result, plant: Plant | None = None) -> str:

@@ -26,7 +26,6 @@ from typing import Any, Mapping
 
 from quadtank_tui.daq.config import PLAUSIBLE_MARGIN, QUADTANK_CHANNELS, PlantChannels, _error, _Validator
 from quadtank_tui.daq.ist import protocol as p
-from quadtank_tui.files.regular import read_regular
 from quadtank_tui.files.yamltext import key_lines, parse_yaml, read_text
 
 PROTOCOL = "ist"
@@ -78,14 +77,9 @@ class IstConfig:
                 + f"; y = {self.sensor_gain:g} h / 10")
 
 
-def is_ist(path: Path | str) -> bool:
-    """Whether the DAQ file at `path` says `protocol: ist` (False for a preset name,
-    a missing or unreadable file, a FIFO or a directory: the Modbus reader then says
-    what is wrong)."""
-    try:  # a FIFO or a device must not block here, nor a huge file fill memory (hostile files)
-        text = read_regular(path, limit=1 << 20).decode("utf-8", errors="replace")
-    except OSError:
-        return False
+def says_ist(text: str) -> bool:
+    """Whether a DAQ file's text says `protocol: ist` (daq/open.py decides on it, once
+    per file read)."""
     return any(line.split("#", 1)[0].strip().replace(" ", "") in ("protocol:ist", 'protocol:"ist"')
                for line in text.splitlines())
 
