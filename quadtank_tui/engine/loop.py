@@ -62,7 +62,6 @@ from quadtank_tui.engine.commands import (
 )
 from quadtank_tui.engine.controllers import Controllers
 from quadtank_tui.engine.filework import FileWorker
-from quadtank_tui.engine.handle import SIGNALS
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, History
 from quadtank_tui.engine.jitter import JitterHistogram
 from quadtank_tui.engine.logsession import LogRefused, LogSession
@@ -118,8 +117,6 @@ class ControlLoop:
         self.daq = daq
         self.backend: ProcessBackend = self.sim
         self.history = History(history_capacity)
-        #: Called with every published snapshot (the loop process hands them to the UI's).
-        self.on_publish: Callable[[Snapshot], None] | None = None
         self._gens = (Generator(params.references[0], params.tsamp),
                       Generator(params.references[1], params.tsamp))
         sf_refused = None
@@ -311,8 +308,6 @@ class ControlLoop:
 
     def _publish(self, snap: Snapshot) -> Snapshot:
         self._snapshot = snap
-        if self.on_publish is not None:
-            self.on_publish(snap)
         return snap
 
     @property
@@ -339,18 +334,6 @@ class ControlLoop:
         self._publish(replace(self._snapshot, realtime=realtime, speed=speed))
 
     # --- the driver's hooks: the only ways the outside changes the loop but commands ---------
-
-    def attach_history(self, history: History) -> None:
-        """Keep the ring buffers in `history` from now on (shared memory the UI's
-        process reads), with the rows held so far copied over."""
-        kept = self.history.last()
-        for row in zip(*(kept[name] for name in SIGNALS)):
-            history.append(row)
-        self.history = history
-
-    def subscribe(self, on_publish: Callable[[Snapshot], None] | None) -> None:
-        """Hand every published snapshot to `on_publish` (None: to nobody)."""
-        self.on_publish = on_publish
 
     def halt(self, reason: str) -> None:
         """The driver itself failed: Pause, pumps safe, and `reason` shown as the fault."""

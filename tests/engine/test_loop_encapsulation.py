@@ -14,9 +14,7 @@ import pytest
 
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.engine.commands import SetOperation, SetState
-from quadtank_tui.engine.history import History
 from quadtank_tui.engine.loop import ControlLoop
-from quadtank_tui.engine.snapshot import Snapshot
 
 ROOT = Path(__file__).resolve().parents[2]
 LOOP_MODULE = ROOT / "quadtank_tui" / "engine" / "loop.py"
@@ -125,24 +123,18 @@ def test_the_scan_leaves_reads_and_other_objects_alone(line: str) -> None:
 
 def test_the_drivers_hooks_do_what_the_assignments_did(tmp_path: Path, rig: Any) -> None:
     loop = ControlLoop(PRESET, logs_dir=tmp_path, daq=rig)
-    published: list[Snapshot] = []
-    loop.subscribe(published.append)
     for _ in range(3):
         loop.step()  # paused: nothing in the history
     assert loop.apply(SetState("Run")).ok
-    for _ in range(3):
+    for _ in range(4):
         loop.step()
-    shared = History(loop.history.capacity)
-    loop.attach_history(shared)
-    loop.step()
-    assert loop.history is shared
-    np.testing.assert_allclose(shared.last()["t"], [0.0, loop.h, 2 * loop.h, 3 * loop.h])
+    np.testing.assert_allclose(loop.history.last()["t"], [0.0, loop.h, 2 * loop.h, 3 * loop.h])
     assert loop.apply(SetOperation("Active")).ok and loop.apply(SetState("Run")).ok
     loop.step()
     loop.halt("engine stopped: RuntimeError: boom")
     snap = loop.snapshot()
     assert (snap.state, snap.fault) == ("Pause", "engine stopped: RuntimeError: boom")
-    assert published[-1] is snap and rig.calls[-2:] == ["pumps 0.3 0.3", "safe"]
+    assert rig.calls[-2:] == ["pumps 0.3 0.3", "safe"]
     assert loop.apply(SetState("Run")).ok and loop.snapshot().fault is None
     loop.shut_down()
     assert loop.snapshot().state == "Pause" and rig.calls[-2:] == ["safe", "close"]
