@@ -2,5 +2,5 @@
 
 from quadtank_tui.cli import main
 
-if __name__ == "__main__":  # the loop process (spawn) imports this module again
+if __name__ == "__main__":
     raise SystemExit(main())

@@ -1,7 +1,7 @@
 """The guard: a small process of its own that stops the pumps when the program driving them dies.
 
 While a rig is driven (Active control armed, daq/modbus.py), the process driving
-it - a session host, a headless `quadtank run --daq`, a TUI's loop process -
+it - a session host, a headless `quadtank run --daq` -
 starts `python -m quadtank_tui.daq.guard` and keeps a pipe to it.  The guard
 watches that process (a pidfd where Linux has one, else polling) and:
 

@@ -2,12 +2,12 @@
 
 :class:`ControlLoop` is pure and synchronous: it owns the generators, the controller
 matrix, the process backends and the logger, and does exactly one sample per
-:meth:`ControlLoop.step`.  It knows nothing of threads or wall time; the runner
-(engine/runner.py) calls it on its own thread at the times a clock gives, and the
-tests call it directly.  Everything the outside may change goes through
+:meth:`ControlLoop.step`.  It knows nothing of threads or wall time; the one driver
+(engine/driver.py) calls it at the times a clock gives, and the tests call it
+directly.  Everything the outside may change goes through
 :meth:`ControlLoop.apply` (or :meth:`ControlLoop.begin`), which validates first and
-changes nothing if it refuses; a driver's own needs (a shared history, a publisher,
-its crash, the end of the run) have methods too: no other module assigns to a
+changes nothing if it refuses; a driver's own needs (its timing, its crash, the
+end of the run) have methods too: no other module assigns to a
 ControlLoop's attributes (tests/engine/test_loop_encapsulation.py).
 
 The loop never touches the disk itself: log rows, LogOn/Save/Discard and `.par`

@@ -206,8 +206,8 @@ def with_seed(params: Parameters, seed: int) -> Parameters:
 class EngineSpec:
     """What an engine is built from, as plain values: files already read and checked.
 
-    The TUI's loop process builds its engine from a pickled copy, so a bad file is
-    refused in the program the user started, with the same message as in-process.
+    A session process builds its engine from the copy its launcher sends, so a bad
+    file is refused in the program the user started, with the same message.
     """
 
     params: Parameters

@@ -13,8 +13,7 @@ Closing a client never stops the session (that is `stop_session`, or the Exit
 window's "Stop the session").  If the session process dies without saying so (a
 SIGKILL), the snapshot says so, the commands are refused, and - for an operator of
 an Active session whose DAQ configuration it can read - the pumps are commanded to
-0 over a link of its own, as the loop process's parent does; the rig's watchdog is
-the last line.
+0 over a link of its own; the guard and the rig's watchdog are the last lines.
 
 A private session's client (`private`, `quadtank --no-session`) is its session's
 only screen: it offers no lab session (nothing to detach from), its close stops

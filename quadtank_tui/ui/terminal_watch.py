@@ -30,7 +30,8 @@ from typing import Any, Callable, Sequence
 #: Seconds the app has to close in order before the watch ends the program itself.
 GRACE = 0.8
 #: Seconds the watch's own stop of the engine may take before the process ends anyway
-#: (the loop process stops by itself, pumps at 0, when this process is gone).
+#: (the session process of a `--no-session` TUI stops by itself, pumps at 0, when
+#: this process is gone: its lifeline closes).
 STOP_GRACE = 3.0
 #: Exit status after a hang-up: the shell's for SIGHUP.
 HANGUP_STATUS = 128 + signal.SIGHUP
