@@ -15,6 +15,7 @@ from typing import Any, Callable, Iterator
 import pytest
 
 from quadtank_tui.core.plant import steady_state_levels
+from quadtank_tui.daq.ist import backend as ist_backend
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.backend import IstBackend
 from quadtank_tui.daq.ist.commands import IST_PLANT, IST_VOLTS
@@ -98,6 +99,33 @@ def test_levels_and_pumps_through_the_pty(served: Callable[..., Served]) -> None
         b.close()
     assert [f for f in frames_of(bytes(dev.device.received)) if f != p.REQUEST] == [
         p.pump_frame(68, 76), p.pump_frame(68, 76, 255, 128), p.pump_frame(0, 0)]
+
+
+def test_a_handler_raising_as_the_signals_are_held_leaves_the_mask_as_it_was(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """pthread_sigmask runs a pending signal's handler as it returns; one that raises
+    inside the blocking call (the alarm of the test below, a Ctrl-C) left every
+    signal blocked in the thread for good, and the processes it spawned after
+    (sessions) inherited the mask and ignored SIGTERM."""
+    real = signal.pthread_sigmask
+    before = real(signal.SIG_BLOCK, ())
+
+    class Interrupted(BaseException):
+        pass
+
+    def handler_raises_inside(how: int, mask: Any) -> Any:
+        old = real(how, mask)
+        if how == signal.SIG_BLOCK and set(mask) == set(signal.valid_signals()):
+            raise Interrupted()  # as a pending handler run at the call's return
+        return old
+
+    monkeypatch.setattr(signal, "pthread_sigmask", handler_raises_inside)
+    try:
+        with pytest.raises(Interrupted), ist_backend._signals_held():
+            pass
+        assert real(signal.SIG_BLOCK, ()) == before
+    finally:
+        real(signal.SIG_SETMASK, before)
 
 
 def test_a_write_interrupted_by_signals_never_cuts_a_frame(served: Callable[..., Served]) -> None:

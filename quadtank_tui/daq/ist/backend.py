@@ -70,13 +70,22 @@ def open_serial(port: str, timeout: float) -> Any:
 
 @contextmanager
 def _signals_held() -> Iterator[None]:
-    """No Python signal handler runs in this thread until the block ends."""
+    """No Python signal handler runs in this thread until the block ends.
+
+    pthread_sigmask runs the handlers of signals already pending when it returns,
+    and one may raise (KeyboardInterrupt, a test's alarm).  So the mask is read
+    first, by a call that blocks nothing, and the blocking call is inside the
+    try: raised there, the mask is still put back.  Before, a handler raising in
+    the blocking call left every signal blocked in this thread for good, and
+    every process it spawned afterwards inherited that mask (sessions that ignored
+    SIGTERM)."""
     try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, signal.valid_signals())
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, ())
     except (AttributeError, OSError, ValueError):  # no pthread_sigmask (Windows)
         yield
         return
     try:
+        signal.pthread_sigmask(signal.SIG_BLOCK, signal.valid_signals())
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
