@@ -196,16 +196,16 @@ def own_session_on_rig(config: str | None) -> tuple[SessionInfo, str] | None:
     then says so)."""
     if config is None:
         return None
-    from quadtank_tui.daq.config import load_daq_config
+    from quadtank_tui.daq.open import load_rig_config
     from quadtank_tui.session.lab import load_lab_config
     from quadtank_tui.session.lock import holder_of
-    from quadtank_tui.session.riglock import rig_devices
+    from quadtank_tui.session.riglock import rig_keys
     from quadtank_tui.session.runtime import list_sessions
 
     try:
-        daq = load_daq_config(config)
+        rig = load_rig_config(config)
         lab = load_lab_config()
-        devices = rig_devices(daq.host, daq.port, daq.device_id)
+        devices = rig_keys(rig)
     except (ValueError, OSError):
         return None
     for device in devices:

@@ -134,13 +134,6 @@ def test_a_second_program_is_refused_naming_the_holder_of_the_port(
         child.wait()
 
 
-def test_the_tui_refuses_an_ist_file_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    cfg = config_for(tmp_path, "/dev/null")
-    assert main(["--daq", str(cfg), "--no-session"]) != 0
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "is driven by `quadtank run --daq" in err
-
-
 def test_calibrate_write_is_refused_for_an_ist_file_in_one_line(tmp_path: Path,
                                                                  capsys: pytest.CaptureFixture[str]) -> None:
     cfg = config_for(tmp_path, "/dev/null")

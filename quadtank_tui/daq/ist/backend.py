@@ -118,9 +118,14 @@ class IstBackend(ProcessBackend):
     # --- ProcessBackend --------------------------------------------------------------
 
     def arm(self, tsamp: float) -> None:
-        """Active control starts: the keep-alive runs for a loop sampling every `tsamp` s."""
+        """Active control starts (or its sampling time changes): the keep-alive runs
+        for a loop sampling every `tsamp` s.  A loop that comes back to the rig (Simul
+        -> Active) left it on purpose, pumps at 0: the silence meanwhile is no stall."""
+        now = self._clock()
+        if self._loop_call is None or now - self._loop_call > (self._tsamp or 0.0) + 1.0:
+            self._last_request = None
         self._tsamp = tsamp
-        self._loop_call = self._clock()
+        self._loop_call = now
         if self._keepalive is None:
             self._stop.clear()
             self._keepalive = threading.Thread(target=self._keep_alive, name="ist-keepalive", daemon=True)
