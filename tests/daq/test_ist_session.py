@@ -15,7 +15,6 @@ import asyncio
 import os
 import signal
 import sys
-import threading
 import time
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -26,7 +25,7 @@ from quadtank_tui.cli import main
 from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.daq.ist.commands import IST_PLANT
 from quadtank_tui.daq.ist.config import IstConfig
-from quadtank_tui.daq.ist.device import Firmware, PtyDevice, serve
+from quadtank_tui.daq.ist.device import Firmware, ServedDevice
 from quadtank_tui.engine.runner import engine_spec
 from quadtank_tui.session.client import SessionClient, stop_session_at
 from quadtank_tui.session.launch import SessionSpec, SessionStartError, start_session
@@ -41,30 +40,11 @@ PAR = ROOT / "params" / "ist-lisbon.par"
 LEVELS = (20.0, 16.0, 8.0, 5.0)
 
 
-class Device:
-    """The virtual IST device served by a thread of this process."""
-
-    def __init__(self) -> None:
-        self.firmware = Firmware(IstConfig(port=""), IST_PLANT, LEVELS, reset_s=0.05)
-        self.pty = PtyDevice(self.firmware)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=serve, args=(self.pty,), kwargs={"stop": self._stop.is_set},
-                                        daemon=True)
-        self._thread.start()
-
-    @property
-    def path(self) -> str:
-        return self.pty.path
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join(2.0)
-        self.pty.close()
-
-
 @pytest.fixture
-def device() -> Iterator[Device]:
-    d = Device()
+def device() -> Iterator[ServedDevice]:
+    """The virtual IST device served by a thread of this process, its water far from
+    the .par's operating point."""
+    d = ServedDevice(Firmware(IstConfig(port=""), IST_PLANT, LEVELS, reset_s=0.05))
     try:
         yield d
     finally:
@@ -73,10 +53,13 @@ def device() -> Iterator[Device]:
 
 @pytest.fixture
 def lab(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """A runtime folder (sessions, locks) of the test's own."""
+    """A runtime folder (sessions, locks) of the test's own, and a lab whose
+    unattended Active sessions keep running for 10 min (without a policy the last
+    client's leaving pauses them, pumps at 0: the kill below would find them off)."""
     runtime = tmp_path / "run"
     monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
-    monkeypatch.delenv("QUADTANK_LAB", raising=False)
+    (tmp_path / "lab.yaml").write_text("unattended:\n  grace_minutes: 10\n")
+    monkeypatch.setenv("QUADTANK_LAB", str(tmp_path / "lab.yaml"))
     monkeypatch.chdir(tmp_path)
     return runtime
 
@@ -100,7 +83,7 @@ def wait_for(what: Callable[[], bool], timeout: float = 30.0) -> bool:
 
 
 def test_the_tui_drives_the_ist_device_through_its_session_and_a_second_one_is_refused(
-        device: Device, lab: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        device: ServedDevice, lab: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:
     cfg = ist_yaml(tmp_path, device.path)
     seen: dict[str, Any] = {}
@@ -139,10 +122,10 @@ def test_the_tui_drives_the_ist_device_through_its_session_and_a_second_one_is_r
         assert (snap.operation, snap.state, snap.fault) == ("Active", "Run", None)
         assert snap.backend == f"ist serial {device.path}"
         # The levels are the device's (0.25 V/cm, normalized by 10 V), to its ADC's
-        # quantization and the water's motion over the sample's age (< 0.1 cm here).
+        # quantization and the water's motion over the sample's age (< 0.1 cm here); the
+        # simulator's water started elsewhere (the .par's 9.7-12.1 cm, the device's 20, 16, 8, 5).
         for y, h in zip(snap.y, seen["levels"]):
             assert y == pytest.approx(0.025 * h, abs=0.0025)
-        assert snap.y[0] > 0.35  # over 14 cm (20 cm draining): the device's, not the simulator's 9.7 cm
         # u1 = 0.5 (5 V) went to pump 1 as the identified law's PWM (59 of 1023)
         pumps = IstConfig(port="").pumps
         assert seen["pwm"][:2] == (pumps[0].pwm(5.0), pumps[1].pwm(10.0 * snap.u[1])) and seen["pwm"][0] == 59
@@ -168,12 +151,13 @@ def test_the_tui_drives_the_ist_device_through_its_session_and_a_second_one_is_r
         # The session, detached, killed: nothing stops the pumps but the device's own
         # watchdog, within 2 s of the last level request (the session polled every
         # sample of 1 s and its keep-alive every 1 s).
+        assert device.firmware.pwm[0] > 0  # still pumping, detached (the lab's grace)
         os.kill(info.pid, signal.SIGKILL)
         t0 = time.monotonic()
         assert wait_for(lambda: device.firmware.pwm == (0, 0, 0, 0), 5.0)
         took = time.monotonic() - t0
         print(f"SIGKILL -> pumps 0: {took:.2f} s")
-        assert took < 2.0 + 0.5  # the watchdog's 2 s after the last request, the device thread's tick, load
+        assert took < 3.0  # the watchdog's 2 s after the last request (1.4-2.0 s measured), the device thread's lag under load
     finally:
         if wait_for(lambda: not _alive(info.pid), 0.0) is False:
             stop_session_at(info.socket)
