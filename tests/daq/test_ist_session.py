@@ -4,7 +4,8 @@ device's real path, opens the port itself and drives the virtual device in Activ
 (the TUI here is Textual's pilot on the session's client, pressing the keys); a
 second session or terminal on the same device - under another name for it too - is
 refused naming the device; the session killed, the device's own watchdog stops the
-pumps within 2 s.
+pumps within 2 s.  `--no-session` drives it from a private session whose end (the
+TUI's Exit) stops the pumps and frees the rig.
 
 The device (daq/ist/device.py) is served by a thread of this process on the wall
 clock; the session process opens its pseudo-terminal."""
@@ -169,3 +170,38 @@ def _alive(pid: int) -> bool:
     except ProcessLookupError:
         return False
     return True
+
+
+def test_no_session_drives_the_ist_device_and_stops_it_when_the_tui_ends(
+        device: ServedDevice, lab: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`quadtank --no-session --daq`: a private session on the device (the launcher
+    holds the lock under the device's real path); the TUI's Exit stops it, all four
+    pumps at 0, and the rig is free again."""
+    from quadtank_tui.session.lab import load_lab_config
+    from quadtank_tui.session.lock import holder_of
+    from quadtank_tui.ui.app import QuadTankApp
+
+    cfg = ist_yaml(tmp_path, device.path)
+    key = f"serial:{os.path.realpath(device.path)}"
+    seen: dict[str, Any] = {}
+
+    def run(app: QuadTankApp, *args: Any, **kwargs: Any) -> None:  # the terminal: the pilot's keys
+        async def drive() -> None:
+            async with app.run_test(size=(120, 40)) as pilot:
+                await pilot.press("A", "r")
+                for _ in range(1000):
+                    if device.firmware.pwm[0] > 0:
+                        break
+                    await pilot.pause(0.02)
+                seen["pwm"] = device.firmware.pwm
+                seen["holder"] = holder_of(key, load_lab_config())
+                seen["sessions"] = list_sessions(lab)
+        asyncio.run(drive())
+
+    monkeypatch.setattr(QuadTankApp, "run", run)
+    assert main(["--no-session", "--par", str(PAR), "--daq", str(cfg)]) == 0
+    assert seen["pwm"][0] > 0 and seen["sessions"] == []  # it pumped; a private session is not listed
+    assert seen["holder"] is not None and seen["holder"].pid == os.getpid()  # the launcher holds the rig
+    # the TUI ended: pumps at 0 by the session's zero frame, not the watchdog 2 s later
+    assert wait_for(lambda: device.firmware.pwm == (0, 0, 0, 0), 1.0)
+    assert holder_of(key, load_lab_config()) is None
