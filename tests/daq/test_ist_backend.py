@@ -289,3 +289,24 @@ def test_the_port_is_exclusive_a_second_program_cannot_open_it(served: Callable[
     finally:
         second.close()
         first.close()
+
+
+def test_coming_back_to_active_after_a_while_in_simul_is_no_stall(served: Callable[..., Served]) -> None:
+    """Active -> Simul (pumps at 0, the rig left alone) -> Active 3 s later: the
+    silence was chosen, not a frozen program; a silence while Active still is."""
+    dev = served()
+    now = [0.0]
+    b = IstBackend(IstConfig(port=dev.path, open_wait=0.1, timeout=0.3), clock=lambda: now[0])
+    try:
+        b.arm(1.0)
+        b.read_levels()
+        b.safe_state()           # Simul: the loop leaves the rig
+        now[0] += 3.0
+        b.arm(1.0)               # Active again
+        b.read_levels()          # no fault
+        b.write_pumps((0.6, 0.6))
+        now[0] += 3.0            # the loop itself stalls in Active
+        with pytest.raises(BackendError, match="no level request reached the rig for 3.0 s"):
+            b.read_levels()
+    finally:
+        b.close()
