@@ -123,10 +123,11 @@ def test_the_tui_drives_the_ist_device_through_its_session_and_a_second_one_is_r
         assert (snap.operation, snap.state, snap.fault) == ("Active", "Run", None)
         assert snap.backend == f"ist serial {device.path}"
         # The levels are the device's (0.25 V/cm, normalized by 10 V), to its ADC's
-        # quantization and the water's motion over the sample's age (< 0.1 cm here); the
-        # simulator's water started elsewhere (the .par's 9.7-12.1 cm, the device's 20, 16, 8, 5).
+        # quantization and the water's motion over the sample's age (< 0.1 cm on a quiet
+        # machine; 0.11 cm seen at load 12, so 0.2 cm); the simulator's water started
+        # elsewhere (the .par's 9.7-12.1 cm, the device's 20, 16, 8, 5: 1.4 cm apart or more).
         for y, h in zip(snap.y, seen["levels"]):
-            assert y == pytest.approx(0.025 * h, abs=0.0025)
+            assert y == pytest.approx(0.025 * h, abs=0.005)
         # u1 = 0.5 (5 V) went to pump 1 as the identified law's PWM (59 of 1023)
         pumps = IstConfig(port="").pumps
         assert seen["pwm"][:2] == (pumps[0].pwm(5.0), pumps[1].pwm(10.0 * snap.u[1])) and seen["pwm"][0] == 59
