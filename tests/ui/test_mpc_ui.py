@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+import pytest
+
 from uikit import Recording, make_app
 
 from quadtank_tui.core.parameters import PRESET
@@ -40,14 +42,15 @@ async def test_choosing_mpc_shows_it_and_its_window_applies_a_horizon(engine: Re
         await pilot.pause()
         assert isinstance(app.screen, MPCWindow)
         app.screen.field_widget("MPC.Horizon").focus()
-        await pilot.press("end", "ctrl+u", "4", "0", "tab", "end", "ctrl+u", "1", "5", "enter")  # a burst
+        await pilot.press("end", "ctrl+u", "4", "0", "tab", "end", "ctrl+u", "1", "tab",
+                          "end", "ctrl+u", "1", "5", "enter")  # a burst
         await pilot.pause()
-        assert engine.sent(SetParams)[-1].values == {"MPC.Horizon": 40, "MPC.ControlHorizon": 15}
+        assert engine.sent(SetParams)[-1].values == {"MPC.Horizon": 40, "MPC.Step": 1.0, "MPC.ControlHorizon": 15}
         app.main.refresh_view()
         await pilot.pause()
         info = engine.snapshot().mpc
-        assert info is not None and (info.horizon, info.moves) == (40, 15)
-        assert "N 40 Nu 15" in str(app.main.query_one(MPCCell).render())
+        assert info is not None and (info.horizon, info.moves, info.step_s) == (40, 15, pytest.approx(1.0))
+        assert "N 40x1s Nu 15" in str(app.main.query_one(MPCCell).render())  # 40 steps of 10 samples
         await pilot.press("t", "1")  # back to PID
         await pilot.pause()
         assert engine.sent(SetParams)[-1].values == {"CONTROL.Type": "PID", "CONTROL.Structure": "Decentralized"}
@@ -65,7 +68,7 @@ async def test_a_control_horizon_past_the_horizon_is_refused_at_its_field(make_e
         await pilot.press("enter")
         await pilot.pause()
         assert isinstance(app.screen, MPCWindow) and len(engine.sent(SetParams)) == sent
-        assert "50 is longer than the horizon (30)" in str(app.screen.query_one("#e-1").render())
+        assert "50 is longer than the horizon (30)" in str(app.screen.query_one("#e-2").render())  # its row
         assert engine.snapshot().params.mpc.control_horizon == 0
 
 

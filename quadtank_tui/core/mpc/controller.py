@@ -3,7 +3,16 @@
 Each sample: the Kalman filter corrects the state and disturbance estimates with
 the measured levels; the targets follow from the references over the horizon (the
 announced ones with preview, else the present one held); the QP gives the inputs
-and the first one goes out.  A solve that fails (OSQP's status not solved, a
+and the first one goes out.
+
+The prediction may run on a coarser grid than the loop (the `Step` setting, a
+whole number k of sampling times): the QP's model is the plant sampled at k T, its
+planned input is held over each step (move blocking), so N steps look N k T s
+ahead at the cost of N.  The Kalman filter and the solve still run every sample on
+the loop's model: the first move is re-planned each sample with the newest reading.
+Practitioners do this where the process is slow against the sampling time (here the
+P+ tank's inverse response lasts a minute while the lab samples at 0.1 s): the
+alternative, N k samples at T, costs k times the variables and solve time.  A solve that fails (OSQP's status not solved, a
 non-finite reading or result, an exception) never raises: the last input applied
 is held, clipped to the pump range and the rate limit, and the fault counted.
 Solve times are kept for the percentiles.
@@ -26,21 +35,31 @@ from quadtank_tui.core.plants.base import Plant
 
 @dataclass(frozen=True, eq=False)
 class MPCDesign:
-    """What the MPC runs on: the model, the settings, the weights and the QP size."""
+    """What the MPC runs on: the model at the loop's sampling time (the estimator's),
+    the model at the prediction step (the QP's; the same one when the step is one
+    sample), the settings and the weights (on the prediction model)."""
 
     model: MPCModel
     settings: MPCSettings
     weights: Weights
+    prediction: MPCModel
+
+    @property
+    def step_samples(self) -> int:
+        """Sampling times per prediction step."""
+        return int(round(self.prediction.T / self.model.T))
 
     @property
     def gain(self) -> np.ndarray:
-        """The LQR gain on [x; u_prev] the unconstrained MPC equals (m x (n+m))."""
+        """The LQR gain on [x; u_prev] the unconstrained MPC equals (m x (n+m)), at the
+        prediction step."""
         return self.weights.K
 
     def closed_loop_poles(self) -> np.ndarray:
-        """Poles (z) of the model under the unconstrained gain: A - B Kx without a rate
-        weight, else those of the augmented loop."""
-        mdl, K, n, m = self.model, self.weights.K, self.model.n, self.model.m
+        """Poles (z, at the prediction step) of the prediction model under the
+        unconstrained gain: A - B Kx without a rate weight, else those of the augmented
+        loop."""
+        mdl, K, n, m = self.prediction, self.weights.K, self.prediction.n, self.prediction.m
         if not np.any(self.weights.S):
             M = mdl.A - mdl.B @ K[:, :n]
         else:
@@ -53,7 +72,8 @@ def design_mpc(plant: Plant, levels: Sequence[float], s: MPCSettings, T: float) 
     """The MPC design on `plant` at its operating `levels`, sampled at T s;
     ParameterError names the setting when there is none."""
     model = build_model(plant, levels, s, T)
-    return MPCDesign(model, s, weights(model, s))
+    pred = model.resampled(s.step_samples(T))
+    return MPCDesign(model, s, weights(pred, s), pred)
 
 
 @dataclass
@@ -89,7 +109,7 @@ class MPC:
 
     def __init__(self, d: MPCDesign) -> None:
         self.design = d
-        self.qp = SparseQP(d.model, d.settings, d.weights)
+        self.qp = SparseQP(d.prediction, d.settings, d.weights, first_dt=d.model.T)
         self.kf = KalmanFilter(d.model)
         self.stats = MPCStats()
         self._u_prev = d.model.u_e.copy()  # deviation 0: the operating point
@@ -117,8 +137,8 @@ class MPC:
         self.kf.reset(self.kf.estimate[: self.design.model.n])
 
     def _refs(self, r: np.ndarray) -> np.ndarray:
-        """References for steps 0..N (rows), deviations: the preview padded with its
-        last value, or the present reference held."""
+        """References for prediction steps 0..N (rows), deviations: the preview padded
+        with its last value, or the present reference held."""
         N = self.design.settings.horizon
         rr = np.atleast_2d(np.asarray(r, dtype=float))
         if not self.design.settings.preview:
@@ -129,8 +149,8 @@ class MPC:
 
     def step(self, measured: Sequence[float] | np.ndarray, refs: Sequence[float] | np.ndarray) -> MPCStep:
         """The pump voltages for this sample.  `measured`: the measured tanks' levels;
-        `refs`: the tracked levels' references now, or one row per future sample
-        (row 0 now) when they are known."""
+        `refs`: the tracked levels' references now, or, when they are known, one row
+        per prediction step (row j at j k T s from now, j = 0..N)."""
         mdl = self.design.model
         t0, c0 = time.perf_counter(), time.thread_time()
         u_dev: np.ndarray | None = None
@@ -141,7 +161,7 @@ class MPC:
             r = self._refs(np.asarray(refs, dtype=float))
             if np.all(np.isfinite(y)) and np.all(np.isfinite(r)):
                 x, d = self.kf.correct(y)
-                xs, us = mdl.target(d, r)
+                xs, us = self.design.prediction.target(d, r)
                 q, lo, hi = self.qp.vectors(x, d, xs, us, self._u_prev - mdl.u_e)
                 v, status = self.qp.solve(q, lo, hi)
                 if v is not None:

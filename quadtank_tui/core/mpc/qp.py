@@ -74,10 +74,15 @@ def weights(model: MPCModel, s: MPCSettings) -> Weights:
 class SparseQP:
     """The QP of one sample; :meth:`solve` updates the vectors and calls OSQP."""
 
-    def __init__(self, model: MPCModel, s: MPCSettings, w: Weights | None = None) -> None:
+    def __init__(self, model: MPCModel, s: MPCSettings, w: Weights | None = None, *,
+                 first_dt: float | None = None) -> None:
+        """`model` at the prediction step; `first_dt`: seconds before the first move
+        is replaced (the loop's sampling time when the QP is solved every sample on a
+        coarser grid: the rate limit allows that much change from the last input)."""
         import osqp  # loaded with the controller, not with the package
 
         self.model, self.settings = model, s
+        self._first_dt = model.T if first_dt is None else first_dt
         self.w = w or weights(model, s)
         n, m, N = model.n, model.m, s.horizon
         self.N = N
@@ -165,6 +170,7 @@ class SparseQP:
             add("hold", hold.tocsr(), np.zeros(held * m), np.zeros(held * m))
         if s.rate_limit > 0:
             du = np.full(N * m, s.rate_limit * mdl.T)
+            du[:m] = s.rate_limit * self._first_dt
             rate = sp.lil_matrix((N * m, self.nv))
             for k in range(N):
                 rate[k * m:(k + 1) * m, self.ui(k)] = np.eye(m)

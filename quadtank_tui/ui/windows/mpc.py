@@ -1,5 +1,5 @@
-"""The MPC window: the MPC section's settings (issue 26) - horizons, weights,
-limits and preview.
+"""The MPC window: the MPC section's settings (issue 26) - horizons and the
+prediction step, weights, limits and preview.
 
 Set sends them as one SetParams; the window checks them together first (a control
 horizon longer than the horizon, a weight out of range: the field and the reason,
@@ -19,8 +19,9 @@ from quadtank_tui.ui.windows.base import Field, ParamWindow
 
 S = MPC_SECTION
 FIELDS = (
-    Field(f"{S}.Horizon", "Horizon", "samples (N)"),
-    Field(f"{S}.ControlHorizon", "Ctrl hor.", "samples (0: N)"),
+    Field(f"{S}.Horizon", "Horizon", "prediction steps (N)"),
+    Field(f"{S}.Step", "Step", "s per prediction step (0: Ts)"),
+    Field(f"{S}.ControlHorizon", "Ctrl hor.", "steps (0: N)"),
     Field(f"{S}.OutputWeight", "Output wt.", "Q, per range^2"),
     Field(f"{S}.InputWeight", "Input wt.", "R, per range^2"),
     Field(f"{S}.RateWeight", "Rate wt.", "S, on u(k)-u(k-1)"),
