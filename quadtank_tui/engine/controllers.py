@@ -150,16 +150,18 @@ class Controllers:
             return None
         return _statefb_design(new)
 
-    def install(self, new: Parameters, old: Parameters, change: StateFbChange, y: Levels4, u: Pair) -> None:
+    def install(self, new: Parameters, old: Parameters, change: StateFbChange, y: Levels4, u: Pair,
+                automatic: bool = False) -> None:
         """Make `new`'s controllers those in force, between samples and bumpless
-        (`y`, `u`: the levels and pump inputs of the moment); never refuses."""
+        (`y`, `u`: the levels and pump inputs of the moment; `automatic`: in Automatic,
+        where the levels may be on their way to the references); never refuses."""
         m = self.matrix
         if new.tsamp != old.tsamp:
             m.set_sampling_time(new.tsamp)
         if not new.control.family.whole and (
                 (new.control.family, new.control.structure) != (m.family, m.structure)):
             m.set_type(new.control.family, new.control.structure)
-        self._install_mpc(new, change, y, u)
+        self._install_mpc(new, change, y, u, automatic)
         self._install_statefb(new, change, y, u)
         for ij, (was, now) in zip(ELEMENTS, zip(old.controllers, new.controllers)):
             if was.pid != now.pid:
@@ -167,7 +169,7 @@ class Controllers:
             if was.general != now.general:
                 m.set_element_params(*ij, now.general)
 
-    def _install_mpc(self, new: Parameters, change: StateFbChange, y: Levels4, u: Pair) -> None:
+    def _install_mpc(self, new: Parameters, change: StateFbChange, y: Levels4, u: Pair, automatic: bool) -> None:
         """Switch to or redesign the MPC (it starts from the levels and the pumps of the
         moment: bumpless), or drop it."""
         if new.control.family is not Family.MPC:
@@ -177,7 +179,7 @@ class Controllers:
 
         if isinstance(change, LoopMPC):
             self.mpc = change
-            self.mpc.track(y, u)  # start at the measured levels and the pumps in force
+            self.mpc.track(y, u, automatic)  # start at the measured levels and the pumps in force
 
     def _install_statefb(self, new: Parameters, change: StateFbChange, y: Levels4, u: Pair) -> None:
         """Switch to, redesign (between samples, bumpless) or drop the state feedback."""

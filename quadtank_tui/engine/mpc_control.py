@@ -129,10 +129,12 @@ class LoopMPC:
         """Automatic: the inputs that went out (an interlock may have held a pump)."""
         self.mpc.applied(self._volts(u_applied))
 
-    def track(self, y: Sequence[float], u_applied: Sequence[float]) -> None:
+    def track(self, y: Sequence[float], u_applied: Sequence[float], automatic: bool = False) -> None:
         """Manual, or the switch to MPC: the estimate starts at the measured levels and
-        the next move from the pumps in force (bumpless)."""
-        self.mpc.track(self._levels(y), self._volts(u_applied))
+        the next move from the pumps in force (bumpless); `automatic`: a switch in
+        Automatic, where the next move is the pumps in force even while the levels are
+        still on their way to the references (core.mpc.MPC.track)."""
+        self.mpc.track(self._levels(y), self._volts(u_applied), moving=automatic)
 
     def reset(self) -> None:
         """Reset: the disturbance estimate and the counts start again."""

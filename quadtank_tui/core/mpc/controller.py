@@ -113,23 +113,71 @@ class MPC:
         self.kf = KalmanFilter(d.model)
         self.stats = MPCStats()
         self._u_prev = d.model.u_e.copy()  # deviation 0: the operating point
+        self._restart = False  # the next step starts bumpless from its own reading (track)
         self.kf.reset(np.zeros(d.model.n))
 
-    def track(self, levels: Sequence[float] | np.ndarray, u_applied: Sequence[float] | np.ndarray) -> None:
+    def track(self, levels: Sequence[float] | np.ndarray, u_applied: Sequence[float] | np.ndarray, *,
+              moving: bool = False) -> None:
         """Start from the present levels (all tanks, plant units) and the pumps as they
-        are: a switch to MPC is bumpless.  The estimate starts at the measured levels
-        with the disturbance that makes them a steady state under these pumps, so the
-        model's steady input is the one in force and the first move is from it (with a
-        zero disturbance the target input would be the operating point's, a jump)."""
+        are, so a switch to MPC is bumpless; the next :meth:`step` reads the next sample.
+
+        The estimate is the measured levels with the disturbance that makes them a
+        steady state under these pumps: the model's steady input is then the one in
+        force (with a zero disturbance the target input would be the operating
+        point's, a jump).  That is enough in Manual or on a plant at rest on its
+        reference.  `moving` (a switch in Automatic, the levels maybe still on their
+        way to the references): the MPC's own answer to the error would jump
+        (measured 0.49 of full scale 5 s after a 2-cm step with RateWeight 0), so the
+        next step starts from the estimate whose unconstrained first move, against
+        that sample's reading and references, is the input in force; the Kalman
+        filter then moves it to what the readings say, and the input with it, at its
+        own pace."""
         mdl = self.design.model
-        n = mdl.n
         y = np.asarray(levels, dtype=float)[list(mdl.measured)] - mdl.x_e[list(mdl.measured)]
-        u = np.asarray(u_applied, dtype=float)
+        du = np.asarray(u_applied, dtype=float) - mdl.u_e
+        sol = self._steady(y, du)
+        self.kf.reset(sol[: mdl.n], sol[mdl.n:])
+        self.kf.predict(du)
+        self._u_prev = du + mdl.u_e
+        self._restart = moving
+
+    def _steady(self, y: np.ndarray, du: np.ndarray) -> np.ndarray:
+        """[x; d] (deviations) reading the measured levels y, at rest under du."""
+        mdl, n = self.design.model, self.design.model.n
         M = np.block([[np.eye(n) - mdl.A, -mdl.Bd], [mdl.Cm, mdl.Cd]])
-        rhs = np.concatenate([mdl.B @ (u - mdl.u_e), y])
-        sol = np.linalg.lstsq(M, rhs, rcond=None)[0] if np.all(np.isfinite(rhs)) else np.zeros(n + mdl.nd)
-        self.kf.reset(sol[:n], sol[n:])
-        self._u_prev = u.copy()
+        rhs = np.concatenate([mdl.B @ du, y])
+        return np.linalg.lstsq(M, rhs, rcond=None)[0] if np.all(np.isfinite(rhs)) else np.zeros(n + mdl.nd)
+
+    def _bumpless(self, y: np.ndarray, du: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """The estimate [x; d] (deviations) that reads the levels y and whose
+        unconstrained first move towards the references r (rows 0..N) is the input in
+        force du: the steady one, with the difference put into the input disturbances
+        (what a PI's integrator holds; moving the states or the level offsets instead
+        puts the upper tanks where the readings say they are not, and the plan against
+        their limits).  The steady one when no estimate does that."""
+        mdl, pred, n = self.design.model, self.design.prediction, self.design.model.n
+        steady = self._steady(y, du)
+
+        def first_move(z: np.ndarray) -> np.ndarray:
+            x, d = z[:n], z[n:]
+            xs, us = pred.target(d, r)
+            q, lo, _ = self.qp.vectors(x, d, xs, us, du)
+            return self.qp.unconstrained_move(q, lo)
+
+        b = first_move(steady)
+        J = np.column_stack([first_move(steady + e) - b for e in np.eye(n + mdl.nd)])
+        E = np.vstack([np.hstack([mdl.Cm, mdl.Cd]), J])
+        f = np.concatenate([np.zeros(len(y)), du - b])  # steady already reads y
+        # the price of a change: states and level offsets per tank height, input
+        # disturbances a thousandth of that per pump range
+        cost = np.concatenate([1.0 / mdl.y_scale, 1e3 / mdl.u_scale if mdl.disturbance == "input" else [],
+                               np.full(mdl.nd - (mdl.m if mdl.disturbance == "input" else 0),
+                                       1.0 / mdl.y_scale.max())])
+        v = np.linalg.lstsq(E / cost, f, rcond=None)[0]
+        z = steady + v / cost
+        if not np.all(np.isfinite(z)) or np.linalg.norm(E @ (z - steady) - f) > 1e-6 * (1.0 + np.linalg.norm(f)):
+            return steady
+        return z
 
     def forget_disturbance(self) -> None:
         """Keep the state estimate, start the disturbance estimate again from zero (the
@@ -160,6 +208,10 @@ class MPC:
             y = np.asarray(measured, dtype=float) - mdl.x_e[list(mdl.measured)]
             r = self._refs(np.asarray(refs, dtype=float))
             if np.all(np.isfinite(y)) and np.all(np.isfinite(r)):
+                if self._restart:  # the first step after a switch in Automatic
+                    z = self._bumpless(y, self._u_prev - mdl.u_e, r)
+                    self.kf.reset(z[: mdl.n], z[mdl.n:])
+                    self._restart = False
                 x, d = self.kf.correct(y)
                 xs, us = self.design.prediction.target(d, r)
                 q, lo, hi = self.qp.vectors(x, d, xs, us, self._u_prev - mdl.u_e)
