@@ -89,3 +89,44 @@ async def test_switching_a_running_loop_from_pi_to_mpc_and_back_has_no_bump(engi
             after = engine.snapshot().u
             assert max(abs(a - b) for a, b in zip(after, before)) < 0.005, (family, before, after)
             engine.run_for(5.0)
+
+
+async def test_the_window_edits_disturbance_measured_and_slack_weight_by_keys(make_engine: Any) -> None:
+    """Typed like a user: a wrong model, a tank the plant lacks and an unmeasured
+    tracked tank are refused at their field (nothing sent); then a burst of valid
+    edits is sent as one SetParams and the engine designs with it."""
+    engine = make_engine(MPC)
+    app = make_app(engine)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("1")
+        await pilot.pause()
+        window = app.screen
+        assert isinstance(window, MPCWindow)
+        keys = [f.key for f in window.fields]
+        sent = len(engine.sent(SetParams))
+
+        async def type_into(key: str, text: str) -> None:
+            window.field_widget(key).focus()
+            await pilot.press("end", "ctrl+u", *text)
+
+        def error(key: str) -> str:
+            return str(window.query_one(f"#e-{keys.index(key)}").render())
+
+        for key, text, reason in (
+                ("MPC.Disturbance", "state", "must be one of input, output; got 'state'"),
+                ("MPC.Measured", "1 2 5", "the quadtank plant has 4 tanks, got tank 5"),
+                ("MPC.Measured", "1 3", "tracked tank(s) [2] must be measured")):
+            await type_into(key, text)
+            await pilot.press("enter")
+            await pilot.pause()
+            assert app.screen is window and len(engine.sent(SetParams)) == sent, (key, text)
+            assert reason in error(key), (key, text, error(key))
+            window.field_widget(key).value = str(window.params.get(key))  # back to the value in force
+        await type_into("MPC.Disturbance", "Output")
+        await pilot.press("tab", "end", "ctrl+u", *"1 2", "tab", "end", "ctrl+u", *"500", "enter")  # a burst
+        await pilot.pause()
+        assert engine.sent(SetParams)[-1].values == {
+            "MPC.Disturbance": "output", "MPC.Measured": "1 2", "MPC.SlackWeight": 500.0}
+        mpc = engine.snapshot().params.mpc
+        assert (mpc.disturbance, mpc.measured, mpc.slack_weight) == ("output", "1 2", 500.0)
+        assert engine.snapshot().mpc is not None  # designed and running with them

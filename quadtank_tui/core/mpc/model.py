@@ -155,19 +155,10 @@ def build_model(plant: Plant, levels: Sequence[float], s: MPCSettings, T: float)
     A, B = zoh(om.A, om.B, T)
     n, m = B.shape
     tracked = tuple(plant.controlled)
-    measured = s.measured_states(n)
-    if measured[-1] >= n:
-        raise ParameterError(f"{SECTION}.Measured", f"the {plant.kind} plant has {n} tanks, got tank {measured[-1] + 1}")
-    missing = [t + 1 for t in tracked if t not in measured]
-    if missing:
-        raise ParameterError(f"{SECTION}.Measured", f"tracked tank(s) {missing} must be measured")
-    if len(tracked) != m:
-        raise ParameterError(f"{SECTION}.Measured", f"{len(tracked)} tracked levels need as many pumps, got {m}")
+    measured = s.check_plant(plant.kind, n, tracked, m)
     p = len(measured)
     Cm = np.eye(n)[list(measured)]
     if s.disturbance == "input":
-        if p < m:
-            raise ParameterError(f"{SECTION}.Disturbance", f"input disturbances need {m} measured levels, got {p}")
         # a level offset on each measured tank beyond the pump count, untracked ones first
         extra = ([i for i in measured if i not in tracked] + [i for i in measured if i in tracked])[: p - m]
         Bd = np.hstack([B, np.zeros((n, len(extra)))])

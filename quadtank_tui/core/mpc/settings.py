@@ -102,3 +102,21 @@ class MPCSettings:
     def measured_states(self, tanks: int) -> tuple[int, ...]:
         """The measured levels, 0-based, on a plant of `tanks` tanks."""
         return tuple(t - 1 for t in parse_measured(self.measured)) or tuple(range(tanks))
+
+    def check_plant(self, kind: str, tanks: int, tracked: tuple[int, ...], pumps: int) -> tuple[int, ...]:
+        """The measured levels (0-based) on a plant of `kind` with `tanks` tanks, the
+        `tracked` ones (0-based) and `pumps` inputs; ParameterError (MPC.Measured or
+        MPC.Disturbance) when the estimator cannot work with them.  Plain counting,
+        so a window checks it before anything is designed."""
+        measured = self.measured_states(tanks)
+        if measured[-1] >= tanks:
+            raise ParameterError(f"{SECTION}.Measured", f"the {kind} plant has {tanks} tanks, got tank {measured[-1] + 1}")
+        missing = [t + 1 for t in tracked if t not in measured]
+        if missing:
+            raise ParameterError(f"{SECTION}.Measured", f"tracked tank(s) {missing} must be measured")
+        if len(tracked) != pumps:
+            raise ParameterError(f"{SECTION}.Measured", f"{len(tracked)} tracked levels need as many pumps, got {pumps}")
+        if self.disturbance == "input" and len(measured) < pumps:
+            raise ParameterError(f"{SECTION}.Disturbance",
+                                 f"input disturbances need {pumps} measured levels, got {len(measured)}")
+        return measured
