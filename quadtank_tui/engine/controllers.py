@@ -89,7 +89,7 @@ def new_mpc(p: Parameters, old: LoopMPC | None = None) -> LoopMPC:
     return LoopMPC(p, old.mpc.stats if old is not None else None)
 
 
-def _mpc_inputs(p: Parameters) -> tuple[object, ...]:
+def mpc_inputs(p: Parameters) -> tuple[object, ...]:
     """What the MPC's design depends on: a change of any of these makes it anew."""
     return (p.mpc, p.simulation, p.process, p.tsamp)
 
@@ -120,6 +120,13 @@ class Controllers:
             self.statefb = new_statefb(params)
         elif params.control.family is Family.MPC:
             self.mpc = new_mpc(params)
+        self._offered: tuple[tuple[object, ...], LoopMPC] | None = None
+
+    def offer(self, inputs: tuple[object, ...], mpc: LoopMPC) -> None:
+        """An MPC designed off the loop's thread (engine/design_ahead.py) for
+        parameters whose design inputs are `inputs`: the next prepare for them takes
+        it instead of designing."""
+        self._offered = (inputs, mpc)
 
     @property
     def whole(self) -> Whole | None:
@@ -138,7 +145,12 @@ class Controllers:
         design for the one running, or None (nothing to do).  The MPC is made anew
         when its settings, the plant or the sampling time change."""
         if new.control.family is Family.MPC:
-            if self.mpc is None or _mpc_inputs(new) != _mpc_inputs(old):
+            if self.mpc is None or mpc_inputs(new) != mpc_inputs(old):
+                offered, self._offered = self._offered, None
+                if offered is not None and offered[0] == mpc_inputs(new):  # designed off the loop
+                    if self.mpc is not None:
+                        offered[1].keep_counts(self.mpc.mpc.stats)
+                    return offered[1]
                 return new_mpc(new, self.mpc)
             return None
         if new.control.family is not Family.STATE_FEEDBACK:

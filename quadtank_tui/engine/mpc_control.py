@@ -80,6 +80,11 @@ class LoopMPC:
                             tuple(float(u) for u in mdl.u_e), note=mdl.note, step_s=d.prediction.T)
         self._refresh("", 0.0)
 
+    def keep_counts(self, stats: MPCStats) -> None:
+        """A redesign designed elsewhere keeps the counts of the MPC it replaces."""
+        self.mpc.stats = stats
+        self._refresh("", 0.0)
+
     @property
     def horizon(self) -> int:
         return self.mpc.design.settings.horizon

@@ -142,3 +142,29 @@ def test_with_preview_the_mpc_moves_before_the_reference_does() -> None:
     before the edge; without it they wait for it."""
     assert _before_a_reference_edge(1) > 0.1  # measured 0.18
     assert _before_a_reference_edge(0) < 0.03  # 0.015: the settling after the wave's first edge
+
+
+def test_a_design_made_off_the_loop_is_installed_and_keeps_the_counts() -> None:
+    """engine/design_ahead.py: which SetParams need a new MPC design, and the one
+    designed elsewhere is the one installed (a redesign keeps the solve counts)."""
+    from quadtank_tui.engine.controllers import mpc_inputs, new_mpc
+    from quadtank_tui.engine.design_ahead import needs_mpc_design
+
+    loop = ControlLoop(PRESET)
+    assert needs_mpc_design(loop, SetParams({"CONTROL.Type": "MPC"})) is not None
+    assert needs_mpc_design(loop, SetParams({"CONTROLLER ONE.K": 2.0})) is None
+    ok(loop, SetParams({"CONTROL.Type": "MPC"}))
+    ok(loop, SetState("Run"))
+    ok(loop, SetControlMode("Automatic"))
+    run(loop, 5)
+    assert loop.snapshot().mpc.solves == 5
+    assert needs_mpc_design(loop, SetParams({"REFERENCE ONE.Mean": 0.4})) is None  # same design
+    assert needs_mpc_design(loop, SetParams({"MPC.Horizon": 0})) is None  # refused where applied
+    new = needs_mpc_design(loop, SetParams({"MPC.Horizon": 20}))
+    assert new is not None
+    designed = new_mpc(new)
+    loop.controllers.offer(mpc_inputs(new), designed)
+    ok(loop, SetParams({"MPC.Horizon": 20}))
+    assert loop.controllers.mpc is designed and designed.horizon == 20
+    run(loop, 1)
+    assert loop.snapshot().mpc.solves == 6
