@@ -87,12 +87,13 @@ def test_the_preview_on_the_coarse_grid_is_every_kth_sample(wave: Wave, ramp: bo
         assert coarse[-1, 0] - coarse[0, 0] > 0.1  # the ramp is in the preview
 
 
-def test_at_p_plus_a_coarse_grid_sees_as_far_as_a_long_horizon_at_a_third_of_the_qp() -> None:
+def test_at_p_plus_a_coarse_grid_sees_past_the_inverse_response() -> None:
     """P+ at T = 1 s, the standard steps (announced): N = 20 looks 20 s ahead, a third
-    of the inverse response; on a 3-s grid the same QP sees 60 s and tracks as well
-    as N = 60 on the loop's grid (three times the variables)."""
+    of the inverse response; on a 3-s grid the same QP sees 60 s (and tracks within
+    3 % of N = 60 on the loop's grid, three times the variables: measured, not
+    asserted, to keep the test short)."""
     iae = {}
-    for N, step in ((20, 0.0), (20, 3.0), (60, 0.0)):
+    for N, step in ((20, 0.0), (20, 3.0)):
         plant, d = _design("nonminphase", 1.0, horizon=N, step=step)
         x_e = d.model.x_e
         scn = standard_scenario(plant, x_e, phase=400.0, lead=80.0)
@@ -101,4 +102,3 @@ def test_at_p_plus_a_coarse_grid_sees_as_far_as_a_long_horizon_at_a_third_of_the
         iae[N, step] = np.sum(np.abs(run.r - run.x[:, :2]), axis=0)
         assert run.u.min() >= 0.0 and run.u.max() <= 10.0 and run.faults == 0
     assert np.all(iae[20, 3.0] < 0.75 * iae[20, 0.0]), iae  # measured 0.67, 0.55
-    assert np.all(iae[20, 3.0] < 1.05 * iae[60, 0.0]), iae  # measured 1.03, 1.01
