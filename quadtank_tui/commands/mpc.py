@@ -31,7 +31,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "a leak in tank 1.",
     )
     p.add_argument("--par", metavar="FILE", help="a .par file (default: the built-in preset, the paper's P-)")
-    p.add_argument("--horizon", metavar="N", type=int, help="prediction horizon, samples (default 30)")
+    p.add_argument("--horizon", metavar="N", type=int,
+                   help="prediction horizon, prediction steps (default: the file's MPC.Horizon)")
+    p.add_argument("--step", metavar="SECONDS", type=float,
+                   help="prediction step, s, rounded to whole sampling times; 0: the sampling time "
+                   "(default: the file's MPC.Step)")
     p.add_argument("--sampling", metavar="SECONDS", type=float,
                    help="sampling time, s (overrides SAMPLING TIME.TSamp; a longer one simulates faster)")
     p.add_argument("--phase", metavar="SECONDS", type=float, default=300.0,
@@ -57,10 +61,12 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.phase) and 10.0 <= args.phase <= 1e5):
         raise UsageError(f"--phase: {args.phase:g} s is outside 10..100000 s")
     base = mpc_settings(params)
-    try:
-        settings = base if args.horizon is None else _replace(base, horizon=args.horizon)
-    except ParameterError as exc:
-        raise UsageError(f"--horizon: {exc.reason}") from None
+    settings = base
+    for option, key, value in (("--horizon", "horizon", args.horizon), ("--step", "step", args.step)):
+        try:
+            settings = settings if value is None else _replace(settings, **{key: value})
+        except ParameterError as exc:
+            raise UsageError(f"{option}: {exc.reason}") from None
     plant, levels = plant_in_use(params)
     try:
         d = design_mpc(plant, levels, settings, params.tsamp)
@@ -103,11 +109,12 @@ def design_dict(d: Any, plant: Any) -> dict[str, Any]:
     rate = bool(np.any(w.S))
     K = w.K if rate else w.K[:, : mdl.n]
     with np.errstate(divide="ignore"):
-        poles_s = [complex(np.log(complex(z))) / mdl.T if z != 0 else complex(-math.inf) for z in poles_z]
+        poles_s = [complex(np.log(complex(z))) / d.prediction.T if z != 0 else complex(-math.inf) for z in poles_z]
     return {
         "plant": plant.kind,
         "unit": plant.states[0].unit,
         "sampling_time": mdl.T,
+        "prediction_step": d.prediction.T,
         "x_e": mdl.x_e.tolist(),
         "u_e": mdl.u_e.tolist(),
         "note": mdl.note,
@@ -155,9 +162,9 @@ def format_design(source: str, r: dict[str, Any]) -> str:
     if r["note"]:
         lines.append(f"note: {r['note']}")
     lines += [
-        f"sampling time T = {r['sampling_time']:g} s, horizon N = {r['horizon']} "
-        f"({r['horizon'] * r['sampling_time']:g} s), control horizon {r['control_horizon']}, "
-        f"preview {'on' if r['preview'] else 'off'}",
+        f"sampling time T = {r['sampling_time']:g} s, prediction step {r['prediction_step']:g} s, "
+        f"horizon N = {r['horizon']} ({r['horizon'] * r['prediction_step']:g} s), control horizon "
+        f"{r['control_horizon']}, preview {'on' if r['preview'] else 'off'}",
         f"weights: output {r['output_weight']:g}, input {r['input_weight']:g}, rate {r['rate_weight']:g} "
         f"(relative to the ranges); slack {r['slack_weight']:g}",
         f"  Q diag {_vec(r['Q_diag'])}  R diag {_vec(r['R_diag'])}  S diag {_vec(r['S_diag'])}",
@@ -167,7 +174,7 @@ def format_design(source: str, r: dict[str, Any]) -> str:
         f"{r['tracked']}",
         f"unconstrained gain (the LQR, u = -K {r['gain_state']}) K =",
         "\n".join("  " + " ".join(f"{x:12.6g}" for x in row) for row in r["K"]),
-        "closed-loop poles (z) =", _poles(r["poles_z"]),
+        "closed-loop poles (z) at the prediction step =", _poles(r["poles_z"]),
         "closed-loop poles (s, rad/s) =", _poles(r["poles_s"]),
     ]
     return "\n".join(lines)
@@ -181,7 +188,7 @@ def compare(params: Any, plant: Any, d: Any, phase: float) -> dict[str, Any]:
     from quadtank_tui.core.mpc.simulate import figures, run_mpc, run_pi, standard_scenario
 
     mdl = d.model
-    scn = standard_scenario(plant, mdl.x_e, phase=phase, lead=d.settings.horizon * mdl.T + 10.0)
+    scn = standard_scenario(plant, mdl.x_e, phase=phase, lead=d.settings.horizon * d.prediction.T + 10.0)
     result: dict[str, Any] = {
         "steps": [[t, loop + 1, level] for t, loop, level in scn.steps],
         "leak": list(scn.leak) if scn.leak else None,

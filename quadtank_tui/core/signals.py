@@ -220,7 +220,25 @@ class Generator:
                 self._level = self._prbs_level()
         else:
             self._t = (self._t + self._h) % p.period
-        step = self.ramp_rate * self._h
+        self._ramp(1)
+
+    def advance_by(self, k: int) -> None:
+        """k samples at once, as k calls of :meth:`advance` (up to the rounding of the
+        phase): a preview on a coarser grid (the MPC's prediction step) reads one
+        value every k samples without stepping through the others."""
+        p = self._p
+        if p.wave is Wave.PRBS:
+            self._n += k
+            while self._n >= int(p.period):
+                self._n -= int(p.period)
+                self._level = self._prbs_level()
+        else:
+            self._t = (self._t + k * self._h) % p.period
+        self._ramp(k)
+
+    def _ramp(self, k: int) -> None:
+        """The mean k ramp steps towards the target."""
+        step = self.ramp_rate * self._h * k
         gap = self._target - self._mean
         self._mean = self._target if abs(gap) <= step else self._mean + math.copysign(step, gap)
 

@@ -89,7 +89,7 @@ def new_mpc(p: Parameters, old: LoopMPC | None = None) -> LoopMPC:
     return LoopMPC(p, old.mpc.stats if old is not None else None)
 
 
-def _mpc_inputs(p: Parameters) -> tuple[object, ...]:
+def mpc_inputs(p: Parameters) -> tuple[object, ...]:
     """What the MPC's design depends on: a change of any of these makes it anew."""
     return (p.mpc, p.simulation, p.process, p.tsamp)
 
@@ -120,6 +120,13 @@ class Controllers:
             self.statefb = new_statefb(params)
         elif params.control.family is Family.MPC:
             self.mpc = new_mpc(params)
+        self._offered: tuple[tuple[object, ...], LoopMPC] | None = None
+
+    def offer(self, inputs: tuple[object, ...], mpc: LoopMPC) -> None:
+        """An MPC designed off the loop's thread (engine/design_ahead.py) for
+        parameters whose design inputs are `inputs`: the next prepare for them takes
+        it instead of designing."""
+        self._offered = (inputs, mpc)
 
     @property
     def whole(self) -> Whole | None:
@@ -138,7 +145,12 @@ class Controllers:
         design for the one running, or None (nothing to do).  The MPC is made anew
         when its settings, the plant or the sampling time change."""
         if new.control.family is Family.MPC:
-            if self.mpc is None or _mpc_inputs(new) != _mpc_inputs(old):
+            if self.mpc is None or mpc_inputs(new) != mpc_inputs(old):
+                offered, self._offered = self._offered, None
+                if offered is not None and offered[0] == mpc_inputs(new):  # designed off the loop
+                    if self.mpc is not None:
+                        offered[1].keep_counts(self.mpc.mpc.stats)
+                    return offered[1]
                 return new_mpc(new, self.mpc)
             return None
         if new.control.family is not Family.STATE_FEEDBACK:
@@ -150,16 +162,18 @@ class Controllers:
             return None
         return _statefb_design(new)
 
-    def install(self, new: Parameters, old: Parameters, change: StateFbChange, y: Levels4, u: Pair) -> None:
+    def install(self, new: Parameters, old: Parameters, change: StateFbChange, y: Levels4, u: Pair,
+                automatic: bool = False) -> None:
         """Make `new`'s controllers those in force, between samples and bumpless
-        (`y`, `u`: the levels and pump inputs of the moment); never refuses."""
+        (`y`, `u`: the levels and pump inputs of the moment; `automatic`: in Automatic,
+        where the levels may be on their way to the references); never refuses."""
         m = self.matrix
         if new.tsamp != old.tsamp:
             m.set_sampling_time(new.tsamp)
         if not new.control.family.whole and (
                 (new.control.family, new.control.structure) != (m.family, m.structure)):
             m.set_type(new.control.family, new.control.structure)
-        self._install_mpc(new, change, y, u)
+        self._install_mpc(new, change, y, u, automatic)
         self._install_statefb(new, change, y, u)
         for ij, (was, now) in zip(ELEMENTS, zip(old.controllers, new.controllers)):
             if was.pid != now.pid:
@@ -167,7 +181,7 @@ class Controllers:
             if was.general != now.general:
                 m.set_element_params(*ij, now.general)
 
-    def _install_mpc(self, new: Parameters, change: StateFbChange, y: Levels4, u: Pair) -> None:
+    def _install_mpc(self, new: Parameters, change: StateFbChange, y: Levels4, u: Pair, automatic: bool) -> None:
         """Switch to or redesign the MPC (it starts from the levels and the pumps of the
         moment: bumpless), or drop it."""
         if new.control.family is not Family.MPC:
@@ -177,7 +191,7 @@ class Controllers:
 
         if isinstance(change, LoopMPC):
             self.mpc = change
-            self.mpc.track(y, u)  # start at the measured levels and the pumps in force
+            self.mpc.track(y, u, automatic)  # start at the measured levels and the pumps in force
 
     def _install_statefb(self, new: Parameters, change: StateFbChange, y: Levels4, u: Pair) -> None:
         """Switch to, redesign (between samples, bumpless) or drop the state feedback."""

@@ -455,7 +455,7 @@ class ControlLoop:
                 g.set_sampling_time(h)
             if h < old.tsamp and a != b:
                 g.set_params(b)
-        self.controllers.install(new, old, change, self._y, self._u)
+        self.controllers.install(new, old, change, self._y, self._u, self.control is ControlMode.AUTOMATIC)
         if plant is not None:
             self.sim.set_plant(plant, new.process_levels())
         self.params = new

@@ -39,10 +39,21 @@ BUDGET = 0.1
 PERCENTILES_EVERY = 10
 
 
-def future_references(gens: Sequence[Generator], n: int) -> np.ndarray:
-    """The generators' values for this sample and the n after it (rows), normalized;
-    copies are advanced, the loop's own generators do not move."""
-    return np.array([copy.deepcopy(g).take(n + 1) for g in gens]).T
+def future_references(gens: Sequence[Generator], n: int, every: int = 1) -> np.ndarray:
+    """The generators' values for this sample and the n after it, `every` samples
+    apart (rows: the MPC's prediction grid), normalized; copies are advanced, the
+    loop's own generators do not move."""
+    if every == 1:
+        return np.array([copy.deepcopy(g).take(n + 1) for g in gens]).T
+    rows = []
+    for g in gens:
+        c = copy.deepcopy(g)
+        values = []
+        for _ in range(n + 1):
+            values.append(c.value())
+            c.advance_by(every)
+        rows.append(values)
+    return np.array(rows).T
 
 
 class LoopMPC:
@@ -66,7 +77,12 @@ class LoopMPC:
         self._future: np.ndarray | None = None
         mdl = d.model
         self.info = MPCInfo(d.settings.horizon, d.settings.moves, tuple(float(x) for x in mdl.x_e),
-                            tuple(float(u) for u in mdl.u_e), note=mdl.note)
+                            tuple(float(u) for u in mdl.u_e), note=mdl.note, step_s=d.prediction.T)
+        self._refresh("", 0.0)
+
+    def keep_counts(self, stats: MPCStats) -> None:
+        """A redesign designed elsewhere keeps the counts of the MPC it replaces."""
+        self.mpc.stats = stats
         self._refresh("", 0.0)
 
     @property
@@ -78,9 +94,9 @@ class LoopMPC:
         return self.mpc.design.settings.preview
 
     def preview(self, gens: Sequence[Generator]) -> None:
-        """The generators' references r1, r2 for this sample and the N after it, for the
-        next `compute` only."""
-        self._future = future_references(gens, self.horizon)
+        """The generators' references r1, r2 for this sample and the N prediction steps
+        after it, for the next `compute` only."""
+        self._future = future_references(gens, self.horizon, self.mpc.design.step_samples)
 
     # --- normalized units ------------------------------------------------------------------
 
@@ -118,10 +134,12 @@ class LoopMPC:
         """Automatic: the inputs that went out (an interlock may have held a pump)."""
         self.mpc.applied(self._volts(u_applied))
 
-    def track(self, y: Sequence[float], u_applied: Sequence[float]) -> None:
+    def track(self, y: Sequence[float], u_applied: Sequence[float], automatic: bool = False) -> None:
         """Manual, or the switch to MPC: the estimate starts at the measured levels and
-        the next move from the pumps in force (bumpless)."""
-        self.mpc.track(self._levels(y), self._volts(u_applied))
+        the next move from the pumps in force (bumpless); `automatic`: a switch in
+        Automatic, where the next move is the pumps in force even while the levels are
+        still on their way to the references (core.mpc.MPC.track)."""
+        self.mpc.track(self._levels(y), self._volts(u_applied), moving=automatic)
 
     def reset(self) -> None:
         """Reset: the disturbance estimate and the counts start again."""
@@ -143,4 +161,5 @@ class LoopMPC:
         self.info = MPCInfo(
             self.info.horizon, self.info.moves, self.info.x_e, self.info.u_e, solves=st.solves,
             faults=st.faults, slow=self._slow, last_ms=times[-1] * 1e3 if times else 0.0, p50_ms=p50,
-            p99_ms=p99, max_ms=self._max * 1e3, status=status, slack=slack, note=self.info.note)
+            p99_ms=p99, max_ms=self._max * 1e3, status=status, slack=slack, note=self.info.note,
+            step_s=self.info.step_s)

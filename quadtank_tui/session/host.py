@@ -32,8 +32,9 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any, Callable
 
-from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, LoadPar, SetState
+from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, LoadPar, SetParams, SetState
 from quadtank_tui.engine.driver import Driver, LoopTime
+from quadtank_tui.engine.design_ahead import MPCDesigning, needs_mpc_design
 from quadtank_tui.engine.parload import ParReading
 from quadtank_tui.engine.runner import Engine
 from quadtank_tui.engine.snapshot import Snapshot
@@ -125,8 +126,10 @@ class SessionHost:
         self._operator: Connection | None = None
         self._operator_left = time.monotonic()  # a session starts unattended until its launcher attaches
         self._stop_reason: str | None = None
-        #: Commands waiting behind a LoadPar whose file is being read (engine/parload.py).
-        self._waiting: collections.deque[tuple[Connection, int, Command | ParReading]] = collections.deque()
+        #: Commands waiting behind a LoadPar whose file is being read (engine/parload.py)
+        #: or a SetParams whose MPC is being designed (engine/design_ahead.py).
+        self._waiting: collections.deque[tuple[Connection, int, Command | ParReading | MPCDesigning]] = \
+            collections.deque()
         # What the clients have been sent: history rows up to `_sent_total` of
         # clear generation `_sent_gen`, and the parameters of the last update.
         self._sent_total, self._sent_gen = 0, 0
@@ -291,8 +294,11 @@ class SessionHost:
             return
         if isinstance(command, LoadPar):  # the file is read on a thread of its own: samples go on
             self._waiting.append((conn, cid, ParReading.start(self.engine.loop.store, command, self._wake)))
-        elif self._waiting:  # behind a LoadPar: in order
+        elif self._waiting:  # behind a LoadPar or an MPC design: in order
             self._waiting.append((conn, cid, command))
+        elif isinstance(command, SetParams) and (new := needs_mpc_design(self.engine.loop, command)) is not None:
+            # designed on a thread of its own: samples go on (a first design imports scipy and OSQP)
+            self._waiting.append((conn, cid, MPCDesigning.start(command, new, self._wake)))
         else:
             self._answer(conn, cid, self._apply(command))
 
@@ -308,10 +314,19 @@ class SessionHost:
         self._write_record()
 
     def _apply_waiting(self) -> None:
-        """The commands behind a LoadPar whose file has been read, in order."""
+        """The commands behind a LoadPar whose file has been read, or an MPC that has
+        been designed, in order."""
         while self._waiting:
             conn, cid, command = self._waiting[0]
-            if isinstance(command, ParReading):
+            if isinstance(command, MPCDesigning):
+                if not command.done:
+                    return
+                designed = command.future.result()
+                if designed is not None:
+                    self.engine.loop.controllers.offer(*designed)
+                self._waiting.popleft()
+                self._answer(conn, cid, self._apply(command.command))
+            elif isinstance(command, ParReading):
                 if not command.done:
                     return
                 prepared = command.future.result()
@@ -322,7 +337,8 @@ class SessionHost:
                 self._answer(conn, cid, self._apply(command))
 
     def _wake(self) -> None:
-        """A LoadPar's file has been read (from its thread): the commands behind it go on."""
+        """A LoadPar's file has been read, or an MPC designed (from its thread): the
+        commands behind it go on."""
         try:
             self.aloop.call_soon_threadsafe(self._apply_waiting)
         except RuntimeError:  # the session is over

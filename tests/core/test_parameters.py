@@ -69,7 +69,7 @@ def test_general_defaults_are_the_same_pi() -> None:
 
 def test_every_key_is_readable_and_named_as_in_the_file() -> None:
     names = list(iter_keys())
-    assert len(names) == len(set(names)) == 132  # 114 of the original + 7 STATE FEEDBACK + 11 MPC
+    assert len(names) == len(set(names)) == 133  # 114 of the original + 7 STATE FEEDBACK + 12 MPC
     assert names[0] == "SAMPLING TIME.TSamp"
     for name in ("REFERENCE ONE.Mean", "CONTROLLER ONE.K", "SIMULATION.Valve1", "CONTROLLER FOUR.r4",
                  "SIMULATION.TimeConst3", "LOGGING.Variables", "PLOTS.Lower", "REFERENCE TWO.Seed"):

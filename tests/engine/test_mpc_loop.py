@@ -76,6 +76,26 @@ def test_the_switch_is_bumpless_on_a_plant_the_model_does_not_know() -> None:
     assert np.abs(rows[0, 4:6] - before).max() < BUMP and np.abs(np.diff(rows[:, 4:6], axis=0)).max() < BUMP
 
 
+def test_the_switch_is_bumpless_while_the_levels_still_move() -> None:
+    """5 s after a 2-cm step on loop 1 (1 cm still to go) the PI is switched to MPC:
+    the estimate is chosen so the first move is the pumps in force (jump 6e-15 of
+    full scale; before, 0.49 with RateWeight 0 and 0.085 with 0.3), and the MPC then
+    takes over at most 0.015 a sample (its own answer to the error, as the Kalman
+    filter moves the estimate) and brings loop 1 to its reference.  The bound on the
+    jump is 1e-6 of full scale (10 uV)."""
+    loop = settled_pi(samples=300)
+    assert loop.params.mpc.rate_weight == 0.0  # nothing holds the first move back but the start
+    ok(loop, SetParams({"REFERENCE ONE.Mean": loop.snapshot().r[0] + 2.0 / CM}))
+    run(loop, 50)
+    assert (loop.snapshot().r[0] - loop.snapshot().y[0]) * CM > 0.9  # on its way
+    before = loop.snapshot().u
+    ok(loop, SetParams({"CONTROL.Type": "MPC"}))
+    rows = run(loop, 250)
+    assert np.abs(rows[0, 4:6] - before).max() < 1e-6
+    assert np.abs(np.diff(rows[:, 4:6], axis=0)).max() < 0.02
+    assert rows[-1, 0] == pytest.approx(rows[-1, 6], abs=0.1 / CM)
+
+
 def test_a_failing_solve_holds_the_last_input_and_is_counted_in_the_snapshot() -> None:
     loop = settled_pi()
     ok(loop, SetParams({"CONTROL.Type": "MPC"}))
@@ -122,3 +142,29 @@ def test_with_preview_the_mpc_moves_before_the_reference_does() -> None:
     before the edge; without it they wait for it."""
     assert _before_a_reference_edge(1) > 0.1  # measured 0.18
     assert _before_a_reference_edge(0) < 0.03  # 0.015: the settling after the wave's first edge
+
+
+def test_a_design_made_off_the_loop_is_installed_and_keeps_the_counts() -> None:
+    """engine/design_ahead.py: which SetParams need a new MPC design, and the one
+    designed elsewhere is the one installed (a redesign keeps the solve counts)."""
+    from quadtank_tui.engine.controllers import mpc_inputs, new_mpc
+    from quadtank_tui.engine.design_ahead import needs_mpc_design
+
+    loop = ControlLoop(PRESET)
+    assert needs_mpc_design(loop, SetParams({"CONTROL.Type": "MPC"})) is not None
+    assert needs_mpc_design(loop, SetParams({"CONTROLLER ONE.K": 2.0})) is None
+    ok(loop, SetParams({"CONTROL.Type": "MPC"}))
+    ok(loop, SetState("Run"))
+    ok(loop, SetControlMode("Automatic"))
+    run(loop, 5)
+    assert loop.snapshot().mpc.solves == 5
+    assert needs_mpc_design(loop, SetParams({"REFERENCE ONE.Mean": 0.4})) is None  # same design
+    assert needs_mpc_design(loop, SetParams({"MPC.Horizon": 0})) is None  # refused where applied
+    new = needs_mpc_design(loop, SetParams({"MPC.Horizon": 20}))
+    assert new is not None
+    designed = new_mpc(new)
+    loop.controllers.offer(mpc_inputs(new), designed)
+    ok(loop, SetParams({"MPC.Horizon": 20}))
+    assert loop.controllers.mpc is designed and designed.horizon == 20
+    run(loop, 1)
+    assert loop.snapshot().mpc.solves == 6

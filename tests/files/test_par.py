@@ -81,7 +81,7 @@ def test_format_starts_like_the_original() -> None:
                          "PLOTS\nUpper u1 u2\nLower y1 y2 ref1 ref2\n\n"
                          "STATE FEEDBACK\nTs 60.000000\nPoles zeros\nL3 1.000000\nSmart 1\n"
                          "LevelMargin 2.000000\nLevel1 12.400000\nLevel2 12.700000\n\n"
-                         "MPC\nHorizon 30\nControlHorizon 0\nOutputWeight 1.000000\nInputWeight 0.010000\n"
+                         "MPC\nHorizon 30\nStep 0.000000\nControlHorizon 0\nOutputWeight 1.000000\nInputWeight 0.010000\n"
                          "RateWeight 0.000000\nRateLimit 0.000000\nLevelMargin 1.000000\nPreview 1\n"
                          "Disturbance input\nMeasured all\nSlackWeight 1000.000000\n")
 

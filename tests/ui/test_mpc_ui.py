@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+import pytest
+
 from uikit import Recording, make_app
 
 from quadtank_tui.core.parameters import PRESET
@@ -40,14 +42,15 @@ async def test_choosing_mpc_shows_it_and_its_window_applies_a_horizon(engine: Re
         await pilot.pause()
         assert isinstance(app.screen, MPCWindow)
         app.screen.field_widget("MPC.Horizon").focus()
-        await pilot.press("end", "ctrl+u", "4", "0", "tab", "end", "ctrl+u", "1", "5", "enter")  # a burst
+        await pilot.press("end", "ctrl+u", "4", "0", "tab", "end", "ctrl+u", "1", "tab",
+                          "end", "ctrl+u", "1", "5", "enter")  # a burst
         await pilot.pause()
-        assert engine.sent(SetParams)[-1].values == {"MPC.Horizon": 40, "MPC.ControlHorizon": 15}
+        assert engine.sent(SetParams)[-1].values == {"MPC.Horizon": 40, "MPC.Step": 1.0, "MPC.ControlHorizon": 15}
         app.main.refresh_view()
         await pilot.pause()
         info = engine.snapshot().mpc
-        assert info is not None and (info.horizon, info.moves) == (40, 15)
-        assert "N 40 Nu 15" in str(app.main.query_one(MPCCell).render())
+        assert info is not None and (info.horizon, info.moves, info.step_s) == (40, 15, pytest.approx(1.0))
+        assert "N 40x1s Nu 15" in str(app.main.query_one(MPCCell).render())  # 40 steps of 10 samples
         await pilot.press("t", "1")  # back to PID
         await pilot.pause()
         assert engine.sent(SetParams)[-1].values == {"CONTROL.Type": "PID", "CONTROL.Structure": "Decentralized"}
@@ -65,7 +68,7 @@ async def test_a_control_horizon_past_the_horizon_is_refused_at_its_field(make_e
         await pilot.press("enter")
         await pilot.pause()
         assert isinstance(app.screen, MPCWindow) and len(engine.sent(SetParams)) == sent
-        assert "50 is longer than the horizon (30)" in str(app.screen.query_one("#e-1").render())
+        assert "50 is longer than the horizon (30)" in str(app.screen.query_one("#e-2").render())  # its row
         assert engine.snapshot().params.mpc.control_horizon == 0
 
 
@@ -86,3 +89,44 @@ async def test_switching_a_running_loop_from_pi_to_mpc_and_back_has_no_bump(engi
             after = engine.snapshot().u
             assert max(abs(a - b) for a, b in zip(after, before)) < 0.005, (family, before, after)
             engine.run_for(5.0)
+
+
+async def test_the_window_edits_disturbance_measured_and_slack_weight_by_keys(make_engine: Any) -> None:
+    """Typed like a user: a wrong model, a tank the plant lacks and an unmeasured
+    tracked tank are refused at their field (nothing sent); then a burst of valid
+    edits is sent as one SetParams and the engine designs with it."""
+    engine = make_engine(MPC)
+    app = make_app(engine)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("1")
+        await pilot.pause()
+        window = app.screen
+        assert isinstance(window, MPCWindow)
+        keys = [f.key for f in window.fields]
+        sent = len(engine.sent(SetParams))
+
+        async def type_into(key: str, text: str) -> None:
+            window.field_widget(key).focus()
+            await pilot.press("end", "ctrl+u", *text)
+
+        def error(key: str) -> str:
+            return str(window.query_one(f"#e-{keys.index(key)}").render())
+
+        for key, text, reason in (
+                ("MPC.Disturbance", "state", "must be one of input, output; got 'state'"),
+                ("MPC.Measured", "1 2 5", "the quadtank plant has 4 tanks, got tank 5"),
+                ("MPC.Measured", "1 3", "tracked tank(s) [2] must be measured")):
+            await type_into(key, text)
+            await pilot.press("enter")
+            await pilot.pause()
+            assert app.screen is window and len(engine.sent(SetParams)) == sent, (key, text)
+            assert reason in error(key), (key, text, error(key))
+            window.field_widget(key).value = str(window.params.get(key))  # back to the value in force
+        await type_into("MPC.Disturbance", "Output")
+        await pilot.press("tab", "end", "ctrl+u", *"1 2", "tab", "end", "ctrl+u", *"500", "enter")  # a burst
+        await pilot.pause()
+        assert engine.sent(SetParams)[-1].values == {
+            "MPC.Disturbance": "output", "MPC.Measured": "1 2", "MPC.SlackWeight": 500.0}
+        mpc = engine.snapshot().params.mpc
+        assert (mpc.disturbance, mpc.measured, mpc.slack_weight) == ("output", "1 2", 500.0)
+        assert engine.snapshot().mpc is not None  # designed and running with them

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 class MPCInfo:
     """The MPC in force.
 
-    horizon, moves : prediction and control horizons (samples)
+    horizon, moves : prediction and control horizons (prediction steps)
+    step_s : the prediction step, s (the sampling time, or a whole multiple of it)
     x_e, u_e : operating levels (plant units) and pumps (V) of the model
     solves, faults : samples solved, and those whose solve failed (input held)
     slow : solves longer than a tenth of the sampling time (the budget)
@@ -39,3 +40,4 @@ class MPCInfo:
     status: str = ""
     slack: float = 0.0
     note: str = ""
+    step_s: float = 0.0

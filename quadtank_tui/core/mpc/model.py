@@ -20,7 +20,7 @@ that names them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import TYPE_CHECKING, Sequence
 
@@ -49,7 +49,8 @@ class MPCModel:
     T : sampling time, s; x_e, u_e : the operating point (plant units)
     tracked, measured : state indices; u_lo, u_hi : pump range (V)
     x_lo, x_hi : soft level limits (plant units); y_scale, u_scale : the ranges the
-    weights are relative to
+    weights are relative to; Ac, Bc : the continuous linearization A, B come from
+    (so the model can be sampled again on the prediction grid, :meth:`resampled`)
     """
 
     T: float
@@ -71,6 +72,8 @@ class MPCModel:
     y_scale: np.ndarray
     u_scale: np.ndarray
     disturbance: str
+    Ac: np.ndarray
+    Bc: np.ndarray
     note: str = ""
 
     @property
@@ -84,6 +87,17 @@ class MPCModel:
     @property
     def nd(self) -> int:
         return self.Bd.shape[1]
+
+    def resampled(self, k: int) -> MPCModel:
+        """The same model at k times the sampling time (the MPC's prediction step):
+        ZOH again from the continuous linearization; an input disturbance enters as
+        the input does, a level offset stays one.  Its steady states are this model's
+        (ZOH keeps the DC gain), so the disturbance estimate and the targets carry over."""
+        if k == 1:
+            return self
+        A, B = zoh(self.Ac, self.Bc, k * self.T)
+        Bd = np.hstack([B, self.Bd[:, self.m:]]) if self.disturbance == "input" else self.Bd
+        return replace(self, T=k * self.T, A=A, B=B, Bd=Bd)
 
     def target(self, d: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The steady state (x_s, u_s) where the tracked levels equal r (deviations)
@@ -141,19 +155,10 @@ def build_model(plant: Plant, levels: Sequence[float], s: MPCSettings, T: float)
     A, B = zoh(om.A, om.B, T)
     n, m = B.shape
     tracked = tuple(plant.controlled)
-    measured = s.measured_states(n)
-    if measured[-1] >= n:
-        raise ParameterError(f"{SECTION}.Measured", f"the {plant.kind} plant has {n} tanks, got tank {measured[-1] + 1}")
-    missing = [t + 1 for t in tracked if t not in measured]
-    if missing:
-        raise ParameterError(f"{SECTION}.Measured", f"tracked tank(s) {missing} must be measured")
-    if len(tracked) != m:
-        raise ParameterError(f"{SECTION}.Measured", f"{len(tracked)} tracked levels need as many pumps, got {m}")
+    measured = s.check_plant(plant.kind, n, tracked, m)
     p = len(measured)
     Cm = np.eye(n)[list(measured)]
     if s.disturbance == "input":
-        if p < m:
-            raise ParameterError(f"{SECTION}.Disturbance", f"input disturbances need {m} measured levels, got {p}")
         # a level offset on each measured tank beyond the pump count, untracked ones first
         extra = ([i for i in measured if i not in tracked] + [i for i in measured if i in tracked])[: p - m]
         Bd = np.hstack([B, np.zeros((n, len(extra)))])
@@ -179,7 +184,8 @@ def build_model(plant: Plant, levels: Sequence[float], s: MPCSettings, T: float)
         x_e=np.array(om.x_e, dtype=float), u_e=np.array(om.u_e, dtype=float), tracked=tracked, measured=measured,
         u_lo=np.array(om.u_min, dtype=float), u_hi=np.array(om.u_max, dtype=float), x_lo=x_lo, x_hi=x_hi,
         y_scale=np.array([st.hi - st.lo for st in plant.states]),
-        u_scale=np.array([sig.hi - sig.lo for sig in plant.inputs]), disturbance=s.disturbance, note=note)
+        u_scale=np.array([sig.hi - sig.lo for sig in plant.inputs]), disturbance=s.disturbance,
+        Ac=np.asarray(om.A, dtype=float), Bc=np.asarray(om.B, dtype=float), note=note)
     if np.linalg.cond(model._target_matrix()) > 1e12:
         raise ParameterError(f"{SECTION}.Measured", "the tracked levels have no unique steady state (a zero at s = 0)")
     return model

@@ -74,10 +74,15 @@ def weights(model: MPCModel, s: MPCSettings) -> Weights:
 class SparseQP:
     """The QP of one sample; :meth:`solve` updates the vectors and calls OSQP."""
 
-    def __init__(self, model: MPCModel, s: MPCSettings, w: Weights | None = None) -> None:
+    def __init__(self, model: MPCModel, s: MPCSettings, w: Weights | None = None, *,
+                 first_dt: float | None = None) -> None:
+        """`model` at the prediction step; `first_dt`: seconds before the first move
+        is replaced (the loop's sampling time when the QP is solved every sample on a
+        coarser grid: the rate limit allows that much change from the last input)."""
         import osqp  # loaded with the controller, not with the package
 
         self.model, self.settings = model, s
+        self._first_dt = model.T if first_dt is None else first_dt
         self.w = w or weights(model, s)
         n, m, N = model.n, model.m, s.horizon
         self.N = N
@@ -94,6 +99,7 @@ class SparseQP:
         self._solver.setup(sp.triu(Dm @ (2.0 * self._H) @ Dm, format="csc"), np.zeros(self.nv),
                            (A @ Dm).tocsc(), lo, hi, **OSQP_SETTINGS)
         self._status_ok = {osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE}
+        self._kkt: tuple[tuple[np.ndarray, np.ndarray], np.ndarray] | None = None
 
     # --- indices ------------------------------------------------------------------------
 
@@ -165,6 +171,7 @@ class SparseQP:
             add("hold", hold.tocsr(), np.zeros(held * m), np.zeros(held * m))
         if s.rate_limit > 0:
             du = np.full(N * m, s.rate_limit * mdl.T)
+            du[:m] = s.rate_limit * self._first_dt
             rate = sp.lil_matrix((N * m, self.nv))
             for k in range(N):
                 rate[k * m:(k + 1) * m, self.ui(k)] = np.eye(m)
@@ -216,6 +223,27 @@ class SparseQP:
         if res.info.status_val not in self._status_ok or res.x is None or not np.all(np.isfinite(res.x)):
             return None, str(res.info.status)
         return self._D * np.asarray(res.x), str(res.info.status)
+
+    def unconstrained_move(self, q: np.ndarray, lo: np.ndarray) -> np.ndarray:
+        """u_0 of the sample's QP (vectors q, lo) with no inequality active: the KKT
+        system of its equalities (the model, the held moves), factored once.  Affine in
+        the state, disturbance, targets and last input: a bumpless start solves for the
+        estimate that makes it the input in force."""
+        if self._kkt is None:
+            from scipy.linalg import lu_factor
+
+            keep = np.arange(self.nx + self.nu)
+            eq = [self._eq_rows[k] for k in ("x0", "dyn", "hold") if k in self._eq_rows]
+            E = sp.vstack([self._A[r] for r in eq]).toarray()[:, keep]
+            H = self._H.toarray()[np.ix_(keep, keep)]
+            ne = E.shape[0]
+            self._kkt = (lu_factor(np.block([[2.0 * H, E.T], [E, np.zeros((ne, ne))]])),
+                         np.concatenate([np.arange(r.start, r.stop) for r in eq]))
+        from scipy.linalg import lu_solve
+
+        lu, rows = self._kkt
+        sol = lu_solve(lu, np.concatenate([-q[: self.nx + self.nu], lo[rows]]))
+        return sol[self.ui(0)]
 
     def unconstrained_gain(self) -> np.ndarray:
         """K (m x (n+m)) with u_0 = -K [x_0; u_prev] when no inequality is active:

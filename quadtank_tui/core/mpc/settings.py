@@ -1,8 +1,11 @@
 """What the user chooses for the model predictive controller (the `MPC` settings).
 
-Horizon         prediction horizon N, samples
-ControlHorizon  samples over which the input may move; after it the input is held
-                (0: the whole horizon)
+Horizon         prediction horizon N, prediction steps
+Step            prediction step, s: the model predicts, and the planned input moves,
+                on this grid (rounded to a whole number of sampling times; 0: the
+                sampling time); the estimator and the solve still run every sample
+ControlHorizon  prediction steps over which the input may move; after it the input
+                is held (0: the whole horizon)
 OutputWeight    weight on each tracked level, per (level / tank height)^2
 InputWeight     weight on each pump's distance from its target, per (V / pump range)^2
 RateWeight      weight on each pump's change per sample, per (V / pump range)^2
@@ -62,6 +65,7 @@ class MPCSettings:
     disturbance: str = "input"
     measured: str = ALL
     slack_weight: float = 1e3
+    step: float = 0.0
 
     def __post_init__(self) -> None:
         for key, value, lo, hi in (("Horizon", self.horizon, 1, 1000), ("ControlHorizon", self.control_horizon, 0, 1000)):
@@ -76,6 +80,7 @@ class MPCSettings:
         check_range("RateLimit", self.rate_limit, 0.0, 1e3)
         check_range("LevelMargin", self.level_margin, 0.0, 50.0)
         check_range("SlackWeight", self.slack_weight, 0.0, 1e9, lo_open=True)
+        check_range("Step", self.step, 0.0, 600.0)
         if not isinstance(self.preview, bool):
             raise ParameterError("Preview", "must be 0 or 1")
         if self.disturbance not in DISTURBANCE_MODELS:
@@ -90,6 +95,28 @@ class MPCSettings:
         """Samples over which the input moves (the control horizon, or N)."""
         return self.control_horizon or self.horizon
 
+    def step_samples(self, T: float) -> int:
+        """Sampling times per prediction step at sampling time T s (at least one)."""
+        return max(1, int(round(self.step / T))) if self.step > 0 else 1
+
     def measured_states(self, tanks: int) -> tuple[int, ...]:
         """The measured levels, 0-based, on a plant of `tanks` tanks."""
         return tuple(t - 1 for t in parse_measured(self.measured)) or tuple(range(tanks))
+
+    def check_plant(self, kind: str, tanks: int, tracked: tuple[int, ...], pumps: int) -> tuple[int, ...]:
+        """The measured levels (0-based) on a plant of `kind` with `tanks` tanks, the
+        `tracked` ones (0-based) and `pumps` inputs; ParameterError (MPC.Measured or
+        MPC.Disturbance) when the estimator cannot work with them.  Plain counting,
+        so a window checks it before anything is designed."""
+        measured = self.measured_states(tanks)
+        if measured[-1] >= tanks:
+            raise ParameterError(f"{SECTION}.Measured", f"the {kind} plant has {tanks} tanks, got tank {measured[-1] + 1}")
+        missing = [t + 1 for t in tracked if t not in measured]
+        if missing:
+            raise ParameterError(f"{SECTION}.Measured", f"tracked tank(s) {missing} must be measured")
+        if len(tracked) != pumps:
+            raise ParameterError(f"{SECTION}.Measured", f"{len(tracked)} tracked levels need as many pumps, got {pumps}")
+        if self.disturbance == "input" and len(measured) < pumps:
+            raise ParameterError(f"{SECTION}.Disturbance",
+                                 f"input disturbances need {pumps} measured levels, got {len(measured)}")
+        return measured

@@ -113,15 +113,15 @@ def closed_loop(plant: Plant, x0: Sequence[float], scn: Scenario, T: float,
 def run_mpc(plant: Plant, mpc: MPC, x0: Sequence[float], scn: Scenario) -> Run:
     """The scenario under the MPC, started bumplessly at x0 with the operating pumps."""
     mdl, s = mpc.design.model, mpc.design.settings
-    T, N = mdl.T, s.horizon
+    Tp, N = mpc.design.prediction.T, s.horizon
     mpc.track(x0, mdl.u_e)
     start_faults, start_times = mpc.stats.faults, len(mpc.stats.times)
 
     def control(t: float, x: np.ndarray) -> np.ndarray:
-        refs = np.array([scn.reference(t + j * T) for j in range(N + 1)]) if s.preview else scn.reference(t)
+        refs = np.array([scn.reference(t + j * Tp) for j in range(N + 1)]) if s.preview else scn.reference(t)
         return mpc.step(x[list(mdl.measured)], refs).u
 
-    t, x, u, r = closed_loop(plant, x0, scn, T, control)
+    t, x, u, r = closed_loop(plant, x0, scn, mdl.T, control)
     return Run(t, x, u, r, mpc.stats.faults - start_faults, tuple(mpc.stats.times[start_times:]))
 
 

@@ -163,6 +163,7 @@ def _build_keys() -> tuple[KeySpec, ...]:
     mpc: tuple[str | int, ...] = ("mpc",)
     keys += [
         KeySpec(MPC_SECTION, "Horizon", Kind.INTEGER, (*mpc, "horizon")),
+        KeySpec(MPC_SECTION, "Step", Kind.NUMBER, (*mpc, "step")),
         KeySpec(MPC_SECTION, "ControlHorizon", Kind.INTEGER, (*mpc, "control_horizon")),
         KeySpec(MPC_SECTION, "OutputWeight", Kind.NUMBER, (*mpc, "output_weight")),
         KeySpec(MPC_SECTION, "InputWeight", Kind.NUMBER, (*mpc, "input_weight")),

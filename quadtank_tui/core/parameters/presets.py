@@ -7,6 +7,7 @@ import dataclasses
 from typing import Sequence
 
 from quadtank_tui.core.general import GeneralParams
+from quadtank_tui.core.mpc.settings import MPCSettings
 from quadtank_tui.core.parameters.constants import ControlMode
 from quadtank_tui.core.parameters.settings import (
     ControllerElement,
@@ -65,8 +66,11 @@ PRESET: Parameters = from_setting(P_MINUS, (3.0, 30.0), (2.7, 40.0))
 NAMED_SETTINGS: dict[str, Parameters] = {
     "minphase": PRESET,
     # A nonminimum-phase setting needs settling times an order of magnitude longer
-    # (Desautel, chapter 5).
-    "nonminphase": from_setting(P_PLUS, (1.5, 110.0), (-0.12, 220.0), settling_time=300.0),
+    # (Desautel, chapter 5), and its MPC a look-ahead past the minute-long inverse
+    # response: 60 prediction steps of 2 s (120 s) at the loop's 0.1 s.
+    "nonminphase": dataclasses.replace(
+        from_setting(P_PLUS, (1.5, 110.0), (-0.12, 220.0), settling_time=300.0),
+        mpc=MPCSettings(horizon=60, step=2.0)),
 }
 
 

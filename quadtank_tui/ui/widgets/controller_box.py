@@ -102,7 +102,8 @@ def mpc_lines(info: MPCInfo, p: Parameters) -> list[str]:
     solve times (ms) and the solver's status when it is not "solved"."""
     s = p.mpc
     faults = f"[reverse]faults {info.faults}[/]" if info.faults else "faults 0"
-    lines = [f"[b]N[/] {info.horizon} [b]Nu[/] {info.moves}",
+    step = f"x{info.step_s:g}s" if info.step_s > 1.5 * p.tsamp else ""  # a prediction step of k samples
+    lines = [f"[b]N[/] {info.horizon}{step} [b]Nu[/] {info.moves}",
              f"[b]Q[/] {s.output_weight:g} [b]R[/] {s.input_weight:g} [b]S[/] {s.rate_weight:g}",
              f"solves {info.solves} {faults}",
              f"p50 {info.p50_ms:.2f} p99 {info.p99_ms:.2f} ms",

@@ -1,32 +1,42 @@
-"""The MPC window: the MPC section's settings (issue 26) - horizons, weights,
-limits and preview.
+"""The MPC window: the MPC section's settings (issue 26) - horizons and the
+prediction step, weights, limits, preview, the disturbance model, the measured
+levels and the price of a level-limit violation.
 
 Set sends them as one SetParams; the window checks them together first (a control
-horizon longer than the horizon, a weight out of range: the field and the reason,
-nothing sent), and the engine designs the new MPC between two samples or refuses
-with the key and the reason, the parameters in force unchanged.  The solves, faults
+horizon longer than the horizon, a weight out of range, a model that is neither
+input nor output, a tank the plant does not have or a tracked one left unmeasured:
+the field and the reason, nothing sent), and the engine designs the new MPC
+between two samples or refuses with the key and the reason, the parameters in
+force unchanged.  The solves, faults
 and solve times are in the Controller box.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 from textual.app import ComposeResult
 from textual.widgets import Button, Label
 
 from quadtank_tui.core.parameters import MPC_SECTION, Parameters
+from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import ResetControllers
 from quadtank_tui.ui.windows.base import Field, ParamWindow
 
 S = MPC_SECTION
 FIELDS = (
-    Field(f"{S}.Horizon", "Horizon", "samples (N)"),
-    Field(f"{S}.ControlHorizon", "Ctrl hor.", "samples (0: N)"),
+    Field(f"{S}.Horizon", "Horizon", "prediction steps (N)"),
+    Field(f"{S}.Step", "Step", "s per prediction step (0: Ts)"),
+    Field(f"{S}.ControlHorizon", "Ctrl hor.", "steps (0: N)"),
     Field(f"{S}.OutputWeight", "Output wt.", "Q, per range^2"),
     Field(f"{S}.InputWeight", "Input wt.", "R, per range^2"),
     Field(f"{S}.RateWeight", "Rate wt.", "S, on u(k)-u(k-1)"),
     Field(f"{S}.RateLimit", "Rate limit", "V/s (0: none)"),
     Field(f"{S}.LevelMargin", "Margin", "cm below a top"),
     Field(f"{S}.Preview", "Preview", flag=True),
+    Field(f"{S}.Disturbance", "Disturbance", "input or output (offset-free)", text=True),
+    Field(f"{S}.Measured", "Measured", "all, or tanks: 1 2", text=True),
+    Field(f"{S}.SlackWeight", "Slack wt.", "per level-limit violation"),
 )
 
 
@@ -40,8 +50,24 @@ class MPCWindow(ParamWindow):
 
     def compose_body(self) -> ComposeResult:
         yield from super().compose_body()
-        yield Label("Pumps 0-10 V are hard limits, levels 0 to the top less the margin soft "
-                    "ones; the plant is linearized at its operating levels (Setup).", classes="hint")
+        yield Label("Pumps 0-10 V hard limits, levels 0..top-margin soft; linearized at the "
+                    "operating levels (Setup).", classes="hint")
+
+    def values(self) -> dict[str, Any] | None:
+        """The fields' values, checked together and against the plant in use: the
+        tanks named in Measured must exist, the tracked ones be among them, and input
+        disturbances need as many measured levels as pumps."""
+        out = super().values()
+        if out is None:
+            return None
+        p = self.params.with_values(out)
+        plant = p.process_plant()
+        try:
+            p.mpc.check_plant(plant.kind, len(plant.states), tuple(plant.controlled), len(plant.inputs))
+        except ParameterError as exc:
+            self._error(exc.field, exc.reason)
+            return None
+        return {k: p.get(k) for k in out}  # as the file writes them ("Output" is output)
 
     def compose_buttons(self) -> ComposeResult:
         yield from super().compose_buttons()
