@@ -3,8 +3,8 @@ cli.py's way.
 
 cli.py adds the subcommands with `add_rig_parser` / `add_daq_parser` and the
 option with `add_daq_option`.  Building a backend from a DAQ configuration is
-not a command: it is daq/open.py's (`open_rig`, and `open_daq` for a TUI or session, which the session process uses
-too.  `python -m quadtank_tui.commands.daq rig ...` runs the rig alone.
+not a command: it is daq/open.py's `open_daq`, for `run`, the TUI and a session
+alike (the session process uses it too).  `python -m quadtank_tui.commands.daq rig ...` runs the rig alone.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from quadtank_tui.commands import warn
 from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.daq.config import PRESETS, DaqConfig, load_daq_config
 from quadtank_tui.daq.ist.config import IstConfig
-from quadtank_tui.daq.open import load_rig_config, open_rig
+from quadtank_tui.daq.open import load_rig_config, open_daq
 from quadtank_tui.engine.backend import BackendError
 
 # The commands import what they run inside their handlers (the rig: asyncio; the
@@ -400,7 +400,7 @@ def run_clock(*, realtime: bool, speed: float | None, config: str | None,
     """The clock and the DAQ backend of `quadtank [--daq C] run [--daq C]`.  A real
     process is never run unpaced: with a DAQ the run is real time, unless --speed
     gives the virtual rig's speed factor."""
-    daq = open_rig(config, plant)
+    daq = open_daq(config, plant)
     if realtime or (daq is not None and speed is None):
         return "realtime", daq
     return ("virtual" if speed is not None else "manual"), daq

@@ -83,22 +83,13 @@ def hold_daq(config: str | None, *, take_over: bool = False, say: Callable[[str]
     from quadtank_tui.session.lock import DaqLockHeld, pid_alive
     from quadtank_tui.session.riglock import RigLock
 
-    from quadtank_tui.daq.ist.config import IstConfig
     from quadtank_tui.daq.open import load_rig_config
-    from quadtank_tui.session.lock import DaqLock
 
     rig = load_rig_config(config)  # a bad file is reported here, before anything else
-    ist = rig if isinstance(rig, IstConfig) else None  # a serial rig, locked by its device
-    daq = rig if not isinstance(rig, IstConfig) else None
     lab = load_lab_config()
 
     def acquire(take_over: bool = False) -> RigLock:
-        if daq is None:
-            from quadtank_tui.daq.ist.commands import lock_key
-
-            assert ist is not None
-            return RigLock(lock_key(ist), [DaqLock.acquire(lock_key(ist), lab, take_over=take_over)])
-        return RigLock.acquire(daq.host, daq.port, daq.device_id, lab, take_over=take_over)
+        return RigLock.of(rig, lab, take_over=take_over)  # under the rig's identity (riglock.rig_keys)
 
     try:  # under every address the host resolves to (a name that does not: refused)
         lock = acquire()

@@ -196,16 +196,16 @@ def own_session_on_rig(config: str | None) -> tuple[SessionInfo, str] | None:
     then says so)."""
     if config is None:
         return None
-    from quadtank_tui.daq.config import load_daq_config
+    from quadtank_tui.daq.open import load_rig_config
     from quadtank_tui.session.lab import load_lab_config
     from quadtank_tui.session.lock import holder_of
-    from quadtank_tui.session.riglock import rig_devices
+    from quadtank_tui.session.riglock import rig_keys
     from quadtank_tui.session.runtime import list_sessions
 
     try:
-        daq = load_daq_config(config)
+        rig = load_rig_config(config)
         lab = load_lab_config()
-        devices = rig_devices(daq.host, daq.port, daq.device_id)
+        devices = rig_keys(rig)
     except (ValueError, OSError):
         return None
     for device in devices:
@@ -279,6 +279,14 @@ def _held_lock(args: argparse.Namespace) -> RigLock | None:
     return hold.lock
 
 
+def _has_disturbance_pumps(config: str) -> bool:
+    """Whether the rig a DAQ file describes has disturbance pumps (an IST rig)."""
+    from quadtank_tui.daq.ist.config import IstConfig
+    from quadtank_tui.daq.open import load_rig_config
+
+    return isinstance(load_rig_config(config), IstConfig)
+
+
 def start_detached_run(args: argparse.Namespace, script: Script | None, clock: ClockKind) -> int:
     """`quadtank run ... --detach`: the run in a session process; returns at once,
     once its options and its script have been checked here (a refusal is said in
@@ -294,7 +302,8 @@ def start_detached_run(args: argparse.Namespace, script: Script | None, clock: C
     config = args.daq or getattr(args, "daq_global", None)
     checked_out(Path(args.log))  # the log's name and folder
     partly = rehearse(par=args.par, script=script, duration=args.duration, out=Path(args.log), seed=args.seed,
-                      params_dir=Path("params"), active=config is not None)  # the script's refusals
+                      params_dir=Path("params"), active=config is not None,  # the script's refusals
+                      disturbance_pumps=config is not None and _has_disturbance_pumps(config))
     warn([partly] if partly else [])
     run = HeadlessArgs(args.par, script, args.duration, str(Path(args.log).resolve()), args.seed, clock,
                        args.speed, str(Path("params").resolve()))

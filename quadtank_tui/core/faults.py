@@ -133,15 +133,18 @@ def drift_valves(plant: Plant, faults: Faults, dt: float) -> Plant:
     return plant.with_values(**changes) if changes else plant
 
 
-def advance(plant: Plant, faults: Faults, x: Sequence[float], u: Sequence[float], dt: float) -> tuple[float, ...]:
-    """Levels after dt s with the pumps held, the process faults acting (without any,
-    exactly ``plant.advance``)."""
+def advance(plant: Plant, faults: Faults, x: Sequence[float], u: Sequence[float], dt: float,
+            inflow: Sequence[float] = ()) -> tuple[float, ...]:
+    """Levels after dt s with the pumps held, the process faults acting and `inflow`
+    (volume per second into each tank, the plant's units: the disturbance pumps,
+    core.disturbance) poured in; without either, exactly ``plant.advance``."""
     p = clogged(plant, faults)
     uu = list(p.saturate(u))
     for f in faults.of("weak_pump"):
         uu[f.target - 1] *= f.value  # a pump's flow is proportional to its voltage
     leaks = [(f.target - 1, f.value) for f in faults.of("leak")]
-    if not leaks:
+    poured = [(i, q / p.area(i)) for i, q in enumerate(inflow) if q != 0.0]
+    if not leaks and not poured:
         return p.advance(x, uu, dt)
     g = p.gravity
     hi = [s.hi for s in p.states]
@@ -151,6 +154,8 @@ def advance(plant: Plant, faults: Faults, x: Sequence[float], u: Sequence[float]
         d = list(p.rhs(y, uu))
         for i, a in leaks:
             d[i] -= orifice_flow(max(y[i], 0.0), a, g, film) / p.area(i)
+        for i, rate in poured:
+            d[i] += rate
         return d
 
     return dopri_advance(rates, x, dt, [s.lo for s in p.states], hi, rtol=1e-10, atol=RELATIVE_ATOL * max(hi))

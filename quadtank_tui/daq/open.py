@@ -1,5 +1,6 @@
 """Reading the rig a DAQ configuration describes (`--daq CONFIG`) and building its
-backend: a Modbus map, or an IST serial rig when the file says `protocol: ist`.
+backend (open_daq): a Modbus map, or an IST serial rig when the file says
+`protocol: ist`; the same for `quadtank run`, the TUI and a session.
 
 Not a command: the CLI (commands/daq.py, commands/lab.py, cli.py) and the session
 process (session/launch.py, session/client.py) both open a rig from a
@@ -36,35 +37,25 @@ def load_rig_config(path: Path | str, plant: Plant | None = None) -> DaqConfig |
     return parse_daq_config(text, name=str(path), plant=plant)
 
 
-def open_rig(config: str | None, plant: Plant | None = None) -> ModbusBackend | IstBackend | None:
-    """The backend of any rig `quadtank run --daq CONFIG` may drive (None without
-    one), wired for `plant`; the file is read and checked now."""
+def open_daq(config: str | None, plant: Plant | None = None, *,
+             quiet: bool = False) -> ModbusBackend | IstBackend | None:
+    """The backend of the rig a `--daq CONFIG` describes (None without one), wired
+    for `plant` (the quadruple tank when None): a Modbus map or an IST serial rig,
+    for `quadtank run`, the TUI and a session alike.  The file is read and checked
+    now, so a bad one stops the program before anything runs; the link is opened on
+    the first sample.  A Modbus device without a watchdog is said to have none on
+    stderr, as the CLI's warnings are (unless `quiet`)."""
     if config is None:
         return None
     rig = load_rig_config(config, plant)
     if isinstance(rig, DaqConfig):
-        return _modbus(rig, quiet=False)
+        return _modbus(rig, quiet=quiet)
     from quadtank_tui.daq.ist.backend import IstBackend
 
     backend = IstBackend(rig)
     if plant is not None and (why := backend.plant_refused(plant)):
         raise ValueError(why)
     return backend
-
-
-def open_daq(config: str | None, plant: Plant | None = None, *, quiet: bool = False) -> ModbusBackend | None:
-    """The Modbus backend a `--daq CONFIG` asks for (None without one), wired for
-    `plant` (the quadruple tank when None).  The file is read and checked now, so a
-    bad one stops the program before anything runs; the link is opened on the
-    first sample.  A device without a watchdog is said to have none on stderr, as
-    the CLI's warnings are (unless `quiet`)."""
-    if config is None:
-        return None
-    rig = load_rig_config(config, plant)
-    if isinstance(rig, IstConfig):  # the sessions' records and locks are a Modbus rig's (host, port, unit)
-        raise ValueError(f"{config}: an IST rig (protocol: ist) is driven by `quadtank run --daq {config}` "
-                         "in this version; the TUI and sessions drive Modbus rigs only")
-    return _modbus(rig, quiet=quiet)
 
 
 def _modbus(config: DaqConfig, *, quiet: bool) -> ModbusBackend:

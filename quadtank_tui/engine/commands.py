@@ -86,6 +86,18 @@ class SetFault:
 
 
 @dataclass(frozen=True)
+class SetDisturbance:
+    """The two disturbance pumps at fractions d1, d2 of full PWM, 0..1 (None: as it
+    is): an IST rig's in Active (daq/ist/: the last two bytes of its pump frames),
+    the simulated quadruple tank's inflow into tanks 1 and 2 in Simul
+    (core.disturbance).  Every safe state (Pause on a rig, a fault, Reset, the end)
+    puts them at 0."""
+
+    d1: float | None = None
+    d2: float | None = None
+
+
+@dataclass(frozen=True)
 class ResetControllers:
     """Reset all controller states, or one element (i, j) with i, j in 1..2."""
 
@@ -173,7 +185,7 @@ class CancelCalibration:
 
 Command = Union[
     SetParams, SetDefaults, SetOperation, SetState, SetControlMode, NudgeMean, AddWater,
-    SetFault, ResetControllers, LogOn, LogOff, LogSave, LogDiscard, LoadPar, SavePar, SetSpeed,
+    SetFault, SetDisturbance, ResetControllers, LogOn, LogOff, LogSave, LogDiscard, LoadPar, SavePar, SetSpeed,
     StartCalibration, CalibrationHeights, CancelCalibration,
 ]
 

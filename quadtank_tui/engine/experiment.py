@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
 from quadtank_tui.engine.commands import (
-    AddWater, Command, LogOff, LogOn, SetControlMode, SetFault, SetParams, SetState,
+    AddWater, Command, LogOff, LogOn, SetControlMode, SetDisturbance, SetFault, SetParams, SetState,
 )
 from quadtank_tui.engine.inputs_from import replay_events
 from quadtank_tui.engine.runner import Engine, LoopTime
@@ -69,7 +69,7 @@ def event_commands(event: Event, engine: Engine) -> list[Command]:
     if a == "fault":
         return [SetFault(*v)]
     if a == "disturbance":
-        return []  # no command: the backend's own (_disturb)
+        return [SetDisturbance(*v)]
     raise ValueError(f"unknown action {a!r}")
 
 
@@ -96,24 +96,10 @@ def apply_due(engine: Engine, events: collections.deque[Event], elapsed: LoopTim
 
 
 def _apply(engine: Engine, event: Event, name: str) -> None:
-    if event.action == "disturbance":
-        _disturb(engine, event, name)
     for command in event_commands(event, engine):
         result = engine.submit(command).result()
         if not result.ok:
             raise event.where(name, result.message)
-
-
-def _disturb(engine: Engine, event: Event, name: str) -> None:
-    """The disturbance pumps of the process in use (an IST rig's, daq/ist/), set
-    between two samples; the pump frame of the next sample carries them.  A process
-    without them (the simulator, a Modbus rig) refuses the event."""
-    backend = engine.loop.backend
-    drive = getattr(backend, "set_disturbances", None)
-    if drive is None:
-        raise event.where(name, f"{backend.description or 'the simulator'} has no disturbance pumps "
-                                "(an IST rig has two, in Active)")
-    drive(*event.value)
 
 
 def summarize(engine: Engine, duration: float) -> Summary:

@@ -57,8 +57,8 @@ from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend
 from quadtank_tui.engine.calibration_step import RigCalibration
 from quadtank_tui.engine.commands import (
     AddWater, CalibrationHeights, CancelCalibration, Command, CommandResult, InstallPar, LoadPar, LogDiscard, LogOff,
-    LogOn, LogSave, NudgeMean, ResetControllers, SavePar, SetControlMode, SetDefaults, SetFault, SetOperation,
-    SetParams, SetSpeed, SetState, StartCalibration,
+    LogOn, LogSave, NudgeMean, ResetControllers, SavePar, SetControlMode, SetDefaults, SetDisturbance, SetFault,
+    SetOperation, SetParams, SetSpeed, SetState, StartCalibration,
 )
 from quadtank_tui.engine.controllers import Controllers
 from quadtank_tui.engine.filework import FileWorker
@@ -321,7 +321,15 @@ class ControlLoop:
             calibration=self.calibration.status(),
             alarms=tuple(getattr(self.backend, "alarms", ()) or ()),
             faults=self.sim.faults.labels() if self.backend is self.sim else "",
+            disturbances=self._disturbances(),
         )
+
+    def _disturbances(self) -> tuple[float, float] | None:
+        """The disturbance pumps' duties of the process in use (None: it has none)."""
+        if self.backend is self.sim and self.sim.plant.kind != "quadtank":
+            return None
+        duties = getattr(self.backend, "disturbances", None)
+        return None if duties is None else (float(duties[0]), float(duties[1]))
 
     def publish(self) -> Snapshot:
         """Publish a fresh snapshot of the current state (after a stop, say)."""
@@ -588,6 +596,19 @@ class ControlLoop:
             self._y = self.sim.read_levels()
         return CommandResult(True)
 
+    def _set_disturbance(self, cmd: SetDisturbance) -> CommandResult:
+        """The disturbance pumps of the process in use (an IST rig's in Active, the
+        simulated inflow in Simul); the log gets a `%` line.  Refused by a process
+        without them (a Modbus rig, a plant other than the quadruple tank)."""
+        drive = getattr(self.backend, "set_disturbances", None)
+        if drive is None:
+            return CommandResult.refused(f"{self.backend.description or self.backend.kind} has no disturbance "
+                                         "pumps (an IST rig has two; in Simul, the quadruple tank)")
+        drive(cmd.d1, cmd.d2)  # ValueError: refused, nothing changed
+        d = self.backend.disturbances  # type: ignore[attr-defined]  # every backend with the setter has them
+        self.log.comment(self.t, f"disturbance: d1 {100 * d[0]:.1f} %, d2 {100 * d[1]:.1f} % of full PWM")
+        return CommandResult(True)
+
     def _reset_controllers(self, cmd: ResetControllers) -> CommandResult:
         self.controllers.reset(cmd.element)
         return CommandResult(True)
@@ -784,6 +805,7 @@ _HANDLERS: Mapping[type, Callable[[ControlLoop, Any], CommandResult | Future[Com
     SetOperation: ControlLoop._set_operation, SetState: ControlLoop._set_state,
     SetControlMode: ControlLoop._set_control_mode, NudgeMean: ControlLoop._nudge,
     AddWater: ControlLoop._add_water, SetFault: ControlLoop._set_fault,
+    SetDisturbance: ControlLoop._set_disturbance,
     ResetControllers: ControlLoop._reset_controllers,
     LogOn: ControlLoop._log_on, LogOff: ControlLoop._log_off, LogSave: ControlLoop._log_save,
     LogDiscard: ControlLoop._log_discard, LoadPar: ControlLoop._load_par, InstallPar: ControlLoop._install_par,

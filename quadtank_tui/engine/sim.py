@@ -7,6 +7,11 @@ not depend on the sampling time beyond the zero-order hold.  It also offers what
 real rig cannot do from software (B7): pour water, change a valve, a cross-section
 or an outlet while running, and jump back to the operating point on Reset.
 
+The quadruple tank has the IST rig's two disturbance pumps too (core.disturbance:
+pump i pours into tank i, by the rig's own simulator's law): `set_disturbances`
+takes them as an IST backend does (fractions of full PWM, quantized to its 8 bits),
+and `safe_state` and Reset stop them.
+
 Any plant of core.plants runs behind it (:meth:`SimBackend.for_plant`): its sensors
 are read as y = volts / 10 (y3, y4 read 0 on a two-tank rig) and pump i gets
 u_i times the pump's full scale (22 V on a Quanser amplifier).  The quadruple tank
@@ -18,6 +23,7 @@ from __future__ import annotations
 
 import random
 
+from quadtank_tui.core import disturbance as dist
 from quadtank_tui.core import faults as fx
 from quadtank_tui.core.plant import (
     FULL_SCALE_V,
@@ -50,6 +56,8 @@ class SimBackend(ProcessBackend):
         self._faults = fx.Faults()
         self._t = 0.0  # process time, s (sensor drift counts from it)
         self._rng = random.Random(0)  # sensor noise, reproducible run to run
+        #: the disturbance pumps' duties d1, d2 (core.disturbance), 8-bit quantized
+        self.disturbances: tuple[float, float] = (0.0, 0.0)
 
     @classmethod
     def for_plant(cls, plant: Plant, levels: tuple[float, ...]) -> SimBackend:
@@ -89,16 +97,18 @@ class SimBackend(ProcessBackend):
 
     def safe_state(self) -> None:
         self._v = tuple(0.0 for _ in self._v)
+        self.disturbances = (0.0, 0.0)
 
     def elapse(self, dt: float) -> None:
-        """Integrate dt seconds with the pump voltages held."""
+        """Integrate dt seconds with the pump voltages (and the disturbance pumps) held."""
         self._t += dt
-        if self._faults:
+        if self._faults or any(self.disturbances):
             plant = self.plant  # built once: for the quadruple tank each `plant` is a new QuadTank
             drifted = fx.drift_valves(plant, self._faults, dt)
             if drifted is not plant:
                 self.set_plant(drifted)
-            self._h = fx.advance(drifted, self._faults, self._h, self._v, dt)
+            inflow = dist.IST.inflow(self.disturbances) if any(self.disturbances) else ()
+            self._h = fx.advance(drifted, self._faults, self._h, self._v, dt, inflow)
             return
         if self._plant is not None:
             self._h = self._plant.advance(self._h, self._v, dt)
@@ -174,6 +184,16 @@ class SimBackend(ProcessBackend):
         self._faults = before.off(kind, target)
         return self._faults != before
 
+    # --- the disturbance pumps (core.disturbance) ----------------------------------------
+
+    def set_disturbances(self, d1: float | None, d2: float | None) -> None:
+        """The disturbance pumps at fractions d1, d2 of full PWM (None: as it is), from
+        now on; ValueError for a value outside 0..1 or a plant without them."""
+        if self.plant.kind != "quadtank":
+            raise ValueError(f"the {self.plant.kind} plant has no disturbance pumps (the IST rig's pour into "
+                             "tanks 1 and 2 of the quadruple tank)")
+        self.disturbances = dist.updated(self.disturbances, d1, d2)
+
     def add_water(self, tank: int, amount: float) -> None:
         """Pour `amount` (normalized level, negative drains) into tank 1..n."""
         if self._plant is None:
@@ -202,3 +222,4 @@ class SimBackend(ProcessBackend):
         else:
             self._h = tuple(min(x, self._p.hmax) for x in self._op)
         self._v = tuple(0.0 for _ in self._v)
+        self.disturbances = (0.0, 0.0)

@@ -85,6 +85,8 @@ class Snapshot:
     fault: str | None = None   # why the loop paused itself (backend error, interlock)
     alarms: tuple[str, ...] = ()
     faults: str = ""           # injected faults acting on the simulation (core.faults), for the status line
+    #: The disturbance pumps' duties d1, d2 (0..1) of the process in use; None: it has none.
+    disturbances: tuple[float, float] | None = None
     #: The state feedback's gains, poles and delta while it is the controller type.
     statefb: StateFeedbackInfo | None = None
     #: The MPC's horizons, solve counts, faults and solve times while it is the controller type.

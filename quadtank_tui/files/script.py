@@ -20,7 +20,7 @@ one action::
     - at: 1200
       fault: {kind: clog, target: 2, on: off}      # switch it off again
     - at: 1300
-      disturbance: {d1: 0.5, d2: 0}   # an IST rig's disturbance pumps, 0..1 of full PWM (Active)
+      disturbance: {d1: 0.5, d2: 0}   # the disturbance pumps, 0..1 of full PWM (an IST rig in Active; Simul: inflow into tanks 1, 2)
     - at: 1400
       inputs_from: logs/rig.log   # Manual, the pumps driven by the log's u1, u2 row by row
 

@@ -187,8 +187,15 @@ class SessionHost:
         self.driver.stop()
 
     def install_signal_handlers(self) -> None:
-        """SIGTERM, SIGHUP, SIGINT stop the session in order (main thread only)."""
-        for sig in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
+        """SIGTERM, SIGHUP, SIGINT stop the session in order (main thread only).
+
+        They are unblocked too: a process inherits its launcher's signal mask, and a
+        session spawned while its launcher held them blocked (seen: a pytest whose
+        main thread kept every signal blocked) ignored SIGTERM for good - it sat
+        on, sampling, until SIGKILL."""
+        stops = (signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, stops)
+        for sig in stops:
             self.aloop.add_signal_handler(sig, self.request_stop, sig.name)
 
     # --- publishing ------------------------------------------------------------------------

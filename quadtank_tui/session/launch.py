@@ -279,9 +279,9 @@ def session_main(ready_fd: int, lifeline: int = -1) -> int:
                 wired = load_parameters(spec.run.par, ParStore(spec.run.params_dir))[0].process_plant()
             daq = open_daq(spec.daq_config, wired, quiet=True)  # the launcher said it; the record says it
             assert daq is not None
-            c = daq.config
             if not spec.private:  # a private session's launcher keeps the lock (and watches it)
-                lock = RigLock.acquire(c.host, c.port, c.device_id, lab, session=sid)  # adopts the launcher's
+                # under the rig's identity (a Modbus rig's addresses, a serial rig's device); adopts the launcher's
+                lock = RigLock.of(daq.config, lab, session=sid)
         scripted = None
         if spec.run is not None:
             from quadtank_tui.engine.headless import prepare_headless

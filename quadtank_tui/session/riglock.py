@@ -10,6 +10,10 @@ keys, so a name with an IPv4 and an IPv6 address collides with either address
 typed alone.  A name that does not resolve is refused: a lock under an
 unresolved name would protect nothing.
 
+A serial rig (the IST rig, daq/ist/) is one key: its device with the links
+resolved (IstConfig.lock_key).  `rig_keys` and `RigLock.of` take either rig's
+configuration: the one place the lock key of a rig is decided.
+
 What this cannot see: a name that resolves to another address later (DNS changed
 between two programs' starts), or two addresses that are the same device behind
 a NAT.  A lab that renames its rigs keeps the names stable, or types addresses.
@@ -20,9 +24,14 @@ from __future__ import annotations
 import ipaddress
 import socket
 from datetime import datetime
+from typing import TYPE_CHECKING
 
 from quadtank_tui.session.lab import LabConfig
 from quadtank_tui.session.lock import DaqLock, DaqLockHeld
+
+if TYPE_CHECKING:
+    from quadtank_tui.daq.config import DaqConfig
+    from quadtank_tui.daq.ist.config import IstConfig
 
 #: The key of every address that reaches this machine (loopback, own interfaces).
 LOCAL = "127.0.0.1"
@@ -74,12 +83,35 @@ def rig_devices(host: str, port: int, unit: int) -> tuple[str, ...]:
     return tuple(f"[{a}]:{port}/{unit}" if ":" in a else f"{a}:{port}/{unit}" for a in rig_addresses(host))
 
 
+def rig_keys(rig: DaqConfig | IstConfig) -> tuple[str, ...]:
+    """The lock keys of the rig a DAQ configuration describes: a serial rig's device
+    (links resolved), a Modbus rig's every address (RigNameError if its host does
+    not resolve)."""
+    from quadtank_tui.daq.ist.config import IstConfig
+
+    if isinstance(rig, IstConfig):
+        return (rig.lock_key(),)
+    return rig_devices(rig.host, rig.port, rig.device_id)
+
+
 class RigLock:
     """The locks of every key of one rig (session.lock.DaqLock each), held together:
     the same interface as one DaqLock."""
 
     def __init__(self, device: str, locks: list[DaqLock]) -> None:
         self.device, self._locks = device, locks
+
+    @classmethod
+    def of(cls, rig: DaqConfig | IstConfig, lab: LabConfig, *, session: str | None = None,
+           take_over: bool = False) -> RigLock:
+        """The lock of the rig a DAQ configuration describes, under its identity
+        (rig_keys): DaqLockHeld naming it if a live program drives it."""
+        from quadtank_tui.daq.ist.config import IstConfig
+
+        if isinstance(rig, IstConfig):  # a serial rig: one key, its device
+            key = rig.lock_key()
+            return cls(key, [DaqLock.acquire(key, lab, session=session, take_over=take_over)])
+        return cls.acquire(rig.host, rig.port, rig.device_id, lab, session=session, take_over=take_over)
 
     @classmethod
     def acquire(cls, host: str, port: int, unit: int, lab: LabConfig, *, session: str | None = None,

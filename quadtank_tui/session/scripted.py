@@ -20,6 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from quadtank_tui.core.disturbance import updated
 from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend
 from quadtank_tui.engine.experiment import apply_due
 from quadtank_tui.engine.headless import HeadlessRun, finish_headless, prepare_headless
@@ -85,17 +86,19 @@ class _StandIn(ProcessBackend):
 
 
 def rehearse(*, par: str | None, script: Script | None, duration: float, out: Path, seed: int | None,
-             params_dir: Path, active: bool, budget: float = REHEARSAL_BUDGET) -> str | None:
+             params_dir: Path, active: bool, disturbance_pumps: bool = False,
+             budget: float = REHEARSAL_BUDGET) -> str | None:
     """Run the detached run's script on a manual clock, writing only to a temporary
     folder, until its last event has been applied: raises the ValueError (a
     ScriptError naming file, event and line) the session would stop with.  `active`:
-    on a stand-in rig (the run drives a DAQ).  A rehearsal stops after `budget` s of
+    on a stand-in rig (the run drives a DAQ), with disturbance pumps if the rig has
+    them (`disturbance_pumps`: an IST rig).  A rehearsal stops after `budget` s of
     wall time (a sample costs about 0.1 ms: 10 min of script at 0.1 s is a
     second): then a warning saying how far the script was checked, else None."""
     with tempfile.TemporaryDirectory(prefix="quadtank-rehearsal-") as folder:
         prepared = prepare_headless(par=par, script=script, duration=duration, out=Path(folder) / out.name,
                                     seed=seed, clock="manual", params_dir=params_dir,
-                                    daq=_StandIn() if active else None)
+                                    daq=(_PumpedStandIn() if disturbance_pumps else _StandIn()) if active else None)
         run = ScriptedRun(prepared)
         end = time.monotonic() + budget
         checked: list[str] = []
@@ -118,3 +121,13 @@ def rehearse(*, par: str | None, script: Script | None, duration: float, out: Pa
         finally:
             prepared.engine.stop()
     return checked[0] if checked else None
+
+
+class _PumpedStandIn(_StandIn):
+    """The stand-in of a rig with disturbance pumps (an IST rig): they take what the
+    rig takes (0..1 of full PWM)."""
+
+    disturbances = (0.0, 0.0)
+
+    def set_disturbances(self, d1: float | None, d2: float | None) -> None:
+        updated(self.disturbances, d1, d2)  # ValueError as the rig's

@@ -15,6 +15,7 @@ from typing import Any, Callable, Iterator
 import pytest
 
 from quadtank_tui.core.plant import steady_state_levels
+from quadtank_tui.daq.ist import backend as ist_backend
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.backend import IstBackend
 from quadtank_tui.daq.ist.commands import IST_PLANT, IST_VOLTS
@@ -98,6 +99,33 @@ def test_levels_and_pumps_through_the_pty(served: Callable[..., Served]) -> None
         b.close()
     assert [f for f in frames_of(bytes(dev.device.received)) if f != p.REQUEST] == [
         p.pump_frame(68, 76), p.pump_frame(68, 76, 255, 128), p.pump_frame(0, 0)]
+
+
+def test_a_handler_raising_as_the_signals_are_held_leaves_the_mask_as_it_was(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """pthread_sigmask runs a pending signal's handler as it returns; one that raises
+    inside the blocking call (the alarm of the test below, a Ctrl-C) left every
+    signal blocked in the thread for good, and the processes it spawned after
+    (sessions) inherited the mask and ignored SIGTERM."""
+    real = signal.pthread_sigmask
+    before = real(signal.SIG_BLOCK, ())
+
+    class Interrupted(BaseException):
+        pass
+
+    def handler_raises_inside(how: int, mask: Any) -> Any:
+        old = real(how, mask)
+        if how == signal.SIG_BLOCK and set(mask) == set(signal.valid_signals()):
+            raise Interrupted()  # as a pending handler run at the call's return
+        return old
+
+    monkeypatch.setattr(signal, "pthread_sigmask", handler_raises_inside)
+    try:
+        with pytest.raises(Interrupted), ist_backend._signals_held():
+            pass
+        assert real(signal.SIG_BLOCK, ()) == before
+    finally:
+        real(signal.SIG_SETMASK, before)
 
 
 def test_a_write_interrupted_by_signals_never_cuts_a_frame(served: Callable[..., Served]) -> None:
@@ -261,3 +289,24 @@ def test_the_port_is_exclusive_a_second_program_cannot_open_it(served: Callable[
     finally:
         second.close()
         first.close()
+
+
+def test_coming_back_to_active_after_a_while_in_simul_is_no_stall(served: Callable[..., Served]) -> None:
+    """Active -> Simul (pumps at 0, the rig left alone) -> Active 3 s later: the
+    silence was chosen, not a frozen program; a silence while Active still is."""
+    dev = served()
+    now = [0.0]
+    b = IstBackend(IstConfig(port=dev.path, open_wait=0.1, timeout=0.3), clock=lambda: now[0])
+    try:
+        b.arm(1.0)
+        b.read_levels()
+        b.safe_state()           # Simul: the loop leaves the rig
+        now[0] += 3.0
+        b.arm(1.0)               # Active again
+        b.read_levels()          # no fault
+        b.write_pumps((0.6, 0.6))
+        now[0] += 3.0            # the loop itself stalls in Active
+        with pytest.raises(BackendError, match="no level request reached the rig for 3.0 s"):
+            b.read_levels()
+    finally:
+        b.close()

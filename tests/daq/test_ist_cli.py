@@ -134,13 +134,6 @@ def test_a_second_program_is_refused_naming_the_holder_of_the_port(
         child.wait()
 
 
-def test_the_tui_refuses_an_ist_file_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    cfg = config_for(tmp_path, "/dev/null")
-    assert main(["--daq", str(cfg), "--no-session"]) != 0
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "is driven by `quadtank run --daq" in err
-
-
 def test_calibrate_write_is_refused_for_an_ist_file_in_one_line(tmp_path: Path,
                                                                  capsys: pytest.CaptureFixture[str]) -> None:
     cfg = config_for(tmp_path, "/dev/null")
@@ -152,15 +145,18 @@ def test_calibrate_write_is_refused_for_an_ist_file_in_one_line(tmp_path: Path,
     assert cfg.read_text() == before
 
 
-@pytest.mark.parametrize("body, error", [
-    ("disturbance: {d1: 0.5}", "event 1 (line 1): simulator has no disturbance pumps (an IST rig has two, in Active)"),
-    ("disturbance: {d3: 0.5}", "event 1 (line 1): disturbance needs {d1: 0..1, d2: 0..1} (one may be left out)"),
-    ("disturbance: {d2: 1.5}", "event 1 (line 1): disturbance.d2 must be a number in 0..1 (a fraction of full "
-                               "PWM), got 1.5"),
+@pytest.mark.parametrize("par, body, error", [
+    ("coupled-tito.par", "disturbance: {d1: 0.5}", "event 1 (line 1): the coupled-tito plant has no disturbance "
+                                                   "pumps (the IST rig's pour into tanks 1 and 2 of the quadruple tank)"),
+    ("ist-lisbon.par", "disturbance: {d3: 0.5}", "event 1 (line 1): disturbance needs {d1: 0..1, d2: 0..1} "
+                                                 "(one may be left out)"),
+    ("ist-lisbon.par", "disturbance: {d2: 1.5}", "event 1 (line 1): disturbance.d2 must be a number in 0..1 "
+                                                 "(a fraction of full PWM), got 1.5"),
 ])
-def test_a_disturbance_event_the_process_cannot_take_is_one_line(body: str, error: str, tmp_path: Path,
+def test_a_disturbance_event_the_process_cannot_take_is_one_line(par: str, body: str, error: str, tmp_path: Path,
                                                                  capsys: pytest.CaptureFixture[str]) -> None:
     script = tmp_path / "d.yaml"
     script.write_text(f"- at: 1\n  {body}\n")
-    assert main(["run", "--script", str(script), "--duration", "3", "--log", str(tmp_path / "d.log")]) == 2
+    assert main(["run", "--par", str(ROOT / "params" / par), "--script", str(script), "--duration", "3",
+                 "--log", str(tmp_path / "d.log")]) == 2
     assert capsys.readouterr().err == f"quadtank: error: {script}, {error}\n"

@@ -20,7 +20,7 @@ from quadtank_tui.daq.ist.backend import IstBackend
 from quadtank_tui.daq.ist.config import IstConfig
 from quadtank_tui.daq.ist.device import Firmware, PtyDevice, serve
 from quadtank_tui.engine.backend import Levels4
-from quadtank_tui.engine.commands import SetOperation
+from quadtank_tui.engine.commands import SetDisturbance, SetOperation
 from quadtank_tui.engine.runner import Engine, build_engine
 from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.files.par import read_par
@@ -113,10 +113,11 @@ def test_an_answer_lost_on_the_line_pauses_the_run_within_the_sample_pumps_at_0(
     try:
         assert engine.submit(SetOperation("Active")).result().ok
         start_experiment(engine, {"REFERENCE ONE.On": 1, "REFERENCE TWO.On": 1})
+        assert engine.submit(SetDisturbance(1.0, 0.5)).result().ok
         for _ in range(3):
             engine.step()
         time.sleep(0.1)
-        assert firmware.pwm[:2] != (0, 0) and engine.snapshot().fault is None
+        assert firmware.pwm[:2] != (0, 0) and firmware.pwm[2:] == (255, 128) and engine.snapshot().fault is None
         firmware.mute = True      # the '$' is heard, its answer never comes
         t0 = time.monotonic()
         snap = engine.step()
@@ -125,6 +126,7 @@ def test_an_answer_lost_on_the_line_pauses_the_run_within_the_sample_pumps_at_0(
         assert took < 0.3 + 0.05 + 1.0  # the timeout, the reopening's wait, slack for a loaded machine
         time.sleep(0.1)
         assert firmware.pwm == (0, 0, 0, 0) and not firmware.hung  # reopened (reset) and a zero frame
+        assert engine.snapshot().disturbances == (0.0, 0.0)  # the fault stopped the disturbance pumps too
         assert backend.safe_state_error == ""
     finally:
         engine.stop()

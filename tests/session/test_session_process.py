@@ -217,6 +217,27 @@ def test_sigterm_stops_the_session_in_order(tmp_path: Path) -> None:
     assert list((tmp_path / "logs").glob("*.partial"))
 
 
+def test_a_session_launched_with_its_stop_signals_blocked_still_stops_on_sigterm(tmp_path: Path) -> None:
+    """A process inherits its launcher's signal mask: a session spawned while they
+    were blocked (a pytest whose main thread an interrupted IST write had left with
+    every signal blocked) ignored SIGTERM and sat on, sampling, until SIGKILL."""
+    runtime = tmp_path / "run"
+    stops = {signal.SIGTERM, signal.SIGHUP, signal.SIGINT}
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, stops)
+    try:
+        info = _start(tmp_path, runtime)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+    try:
+        os.kill(info.pid, signal.SIGTERM)
+        assert wait_until(lambda: not pid_alive(info.pid), 30)
+    finally:
+        if pid_alive(info.pid):
+            os.kill(info.pid, signal.SIGKILL)
+    (ended,) = ended_sessions(runtime)
+    assert ended.ended == "SIGTERM"
+
+
 def test_the_launchers_rig_lock_passes_to_the_session(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                       capsys: pytest.CaptureFixture[str]) -> None:
     """`quadtank run --daq C --detach`: the command takes the rig's lock as every

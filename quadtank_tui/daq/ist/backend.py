@@ -44,6 +44,7 @@ import time
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, Callable, Iterator
 
+from quadtank_tui.core.disturbance import updated
 from quadtank_tui.core.plant import FULL_SCALE_V
 from quadtank_tui.daq.interlock import Interlock
 from quadtank_tui.daq.ist import protocol as p
@@ -70,13 +71,22 @@ def open_serial(port: str, timeout: float) -> Any:
 
 @contextmanager
 def _signals_held() -> Iterator[None]:
-    """No Python signal handler runs in this thread until the block ends."""
+    """No Python signal handler runs in this thread until the block ends.
+
+    pthread_sigmask runs the handlers of signals already pending when it returns,
+    and one may raise (KeyboardInterrupt, a test's alarm).  So the mask is read
+    first, by a call that blocks nothing, and the blocking call is inside the
+    try: raised there, the mask is still put back.  Before, a handler raising in
+    the blocking call left every signal blocked in this thread for good, and
+    every process it spawned afterwards inherited that mask (sessions that ignored
+    SIGTERM)."""
     try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, signal.valid_signals())
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, ())
     except (AttributeError, OSError, ValueError):  # no pthread_sigmask (Windows)
         yield
         return
     try:
+        signal.pthread_sigmask(signal.SIG_BLOCK, signal.valid_signals())
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
@@ -112,15 +122,25 @@ class IstBackend(ProcessBackend):
         self.last_frame: tuple[int, int, int, int] = (0, 0, 0, 0)
 
     @property
+    def disturbances(self) -> tuple[float, float]:
+        """The disturbance pumps' duties d1, d2 going out with the pump frames (0..1)."""
+        return (self.disturbance[0] / p.DISTURBANCE_MAX, self.disturbance[1] / p.DISTURBANCE_MAX)
+
+    @property
     def alarms(self) -> tuple[str, ...]:
         return self.interlock.alarms(self.full_scale)
 
     # --- ProcessBackend --------------------------------------------------------------
 
     def arm(self, tsamp: float) -> None:
-        """Active control starts: the keep-alive runs for a loop sampling every `tsamp` s."""
+        """Active control starts (or its sampling time changes): the keep-alive runs
+        for a loop sampling every `tsamp` s.  A loop that comes back to the rig (Simul
+        -> Active) left it on purpose, pumps at 0: the silence meanwhile is no stall."""
+        now = self._clock()
+        if self._loop_call is None or now - self._loop_call > (self._tsamp or 0.0) + 1.0:
+            self._last_request = None
         self._tsamp = tsamp
-        self._loop_call = self._clock()
+        self._loop_call = now
         if self._keepalive is None:
             self._stop.clear()
             self._keepalive = threading.Thread(target=self._keep_alive, name="ist-keepalive", daemon=True)
@@ -168,14 +188,8 @@ class IstBackend(ProcessBackend):
     def set_disturbances(self, d1: float | None, d2: float | None) -> None:
         """The disturbance pumps at fractions d1, d2 of full PWM (None: as it is)
         from the next pump frame (a pause's safe_state stops them)."""
-        codes = list(self.disturbance)
-        for i, (name, d) in enumerate((("d1", d1), ("d2", d2))):
-            if d is None:
-                continue
-            if not (0.0 <= d <= 1.0):
-                raise ValueError(f"{name} must be in 0..1 (a fraction of full PWM), got {d}")
-            codes[i] = round(d * p.DISTURBANCE_MAX)
-        self.disturbance = (codes[0], codes[1])
+        duties = updated(self.disturbances, d1, d2)
+        self.disturbance = (round(duties[0] * p.DISTURBANCE_MAX), round(duties[1] * p.DISTURBANCE_MAX))
 
     def safe_state(self) -> None:
         """One whole zero frame (all four pumps); never raises.  A port closed by a

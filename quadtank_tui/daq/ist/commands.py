@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
 import sys
 from typing import TYPE_CHECKING
 
@@ -25,11 +24,6 @@ IST_PLANT = PlantParams(
     k1=p.PUMP_K[0], k2=p.PUMP_K[1], gamma1=p.GAMMAS[0], gamma2=p.GAMMAS[1], kc=0.25, g=p.G, hmax=40.0)
 #: Its operating point (params/ist-lisbon.par): both pumps at 6 V.
 IST_VOLTS = (6.0, 6.0)
-
-
-def lock_key(config: IstConfig) -> str:
-    """The name the rig is locked under: its serial device, links resolved."""
-    return f"serial:{os.path.realpath(config.port)}"
 
 
 def cmd_rig_ist(args: argparse.Namespace) -> int:

@@ -20,6 +20,7 @@ for a Modbus configuration (daq/config.py, whose validator this reuses).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -69,6 +70,17 @@ class IstConfig:
             return own
         margin = self.plausible_margin * self.tank_height
         return (-margin, self.tank_height + margin)
+
+    @property
+    def watchdog(self) -> float:
+        """The firmware's own watchdog, s: no level request for that long stops all
+        four pumps (always there: a session's record says "device")."""
+        return p.WATCHDOG_S
+
+    def lock_key(self) -> str:
+        """The rig's identity, the name it is locked under: its serial device with
+        the links resolved (/dev/serial/by-id/... and /dev/ttyUSB0 are one rig)."""
+        return f"serial:{os.path.realpath(self.port)}"
 
     def conversion_line(self) -> str:
         """What `daq check` says about the conversion."""

@@ -20,8 +20,8 @@ the commit protocol.py cites), on an injected clock:
 The plant is core.plant's quadruple tank (the .par's constants) driven by the
 pumps' volts of the identified law (protocol.PumpCurve.volts of each PWM code); the
 disturbance pumps pour into tanks 1 and 2 by the law of the rig's own simulator
-(quadrupleSimObj.m: q = k1 c1_1 d_scale (d - c3_1) / (d - c2_1), d_scale 0.05,
-d = PWM / 255), added per step of the model.
+(core.disturbance, with the configuration's pump 1 constants, d = PWM / 255), in
+the model's equations as the simulator's Simul disturbance is (core.faults.advance).
 """
 
 from __future__ import annotations
@@ -30,16 +30,18 @@ import errno
 import math
 import os
 import select
+import threading
 import time
 import tty
 from typing import Callable, Sequence
 
-from quadtank_tui.core.plant import PlantParams, add_water, advance
+from quadtank_tui.core import faults as fx
+from quadtank_tui.core.disturbance import DisturbancePumps
+from quadtank_tui.core.plant import PlantParams, advance
+from quadtank_tui.core.plants import QuadTank
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.config import IstConfig
 
-#: The rig's simulator's disturbance scale (quadrupleSimObj.m, cte.d_scale).
-D_SCALE = 0.05
 #: Nominal Vcc of the sensors' divider (the Nano's USB 5 V), V.
 VCC = 5.0
 #: Wall seconds between two passes of the served loop when no byte comes.
@@ -129,11 +131,8 @@ class Firmware:
     def disturbance_flows(self) -> tuple[float, float]:
         """cm^3/s of the two disturbance pumps into tanks 1 and 2."""
         c = self.config.pumps[0]
-        out = []
-        for d in self.pwm[2:]:
-            x = d / p.DISTURBANCE_MAX
-            out.append(c.k * c.c1 * D_SCALE * (x - c.c3) / (x - c.c2) if x > max(c.c2, c.c3) else 0.0)
-        return out[0], out[1]
+        pumps = DisturbancePumps(c1=c.c1, c2=c.c2, c3=c.c3, k=c.k)
+        return (pumps.flow(self.pwm[2] / p.DISTURBANCE_MAX), pumps.flow(self.pwm[3] / p.DISTURBANCE_MAX))
 
     def _advance(self) -> None:
         now = self.clock()
@@ -141,11 +140,11 @@ class Firmware:
         self._t = now
         if dt <= 0:
             return
-        h = advance(self.h, self.volts(), dt, self.plant)
-        for tank, q in enumerate(self.disturbance_flows(), start=1):
-            if q > 0:
-                h = add_water(h, tank, q * dt / self.plant.area(tank - 1), self.plant)
-        self.h = tuple(h)
+        q = self.disturbance_flows()
+        if any(q):
+            self.h = fx.advance(QuadTank(self.plant), fx.Faults(), self.h, self.volts(), dt, (q[0], q[1], 0.0, 0.0))
+        else:
+            self.h = tuple(advance(self.h, self.volts(), dt, self.plant))
 
     def status(self) -> str:
         return ("h = " + " ".join(f"{x:6.2f}" for x in self.h) + " cm   pwm u = "
@@ -209,3 +208,23 @@ def serve(device: PtyDevice, *, status_every: float = 0.0, stop: Callable[[], bo
         if status_every > 0 and time.monotonic() - last >= status_every:
             last = time.monotonic()
             device.firmware.report(device.firmware.status())
+
+
+class ServedDevice:
+    """`firmware` on a new pseudo-terminal, served by a thread of this process until
+    `close`: the tests and benchmarks run the whole Active path on it, the host (a
+    session process, an IstBackend) opening `path`."""
+
+    def __init__(self, firmware: Firmware) -> None:
+        self.firmware = firmware
+        self.pty = PtyDevice(firmware)
+        self.path = self.pty.path
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=serve, args=(self.pty,), kwargs={"stop": self._stop.is_set},
+                                        name="ist-device", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(2.0)
+        self.pty.close()

@@ -1,9 +1,15 @@
-"""The Faults window (B7, Simul only): break the simulated process on purpose.
+"""The Faults window (B7): break the simulated process on purpose, and drive the
+disturbance pumps.
 
-A list of the fault kinds (core.faults), the tank, pump, sensor or valve it hits,
-and its value; On switches it on (replacing one of the same kind there), Off
-switches it off.  The faults in force are listed from the live snapshot.  The
-engine checks the fault against the plant and says why it refuses one.
+A list of the fault kinds (core.faults, Simul only), the tank, pump, sensor or
+valve it hits, and its value; On switches it on (replacing one of the same kind
+there), Off switches it off.  The faults in force are listed from the live
+snapshot.  The engine checks the fault against the plant and says why it refuses one.
+
+Where the process has disturbance pumps (an IST rig in Active, the simulated
+quadruple tank in Simul: engine.commands.SetDisturbance), two more fields hold d1
+and d2 in percent of full PWM (the rig's 8-bit PWM: 100 % is 255); Enter in one of
+them, or Set d, sends both.  Every safe state puts them back at 0.
 """
 
 from __future__ import annotations
@@ -17,7 +23,7 @@ from textual.widgets.option_list import Option
 
 from quadtank_tui.core.faults import KINDS
 from quadtank_tui.core.validation import ParameterError
-from quadtank_tui.engine.commands import SetFault
+from quadtank_tui.engine.commands import SetDisturbance, SetFault
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.values import parse_number
 from quadtank_tui.ui.windows.base import Commands, Window
@@ -37,7 +43,8 @@ class FaultWindow(Window[Commands]):
     BINDINGS = [Binding("enter", "on", "On", show=False)]
 
     def __init__(self, snapshot: Snapshot, *, opener: str | None = None) -> None:
-        super().__init__("Faults (Simul)", opener=opener)
+        pumps = snapshot.disturbances is not None
+        super().__init__("Faults (Simul) and disturbance pumps" if pumps else "Faults (Simul)", opener=opener)
         self.snapshot = snapshot
         self.kind = NAMES[0]
 
@@ -53,12 +60,24 @@ class FaultWindow(Window[Commands]):
             yield Input("", id="value", placeholder="e.g. 0.02", compact=True)
         active = self.snapshot.faults or "none"
         yield Static(f"In force: {active}", id="active", classes="hint")
+        duties = self.snapshot.disturbances
+        if duties is not None:
+            into = "into tank {}" if self.snapshot.operation == "Simul" else "on the rig"
+            for i, d in enumerate(duties, start=1):
+                with Horizontal(classes="field"):
+                    yield Label(f"Disturb. d{i}", classes="label")
+                    yield Input(f"{100 * d:.4g}", id=f"d{i}", compact=True)
+                    yield Label(f"% of full PWM, {into.format(i)}", classes="unit")
         if self.snapshot.operation != "Simul":
-            yield Static("Faults act on the simulation only: switch to Simul first.", classes="error")
+            yield Static("Faults act on the simulation only: switch to Simul first."
+                         + (" d1, d2 drive the rig's disturbance pumps." if duties is not None else ""),
+                         classes="error")
 
     def compose_buttons(self) -> ComposeResult:
         yield Button("On", id="on", variant="primary")
         yield Button("Off", id="off")
+        if self.snapshot.disturbances is not None:
+            yield Button("Set d", id="disturb")
         yield Button("Cancel", id="cancel")
 
     def on_mount(self) -> None:
@@ -99,8 +118,26 @@ class FaultWindow(Window[Commands]):
             self.dismiss((command,))
 
     @on(Input.Submitted)
-    def _submitted(self) -> None:
-        self.action_on()
+    def _submitted(self, event: Input.Submitted) -> None:
+        if event.input.id in ("d1", "d2"):
+            self.action_disturb()
+        else:
+            self.action_on()
+
+    def action_disturb(self) -> None:
+        """Both disturbance pumps as typed (percent of full PWM)."""
+        duties = []
+        for name in ("d1", "d2"):
+            try:
+                value = parse_number(name, self.query_one(f"#{name}", Input).value)
+            except ParameterError as exc:
+                self.show_message(exc.reason)
+                return
+            if not 0.0 <= value <= 100.0:
+                self.show_message(f"{name} is a percent of full PWM, 0..100, got {value:g}")
+                return
+            duties.append(value / 100.0)
+        self.dismiss((SetDisturbance(duties[0], duties[1]),))
 
     def action_off(self) -> None:
         command = self._command(False)
