@@ -11,7 +11,8 @@ holds at x1000, and the cost of attaching.
    advances its 50 ms sampling time per sample: the scheduler's stress only.)
 2. x1000 at Ts = 50 ms with every sample logged, headless (`quadtank run --speed
    1000`) and in a session process with a client attached: the speed held, asked
-   x samples / (samples + slots skipped), as the run's summary states it.
+   x samples / (samples + slots skipped), as the run's summary states it, and the
+   session process's CPU a sample (its waits included).
 3. Attaching to a session whose ring buffer is full (36000 samples, 1 h at 0.1 s):
    wall time from connect to a live client holding the whole history.
 
@@ -137,12 +138,22 @@ def session_speed(seconds: float) -> dict[str, float]:
             for command in (SetParams({"SAMPLING TIME.TSamp": 50}), SetSpeed(1000.0), LogOn(points=10**7),
                             SetState("Run")):
                 assert client.submit(command).result(10).ok
-            first = client.snapshot().stats
+            first, cpu0 = client.snapshot().stats, process_cpu(info.pid)
             time.sleep(seconds)
-            last = client.snapshot().stats
+            last, cpu1 = client.snapshot().stats, process_cpu(info.pid)
         stop_session_at(info.socket)
     samples, skipped = last.samples - first.samples, last.skipped - first.skipped
-    return {"samples": samples, "skipped": skipped, "held": 1000.0 * samples / max(1, samples + skipped)}
+    return {"samples": samples, "skipped": skipped, "held": 1000.0 * samples / max(1, samples + skipped),
+            "cpu_us": 1e6 * (cpu1 - cpu0) / max(1, samples)}
+
+
+def process_cpu(pid: int) -> float:
+    """CPU seconds (user + system) process `pid` has used (Linux /proc; nan elsewhere)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def attach_cost() -> tuple[float, int]:
@@ -175,7 +186,8 @@ def main() -> None:
     print(f"headless x1000 at 50 ms, logging, {args.seconds:g} s: {headless_speed(args.seconds)}", flush=True)
     r = session_speed(args.seconds)
     print(f"session  x1000 at 50 ms, logging, a client, {args.seconds:g} s: {r['samples']:.0f} samples, "
-          f"{r['skipped']:.0f} slots skipped: x{r['held']:.0f} held", flush=True)
+          f"{r['skipped']:.0f} slots skipped: x{r['held']:.0f} held; the session process "
+          f"{r['cpu_us']:.1f} us CPU a sample", flush=True)
     took, rows = attach_cost()
     print(f"attach with a full ring buffer: {rows} samples in {took * 1000:.0f} ms")
 

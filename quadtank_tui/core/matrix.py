@@ -79,11 +79,16 @@ def _matrix_family(family: Family | str) -> Family:
 
 
 def _row_sums(v: Mapping[Element, float]) -> Pair:
-    """u_i = sum over j of v_ij."""
-    return (
-        sum(x for (i, _), x in v.items() if i == 1),
-        sum(x for (i, _), x in v.items() if i == 2),
-    )
+    """u_i = sum over j of v_ij: in one pass, in the order and from the start (the
+    int 0) that sum() took, so the same bits (0 + -0.0 is 0.0) at half the cost."""
+    u1: float = 0
+    u2: float = 0
+    for (i, _), x in v.items():
+        if i == 1:
+            u1 += x
+        else:
+            u2 += x
+    return (u1, u2)
 
 
 def _check_element(i: int, j: int) -> Element:
@@ -149,12 +154,16 @@ class ControllerMatrix:
     def element_outputs(self, r: Sequence[float], y: Sequence[float]) -> dict[Element, float]:
         """v_ij of every active element for this sample (pure), normalized."""
         out: dict[Element, float] = {}
-        for i, j in self.active_elements():
-            rj, yj = r[j - 1], y[j - 1]
-            if self._family is Family.PID:
-                out[(i, j)] = self._pid[(i, j)].compute(rj, yj)
-            else:
-                out[(i, j)] = self._general[(i, j)].compute(rj - yj)
+        if self._family is Family.PID:
+            pid = self._pid
+            for e in self.active_elements():
+                j = e[1] - 1
+                out[e] = pid[e].compute(r[j], y[j])
+        else:
+            general = self._general
+            for e in self.active_elements():
+                j = e[1] - 1
+                out[e] = general[e].compute(r[j] - y[j])
         return out
 
     def compute(self, r: Sequence[float], y: Sequence[float]) -> Pair:

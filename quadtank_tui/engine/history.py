@@ -47,6 +47,8 @@ class History:
         self.capacity = check_capacity(capacity)
         self._hdr = np.zeros(HEADER_WORDS, dtype=np.int64)
         self._buf = np.zeros((self.capacity, len(SIGNALS)), dtype=float)
+        #: The writer's own copy of _hdr[_TOTAL] (a Python int: reading the array costs more).
+        self._total = 0
 
     def __len__(self) -> int:
         total, start = int(self._hdr[_TOTAL]), int(self._hdr[_START])
@@ -61,10 +63,11 @@ class History:
 
     def append(self, row: Sequence[float]) -> None:
         """One sample, values in :data:`SIGNALS` order."""
-        total = int(self._hdr[_TOTAL])
-        self._hdr[_BEGUN] = total + 1  # the oldest row is about to go
+        total = self._total
+        hdr = self._hdr
+        hdr[_BEGUN] = total + 1  # the oldest row is about to go
         self._buf[total % self.capacity] = row
-        self._hdr[_TOTAL] = total + 1  # published only once the row is whole
+        hdr[_TOTAL] = self._total = total + 1  # published only once the row is whole
 
     def extend(self, rows: np.ndarray) -> None:
         """Many samples at once (a client catching up with its session), oldest first;
@@ -76,7 +79,7 @@ class History:
         self._hdr[_BEGUN] = total + n
         idx = (total + np.arange(n)) % self.capacity
         self._buf[idx] = rows
-        self._hdr[_TOTAL] = total + n
+        self._hdr[_TOTAL] = self._total = total + n
 
     def since(self, index: int) -> tuple[np.ndarray, int, int]:
         """(rows with absolute index >= `index` still kept, rows ever written, clear

@@ -25,9 +25,10 @@ EDGES = np.concatenate(([LOWEST], LOWEST * 10.0 ** (np.arange(1, _NBINS - 1) / B
 class JitterHistogram:
     """Counts of |jitter| per bin, and the bins holding the tracked percentiles.
 
-    The engine asks for the percentiles after every sample, so each tracked
-    percentile keeps a pointer to its bin that an added sample moves by a step or
-    two (about 1 µs a sample in pure Python, against 6 µs for a cumulative sum)."""
+    A caller that asks for a percentile after every sample tracks it: its pointer
+    to its bin moves by a step or two at each add (about 1 µs a sample in pure
+    Python, against 6 µs for a cumulative sum).  The loop asks only when a snapshot
+    is built, so it tracks none and its add is a count."""
 
     def __init__(self, tracked: tuple[float, ...] = (50.0, 99.0)) -> None:
         self.counts = [0] * _NBINS

@@ -153,10 +153,7 @@ class LogSession:
         self._rows += 1
         if self._rows >= self._points:
             self._active = False  # the writer stops by itself at its last point
-        self._write(_append, {
-            "t": t - self._t0, "y1": y[0], "y2": y[1], "y3": y[2], "y4": y[3],
-            "u1": u[0], "u2": u[1], "r1": r[0], "r2": r[1],
-        })
+        self._write(_append, (t - self._t0, y[0], y[1], y[2], y[3], u[0], u[1], r[0], r[1]))
 
     def late(self, gap: float, tsamp: float) -> None:
         """The next row was sampled `gap` s after the previous one, not `tsamp` (a
@@ -176,24 +173,27 @@ class LogSession:
     def _write(self, op: Callable[[LogWriter, object], object], arg: object) -> None:
         """Hand a row or a comment to the writer; a failure is raised by check()
         (at once when the file operations run inline)."""
-        def write() -> None:
-            if self._writer is None:
-                return
-            try:
-                op(self._writer, arg)
-            except Exception as exc:
-                if self._failure is None:
-                    self._failure = (exc, self._writer.rows)
-                raise
-
         if self.files.threaded:
-            self.files.submit(write)
+            self.files.submit(self._run_write, op, arg)
         else:  # inline, as submit() would run it, without a Future per row
             try:
-                write()
+                self._run_write(op, arg)
             except Exception:  # noqa: BLE001 - kept in _failure: check() raises it
                 pass
         self.check()
+
+    def _run_write(self, op: Callable[[LogWriter, object], object], arg: object) -> None:
+        """One of _write's operations, as the file worker runs it: a failure is kept
+        for check() (the first one) and raised to the worker."""
+        writer = self._writer
+        if writer is None:
+            return
+        try:
+            op(writer, arg)
+        except Exception as exc:
+            if self._failure is None:
+                self._failure = (exc, writer.rows)
+            raise
 
     def off(self) -> Future[None]:
         if not self._active:
@@ -258,7 +258,7 @@ class LogSession:
 
 
 def _append(writer: LogWriter, values: object) -> None:
-    writer.append(values)  # type: ignore[arg-type]  # the mapping row() built
+    writer.append_row(values)  # type: ignore[arg-type]  # the tuple row() built
 
 
 def _comment(writer: LogWriter, text: object) -> None:

@@ -148,11 +148,11 @@ class ControlLoop:
         # Timing, filled in by the runner (the loop itself has no clock).
         self.realtime = False
         self.speed = math.inf
-        self.stats = LoopStats()
-        self._jitter = JitterHistogram()
+        self._timing = _Timing()
+        self._stats: LoopStats | None = None  # built from _timing when asked (stats)
         self._missed = 0  # sampling slots missed before the sample about to be done
         self._sampled_last = False  # the last step was a sample (not an idle tick, not a fault)
-        self.publish()
+        self._snapshot: Snapshot | None = None  # built when asked (snapshot)
 
     # --- reading -----------------------------------------------------------------------
 
@@ -179,12 +179,33 @@ class ControlLoop:
         return self.controllers.statefb
 
     def snapshot(self) -> Snapshot:
-        return self._snapshot
+        """The state after the last sample or command.  Built here, when asked, not at
+        every sample: at x1000 a client reads one in a thousand (the session publishes
+        every PUBLISH_INTERVAL) and a headless run none, and building one cost a fifth
+        of a sample.  Every change of the loop's state marks it stale (:meth:`_stale`)."""
+        snap = self._snapshot
+        if snap is None:
+            snap = self._snapshot = self._make_snapshot()
+        return snap
+
+    @property
+    def stats(self) -> LoopStats:
+        """The timing of the loop so far (built when asked, as the snapshot is)."""
+        stats = self._stats
+        if stats is None:
+            stats = self._stats = self._timing.stats()
+        return stats
 
     # --- one sample ---------------------------------------------------------------------
 
     def step(self) -> Snapshot:
-        """Do one sample (Run) or one idle tick (Pause); never raises."""
+        """Do one sample (Run) or one idle tick (Pause); never raises.  Its snapshot."""
+        self.sample()
+        return self.snapshot()
+
+    def sample(self) -> None:
+        """:meth:`step` without building the snapshot (the driver's call: nobody may
+        read this sample's)."""
         # Slots missed after a sample are late samples; after an idle tick, only Pause.
         missed = self._missed if self._sampled_last and self.backend is not self.sim else 0
         self._sampled_last = False
@@ -200,7 +221,7 @@ class ControlLoop:
         except Exception as exc:  # noqa: BLE001 - any fault: pumps safe, Pause, say why
             self._fail(exc)
             self.calibration.fail(f"stopped: {self.fault}")
-        return self.publish()
+        self._snapshot = None
 
     def _calibration_tick(self) -> None:
         """One sample of the calibration (engine/calibration_step.py): the pumps held,
@@ -312,11 +333,12 @@ class ControlLoop:
 
     def publish(self) -> Snapshot:
         """Publish a fresh snapshot of the current state (after a stop, say)."""
-        return self._publish(self._make_snapshot())
+        self._snapshot = None
+        return self.snapshot()
 
-    def _publish(self, snap: Snapshot) -> Snapshot:
-        self._snapshot = snap
-        return snap
+    def _stale(self) -> None:
+        """The state changed: the next :meth:`snapshot` is built afresh."""
+        self._snapshot = None
 
     @property
     def missed(self) -> int:
@@ -327,19 +349,14 @@ class ControlLoop:
     def record_timing(self, jitter: float, missed: int, wall: float) -> None:
         """The runner's measurement of the sample about to be done (LoopStats); the
         sample's snapshot carries it."""
-        s = self.stats
         self._missed = missed
-        self._jitter.add(jitter)
-        self.stats = LoopStats(
-            samples=s.samples + 1, overruns=s.overruns + int(missed > 0), skipped=s.skipped + missed,
-            jitter_last=jitter,
-            jitter_max=max(s.jitter_max, abs(jitter)), last_sample_wall=wall,
-            jitter_p50=self._jitter.percentile(50), jitter_p99=self._jitter.percentile(99),
-        )
+        self._timing.add(jitter, missed, wall)
+        self._stats = None
+        self._snapshot = None
 
     def set_clock_info(self, realtime: bool, speed: float) -> None:
         self.realtime, self.speed = realtime, speed
-        self._publish(replace(self._snapshot, realtime=realtime, speed=speed))
+        self._snapshot = None
 
     # --- the driver's hooks: the only ways the outside changes the loop but commands ---------
 
@@ -388,7 +405,7 @@ class ControlLoop:
             if refusal is None:
                 raise
             return _done(refusal)
-        self.publish()
+        self._stale()
         return result if isinstance(result, Future) else _done(result)
 
     def use_file_thread(self) -> None:
@@ -697,6 +714,34 @@ class ControlLoop:
         self.sim.set_levels(levels_cm)
         self._y = self.sim.read_levels()
         self._r = (self._y[0], self._y[1])
+        self._stale()
+
+
+class _Timing:
+    """The driver's measurements, counted as they come (a few additions a sample);
+    :meth:`stats` makes the frozen LoopStats a snapshot carries, when one is built."""
+
+    def __init__(self) -> None:
+        self.samples = self.overruns = self.skipped = 0
+        self.jitter_last = self.jitter_max = self.last_wall = 0.0
+        # No tracked percentiles: they are read a snapshot at a time, not every sample,
+        # and a full count then is cheaper than moving pointers at each add.
+        self.histogram = JitterHistogram(tracked=())
+
+    def add(self, jitter: float, missed: int, wall: float) -> None:
+        self.samples += 1
+        self.overruns += int(missed > 0)
+        self.skipped += missed
+        self.jitter_last, self.last_wall = jitter, wall
+        self.jitter_max = max(self.jitter_max, abs(jitter))
+        self.histogram.add(jitter)
+
+    def stats(self) -> LoopStats:
+        h = self.histogram
+        return LoopStats(samples=self.samples, overruns=self.overruns, skipped=self.skipped,
+                         jitter_last=self.jitter_last, jitter_max=self.jitter_max,
+                         jitter_p50=h.percentile(50), jitter_p99=h.percentile(99),
+                         last_sample_wall=self.last_wall)
 
 
 def _arm(backend: ProcessBackend, tsamp: float) -> None:

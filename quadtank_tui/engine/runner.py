@@ -133,7 +133,7 @@ class Engine:
         with self._lock:
             timing = self.clock.tick()
             self.loop.record_timing(timing.jitter, timing.missed, timing.actual)
-            self.loop.step()
+            self.loop.sample()
 
     def step(self, n: int = 1) -> Snapshot:
         """Do `n` samples, each at its deadline (the driver, inline)."""

@@ -50,6 +50,8 @@ class InterlockRecord:
         """The holds at the write of the sample at process time `t`; returns the
         trips that began here and the tanks released since the last write (for the
         log's `%` lines)."""
+        if not holds and not self._tanks:  # the every-sample case: nothing to note
+            return [], []
         began: list[InterlockHold] = []
         now = {h.tank for h in holds}
         for h in holds:

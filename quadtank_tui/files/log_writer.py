@@ -41,7 +41,7 @@ except ImportError:  # pragma: no cover
 
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.files.atomic import atomic_write_bytes, fsync_dir
-from quadtank_tui.files.names import check_variables
+from quadtank_tui.files.names import LOG_VARIABLES, check_variables
 from quadtank_tui.files.stamp import format_stamp
 
 HEADER = "% TANK LOG-file"
@@ -111,6 +111,9 @@ class LogWriter:
     removes it.  An unlocked partial file with rows at LogOn is the unsaved log of
     a run that died: it is kept as `<name>-recovered.log`, see `recovered`.
 
+    :meth:`append_row` takes a sample as a tuple in :data:`LOG_VARIABLES` order
+    instead, the loop's way: the same bytes, a quarter of the cost.
+
     Rows are handed to the OS every `flush_rows` rows (default: every row, a
     few dozen bytes per sample) and fsynced at most every `fsync_interval` s of
     `clock` time, so a killed process loses nothing and a power cut at most about
@@ -139,6 +142,9 @@ class LogWriter:
         if flush_rows < 1:
             raise LogFileError(str(path), f"flush_rows must be >= 1, got {flush_rows}")
         header = format_header(self.variables, tsamp, created or datetime.now()).encode("ascii")
+        # append_row's way: the logged columns picked out of a full row, one `%` format.
+        self._columns = tuple(LOG_VARIABLES.index(name) for name in self.variables)
+        self._row_format = COLUMN_SEPARATOR.join(["%f"] * len(self.variables)) + "\n"
         self.path = Path(path)
         self.tsamp = float(tsamp)
         self.points = points
@@ -186,13 +192,32 @@ class LogWriter:
         bad = [n for n, v in zip(self.variables, row) if not math.isfinite(v)]
         if bad:
             raise LogFileError(str(self.path), f"not a finite number: {', '.join(bad)}")
-        self._pending.append(format_row(row))
+        self._take(format_row(row))
+        return True
+
+    def append_row(self, row: Sequence[float]) -> bool:
+        """Log one sample given as floats in :data:`LOG_VARIABLES` order: as
+        :meth:`append` with those names, byte for byte, without a mapping built
+        and formatted value by value (the loop logs every sample, x1000 at 50 ms
+        is 20,000 rows a second)."""
+        if not self._writing:
+            return False
+        line = self._row_format % tuple([row[i] for i in self._columns])
+        # %f writes digits, '.', '-' and spaces; an 'n' is a nan or an inf, which
+        # append refuses, and "-0.000000" is what _f writes unsigned: append's way.
+        if "n" in line or "-0.000000" in line:
+            return self.append(dict(zip(LOG_VARIABLES, row)))
+        self._take(line)
+        return True
+
+    def _take(self, line: str) -> None:
+        """A formatted row: pending, handed to the OS every `flush_rows`, the last point stops."""
+        self._pending.append(line)
         self.rows += 1
         if len(self._pending) >= self._flush_rows or self.rows >= self.points:
             self.flush()
         if self.rows >= self.points:
             self.stop()
-        return True
 
     def comment(self, text: str) -> bool:
         """A `%` line between the rows (an event: a fault switched on); readers skip it.

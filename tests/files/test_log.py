@@ -107,6 +107,28 @@ def test_t_column_and_negative_values(tmp_path: Path) -> None:
     )
 
 
+def test_append_row_writes_what_append_writes(tmp_path: Path) -> None:
+    """The loop's row tuple (LOG_VARIABLES order) gives append's bytes, with the
+    columns picked, -0 written unsigned, and nan / inf refused by name."""
+    names = ("t", "u2", "y1", "r2")
+    rows = [(0.05 * i, 0.1 * i, -1e-9 * i, 0.3, 7.0, -0.0, (-1) ** i * 2.5, 12.34567891, -1e-7) for i in range(4)]
+    by_map = LogWriter(tmp_path / "m.log", names, 0.05, 10, created=THESIS_STAMP)
+    by_row = LogWriter(tmp_path / "r.log", names, 0.05, 10, created=THESIS_STAMP)
+    for row in rows:
+        assert by_map.append(dict(zip(("t", "y1", "y2", "y3", "y4", "u1", "u2", "r1", "r2"), row)))
+        assert by_row.append_row(row)
+    text = by_row.save().read_text()
+    assert text == by_map.save().read_text()
+    assert text.splitlines()[4:6] == ["0.000000  2.500000  0.000000  0.000000",
+                                      "0.050000  -2.500000  0.100000  0.000000"]
+    w = LogWriter(tmp_path / "b.log", ("y1", "u1"), 1.0, 10)
+    with pytest.raises(LogFileError, match="not a finite number: u1"):
+        w.append_row((0.0, 0.5, 0.0, 0.0, 0.0, float("-inf"), 0.0, 0.0, 0.0))
+    with pytest.raises(LogFileError, match="not a finite number: y1"):
+        w.append_row((0.0, float("nan"), 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0))
+    assert w.rows == 0
+
+
 # --- LogOn / LogOff / progress / Save ---------------------------------------------------------
 
 def test_points_limit_progress_and_logoff(tmp_path: Path) -> None:
