@@ -152,6 +152,37 @@ def test_a_write_interrupted_by_signals_never_cuts_a_frame(served: Callable[...,
     assert interrupted > 10 and len(frames) > 10 and len(frames) >= sent and not dev.firmware.hung
 
 
+def test_a_handler_raising_as_signals_are_held_leaves_the_mask_as_it_was(monkeypatch: pytest.MonkeyPatch) -> None:
+    """pthread_sigmask runs the handlers of signals already caught when it returns; one
+    that raises as the backend blocks signals (the SIGALRM test above, now and then)
+    left every signal blocked in pytest's thread, so every process a later test
+    started ignored SIGTERM, SIGHUP and Ctrl-C (eight signal tests failed and
+    session processes ran on after the suite).  The mask is given back."""
+    from quadtank_tui.daq.ist import backend as ist_backend
+
+    class Alarm(BaseException):
+        pass
+
+    real = signal.pthread_sigmask
+
+    def raising_once_blocked(how: int, mask: Any) -> Any:
+        old = real(how, mask)
+        if how == signal.SIG_BLOCK and set(mask) == set(signal.valid_signals()):
+            raise Alarm()  # what a caught signal's handler does as the call returns
+        return old
+
+    before = real(signal.SIG_BLOCK, ())
+    monkeypatch.setattr(ist_backend.signal, "pthread_sigmask", raising_once_blocked)
+    try:
+        with pytest.raises(Alarm):
+            with ist_backend._signals_held():
+                pass
+    finally:
+        monkeypatch.undo()
+        after = real(signal.SIG_SETMASK, before)
+    assert after == before
+
+
 def test_an_answer_that_never_comes_is_a_fault_within_the_sample() -> None:
     master, slave = os.openpty()  # a port nobody answers on
     path = os.ttyname(slave)

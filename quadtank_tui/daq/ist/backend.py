@@ -70,13 +70,20 @@ def open_serial(port: str, timeout: float) -> Any:
 
 @contextmanager
 def _signals_held() -> Iterator[None]:
-    """No Python signal handler runs in this thread until the block ends."""
+    """No Python signal handler runs in this thread until the block ends.
+
+    The mask is read first and the blocking done inside the `try`: pthread_sigmask
+    runs the handlers of signals already caught when it returns, and one that raises
+    there (KeyboardInterrupt, a stop signal's exception) left every signal blocked in
+    this thread for good - and in every process it started after (a child inherits
+    the mask): SIGTERM, SIGHUP and Ctrl-C no longer stopped them."""
     try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, signal.valid_signals())
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, ())  # the mask as it is, unchanged
     except (AttributeError, OSError, ValueError):  # no pthread_sigmask (Windows)
         yield
         return
     try:
+        signal.pthread_sigmask(signal.SIG_BLOCK, signal.valid_signals())
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
