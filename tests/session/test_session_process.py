@@ -45,6 +45,18 @@ def wait_until(condition, timeout: float = 60.0) -> bool:  # type: ignore[no-unt
     return True
 
 
+def _stop_for_good(pid: int) -> None:
+    """SIGTERM, then SIGKILL if it is still there: a session a failed test leaves
+    (one that no longer heeds SIGTERM, say) must not run on, sampling, through the
+    rest of the suite."""
+    try:
+        os.kill(pid, signal.SIGTERM)
+    except ProcessLookupError:
+        return
+    if not wait_until(lambda: not pid_alive(pid), timeout=10.0):
+        os.kill(pid, signal.SIGKILL)
+
+
 def _start(tmp_path: Path, runtime: Path, **kwargs: object):  # type: ignore[no-untyped-def]
     spec = engine_spec(clock="virtual", speed=100.0, params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
     return start_session(SessionSpec(spec, str(runtime), **kwargs))  # type: ignore[arg-type]
@@ -139,7 +151,7 @@ def test_a_hang_up_ends_the_client_never_the_session(tmp_path: Path, shell: bool
     finally:
         tui.kill()
         for info in list_sessions(runtime):
-            os.kill(info.pid, signal.SIGTERM)
+            _stop_for_good(info.pid)
 
 
 def test_a_second_session_on_the_same_daq_is_refused_with_the_holders_name(tmp_path: Path,
@@ -201,15 +213,19 @@ def test_sigterm_stops_the_session_in_order(tmp_path: Path) -> None:
     clients are told why, the log is kept, nothing is left in the runtime folder."""
     runtime = tmp_path / "run"
     info = _start(tmp_path, runtime)
-    with SessionClient(info.socket) as client:
-        assert client.submit(c.SetState("Run")).result(30).ok
-        assert client.submit(c.LogOn(points=100000)).result(30).ok
-        time.sleep(0.3)
-        os.kill(info.pid, signal.SIGTERM)
-        assert client.wait_gone(30)
-        assert client.ended == "SIGTERM"
-        assert "ended: SIGTERM" in (client.snapshot().fault or "")
-    wait_until(lambda: not pid_alive(info.pid))
+    try:
+        with SessionClient(info.socket) as client:
+            assert client.submit(c.SetState("Run")).result(30).ok
+            assert client.submit(c.LogOn(points=100000)).result(30).ok
+            time.sleep(0.3)
+            os.kill(info.pid, signal.SIGTERM)
+            assert client.wait_gone(30)
+            assert client.ended == "SIGTERM"
+            assert "ended: SIGTERM" in (client.snapshot().fault or "")
+        wait_until(lambda: not pid_alive(info.pid))
+    finally:
+        if pid_alive(info.pid):  # the test failed: the session must not outlive it
+            os.kill(info.pid, signal.SIGKILL)
     assert not pid_alive(info.pid)
     (ended,) = ended_sessions(runtime)
     assert ended.ended == "SIGTERM" and not socket_path(runtime, info.id).exists()
