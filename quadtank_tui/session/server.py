@@ -74,6 +74,9 @@ LINES_PER_TURN = 8
 #: review's flood) stalled the sampling for a second.
 MAX_LINE_RATE = 200.0
 MAX_LINE_BURST = 1000
+#: Seconds spent encoding a long message's parts per event-loop turn (send_parts):
+#: a part of the history takes about 0.12 ms, so a few go per turn.
+PARTS_PER_TURN_TIME = 0.001
 
 #: Who a peer is to this session: an administrator, its owner, anyone else.
 Rank = Literal["admin", "owner", "other"]
@@ -293,9 +296,9 @@ class Server:
         self._write(conn)
 
     def send_parts(self, conn: Connection, parts: Iterator[bytes]) -> None:
-        """Queue the lines `parts` yields for `conn`, one per event-loop turn (each is
-        encoded when its turn comes: a long message never holds a sample back);
-        what is sent to `conn` meanwhile follows them."""
+        """Queue the lines `parts` yields for `conn`, as many per event-loop turn as
+        PARTS_PER_TURN_TIME allows (each is encoded when its turn comes: a long
+        message never holds a sample back); what is sent to `conn` meanwhile follows them."""
         if conn not in self.connections or conn.closing or conn.parts is not None:
             return
         conn.parts = parts
@@ -303,23 +306,25 @@ class Server:
         self.aloop.call_soon(self._next_part, conn)
 
     def _next_part(self, conn: Connection) -> None:
-        if conn not in self.connections or conn.parts is None:
-            return
-        try:
-            part = next(conn.parts, None)
-        except Exception as exc:  # noqa: BLE001 - what fails for one client ends that client only
-            _note(f"dropped {conn.name}: its message failed: {type(exc).__name__}: {exc}")
-            self.drop(conn)
-            return
-        if part is None:  # all sent: what waited behind them goes next
-            self._parts_done(conn)
-            conn.out += conn.held
-            conn.held = bytearray()
-        elif not self._queue(conn, part, conn.out):
-            return
-        else:
-            self.aloop.call_soon(self._next_part, conn)
-        self._write(conn)
+        end = time.monotonic() + PARTS_PER_TURN_TIME
+        while conn in self.connections and conn.parts is not None:
+            try:
+                part = next(conn.parts, None)
+            except Exception as exc:  # noqa: BLE001 - what fails for one client ends that client only
+                _note(f"dropped {conn.name}: its message failed: {type(exc).__name__}: {exc}")
+                self.drop(conn)
+                return
+            if part is None:  # all sent: what waited behind them goes next
+                self._parts_done(conn)
+                conn.out += conn.held
+                conn.held = bytearray()
+            elif not self._queue(conn, part, conn.out):
+                return
+            elif time.monotonic() > end:
+                self.aloop.call_soon(self._next_part, conn)
+                break
+        if conn in self.connections:
+            self._write(conn)
 
     def _parts_done(self, conn: Connection) -> None:
         if conn.parts is not None:
