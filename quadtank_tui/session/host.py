@@ -10,7 +10,11 @@ applied).
 
 The driver samples the engine (``Engine.sample`` at each deadline); the host
 applies the clients' commands on the same thread (``Engine.submit`` applies at
-once).  Nobody else touches it.
+once).  Nobody else touches it.  Nothing here waits: a command's file work (a
+LogSave's fsyncs, a LoadPar's read) runs on a thread and its answer goes out when
+it is done, the operator's later commands queued behind it; a new client's
+history goes out in parts, a few per turn; a client's lines are handled a few
+per turn (session/server.py).
 
 Stops (pumps at 0, logging stopped with the rows kept, backends closed): a client's
 StopSession from someone allowed to, SIGTERM / SIGHUP / SIGINT, or the loop failing.
