@@ -1,8 +1,10 @@
 """A TUI's (or a script's) handle on a session: the EngineHandle over its socket.
 
-On attach the session sends everything at once - its whole ring buffer, the
-snapshot, the defaults - so the trends are complete (nothing sampled while no client
-was attached is missing) and the screen is live at once.  Then a reader thread
+On attach the session sends everything - its whole ring buffer, the snapshot, the
+defaults - before anything else, so the trends are complete (nothing sampled while
+no client was attached is missing) and the screen is live at once: the client
+returns once it holds the whole history (the Welcome and the HistoryPart lines
+that follow it; the session encodes one per turn, so its sampling never waits).  Then a reader thread
 appends each update's rows to a private copy of the ring buffer and keeps the newest
 snapshot; `snapshot()` and `history()` read those, never the socket.  A screen
 may take the reading over on its own event loop (`read_on`): then an update or a
@@ -44,11 +46,11 @@ from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log_writer import log_path
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.session.protocol import (
-    MAX_SESSION_LINE, Ended, Hello, LineReader, ProtocolError, Refused, Result, Role, Roster, SessionInfo,
-    StopSession, Submit, Update, Welcome, decode, encode,
+    MAX_SESSION_LINE, Ended, Hello, HistoryPart, LineReader, ProtocolError, Refused, Result, Role, Roster,
+    SessionInfo, StopSession, Submit, Update, Welcome, decode, encode,
 )
 
-#: Seconds to connect and receive the Welcome (the whole history: 2.6 MB).
+#: Seconds to connect and receive the Welcome (with the whole history: 3.5 MB).
 ATTACH_TIMEOUT = 10.0
 #: Seconds `stop_session` waits for the session to stop (pumps at 0, log closed).
 STOP_TIMEOUT = 15.0
@@ -84,16 +86,18 @@ class SessionClient:
         self._pending: list[bytes] = []
         try:
             sock.sendall(encode(Hello(role, client, take_over)))
-            first = self._receive_first()
+            first = self._next_message()
+            parts = [self._next_message() for _ in range(first.parts)] if isinstance(first, Welcome) else []
         except (OSError, ProtocolError) as exc:
             sock.close()
             raise SessionError(f"the session at {path} did not answer: {exc}") from None
         if isinstance(first, Refused):
             sock.close()
             raise SessionError(first.reason)
-        if not isinstance(first, Welcome):
+        if not isinstance(first, Welcome) or not all(isinstance(p, HistoryPart) for p in parts):
             sock.close()
-            raise SessionError(f"the session at {path} answered {type(first).__name__}, not Welcome")
+            what = type(first).__name__ if not isinstance(first, Welcome) else "a Welcome without its history"
+            raise SessionError(f"the session at {path} answered {what}, not Welcome")
         sock.settimeout(None)
         w = first
         self.info: SessionInfo = w.info
@@ -105,7 +109,8 @@ class SessionClient:
         self._params: Parameters = w.snapshot.params
         self._snap: Snapshot = w.snapshot
         self._history = History(w.capacity)
-        self._history.extend(w.history)
+        for part in parts:
+            self._history.extend(part.rows)
         self._store = ParStore(w.params_dir)
         self._logs_dir = Path(w.logs_dir)
         self._ids = itertools.count(1)
@@ -128,15 +133,14 @@ class SessionClient:
         self._thread = threading.Thread(target=self._listen, name="quadtank-session-client", daemon=True)
         self._thread.start()
 
-    def _receive_first(self) -> Any:
-        while True:
+    def _next_message(self) -> Any:
+        """The session's next message, while attaching (blocking)."""
+        while not self._pending:
             data = self._sock.recv(1 << 20)
             if not data:
                 raise ProtocolError("it closed the connection")
-            lines = self._reader.feed(data)
-            if lines:
-                self._pending = lines[1:]
-                return decode(lines[0])
+            self._pending = self._reader.feed(data)
+        return decode(self._pending.pop(0))
 
     # --- EngineHandle ------------------------------------------------------------------------
 

@@ -10,7 +10,11 @@ applied).
 
 The driver samples the engine (``Engine.sample`` at each deadline); the host
 applies the clients' commands on the same thread (``Engine.submit`` applies at
-once).  Nobody else touches it.
+once).  Nobody else touches it.  Nothing here waits: a command's file work (a
+LogSave's fsyncs, a LoadPar's read) runs on a thread and its answer goes out when
+it is done, the operator's later commands queued behind it; a new client's
+history goes out in parts, a few per turn; a client's lines are handled a few
+per turn (session/server.py).
 
 Stops (pumps at 0, logging stopped with the rows kept, backends closed): a client's
 StopSession from someone allowed to, SIGTERM / SIGHUP / SIGINT, or the loop failing.
@@ -28,9 +32,12 @@ import dataclasses
 import signal
 import socket
 import time
+from concurrent.futures import Future
 from datetime import datetime
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
+
+import numpy as np
 
 from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, LoadPar, SetParams, SetState
 from quadtank_tui.engine.driver import Driver, LoopTime
@@ -40,6 +47,7 @@ from quadtank_tui.engine.runner import Engine
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.session.protocol import (
     Ended, Hello, Refused, Result, Role, Roster, SessionInfo, StopSession, Submit, Update, Welcome, encode,
+    encode_history_part,
 )
 from quadtank_tui.session.lab import LabConfig
 from quadtank_tui.session.policy import UnattendedPolicy, describe, unattended_action
@@ -54,9 +62,17 @@ from quadtank_tui.session.server import Connection, Rank, Server
 PUBLISH_INTERVAL = 0.02
 #: Least wall time between two rewrites of the record for logging progress alone, s.
 RECORD_INTERVAL = 1.0
-#: Seconds a peer's rank (administrator or not: a look at the lab's group or files)
-#: is remembered: a flood of connections from one user asks it once.
-RANK_KEPT = 30.0
+#: Seconds a user's rights here (administrator, may observe) are remembered.  Each
+#: answer is a look-up in the name service (the lab's group, its files' owners: on a
+#: lab's LDAP or NIS, milliseconds to seconds) on the driver's thread; remembered, a
+#: flood of connections or of attaches from one user asks it once.  Short, because
+#: group membership changes: a student taken out of the share group (or a teacher
+#: out of the admin group) can attach or stop sessions at most this long after.
+ACCESS_KEPT = 10.0
+#: Rows of the ring buffer per line on attach: they follow the Welcome in order, one
+#: line (HistoryPart) encoded per event-loop turn, 1000 rows in about 0.12 ms; the
+#: whole 36000 encoded at once took 100-200 ms of the sampling's time.
+PART_ROWS = 1000
 
 
 class Access:
@@ -69,9 +85,10 @@ class Access:
     def __init__(self, owner_uid: int, *, is_admin: Callable[[int], bool] | None = None,
                  may_connect: Callable[[int], bool] | None = None, admin_words: str = "root") -> None:
         self.owner_uid = owner_uid
-        self.is_admin = is_admin or (lambda uid: uid == 0)
+        self._is_admin = is_admin or (lambda uid: uid == 0)
         self._may_connect = may_connect
         self.admin_words = admin_words
+        self._kept: dict[tuple[str, int], tuple[float, bool]] = {}
 
     @classmethod
     def for_lab(cls, owner_uid: int, lab: LabConfig) -> Access:
@@ -81,10 +98,26 @@ class Access:
                    may_connect=(lambda uid: share in groups_of(uid)) if share is not None else None,
                    admin_words=who_administers(lab))
 
+    def is_admin(self, uid: int) -> bool:
+        return self._remembered("admin", uid, self._is_admin)
+
     def may_connect(self, uid: int) -> bool:
         if uid == self.owner_uid or self.is_admin(uid):
             return True
-        return self._may_connect(uid) if self._may_connect is not None else False
+        may = self._may_connect
+        return may is not None and self._remembered("observe", uid, may)
+
+    def _remembered(self, what: str, uid: int, ask: Callable[[int], bool]) -> bool:
+        """`ask(uid)`, remembered for ACCESS_KEPT s."""
+        now = time.monotonic()
+        kept = self._kept.get((what, uid))
+        if kept is not None and now - kept[0] < ACCESS_KEPT:
+            return kept[1]
+        if len(self._kept) > 1000:
+            self._kept.clear()
+        answer = bool(ask(uid))
+        self._kept[(what, uid)] = (now, answer)
+        return answer
 
     def may_stop(self, uid: int) -> bool:
         return uid == self.owner_uid or self.is_admin(uid)
@@ -113,9 +146,8 @@ class SessionHost:
         self.aloop = asyncio.new_event_loop()
         self.aloop.set_exception_handler(self._loop_failed)
         kwargs = {} if peer_of is None else {"peer_of": peer_of}
-        self._ranks: dict[int, tuple[float, Rank]] = {}
         self.server = Server(listener, self.aloop, self._on_message, self._on_gone, rank=self._rank, **kwargs)
-        self.driver = Driver(engine, after=self._after, urgent=lambda: self.server.writing > 0,
+        self.driver = Driver(engine, after=self._after, urgent=lambda: self.server.writing + self.server.producing > 0,
                              before=self._before if scripted is not None else None,
                              duration=scripted.duration if scripted is not None else None)
         self.policy = policy if policy is not None else UnattendedPolicy()
@@ -126,10 +158,10 @@ class SessionHost:
         self._operator: Connection | None = None
         self._operator_left = time.monotonic()  # a session starts unattended until its launcher attaches
         self._stop_reason: str | None = None
-        #: Commands waiting behind a LoadPar whose file is being read (engine/parload.py)
-        #: or a SetParams whose MPC is being designed (engine/design_ahead.py).
-        self._waiting: collections.deque[tuple[Connection, int, Command | ParReading | MPCDesigning]] = \
-            collections.deque()
+        #: The operator's commands in order: the first may be waiting for its file work
+        #: (a LoadPar's read: engine/parload.py; a LogSave's write and fsyncs) or for its
+        #: MPC's design (engine/design_ahead.py), the rest behind it.
+        self._waiting: collections.deque[_Pending] = collections.deque()
         # What the clients have been sent: history rows up to `_sent_total` of
         # clear generation `_sent_gen`, and the parameters of the last update.
         self._sent_total, self._sent_gen = 0, 0
@@ -172,16 +204,7 @@ class SessionHost:
 
     def _rank(self, peer: Peer) -> Rank:
         """An administrator (no per-user limit), the owner (the reserve), or another."""
-        now = time.monotonic()
-        kept = self._ranks.get(peer.uid)
-        if kept is not None and now - kept[0] < RANK_KEPT:
-            return kept[1]
-        rank: Rank = "admin" if self.access.is_admin(peer.uid) else \
-            "owner" if peer.uid == self.access.owner_uid else "other"
-        if len(self._ranks) > 1000:
-            self._ranks.clear()
-        self._ranks[peer.uid] = (now, rank)
-        return rank
+        return "admin" if self.access.is_admin(peer.uid) else "owner" if peer.uid == self.access.owner_uid else "other"
 
     def request_stop(self, reason: str) -> None:
         """From any thread: stop at the next turn."""
@@ -231,7 +254,6 @@ class SessionHost:
             self.server.send(conn, encode(Refused("say Hello first")), close=True)
         elif isinstance(message, Submit):
             self._submit(conn, message.id, message.command)
-            self.driver.poke()  # the command may have moved the next deadline (SetSpeed, TSamp)
         elif isinstance(message, StopSession):
             self._stop_asked(conn)
 
@@ -275,38 +297,35 @@ class SessionHost:
         conn.role = role
         conn.since = self._wall()
         loop = self.engine.loop
-        rows, _, _ = loop.history.since(0)
-        welcome = Welcome(self._info(), role, self.engine.snapshot(), loop.defaults, rows,
+        rows, _, _ = loop.history.since(0)  # a copy: the parts are encoded later, from it
+        welcome = Welcome(self._info(), role, self.engine.snapshot(), loop.defaults,
                           loop.history.capacity, str(loop.store.folder.resolve()),
                           str(loop.logs_dir.resolve()), self._controller(),
-                          describe(self.policy, active=False), describe(self.policy, active=True))
+                          describe(self.policy, active=False), describe(self.policy, active=True),
+                          parts=-(-len(rows) // PART_ROWS))
         self.server.send(conn, encode(welcome))
+        if len(rows):
+            self.server.send_parts(conn, _parts(rows))
         self._roster_changed()
 
     def _refuse(self, conn: Connection, reason: str) -> None:
         self.server.send(conn, encode(Refused(reason)), close=True)
 
     def _submit(self, conn: Connection, cid: int, command: Command) -> None:
-        if conn.role != "operator":
+        if conn.role != "operator":  # nothing changed: no update, no record (a flood of these costs little)
             who = self._operator.name if self._operator is not None else "nobody"
-            self._answer(conn, cid, CommandResult.refused(
-                f"read-only: you observe session {self.info.id}; {who} controls it"))
+            self.server.send(conn, encode(Result(cid, CommandResult.refused(
+                f"read-only: you observe session {self.info.id}; {who} controls it"))))
             return
         if isinstance(command, LoadPar):  # the file is read on a thread of its own: samples go on
-            self._waiting.append((conn, cid, ParReading.start(self.engine.loop.store, command, self._wake)))
-        elif self._waiting:  # behind a LoadPar or an MPC design: in order
-            self._waiting.append((conn, cid, command))
-        elif isinstance(command, SetParams) and (new := needs_mpc_design(self.engine.loop, command)) is not None:
+            self._waiting.append(_Pending(conn, cid, ParReading.start(self.engine.loop.store, command, self._wake)))
+        elif not self._waiting and isinstance(command, SetParams) \
+                and (new := needs_mpc_design(self.engine.loop, command)) is not None:
             # designed on a thread of its own: samples go on (a first design imports scipy and OSQP)
-            self._waiting.append((conn, cid, MPCDesigning.start(command, new, self._wake)))
+            self._waiting.append(_Pending(conn, cid, MPCDesigning.start(command, new, self._wake)))
         else:
-            self._answer(conn, cid, self._apply(command))
-
-    def _apply(self, command: Command | InstallPar) -> CommandResult:
-        try:
-            return self.engine.submit(command).result()
-        except Exception as exc:  # noqa: BLE001 - a bug must not end the session
-            return CommandResult.refused(f"{type(command).__name__} failed: {type(exc).__name__}: {exc}")
+            self._waiting.append(_Pending(conn, cid, command))
+        self._apply_waiting()
 
     def _answer(self, conn: Connection, cid: int, result: CommandResult) -> None:
         self._publish(force=True)  # the effect before the answer
@@ -314,30 +333,55 @@ class SessionHost:
         self._write_record()
 
     def _apply_waiting(self) -> None:
-        """The commands behind a LoadPar whose file has been read, or an MPC that has
-        been designed, in order."""
+        """The operator's commands in order: each applied once the one before it is
+        done, and answered once its own file work is (never waited for here: the
+        driver samples meanwhile; the file thread wakes us)."""
+        applied = False
         while self._waiting:
-            conn, cid, command = self._waiting[0]
-            if isinstance(command, MPCDesigning):
-                if not command.done:
-                    return
-                designed = command.future.result()
-                if designed is not None:
-                    self.engine.loop.controllers.offer(*designed)
-                self._waiting.popleft()
-                self._answer(conn, cid, self._apply(command.command))
-            elif isinstance(command, ParReading):
-                if not command.done:
-                    return
-                prepared = command.future.result()
-                self._waiting.popleft()
-                self._answer(conn, cid, prepared if isinstance(prepared, CommandResult) else self._apply(prepared))
-            else:
-                self._waiting.popleft()
-                self._answer(conn, cid, self._apply(command))
+            head = self._waiting[0]
+            if head.applied is None:
+                what = head.what
+                if isinstance(what, ParReading):
+                    if not what.done:
+                        return
+                    prepared = what.future.result()
+                    head.applied = _resolved(prepared) if isinstance(prepared, CommandResult) else \
+                        self._begin(prepared)
+                elif isinstance(what, MPCDesigning):
+                    if not what.done:
+                        return
+                    designed = what.future.result()
+                    if designed is not None:  # else the loop designs it again and says why it refuses
+                        self.engine.loop.controllers.offer(*designed)
+                    head.applied = self._begin(what.command)
+                else:
+                    head.applied = self._begin(what)
+                applied = True
+                if not head.applied.done():
+                    head.applied.add_done_callback(lambda _: self._wake())
+            if not head.applied.done():
+                break
+            self._waiting.popleft()
+            self._answer(head.conn, head.cid, head.applied.result())
+        if applied:
+            self.driver.poke()  # a command may have moved the next deadline (SetSpeed, TSamp)
+
+    def _begin(self, command: Command | InstallPar) -> Future[CommandResult]:
+        """Apply `command` now; the Future resolves (to a result, never an exception)
+        once its file work is done."""
+        name = type(command).__name__
+        try:
+            started = self.engine.submit(command)
+        except Exception as exc:  # noqa: BLE001 - a bug must not end the session
+            return _resolved(_failed(name, exc))
+        if started.done():
+            return _resolved(_outcome(started, name))
+        result: Future[CommandResult] = Future()
+        started.add_done_callback(lambda fut: result.set_result(_outcome(fut, name)))
+        return result
 
     def _wake(self) -> None:
-        """A LoadPar's file has been read, or an MPC designed (from its thread): the
+        """A command's file work is done or its MPC designed (from the file thread, a LoadPar's or the design's): the
         commands behind it go on."""
         try:
             self.aloop.call_soon_threadsafe(self._apply_waiting)
@@ -459,6 +503,40 @@ class SessionHost:
                     end_record(self.runtime, self._info(), reason)
                 except Exception:  # noqa: BLE001 - the engine may be what failed; the record says it ended
                     end_record(self.runtime, self.info, reason)
+
+
+@dataclasses.dataclass(eq=False)
+class _Pending:
+    """An operator's command in the queue: `applied` once it was applied (it resolves
+    when its file work is done)."""
+
+    conn: Connection
+    cid: int
+    what: Command | ParReading | MPCDesigning
+    applied: Future[CommandResult] | None = None
+
+
+def _resolved(result: CommandResult) -> Future[CommandResult]:
+    fut: Future[CommandResult] = Future()
+    fut.set_result(result)
+    return fut
+
+
+def _outcome(fut: Future[CommandResult], name: str) -> CommandResult:
+    try:
+        return fut.result()
+    except Exception as exc:  # noqa: BLE001 - the file work failed: say so, the session goes on
+        return _failed(name, exc)
+
+
+def _failed(name: str, exc: BaseException) -> CommandResult:
+    return CommandResult.refused(f"{name} failed: {type(exc).__name__}: {exc}")
+
+
+def _parts(rows: np.ndarray) -> Iterator[bytes]:
+    """The ring buffer's rows, PART_ROWS a line, each encoded when asked for."""
+    for lo in range(0, len(rows), PART_ROWS):
+        yield encode_history_part(rows[lo:lo + PART_ROWS])
 
 
 def _hhmm(wall: float) -> str:

@@ -18,6 +18,13 @@ MAX_BACKLOG bytes queued it is dropped and may attach again.
 Anyone on the machine may connect (the session decides who is let in), so what a
 peer can make the session hold is bounded: a line before Hello is at most
 MAX_HELLO_LINE bytes and must come within HELLO_TIMEOUT; after it MAX_CLIENT_LINE.
+What a peer can make the session do is bounded too: a connection's lines are
+handled LINES_PER_TURN per event-loop turn (its reading paused until the rest are
+done), so a burst of them never holds a sample back, and a connection that sends
+more than MAX_LINE_RATE lines a second (beyond a burst of MAX_LINE_BURST) is
+dropped, saying so in the session's output.
+A long message (the whole ring buffer on attach) goes out in parts, one encoded per
+turn (`send_parts`): what else is sent to that client waits behind them.
 One user holds at most MAX_PER_USER connections, and RESERVED of the
 MAX_CONNECTIONS are kept for the owner and the administrators: another user's
 flood never locks them out.  Out of file descriptors (EMFILE), accept backs off
@@ -30,13 +37,14 @@ claims.
 from __future__ import annotations
 
 import asyncio
+import collections
 import errno
 import os
 import socket
 import sys
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Literal
+from typing import Any, Callable, Iterator, Literal
 
 from quadtank_tui.session.protocol import (
     CLIENT_MESSAGES, MAX_CLIENT_LINE, MAX_HELLO_LINE, LineReader, ProtocolError, Refused, decode, encode,
@@ -57,6 +65,18 @@ MAX_PER_USER = 16
 HELLO_TIMEOUT = 10.0
 #: Seconds accept pauses after running out of descriptors or memory, doubling up to the second.
 ACCEPT_BACKOFF = (0.05, 1.0)
+#: Lines of one connection handled per event-loop turn: a refused Submit costs
+#: about 50 us, an operator's SetParams of a whole .par about a millisecond.
+LINES_PER_TURN = 8
+#: Lines a second a connection may send on average, and in one burst, before it is
+#: dropped: a screen sends a few per key press (key repeat: 30 a second), a burst of
+#: pasted or scripted commands a few hundred; 10000 refused Submits in 5 s (the
+#: review's flood) stalled the sampling for a second.
+MAX_LINE_RATE = 200.0
+MAX_LINE_BURST = 1000
+#: Seconds spent encoding a long message's parts per event-loop turn (send_parts):
+#: a part of the history takes about 0.12 ms, so a few go per turn.
+PARTS_PER_TURN_TIME = 0.001
 
 #: Who a peer is to this session: an administrator, its owner, anyone else.
 Rank = Literal["admin", "owner", "other"]
@@ -75,6 +95,12 @@ class Connection:
     closing: bool = False          # close once `out` is written
     writing: bool = False          # the loop watches it for room to write `out`
     silence: asyncio.TimerHandle | None = None  # drops it if it has not said Hello by then
+    lines: collections.deque[bytes] = field(default_factory=collections.deque)  # read, not yet handled
+    reading: bool = True           # the loop watches it for lines (paused while `lines` are left)
+    allowance: float = field(default_factory=lambda: float(MAX_LINE_BURST))  # lines it may send now
+    counted: float = field(default_factory=time.monotonic)  # when `allowance` was refilled
+    parts: Iterator[bytes] | None = None  # a long message still being encoded (send_parts)
+    held: bytearray = field(default_factory=bytearray)  # what is sent meanwhile, behind it
 
     @property
     def name(self) -> str:
@@ -105,8 +131,10 @@ class Server:
         self._backoff = 0.0
         self._listening = False
         self._closed = False
-        #: Connections with lines queued that the socket has not taken yet.
+        #: Connections with lines queued that the socket has not taken yet, and with a
+        #: long message still being encoded (send_parts).
         self.writing = 0
+        self.producing = 0
         #: Connections turned away (limits, a silent peer, a bad line) and accept's pauses, for the record.
         self.refused = 0
         self.paused = 0
@@ -202,32 +230,118 @@ class Server:
             self.drop(conn)
             return
         try:
-            for line in conn.reader.feed(data):
-                if conn not in self.connections or conn.closing:
-                    return
-                self._on_message(conn, decode(line, CLIENT_MESSAGES))
-                if conn.role is not None:
-                    conn.reader.limit = MAX_CLIENT_LINE  # let in: commands may be longer than a Hello
+            lines = conn.reader.feed(data)
         except ProtocolError:
             self.refused += 1
             self.drop(conn)
-        except Exception as exc:  # noqa: BLE001 - what one client's message broke ends that client only
-            _note(f"dropped {conn.name}: its message failed: {type(exc).__name__}: {exc}")
-            self.drop(conn)
+            return
+        if lines and self._flooding(conn, len(lines)):
+            return
+        conn.lines.extend(lines)
+        self._handle(conn)
+
+    def _flooding(self, conn: Connection, n: int) -> bool:
+        """Count `n` more lines from `conn`; past its allowance it is dropped (True)."""
+        now = time.monotonic()
+        conn.allowance = min(MAX_LINE_BURST, conn.allowance + (now - conn.counted) * MAX_LINE_RATE) - n
+        conn.counted = now
+        if conn.allowance >= 0:
+            return False
+        self.refused += 1
+        _note(f"dropped {conn.name}: it sent lines faster than {MAX_LINE_RATE:g} a second "
+              f"(beyond a burst of {MAX_LINE_BURST})")
+        self.drop(conn)
+        return True
+
+    def _handle(self, conn: Connection) -> None:
+        """Up to LINES_PER_TURN of the lines read from `conn`; the rest next turn,
+        its reading paused meanwhile (what it holds stays one read's worth)."""
+        for _ in range(LINES_PER_TURN):
+            if not conn.lines:
+                break
+            if conn not in self.connections or conn.closing:
+                conn.lines.clear()
+                return
+            line = conn.lines.popleft()
+            try:
+                self._on_message(conn, decode(line, CLIENT_MESSAGES))
+                if conn.role is not None:
+                    conn.reader.limit = MAX_CLIENT_LINE  # let in: commands may be longer than a Hello
+            except ProtocolError:
+                self.refused += 1
+                self.drop(conn)
+                return
+            except Exception as exc:  # noqa: BLE001 - what one client's message broke ends that client only
+                _note(f"dropped {conn.name}: its message failed: {type(exc).__name__}: {exc}")
+                self.drop(conn)
+                return
+        if conn not in self.connections:
+            return
+        if conn.lines:
+            if conn.reading:
+                self.aloop.remove_reader(conn.sock.fileno())
+                conn.reading = False
+            self.aloop.call_soon(self._handle, conn)
+        elif not conn.reading:
+            self.aloop.add_reader(conn.sock.fileno(), self._read, conn)
+            conn.reading = True
 
     def send(self, conn: Connection, payload: bytes, *, close: bool = False) -> None:
         """Queue `payload` (encoded lines) for `conn`; `close`: then hang up."""
         if conn not in self.connections or conn.closing:
             return
-        if len(conn.out) + len(payload) > MAX_BACKLOG or \
-                conn.rank == "other" and self._others_queued + len(payload) > MAX_BACKLOG_OTHERS:
-            self.drop(conn)
+        if not self._queue(conn, payload, conn.held if conn.parts is not None else conn.out):
             return
-        conn.out += payload
-        if conn.rank == "other":
-            self._others_queued += len(payload)
         conn.closing = close
         self._write(conn)
+
+    def send_parts(self, conn: Connection, parts: Iterator[bytes]) -> None:
+        """Queue the lines `parts` yields for `conn`, as many per event-loop turn as
+        PARTS_PER_TURN_TIME allows (each is encoded when its turn comes: a long
+        message never holds a sample back); what is sent to `conn` meanwhile follows them."""
+        if conn not in self.connections or conn.closing or conn.parts is not None:
+            return
+        conn.parts = parts
+        self.producing += 1
+        self.aloop.call_soon(self._next_part, conn)
+
+    def _next_part(self, conn: Connection) -> None:
+        end = time.monotonic() + PARTS_PER_TURN_TIME
+        while conn in self.connections and conn.parts is not None:
+            try:
+                part = next(conn.parts, None)
+            except Exception as exc:  # noqa: BLE001 - what fails for one client ends that client only
+                _note(f"dropped {conn.name}: its message failed: {type(exc).__name__}: {exc}")
+                self.drop(conn)
+                return
+            if part is None:  # all sent: what waited behind them goes next
+                self._parts_done(conn)
+                conn.out += conn.held
+                conn.held = bytearray()
+            elif not self._queue(conn, part, conn.out):
+                return
+            elif time.monotonic() > end:
+                self.aloop.call_soon(self._next_part, conn)
+                break
+        if conn in self.connections:
+            self._write(conn)
+
+    def _parts_done(self, conn: Connection) -> None:
+        if conn.parts is not None:
+            conn.parts = None
+            self.producing -= 1
+
+    def _queue(self, conn: Connection, payload: bytes, into: bytearray) -> bool:
+        """Append `payload` to `into` (`conn`'s out or held); False: the backlog is
+        full and `conn` was dropped."""
+        if len(conn.out) + len(conn.held) + len(payload) > MAX_BACKLOG or \
+                conn.rank == "other" and self._others_queued + len(payload) > MAX_BACKLOG_OTHERS:
+            self.drop(conn)
+            return False
+        into += payload
+        if conn.rank == "other":
+            self._others_queued += len(payload)
+        return True
 
     def broadcast(self, payload: bytes) -> None:
         for conn in list(self.connections):
@@ -256,7 +370,7 @@ class Server:
             self.aloop.remove_writer(conn.sock.fileno())
             conn.writing = False
             self.writing -= 1
-        if conn.closing:
+        if conn.closing and conn.parts is None:
             self.drop(conn)
 
     def drop(self, conn: Connection) -> None:
@@ -264,14 +378,18 @@ class Server:
             return
         self.connections.remove(conn)
         if conn.rank == "other":
-            self._others_queued -= len(conn.out)
+            self._others_queued -= len(conn.out) + len(conn.held)
+        self._parts_done(conn)
+        conn.lines.clear()
         left = self._per_user.get(conn.peer.uid, 1) - 1
         if left > 0:
             self._per_user[conn.peer.uid] = left
         else:
             self._per_user.pop(conn.peer.uid, None)
         fd = conn.sock.fileno()
-        self.aloop.remove_reader(fd)
+        if conn.reading:
+            self.aloop.remove_reader(fd)
+            conn.reading = False
         if conn.writing:
             self.aloop.remove_writer(fd)
             conn.writing = False
@@ -285,7 +403,7 @@ class Server:
         """At the end: no one new; let the queued lines go out for up to `timeout` s."""
         self._unlisten()
         end = time.monotonic() + timeout
-        while any(c.out for c in self.connections) and time.monotonic() < end:
+        while any(c.out or c.parts is not None for c in self.connections) and time.monotonic() < end:
             await asyncio.sleep(0.01)
 
     def close(self) -> None:
