@@ -10,9 +10,8 @@ the callers ask the configuration it returns, never the file again.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable, Iterable
 
 from quadtank_tui.daq.config import PRESETS, DaqConfig, _error, load_daq_config, parse_daq_config
 from quadtank_tui.daq.ist.config import IstConfig, parse_ist_config, says_ist
@@ -22,6 +21,10 @@ if TYPE_CHECKING:
     from quadtank_tui.core.plants import Plant
     from quadtank_tui.daq.ist.backend import IstBackend
     from quadtank_tui.daq.modbus import ModbusBackend
+
+#: Where a caller wants the warnings of a configuration read (commands.warn: one
+#: `quadtank: warning:` line each on stderr); this layer does not print them itself.
+Warn = Callable[[Iterable[str]], None]
 
 
 def load_rig_config(path: Path | str, plant: Plant | None = None) -> DaqConfig | IstConfig:
@@ -36,14 +39,16 @@ def load_rig_config(path: Path | str, plant: Plant | None = None) -> DaqConfig |
     return parse_daq_config(text, name=str(path), plant=plant)
 
 
-def open_rig(config: str | None, plant: Plant | None = None) -> ModbusBackend | IstBackend | None:
+def open_rig(config: str | None, plant: Plant | None = None, *,
+             warn: Warn | None = None) -> ModbusBackend | IstBackend | None:
     """The backend of any rig `quadtank run --daq CONFIG` may drive (None without
-    one), wired for `plant`; the file is read and checked now."""
+    one), wired for `plant`; the file is read and checked now, its warnings given
+    to `warn`."""
     if config is None:
         return None
     rig = load_rig_config(config, plant)
     if isinstance(rig, DaqConfig):
-        return _modbus(rig, quiet=False)
+        return _modbus(rig, warn)
     from quadtank_tui.daq.ist.backend import IstBackend
 
     backend = IstBackend(rig)
@@ -52,24 +57,25 @@ def open_rig(config: str | None, plant: Plant | None = None) -> ModbusBackend | 
     return backend
 
 
-def open_daq(config: str | None, plant: Plant | None = None, *, quiet: bool = False) -> ModbusBackend | None:
+def open_daq(config: str | None, plant: Plant | None = None, *,
+             warn: Warn | None = None) -> ModbusBackend | None:
     """The Modbus backend a `--daq CONFIG` asks for (None without one), wired for
     `plant` (the quadruple tank when None).  The file is read and checked now, so a
     bad one stops the program before anything runs; the link is opened on the
-    first sample.  A device without a watchdog is said to have none on stderr, as
-    the CLI's warnings are (unless `quiet`)."""
+    first sample.  A device without a watchdog is said to have none: the line goes
+    to `warn` (the commands print it as their other warnings; None: not said)."""
     if config is None:
         return None
     rig = load_rig_config(config, plant)
     if isinstance(rig, IstConfig):  # the sessions' records and locks are a Modbus rig's (host, port, unit)
         raise ValueError(f"{config}: an IST rig (protocol: ist) is driven by `quadtank run --daq {config}` "
                          "in this version; the TUI and sessions drive Modbus rigs only")
-    return _modbus(rig, quiet=quiet)
+    return _modbus(rig, warn)
 
 
-def _modbus(config: DaqConfig, *, quiet: bool) -> ModbusBackend:
+def _modbus(config: DaqConfig, warn: Warn | None) -> ModbusBackend:
     from quadtank_tui.daq.modbus import ModbusBackend  # pymodbus only when asked for
 
-    if config.watchdog is None and not quiet:
-        print(f"quadtank: warning: {config.watchdog_line()}", file=sys.stderr)
+    if config.watchdog is None and warn is not None:
+        warn([config.watchdog_line()])
     return ModbusBackend(config)

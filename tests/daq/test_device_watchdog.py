@@ -57,10 +57,17 @@ def test_a_device_without_one_is_said_to_have_none(capsys: pytest.CaptureFixture
     assert plc.watchdog is None
     assert plc.watchdog_line() == ("watchdog: none declared by params/daq-plc-example.yaml: if this program dies "
                                    "its guard stops the pumps; if the computer dies or hangs, nothing does")
+    from quadtank_tui.commands.daq import run_clock
     from quadtank_tui.daq.open import open_daq
 
-    open_daq("params/daq-plc-example.yaml")
-    assert capsys.readouterr().err == f"quadtank: warning: {plc.watchdog_line()}\n"
+    open_daq("params/daq-plc-example.yaml")  # the DAQ layer prints nothing itself
+    assert capsys.readouterr().err == ""
+    said: list[str] = []
+    open_daq("params/daq-plc-example.yaml", warn=said.extend)
+    assert said == [plc.watchdog_line()]
+    # a command says it once, as its other warnings, on stderr
+    run_clock(realtime=True, speed=None, config="params/daq-plc-example.yaml")
+    assert capsys.readouterr() == ("", f"quadtank: warning: {plc.watchdog_line()}\n")
     info = SessionInfo(id="ann-1", owner="ann", uid=1000, pid=1, started="2026-11-26T10:00:00", plant="quadtank",
                        operation="Active", daq="params/daq-plc-example.yaml", watchdog="none")
     assert "  Active (no watchdog)  " in format_table([info])
