@@ -13,8 +13,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterable
 
-from quadtank_tui.daq.config import PRESETS, DaqConfig, _error, load_daq_config, parse_daq_config
+from quadtank_tui.daq.config import PRESETS, DaqConfig, load_daq_config, parse_daq_config
 from quadtank_tui.daq.ist.config import IstConfig, parse_ist_config, says_ist
+from quadtank_tui.daq.validation import config_error
 from quadtank_tui.files.yamltext import read_text
 
 if TYPE_CHECKING:
@@ -33,7 +34,7 @@ def load_rig_config(path: Path | str, plant: Plant | None = None) -> DaqConfig |
     Modbus map for the channels of `plant` (the quadruple tank when None)."""
     if str(path) in PRESETS:
         return load_daq_config(path, plant)
-    text = read_text(path, _error)  # the hostile-file checks: no FIFO, no huge file
+    text = read_text(path, config_error)  # the hostile-file checks: no FIFO, no huge file
     if says_ist(text):
         return parse_ist_config(text, name=str(path))
     return parse_daq_config(text, name=str(path), plant=plant)
