@@ -13,15 +13,15 @@ import pytest
 from quadtank_tui.daq.config import Output
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.registers import Register
-from quadtank_tui.engine.commands import LogOn, LogSave, SetOperation, SetParams, SetState
+from quadtank_tui.engine.commands import Command, LogOn, LogSave, SetOperation, SetParams, SetState
 from quadtank_tui.engine.runner import Engine, build_engine
 from quadtank_tui.files.log_reader import read_log
 
 ROOT = Path(__file__).parents[2]
 
 
-def ok(engine: Engine, command: object) -> None:
-    result = engine.submit(command).result()  # type: ignore[arg-type]
+def ok(engine: Engine, command: Command) -> None:
+    result = engine.submit(command).result()
     assert result.ok, result.message
 
 
@@ -129,7 +129,7 @@ def test_pause_reset_and_exit_command_the_pumps_to_zero(rig: Callable, tmp_path:
             ok(engine, SetState("Run"))
             engine.run_for(0.5)
             assert r.dacs() == pytest.approx((3.0, 3.0))
-            ok(engine, SetState(leave))               # type: ignore[arg-type]
+            ok(engine, SetState(leave))
             assert r.dacs() == (0.0, 0.0), leave
         ok(engine, SetState("Run"))
         engine.run_for(0.5)

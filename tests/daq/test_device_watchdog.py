@@ -4,7 +4,7 @@ control.  In process: a virtual rig on the test's clock behind our Modbus server
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, Literal, Sequence
 
 import pytest
 
@@ -18,7 +18,7 @@ from quadtank_tui.engine.backend import BackendError
 from quadtank_tui.session.info import SessionInfo
 from daqkit import VIRTUAL_RIG, recording_guard
 
-U32 = "uint32"
+U32: Literal["uint32"] = "uint32"
 
 
 def test_the_labjack_preset_declares_the_t_series_watchdog_registers() -> None:
@@ -87,7 +87,12 @@ def _rig_and_backend(device: Callable[..., Any]) -> tuple[Clock, VirtualRig, Mod
     rig = VirtualRig(config, P_MINUS.params, P_MINUS.op.h, clock=clock)
     written: list[int] = []
     write = rig.write
-    rig.write = lambda address, values: (written.append(address), write(address, values))[1]  # type: ignore[method-assign]
+
+    def recorded(address: int, values: Sequence[int]) -> None:
+        written.append(address)
+        write(address, values)
+
+    rig.write = recorded  # type: ignore[method-assign]  # the writes the backend makes, in order
     d = device((0.0,) * 4, bank=rig)
     return clock, rig, ModbusBackend(d.config(), clock=clock, guard=False), written
 

@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.engine.commands import SetControlMode, SetFault, SetParams, SetState
+from quadtank_tui.engine.commands import Command, SetControlMode, SetFault, SetParams, SetState
 from quadtank_tui.engine.loop import ControlLoop
 
 CM = 20.0  # cm per normalized unit
 BUMP = 0.005  # largest pump jump at a switch sample, of full scale (measured 0.002)
 
 
-def ok(loop: ControlLoop, command: object) -> None:
-    result = loop.apply(command)  # type: ignore[arg-type]
+def ok(loop: ControlLoop, command: Command) -> None:
+    result = loop.apply(command)
     assert result.ok, result.message
 
 
@@ -76,7 +76,7 @@ def test_the_switch_is_bumpless_on_a_plant_the_model_does_not_know() -> None:
     assert np.abs(rows[0, 4:6] - before).max() < BUMP and np.abs(np.diff(rows[:, 4:6], axis=0)).max() < BUMP
 
 
-def test_a_failing_solve_holds_the_last_input_and_is_counted_in_the_snapshot() -> None:
+def test_a_failing_solve_holds_the_last_input_and_is_counted_in_the_snapshot(monkeypatch: pytest.MonkeyPatch) -> None:
     loop = settled_pi()
     ok(loop, SetParams({"CONTROL.Type": "MPC"}))
     run(loop, 5)
@@ -87,7 +87,7 @@ def test_a_failing_solve_holds_the_last_input_and_is_counted_in_the_snapshot() -
     def broken(*_: object) -> object:
         raise RuntimeError("solver crashed")
 
-    mpc.mpc.qp.solve = broken  # type: ignore[method-assign]
+    monkeypatch.setattr(mpc.mpc.qp, "solve", broken)
     rows = run(loop, 3)
     assert rows[:, 4:6] == pytest.approx(np.tile(held, (3, 1)))
     snap = loop.snapshot()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+from textual.widgets import Input
 from uikit import Recording, make_app
 
 from quadtank_tui.core.parameters import PRESET
@@ -61,7 +62,10 @@ async def test_a_control_horizon_past_the_horizon_is_refused_at_its_field(make_e
         await pilot.press("1")
         await pilot.pause()
         sent = len(engine.sent(SetParams))
-        app.screen.field_widget("MPC.ControlHorizon").value = "50"
+        assert isinstance(app.screen, MPCWindow)
+        horizon = app.screen.field_widget("MPC.ControlHorizon")
+        assert isinstance(horizon, Input)
+        horizon.value = "50"
         await pilot.press("enter")
         await pilot.pause()
         assert isinstance(app.screen, MPCWindow) and len(engine.sent(SetParams)) == sent

@@ -90,6 +90,7 @@ def test_large_steps_keep_pumps_and_levels_within_limits(name: str, phase: float
     p, plant, c = _mpc(name, 2.0, horizon=30)
     mdl = c.design.model
     scn = standard_scenario(plant, mdl.x_e, phase=phase, lead=70.0)
+    assert scn.leak is not None
     scn = replace(scn, leak=None, duration=scn.leak[0])  # the steps only: the leak is tested below
     run = run_mpc(plant, c, mdl.x_e, scn)
     pi = run_pi(plant, _pi(p), mdl.x_e, mdl.u_e, scn)
@@ -146,7 +147,7 @@ def test_a_raising_solver_or_a_bad_reading_never_raises() -> None:
     def boom(*args):
         raise RuntimeError("solver crashed")
 
-    c.qp.solve = boom  # type: ignore[method-assign]
+    c.qp.solve = boom
     out = c.step(mdl.x_e, mdl.x_e[:2])
     assert out.fault and np.array_equal(out.u, u1) and "solver crashed" in c.stats.last_status
     del c.qp.solve
