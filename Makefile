@@ -19,10 +19,13 @@ run: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest --durations=25
 
-# Errors (ruff), types of the whole package (mypy: core to ui, commands, cli), the layer contract (import-linter).
+# Errors (ruff), types (mypy, pyproject's options: the package, its tests and the
+# benchmarks; then each folder's conftest.py alone, as they are all named `conftest`),
+# the layer contract (import-linter).
 lint: $(STAMP)
 	$(BIN)/ruff check quadtank_tui tests benchmarks
 	$(BIN)/mypy
+	for conftest in tests/conftest.py tests/*/conftest.py; do $(BIN)/mypy $$conftest || exit 1; done
 	$(BIN)/lint-imports
 
 install: $(STAMP)

@@ -29,7 +29,7 @@ def run_engine(seed: int, samples: int = 3600) -> Mapping[str, np.ndarray]:
     with tempfile.TemporaryDirectory() as tmp:
         e = build_engine(clock="manual", seed=seed, params_dir=Path(tmp), logs_dir=Path(tmp),
                          history_capacity=max(samples, 5000))
-        values = {"SAMPLING TIME.TSamp": 1000}
+        values: dict[str, float | str] = {"SAMPLING TIME.TSamp": 1000}
         for sec, mean in zip(("REFERENCE ONE", "REFERENCE TWO"), Y0):
             values.update({f"{sec}.Wave": "PRBS", f"{sec}.Period": PERIOD, f"{sec}.Amplitude": AMPLITUDE,
                            f"{sec}.On": 1, f"{sec}.Mean": mean})

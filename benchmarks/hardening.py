@@ -1069,7 +1069,7 @@ def campaign_paths(t: Tally, work: Path) -> None:
 
 def campaign_lock_users(t: Tally, name: str, work: Path, rounds: int = 10) -> None:
     """benchmarks/hardening_locks.py's campaign `name`, counted in this table."""
-    from hardening_locks import CAMPAIGNS as LOCK_CAMPAIGNS, Campaign  # type: ignore[import-not-found]
+    from hardening_locks import CAMPAIGNS as LOCK_CAMPAIGNS, Campaign
 
     c = Campaign(name)
     LOCK_CAMPAIGNS[name](c, rounds, work)

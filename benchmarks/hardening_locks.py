@@ -114,7 +114,7 @@ def _hostage(lab: LabConfig) -> str | None:
     try:
         assert p.stdout is not None and p.stdout.readline() == "held\n"
         admin = lockmod.is_administrator
-        lockmod.is_administrator = lambda uid, lab: False  # type: ignore[assignment]
+        lockmod.is_administrator = lambda uid, lab: False
         try:
             t0 = time.monotonic()
             try:
@@ -126,7 +126,7 @@ def _hostage(lab: LabConfig) -> str | None:
             if time.monotonic() - t0 > lockmod.LOCK_WAIT + 5:
                 return f"refused only after {time.monotonic() - t0:.1f} s"
         finally:
-            lockmod.is_administrator = admin  # type: ignore[assignment]
+            lockmod.is_administrator = admin
         lock = DaqLock.acquire(DEVICE, lab)  # this user as an administrator (root, or the params' writer)
         t0 = time.monotonic()
         lock.release()

@@ -164,7 +164,7 @@ def _physical_case(name: str, true: Plant, start: Plant, exps: list[Experiment],
               f"+- {e.stderr:<9.2g} error {100 * (e.value / value - 1):+.4f} %")
 
 
-def _abc(fit):  # type: ignore[no-untyped-def]
+def _abc(fit):
     return fit.A, fit.B, fit.C
 
 

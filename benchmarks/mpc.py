@@ -58,7 +58,7 @@ def solve_times() -> None:
         plant, levels = plant_in_use(p)
         for N, step in ((30, 0.0), (60, 0.0), (HORIZON, STEP)):
             d = design_mpc(plant, levels, MPCSettings(horizon=N, step=step), p.tsamp)
-            x_e = d.model.x_e
+            x_e = tuple(d.model.x_e)
             scn = Scenario((x_e[0], x_e[1]), ((40.0, 0, x_e[0] + 5.0), (120.0, 1, x_e[1] + 3.0)),
                            (200.0, 1, 0.15 * plant.values()["a1"]), 300.0)
             mpc = MPC(d)
@@ -90,16 +90,18 @@ def closed_loop(tsamp: float) -> None:
         plant, levels = plant_in_use(p)
         d = design_mpc(plant, levels, MPCSettings(horizon=HORIZON, step=STEP), p.tsamp)
         mdl = d.model
-        scn = standard_scenario(plant, mdl.x_e, phase=phase, lead=HORIZON * d.prediction.T + 10.0)
+        x_e, u_e = tuple(mdl.x_e), tuple(mdl.u_e)
+        scn = standard_scenario(plant, x_e, phase=phase, lead=HORIZON * d.prediction.T + 10.0)
         t0 = time.perf_counter()
-        runs = {"MPC": run_mpc(plant, MPC(d), mdl.x_e, scn)}
+        runs = {"MPC": run_mpc(plant, MPC(d), x_e, scn)}
         if label == "P+" and d.step_samples > 1:  # what the coarse grid replaces: N steps of one sample
             short = design_mpc(plant, levels, MPCSettings(horizon=HORIZON), p.tsamp)
-            runs[f"{HORIZON * tsamp:g}s"] = run_mpc(plant, MPC(short), mdl.x_e, scn)
+            runs[f"{HORIZON * tsamp:g}s"] = run_mpc(plant, MPC(short), x_e, scn)
         matrix = ControllerMatrix(p.tsamp, p.control.family, p.control.structure,
                                   pid={e: c.pid for e, c in zip(ELEMENTS, p.controllers)})
-        runs["PI"] = run_pi(plant, matrix, mdl.x_e, mdl.u_e, scn)
-        steps = ", ".join(f"r{loop + 1} {level - mdl.x_e[loop]:+.1f} cm at {t:g} s" for t, loop, level in scn.steps)
+        runs["PI"] = run_pi(plant, matrix, x_e, u_e, scn)
+        steps = ", ".join(f"r{loop + 1} {level - x_e[loop]:+.1f} cm at {t:g} s" for t, loop, level in scn.steps)
+        assert scn.leak is not None
         print(f"\n{label} ({name}.par): {steps}; leak tank 1 at {scn.leak[0]:g} s; {scn.duration:g} s "
               f"({time.perf_counter() - t0:.0f} s to simulate)")
         print(f"{'':4} {'IAE step1':>18} {'IAE step2':>18} {'IAE steps':>18} {'IAE leak':>18} {'OS %':>11} "

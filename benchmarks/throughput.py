@@ -46,10 +46,10 @@ T = TypeVar("T")
 def python_control_systems() -> tuple[control.NonlinearIOSystem, control.NonlinearIOSystem]:
     p = PLANT
 
-    def plant_update(t, x, u, params):  # type: ignore[no-untyped-def]
+    def plant_update(t, x, u, params):
         return np.array(rhs(x, u, p))
 
-    def plant_output(t, x, u, params):  # type: ignore[no-untyped-def]
+    def plant_output(t, x, u, params):
         return p.kc * np.asarray(x) / FULL_SCALE_V
 
     plant = control.nlsys(plant_update, plant_output, states=4, inputs=2, outputs=4, name="plant")
@@ -57,14 +57,14 @@ def python_control_systems() -> tuple[control.NonlinearIOSystem, control.Nonline
     gi = np.array([PI[0].K * H / PI[0].Ti, PI[1].K * H / PI[1].Ti])
     tr = np.array([H / PI[0].Tr, H / PI[1].Tr])
 
-    def ctrl_v(x, u):  # type: ignore[no-untyped-def]
+    def ctrl_v(x, u):
         return K * (u[:2] - u[2:]) + x   # u = (r1, r2, y1, y2), b = 1
 
-    def ctrl_update(t, x, u, params):  # type: ignore[no-untyped-def]
+    def ctrl_update(t, x, u, params):
         v = ctrl_v(x, u)
         return x + gi * (u[:2] - u[2:]) + tr * (np.clip(v, 0.0, 1.0) - v)
 
-    def ctrl_output(t, x, u, params):  # type: ignore[no-untyped-def]
+    def ctrl_output(t, x, u, params):
         return np.clip(ctrl_v(x, u), 0.0, 1.0)
 
     pi = control.nlsys(ctrl_update, ctrl_output, states=2, inputs=4, outputs=2, dt=H, name="pi")

@@ -310,7 +310,7 @@ def build_tui(args: argparse.Namespace) -> tuple[SessionClient, QuadTankApp]:
     try:
         spec = engine_spec(args.tui_par, clock="realtime" if args.daq_global else "virtual", speed=args.tui_speed)
         # the configuration is checked here, in any case, for the plant of the parameters
-        open_daq(args.daq_global, spec.params.process_plant() if args.daq_global else None)
+        open_daq(args.daq_global, spec.params.process_plant() if args.daq_global else None, warn=warn)
         daq = args.daq_global and str(Path(args.daq_global).resolve())
         spawned.hand_over(SessionSpec(spec, str(sessions_command.runtime_folder()), daq, private=True))
         from quadtank_tui.session.client import SessionClient

@@ -400,7 +400,7 @@ def run_clock(*, realtime: bool, speed: float | None, config: str | None,
     """The clock and the DAQ backend of `quadtank [--daq C] run [--daq C]`.  A real
     process is never run unpaced: with a DAQ the run is real time, unless --speed
     gives the virtual rig's speed factor."""
-    daq = open_daq(config, plant)
+    daq = open_daq(config, plant, warn=warn)
     if realtime or (daq is not None and speed is None):
         return "realtime", daq
     return ("virtual" if speed is not None else "manual"), daq

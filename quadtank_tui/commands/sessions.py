@@ -264,7 +264,7 @@ def _checked_spec(args: argparse.Namespace, runtime: Path) -> SessionSpec:
 
     spec = engine_spec(args.tui_par, clock="realtime" if args.daq_global else "virtual", speed=args.tui_speed)
     # The DAQ configuration is checked here, for the plant of the parameters.
-    open_daq(args.daq_global, spec.params.process_plant() if args.daq_global else None)
+    open_daq(args.daq_global, spec.params.process_plant() if args.daq_global else None, warn=warn)
     warn(spec.warnings)
     return SessionSpec(spec, str(runtime), args.daq_global and str(Path(args.daq_global).resolve()))
 

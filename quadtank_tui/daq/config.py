@@ -47,9 +47,9 @@ from typing import TYPE_CHECKING, Any, Mapping
 
 
 from quadtank_tui.core.calibration import SensorCalibration
-from quadtank_tui.core.validation import is_finite_number
 from quadtank_tui.daq.interlock import QUADTANK_FEEDERS
 from quadtank_tui.daq.registers import MAX_ADDRESS, SETTING_TYPES, TABLES, TYPES, WORD_ORDERS, Register
+from quadtank_tui.daq.validation import PLAUSIBLE_MARGIN, DaqConfigError, Validator, config_error, show
 from quadtank_tui.daq.watchdog import OutputAction, Watchdog
 from quadtank_tui.files.yamltext import key_lines, parse_yaml, read_text
 
@@ -170,21 +170,6 @@ def _feeders(plant: Plant) -> tuple[tuple[int, ...], ...]:
 #: (the sensor gain and height are the preset's; the quadruple tank keeps them).
 QUADTANK_CHANNELS = PlantChannels("quadtank", "quadruple tank (Johansson)", TANKS, PUMPS, (0.5,) * 4, 20.0, "cm")
 
-#: Default plausible range: this fraction of the tank height below 0 cm and above
-#: the top (-2..22 cm for 20 cm tanks), room for a sensor's offset and noise.
-PLAUSIBLE_MARGIN = 0.1
-
-
-class DaqConfigError(ValueError):
-    """A DAQ configuration refused; the message names the file, line and key."""
-
-    def __init__(self, file: str, reason: str, *, key: str | None = None, line: int | None = None) -> None:
-        where = file if line is None else f"{file}:{line}"
-        what = f"{where}: {key}: {reason}" if key else f"{where}: {reason}"
-        super().__init__(what)
-        self.file, self.key, self.line, self.reason = file, key, line, reason
-
-
 @dataclass(frozen=True)
 class Output:
     """An analog output: its register and the volts it may be written (lo, hi)."""
@@ -283,33 +268,29 @@ class DaqConfig:
 
 # --- reading -------------------------------------------------------------------------
 
-def _error(name: str, message: str, line: int | None) -> DaqConfigError:
-    return DaqConfigError(name, message, line=line)
-
-
 def load_daq_config(path: Path | str, plant: Plant | None = None) -> DaqConfig:
     """Read and validate a DAQ configuration file, or a preset name (`labjack`), for
     the channels of `plant` (the quadruple tank when None)."""
     text_path = str(path)
     if text_path in PRESETS:
         return parse_daq_config(f"preset: {json.dumps(text_path)}\n", name=f"preset {text_path}", plant=plant)
-    return parse_daq_config(read_text(path, _error), name=text_path, plant=plant)
+    return parse_daq_config(read_text(path, config_error), name=text_path, plant=plant)
 
 
 def parse_daq_config(text: str, *, name: str = "<daq config>", plant: Plant | None = None) -> DaqConfig:
     """Validate the YAML `text` (named `name` in errors) over its preset, for the
     channels of `plant` (the quadruple tank when None)."""
     wiring = QUADTANK_CHANNELS if plant is None else PlantChannels.of(plant)
-    node, data = parse_yaml(text, name, _error)
+    node, data = parse_yaml(text, name, config_error)
     lines = key_lines(node)
-    v = _Validator(name, lines, wiring)
+    v = _MapValidator(name, lines, wiring)
     if data is None:
         data = {}
     if not isinstance(data, dict):
         raise DaqConfigError(name, "must be a mapping of keys (host: ..., port: ...)", line=1)
     preset_name = data.get("preset", "labjack")
     if preset_name is not None and not isinstance(preset_name, str):
-        v.fail("preset", f"must be a preset name ({', '.join([*PRESETS, 'none'])}), got {_show(preset_name)}")
+        v.fail("preset", f"must be a preset name ({', '.join([*PRESETS, 'none'])}), got {show(preset_name)}")
     if preset_name in (None, "none"):
         base: dict[str, Any] = {}
     elif preset_name in PRESETS:
@@ -361,12 +342,11 @@ def _merge(base: dict[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-class _Validator:
+class _MapValidator(Validator):
     """Turns the merged mapping into a DaqConfig, failing with file, line and key."""
 
     def __init__(self, name: str, lines: Mapping[str, int], wiring: PlantChannels = QUADTANK_CHANNELS) -> None:
-        self.name = name
-        self.lines = lines
+        super().__init__(name, lines)
         self.wiring = wiring
 
     def no_extra_channels(self, data: Mapping[str, Any]) -> None:
@@ -382,57 +362,11 @@ class _Validator:
                 are = "is extra" if len(extra) == 1 else "are extra"
                 self.fail(f"{section}.{extra[0]}", f"{', '.join(extra)} {are}: {self.wiring.describe()}")
 
-    def fail(self, key: str, reason: str) -> Any:
-        line = self.lines.get(key)
-        probe = key
-        while line is None and "." in probe:
-            probe = probe.rsplit(".", 1)[0]
-            line = self.lines.get(probe)
-        raise DaqConfigError(self.name, reason, key=key, line=line)
-
-    def mapping(self, key: str, value: Any, allowed: tuple[str, ...] | None = None) -> dict[str, Any]:
-        if not isinstance(value, dict):
-            self.fail(key, f"must be a mapping, got {_show(value)}")
-        for k in value:
-            if not isinstance(k, str):
-                self.fail(key, f"keys must be names, got {k!r}")
-            if allowed is not None and k not in allowed:
-                self.fail(f"{key}.{k}" if key else k, f"unknown key; expected one of {', '.join(allowed)}")
-        return value
-
-    def require(self, m: Mapping[str, Any], key: str, sub: str) -> Any:
-        if sub not in m:
-            self.fail(f"{key}.{sub}" if key else sub, "missing")
-        return m[sub]
-
     def require_channels(self, m: Mapping[str, Any]) -> None:
         """Every channel of the plant wired; the missing ones named together."""
         missing = [ch for ch in self.wiring.tanks + self.wiring.pumps if ch not in m]
         if missing:
             self.fail(f"channels.{missing[0]}", f"{', '.join(missing)} missing: {self.wiring.describe()}")
-
-    def number(self, key: str, value: Any, lo: float | None = None, hi: float | None = None,
-               *, lo_open: bool = False) -> float:
-        if not is_finite_number(value):
-            self.fail(key, f"must be a number, got {_show(value)}")
-        x = float(value)
-        if lo is not None and (x <= lo if lo_open else x < lo):
-            self.fail(key, f"must be {'>' if lo_open else '>='} {lo:g}, got {x:g}")
-        if hi is not None and x > hi:
-            self.fail(key, f"must be <= {hi:g}, got {x:g}")
-        return x
-
-    def integer(self, key: str, value: Any, lo: int, hi: int) -> int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            self.fail(key, f"must be a whole number, got {_show(value)}")
-        if not lo <= value <= hi:
-            self.fail(key, f"must be in {lo}..{hi}, got {value}")
-        return int(value)
-
-    def choice(self, key: str, value: Any, options: tuple[str, ...]) -> str:
-        if value not in options:
-            self.fail(key, f"must be one of {', '.join(options)}, got {_show(value)}")
-        return str(value)
 
     def register(self, key: str, value: Any, *, output: bool) -> tuple[Register, dict[str, Any]]:
         allowed = ("table", "address", "type", "word_order", "scale") + (("limits",) if output else ())
@@ -449,16 +383,6 @@ class _Validator:
             scale = self.number(f"{key}.scale", self.require(m, key, "scale"), 0.0, lo_open=True)
         return Register(table, address, reg_type, word_order, scale), m  # type: ignore[arg-type]
 
-    def limits(self, key: str, value: Any, unit: str = "volts", bound: float = 10.5) -> tuple[float, float]:
-        """[low, high], each within +-bound, low below high."""
-        if not isinstance(value, list) or len(value) != 2:
-            self.fail(key, f"must be [low, high] in {unit}, got {_show(value)}")
-        lo = self.number(f"{key}.0", value[0], -bound, bound)
-        hi = self.number(f"{key}.1", value[1], -bound, bound)
-        if not lo < hi:
-            self.fail(key, f"low ({lo:g}) must be below high ({hi:g})")
-        return (lo, hi)
-
     def calibration(self, key: str, value: Any) -> SensorCalibration:
         m = self.mapping(key, value, ("gain", "offset"))
         gain = self.number(f"{key}.gain", self.require(m, key, "gain"))
@@ -473,7 +397,7 @@ class _Validator:
         self.mapping("", d, top)
         host = self.require(d, "", "host")
         if not isinstance(host, str) or not host.strip():
-            self.fail("host", f"must be a host name or address, got {_show(host)}")
+            self.fail("host", f"must be a host name or address, got {show(host)}")
         port = self.integer("port", self.require(d, "", "port"), 1, 65535)
         device_id = self.integer("device_id", d.get("device_id", 1), 0, 255)
         timeout = self.number("timeout", d.get("timeout", 0.5), 0.0, 10.0, lo_open=True)
@@ -495,12 +419,13 @@ class _Validator:
         lock = self.mapping("interlock", d.get("interlock", {}), ("enabled", "limit", "tank_height"))
         enabled = lock.get("enabled", True)
         if not isinstance(enabled, bool):
-            self.fail("interlock.enabled", f"must be true or false, got {_show(enabled)}")
+            self.fail("interlock.enabled", f"must be true or false, got {show(enabled)}")
         limit = self.number("interlock.limit", lock.get("limit", 0.95), 0.0, 1.0, lo_open=True)
         default_height = 20.0 if self.wiring.keeps_preset else self.wiring.height
         height = self.number("interlock.tank_height", lock.get("tank_height", default_height), 0.0, 1000.0,
                              lo_open=True)
-        margin, plausible = self.plausible(self.mapping("plausible", d.get("plausible", {}), ("margin",) + tanks))
+        margin, plausible = self.plausible(self.mapping("plausible", d.get("plausible", {}), ("margin",) + tanks),
+                                           tanks, self.wiring.unit)
         watchdog = self.watchdog(d.get("watchdog"), outputs, [channels[p] for p in pump_names])
         self._no_overlap(inputs, outputs, watchdog)
         return DaqConfig(
@@ -520,16 +445,9 @@ class _Validator:
         value = cal.get("sensor_gain", 0.5 if self.wiring.keeps_preset else list(self.wiring.sensor_gains))
         if isinstance(value, list):
             if len(value) != n:
-                self.fail(key, f"must be one number or a list of {n} (one per level channel), got {_show(value)}")
+                self.fail(key, f"must be one number or a list of {n} (one per level channel), got {show(value)}")
             return tuple(self.number(f"{key}.{i}", x, 0.0, 1000.0, lo_open=True) for i, x in enumerate(value))
         return (self.number(key, value, 0.0, 10.0 if self.wiring.keeps_preset else 1000.0, lo_open=True),) * n
-
-    def plausible(self, m: Mapping[str, Any]) -> tuple[float, dict[str, tuple[float, float]]]:
-        """`plausible:` - the default margin and the tanks' own ranges (cm)."""
-        margin = self.number("plausible.margin", m.get("margin", PLAUSIBLE_MARGIN), 0.0, 1.0)
-        ranges = {tank: self.limits(f"plausible.{tank}", m[tank], self.wiring.unit, 1000.0)
-                  for tank in self.wiring.tanks if tank in m}
-        return margin, ranges
 
     def _channels(self, m: Mapping[str, Any], inputs: Mapping[str, Register],
                   outputs: Mapping[str, Output]) -> dict[str, str]:
@@ -539,7 +457,7 @@ class _Validator:
             for ch in names:
                 ref = self.require(m, "channels", ch)
                 if not isinstance(ref, str) or ref not in table:
-                    self.fail(f"channels.{ch}", f"{_show(ref)} is not one of the {kind} ({', '.join(table)})")
+                    self.fail(f"channels.{ch}", f"{show(ref)} is not one of the {kind} ({', '.join(table)})")
                 if ref in seen:
                     self.fail(f"channels.{ch}", f"{ref} is already wired to {seen[ref]}")
                 seen[ref] = ch
@@ -552,7 +470,7 @@ class _Validator:
         if value is None or value == "none":
             return None
         if not isinstance(value, dict):
-            self.fail("watchdog", f"must be the device's watchdog registers (a mapping) or none, got {_show(value)}")
+            self.fail("watchdog", f"must be the device's watchdog registers (a mapping) or none, got {show(value)}")
         m = self.mapping("watchdog", value, ("timeout", "enable", "timeout_register", "feed", "outputs",
                                              "strict_enable", "strict_key"))
         least = m.get("timeout", "auto")
@@ -607,8 +525,3 @@ class _Validator:
                 if (reg.table, a) in owner:
                     self.fail(f"{key}.address", f"{reg.table} register {a} is also used by {owner[reg.table, a]}")
                 owner[reg.table, a] = key
-
-
-def _show(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 40 else text[:37] + "..."

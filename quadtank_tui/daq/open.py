@@ -11,18 +11,22 @@ the callers ask the configuration it returns, never the file again.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable, Iterable
 
-from quadtank_tui.daq.config import PRESETS, DaqConfig, _error, load_daq_config, parse_daq_config
+from quadtank_tui.daq.config import PRESETS, DaqConfig, load_daq_config, parse_daq_config
 from quadtank_tui.daq.ist.config import IstConfig, parse_ist_config, says_ist
+from quadtank_tui.daq.validation import config_error
 from quadtank_tui.files.yamltext import read_text
 
 if TYPE_CHECKING:
     from quadtank_tui.core.plants import Plant
     from quadtank_tui.daq.ist.backend import IstBackend
     from quadtank_tui.daq.modbus import ModbusBackend
+
+#: Where a caller wants the warnings of a configuration read (commands.warn: one
+#: `quadtank: warning:` line each on stderr); this layer does not print them itself.
+Warn = Callable[[Iterable[str]], None]
 
 
 def load_rig_config(path: Path | str, plant: Plant | None = None) -> DaqConfig | IstConfig:
@@ -31,25 +35,26 @@ def load_rig_config(path: Path | str, plant: Plant | None = None) -> DaqConfig |
     Modbus map for the channels of `plant` (the quadruple tank when None)."""
     if str(path) in PRESETS:
         return load_daq_config(path, plant)
-    text = read_text(path, _error)  # the hostile-file checks: no FIFO, no huge file
+    text = read_text(path, config_error)  # the hostile-file checks: no FIFO, no huge file
     if says_ist(text):
         return parse_ist_config(text, name=str(path))
     return parse_daq_config(text, name=str(path), plant=plant)
 
 
 def open_daq(config: str | None, plant: Plant | None = None, *,
-             quiet: bool = False) -> ModbusBackend | IstBackend | None:
+             warn: Warn | None = None) -> ModbusBackend | IstBackend | None:
     """The backend of the rig a `--daq CONFIG` describes (None without one), wired
     for `plant` (the quadruple tank when None): a Modbus map or an IST serial rig,
     for `quadtank run`, the TUI and a session alike.  The file is read and checked
     now, so a bad one stops the program before anything runs; the link is opened on
-    the first sample.  A Modbus device without a watchdog is said to have none on
-    stderr, as the CLI's warnings are (unless `quiet`)."""
+    the first sample.  A Modbus device without a watchdog is said to have none: the
+    line goes to `warn` (the commands print it as their other warnings; None: not
+    said)."""
     if config is None:
         return None
     rig = load_rig_config(config, plant)
     if isinstance(rig, DaqConfig):
-        return _modbus(rig, quiet=quiet)
+        return _modbus(rig, warn)
     from quadtank_tui.daq.ist.backend import IstBackend
 
     backend = IstBackend(rig)
@@ -58,9 +63,9 @@ def open_daq(config: str | None, plant: Plant | None = None, *,
     return backend
 
 
-def _modbus(config: DaqConfig, *, quiet: bool) -> ModbusBackend:
+def _modbus(config: DaqConfig, warn: Warn | None) -> ModbusBackend:
     from quadtank_tui.daq.modbus import ModbusBackend  # pymodbus only when asked for
 
-    if config.watchdog is None and not quiet:
-        print(f"quadtank: warning: {config.watchdog_line()}", file=sys.stderr)
+    if config.watchdog is None and warn is not None:
+        warn([config.watchdog_line()])
     return ModbusBackend(config)

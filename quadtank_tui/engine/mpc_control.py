@@ -19,7 +19,7 @@ from typing import Sequence
 
 import numpy as np
 
-from quadtank_tui.core.mpc.controller import MPC, MPCStats, design_mpc
+from quadtank_tui.core.mpc.controller import MPC, MPCStats, design_mpc, percentiles
 from quadtank_tui.core.mpc.info import MPCInfo
 from quadtank_tui.core.mpc.model import plant_in_use
 from quadtank_tui.core.mpc.simulate import sensor_gains
@@ -155,8 +155,8 @@ class LoopMPC:
         del st.times[:-KEPT], st.cpu_times[:-KEPT]  # the loop runs for hours: keep a window
         times = self._times
         if times and (len(times) <= PERCENTILES_EVERY or st.solves % PERCENTILES_EVERY == 0):
-            p50, p99 = np.percentile(np.fromiter(times, float), (50, 99)) * 1e3
-            self._p50_p99 = (float(p50), float(p99))
+            p50, p99 = percentiles(times, (50, 99))
+            self._p50_p99 = (p50 * 1e3, p99 * 1e3)
         p50, p99 = self._p50_p99
         self.info = MPCInfo(
             self.info.horizon, self.info.moves, self.info.x_e, self.info.u_e, solves=st.solves,

@@ -277,7 +277,7 @@ def session_main(ready_fd: int, lifeline: int = -1) -> int:
 
                 assert spec.run is not None
                 wired = load_parameters(spec.run.par, ParStore(spec.run.params_dir))[0].process_plant()
-            daq = open_daq(spec.daq_config, wired, quiet=True)  # the launcher said it; the record says it
+            daq = open_daq(spec.daq_config, wired)  # no warning: the launcher said it; the record says it
             assert daq is not None
             if not spec.private:  # a private session's launcher keeps the lock (and watches it)
                 # under the rig's identity (a Modbus rig's addresses, a serial rig's device); adopts the launcher's

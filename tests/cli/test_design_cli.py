@@ -85,7 +85,7 @@ def test_p_plus_2x2_writes_a_par_with_k2_negative(tmp_path: Path, capsys: pytest
     assert params.get("CONTROL.Structure").value == "Decentralized"
 
 
-def _model_file(path: Path, gains: list) -> Path:  # type: ignore[type-arg]
+def _model_file(path: Path, gains: list) -> Path:
     """A 2x2 of first-order elements K/(62 s + 1); a gain 0 is a null element."""
     path.write_text(json.dumps({"format": "quadtank-model", "version": 1, "method": "oe",
                                 "inputs": ["u1", "u2"], "outputs": ["y1", "y2"],

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from quadtank_tui.cli import main
-from quadtank_tui.core.analysis import analyze
+from quadtank_tui.core.analysis import Analysis, analyze
 from quadtank_tui.core.identify.compare import operating_levels
 from quadtank_tui.core.plant import P_MINUS, P_PLUS, Setting
 from quadtank_tui.files.log_reader import read_log
@@ -45,7 +45,7 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return made
 
 
-def _identify(capsys: pytest.CaptureFixture[str], *args: str) -> dict:  # type: ignore[type-arg]
+def _identify(capsys: pytest.CaptureFixture[str], *args: str) -> dict:
     capsys.readouterr()
     assert main(["identify", *args, "--json"]) == 0
     return json.loads(capsys.readouterr().out)
@@ -62,7 +62,7 @@ def models(logs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> d
     return made
 
 
-def _physical(setting: Setting, result: dict) -> np.ndarray:  # type: ignore[type-arg]
+def _physical(setting: Setting, result: dict) -> Analysis:
     h = operating_levels(result["operating_point"], setting.params, setting.op.v)
     return analyze(setting.params, h)
 
@@ -162,7 +162,7 @@ def test_design_from_the_saved_model(models: dict[str, Path], capsys: pytest.Cap
         assert written.get(key) == before.get(key)
 
 
-def _design(capsys: pytest.CaptureFixture[str], *args: str) -> dict:  # type: ignore[type-arg]
+def _design(capsys: pytest.CaptureFixture[str], *args: str) -> dict:
     capsys.readouterr()
     assert main(["design", *args, "--json"]) == 0
     return json.loads(capsys.readouterr().out)
@@ -194,7 +194,7 @@ def test_identify_design_write_par_and_the_plant_does_what_the_preview_said(
         did_what_the_preview_said(did, said, step["loop"])
 
 
-def did_what_the_preview_said(did: Any, said: dict, loop: int) -> None:  # type: ignore[type-arg]
+def did_what_the_preview_said(did: Any, said: dict, loop: int) -> None:
     """The issue's tolerances: overshoot within 5 points, settling and IAE within 20 %,
     no chatter, the pumps within their range."""
     from quadtank_tui.core.design.sampled_eval import reversals

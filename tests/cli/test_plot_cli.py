@@ -51,7 +51,7 @@ def test_two_logs_make_one_svg_with_both_runs(tmp_path: Path, capsys: pytest.Cap
     (["--out", "x.png", "--vars", ","], "--vars: no variable named (give e.g. y1,r1)"),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch,
-                                          args: list[str], message: str) -> None:  # type: ignore[no-untyped-def]
+                                          args: list[str], message: str) -> None:
     monkeypatch.chdir(tmp_path)
     write_log(tmp_path / "a.log")
     assert main(["plot", "a.log", *args]) == 2

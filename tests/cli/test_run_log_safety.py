@@ -37,7 +37,7 @@ def test_two_runs_logging_as_data_in_one_folder_keep_their_own_rows(
     real = headless.run_experiment
     inner: list[int] = []
 
-    def b_runs_meanwhile(engine, scr, duration):  # type: ignore[no-untyped-def]
+    def b_runs_meanwhile(engine, scr, duration):
         if inner:  # B itself
             return real(engine, scr, duration)
         real(engine, scr, duration / 2)  # A is logging
@@ -68,7 +68,7 @@ def test_a_run_saving_the_same_log_meanwhile_is_not_overwritten(
     real = headless.run_experiment
     inner: list[int] = []
 
-    def b_runs_meanwhile(engine, scr, duration):  # type: ignore[no-untyped-def]
+    def b_runs_meanwhile(engine, scr, duration):
         if not inner:
             inner.append(-1)
             inner[0] = main(["run", "--duration", "20", "--log", str(out)])
@@ -100,23 +100,24 @@ class _FullDisk:
     """A log file on a disk with `room` bytes left: writes what fits, then
     OSError(ENOSPC), as a short write followed by a failed one does."""
 
-    def __init__(self, real, room: int) -> None:  # type: ignore[no-untyped-def]
+    def __init__(self, real, room: int) -> None:
         self.real, self.room = real, room
 
-    def write(self, data) -> int:  # type: ignore[no-untyped-def]
+    def write(self, data) -> int:
         if self.room <= 0:
             raise OSError(errno.ENOSPC, "No space left on device")
         n = self.real.write(bytes(data[: self.room]))
         self.room -= n
         return n
 
-    def __getattr__(self, name: str):  # type: ignore[no-untyped-def]
+    def __getattr__(self, name: str):
         return getattr(self.real, name)
 
 
 def test_disk_full_leaves_whole_rows_and_says_how_many(tmp_path: Path) -> None:
     w = LogWriter(tmp_path / "full.log", ("y1", "u1"), 1.0, 100, created=datetime(2000, 1, 1))
-    w._file = _FullDisk(w._file, room=2 * 18 + 5)  # two rows of "0.300000  0.300000\n", then 5 bytes
+    # two rows of "0.300000  0.300000\n", then 5 bytes; a stand-in for the file, not a FileIO
+    w._file = _FullDisk(w._file, room=2 * 18 + 5)  # type: ignore[assignment]
     w.append({"y1": 0.3, "u1": 0.3})
     w.append({"y1": 0.3, "u1": 0.3})
     with pytest.raises(LogFileError, match=r"full.log: cannot write \(No space left on device\): logging "
@@ -156,7 +157,7 @@ def test_a_read_only_logs_folder_is_refused_before_the_run(
     script = tmp_path / "late.yaml"
     script.write_text("- {at: 0, state: Run}\n- {at: 600, log: on}\n")
 
-    def read_only(*args, **kwargs):  # type: ignore[no-untyped-def]
+    def read_only(*args, **kwargs):
         raise PermissionError(errno.EACCES, "Permission denied")
 
     monkeypatch.setattr(log_module.tempfile, "TemporaryFile", read_only)

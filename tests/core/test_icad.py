@@ -32,6 +32,7 @@ def test_published_crossovers_and_phase_margins() -> None:
     assert c2.crossover == pytest.approx(0.1565, abs=5e-4)
     assert c1.phase_margin_deg == pytest.approx(80.3, abs=0.1)
     assert c2.phase_margin_deg == pytest.approx(75.8, abs=0.1)
+    assert c1.phase_margin_deg is not None and c2.phase_margin_deg is not None
     assert c1.phase_margin_deg > 70 and c2.phase_margin_deg > 70
     assert len(c1.crossovers) == len(c2.crossovers) == 1
     assert r.stable
@@ -79,7 +80,8 @@ def test_si_plant_crosses_over_near_3000_rad_s() -> None:
     G = plant_v()
     si = dataclasses.replace(G, B=G.B / p.Gp, C=G.C / p.Gd)
     r = analyze_icad(si, K1, K2, w=np.logspace(-3, 6, 3000))
-    assert 2000 < r.channels[0].crossover < 5000
+    crossover = r.channels[0].crossover
+    assert crossover is not None and 2000 < crossover < 5000
 
 
 def test_channels_satisfy_their_definition() -> None:

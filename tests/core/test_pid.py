@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -71,7 +72,7 @@ def test_derivative_filter_has_time_constant_td_over_n() -> None:
 
 
 def test_derivative_setpoint_weight_a() -> None:
-    base = dict(K=1.0, Td=4.0, N=8.0, integral=False, derivative=True, b=0.0)
+    base: dict[str, Any] = dict(K=1.0, Td=4.0, N=8.0, integral=False, derivative=True, b=0.0)
     r = [0.0, 0.1, 0.1]
     with_a = derivative_response(PIDParams(a=1.0, **base), 0.5, r, [0.0] * 3)
     without = derivative_response(PIDParams(a=0.0, **base), 0.5, r, [0.0] * 3)
@@ -89,8 +90,9 @@ def test_derivative_switched_off() -> None:
 
 
 def test_invalid_parameters_name_the_field() -> None:
-    for field, kwargs in (("Ti", {"Ti": 0.0}), ("Tr", {"Tr": -1.0}), ("N", {"N": 0.0}),
-                          ("a", {"a": 1.5}), ("b", {"b": -0.1})):
+    cases: tuple[tuple[str, dict[str, Any]], ...] = (("Ti", {"Ti": 0.0}), ("Tr", {"Tr": -1.0}), ("N", {"N": 0.0}),
+                                                     ("a", {"a": 1.5}), ("b", {"b": -0.1}))
+    for field, kwargs in cases:
         with pytest.raises(ParameterError) as err:
             PIDParams(**kwargs)
         assert err.value.field == field

@@ -33,8 +33,8 @@ def ctp_model(u_max: float = 22.0) -> OperatingModel:
     x2e = ALPHA1**2 * X1E / ALPHA2**2
     ue = ALPHA1 * math.sqrt(2 * G * X1E) / BETA1
     l1, l2 = ALPHA1 * math.sqrt(G / (2 * X1E)), ALPHA2 * math.sqrt(G / (2 * x2e))
-    return OperatingModel(A=[[-l1, 0], [l1, -l2]], B=[[BETA1], [0]], C=[[0, 1]],
-                          x_e=[X1E, x2e], u_e=[ue], u_max=[u_max])
+    return OperatingModel(A=np.array([[-l1, 0], [l1, -l2]]), B=np.array([[BETA1], [0]]), C=np.array([[0, 1]]),
+                          x_e=np.array([X1E, x2e]), u_e=np.array([ue]), u_max=np.array([u_max]))
 
 
 def ctp_rhs(x: np.ndarray, u: float) -> np.ndarray:
@@ -124,7 +124,8 @@ HIS_L2 = [[0.02566, -0.0008726], [-0.006911, 0.02419]]
 
 
 def qtp_design():
-    m = OperatingModel(A=QTP_A, B=QTP_B, C=QTP_C, x_e=[10, 10, 5, 5], u_e=[6, 6], u_max=[22, 22])
+    m = OperatingModel(A=np.array(QTP_A), B=np.array(QTP_B), C=np.array(QTP_C), x_e=np.array([10, 10, 5, 5]),
+                       u_e=np.array([6, 6]), u_max=np.array([22, 22]))
     return design(m, T, settling_time=25.0, poles=[-0.0575, -0.0225])
 
 
@@ -158,7 +159,8 @@ def test_design_refuses_what_it_cannot_place() -> None:
         design(ctp_model(), T, poles=[-0.1, -0.2 + 0.1j, -0.3 - 0.1j])
     with pytest.raises(DesignError, match="negative real part"):
         design(ctp_model(), T, poles=[0.1], settling_time=20.0)
-    uncontrollable = OperatingModel(A=[[-1, 0], [0, -1]], B=[[1], [0]], C=[[1, 0]], x_e=[1, 1], u_e=[1])
+    uncontrollable = OperatingModel(A=np.array([[-1, 0], [0, -1]]), B=np.array([[1], [0]]), C=np.array([[1, 0]]),
+                                    x_e=np.array([1, 1]), u_e=np.array([1]))
     with pytest.raises(DesignError):
         design(uncontrollable, T, settling_time=20.0)
 

@@ -14,7 +14,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterator, Sequence
 
 import pytest
 from pymodbus.client import ModbusTcpClient
@@ -151,7 +151,7 @@ class LinkProxy:
             for a, b in ((client, upstream), (upstream, client)):
                 threading.Thread(target=self._relay, args=(a, b), daemon=True).start()
 
-    def _relay(self, src, dst) -> None:  # type: ignore[no-untyped-def]
+    def _relay(self, src, dst) -> None:
         try:
             while True:
                 data = src.recv(4096)
@@ -203,7 +203,7 @@ class FixedBank:
             raise IllegalAddress(address)
         return [self.words[a] for a in range(address, address + count)]
 
-    def write(self, address: int, values: list[int]) -> None:
+    def write(self, address: int, values: Sequence[int]) -> None:
         if not all(1000 <= a < 1004 for a in range(address, address + len(values))):
             raise IllegalAddress(address)
         self.words.update(zip(range(address, address + len(values)), values))

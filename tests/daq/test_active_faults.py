@@ -13,15 +13,15 @@ import pytest
 from quadtank_tui.daq.config import Output
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.registers import Register
-from quadtank_tui.engine.commands import LogOn, LogSave, SetOperation, SetParams, SetState
+from quadtank_tui.engine.commands import Command, LogOn, LogSave, SetOperation, SetParams, SetState
 from quadtank_tui.engine.runner import Engine, build_engine
 from quadtank_tui.files.log_reader import read_log
 
 ROOT = Path(__file__).parents[2]
 
 
-def ok(engine: Engine, command: object) -> None:
-    result = engine.submit(command).result()  # type: ignore[arg-type]
+def ok(engine: Engine, command: Command) -> None:
+    result = engine.submit(command).result()
     assert result.ok, result.message
 
 
@@ -98,6 +98,29 @@ def test_a_fault_on_a_live_link_commands_the_pumps_to_zero(rig: Callable, tmp_pa
         engine.stop()
 
 
+def test_a_run_that_faults_at_once_leaves_no_guard_behind(
+        rig: Callable, tmp_path: Path, poll: Callable[..., bool]) -> None:
+    """The fault above at the first sample, pump 2's output unreachable (so the
+    pumps to 0 also fails), then the end: the guard process the run started has
+    ended within a few seconds of it, not with the program."""
+    from quadtank_tui.files.proc import process_state
+
+    r = rig("--speed", "20")
+    good = r.config()
+    config = dataclasses.replace(good, outputs={
+        **good.outputs, "DAC1": Output(Register("holding", 1010, "float32", "big"), (0.0, 10.0))})
+    backend = ModbusBackend(config)
+    engine = active_engine(backend, tmp_path)
+    try:
+        ok(engine, SetState("Run"))
+        assert engine.step().state == "Pause" and "DAC1" in backend.safe_state_error
+        assert backend.guard is not None
+        pid = backend.guard.pid
+    finally:
+        engine.stop()
+    assert poll(lambda: process_state(pid) == "", 5.0), f"the guard (pid {pid}) outlived the run"
+
+
 def test_pause_reset_and_exit_command_the_pumps_to_zero(rig: Callable, tmp_path: Path) -> None:
     r = rig("--speed", "20")
     engine = active_engine(ModbusBackend(r.config()), tmp_path)
@@ -106,7 +129,7 @@ def test_pause_reset_and_exit_command_the_pumps_to_zero(rig: Callable, tmp_path:
             ok(engine, SetState("Run"))
             engine.run_for(0.5)
             assert r.dacs() == pytest.approx((3.0, 3.0))
-            ok(engine, SetState(leave))               # type: ignore[arg-type]
+            ok(engine, SetState(leave))
             assert r.dacs() == (0.0, 0.0), leave
         ok(engine, SetState("Run"))
         engine.run_for(0.5)

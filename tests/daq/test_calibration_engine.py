@@ -15,6 +15,7 @@ from quadtank_tui.core.plant import steady_state_levels
 from quadtank_tui.daq.calibrate import Pairs, fit_pairs
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.engine.commands import (
+    Command,
     CalibrationHeights, CancelCalibration, SetOperation, SetState, StartCalibration,
 )
 from quadtank_tui.engine.runner import Engine, build_engine
@@ -24,8 +25,8 @@ SENSOR = 0.45   # V/cm on the rig; the configuration says 2 cm/V
 OFFSET = 0.1    # V
 
 
-def ok(engine: Engine, command: object) -> None:
-    result = engine.submit(command).result()  # type: ignore[arg-type]
+def ok(engine: Engine, command: Command) -> None:
+    result = engine.submit(command).result()
     assert result.ok, result.message
 
 
@@ -41,7 +42,7 @@ def step_until(engine: Engine, phase: str, seconds: float = 30.0) -> None:
 
 
 @pytest.fixture
-def active(rig: Callable, tmp_path: Path):  # type: ignore[no-untyped-def]
+def active(rig: Callable, tmp_path: Path):
     params = PRESET.with_values({"SIMULATION.Sensor": SENSOR})
     par = write_par(tmp_path / "kc045.par", params)
     r = rig("--par", str(par), "--offset", str(OFFSET), "--speed", "4000")
@@ -52,7 +53,7 @@ def active(rig: Callable, tmp_path: Path):  # type: ignore[no-untyped-def]
     engine.stop()
 
 
-def test_the_engine_runs_the_procedure_and_the_pairs_recover_the_rig_sensors(active) -> None:  # type: ignore[no-untyped-def]
+def test_the_engine_runs_the_procedure_and_the_pairs_recover_the_rig_sensors(active) -> None:
     engine, r, params = active
     ok(engine, StartCalibration((2.0, 2.5, 3.0), window=2.0, tol=0.0003, timeout=3600.0))
     refused = engine.submit(SetState("Run")).result()
@@ -75,7 +76,7 @@ def test_the_engine_runs_the_procedure_and_the_pairs_recover_the_rig_sensors(act
     assert result.outlets.coefficients == pytest.approx((p.a1, p.a2, p.a3, p.a4), rel=5e-3)
 
 
-def test_cancel_puts_the_pumps_to_0_and_simul_refuses(active, poll: Callable) -> None:  # type: ignore[no-untyped-def]
+def test_cancel_puts_the_pumps_to_0_and_simul_refuses(active, poll: Callable) -> None:
     engine, r, _ = active
     ok(engine, StartCalibration((4.0,), window=2.0, tol=1e-9))
     for _ in range(5):

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import pytest
+from textual.widgets import Input
 
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.core.plant import steady_state_levels
@@ -32,7 +33,7 @@ VOLTS = (2.0, 2.5, 3.0)
 
 
 @pytest.fixture
-def rig_engine(rig: Callable, tmp_path: Path):  # type: ignore[no-untyped-def]
+def rig_engine(rig: Callable, tmp_path: Path):
     params = PRESET.with_values({"SIMULATION.Sensor": SENSOR})
     folder = tmp_path / "params"
     folder.mkdir()
@@ -72,21 +73,21 @@ async def _open(pilot: Any) -> CalibrationWindow:
     return window
 
 
-async def test_the_window_recovers_the_rig_sensors_and_writes_them(rig_engine) -> None:  # type: ignore[no-untyped-def]
+async def test_the_window_recovers_the_rig_sensors_and_writes_them(rig_engine) -> None:
     engine, r, params, par, config = rig_engine
     app = build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)
     async with app.run_test(size=(100, 40)) as pilot:
         window = await _open(pilot)
-        window.query_one("#cal-volts").value = " ".join(map(str, VOLTS))
-        window.query_one("#cal-window").value = "2"
-        window.query_one("#cal-tol").value = "0.0003"
+        window.query_one("#cal-volts", Input).value = " ".join(map(str, VOLTS))
+        window.query_one("#cal-window", Input).value = "2"
+        window.query_one("#cal-tol", Input).value = "0.0003"
         await pilot.click("#start")
         for v in VOLTS:
             await _until(pilot, engine, window, lambda: window.status is not None and window.status.phase == "heights")
             assert r.dacs() == (v, v)
             assert "Read the heights" in str(window.query_one("#cal-progress").render())
             for i, h in enumerate(steady_state_levels((v, v), params.quadtank_constants()), start=1):
-                window.query_one(f"#cal-h{i}").value = f"{h:.4f}"
+                window.query_one(f"#cal-h{i}", Input).value = f"{h:.4f}"
             await pilot.click("#record")
             await pilot.pause()
         await _until(pilot, engine, window, lambda: window.result is not None)
@@ -96,7 +97,7 @@ async def test_the_window_recovers_the_rig_sensors_and_writes_them(rig_engine) -
             assert cal.offset == pytest.approx(-OFFSET / SENSOR, abs=0.02)
         shown = str(window.query_one("#cal-result").render())
         assert f"tank 1  gain {window.result.sensors[1].gain:.4f} cm/V" in shown and "a1 " in shown, shown
-        window.query_one("#cal-par").value = "lab"
+        window.query_one("#cal-par", Input).value = "lab"
         par_before, config_before = par.read_text(), config.read_text()
         await pilot.click("#write")
         await pilot.pause()
@@ -117,13 +118,13 @@ async def test_the_window_recovers_the_rig_sensors_and_writes_them(rig_engine) -
                                                                            rel=5e-3)
 
 
-async def test_cancel_puts_the_pumps_to_0(rig_engine, poll: Callable) -> None:  # type: ignore[no-untyped-def]
+async def test_cancel_puts_the_pumps_to_0(rig_engine, poll: Callable) -> None:
     engine, r, _, _, _ = rig_engine
     app = build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)
     async with app.run_test(size=(100, 40)) as pilot:
         window = await _open(pilot)
-        window.query_one("#cal-volts").value = "4"
-        window.query_one("#cal-tol").value = "0.000000001"
+        window.query_one("#cal-volts", Input).value = "4"
+        window.query_one("#cal-tol", Input).value = "0.000000001"
         await pilot.click("#start")
         await _until(pilot, engine, window, lambda: window.status is not None and window.status.reads >= 3)
         assert poll(lambda: r.dacs() == (4.0, 4.0), 30.0)

@@ -52,7 +52,7 @@ def holder_pid(port: int) -> int | None:
 
 
 @pytest.fixture
-def holding(tmp_path: Path):  # type: ignore[no-untyped-def]
+def holding(tmp_path: Path):
     """holding(port): another program holding the rig's lock (it waits on stdin)."""
     children: list[subprocess.Popen[str]] = []
 
@@ -247,7 +247,12 @@ def test_the_tui_ends_when_its_rig_is_taken_over(tmp_path: Path, monkeypatch: py
     port = free_port()
     engine, app = FakeEngine(), FakeApp()
     running = threading.Event()
-    monkeypatch.setattr(cli, "build_tui", lambda args: (running.set(), (engine, app))[1])
+
+    def build_tui(args: object) -> tuple[FakeEngine, FakeApp]:
+        running.set()
+        return engine, app
+
+    monkeypatch.setattr(cli, "build_tui", build_tui)
     taker: list[DaqLock] = []
 
     def take() -> None:

@@ -4,7 +4,7 @@ control.  In process: a virtual rig on the test's clock behind our Modbus server
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, Literal, Sequence
 
 import pytest
 
@@ -18,7 +18,7 @@ from quadtank_tui.engine.backend import BackendError
 from quadtank_tui.session.info import SessionInfo
 from daqkit import VIRTUAL_RIG, recording_guard
 
-U32 = "uint32"
+U32: Literal["uint32"] = "uint32"
 
 
 def test_the_labjack_preset_declares_the_t_series_watchdog_registers() -> None:
@@ -57,10 +57,17 @@ def test_a_device_without_one_is_said_to_have_none(capsys: pytest.CaptureFixture
     assert plc.watchdog is None
     assert plc.watchdog_line() == ("watchdog: none declared by params/daq-plc-example.yaml: if this program dies "
                                    "its guard stops the pumps; if the computer dies or hangs, nothing does")
+    from quadtank_tui.commands.daq import run_clock
     from quadtank_tui.daq.open import open_daq
 
-    open_daq("params/daq-plc-example.yaml")
-    assert capsys.readouterr().err == f"quadtank: warning: {plc.watchdog_line()}\n"
+    open_daq("params/daq-plc-example.yaml")  # the DAQ layer prints nothing itself
+    assert capsys.readouterr().err == ""
+    said: list[str] = []
+    open_daq("params/daq-plc-example.yaml", warn=said.extend)
+    assert said == [plc.watchdog_line()]
+    # a command says it once, as its other warnings, on stderr
+    run_clock(realtime=True, speed=None, config="params/daq-plc-example.yaml")
+    assert capsys.readouterr() == ("", f"quadtank: warning: {plc.watchdog_line()}\n")
     info = SessionInfo(id="ann-1", owner="ann", uid=1000, pid=1, started="2026-11-26T10:00:00", plant="quadtank",
                        operation="Active", daq="params/daq-plc-example.yaml", watchdog="none")
     assert "  Active (no watchdog)  " in format_table([info])
@@ -80,7 +87,12 @@ def _rig_and_backend(device: Callable[..., Any]) -> tuple[Clock, VirtualRig, Mod
     rig = VirtualRig(config, P_MINUS.params, P_MINUS.op.h, clock=clock)
     written: list[int] = []
     write = rig.write
-    rig.write = lambda address, values: (written.append(address), write(address, values))[1]  # type: ignore[method-assign]
+
+    def recorded(address: int, values: Sequence[int]) -> None:
+        written.append(address)
+        write(address, values)
+
+    rig.write = recorded  # type: ignore[method-assign]  # the writes the backend makes, in order
     d = device((0.0,) * 4, bank=rig)
     return clock, rig, ModbusBackend(d.config(), clock=clock, guard=False), written
 

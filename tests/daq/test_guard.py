@@ -10,6 +10,7 @@ its log, instead of driving the pumps again.
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -82,3 +83,19 @@ def test_sigstop_the_devices_watchdog_stops_the_pumps_and_sigcont_pauses(
     assert len(notes) == 1 and notes[0].startswith("% t = ") and "no request reached the rig" in notes[0]
     time.sleep(0.3)
     assert r.dacs() == (0.0, 0.0)  # never a silent return to the 3 V of before
+
+
+def test_a_bye_written_before_the_guard_has_started_ends_it(poll: Callable[..., bool]) -> None:
+    """A program that drives for less than the guard's start (a run of a few samples,
+    a fault at the first) writes its bye before the guard has read its spec: the
+    guard ends on it, not when the program ends (it read the spec with a buffered
+    readline, which kept the bye out of its watch: 7 guards outlived their tests in
+    a run of tests/daq, each waiting for pytest to end to zero the pumps of a rig
+    long gone)."""
+    from quadtank_tui.daq.guard import Guard, GuardSpec
+    from quadtank_tui.files.proc import process_state
+
+    # a live program (this one) and a port nobody answers on: the guard must not act
+    guard = Guard(GuardSpec(os.getpid(), "127.0.0.1", 9, 1, 0.2, [("DAC0", 1000, [0, 0])], 1.0))
+    guard.release(wait=0.0)  # microseconds after the spec: the guard's interpreter is still starting
+    assert poll(lambda: process_state(guard.pid) == "", 10.0), "the guard outlived the program's bye"

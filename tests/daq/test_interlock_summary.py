@@ -42,7 +42,7 @@ class RigHere(ModbusBackend):
         self.rig = VirtualRig(config, params.quadtank_constants(), levels_cm, clock=lambda: self.now)
         self.pump1_volts: list[float] = []  # the rig's pump 1 after each write
 
-    def _request(self, what, call):  # type: ignore[no-untyped-def]
+    def _request(self, what, call):
         return call()
 
     def _read(self, table: str, first: int, count: int) -> list[int]:

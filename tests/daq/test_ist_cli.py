@@ -101,10 +101,10 @@ def test_run_drives_the_device_and_its_disturbances_and_leaves_its_pumps_at_0(is
     assert 4 <= log.rows <= 10 and max(log.columns()["u1"]) > 0.3  # the PI drove the pumps
     assert "NOT confirmed" not in text
     time.sleep(0.3)
-    status = [line for line in ist_rig.lines if "pwm u =" in line]
-    assert any(not line.rstrip().endswith("pwm u =    0    0  d =   0   0") for line in status)  # it pumped
-    assert any(line.rstrip().endswith("d = 255 128") for line in status)  # the script's disturbances
-    assert status[-1].rstrip().endswith("pwm u =    0    0  d =   0   0")  # and stopped: the zero frame
+    frames = [line for line in ist_rig.lines if "pwm u =" in line]
+    assert any(not line.rstrip().endswith("pwm u =    0    0  d =   0   0") for line in frames)  # it pumped
+    assert any(line.rstrip().endswith("d = 255 128") for line in frames)  # the script's disturbances
+    assert frames[-1].rstrip().endswith("pwm u =    0    0  d =   0   0")  # and stopped: the zero frame
 
 
 def test_a_second_program_is_refused_naming_the_holder_of_the_port(

@@ -62,7 +62,8 @@ def test_speed_factor_scales_process_time() -> None:
 
 
 def test_watchdog_stops_the_pumps_at_its_deadline() -> None:
-    clock, events = FakeClock(), []
+    clock = FakeClock()
+    events: list[str] = []
     rig = make(clock, watchdog=1.0, report=events.append)
     write_volts(rig, 5.0, 5.0)
     clock.now += 0.9

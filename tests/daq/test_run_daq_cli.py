@@ -40,6 +40,7 @@ def test_run_daq_logs_an_active_experiment(rig: Callable, tmp_path: Path,
     # busy machine, missed - the rig's time does not wait, the log notes the late rows
     # (a late last row may carry the count past 300 by the slots it missed).
     m = re.match(r"ran 30 s: (\d+) samples, (\d+) overruns(?: \((\d+) sampling slots skipped\))?", text)
+    assert m is not None, text
     samples, overruns, skipped = (int(w or 0) for w in m.groups())
     log = read_log(out)
     assert overruns <= samples and (overruns == 0) == (skipped == 0)

@@ -37,7 +37,7 @@ def automatic_on(backend: ModbusBackend, tmp_path: Path) -> Engine:
     engine = build_engine(None, daq=backend, clock="manual", params_dir=ROOT / "params", logs_dir=tmp_path)
     for command in (SetOperation("Active"), SetState("Run"), SetControlMode("Automatic"),
                     SetParams({"REFERENCE ONE.Mean": 0.8, "REFERENCE TWO.Mean": 0.8})):
-        ok(engine.submit(command).result())  # type: ignore[arg-type]
+        ok(engine.submit(command).result())
     return engine
 
 

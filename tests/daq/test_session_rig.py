@@ -22,7 +22,7 @@ from daqkit import rig_yaml
 ROOT = Path(__file__).parents[2]
 
 
-def _active_session(rig: Callable, tmp_path: Path):  # type: ignore[no-untyped-def]
+def _active_session(rig: Callable, tmp_path: Path):
     r = rig("--speed", "1", "--watchdog", "0")
     config = tmp_path / "rig.yaml"
     config.write_text(rig_yaml(r.port))

@@ -105,7 +105,7 @@ def test_late_samples_are_noted_in_the_log(rig: Callable, tmp_path: Path,
     assert f"late       {len(notes)} of the {len(rows)} rows came late" in text
 
 
-def _config(port: int, timeout: float):  # type: ignore[no-untyped-def]
+def _config(port: int, timeout: float):
     import dataclasses
 
     from quadtank_tui.daq.config import load_daq_config

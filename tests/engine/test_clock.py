@@ -15,7 +15,9 @@ def test_realtime_deadlines_are_absolute_and_never_drift() -> None:
     clock.start()
     jitters = []
     for k in range(1000):
-        src.sleep(clock.deadline() - src.now())
+        due = clock.deadline()
+        assert due is not None  # a real-time clock always has a next deadline
+        src.sleep(due - src.now())
         src.advance(0.0003 if k % 3 else 0.0011)  # wakes a little late, by varying amounts
         jitters.append(clock.tick().jitter)
     # The 1000th deadline is exactly start + 1000 periods: lateness never accumulates.
@@ -34,7 +36,9 @@ def test_a_late_sample_is_an_overrun_and_the_schedule_skips_without_a_burst() ->
     assert timing.jitter == pytest.approx(0.25) and timing.missed == 2
     assert (clock.overruns, clock.skipped) == (1, 2)   # one late sample, two slots skipped
     assert clock.deadline() == pytest.approx(0.4)   # the next future deadline, on the grid
-    src.sleep(clock.deadline() - src.now())
+    due = clock.deadline()
+    assert due is not None
+    src.sleep(due - src.now())
     assert clock.tick().missed == 0 and clock.overruns == 1
 
 

@@ -33,6 +33,7 @@ def test_sample_session_a4_gives_the_published_step_response(make_engine: MakeEn
     # Published (Johansson & Nunes, Nunes 1998 section 4): under 10 % overshoot,
     # settling in about a minute; the physical model at h = 1 s: 5.1 %, 53 s.
     assert m.step == pytest.approx(0.1) and m.step_time == 610.0
+    assert m.overshoot is not None and m.settling_time is not None
     assert 2.0 < m.overshoot < 10.0
     assert 30.0 <= m.settling_time <= 120.0
     assert abs(m.final_error) < 1e-3

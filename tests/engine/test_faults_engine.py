@@ -15,7 +15,7 @@ from quadtank_tui.files.script import ScriptError, parse_script
 PARAMS = Path(__file__).resolve().parents[2] / "params"
 
 
-def test_set_fault_status_and_log_comment(make_engine, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_set_fault_status_and_log_comment(make_engine, tmp_path: Path) -> None:
     e = make_engine()
     assert e.submit(LogOn()).result().ok
     assert e.submit(SetState("Run")).result().ok
@@ -67,7 +67,7 @@ def test_shipped_drain_test(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert abs(y1[-1] - r1) < 1e-4 and abs(y2[-1] - r2) < 1e-4
 
 
-def test_status_line_names_the_active_faults(make_engine) -> None:  # type: ignore[no-untyped-def]
+def test_status_line_names_the_active_faults(make_engine) -> None:
     from quadtank_tui.ui.widgets.status_line import StatusLine
 
     e = make_engine()

@@ -9,6 +9,7 @@ simulator nothing went by (its time is the loop's), so nothing moves.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 import pytest
 
@@ -25,7 +26,7 @@ class Rig(ProcessBackend):
     kind = "Active"
     description = "rig"
 
-    def read_levels(self):  # type: ignore[no-untyped-def]
+    def read_levels(self):
         return (0.6, 0.6, 0.1, 0.1)
 
     def write_pumps(self, u: Pair) -> None:
@@ -35,10 +36,10 @@ class Rig(ProcessBackend):
         pass
 
 
-def loop_on(tmp_path: Path, operation: str) -> ControlLoop:
+def loop_on(tmp_path: Path, operation: Literal["Simul", "Active"]) -> ControlLoop:
     loop = ControlLoop(PRESET, daq=Rig(), logs_dir=tmp_path)
     for command in (SetOperation(operation), LogOn(), SetState("Run")):
-        assert loop.apply(command).ok  # type: ignore[arg-type]
+        assert loop.apply(command).ok
     return loop
 
 

@@ -11,7 +11,7 @@ from quadtank_tui.core.matrix import Family, Structure
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend
 from quadtank_tui.engine.commands import (
-    AddWater, LoadPar, LogDiscard, LogOff, LogOn, LogSave, NudgeMean, ResetControllers, SavePar,
+    AddWater, Command, LoadPar, LogDiscard, LogOff, LogOn, LogSave, NudgeMean, ResetControllers, SavePar,
     SetControlMode, SetDefaults, SetOperation, SetParams, SetSpeed, SetState,
 )
 from quadtank_tui.engine.loop import ControlLoop
@@ -21,8 +21,8 @@ from quadtank_tui.files.log_reader import read_log
 MakeEngine = Callable[..., Engine]
 
 
-def ok(engine: Engine, command: object) -> None:
-    result = engine.submit(command).result()  # type: ignore[arg-type]
+def ok(engine: Engine, command: Command) -> None:
+    result = engine.submit(command).result()
     assert result.ok, result.message
 
 
@@ -128,11 +128,12 @@ def test_a_bad_command_is_refused_and_changes_nothing(make_engine: MakeEngine, v
 
 def test_other_refusals_name_the_reason(make_engine: MakeEngine) -> None:
     e = make_engine()
-    for command, words in [
+    refused: list[tuple[Command, str]] = [
         (SetOperation("Active"), "DAQ"), (NudgeMean(3, 0.1), "channel"), (AddWater(7, 0.1), "tank"),
         (LogOff(), "not on"), (LogSave(), "nothing"), (ResetControllers((3, 1)), "11, 12, 21, 22"),
         (LoadPar("missing"), "missing"),
-    ]:
+    ]
+    for command, words in refused:
         result = e.submit(command).result()
         assert not result.ok and words in result.message, (command, result.message)
     realtime = make_engine(clock="realtime")
@@ -151,7 +152,7 @@ class FlakyBackend(ProcessBackend):
         self.safe_calls = 0
         self.alarms = ("tank 3 high",)
 
-    def read_levels(self):  # type: ignore[no-untyped-def]
+    def read_levels(self):
         self.reads += 1
         if self.reads > self.fail_after:
             raise self.error

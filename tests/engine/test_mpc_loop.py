@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.engine.commands import SetControlMode, SetFault, SetParams, SetState
+from quadtank_tui.engine.commands import Command, SetControlMode, SetFault, SetParams, SetState
 from quadtank_tui.engine.loop import ControlLoop
 
 CM = 20.0  # cm per normalized unit
 BUMP = 0.005  # largest pump jump at a switch sample, of full scale (measured 0.002)
 
 
-def ok(loop: ControlLoop, command: object) -> None:
-    result = loop.apply(command)  # type: ignore[arg-type]
+def ok(loop: ControlLoop, command: Command) -> None:
+    result = loop.apply(command)
     assert result.ok, result.message
 
 
@@ -96,7 +96,7 @@ def test_the_switch_is_bumpless_while_the_levels_still_move() -> None:
     assert rows[-1, 0] == pytest.approx(rows[-1, 6], abs=0.1 / CM)
 
 
-def test_a_failing_solve_holds_the_last_input_and_is_counted_in_the_snapshot() -> None:
+def test_a_failing_solve_holds_the_last_input_and_is_counted_in_the_snapshot(monkeypatch: pytest.MonkeyPatch) -> None:
     loop = settled_pi()
     ok(loop, SetParams({"CONTROL.Type": "MPC"}))
     run(loop, 5)
@@ -107,7 +107,7 @@ def test_a_failing_solve_holds_the_last_input_and_is_counted_in_the_snapshot() -
     def broken(*_: object) -> object:
         raise RuntimeError("solver crashed")
 
-    mpc.mpc.qp.solve = broken  # type: ignore[method-assign]
+    monkeypatch.setattr(mpc.mpc.qp, "solve", broken)
     rows = run(loop, 3)
     assert rows[:, 4:6] == pytest.approx(np.tile(held, (3, 1)))
     snap = loop.snapshot()
@@ -157,7 +157,8 @@ def test_a_design_made_off_the_loop_is_installed_and_keeps_the_counts() -> None:
     ok(loop, SetState("Run"))
     ok(loop, SetControlMode("Automatic"))
     run(loop, 5)
-    assert loop.snapshot().mpc.solves == 5
+    info = loop.snapshot().mpc
+    assert info is not None and info.solves == 5
     assert needs_mpc_design(loop, SetParams({"REFERENCE ONE.Mean": 0.4})) is None  # same design
     assert needs_mpc_design(loop, SetParams({"MPC.Horizon": 0})) is None  # refused where applied
     new = needs_mpc_design(loop, SetParams({"MPC.Horizon": 20}))
@@ -167,4 +168,5 @@ def test_a_design_made_off_the_loop_is_installed_and_keeps_the_counts() -> None:
     ok(loop, SetParams({"MPC.Horizon": 20}))
     assert loop.controllers.mpc is designed and designed.horizon == 20
     run(loop, 1)
-    assert loop.snapshot().mpc.solves == 6
+    info = loop.snapshot().mpc
+    assert info is not None and info.solves == 6

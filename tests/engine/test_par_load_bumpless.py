@@ -17,7 +17,7 @@ from typing import Callable
 
 import pytest
 
-from quadtank_tui.engine.commands import LoadPar, SetControlMode, SetState
+from quadtank_tui.engine.commands import Command, LoadPar, SetControlMode, SetState
 from quadtank_tui.engine.runner import Engine
 
 SHIPPED = Path(__file__).resolve().parents[2] / "params" / "nonminphase.par"
@@ -26,8 +26,8 @@ MEANS = ("REFERENCE ONE.Mean", "REFERENCE TWO.Mean")
 MakeEngine = Callable[..., Engine]
 
 
-def ok(engine: Engine, command: object) -> str:
-    result = engine.submit(command).result(timeout=20)  # type: ignore[arg-type]
+def ok(engine: Engine, command: Command) -> str:
+    result = engine.submit(command).result(timeout=20)
     assert result.ok, result.message
     return result.message
 

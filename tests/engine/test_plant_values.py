@@ -34,7 +34,7 @@ Level2 16.937888442299226
 """
 
 
-def cascade_engine(tmp_path: Path):  # type: ignore[no-untyped-def]
+def cascade_engine(tmp_path: Path):
     folder = tmp_path / "params"
     folder.mkdir()
     (folder / "default.par").write_text((PARAMS / "default.par").read_text())
@@ -59,7 +59,7 @@ def test_a_plant_value_set_while_running_changes_the_process_and_the_saved_par(t
     assert text == format_par(engine.loop.params, _created(text))
 
 
-def _created(text: str):  # type: ignore[no-untyped-def]
+def _created(text: str):
     from datetime import datetime
 
     line = text.splitlines()[1].removeprefix("% Created on: ")
@@ -94,4 +94,5 @@ def test_the_two_input_rig_redesigned_between_samples(tmp_path: Path) -> None:
     assert engine.submit(SetParams({"PLANT.a1": 3.956e-5 * 1.1})).result().ok
     assert engine.loop.sim.plant.values()["a1"] == pytest.approx(4.3516e-5)
     process = engine.loop.params.process
-    assert process is not None and process.levels == PLANT_SETTINGS["coupled-tito"].process.levels
+    preset = PLANT_SETTINGS["coupled-tito"].process
+    assert process is not None and preset is not None and process.levels == preset.levels

@@ -102,10 +102,10 @@ def test_a_fault_pauses_and_the_driver_goes_on(make_engine: MakeEngine) -> None:
     class Dead:
         kind, description, alarms = "Active", "dead rig", ()
 
-        def read_levels(self):  # type: ignore[no-untyped-def]
+        def read_levels(self):
             raise BackendError("no reply from 127.0.0.1:5020")
 
-        def write_pumps(self, u):  # type: ignore[no-untyped-def]
+        def write_pumps(self, u):
             raise AssertionError("never reached")
 
         def safe_state(self) -> None:
@@ -122,7 +122,7 @@ def test_a_fault_pauses_and_the_driver_goes_on(make_engine: MakeEngine) -> None:
     e.stop()
 
 
-def test_a_stored_name_without_default_par_warns_once(tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_a_stored_name_without_default_par_warns_once(tmp_path) -> None:
     """default.par is read once; its warning is not repeated by the named file's load."""
     import shutil
 

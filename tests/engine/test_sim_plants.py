@@ -84,7 +84,7 @@ def test_headless_run_of_the_cascade_stays_at_its_operating_point(tmp_path: Path
     assert last[1] * 10 * 5.5558 == pytest.approx(14.7274, abs=1e-3)
 
 
-def test_loading_a_par_switches_the_simulated_plant(make_engine, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_loading_a_par_switches_the_simulated_plant(make_engine, tmp_path: Path) -> None:
     from quadtank_tui.engine.commands import LoadPar, SetState
     from quadtank_tui.files.shipped import write_shipped
 

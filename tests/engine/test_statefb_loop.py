@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from quadtank_tui.core.parameters import PRESET, Parameters
-from quadtank_tui.engine.commands import ResetControllers, SetControlMode, SetParams, SetState
+from quadtank_tui.engine.commands import Command, ResetControllers, SetControlMode, SetParams, SetState
 from quadtank_tui.engine.loop import ControlLoop
 
 CM = 20.0  # cm per normalized unit
 
 
-def ok(loop: ControlLoop, command: object) -> None:
-    result = loop.apply(command)  # type: ignore[arg-type]
+def ok(loop: ControlLoop, command: Command) -> None:
+    result = loop.apply(command)
     assert result.ok, result.message
 
 

@@ -21,7 +21,7 @@ from quadtank_tui.core.plants.spec import PlantSpec
 from quadtank_tui.core.statefb.controller import u_ssmax
 from quadtank_tui.core.statefb.design import loop_margins
 from quadtank_tui.core.statefb.plants import PlantStateFeedback
-from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
+from quadtank_tui.engine.commands import Command, SetControlMode, SetParams, SetState
 from quadtank_tui.engine.loop import ControlLoop
 from quadtank_tui.files.par import read_par
 
@@ -30,8 +30,8 @@ CASCADE = read_par(ROOT / "params" / "coupled-cascade.par").params
 TITO = read_par(ROOT / "params" / "coupled-tito.par").params
 
 
-def ok(loop: ControlLoop, command: object) -> None:
-    result = loop.apply(command)  # type: ignore[arg-type]
+def ok(loop: ControlLoop, command: Command) -> None:
+    result = loop.apply(command)
     assert result.ok, result.message
 
 

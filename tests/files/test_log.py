@@ -270,7 +270,12 @@ def test_fsync_at_most_once_a_second(tmp_path: Path, monkeypatch: pytest.MonkeyP
     w = LogWriter(tmp_path / "a.log", ("y1",), 0.1, 100, clock=clock)
     synced: list[float] = []
     real_fsync = os.fsync
-    monkeypatch.setattr(os, "fsync", lambda fd: (synced.append(clock.now), real_fsync(fd)))
+
+    def fsync(fd: int) -> None:
+        synced.append(clock.now)
+        real_fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
     for i in range(25):
         clock.now = i * 0.1
         w.append({"y1": 0.5})

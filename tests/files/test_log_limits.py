@@ -8,6 +8,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import textwrap
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,9 @@ from quadtank_tui.files.log_writer import format_header, format_row
 from quadtank_tui.files.log_reader import LogFileError, read_log
 from quadtank_tui.files.stamp import parse_stamp
 
-CREATED = parse_stamp("Nov 26 12:00:00 2026")
+_STAMP = parse_stamp("Nov 26 12:00:00 2026")
+assert _STAMP is not None
+CREATED: datetime = _STAMP
 
 
 def write_log(path: Path, rows: int, variables: tuple[str, ...] = ("y1", "y2", "u1", "u2")) -> Path:

@@ -89,7 +89,7 @@ def _refuses_a_bad_plot_type(engine: Engine) -> None:
 
 def test_the_core_holds_no_list_of_file_or_screen_names() -> None:
     """The lists live in files.names only: no module of the core defines them."""
-    defined = set()
+    defined: set[str] = set()
     for path in CORE.rglob("*.py"):
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Assign):

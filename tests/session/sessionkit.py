@@ -91,7 +91,7 @@ class Rig(ProcessBackend):
         self.release.clear()
         self._reads_left = reads
 
-    def read_levels(self):  # type: ignore[no-untyped-def]
+    def read_levels(self):
         if self._reads_left is not None:
             self._reads_left -= 1
             if self._reads_left <= 0:

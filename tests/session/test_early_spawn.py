@@ -94,7 +94,7 @@ def test_a_good_start_attaches_to_the_session_it_spawned(
     monkeypatch.chdir(tmp_path)
     seen: list[str] = []
 
-    def run_tui_on(client, refresh: float) -> int:  # type: ignore[no-untyped-def]
+    def run_tui_on(client, refresh: float) -> int:
         seen.append(client.info.id)
         client.stop_on_close = True
         client.close()

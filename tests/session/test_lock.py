@@ -63,7 +63,7 @@ def test_file_names_the_holder(lab: LabConfig) -> None:
         assert (record["user"], record["uid"], record["pid"], record["session"]) == (me.user, me.uid, me.pid, "s-3")
         assert record["start"] == process_start(me.pid) is not None
         assert datetime.fromisoformat(record["since"]) == lock.since
-        assert holder_of(DEVICE, lab).pid == os.getpid()  # type: ignore[union-attr]
+        assert (holder := holder_of(DEVICE, lab)) is not None and holder.pid == os.getpid()
     assert not path.exists()  # released
     assert holder_of(DEVICE, lab) is None
 
@@ -77,7 +77,8 @@ def test_a_second_program_is_refused_with_the_holders_name(lab: LabConfig) -> No
         assert (held.pid, held.uid, held.session, held.holder) == (child.pid, os.getuid(), "s-3", current_user().user)
         assert str(held) == (f"the rig at 192.0.2.7:502/1 is driven by {current_user().user} "
                              f"(pid {child.pid}, session s-3) since {held.since:%H:%M}")
-        assert holder_of(DEVICE, lab) is not None and holder_of(DEVICE, lab).pid == child.pid
+        holder = holder_of(DEVICE, lab)
+        assert holder is not None and holder.pid == child.pid
         again = pickle.loads(pickle.dumps(held))  # crosses a process boundary intact
         assert (str(again), again.pid, again.since) == (str(held), held.pid, held.since)
         assert child.stdin is not None and child.stdout is not None
@@ -111,7 +112,8 @@ def test_a_recycled_pid_is_not_the_holder(lab: LabConfig) -> None:
     assert holder_of(DEVICE, lab) is None
     record["start"] = process_start(os.getppid())
     lock_path(DEVICE, lab).write_text(json.dumps(record))
-    assert holder_of(DEVICE, lab) is not None and holder_of(DEVICE, lab).holder == "ghost"
+    holder = holder_of(DEVICE, lab)
+    assert holder is not None and holder.holder == "ghost"
     with pytest.raises(DaqLockHeld, match="driven by ghost .* since 2026-01-01 10:00"):
         DaqLock.acquire(DEVICE, lab)
 
@@ -120,7 +122,7 @@ def test_take_over_and_the_old_holders_release(lab: LabConfig) -> None:
     child = hold_in_child(lab)
     try:
         mine = DaqLock.acquire(DEVICE, lab, take_over=True)
-        assert mine.held and holder_of(DEVICE, lab).pid == os.getpid()  # type: ignore[union-attr]
+        assert mine.held and (holder := holder_of(DEVICE, lab)) is not None and holder.pid == os.getpid()
     finally:
         assert child.stdin is not None
         child.stdin.write("\n")
@@ -224,7 +226,12 @@ def test_lock_watch_calls_back_once_when_taken_over(lab: LabConfig) -> None:
     lock = DaqLock.acquire(DEVICE, lab)
     calls: list[str] = []
     called = threading.Event()
-    watch = LockWatch(lock, lambda why: (calls.append(why), called.set()), interval=0.01).start()
+
+    def call(why: str) -> None:
+        calls.append(why)
+        called.set()
+
+    watch = LockWatch(lock, call, interval=0.01).start()
     assert not called.wait(0.1)  # still ours: no call
     DaqLock.acquire(DEVICE, lab, take_over=True)
     assert called.wait(30.0)

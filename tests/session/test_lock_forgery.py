@@ -72,7 +72,7 @@ def test_a_record_naming_another_user_is_forged_and_stops_nobody(lab: LabConfig)
     plant(lab, user="teacher", uid=TEACHER, pid=1, owner=STUDENT)
     assert holder_of(DEVICE, lab) is None
     with DaqLock.acquire(DEVICE, lab) as lock:
-        assert lock.held and holder_of(DEVICE, lab).pid == os.getpid()  # type: ignore[union-attr]
+        assert lock.held and (holder := holder_of(DEVICE, lab)) is not None and holder.pid == os.getpid()
 
 
 @root_only
@@ -102,7 +102,7 @@ def test_the_holder_refuses_a_students_take_over(
         assert lock.note == f"student (not an administrator) tried to take the rig at {DEVICE} over; refused"
         record = json.loads(lock_path(DEVICE, lab).read_text())
         assert (record["pid"], record["session"]) == (os.getpid(), "teacher-1")
-        assert holder_of(DEVICE, lab).pid == os.getpid()  # type: ignore[union-attr]
+        assert (holder := holder_of(DEVICE, lab)) is not None and holder.pid == os.getpid()
     finally:
         lock.release()
 
@@ -207,8 +207,12 @@ def test_the_watch_tells_a_refused_take_over_once_and_keeps_the_lock(
     lost: list[str] = []
     notes: list[str] = []
     noted = threading.Event()
-    watch = LockWatch(lock, lost.append, interval=0.01,
-                      on_note=lambda what: (notes.append(what), noted.set())).start()
+
+    def note(what: str) -> None:
+        notes.append(what)
+        noted.set()
+
+    watch = LockWatch(lock, lost.append, interval=0.01, on_note=note).start()
     try:
         plant(lab, user="student", uid=STUDENT, pid=student_process.pid, owner=STUDENT, take_over=True)
         assert noted.wait(30)

@@ -46,7 +46,7 @@ def _drives(action: Callable[[], Any]) -> int:
     return Driver.started - before
 
 
-def test_a_thread_session_is_served_by_the_driver(thread_session, poll) -> None:  # type: ignore[no-untyped-def]
+def test_a_thread_session_is_served_by_the_driver(thread_session, poll) -> None:
     before = Driver.started
     s = thread_session()
     assert poll(lambda: Driver.started == before + 1, 30.0)

@@ -39,7 +39,7 @@ def fake_dns(monkeypatch: pytest.MonkeyPatch, names: dict[str, list[str]]) -> No
     """getaddrinfo answering `names` (a name -> its addresses) and literal addresses."""
     real = socket.getaddrinfo
 
-    def answer(host: str, port: object, *args: object, **kw: object) -> list[tuple]:  # type: ignore[type-arg]
+    def answer(host: str, port: object, *args: object, **kw: object) -> list[tuple]:
         if host in names:
             return [(socket.AF_INET6 if ":" in a else socket.AF_INET, socket.SOCK_STREAM, 6, "", (a, 0))
                     for a in names[host]]

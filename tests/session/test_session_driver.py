@@ -17,7 +17,7 @@ from quadtank_tui.session.client import SessionClient
 
 
 def test_a_command_ends_the_drivers_wait_and_is_applied_between_samples(
-        thread_session, poll: Callable[..., bool]) -> None:  # type: ignore[no-untyped-def]
+        thread_session, poll: Callable[..., bool]) -> None:
     """A sample 10 s away (10 s sampling at x1) is waited for on the event loop: a
     client's command, and the stop, are taken at once, not after the wait."""
     s: ThreadSession = thread_session(speed=1.0, tsamp_ms=10000)
@@ -31,7 +31,7 @@ def test_a_command_ends_the_drivers_wait_and_is_applied_between_samples(
     assert not s.thread.is_alive() and time.monotonic() - t0 < 5.0  # not the 10 s to the next sample
 
 
-def test_the_session_samples_while_another_thread_is_busy(thread_session) -> None:  # type: ignore[no-untyped-def]
+def test_the_session_samples_while_another_thread_is_busy(thread_session) -> None:
     """A UI-like event loop whose handler hogs its thread (a slow frame, in pure
     Python) in the session's process: the driver samples during the frame."""
     s: ThreadSession = thread_session(speed=1000.0)
@@ -50,7 +50,7 @@ def test_the_session_samples_while_another_thread_is_busy(thread_session) -> Non
     assert progress == sorted(progress) and progress[-1] > progress[0]
 
 
-def test_a_simulated_sessions_disk_work_is_off_the_drivers_thread(thread_session) -> None:  # type: ignore[no-untyped-def]
+def test_a_simulated_sessions_disk_work_is_off_the_drivers_thread(thread_session) -> None:
     """A session on a virtual clock (the TUI's Simul) writes its log and saves on
     the file thread, as a rig's does: a slow fsync costs it no deadline
     (tests/engine/test_file_thread.py measures that on the driver)."""

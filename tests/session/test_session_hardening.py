@@ -157,7 +157,7 @@ def test_connections_are_limited_per_user_and_in_total_with_room_for_owner_and_a
     assert s.thread.is_alive() and OWNER == s.host.access.owner_uid
 
 
-def test_a_session_id_is_never_given_again_while_its_record_is_there(tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_a_session_id_is_never_given_again_while_its_record_is_there(tmp_path) -> None:
     """alice-1 stopped (its record says so) and alice-2 died (SIGKILL: a stale
     record): the next session is alice-3, not the smallest number free of a
     running session (root-1 named another user's new session while its old
@@ -193,7 +193,7 @@ def test_observers_that_never_read_hold_a_bounded_share_of_memory(thread_session
 
     monkeypatch.setattr(server_module, "MAX_BACKLOG_OTHERS", 2 << 20)
     s: ThreadSession = thread_session(speed=1000.0)
-    s.host.access._may_connect = lambda uid: True  # type: ignore[attr-defined]  # everyone may observe
+    s.host.access._may_connect = lambda uid: True  # everyone may observe
     with SessionClient(s.path) as alice:
         assert alice.submit(c.SetState("Run")).result(30).ok
         s.peers.queue.extend([STUDENT] * 8)

@@ -28,7 +28,7 @@ from quadtank_tui.session.protocol import (
 from quadtank_tui.session.runtime import ended_sessions, list_sessions
 
 
-def wait_for(predicate, timeout: float = 60.0, what: str = "") -> None:  # type: ignore[no-untyped-def]
+def wait_for(predicate, timeout: float = 60.0, what: str = "") -> None:
     end = time.monotonic() + timeout
     while not predicate():
         if time.monotonic() > end:
@@ -178,7 +178,7 @@ def test_a_student_cannot_take_over_nor_stop_an_administrator_can(thread_session
         s.thread.join(10)
         assert s.reason == "stopped by teacher"
         wait_for(lambda: alice.gone and teacher.gone)
-        assert "ended: stopped by teacher" in alice.snapshot().fault
+        assert "ended: stopped by teacher" in (alice.snapshot().fault or "")
         teacher.close()
     assert not s.path.exists() and list_sessions(s.runtime) == []
 
@@ -298,7 +298,7 @@ def test_decode_refuses_what_is_not_a_message(line: bytes) -> None:
 
 
 def test_commands_round_trip() -> None:
-    commands = [c.SetParams({"CONTROLLER ONE.K": 3.0, "CONTROL.Type": "PID"}), c.SetDefaults(("A.b", "C.d")),
+    commands: list[c.Command] = [c.SetParams({"CONTROLLER ONE.K": 3.0, "CONTROL.Type": "PID"}), c.SetDefaults(("A.b", "C.d")),
                 c.ResetControllers((1, 2)), c.ResetControllers(None), c.LogOn(None), c.LogSave("x", True),
                 c.SetSpeed(2.5), c.AddWater(3, -0.1), c.SetFault("leak", 2, 0.5, False)]
     for command in commands:
@@ -309,7 +309,7 @@ def _read_welcome(sock: socket.socket) -> None:
     assert _read_until(sock, "Welcome")["@"] == "Welcome"
 
 
-def _read_until(sock: socket.socket, tag: str) -> dict:  # type: ignore[type-arg]
+def _read_until(sock: socket.socket, tag: str) -> dict:
     buf = b""
     sock.settimeout(10)
     while True:
@@ -329,7 +329,7 @@ def _read_until(sock: socket.socket, tag: str) -> dict:  # type: ignore[type-arg
     ("default", {"CONTROL.Type": "State feedback"}),  # complex poles, the lazily known StateFeedbackInfo
     ("coupled-tito", {}),  # another plant (PLANT section: PlantSpec)
 ])
-def test_snapshots_round_trip_exactly(par: str, values: dict, tmp_path: Path) -> None:  # type: ignore[type-arg]
+def test_snapshots_round_trip_exactly(par: str, values: dict, tmp_path: Path) -> None:
     from quadtank_tui.engine.runner import build_engine
     from quadtank_tui.session.protocol import Update
 

@@ -20,7 +20,7 @@ K = "CONTROLLER ONE.K"
 
 
 
-def test_the_session_samples_while_a_par_file_hangs(thread_session, monkeypatch: pytest.MonkeyPatch,  # type: ignore[no-untyped-def]
+def test_the_session_samples_while_a_par_file_hangs(thread_session, monkeypatch: pytest.MonkeyPatch,
                                                     poll: Callable[..., bool]) -> None:
     s: ThreadSession = thread_session(speed=100.0)
     client = SessionClient(s.path)
@@ -57,7 +57,7 @@ def test_the_session_samples_while_a_par_file_hangs(thread_session, monkeypatch:
         client.close()
 
 
-def test_a_session_loading_in_automatic_keeps_the_references(thread_session) -> None:  # type: ignore[no-untyped-def]
+def test_a_session_loading_in_automatic_keeps_the_references(thread_session) -> None:
     """The session reads the file off its driver's thread and installs it between
     samples (InstallPar): the bumpless rule of tests/engine/test_par_load_bumpless.py
     holds there too - the references in force stay, the rest of the file applies."""

@@ -19,7 +19,7 @@ H = 0.5  # s: the sampling time (a long one, so a loaded machine's own gaps stay
 DESIGN = 2.5  # s the design takes here (the first switch, measured 1.9-2.1 s)
 
 
-def test_the_samples_go_on_while_the_first_mpc_is_designed(thread_session, monkeypatch: pytest.MonkeyPatch) -> None:  # type: ignore[no-untyped-def]
+def test_the_samples_go_on_while_the_first_mpc_is_designed(thread_session, monkeypatch: pytest.MonkeyPatch) -> None:
     import osqp  # noqa: F401 - loaded already: the design's time is the sleep below, the same every run
     import quadtank_tui.engine.mpc_control  # noqa: F401
 

@@ -34,7 +34,7 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="us
 ROOT = Path(__file__).parents[2]
 
 
-def wait_until(condition, timeout: float = 60.0) -> bool:  # type: ignore[no-untyped-def]
+def wait_until(condition, timeout: float = 60.0) -> bool:
     """True as soon as `condition()` holds, False after `timeout` s: the deadline is
     for a test that fails, never what a passing one waits for."""
     deadline = time.monotonic() + timeout
@@ -57,7 +57,7 @@ def _stop_for_good(pid: int) -> None:
         os.kill(pid, signal.SIGKILL)
 
 
-def _start(tmp_path: Path, runtime: Path, **kwargs: object):  # type: ignore[no-untyped-def]
+def _start(tmp_path: Path, runtime: Path, **kwargs: object):
     spec = engine_spec(clock="virtual", speed=100.0, params_dir=tmp_path / "params", logs_dir=tmp_path / "logs")
     return start_session(SessionSpec(spec, str(runtime), **kwargs))  # type: ignore[arg-type]
 

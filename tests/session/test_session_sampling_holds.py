@@ -90,12 +90,12 @@ def test_a_burst_of_refused_submits_is_answered_without_holding_a_sample(thread_
 
 
 @pytest.mark.wallclock
-def test_a_flooding_observer_is_dropped_and_the_sampling_holds(thread_session, capfd) -> None:  # type: ignore[no-untyped-def]
+def test_a_flooding_observer_is_dropped_and_the_sampling_holds(thread_session, capfd) -> None:
     """An observer writing Submits as fast as it can (the review's: 10000 in 5 s held
     the sampling 1 s) goes within a second, and the session's output says why; the
     operator is not disturbed."""
     s: ThreadSession = thread_session(speed=1.0)
-    s.host.access._may_connect = lambda uid: True  # type: ignore[attr-defined]  # bob may observe
+    s.host.access._may_connect = lambda uid: True  # bob may observe
     with SessionClient(s.path) as alice:
         assert alice.submit(c.SetState("Run")).result(10).ok
         s.peers.queue.append(STUDENT)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import pytest
 
@@ -60,13 +60,13 @@ def engine(make_engine: Callable[..., Recording]) -> Recording:
 # --- the Setup screen's tests ----------------------------------------------------------------
 
 @pytest.fixture
-def setup_engine(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Recording:
+def setup_engine(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Recording]:
     """The engine on ./params (the shipped files) and ./logs, in a private folder:
     relative folders, so a message reads "params/x.par" whatever tmp_path is."""
     monkeypatch.chdir(tmp_path)
     write_shipped("params")
     engine = Recording(manual_engine())
-    yield engine  # type: ignore[misc]
+    yield engine
     engine.stop()
 
 

@@ -10,6 +10,7 @@ from typing import Any, Callable
 from uikit import Recording, make_app, open_setup
 
 import pytest
+from textual.widgets import Input
 
 from quadtank_tui.core.parameters import PLANT_SETTINGS, PRESET, Parameters
 from quadtank_tui.engine.commands import SetOperation
@@ -64,8 +65,8 @@ async def _start(pilot: Any, engine: Recording, volts: str = "2 3") -> Calibrati
     await pilot.pause()
     window = pilot.app.screen
     assert isinstance(window, CalibrationWindow)
-    window.query_one("#cal-volts").value = volts
-    window.query_one("#cal-window").value = "10"
+    window.query_one("#cal-volts", Input).value = volts
+    window.query_one("#cal-window", Input).value = "10"
     await pilot.click("#start")
     return await _settle(pilot, engine, "heights")
 
@@ -102,7 +103,7 @@ def test_calibration_window_shows_the_fit(snap_compare, make_engine: Callable[..
                 window = await _settle(pilot, engine, "heights")
             assert rig.voltages[0] == pytest.approx(v)
             for i, h in enumerate(rig.levels_cm, start=1):  # what the scales show now
-                window.query_one(f"#cal-h{i}").value = f"{h:.3f}"
+                window.query_one(f"#cal-h{i}", Input).value = f"{h:.3f}"
             await pilot.click("#record")
             await pilot.pause()
         await _settle(pilot, engine, "done")

@@ -15,11 +15,11 @@ from uikit import make_app  # noqa: E402
 
 
 @pytest.fixture
-def app(engine):  # type: ignore[no-untyped-def]
+def app(engine):
     return make_app(engine)
 
 
-async def _open(pilot) -> DesignScreen:  # type: ignore[no-untyped-def]
+async def _open(pilot) -> DesignScreen:
     await pilot.pause()
     await pilot.press("d")
     await pilot.pause()
@@ -30,7 +30,7 @@ async def _open(pilot) -> DesignScreen:  # type: ignore[no-untyped-def]
     return screen
 
 
-async def _type_model(pilot, screen: DesignScreen, loop: int, text: str) -> None:  # type: ignore[no-untyped-def]
+async def _type_model(pilot, screen: DesignScreen, loop: int, text: str) -> None:
     """Clear loop `loop`'s model box, type `text` and Enter, as a user does."""
     box = screen.query_one(f"#model-{loop}", Input)
     box.value = ""
@@ -40,7 +40,7 @@ async def _type_model(pilot, screen: DesignScreen, loop: int, text: str) -> None
     await pilot.pause()
 
 
-async def _apply_through_the_preview(pilot, *, confirm: bool = False) -> None:  # type: ignore[no-untyped-def]
+async def _apply_through_the_preview(pilot, *, confirm: bool = False) -> None:
     """A, the preview window simulates (a worker), then its Apply (focused when done);
     `confirm`: the simulation warned, so Apply asks once more."""
     from quadtank_tui.ui.windows.base import ChoiceWindow
@@ -61,11 +61,11 @@ async def _apply_through_the_preview(pilot, *, confirm: bool = False) -> None:  
     assert isinstance(pilot.app.screen, DesignScreen)
 
 
-def _box_text(app) -> str:  # type: ignore[no-untyped-def]
+def _box_text(app) -> str:
     return " ".join(str(c.render()) for c in app.screen.query_one(ControllerBox).query(Static))
 
 
-async def test_design_2x2_apply_shows_in_the_controller_box(app, engine) -> None:  # type: ignore[no-untyped-def]
+async def test_design_2x2_apply_shows_in_the_controller_box(app, engine) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await _open(pilot)
         # P- (the preset): the physical g11 fills loop 1, its table has nine rows
@@ -91,7 +91,7 @@ async def test_design_2x2_apply_shows_in_the_controller_box(app, engine) -> None
         assert "K 1.908 Ti 62.7" in text and "K 1.758 Ti 90.34" in text
 
 
-async def test_typed_model_and_chosen_row(app, engine) -> None:  # type: ignore[no-untyped-def]
+async def test_typed_model_and_chosen_row(app, engine) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await _open(pilot)
         await _type_model(pilot, screen, 1, "1.6592*exp(-2.4*s)/(1.07*s+1)^3")
@@ -113,7 +113,7 @@ async def test_typed_model_and_chosen_row(app, engine) -> None:  # type: ignore[
         assert p.get("CONTROLLER ONE.K") == 0.1483 and p.get("CONTROLLER FOUR.K") == 2.7  # loop 2 kept
 
 
-async def test_a_bad_model_is_pointed_at(app) -> None:  # type: ignore[no-untyped-def]
+async def test_a_bad_model_is_pointed_at(app) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await _open(pilot)
         await _type_model(pilot, screen, 2, "1/(s+1")

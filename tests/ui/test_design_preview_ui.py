@@ -15,7 +15,7 @@ from uikit import make_app  # noqa: E402
 
 
 @pytest.fixture
-def app(engine):  # type: ignore[no-untyped-def]
+def app(engine):
     return make_app(engine)
 
 
@@ -28,7 +28,7 @@ def _request() -> PreviewRequest:
                           120.0, None, (1.0, 1.0))
 
 
-async def _opened(pilot, answers: list):  # type: ignore[no-untyped-def]
+async def _opened(pilot, answers: list):
     pilot.app.push_screen(DesignPreviewWindow(_request()), answers.append)
     await pilot.pause()
     await pilot.app.workers.wait_for_complete()
@@ -36,7 +36,7 @@ async def _opened(pilot, answers: list):  # type: ignore[no-untyped-def]
     return pilot.app.screen
 
 
-async def test_a_limit_cycle_needs_a_confirmation_that_says_so(app) -> None:  # type: ignore[no-untyped-def]
+async def test_a_limit_cycle_needs_a_confirmation_that_says_so(app) -> None:
     answers: list = []
     async with app.run_test(size=(120, 40)) as pilot:
         window = await _opened(pilot, answers)
@@ -55,7 +55,7 @@ async def test_a_limit_cycle_needs_a_confirmation_that_says_so(app) -> None:  # 
         assert answers == [True]
 
 
-async def test_escape_applies_nothing(app) -> None:  # type: ignore[no-untyped-def]
+async def test_escape_applies_nothing(app) -> None:
     answers: list = []
     async with app.run_test(size=(120, 40)) as pilot:
         await _opened(pilot, answers)

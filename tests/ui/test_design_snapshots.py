@@ -9,11 +9,11 @@ from uikit import make_app  # noqa: E402
 
 
 @pytest.fixture
-def app(engine):  # type: ignore[no-untyped-def]
+def app(engine):
     return make_app(engine)
 
 
-async def _open(pilot, *keys: str) -> None:  # type: ignore[no-untyped-def]
+async def _open(pilot, *keys: str) -> None:
     await pilot.pause()
     await pilot.press("d")
     for key in keys:
@@ -25,12 +25,12 @@ async def _open(pilot, *keys: str) -> None:  # type: ignore[no-untyped-def]
     await pilot.pause()
 
 
-def test_design_120x40_after_2x2_design(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
-    async def run_before(pilot) -> None:  # type: ignore[no-untyped-def]
+def test_design_120x40_after_2x2_design(app, snap_compare) -> None:
+    async def run_before(pilot) -> None:
         await _open(pilot, "2")
 
     assert snap_compare(app, terminal_size=(120, 40), run_before=run_before)
 
 
-def test_design_80x24(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
+def test_design_80x24(app, snap_compare) -> None:
     assert snap_compare(app, terminal_size=(80, 24), run_before=_open)

@@ -32,7 +32,7 @@ WILD = ("0.0068*exp(-0.5*s)/(1870*s+1)", "-187*exp(-30*s)/(0.05*s+1)")
 
 
 @pytest.fixture
-def app(engine):  # type: ignore[no-untyped-def]
+def app(engine):
     return make_app(engine)
 
 
@@ -55,7 +55,7 @@ async def tab_to(pilot: Any, box: str) -> Input:
     """Tab until the box `box` has the focus, as a user reaches it."""
     for _ in range(8):
         if pilot.app.focused is not None and pilot.app.focused.id == box:
-            return pilot.app.focused  # type: ignore[no-any-return]
+            return pilot.app.focused
         await pilot.press("tab")
     raise AssertionError(f"Tab never reached #{box}")
 
@@ -155,7 +155,7 @@ def test_every_na_says_why() -> None:
 # --- the screen -----------------------------------------------------------------------
 
 
-async def test_lambdas_and_ms_are_typed_and_the_table_follows(app) -> None:  # type: ignore[no-untyped-def]
+async def test_lambdas_and_ms_are_typed_and_the_table_follows(app) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await open_design(pilot)
         assert "v" not in screen.active_bindings  # table and plots side by side: no swap to offer
@@ -203,7 +203,7 @@ def wild_rows() -> tuple[tuple[Candidate, ...], ...]:
 
 
 @pytest.mark.parametrize("size", [(80, 24), (120, 40)])
-async def test_no_two_columns_touch(app, size: tuple[int, int]) -> None:  # type: ignore[no-untyped-def]
+async def test_no_two_columns_touch(app, size: tuple[int, int]) -> None:
     async with app.run_test(size=size) as pilot:
         screen = await open_design(pilot)
         assert_columns_apart(pilot, screen)  # P-'s g11: n/a rows
@@ -219,7 +219,7 @@ async def test_no_two_columns_touch(app, size: tuple[int, int]) -> None:  # type
             assert any(text in line for line in screen_lines(pilot)), text
 
 
-async def test_esc_goes_to_main_as_the_footer_says(app) -> None:  # type: ignore[no-untyped-def]
+async def test_esc_goes_to_main_as_the_footer_says(app) -> None:
     async with app.run_test(size=(80, 24)) as pilot:
         screen = await open_design(pilot)
         shown = screen.active_bindings["escape"].binding

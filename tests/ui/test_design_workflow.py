@@ -76,7 +76,7 @@ async def preview_of(pilot: Any) -> DesignPreviewWindow:
 
 
 @pytest.fixture
-def app(setup_app, monkeypatch):  # type: ignore[no-untyped-def]
+def app(setup_app, monkeypatch):
     """P- under a PRBS on u1, then on u2, logged at 1 s (600 samples each: enough
     for the fit, half the time), and the loop sampled at 1 s as the lab's
     identification scripts are (the issue's Ts)."""
@@ -86,7 +86,7 @@ def app(setup_app, monkeypatch):  # type: ignore[no-untyped-def]
     return setup_app
 
 
-async def test_identify_design_preview_apply_step(app) -> None:  # type: ignore[no-untyped-def]
+async def test_identify_design_preview_apply_step(app) -> None:
     engine = app.engine
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.pause()
@@ -103,7 +103,7 @@ async def test_identify_design_preview_apply_step(app) -> None:  # type: ignore[
         await choose_suggested(pilot, screen)
         window = await preview_of(pilot)
         pv = window.result
-        assert pv is not None and pv.warnings == [], pv.warnings
+        assert pv is not None and pv.warnings == [], pv
         figures = str(window.query_one("#preview-figures", Static).render())
         assert "r1 simulated" in figures and "r2 predicted" in figures
         await pilot.press("enter")  # Apply (focused once the preview is done)
@@ -111,7 +111,7 @@ async def test_identify_design_preview_apply_step(app) -> None:  # type: ignore[
         assert pilot.app.screen is screen
         c1, c2 = screen.loops[1].chosen, screen.loops[2].chosen
         p = engine.snapshot().params
-        assert (p.get("CONTROLLER ONE.K"), p.get("CONTROLLER FOUR.K")) == (c1.Kc, c2.Kc)  # type: ignore[union-attr]
+        assert (p.get("CONTROLLER ONE.K"), p.get("CONTROLLER FOUR.K")) == (c1.Kc, c2.Kc)
         await burst(pilot, "escape", "escape")  # Design -> Identify -> Main
         assert isinstance(pilot.app.screen, MainScreen)
 
@@ -138,7 +138,7 @@ async def test_identify_design_preview_apply_step(app) -> None:  # type: ignore[
         assert reversals(u[:, 0], STEP) <= CHATTER_SHARE and reversals(u[:, 1], STEP) <= CHATTER_SHARE
 
 
-async def test_a_flagged_row_needs_a_yes_and_no_or_esc_applies_nothing(engine) -> None:  # type: ignore[no-untyped-def]
+async def test_a_flagged_row_needs_a_yes_and_no_or_esc_applies_nothing(engine) -> None:
     """A model typed with 1/500 of g11's gain (2.61 at P-): λ = T/4 gives Kc 775 at
     1 s, which the table flags (its 10 % step does not settle with the pumps
     limited) and which on the simulated plant flips the pump between its limits."""

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 import pytest
+from textual.widgets import Input
 from uikit import Recording, make_app
 
 from quadtank_tui.daq.ist import protocol as p
@@ -51,7 +52,7 @@ class IstStandIn(ProcessBackend):
                              old[1] if d2 is None else round(255 * d2) / 255)
 
 
-def test_fault_window_in_active_on_an_ist_rig_80x24(snap_compare, make_engine) -> None:  # type: ignore[no-untyped-def]
+def test_fault_window_in_active_on_an_ist_rig_80x24(snap_compare, make_engine) -> None:
     engine: Recording = make_engine(daq=IstStandIn())
     assert engine.submit(c.SetOperation("Active")).result().ok
     assert engine.submit(c.SetDisturbance(0.25, None)).result().ok
@@ -100,7 +101,7 @@ async def test_d1_typed_in_the_faults_window_goes_out_in_the_pump_frame(make_eng
             settled(device, 1)
             await pilot.press("F")
             assert isinstance(app.screen, FaultWindow)
-            assert app.screen.query_one("#d1").value == "0"
+            assert app.screen.query_one("#d1", Input).value == "0"
             await pilot.click("#d1")
             await pilot.press("ctrl+a", "ctrl+k", *"50", "enter")  # 50 % of full PWM
             await pilot.pause()
@@ -140,4 +141,4 @@ async def test_the_faults_window_drives_the_simulated_disturbance_pumps(engine: 
         assert engine.sent(c.SetDisturbance) == [c.SetDisturbance(0.0, 0.5)]
         assert engine.snapshot().disturbances == (0.0, 128 / 255)
         await pilot.press("F")
-        assert app.screen.query_one("#d2").value == "50.2"
+        assert app.screen.query_one("#d2", Input).value == "50.2"

@@ -10,6 +10,7 @@ from typing import Any
 
 import pytest
 from textual.drivers import linux_driver
+from textual.events import Key
 from textual.widgets import Input
 
 from uikit import Recording, make_app
@@ -22,7 +23,8 @@ from quadtank_tui.ui.windows.signals import InputSignalWindow
 def keys(data: str) -> list[tuple[str, str | None]]:
     parser = EscapeThenKeyParser()
     events = list(parser.feed(data)) + list(parser.feed(""))
-    return [(e.key, e.character) for e in events]
+    assert all(isinstance(e, Key) for e in events), events
+    return [(e.key, e.character) for e in events if isinstance(e, Key)]
 
 
 @pytest.mark.parametrize(("data", "expected"), [

@@ -51,12 +51,12 @@ async def test_main_before_any_sample_says_there_is_nothing_to_draw(engine: Reco
 
 
 @pytest.fixture
-def app(setup_app):  # type: ignore[no-untyped-def]
+def app(setup_app):
     simo_logs(Path("logs"))
     return setup_app
 
 
-async def test_identify_exports_the_fit_next_to_the_first_log(app) -> None:  # type: ignore[no-untyped-def]
+async def test_identify_exports_the_fit_next_to_the_first_log(app) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.pause()
         await pilot.press("y")
@@ -66,14 +66,15 @@ async def test_identify_exports_the_fit_next_to_the_first_log(app) -> None:  # t
         await pilot.press("space", "f")  # pminus-u1.log alone: G11 and G21 (half the fit and figure)
         await pilot.app.workers.wait_for_complete()
         await pilot.pause()
-        assert isinstance(pilot.app.screen, IdentifyScreen) and len(pilot.app.screen.view.ident.elements) == 2
+        screen = pilot.app.screen
+        assert isinstance(screen, IdentifyScreen) and screen.view is not None and len(screen.view.ident.elements) == 2
         await export(pilot)
         assert "Figure saved to logs/pminus-u1.oe.png" in notes(pilot.app)
         assert Path("logs/pminus-u1.oe.png").stat().st_size > 10_000
         assert not list(Path("logs").glob("*-2.png"))
 
 
-async def test_design_exports_the_chosen_controller(setup_app) -> None:  # type: ignore[no-untyped-def]
+async def test_design_exports_the_chosen_controller(setup_app) -> None:
     async with setup_app.run_test(size=(120, 40)) as pilot:
         await pilot.pause()
         await pilot.press("d")

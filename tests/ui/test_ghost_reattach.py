@@ -65,7 +65,8 @@ async def test_the_ghost_comes_back_on_reattach_and_not_on_a_new_session(
     again = make_app(Attached(engine, info("2026-11-26T15:00:00")))  # the same session, a new client
     async with again.run_test(size=(120, 40)) as pilot:
         await pause_until(pilot, lambda: again.main.ghost.run is not None, what="the ghost back")
-        assert again.main.ghost.run.name == "yesterday.log"
+        run = again.main.ghost.run
+        assert run is not None and run.name == "yesterday.log"
         assert again.main.ghost.start == start
         await pilot.press("B")  # cleared: forgotten too
     assert recall("qtb-1 2026-11-26T15:00:00") is None

@@ -24,11 +24,11 @@ from quadtank_tui.ui.windows.controller import PIDWindow
 from quadtank_tui.ui.windows.logging import LoggingWindow
 
 
-def screen_text(app) -> str:  # type: ignore[no-untyped-def]
+def screen_text(app) -> str:
     return "\n".join(strip.text for strip in app.screen._compositor.render_strips())
 
 
-def help_text(app) -> str:  # type: ignore[no-untyped-def]
+def help_text(app) -> str:
     """Everything the help page says, scrolled or not."""
     console = Console(width=100, record=True, file=io.StringIO())
     for static in app.screen.query("Static"):
@@ -36,8 +36,10 @@ def help_text(app) -> str:  # type: ignore[no-untyped-def]
     return console.export_text()
 
 
-def described(bindings: list[Binding]) -> list[Binding]:
-    return [b for b in bindings if b.description]
+def described(bindings: list[Binding | tuple[str, str] | tuple[str, str, str]]) -> list[Binding]:
+    """The bindings that have a description (the screens declare Binding objects only)."""
+    assert all(isinstance(b, Binding) for b in bindings), bindings
+    return [b for b in bindings if isinstance(b, Binding) and b.description]
 
 
 async def test_help_lists_every_key_of_main_setup_and_the_windows_and_esc_closes(engine: Recording) -> None:
@@ -93,7 +95,7 @@ async def test_palette_lists_each_action_once_with_key_and_description(engine: R
     assert "--daq" in helps["Active"]
 
 
-def with_stats(snap, speed: float, samples: int, skipped: int):  # type: ignore[no-untyped-def]
+def with_stats(snap, speed: float, samples: int, skipped: int):
     return dataclasses.replace(snap, speed=speed, realtime=False,
                                stats=LoopStats(samples=samples, overruns=min(1, skipped), skipped=skipped))
 
@@ -106,12 +108,13 @@ async def test_status_line_says_the_speed_asked_and_the_speed_held(engine: Recor
         # 40 slots at x16, one of them skipped: 16 * 39 / 40 = 15.6 held.
         for n in range(41):
             status.snapshot = with_stats(start, 16.0, n - (n >= 30), int(n >= 30))
+        assert status.snapshot is not None
         assert "speed x16 asked, x15.6 held" in status.numbers(status.snapshot)
         assert "overruns" not in status.numbers(status.snapshot)
         # Every slot kept at x2: just the speed.
         for n in range(41):
             status.snapshot = with_stats(start, 2.0, 100 + n, 1)
-        assert re.search(r"speed x2(?! asked)", status.numbers(status.snapshot))
+        assert status.snapshot is not None and re.search(r"speed x2(?! asked)", status.numbers(status.snapshot))
 
 
 async def test_below_80x24_the_terminal_is_said_to_be_too_small(engine: Recording) -> None:
@@ -171,7 +174,7 @@ async def test_setup_labels_its_pump_values(engine: Recording) -> None:
 
 
 async def test_setup_analysis_waits_in_a_worker_until_python_control_is_loaded(
-        engine: Recording, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+        engine: Recording, monkeypatch) -> None:
     import threading
 
     monkeypatch.setattr(analysis_panel, "_READY", threading.Event())
@@ -191,7 +194,7 @@ async def test_setup_analysis_waits_in_a_worker_until_python_control_is_loaded(
 
 
 async def test_main_warm_up_analyses_the_setting_so_setup_opens_without_importing(
-        engine: Recording, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+        engine: Recording, monkeypatch) -> None:
     """The warm-up after Main's first frame runs the analysis Setup will show (it
     imports scipy.linalg when it runs): Setup's first open finds it cached.  It
     used to import the module only, and the first open paid the scipy import

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from textual.widgets import DataTable, SelectionList
 
 from quadtank_tui.core.identify.physical import simulate
 from quadtank_tui.core.plant import P_MINUS
@@ -37,7 +38,7 @@ def rig_log(path: Path, seed: int) -> None:
 
 
 @pytest.fixture
-def app(setup_app):  # type: ignore[no-untyped-def]
+def app(setup_app):
     Path("logs").mkdir(exist_ok=True)
     rig_log(Path("logs/rig-a.log"), 1)
     rig_log(Path("logs/rig-b.log"), 2)
@@ -53,7 +54,7 @@ async def open_physical(pilot: Any) -> IdentifyScreen:
     await burst(pilot, "space", "down", "space", "m", "m", "m", "m")
     screen = pilot.app.screen
     assert isinstance(screen, IdentifyScreen) and screen.method == "physical"
-    free = screen.query_one("#free")
+    free = screen.query_one("#free", SelectionList)
     free.focus()
     await pilot.pause()
     # ticked at first: a1 a2 a3 a4 k1 k2 gamma1 gamma2 (after A1..A4): untick a2..a4, k2, gamma1, gamma2
@@ -70,7 +71,7 @@ async def fit(pilot: Any) -> None:
     await pilot.pause()
 
 
-def test_physical_fit_120x40(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
+def test_physical_fit_120x40(app, snap_compare) -> None:
     async def run_before(pilot: Any) -> None:
         await open_physical(pilot)
         await fit(pilot)
@@ -78,7 +79,7 @@ def test_physical_fit_120x40(app, snap_compare) -> None:  # type: ignore[no-unty
     assert snap_compare(app, terminal_size=(120, 40), run_before=run_before)
 
 
-async def test_fit_validate_and_save_as_par(app) -> None:  # type: ignore[no-untyped-def]
+async def test_fit_validate_and_save_as_par(app) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await open_physical(pilot)
         await fit(pilot)
@@ -89,7 +90,7 @@ async def test_fit_validate_and_save_as_par(app) -> None:  # type: ignore[no-unt
         assert abs(got["k1"].value - 3.5) < 4 * got["k1"].stderr
         assert [f.output for f in view.figures] == ["y1", "y2", "y3", "y4"]
         assert min(f.fit_percent for f in view.figures) > 90 and max(f.rms_v for f in view.figures) < 0.015
-        table = screen.query_one("#compare")
+        table = screen.query_one("#compare", DataTable)
         assert table.row_count == 2 and [str(c) for c in table.get_row_at(0)][::3] == ["a1", "0.071"]
         assert "validation y1" in str(screen.query_one("#identify-status").render())
         await pilot.press("k")
@@ -109,7 +110,7 @@ async def test_fit_validate_and_save_as_par(app) -> None:  # type: ignore[no-unt
         assert Path("logs/rig-a.par").read_text().startswith("% TANK PAR-file")
 
 
-async def test_cancel_stops_a_running_fit(app) -> None:  # type: ignore[no-untyped-def]
+async def test_cancel_stops_a_running_fit(app) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await open_physical(pilot)
         await burst(pilot, "f", "c")

@@ -60,42 +60,44 @@ async def fit_both(pilot: Any) -> None:
 
 
 @pytest.fixture
-def app(setup_app):  # type: ignore[no-untyped-def]
+def app(setup_app):
     simo_logs(Path("logs"))
     return setup_app
 
 
-def test_identify_after_a_fit_120x40(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
+def test_identify_after_a_fit_120x40(app, snap_compare) -> None:
     # The coherence (v) depends on the data alone; the residuals of a noiseless fit
     # are rounding noise whose correlation moves with the BLAS's summation order.
     assert snap_compare(app, terminal_size=(120, 40), run_before=fit_both, press=["v"])
 
 
-def test_identify_before_a_fit_80x24(app, snap_compare) -> None:  # type: ignore[no-untyped-def]
+def test_identify_before_a_fit_80x24(app, snap_compare) -> None:
     # The highlighted log's signals, before any fit.
     assert snap_compare(app, terminal_size=(80, 24), press=["y"])
 
 
-async def test_fit_compares_keeps_and_returns(app) -> None:  # type: ignore[no-untyped-def]
+async def test_fit_compares_keeps_and_returns(app) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         await fit_both(pilot)
         screen = pilot.app.screen
         assert isinstance(screen, IdentifyScreen)
-        ident = screen.view.ident
+        view = screen.view
+        assert view is not None and view.comparison is not None
+        ident = view.ident
         assert set(ident.elements) == {("y1", "u1"), ("y2", "u1"), ("y1", "u2"), ("y2", "u2")}
-        a = screen.view.comparison.physical
+        a = view.comparison.physical
         assert np.abs(ident.system.static_gains / a.static_gains - 1).max() < 0.01
         assert np.array(ident.system.zeros).real == pytest.approx([z.real for z in a.zeros], rel=0.02)
         # The spectral estimate (checked against a known answer in core's tests) next to
         # the model's gain, up to 0.1 Hz; the model's is G11's: 2.596/(1 + 62.4 s).
-        w, est, mod = screen.view.frequency[("y1", "u1")]
+        w, est, mod = view.frequency[("y1", "u1")]
         assert w.size == est.size == mod.size == 72 and w.max() == pytest.approx(2 * np.pi * 0.1)
         assert mod[0] == pytest.approx(2.596 / abs(1 + 62.36j * w[0]), rel=0.01)
         check_identify_plots(screen)
         await pilot.press("v", "v")
         await pilot.pause()
         assert "spectral estimate" in str(screen.query_one("#lower").border_title)
-        lags, r, band = screen.view.residuals[("y1", "u1")]
+        lags, r, band = view.residuals[("y1", "u1")]
         assert r[0] == pytest.approx(1.0) and band == pytest.approx(2.576 / np.sqrt(ROWS / 2), rel=1e-3)
         await pilot.press("k")
         await pilot.pause()
@@ -107,7 +109,7 @@ async def test_fit_compares_keeps_and_returns(app) -> None:  # type: ignore[no-u
         assert pilot.app.engine.snapshot() is not None  # the process is untouched
 
 
-async def test_a_bad_log_is_one_line_on_the_screen(app) -> None:  # type: ignore[no-untyped-def]
+async def test_a_bad_log_is_one_line_on_the_screen(app) -> None:
     for p in Path("logs").glob("*.log"):
         p.unlink()
     write_log(Path("logs/flat.log"), {"y1": np.full(200, 0.6), "u1": np.full(200, 0.3)})
@@ -123,7 +125,7 @@ async def test_a_bad_log_is_one_line_on_the_screen(app) -> None:  # type: ignore
         assert pilot.app.screen.view is None
 
 
-async def test_d_designs_on_the_identified_model(app) -> None:  # type: ignore[no-untyped-def]
+async def test_d_designs_on_the_identified_model(app) -> None:
     """d after a fit: the Design screen's loops start from the fitted G11 and G22,
     and its 2x2 design uses all four elements (lambda = T/5 at P-: Kc 1.916 and
     1.762 on the physical linearization; the identified model gives the same within 1 %)."""
@@ -142,7 +144,7 @@ async def test_d_designs_on_the_identified_model(app) -> None:  # type: ignore[n
         screen = pilot.app.screen
         assert isinstance(screen, DesignScreen)
         assert screen.loops[1].model is g11 and screen.loops[2].model is g22
-        assert screen.query_one("#model-1", Input).value == model_text(g11)
+        assert g11 is not None and screen.query_one("#model-1", Input).value == model_text(g11)
         assert screen.source == "the identified model (oe, pminus-u1.log, pminus-u2.log)"
         assert f"loop 1: 9 candidates on {model_text(g11)}" in str(screen.query_one("#design-status").render())
         assert screen.query_one("#design-table", DataTable).row_count == 9
@@ -150,6 +152,7 @@ async def test_d_designs_on_the_identified_model(app) -> None:  # type: ignore[n
         await pilot.app.workers.wait_for_complete()
         await pilot.pause()
         c1, c2 = screen.loops[1].chosen, screen.loops[2].chosen
+        assert c1 is not None and c2 is not None
         assert c1.Kc == pytest.approx(1.916, rel=0.01) and c2.Kc == pytest.approx(1.762, rel=0.01)
         assert "closed loop stable" in str(screen.query_one("#design-mimo").render())
         # Esc goes back to Identify, and the footer says so (it said Main); the keys

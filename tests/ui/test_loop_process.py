@@ -22,7 +22,7 @@ from quadtank_tui.ui.widgets.trends import Trend
 pytestmark = pytest.mark.wallclock  # the TUI on a real session process
 
 
-async def wait_until(pilot: Pilot, condition, timeout: float = 60.0) -> None:  # type: ignore[no-untyped-def]
+async def wait_until(pilot: Pilot, condition, timeout: float = 60.0) -> None:
     end = time.monotonic() + timeout
     while not condition():
         assert time.monotonic() < end, "timed out"
@@ -46,8 +46,8 @@ async def test_keys_drive_the_private_session_and_the_screen_follows(tmp_path: P
             await wait_until(pilot, lambda: app.main.snap.state == "Run" and app.main.snap.t > 5.0)
             assert app.main.snap.control == "Automatic"
             trend = app.screen.query_one("#lower", Trend)
-            await wait_until(pilot, lambda: len(trend._history["t"]) > 50)
-            assert trend._history["t"][-1] > 5.0
+            await wait_until(pilot, lambda: trend._history is not None and len(trend._history["t"]) > 50)
+            assert trend._history is not None and trend._history["t"][-1] > 5.0
     finally:
         engine.stop()
     assert engine.ended == f"stopped by {info.owner}"  # the loop stopped in order: pumps at 0, log kept

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any, Callable
 
 import pytest
+from textual.widgets import Input
 
 from uikit import Recording, make_app
 
@@ -64,7 +65,10 @@ async def test_a_control_horizon_past_the_horizon_is_refused_at_its_field(make_e
         await pilot.press("1")
         await pilot.pause()
         sent = len(engine.sent(SetParams))
-        app.screen.field_widget("MPC.ControlHorizon").value = "50"
+        assert isinstance(app.screen, MPCWindow)
+        horizon = app.screen.field_widget("MPC.ControlHorizon")
+        assert isinstance(horizon, Input)
+        horizon.value = "50"
         await pilot.press("enter")
         await pilot.pause()
         assert isinstance(app.screen, MPCWindow) and len(engine.sent(SetParams)) == sent
@@ -121,6 +125,7 @@ async def test_the_window_edits_disturbance_measured_and_slack_weight_by_keys(ma
             await pilot.pause()
             assert app.screen is window and len(engine.sent(SetParams)) == sent, (key, text)
             assert reason in error(key), (key, text, error(key))
+            assert isinstance(window, MPCWindow)  # (the `is` above narrowed it to a Screen)
             window.field_widget(key).value = str(window.params.get(key))  # back to the value in force
         await type_into("MPC.Disturbance", "Output")
         await pilot.press("tab", "end", "ctrl+u", *"1 2", "tab", "end", "ctrl+u", *"500", "enter")  # a burst

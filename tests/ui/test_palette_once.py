@@ -19,7 +19,7 @@ async def _open_palette(pilot: Any) -> CommandPalette:
     return palette
 
 
-async def test_ctrl_p_under_help_does_not_open_a_second_palette(engine) -> None:  # type: ignore[no-untyped-def]
+async def test_ctrl_p_under_help_does_not_open_a_second_palette(engine) -> None:
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
         for key in ("ctrl+p", "f1", "ctrl+p"):
@@ -32,7 +32,7 @@ async def test_ctrl_p_under_help_does_not_open_a_second_palette(engine) -> None:
         assert app.screen is app.main
 
 
-async def test_a_page_key_before_the_palette_list_is_laid_out_does_nothing(engine) -> None:  # type: ignore[no-untyped-def]
+async def test_a_page_key_before_the_palette_list_is_laid_out_does_nothing(engine) -> None:
     """Found by benchmarks/hardening.py's random keys: Textual's palette passed
     pageup to its option list before the list had laid out its lines and the app
     ended on `KeyError: 0` (OptionList._move_page).  The state that race leaves
@@ -54,7 +54,7 @@ async def test_a_page_key_before_the_palette_list_is_laid_out_does_nothing(engin
         assert app.is_running and app.screen is palette
 
 
-async def test_the_gathering_worker_of_a_palette_without_its_list_does_nothing(engine) -> None:  # type: ignore[no-untyped-def]
+async def test_the_gathering_worker_of_a_palette_without_its_list_does_nothing(engine) -> None:
     """Found by benchmarks/hardening.py's random keys (11,724; `ctrl+p` then keys that
     closed it): Textual's command-gathering worker ran after the palette had lost its
     list and the app ended on `WorkerFailed: NoMatches: CommandList`."""

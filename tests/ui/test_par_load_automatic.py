@@ -13,7 +13,7 @@ from quadtank_tui.ui.screens.main import MainScreen
 from bursts import burst  # noqa: E402
 
 
-async def test_loading_nonminphase_in_automatic_keeps_the_references(setup_app) -> None:  # type: ignore[no-untyped-def]
+async def test_loading_nonminphase_in_automatic_keeps_the_references(setup_app) -> None:
     app, engine = setup_app, setup_app.engine
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.pause()

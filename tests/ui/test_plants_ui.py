@@ -18,7 +18,7 @@ from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel, diagonal_pi, p
 from quadtank_tui.ui.widgets.process_image import draw
 
 
-def snapshot_of(name: str, **changes):  # type: ignore[no-untyped-def]
+def snapshot_of(name: str, **changes):
     return dataclasses.replace(ControlLoop(PLANT_SETTINGS[name]).publish(), **changes)
 
 
@@ -55,19 +55,25 @@ def test_setup_view_puts_the_pumps_at_the_holding_inputs() -> None:
 
 def test_analysis_panel_lines_with_icad_margins() -> None:
     p = PLANT_SETTINGS["coupled-tito"]
-    lines = [t.plain for t in plant_lines(p.process, *diagonal_pi(p))]
+    assert p.process is not None
+    drawn = plant_lines(p.process, *diagonal_pi(p))
+    assert isinstance(drawn, list), drawn  # the lines, not a reason there are none
+    lines = [t.plain for t in drawn]
     assert lines[-3:] == ["C1 ωc 0.782 rad/s  PM 80°", "C2 ωc 0.157 rad/s  PM 76°", "ICAD γ(0) 0.52  stable"]
     q = PLANT_SETTINGS["desautel-qtp"]
-    assert [t.plain for t in plant_lines(q.process, *diagonal_pi(q))][1] == "Zeros   -0.0609  -0.0242"
+    assert q.process is not None
+    drawn = plant_lines(q.process, *diagonal_pi(q))
+    assert isinstance(drawn, list), drawn
+    assert [t.plain for t in drawn][1] == "Zeros   -0.0609  -0.0242"
 
 
 @pytest.mark.parametrize("name", ["coupled-cascade", "coupled-tito"])
-def test_main_with_another_plant_80x24(snap_compare, make_engine, name: str) -> None:  # type: ignore[no-untyped-def]
+def test_main_with_another_plant_80x24(snap_compare, make_engine, name: str) -> None:
     engine: Recording = make_engine(PLANT_SETTINGS[name])
     assert snap_compare(make_app(engine), terminal_size=(80, 24))
 
 
-def test_setup_with_the_two_input_rig(snap_compare, make_engine) -> None:  # type: ignore[no-untyped-def]
+def test_setup_with_the_two_input_rig(snap_compare, make_engine) -> None:
     engine: Recording = make_engine(PLANT_SETTINGS["coupled-tito"])
     assert snap_compare(make_app(engine), terminal_size=(120, 40), press=["S"])
 
@@ -95,11 +101,11 @@ async def test_fault_window_switches_a_fault_on_and_off(engine: Recording) -> No
         assert engine.snapshot().faults == ""
 
 
-def test_fault_window_80x24(snap_compare, engine: Recording) -> None:  # type: ignore[no-untyped-def]
+def test_fault_window_80x24(snap_compare, engine: Recording) -> None:
     assert snap_compare(make_app(engine), terminal_size=(80, 24), press=["F"])
 
 
-async def test_another_plants_table_opens_its_plant_window(make_engine) -> None:  # type: ignore[no-untyped-def]
+async def test_another_plants_table_opens_its_plant_window(make_engine) -> None:
     """Enter on the process table (any row) opens the plant window, not a tank's."""
     from quadtank_tui.ui.windows.plant_setup import PlantSetupWindow
 
@@ -117,7 +123,7 @@ async def test_another_plants_table_opens_its_plant_window(make_engine) -> None:
         assert engine.sent(SetParams) == []
 
 
-async def open_plant_window(pilot, key: str):  # type: ignore[no-untyped-def]
+async def open_plant_window(pilot, key: str):
     """Setup, the process table, Enter: the plant window with the focus in `key`'s field."""
     from quadtank_tui.ui.windows.plant_setup import PlantSetupWindow
 
@@ -132,7 +138,7 @@ async def open_plant_window(pilot, key: str):  # type: ignore[no-untyped-def]
     return window
 
 
-async def test_typing_a_plant_value_sets_it_between_samples(make_engine) -> None:  # type: ignore[no-untyped-def]
+async def test_typing_a_plant_value_sets_it_between_samples(make_engine) -> None:
     """Desautel's CTP: alpha1 typed as 0.0105; x2 follows at once in the window,
     (alpha1 / alpha2)^2 x1 = 16.9379 cm (2.1.6), and Set sends the one value; the
     running simulation takes the new orifice at the next sample."""
@@ -156,7 +162,7 @@ async def test_typing_a_plant_value_sets_it_between_samples(make_engine) -> None
         assert engine.snapshot().params.process.levels == pytest.approx((15.0, 15 * (0.0105 / 0.0098811) ** 2))
 
 
-async def test_process_default_puts_the_published_plant_back(make_engine) -> None:  # type: ignore[no-untyped-def]
+async def test_process_default_puts_the_published_plant_back(make_engine) -> None:
     engine: Recording = make_engine(PLANT_SETTINGS["coupled-cascade"])
     assert engine.submit(SetParams({"PLANT.alpha1": 0.0105, "PLANT.Level1": 12.0})).result().ok
     app = make_app(engine)
@@ -169,7 +175,7 @@ async def test_process_default_puts_the_published_plant_back(make_engine) -> Non
         assert engine.snapshot().params.process == PLANT_SETTINGS["coupled-cascade"].process
 
 
-async def test_a_refused_plant_value_changes_nothing_and_says_why(make_engine) -> None:  # type: ignore[no-untyped-def]
+async def test_a_refused_plant_value_changes_nothing_and_says_why(make_engine) -> None:
     engine: Recording = make_engine(PLANT_SETTINGS["coupled-tito"])
     before = engine.snapshot().params
     app = make_app(engine)
@@ -190,16 +196,16 @@ async def test_a_refused_plant_value_changes_nothing_and_says_why(make_engine) -
 
 
 @pytest.mark.parametrize("name", ["coupled-cascade", "desautel-qtp"])
-def test_setup_with_another_plant_120x40(snap_compare, make_engine, name: str) -> None:  # type: ignore[no-untyped-def]
+def test_setup_with_another_plant_120x40(snap_compare, make_engine, name: str) -> None:
     engine: Recording = make_engine(PLANT_SETTINGS[name])
     assert snap_compare(make_app(engine), terminal_size=(120, 40), press=["S"])
 
 
-def test_main_with_desautels_quadruple_tank_80x24(snap_compare, make_engine) -> None:  # type: ignore[no-untyped-def]
+def test_main_with_desautels_quadruple_tank_80x24(snap_compare, make_engine) -> None:
     engine: Recording = make_engine(PLANT_SETTINGS["desautel-qtp"])
     assert snap_compare(make_app(engine), terminal_size=(80, 24))
 
 
-def test_plant_window_80x24(snap_compare, make_engine) -> None:  # type: ignore[no-untyped-def]
+def test_plant_window_80x24(snap_compare, make_engine) -> None:
     engine: Recording = make_engine(PLANT_SETTINGS["coupled-tito"])
     assert snap_compare(make_app(engine), terminal_size=(80, 24), press=["S", "h", "enter"])

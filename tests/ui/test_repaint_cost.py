@@ -18,6 +18,8 @@ from textual._compositor import CompositorUpdate
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.ui.app import QuadTankApp, build_app
+from quadtank_tui.ui.screens.setup import SetupScreen
+from quadtank_tui.ui.windows.process import TankWindow
 
 #: The screen's refresh interval, s; the engine's default.par samples every 0.1 s.
 TICK = 0.05
@@ -100,6 +102,7 @@ async def test_the_setup_screen_paused_writes_nothing(engine: Recording) -> None
         await pilot.press("S")
         await pilot.pause()
         setup = app.screen
+        assert isinstance(setup, SetupScreen)
         wire = Wire(app)
         for _ in range(8):  # two seconds of Setup's quarter-second refresh
             engine.step()
@@ -168,11 +171,13 @@ async def test_under_a_live_window_the_window_follows_each_sample_and_main_once_
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("h")
         window, status = app.screen, app.main._status
+        assert isinstance(window, TankWindow)
         seen_window, seen_main = set(), set()
         for _ in range(8):
             engine.step()
             app.main._tick()
             await pilot.pause()
+            assert window.snapshot is not None and status.snapshot is not None
             seen_window.add(window.snapshot.t)
             seen_main.add(status.snapshot.t)
     assert len(seen_window) == 8
@@ -186,6 +191,7 @@ async def test_setup_behind_a_window_is_redrawn_at_most_once_a_second(engine: Re
         await pilot.press("S")
         await pilot.press("i")
         setup = app.screen_stack[-2]
+        assert isinstance(setup, SetupScreen)
         drawn = set()
         for _ in range(8):
             engine.step()

@@ -16,6 +16,7 @@ from textual.pilot import Pilot
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.engine import commands as c
 from quadtank_tui.files.log_reader import read_log
+from quadtank_tui.ui.app import QuadTankApp
 from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.windows.logging import LoggingWindow
@@ -33,6 +34,7 @@ def typed(text: str) -> list[str]:
 async def settle(pilot: Pilot, engine: Recording, seconds: float) -> None:
     """Let process time pass, then let the screen catch up."""
     engine.run_for(seconds)
+    assert isinstance(pilot.app, QuadTankApp)
     pilot.app.main.refresh_view()
     await pilot.pause()
 
@@ -60,7 +62,7 @@ async def test_sample_session_a4_by_keys(make_engine: Any) -> None:
         await pilot.press("a")
         await settle(pilot, engine, 1.0)
         panel = app.main.query_one("#channel-1", ChannelPanel)
-        assert panel.border_title.startswith("ref1")
+        assert str(panel.border_title).startswith("ref1")
         await pilot.press("i")
         window = app.screen
         assert isinstance(window, InputSignalWindow)
@@ -120,7 +122,7 @@ async def test_bumpless_switch_on_screen_and_in_the_log(make_engine: Any) -> Non
         after = str(image.render())
         # On screen: the pumps' inputs did not move; ref1 took the level.
         assert "P1 0.330" in before and "P1 0.330" in after
-        assert app.main.query_one("#channel-1", ChannelPanel).border_title.startswith("ref1")
+        assert str(app.main.query_one("#channel-1", ChannelPanel).border_title).startswith("ref1")
         assert abs(engine.snapshot().params.get("REFERENCE ONE.Mean") - y1) < 0.002
         await settle(pilot, engine, 79.0)
         await pilot.press("l", "ctrl+s", "escape")

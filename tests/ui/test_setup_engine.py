@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from textual.widgets import Input
 
-from quadtank_tui.engine.commands import LogOn, LogSave, NudgeMean, SetControlMode, SetParams, SetState
+from quadtank_tui.engine.commands import Command, LogOn, LogSave, NudgeMean, SetControlMode, SetParams, SetState
 from quadtank_tui.engine.runner import Engine
 from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.ui.screens.setup import SetupScreen
@@ -18,8 +18,8 @@ from quadtank_tui.ui.screens.main import MainScreen
 H = 0.1  # the default sampling time, s
 
 
-def ok(engine: Engine, command: object) -> None:
-    result = engine.submit(command).result()  # type: ignore[arg-type]
+def ok(engine: Engine, command: Command) -> None:
+    result = engine.submit(command).result()
     assert result.ok, result.message
 
 

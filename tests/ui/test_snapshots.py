@@ -13,6 +13,7 @@ from uikit import Recording, make_app
 from textual.pilot import Pilot
 
 from quadtank_tui.engine.commands import LogOn, SetParams, SetState
+from quadtank_tui.ui.app import QuadTankApp
 
 
 def test_main_at_startup_120x40(snap_compare, engine: Recording) -> None:
@@ -45,6 +46,7 @@ def _logging_at_45_percent(engine: Recording):
                         SetState("Run"), LogOn()):
             engine.submit(command)
         engine.run_for(270.0)
+        assert isinstance(pilot.app, QuadTankApp)
         pilot.app.main.refresh_view()
         await pilot.pause()
     return before

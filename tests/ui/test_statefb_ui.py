@@ -6,6 +6,7 @@ import dataclasses
 from typing import Any, Callable
 
 import pytest
+from textual.widgets import Input
 from uikit import Recording, make_app
 
 from quadtank_tui.core.parameters import PLANT_SETTINGS, PRESET, Parameters
@@ -62,7 +63,10 @@ async def test_a_design_the_engine_refuses_is_shown_next_to_the_field(make_engin
     async with app.run_test(size=(80, 24)) as pilot:
         await pilot.press("1")
         await pilot.pause()
-        app.screen.field_widget("STATE FEEDBACK.Poles").value = "-0.1+0.2j"
+        assert isinstance(app.screen, StateFeedbackWindow)
+        poles = app.screen.field_widget("STATE FEEDBACK.Poles")
+        assert isinstance(poles, Input)
+        poles.value = "-0.1+0.2j"
         await pilot.press("enter")
         await pilot.pause()
         assert isinstance(app.screen, StateFeedbackWindow)

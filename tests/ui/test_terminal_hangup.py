@@ -246,7 +246,8 @@ def test_when_the_app_does_not_close_the_watch_ends_the_program_itself() -> None
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
     r, w = os.pipe()
-    asked, stopped, ended = [], threading.Event(), threading.Event()
+    asked: list[int] = []
+    stopped, ended = threading.Event(), threading.Event()
     codes: list[int] = []
 
     def end(code: int) -> None:
@@ -294,8 +295,12 @@ def test_exit_is_prompt_with_a_hung_device(tmp_path: Path) -> None:
 
     listener = socket.create_server(("127.0.0.1", 0))
     held: list[socket.socket] = []
-    threading.Thread(target=lambda: [held.append(listener.accept()[0]) for _ in iter(int, 1)],
-                     daemon=True).start()
+
+    def accept_and_hold() -> None:  # the answers never come
+        while True:
+            held.append(listener.accept()[0])
+
+    threading.Thread(target=accept_and_hold, daemon=True).start()
     port = listener.getsockname()[1]
     config = tmp_path / "hung.yaml"
     config.write_text((ROOT / "params" / "virtual-rig.yaml").read_text()

@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from uikit import Recording, make_app
+from uikit import Recording, make_app, plot_text
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.ui.widgets.trend_clock import (
@@ -178,9 +178,9 @@ async def test_the_clock_axis_reads_back_the_wall_clock_of_a_step_after_a_pause(
         assert upper.border_title == "live, t in s"
         await pilot.press("c")
         await pilot.pause()
-        plot = upper.render().plain
+        plot = plot_text(upper)
         assert upper.border_title == "live, clock time"
-        assert upper.border_subtitle.endswith("c clock")
+        assert str(upper.border_subtitle).endswith("c clock")
         labels = x_labels(plot)
         values = [seconds_of(label) for _, label in labels]
         step = min(b - a for a, b in zip(values, values[1:]))
@@ -199,7 +199,7 @@ async def test_the_clock_axis_reads_back_the_wall_clock_of_a_step_after_a_pause(
         await pilot.press("end", "c")  # live, and back to seconds before now
         await pilot.pause()
         assert upper.border_title == "live, t in s"
-        assert upper.render().plain.splitlines()[-1].split()[-1] == "0"
+        assert plot_text(upper).splitlines()[-1].split()[-1] == "0"
 
 
 async def test_history_from_before_the_screen_is_in_process_time(engine: Recording) -> None:
@@ -217,7 +217,7 @@ async def test_history_from_before_the_screen_is_in_process_time(engine: Recordi
         await pilot.pause()
         upper = app.main.query_one("#upper", Trend)
         assert upper.border_title == "live, t h:m:s, clock from " + clock_label(local(BASE + 400.0 - H), True)
-        plot = upper.render().plain
+        plot = plot_text(upper)
         labels = x_labels(plot)
         assert all(re.fullmatch(r"0:0\d:[0-5]0", label) for _, label in labels), labels
         read = clock_at(labels, step_column(plot))

@@ -24,7 +24,7 @@ from textual.color import Color
 from textual.theme import BUILTIN_THEMES
 
 from bursts import burst, pause_until
-from uikit import Recording, make_app
+from uikit import Recording, make_app, plot_text
 from test_repaint_cost import Wire, paused_app, ticks
 from test_trust import read_constant
 
@@ -80,7 +80,7 @@ def label_value(rows: list[list[Cell]], row: int) -> float:
 
 
 async def running_app(engine: Recording, size: tuple[int, int], seconds: float = 200.0,
-                      keys: tuple[str, ...] = (), **settings: Any) -> Any:
+                      keys: tuple[str, ...] = (), settings: dict[str, Any] | None = None) -> Any:
     """The app after `seconds` of the default session (Manual, u1 = u2 = 0.3)."""
     if settings:
         engine.submit(c.SetParams(settings))
@@ -93,7 +93,7 @@ async def running_app(engine: Recording, size: tuple[int, int], seconds: float =
 
 @pytest.mark.parametrize("theme", ["textual-dark", "textual-light"])
 async def test_the_legend_has_the_colour_of_its_curve(engine: Recording, theme: str) -> None:
-    app = await running_app(engine, (120, 40), **{"REFERENCE TWO.Mean": 0.5})  # u2 = 0.5, u1 = 0.3
+    app = await running_app(engine, (120, 40), settings={"REFERENCE TWO.Mean": 0.5})  # u2 = 0.5, u1 = 0.3
     async with app.run_test(size=(120, 40)) as pilot:
         app.theme = theme
         app.main.refresh_view()
@@ -181,7 +181,7 @@ async def test_physical_units_read_back_volts_and_centimetres(engine: Recording,
         app.main.refresh_view()
         await pilot.press("u")
         upper = app.main.query_one("#upper", Trend)
-        plot = upper.render().plain
+        plot = plot_text(upper)
         value, half_row = read_constant(plot)
         assert abs(value - 3.0) <= half_row, plot  # u = 0.300 of 10 V
         labels = [float(m.group(1)) for line in plot.splitlines() if (m := re.match(r"^\s*(\d+\.\d+)┤", line))]
@@ -193,7 +193,7 @@ async def test_physical_units_read_back_volts_and_centimetres(engine: Recording,
         y1 = engine.snapshot().y[0]
         assert f"y1 {y1 * 20.0:.2f}" in legend and legend.rstrip().endswith("cm")  # 1.0 is 20 cm
         await pilot.press("u")
-        assert abs(read_constant(upper.render().plain)[0] - 0.3) < 0.003
+        assert abs(read_constant(plot_text(upper))[0] - 0.3) < 0.003
 
 
 # --- 3. the time axis ------------------------------------------------------------------------
@@ -244,7 +244,7 @@ async def test_the_time_axis_is_round_and_reads_back_a_step(engine: Recording, s
     async with app.run_test(size=size) as pilot:
         app.main.refresh_view()
         await pilot.pause()
-        plot = app.main.query_one("#upper", Trend).render().plain
+        plot = plot_text(app.main.query_one("#upper", Trend))
     lines = plot.splitlines()
     labels = lines[[n for n, line in enumerate(lines) if "└" in line][0] + 1].split()
     assert labels[-1] == "0" and all(float(v) % 10 == 0 for v in labels), labels
@@ -278,12 +278,12 @@ async def test_a_paused_trend_scrolls_back_and_end_returns(engine: Recording) ->
         assert app.main.trend_offset == 450.0  # 150 s a press: half the window, 5 labels of 30 s
         assert t_new == pytest.approx(600.0)
         assert upper.border_title == "viewing t = 0-150 s, End to return"  # nothing before 0
-        plot = upper.render().plain
+        plot = plot_text(upper)
         assert plot.splitlines()[0].startswith("u1 0.300")  # the value at the view's right edge
         assert plot.splitlines()[-1].split()[-1] == "-450"
         await burst(pilot, "right", "right")  # the view ends at t = 450 s
         assert upper.border_title == "viewing t = 150-450 s, End to return"
-        assert upper.render().plain.splitlines()[0].startswith("u1 0.600")
+        assert plot_text(upper).splitlines()[0].startswith("u1 0.600")
         await pilot.press("end")
         assert upper.border_title == "live, t in s" and app.main.trend_offset == 0.0
         await burst(pilot, *["left"] * 10)  # not so far back that nothing is in view

@@ -11,10 +11,10 @@ import math
 import re
 from pathlib import Path
 
-from textual.widgets import Input
+from textual.widgets import Button, Input
 
 from bursts import burst
-from uikit import Recording, make_app
+from uikit import Recording, make_app, plot_text
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.files.log_reader import read_log
@@ -43,7 +43,7 @@ async def test_exit_with_an_unsaved_log_saves_it_by_default(engine: Recording) -
         _log_rows(engine, 5.0)
         await pilot.press("q")
         assert isinstance(app.screen, ChoiceWindow)
-        assert app.screen.focused is not None and "Save" in str(app.screen.focused.label)
+        assert isinstance(app.screen.focused, Button) and "Save" in str(app.screen.focused.label)
         await pilot.press("enter")
         await pilot.pause()
     assert app.return_code == 0
@@ -185,7 +185,7 @@ async def test_trend_labels_read_back_a_constant_at_every_size(engine: Recording
         async with app.run_test(size=size) as pilot:
             app.main.refresh_view()
             await pilot.pause()
-            plot = app.main.query_one("#upper", Trend).render().plain
+            plot = plot_text(app.main.query_one("#upper", Trend))
         value, half_row = read_constant(plot)
         assert abs(value - 0.300) <= half_row, (size, value, plot)
         labels = [float(m.group(1)) for line in plot.splitlines() if (m := _LABEL.match(line))]

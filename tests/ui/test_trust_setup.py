@@ -24,7 +24,7 @@ def shown(widget: Static) -> str:
     return re.sub(r"\s+", " ", " ".join(strip.text for strip in lines)).strip()
 
 
-async def _tank_field(pilot, tank: int, field: str) -> TankSetupWindow:  # type: ignore[no-untyped-def]
+async def _tank_field(pilot, tank: int, field: str) -> TankSetupWindow:
     await open_setup(pilot)
     await pilot.app.screen.run_action(f"tank({tank})")
     await pilot.pause()
@@ -38,7 +38,7 @@ async def _tank_field(pilot, tank: int, field: str) -> TankSetupWindow:  # type:
 
 # --- 17.5: refusals are wrapped inside the window, never cut at its edge ----------------------
 
-async def test_a_long_refusal_is_shown_whole_inside_the_window(setup_app) -> None:  # type: ignore[no-untyped-def]
+async def test_a_long_refusal_is_shown_whole_inside_the_window(setup_app) -> None:
     async with setup_app.run_test(size=(80, 24)) as pilot:
         await open_setup(pilot)
         await pilot.press("s")  # the sampling time window
@@ -56,7 +56,7 @@ async def test_a_long_refusal_is_shown_whole_inside_the_window(setup_app) -> Non
 
 # --- 17.6: no analysis of refused values ----------------------------------------------------
 
-async def test_the_live_analysis_waits_for_valid_values(setup_app) -> None:  # type: ignore[no-untyped-def]
+async def test_the_live_analysis_waits_for_valid_values(setup_app) -> None:
     async with setup_app.run_test(size=(120, 40)) as pilot:
         window = await _tank_field(pilot, 1, "Valve")
         await burst(pilot, *"1.5")
@@ -70,7 +70,7 @@ async def test_the_live_analysis_waits_for_valid_values(setup_app) -> None:  # t
 
 # --- 18.10: an absurd diameter is refused, not an OverflowError -------------------------------
 
-async def test_a_huge_diameter_is_refused_with_a_message(setup_app) -> None:  # type: ignore[no-untyped-def]
+async def test_a_huge_diameter_is_refused_with_a_message(setup_app) -> None:
     async with setup_app.run_test(size=(120, 40)) as pilot:
         window = await _tank_field(pilot, 1, "Diameter")
         await burst(pilot, *"1e308")
@@ -83,7 +83,7 @@ async def test_a_huge_diameter_is_refused_with_a_message(setup_app) -> None:  # 
 
 # --- 18.8: typed text is never markup ---------------------------------------------------------
 
-async def test_typed_markup_is_shown_as_typed(setup_app) -> None:  # type: ignore[no-untyped-def]
+async def test_typed_markup_is_shown_as_typed(setup_app) -> None:
     async with setup_app.run_test(size=(120, 40)) as pilot:
         await burst(pilot, "1", "ctrl+a", "ctrl+k", *"[/x]", "enter")      # K = [/x]
         await pilot.pause()
@@ -104,7 +104,7 @@ async def test_typed_markup_is_shown_as_typed(setup_app) -> None:  # type: ignor
 
 # --- 18.9: a file name too long for the file system -------------------------------------------
 
-async def test_a_very_long_log_name_is_refused_not_a_crash(setup_app) -> None:  # type: ignore[no-untyped-def]
+async def test_a_very_long_log_name_is_refused_not_a_crash(setup_app) -> None:
     async with setup_app.run_test(size=(120, 40)) as pilot:
         await pilot.press("l")
         window = setup_app.screen

@@ -13,6 +13,9 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from rich.text import Text
+from textual.widget import Widget
+
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.commands import Command
 from quadtank_tui.engine.runner import Engine, build_engine
@@ -64,3 +67,10 @@ async def open_setup(pilot: Any) -> None:
     await pilot.pause()
     await pilot.press("S")
     await pilot.pause()
+
+
+def plot_text(widget: Widget) -> str:
+    """What a widget draws, as plain text (a trend renders rich Text)."""
+    rendered = widget.render()
+    assert isinstance(rendered, Text), type(rendered)
+    return rendered.plain

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Iterable, Sequence
 
 import numpy as np
 
@@ -76,6 +76,16 @@ def design_mpc(plant: Plant, levels: Sequence[float], s: MPCSettings, T: float) 
     return MPCDesign(model, s, weights(pred, s), pred)
 
 
+def percentiles(times: Iterable[float], qs: Sequence[float]) -> tuple[float, ...]:
+    """The percentiles `qs` (0..100) of solve times, in their unit; NaN each when
+    there are none.  The one place the controller's statistics, the simulations'
+    figures and the loop's controller box work them out, so they agree."""
+    values = np.fromiter(times, float)
+    if not values.size:
+        return (float("nan"),) * len(qs)
+    return tuple(float(p) for p in np.percentile(values, qs))
+
+
 @dataclass
 class MPCStats:
     """Solves done, failed ones, and each sample's solve time (s): wall clock (what
@@ -89,7 +99,7 @@ class MPCStats:
     cpu_times: list[float] = field(default_factory=list)
 
     def percentile(self, q: float) -> float:
-        return float(np.percentile(self.times, q)) if self.times else float("nan")
+        return percentiles(self.times, (q,))[0]
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ import numpy as np
 from quadtank_tui.core import faults as fx
 from quadtank_tui.core.matrix import ControllerMatrix
 from quadtank_tui.core.metrics import loop_metrics
-from quadtank_tui.core.mpc.controller import MPC
+from quadtank_tui.core.mpc.controller import MPC, percentiles
 from quadtank_tui.core.plants.base import Plant
 
 FULL_SCALE_V = 10.0
@@ -198,7 +198,6 @@ def figures(plant: Plant, run: Run, scn: Scenario, x_lo: np.ndarray, x_hi: np.nd
     limited = np.any((run.u <= lo + 1e-6) | (run.u >= hi - 1e-6), axis=1)
     tol = 1e-3 * np.array([st.hi - st.lo for st in plant.states])
     bad = np.any((run.x < x_lo - tol) | (run.x > x_hi + tol), axis=1)
-    times = np.array(run.solve_times) * 1e3
-    p50, p99 = (float(np.percentile(times, q)) for q in (50, 99)) if times.size else (float("nan"),) * 2
+    p50, p99 = percentiles((t * 1e3 for t in run.solve_times), (50, 99))
     return Figures(tuple(iae), tuple(iae_leak), tuple(over), float(np.sum(limited) * T), int(np.sum(bad)),
                    run.faults, p50, p99)

@@ -87,7 +87,7 @@ def cmd_check_ist(config: IstConfig) -> int:
     return 1 if faults else 0
 
 
-def format_ist_result(result: Result, plant: Plant | None = None) -> str:
+def format_ist_result(result: Result, plant: PlantParams | Plant | None = None) -> str:
     """The fit of an IST rig: per tank h = dh_dr r + h0 as the file's lines, then the
     outlets (with the plant) as for any rig."""
     from quadtank_tui.daq.calibrate import format_result

@@ -15,7 +15,7 @@
 Missing calibration keys take the rig's published constants (daq/ist/protocol.py).
 The link is fixed by the firmware (9600 baud, 8N1); the rig is a quadruple tank
 (four levels, two pumps).  Errors name the file, the line and the dotted key, as
-for a Modbus configuration (daq/config.py, whose validator this reuses).
+for a Modbus configuration (the checks of daq/validation.py).
 """
 
 from __future__ import annotations
@@ -25,8 +25,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-from quadtank_tui.daq.config import PLAUSIBLE_MARGIN, QUADTANK_CHANNELS, PlantChannels, _error, _Validator
+from quadtank_tui.daq.config import QUADTANK_CHANNELS, PlantChannels
 from quadtank_tui.daq.ist import protocol as p
+from quadtank_tui.daq.validation import PLAUSIBLE_MARGIN, Validator, config_error
 from quadtank_tui.files.yamltext import key_lines, parse_yaml, read_text
 
 PROTOCOL = "ist"
@@ -98,12 +99,12 @@ def says_ist(text: str) -> bool:
 
 def load_ist_config(path: Path | str) -> IstConfig:
     """Read and validate an IST DAQ file."""
-    return parse_ist_config(read_text(path, _error), name=str(path))
+    return parse_ist_config(read_text(path, config_error), name=str(path))
 
 
 def parse_ist_config(text: str, *, name: str = "<daq config>") -> IstConfig:
-    node, data = parse_yaml(text, name, _error)
-    v = _Validator(name, key_lines(node))
+    node, data = parse_yaml(text, name, config_error)
+    v = Validator(name, key_lines(node))
     d: dict[str, Any] = v.mapping("", data if data is not None else {}, TOP_KEYS)
     if d.get("protocol") != PROTOCOL:
         v.fail("protocol", f"must be {PROTOCOL} for this rig, got {d.get('protocol')!r}")
@@ -140,8 +141,8 @@ def parse_ist_config(text: str, *, name: str = "<daq config>") -> IstConfig:
         v.fail("interlock.enabled", f"must be true or false, got {enabled!r}")
     limit = v.number("interlock.limit", lock.get("limit", 0.95), 0.0, 1.0, lo_open=True)
     height = v.number("interlock.tank_height", lock.get("tank_height", 40.0), 0.0, 1000.0, lo_open=True)
-    margin, plausible = v.plausible(v.mapping("plausible", d.get("plausible", {}),
-                                              ("margin", *QUADTANK_CHANNELS.tanks)))
+    margin, plausible = v.plausible(v.mapping("plausible", d.get("plausible", {}), ("margin", *QUADTANK_CHANNELS.tanks)),
+                                    QUADTANK_CHANNELS.tanks, QUADTANK_CHANNELS.unit)
     return IstConfig(port=port.strip(), timeout=timeout, open_wait=open_wait, keepalive=keepalive,
                      sensors=tuple(sensors), pumps=tuple(pumps), sensor_gain=gain, interlock_enabled=enabled,
                      interlock_limit=limit, tank_height=height, plausible_margin=margin, plausible=plausible,

@@ -18,6 +18,7 @@ def test_nine_candidates_on_process_4() -> None:
         assert r.evaluation is not None and r.evaluation.Ms == pytest.approx(r.parameter, abs=0.01)
     # the PI row at Ms 1.4 is Andersson's line 586 (Kc -21.7, Ti 13.5, IAE 6.93)
     pi = rows[4]
+    assert pi.controller is not None and pi.evaluation is not None
     assert pi.controller.Kc == pytest.approx(-21.7, rel=0.01)
     assert pi.evaluation.IAE == pytest.approx(6.93, rel=0.02)
     text = format_table(rows)

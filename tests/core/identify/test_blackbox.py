@@ -28,11 +28,11 @@ def prbs(n: int, hold: int, seed: int) -> np.ndarray:
     return np.r_[0.0, np.repeat(levels, hold)[: n - 1]]
 
 
-def physical(setting):  # type: ignore[no-untyped-def]
+def physical(setting):
     return analyze(setting.params, steady_state_levels(setting.op.v, setting.params))
 
 
-def element_tf(a, o: int, i: int) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
+def element_tf(a, o: int, i: int) -> tuple[np.ndarray, np.ndarray]:
     e = a.G[o][i]
     den = np.array([1.0])
     for T in e.lags:
@@ -99,6 +99,7 @@ def test_arx_without_noise_is_exact() -> None:
     u = prbs(1000, 30, seed=3)
     fit = fit_arx(u, simulate(num, den, H, u), H, 1, 1, 1)
     assert fit.static_gain == pytest.approx(a.G[0][0].gain, rel=1e-9)
+    assert fit.tf is not None
     assert fit.tf.static_gain == pytest.approx(a.G[0][0].gain, rel=1e-6)
     assert fit.tf.den[0] / fit.tf.den[-1] == pytest.approx(a.G[0][0].lags[0], rel=1e-6)
 
@@ -112,7 +113,7 @@ def test_d2c_inverts_zoh_sampling() -> None:
 
 
 @pytest.mark.parametrize("setting", [P_MINUS, P_PLUS], ids=["P-", "P+"])
-def test_subspace_recovers_gains_and_zeros_of_the_2x2_process(setting) -> None:  # type: ignore[no-untyped-def]
+def test_subspace_recovers_gains_and_zeros_of_the_2x2_process(setting) -> None:
     a = physical(setting)
     m = a.model
     sysd = signal.cont2discrete((m.A, m.B, m.C, m.D), H, method="zoh")

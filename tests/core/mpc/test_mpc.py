@@ -11,7 +11,7 @@ import pytest
 from scipy.linalg import solve_discrete_are
 
 from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix
-from quadtank_tui.core.mpc.controller import MPC, design_mpc
+from quadtank_tui.core.mpc.controller import MPC, MPCStats, design_mpc, percentiles
 from quadtank_tui.core.mpc.model import plant_in_use
 from quadtank_tui.core.mpc.settings import MPCSettings
 from quadtank_tui.core.mpc.simulate import Scenario, figures, run_mpc, run_pi, standard_scenario
@@ -90,6 +90,7 @@ def test_large_steps_keep_pumps_and_levels_within_limits(name: str, phase: float
     p, plant, c = _mpc(name, 2.0, horizon=30)
     mdl = c.design.model
     scn = standard_scenario(plant, mdl.x_e, phase=phase, lead=70.0)
+    assert scn.leak is not None
     scn = replace(scn, leak=None, duration=scn.leak[0])  # the steps only: the leak is tested below
     run = run_mpc(plant, c, mdl.x_e, scn)
     pi = run_pi(plant, _pi(p), mdl.x_e, mdl.u_e, scn)
@@ -146,7 +147,7 @@ def test_a_raising_solver_or_a_bad_reading_never_raises() -> None:
     def boom(*args):
         raise RuntimeError("solver crashed")
 
-    c.qp.solve = boom  # type: ignore[method-assign]
+    c.qp.solve = boom
     out = c.step(mdl.x_e, mdl.x_e[:2])
     assert out.fault and np.array_equal(out.u, u1) and "solver crashed" in c.stats.last_status
     del c.qp.solve
@@ -192,3 +193,14 @@ def test_an_untracked_measurement_set_is_refused() -> None:
     with pytest.raises(ParameterError, match="has 2 tanks"):
         pc = _params("coupled-cascade", 1.0)
         design_mpc(*plant_in_use(pc), MPCSettings(measured="1 2 3"), pc.tsamp)
+
+
+def test_solve_time_percentiles_interpolate_and_are_nan_without_solves() -> None:
+    """One function for the statistics, the figures and the controller box: linear
+    interpolation between the ordered times (NumPy's default), NaN when none."""
+    times = [0.004, 0.001, 0.003, 0.002]
+    assert percentiles(times, (50, 99)) == pytest.approx((0.0025, 0.00397))
+    assert percentiles(iter(times), (0, 100)) == (0.001, 0.004)
+    assert all(np.isnan(p) for p in percentiles([], (50, 99)))
+    assert MPCStats(times=times).percentile(50) == pytest.approx(0.0025)
+    assert np.isnan(MPCStats().percentile(99))

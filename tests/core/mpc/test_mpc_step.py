@@ -97,6 +97,7 @@ def test_at_p_plus_a_coarse_grid_sees_past_the_inverse_response() -> None:
         plant, d = _design("nonminphase", 1.0, horizon=N, step=step)
         x_e = d.model.x_e
         scn = standard_scenario(plant, x_e, phase=400.0, lead=80.0)
+        assert scn.leak is not None
         scn = replace(scn, leak=None, duration=scn.leak[0])
         run = run_mpc(plant, MPC(d), x_e, scn)
         iae[N, step] = np.sum(np.abs(run.r - run.x[:, :2]), axis=0)

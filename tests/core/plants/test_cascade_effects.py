@@ -29,6 +29,7 @@ def test_the_overflow_falls_into_the_tank_below_in_the_fitted_fraction() -> None
     assert rig.rhs((30.0, 10.0), (20.0,)) == (0.0, pytest.approx(q1 - q2 + 0.4 * excess, rel=1e-15))
     assert rig.rhs((29.0, 10.0), (20.0,)) == PLAIN.rhs((29.0, 10.0), (20.0,))  # not full: no spill
     wide = rig.with_values(alpha2=0.015)  # a lower outlet that passes it all
+    assert isinstance(wide, CoupledCascade)
     x1, x2 = wide.steady_state((20.0,))  # at rest tank 2 passes its share of the excess too
     assert x1 == 30.0 and x2 < 30.0 and wide._q(x2, wide.alpha2) == pytest.approx(q1 + 0.4 * excess, rel=1e-9)
     assert rig.steady_state((20.0,)) == (30.0, 30.0)  # Desautel's outlets: both brim over
@@ -72,7 +73,7 @@ def test_par_round_trip_names_the_effects_only_when_on() -> None:
     assert parse_par(again).params == on
 
 
-def _stamp():  # type: ignore[no-untyped-def]
+def _stamp():
     from datetime import datetime
 
     return datetime(2026, 1, 1)

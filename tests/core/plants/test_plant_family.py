@@ -68,17 +68,17 @@ def test_linearization_matches_finite_differences(kind: str) -> None:
     for j in range(n):
         e = np.zeros(n)
         e[j] = hx
-        A[:, j] = (np.array(p.rhs(x0 + e, u)) - np.array(p.rhs(x0 - e, u))) / (2 * hx)
+        A[:, j] = (np.array(p.rhs(tuple(x0 + e), u)) - np.array(p.rhs(tuple(x0 - e), u))) / (2 * hx)
     B = np.empty((n, k))
     for j in range(k):
         e = np.zeros(k)
         e[j] = 1e-4
-        B[:, j] = (np.array(p.rhs(x0, np.array(u) + e)) - np.array(p.rhs(x0, np.array(u) - e))) / 2e-4
+        B[:, j] = (np.array(p.rhs(tuple(x0), tuple(np.array(u) + e))) - np.array(p.rhs(tuple(x0), tuple(np.array(u) - e)))) / 2e-4
     C = np.empty((len(p.outputs), n))
     for j in range(n):
         e = np.zeros(n)
         e[j] = hx
-        C[:, j] = (np.array(p.output(x0 + e)) - np.array(p.output(x0 - e))) / (2 * hx)
+        C[:, j] = (np.array(p.output(tuple(x0 + e))) - np.array(p.output(tuple(x0 - e)))) / (2 * hx)
     np.testing.assert_allclose(m.A, A, rtol=1e-6, atol=1e-12)
     np.testing.assert_allclose(m.B, B, rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(m.C, C, rtol=1e-9)
@@ -173,7 +173,7 @@ def test_tito_pump2_alone_levels_meet() -> None:
     p = CoupledTITO()
     expected = p.H3 + (p.Gp * 4.0 / (p.Cd2 * p.a2)) ** 2 / (2 * p.g)
     assert p.steady_state((0.0, 4.0)) == pytest.approx((expected, expected), rel=1e-12)
-    x = (0.05, 0.05)
+    x: tuple[float, ...] = (0.05, 0.05)
     for _ in range(40):
         x = p.advance(x, (0.0, 4.0), 100.0)
     assert x == pytest.approx((expected, expected), abs=1e-6)
@@ -197,7 +197,7 @@ def test_tito_published_operating_point_needs_a_negative_inflow() -> None:
 
 def test_tito_drains_to_h3_and_never_below() -> None:
     p = CoupledTITO()
-    x = (0.2, 0.1)
+    x: tuple[float, ...] = (0.2, 0.1)
     for _ in range(100):
         x = p.advance(x, (0.0, 0.0), 60.0)
         assert min(x) >= p.H3 - 1e-9  # the drain stops at H3 (to the solver tolerance)

@@ -59,13 +59,13 @@ def test_a_design_draws_the_step_s_and_t_with_ms_and_nyquist_with_the_circle() -
     assert {"step:y", "step:r", "bode:S", "bode:T", "bode:Ms", "nyquist:L", "nyquist:circle"} <= ids(svg)
     assert "Ms = 1.40" in texts(svg)
     lines = {ln.get_gid(): ln for ax in fig.axes for ln in ax.get_lines()}
-    circle = lines["nyquist:circle"].get_xydata()
+    circle = np.asarray(lines["nyquist:circle"].get_xydata())
     radius = np.hypot(circle[:, 0] + 1.0, circle[:, 1])
     assert radius == pytest.approx(1.0 / 1.4, rel=1e-3)
-    curve = lines["nyquist:L"].get_xydata()
+    curve = np.asarray(lines["nyquist:L"].get_xydata())
     closest = np.nanmin(np.hypot(curve[:, 0] + 1.0, curve[:, 1]))
     assert closest == pytest.approx(1.0 / 1.4, rel=0.01)  # max |S| = Ms: the curve touches the circle
-    s = lines["bode:S"].get_ydata()
+    s = np.asarray(lines["bode:S"].get_ydata())
     assert s.max() == pytest.approx(margins(c.loop(g)).Ms, rel=0.01)
-    step = lines["step:y"].get_ydata()
+    step = np.asarray(lines["step:y"].get_ydata())
     assert step[-1] == pytest.approx(1.0, abs=0.02)  # integral action: y reaches r

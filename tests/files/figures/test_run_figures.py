@@ -34,7 +34,7 @@ def first_order_run(label: str, tau: float = T, rows: int = 400) -> Run:
     return Run(label, t, {"y1": y1, "r1": r1, "y2": flat, "r2": flat, "u1": 0.3 + 0 * t, "u2": 0.3 + 0 * t})
 
 
-def svg_of(fig) -> ET.Element:  # type: ignore[no-untyped-def]
+def svg_of(fig) -> ET.Element:
     return ET.fromstring(render(fig, "svg"))
 
 
@@ -43,7 +43,7 @@ def texts(svg_bytes: bytes) -> list[str]:
     return [t.strip() for t in re.findall(r"<!-- (.*?) -->", svg_bytes.decode(), flags=re.S)]
 
 
-def figure(*runs: Run, names: tuple[str, ...] = ("y1", "r1", "y2", "r2")):  # type: ignore[no-untyped-def]
+def figure(*runs: Run, names: tuple[str, ...] = ("y1", "r1", "y2", "r2")):
     aligned = [align(r, "step", r.label) for r in runs]
     return runs_figure(aligned, names, scales("cm", PRESET.process_plant()), xlabel="time since the step, s")
 
@@ -97,7 +97,7 @@ def pixels(png: bytes) -> np.ndarray:
     return imread(io.BytesIO(png), format="png")
 
 
-def one_panel(run: Run):  # type: ignore[no-untyped-def]
+def one_panel(run: Run):
     return figure(run, names=("y1", "r1"))
 
 
@@ -123,7 +123,7 @@ def test_the_pdf_and_svg_have_no_dates() -> None:
     assert b"<dc:date>" not in svg and b"quadtank-tui" in svg
 
 
-def test_formats_and_free_names(tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_formats_and_free_names(tmp_path) -> None:
     assert figure_format("a/b.PDF") == "pdf"
     for bad in ("x.jpg", "x", "x.png.txt"):
         with pytest.raises(FigureError, match=r"\.png, \.svg or \.pdf"):
