@@ -154,7 +154,7 @@ def test_pumps_not_confirmed_at_0_are_said_and_the_run_exits_1(tmp_path: Path) -
     assert result.status == 1
     lines = result.text.splitlines()
     assert any(line.startswith("FAULT      modbus 127.0.0.1:5020: OSError: cable cut") for line in lines), lines
-    assert lines[-1] == ("PUMPS      NOT confirmed at 0 (only the rig's watchdog stops them now): "
+    assert lines[-1] == ("PUMPS      NOT confirmed at 0 (left to the device's watchdog to stop them): "
                          "OSError: cable cut; OSError: cable cut")
     assert read_log(tmp_path / "cut.log").rows == 20
     assert backend.rig.pump_volts == (3.0, 3.0)  # indeed still running, as the line says
