@@ -12,6 +12,7 @@ from typing import Any, Callable
 import pytest
 
 from quadtank_tui.daq.config import Output
+import quadtank_tui.daq.modbus as modbus
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.registers import Register, decode
 from quadtank_tui.daq.server import IllegalAddress
@@ -169,6 +170,7 @@ class RefusingBank(FixedBank):
         self.refuse_zero = False
         self.reads = 0
         self.refused = 0
+        self.zeroed_at: float | None = None  # time.monotonic() of the first write of 0 taken
 
     def read(self, address: int, count: int) -> list[int]:
         self.reads += 1
@@ -179,6 +181,8 @@ class RefusingBank(FixedBank):
             self.refused += 1
             raise IllegalAddress(address)
         super().write(address, values)
+        if self.zeroed_at is None and self.dacs() == (0.0, 0.0):
+            self.zeroed_at = time.monotonic()
 
 
 def _running_on(device: Callable[..., Any], tmp_path: Path, **config: object) -> tuple[Engine, ModbusBackend, Any]:
@@ -257,4 +261,40 @@ def test_a_pause_whose_zero_fails_is_retried_each_tick_and_reads_nothing_meanwhi
         assert bank.dacs() == (0.0, 0.0) and snap.fault is None and backend.safe_state_error == ""
         assert bank.reads > reads                     # confirmed: the paused rig shows its levels again
     finally:
+        engine.stop()
+
+
+@pytest.mark.wallclock
+def test_a_pause_whose_zero_keeps_failing_leaves_the_guard_to_stop_the_pumps(
+        device: Callable[..., Any], link_proxy: Callable[[int], Any], tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The program's link goes silent (a cable cut between it and the device) as it
+    pauses: its writes of 0 keep failing, each tick tries them again and the guard
+    hears nothing meanwhile, so it stops the pumps over its own connection (here a
+    way to the device the cut does not touch) within its gap.  Before, every
+    request, answered or not, beat the guard: the pumps ran on at 3 V."""
+    bank = RefusingBank()
+    dev = device((0.0,) * 4, bank=bank)
+    proxy = link_proxy(dev.port)
+    real = modbus.GuardSpec
+    monkeypatch.setattr(modbus, "GuardSpec", lambda pid, host, port, *a, **k: real(pid, host, dev.port, *a, **k))
+    backend = ModbusBackend(dev.config(port=proxy.port, timeout=0.2, watchdog=None))
+    engine = active_engine(backend, tmp_path)
+    try:
+        ok(engine, SetState("Run"))
+        engine.run_for(0.5)
+        assert bank.dacs() == pytest.approx((3.0, 3.0)), engine.snapshot().fault
+        proxy.cut.set()
+        t0 = time.monotonic()
+        ok(engine, SetState("Pause"))
+        assert "pumps NOT confirmed at 0" in (engine.snapshot().fault or "")
+        while bank.dacs() != (0.0, 0.0) and time.monotonic() - t0 < 5.0:
+            engine.step()                             # each tick: the writes of 0 again (0.2 s each)
+        assert bank.dacs() == (0.0, 0.0) and bank.zeroed_at is not None
+        # the guard's gap (1 s) after the last it heard: the Pause's own writes (2 x 0.2 s), on a loaded machine
+        took = bank.zeroed_at - t0
+        assert 0.9 < took < 1.0 + 0.4 + 0.3, took
+        assert "pumps NOT confirmed at 0" in (engine.snapshot().fault or "")
+    finally:
+        proxy.cut.clear()
         engine.stop()
