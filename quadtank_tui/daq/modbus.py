@@ -34,8 +34,8 @@ silent and the guard stops the pumps.  `close` (the orderly end, pumps already a
 run armed them (the guard's rule: another program that has armed it since, a
 take-over, keeps it).
 
-While a `safe_state` is not confirmed (`safe_state_error`: a write of 0 failed)
-nothing here beats the guard or feeds the device's watchdog, so that they stop
+While a `safe_state` is not confirmed (`safe_state_error`: a write of 0 failed),
+and during its own requests, nothing here beats the guard or feeds the device's watchdog, so that they stop
 the pumps within their timeout if the program cannot; a write of the pumps that
 succeeds (the user's Run) ends that.  `close` then disarms nothing and hands the
 guard over ("stop": it writes the stop values itself, until they are written).
@@ -97,6 +97,7 @@ class ModbusBackend(ProcessBackend):
         self.watch_timeout: float | None = None
         self._arm_pending = False
         self._armed = False  # the device's watchdog is on (written by us)
+        self._zeroing = False  # in safe_state
         #: (what, register, value) of the watchdog's settings as this run armed them
         self._ours: list[tuple[str, Register, float]] = []
         self._last_exchange: float | None = None
@@ -201,13 +202,17 @@ class ModbusBackend(ProcessBackend):
         must not keep the other pump running); each tried as `_request` tries;
         never raises."""
         errors: list[str] = []
-        for i in range(len(self._pumps)):
-            try:
-                self._write_one(i, self._output_volts(i, 0.0))
-            except BackendError as exc:
-                errors.append(str(exc))
-            except Exception as exc:  # noqa: BLE001 - the contract: safe_state never raises
-                errors.append(f"{type(exc).__name__}: {exc}")
+        self._zeroing = True  # its requests beat no guard: if they fail, the guard's gap runs from before
+        try:
+            for i in range(len(self._pumps)):
+                try:
+                    self._write_one(i, self._output_volts(i, 0.0))
+                except BackendError as exc:
+                    errors.append(str(exc))
+                except Exception as exc:  # noqa: BLE001 - the contract: safe_state never raises
+                    errors.append(f"{type(exc).__name__}: {exc}")
+        finally:
+            self._zeroing = False
         if not errors:
             self.applied = (0.0, 0.0)
         self.safe_state_error = "; ".join(errors)
@@ -435,7 +440,7 @@ class ModbusBackend(ProcessBackend):
             self._last_exchange = self._clock()
             if self.watch_timeout is not None and self._last_exchange - start > self.watch_timeout:
                 self._stalled = max(self._stalled or 0.0, self._last_exchange - start)
-            if self.guard is not None and not self.safe_state_error:  # unconfirmed: the guard must act
+            if self.guard is not None and not (self._zeroing or self.safe_state_error):  # unconfirmed: it must act
                 self.guard.beat()
 
     def _tries(self, what: str, call: Callable[[], list[int]]) -> list[int]:

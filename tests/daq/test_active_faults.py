@@ -270,9 +270,10 @@ def test_a_pause_whose_zero_keeps_failing_leaves_the_guard_to_stop_the_pumps(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """The program's link goes silent (a cable cut between it and the device) as it
     pauses: its writes of 0 keep failing, each tick tries them again and the guard
-    hears nothing meanwhile, so it stops the pumps over its own connection (here a
-    way to the device the cut does not touch) within its gap.  Before, every
-    request, answered or not, beat the guard: the pumps ran on at 3 V."""
+    hears nothing meanwhile (those writes beat it no more), so it stops the pumps
+    over its own connection (here a way to the device the cut does not touch)
+    within its gap of the failure.  Before, every request, answered or not, beat
+    the guard: the pumps ran on at 3 V."""
     bank = RefusingBank()
     dev = device((0.0,) * 4, bank=bank)
     proxy = link_proxy(dev.port)
@@ -291,9 +292,10 @@ def test_a_pause_whose_zero_keeps_failing_leaves_the_guard_to_stop_the_pumps(
         while bank.dacs() != (0.0, 0.0) and time.monotonic() - t0 < 5.0:
             engine.step()                             # each tick: the writes of 0 again (0.2 s each)
         assert bank.dacs() == (0.0, 0.0) and bank.zeroed_at is not None
-        # the guard's gap (1 s) after the last it heard: the Pause's own writes (2 x 0.2 s), on a loaded machine
+        # within the guard's gap (1 s) of the last it heard, a sample before the Pause (its writes of 0 beat no
+        # guard); the guard looks every 0.05 s, and on a loaded machine it may be late
         took = bank.zeroed_at - t0
-        assert 0.9 < took < 1.0 + 0.4 + 0.3, took
+        assert 0.7 < took < 1.0 + 0.5, took
         assert "pumps NOT confirmed at 0" in (engine.snapshot().fault or "")
     finally:
         proxy.cut.clear()
