@@ -292,11 +292,14 @@ def test_a_pause_whose_zero_keeps_failing_leaves_the_guard_to_stop_the_pumps(
         while bank.dacs() != (0.0, 0.0) and time.monotonic() - t0 < 5.0:
             engine.step()                             # each tick: the writes of 0 again (0.2 s each)
         assert bank.dacs() == (0.0, 0.0) and bank.zeroed_at is not None
-        # within the guard's gap (1 s) of the last it heard, a sample before the Pause (its writes of 0 beat no
-        # guard); the guard looks every 0.05 s, and on a loaded machine it may be late
+        # the guard's gap (1 s) after the last it heard, a sample before the Pause (its writes of 0 beat no
+        # guard); the guard looks every 0.05 s, and on a loaded machine (2 cores, load 15) it is up to 0.6 s
+        # late; the old code never stopped them (3 V after 5 s)
         took = bank.zeroed_at - t0
-        assert 0.7 < took < 1.0 + 0.5, took
+        assert 0.7 < took < 1.0 + 1.0, took
         assert "pumps NOT confirmed at 0" in (engine.snapshot().fault or "")
     finally:
         proxy.cut.clear()
         engine.stop()
+        proxy.close()
+        time.sleep(0.3)  # the device's handlers of the proxy's connections end before it closes
