@@ -20,7 +20,7 @@ from quadtank_tui.engine.commands import LogOn, LogSave, SetOperation, SetParams
 from quadtank_tui.engine.runner import Engine, build_engine
 from quadtank_tui.files.log_reader import read_log
 
-from conftest import DAC, FixedBank
+from daqkit import DAC, FixedBank
 
 ROOT = Path(__file__).parents[2]
 
