@@ -7,6 +7,9 @@ watches that process (a pidfd where Linux has one, else polling) and:
 
 - when it ends after saying "bye" on the pipe (an orderly end: it has put the
   pumps at 0 and disarmed the watchdog itself), ends without a word;
+- when it says "stop" instead (it ends its control of the rig, but its own write
+  of the pumps' stop values failed: the pumps may still run), acts at once as if
+  it had died;
 - when it ends without it (SIGKILL, a crash, the OOM killer), writes each pump
   output's stop value over a Modbus TCP connection of its own, then disarms the
   device's watchdog if its settings are still the ones the program armed (the
@@ -19,6 +22,12 @@ watches that process (a pidfd where Linux has one, else polling) and:
   whatever its process state - writes the stop values, once per silence: a
   device without a watchdog would pump on.  The program, if it runs again, finds
   the gap itself and pauses (daq/modbus.py); the guard does not write again.
+  (A program whose pumps are not confirmed at 0 falls silent on purpose:
+  daq/modbus.py beats only while its stop is confirmed.)
+
+A stop of its own that fails (the device busy, the link down) is tried again every
+RETRY_S until it is done: while the program stays silent, or, once it is gone or
+has said "stop", for at most GIVE_UP_S.
 
 It never writes while the program is heard.  It starts its own session (a Ctrl-C or a
 hang-up of the program's terminal does not reach it) and imports nothing heavy:
@@ -47,6 +56,13 @@ from quadtank_tui.files.proc import process_state
 POLL_S = 0.05
 #: What the program writes on the pipe at an orderly end.
 BYE = b"bye\n"
+#: What it writes when it ends its control without its pumps confirmed at 0.
+STOP = b"stop\n"
+#: How often a stop of the guard's that failed is tried again, s.
+RETRY_S = 0.25
+#: How long it goes on trying once the program is gone (or said "stop"), s: a device
+#: refusing or unreachable for longer is beyond it (its own watchdog, if any, acts).
+GIVE_UP_S = 120.0
 
 
 @dataclass(frozen=True)
@@ -116,10 +132,22 @@ class Guard:
 
     def release(self, wait: float = 1.0) -> None:
         """The orderly end (pumps already at 0): the guard ends without writing."""
+        self._end(BYE, wait)
+
+    def hand_over(self, wait: float = 0.0) -> None:
+        """The end of the program's control with its pumps NOT confirmed at 0 (its
+        write of their stop values failed): the guard writes them now, over its own
+        connection, and again until they are written, then ends."""
+        self._end(STOP, wait)
+
+    def _end(self, word: bytes, wait: float) -> None:
         if self._pipe is None:
             return
         try:
-            self._pipe.write(BYE)
+            self._pipe.write(word)
+        except OSError:
+            pass
+        try:
             self._pipe.close()
         except OSError:
             pass
@@ -209,15 +237,18 @@ class _Watch:
         except OSError:
             pass
 
-    def act(self, why: str, *, gone: bool) -> None:
-        """The pumps to 0; when the program is `gone`, its watchdog disarmed after."""
+    def act(self, why: str, *, gone: bool, tries: int = 1) -> bool:
+        """The pumps to 0; when the program is `gone`, its watchdog disarmed after.
+        Whether the stop values were written; a failure is said at the first try only."""
         s = self.spec
         outs = ", ".join(w[0] for w in s.writes)
         errors = stop_pumps(s, s.writes)
         if errors:
-            self.say(f"{why}; could not set the pumps ({outs}) to 0 at {s.host}:{s.port}: "
-                     f"{'; '.join(errors)} - only the device's watchdog stops them now")
-            return
+            if tries == 1:
+                self.say(f"{why}; could not set the pumps ({outs}) to 0 at {s.host}:{s.port}: "
+                         f"{'; '.join(errors)} - trying again every {RETRY_S:g} s (the device's watchdog, "
+                         "if it has one, stops them meanwhile)")
+            return False
         disarmed = ""
         if gone and s.disarm:
             changed = not_ours(s)
@@ -227,7 +258,23 @@ class _Watch:
             else:
                 disarmed = "; its watchdog disarmed" if not stop_pumps(s, s.disarm) else \
                     "; its watchdog left armed (no answer)"
-        self.say(f"{why}; pumps ({outs}) set to 0 over the guard's own connection to {s.host}:{s.port}{disarmed}")
+        again = f" (at try {tries})" if tries > 1 else ""
+        self.say(f"{why}; pumps ({outs}) set to 0{again} over the guard's own connection to "
+                 f"{s.host}:{s.port}{disarmed}")
+        return True
+
+    def until_stopped(self, why: str) -> int:
+        """The program is gone (or handed over): the stop tried until it is done, for
+        at most GIVE_UP_S; the exit status (1: given up)."""
+        end = time.monotonic() + GIVE_UP_S
+        tries = 1
+        while not self.act(why, gone=True, tries=tries):
+            if time.monotonic() >= end:
+                self.say(f"gave up after {tries} tries in {GIVE_UP_S:g} s: the pumps may still run")
+                return 1
+            time.sleep(RETRY_S)
+            tries += 1
+        return 0
 
 
 def guard_main(stdin: IO[bytes], err: IO[str]) -> int:
@@ -249,6 +296,7 @@ def guard_main(stdin: IO[bytes], err: IO[str]) -> int:
     pipe_open = True
     last_heard = time.monotonic()
     acted_on_silence = False
+    retry: tuple[str, int, float] | None = None  # a silence's stop that failed: why, tries, when next
     while True:
         watched = ([fd] if pipe_open else []) + ([pidfd] if pidfd is not None else [])
         ready: list[int] = select.select(watched, [], [], POLL_S)[0] if watched else []
@@ -258,23 +306,30 @@ def guard_main(stdin: IO[bytes], err: IO[str]) -> int:
             heard, pipe_open, got = _drain(fd, heard, pipe_open)
             if BYE.strip() in heard:
                 return 0  # the orderly end: the program put its pumps at 0 itself
+            if STOP.strip() in heard:
+                return watch.until_stopped(f"{spec.who} (pid {spec.pid}) ended its control of the rig without "
+                                           "its pumps confirmed at 0 (its own write of 0 failed)")
             if got:  # a beat: the program is sampling
-                last_heard, acted_on_silence = time.monotonic(), False
+                last_heard, acted_on_silence, retry = time.monotonic(), False, None
         state = process_state(spec.pid)
         if not state or (pidfd is not None and pidfd in ready):
             heard, pipe_open, _ = _drain(fd, heard, pipe_open)
             if BYE.strip() in heard:
                 return 0
-            watch.act(f"{spec.who} (pid {spec.pid}) ended without stopping its pumps "
-                      "(killed, or it crashed)", gone=True)
-            return 0
+            return watch.until_stopped(f"{spec.who} (pid {spec.pid}) ended without stopping its pumps "
+                                       "(killed, or it crashed)")
         silent = time.monotonic() - last_heard
         if not acted_on_silence and silent >= spec.gap:
             how = {"T": "stopped", "t": "stopped by a debugger", "D": "frozen (uninterruptible sleep)"}.get(
                 state, "running but not sampling (a deadlocked loop?)")
-            watch.act(f"{spec.who} (pid {spec.pid}) has not been heard from for {silent:.1f} s, longer than "
-                      f"the watchdog timeout {spec.gap:g} s: {how}", gone=False)
+            why = (f"{spec.who} (pid {spec.pid}) has not been heard from for {silent:.1f} s, longer than "
+                   f"the watchdog timeout {spec.gap:g} s: {how}")
+            done = watch.act(why, gone=False)
             acted_on_silence = True  # once per silence: if it comes back, it finds the gap and pauses
+            retry = None if done else (why, 2, time.monotonic() + RETRY_S)
+        elif retry is not None and time.monotonic() >= retry[2]:  # still silent: the failed stop again
+            why, tries, _ = retry
+            retry = None if watch.act(why, gone=False, tries=tries) else (why, tries + 1, time.monotonic() + RETRY_S)
 
 
 def _spec_line(fd: int) -> tuple[bytes, bytes]:

@@ -30,7 +30,15 @@ only our feed (every quarter timeout, while paused too: a paused loop still read
 the levels each tick) carries it.  After each request the guard hears a byte on
 its pipe (rate-limited, never blocking): a frozen or deadlocked program falls
 silent and the guard stops the pumps.  `close` (the orderly end, pumps already at
-0) disarms both.
+0) disarms both: the device's watchdog only while its settings still read as this
+run armed them (the guard's rule: another program that has armed it since, a
+take-over, keeps it).
+
+While a `safe_state` is not confirmed (`safe_state_error`: a write of 0 failed),
+and during its own requests, nothing here beats the guard or feeds the device's watchdog, so that they stop
+the pumps within their timeout if the program cannot; a write of the pumps that
+succeeds (the user's Run) ends that.  `close` then disarms nothing and hands the
+guard over ("stop": it writes the stop values itself, until they are written).
 """
 
 from __future__ import annotations
@@ -89,6 +97,9 @@ class ModbusBackend(ProcessBackend):
         self.watch_timeout: float | None = None
         self._arm_pending = False
         self._armed = False  # the device's watchdog is on (written by us)
+        self._zeroing = False  # in safe_state
+        #: (what, register, value) of the watchdog's settings as this run armed them
+        self._ours: list[tuple[str, Register, float]] = []
         self._last_exchange: float | None = None
         #: the longest request since the last sample that outlasted the watchdog timeout, s
         self._stalled: float | None = None
@@ -96,6 +107,10 @@ class ModbusBackend(ProcessBackend):
         #: the strict key of this run (a LabJack UINT32; 0 is never used)
         self._key = 1 + secrets.randbelow(2**32 - 1)
         self._use_guard = guard
+        nets = (["the guard process"] if guard else []) + \
+            (["the device's watchdog"] if config.watchdog is not None else [])
+        #: what stops the pumps when this program cannot (for the messages)
+        self.safety_net = " and ".join(nets) or "nothing: no guard, no watchdog declared"
         self.guard: Guard | None = None
         self.description = f"modbus {config.host}:{config.port}"
         # `timeout` bounds the connect and each answer; the client's own retries are
@@ -173,6 +188,7 @@ class ModbusBackend(ProcessBackend):
         applied = self.interlock.cut(u)
         self._write_volts([self._output_volts(i, applied[i]) for i in range(len(self._pumps))])
         self.applied = applied
+        self.safe_state_error = ""  # the pumps are where this write put them, under control again
         self._feed_if_due()
 
     def written(self, requested: Pair) -> Pair:
@@ -186,13 +202,17 @@ class ModbusBackend(ProcessBackend):
         must not keep the other pump running); each tried as `_request` tries;
         never raises."""
         errors: list[str] = []
-        for i in range(len(self._pumps)):
-            try:
-                self._write_one(i, self._output_volts(i, 0.0))
-            except BackendError as exc:
-                errors.append(str(exc))
-            except Exception as exc:  # noqa: BLE001 - the contract: safe_state never raises
-                errors.append(f"{type(exc).__name__}: {exc}")
+        self._zeroing = True  # its requests beat no guard: if they fail, the guard's gap runs from before
+        try:
+            for i in range(len(self._pumps)):
+                try:
+                    self._write_one(i, self._output_volts(i, 0.0))
+                except BackendError as exc:
+                    errors.append(str(exc))
+                except Exception as exc:  # noqa: BLE001 - the contract: safe_state never raises
+                    errors.append(f"{type(exc).__name__}: {exc}")
+        finally:
+            self._zeroing = False
         if not errors:
             self.applied = (0.0, 0.0)
         self.safe_state_error = "; ".join(errors)
@@ -206,20 +226,38 @@ class ModbusBackend(ProcessBackend):
         return None
 
     def close(self) -> None:
-        """The orderly end (the pumps already at 0): the device's watchdog disarmed
-        (a dead link: it stays armed, which only ever stops pumps), the guard told,
-        the link closed."""
-        if self._armed and self.config.watchdog is not None:
+        """The end: the link closed.  With the pumps confirmed at 0 (the orderly end)
+        the device's watchdog is disarmed - if its settings are still this run's
+        (a dead link, or another program's arming: it stays armed, which only ever
+        stops pumps) - and the guard told "bye".  With the pumps NOT confirmed at 0
+        the watchdog stays armed, unfed, and the guard is handed over: it writes the
+        stop values itself."""
+        unconfirmed = bool(self.safe_state_error)
+        if self._armed and self.config.watchdog is not None and not unconfirmed:
             reg = self.config.watchdog.enable
             try:
-                self._request("disarming the watchdog", lambda: self._write(reg.address, encode(reg, 0.0)))
+                if self._still_ours():
+                    self._request("disarming the watchdog", lambda: self._write(reg.address, encode(reg, 0.0)))
                 self._armed = False
             except Exception:  # noqa: BLE001 - the watchdog stays armed: it only ever stops pumps
                 pass
         if self.guard is not None:
-            self.guard.release()
+            if unconfirmed:
+                self.guard.hand_over()
+            else:
+                self.guard.release()
             self.guard = None
         self._drop()
+
+    def _still_ours(self) -> bool:
+        """The device's watchdog settings read as this run armed them (its strict key
+        above all): the guard's rule (guard.not_ours) before a disarm."""
+        for what, reg, value in self._ours:
+            words = self._request(f"reading the watchdog's {what} (holding register {reg.address})",
+                                  lambda reg=reg: self._read("holding", reg.address, reg.count))  # type: ignore[misc]
+            if words != encode(reg, value):
+                return False
+        return True
 
     def _drop(self) -> None:
         """Close the connection (the next request opens a new one)."""
@@ -259,7 +297,8 @@ class ModbusBackend(ProcessBackend):
         write it broke, as without a watchdog): the feed, every quarter timeout."""
         wd_decl, now = self.config.watchdog, self._clock()
         if (wd_decl is not None and wd_decl.feed is not None and self.watch_timeout is not None
-                and not self._arm_pending and now - self._last_feed > self.watch_timeout / 4):
+                and not self._arm_pending and not self.safe_state_error
+                and now - self._last_feed > self.watch_timeout / 4):
             feed, key = wd_decl.feed, float(self._key if wd_decl.strict else 0)
             self._request(f"feed of the watchdog (holding register {feed.address})",
                           lambda: self._write(feed.address, encode(feed, key)))
@@ -285,6 +324,7 @@ class ModbusBackend(ProcessBackend):
                 self._request(f"arming the watchdog: {what} (holding register {reg.address})",
                               lambda reg=reg, value=value: self._write(reg.address, encode(reg, value)))  # type: ignore[misc]
             self._armed = True
+            self._ours = writes[1:]  # the settings as armed, the enable last: what close checks
         # A guard watching with another timeout (the sampling time changed while
         # driven) is replaced: with the old, shorter one it would zero the pumps of a
         # program that is not late (and they would silently come back); with the old,
@@ -400,7 +440,7 @@ class ModbusBackend(ProcessBackend):
             self._last_exchange = self._clock()
             if self.watch_timeout is not None and self._last_exchange - start > self.watch_timeout:
                 self._stalled = max(self._stalled or 0.0, self._last_exchange - start)
-            if self.guard is not None:
+            if self.guard is not None and not (self._zeroing or self.safe_state_error):  # unconfirmed: it must act
                 self.guard.beat()
 
     def _tries(self, what: str, call: Callable[[], list[int]]) -> list[int]:

@@ -49,9 +49,13 @@ class ProcessBackend(ABC):
     kind: str = "Simul"
     #: One line for the status bar, e.g. "simulator" or "modbus 127.0.0.1:5020".
     description: str = ""
-    #: Why the last `safe_state` could not be confirmed ("" when it was): the
-    #: pumps may still run, and only the rig's own watchdog will stop them.
+    #: Why the last `safe_state` could not be confirmed ("" when it was; a write of
+    #: the pumps that succeeds clears it): the pumps may still run.  Meanwhile the
+    #: backend must not keep the rig's own protection (`safety_net`) quiet: the
+    #: paused loop retries `safe_state` and reads nothing, and `close` disarms nothing.
     safe_state_error: str = ""
+    #: What stops the pumps when this program cannot (said with safe_state_error).
+    safety_net: str = "the rig's own watchdog"
 
     @abstractmethod
     def read_levels(self) -> Levels4:
@@ -90,4 +94,16 @@ class ProcessBackend(ABC):
         """Let `dt` s of process time pass (only the simulator acts on it)."""
 
     def close(self) -> None:
-        """Release the link; the pumps must already be safe."""
+        """Release the link.  With `safe_state_error` set (the pumps not confirmed at
+        0), leave the rig's protection to stop them: disarm nothing."""
+
+
+def unconfirmed_stop(backend: ProcessBackend | None) -> str:
+    """"pumps NOT confirmed at 0 (...): why" while `backend`'s last safe_state could
+    not be confirmed, else "" (the one wording of the snapshot, the summary and a
+    session's end)."""
+    error = getattr(backend, "safe_state_error", "")  # (a test's stand-in may be no ProcessBackend)
+    if not error:
+        return ""
+    net = getattr(backend, "safety_net", ProcessBackend.safety_net)
+    return f"pumps NOT confirmed at 0 (left to {net} to stop them): {error}"

@@ -7,6 +7,7 @@ script and seed give the same bytes every time.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,9 +66,10 @@ def run_headless(
                            speed=speed, params_dir=params_dir, daq=daq)
     try:
         run_experiment(run.engine, script, duration)
-        return finish_headless(run)
+        result = finish_headless(run)
     finally:
         run.engine.stop()
+    return _after_stop(result, run.engine)
 
 
 @dataclass(frozen=True)
@@ -171,11 +173,19 @@ def finish_headless(run: HeadlessRun) -> HeadlessResult:
 
 
 def _unsafe(engine: Engine) -> str:
-    """A line if the rig's pumps could not be confirmed at 0 after a fault ("" if they were)."""
-    daq = engine.loop.daq
-    if daq is None or not daq.safe_state_error:
-        return ""
-    return (f"PUMPS      NOT confirmed at 0 (only the rig's watchdog stops them now): {daq.safe_state_error}")
+    """A line if the rig's pumps could not be confirmed at 0 ("" if they were)."""
+    unsafe = engine.loop.pumps_unconfirmed
+    return f"PUMPS      {unsafe.removeprefix('pumps ')}" if unsafe else ""
+
+
+def _after_stop(result: HeadlessResult, engine: Engine) -> HeadlessResult:
+    """The summary with its PUMPS line as the engine's stop left them (its own write
+    of 0 may have failed, or confirmed the pumps at 0 at last): 1 if not at 0."""
+    lines = [line for line in result.text.splitlines() if not line.startswith("PUMPS ")]
+    unsafe = _unsafe(engine)
+    if unsafe:
+        return dataclasses.replace(result, status=1, text="\n".join([*lines, unsafe]))
+    return dataclasses.replace(result, text="\n".join(lines))
 
 
 def _save(session: LogSession, out: Path, before: tuple[int, ...] | None) -> tuple[Path, bool]:

@@ -31,6 +31,9 @@ engine/calibration_step.py's.
 
 Pause: a simulation freezes (no time passes, nothing is logged); a real process gets
 its pumps at 0.  Any exception in a sample puts the pumps at 0, pauses and shows why.
+A zeroing the rig did not confirm (the backend's safe_state_error) is the fault shown
+and is tried again at each tick, with nothing read from the rig meanwhile: a read
+would feed its watchdog and beat its guard, which must stop the pumps if we cannot.
 A real process does not wait for a late loop: the sampling slots the runner's clock
 skipped pass (t moves on over them) and a log notes the late row (`% late: ...`),
 so its TSamp never silently stands for samples that were further apart.
@@ -53,7 +56,7 @@ from quadtank_tui.core.plants import Plant
 from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
 from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
-from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend
+from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend, unconfirmed_stop
 from quadtank_tui.engine.calibration_step import RigCalibration
 from quadtank_tui.engine.commands import (
     AddWater, CalibrationHeights, CancelCalibration, Command, CommandResult, InstallPar, LoadPar, LogDiscard, LogOff,
@@ -138,6 +141,9 @@ class ControlLoop:
         self.t = 0.0
         self._fixed_h = True  # t = k h until the sampling time changes (no drift in t)
         self.fault: str | None = sf_refused
+        #: The rig's pumps not confirmed at 0 ("" when they are, or no rig): shown
+        #: before `fault` and retried each tick until confirmed (see _retry_safe).
+        self._unsafe = ""
         self._y = self.sim.read_levels()
         self._u = (0.0, 0.0)
         self._w = (self._gens[0].value(), self._gens[1].value())
@@ -211,17 +217,27 @@ class ControlLoop:
         self._sampled_last = False
         try:
             self.log.check()  # a write the file worker failed (disk full): fault now
+            if self._unsafe:
+                self._retry_safe()
             if self.calibration.active:
                 self._calibration_tick()
             elif self.running:
                 self._sample(missed)
                 self._sampled_last = True
-            else:
+            elif not self._unsafe or self.backend is not self.daq:
                 self._y = self.backend.read_levels()  # a paused rig still shows its levels
         except Exception as exc:  # noqa: BLE001 - any fault: pumps safe, Pause, say why
             self._fail(exc)
             self.calibration.fail(f"stopped: {self.fault}")
+        if self._unsafe:
+            self._unsafe = unconfirmed_stop(self.daq)  # a write of the pumps that went through clears it
         self._snapshot = None
+
+    def _retry_safe(self) -> None:
+        """The rig's pumps not confirmed at 0: try again, unless the loop drives them
+        now (Run, or a calibration holding them, whose writes settle it)."""
+        if self.backend is not self.daq or not (self.running or self.calibration.active):
+            self._safe(self.daq)
 
     def _calibration_tick(self) -> None:
         """One sample of the calibration (engine/calibration_step.py): the pumps held,
@@ -300,12 +316,21 @@ class ControlLoop:
         if was_running and self.log.running:  # the log says why its rows stop here
             self.log.comment(self.t, f"paused, pumps at 0: {self.fault}")
 
-    @staticmethod
-    def _safe(backend: ProcessBackend) -> None:
+    def _safe(self, backend: ProcessBackend | None) -> None:
+        """Pumps to 0; whether the rig confirmed it is noted (`_unsafe`)."""
+        if backend is None:
+            return
         try:
             backend.safe_state()
         except Exception:  # noqa: BLE001 - safe_state must not raise; if it does, go on
             pass
+        self._unsafe = unconfirmed_stop(self.daq)
+
+    @property
+    def pumps_unconfirmed(self) -> str:
+        """"pumps NOT confirmed at 0 (...): why" while the rig's last zeroing was not
+        confirmed (after shut_down: its last), else ""."""
+        return self._unsafe
 
     def _make_snapshot(self) -> Snapshot:
         return Snapshot(
@@ -315,7 +340,7 @@ class ControlLoop:
             active_available=self.daq is not None,
             backend=self.backend.description or self.backend.kind,
             log=self.log.status(self.params.logging),
-            stats=self.stats, fault=self.fault,
+            stats=self.stats, fault=self._fault_shown(),
             statefb=sf.info if (sf := self.controllers.statefb) is not None else None,
             mpc=mpc.info if (mpc := self.controllers.mpc) is not None else None,
             calibration=self.calibration.status(),
@@ -330,6 +355,14 @@ class ControlLoop:
             return None
         duties = getattr(self.backend, "disturbances", None)
         return None if duties is None else (float(duties[0]), float(duties[1]))
+
+    def _fault_shown(self) -> str | None:
+        """The fault, and the rig's pumps not confirmed at 0 after it (or alone: a Pause's zeroing)."""
+        if not self._unsafe:
+            return self.fault
+        if self.fault:
+            return f"{self.fault}; {self._unsafe}"
+        return f"{self.daq.description or self.daq.kind}: {self._unsafe}" if self.daq is not None else self._unsafe
 
     def publish(self) -> Snapshot:
         """Publish a fresh snapshot of the current state (after a stop, say)."""

@@ -467,8 +467,9 @@ class SessionHost:
             if action == "pause":
                 self.engine.submit(SetState("Pause"))  # a real process: pumps at 0
                 whose = "the default policy" if self.policy == UnattendedPolicy() else "the lab's policy"
+                pumps = self.engine.loop.pumps_unconfirmed or "pumps at 0"  # tried again each tick if not
                 self.info = dataclasses.replace(self.info, note=f"paused unattended at {datetime.now():%H:%M:%S}, "
-                                                f"pumps at 0 ({whose})")
+                                                f"{pumps} ({whose})")
                 self._publish(force=True)
                 self._write_record(force=True)
 
@@ -492,6 +493,8 @@ class SessionHost:
         try:
             self.engine.stop()  # pumps at 0, logging stopped (rows kept), backends closed
         finally:
+            if unsafe := self.engine.loop.pumps_unconfirmed:  # the rig's guard and watchdog were left to it
+                reason = self.ended = f"{reason}; {unsafe}"
             try:
                 self._publish(force=True)
                 self.server.broadcast(encode(Ended(reason)))

@@ -14,22 +14,21 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any, Callable, Iterator
 
 import pytest
 from pymodbus.client import ModbusTcpClient
 
 from quadtank_tui.daq.config import DaqConfig, load_daq_config
-from quadtank_tui.daq.registers import Register, decode, encode
-from quadtank_tui.daq.server import IllegalAddress, ModbusTcpServer
+from quadtank_tui.daq.registers import decode
+from quadtank_tui.daq.server import ModbusTcpServer
 
 # The tests import daqkit's helpers by name (pytest's importlib mode does not put
 # the test folder on sys.path).
 sys.path.insert(0, str(Path(__file__).parent))
 
-from daqkit import LINK_TIMEOUT, VIRTUAL_RIG  # noqa: E402
+from daqkit import DAC, LINK_TIMEOUT, VIRTUAL_RIG, FixedBank  # noqa: E402
 
-DAC = Register("holding", 1000, "float32", "big")  # the LabJack map virtual-rig.yaml uses
 
 class RigProcess:
     """`quadtank rig ...` running; `lines` collects its stdout."""
@@ -183,34 +182,6 @@ def link_proxy() -> Iterator[Callable[[int], LinkProxy]]:
     yield make
     for p in made:
         p.close()
-
-
-class FixedBank:
-    """The LabJack map (AIN0..AIN3 at 0..7, DAC0/DAC1 at 1000..1003, FLOAT32 big-endian)
-    with sensor voltages the test sets: a device that reads what we say."""
-
-    def __init__(self, volts: tuple[float, float, float, float]) -> None:
-        self.words: dict[int, int] = dict(zip(range(1000, 1004), encode(DAC, 0.0) * 2))
-        self.set_volts(volts)
-
-    def set_volts(self, volts: tuple[float, float, float, float]) -> None:
-        for i, v in enumerate(volts):
-            for a, w in zip((2 * i, 2 * i + 1), encode(Register("input", 2 * i, "float32", "big"), v)):
-                self.words[a] = w
-
-    def read(self, address: int, count: int) -> list[int]:
-        if any(a not in self.words for a in range(address, address + count)):
-            raise IllegalAddress(address)
-        return [self.words[a] for a in range(address, address + count)]
-
-    def write(self, address: int, values: Sequence[int]) -> None:
-        if not all(1000 <= a < 1004 for a in range(address, address + len(values))):
-            raise IllegalAddress(address)
-        self.words.update(zip(range(address, address + len(values)), values))
-
-    def dacs(self) -> tuple[float, float]:
-        return (decode(DAC, [self.words[1000], self.words[1001]]),
-                decode(DAC, [self.words[1002], self.words[1003]]))
 
 
 class Device:

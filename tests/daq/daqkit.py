@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
+
+from quadtank_tui.daq.registers import Register, decode, encode
+from quadtank_tui.daq.server import IllegalAddress
 
 ROOT = Path(__file__).parents[2]
 VIRTUAL_RIG = ROOT / "params" / "virtual-rig.yaml"
@@ -13,6 +16,36 @@ VIRTUAL_RIG = ROOT / "params" / "virtual-rig.yaml"
 #: 2-core CI machine missed it now and then (a fault nobody meant).  The tests of
 #: timeouts name theirs.
 LINK_TIMEOUT = 5.0
+
+DAC = Register("holding", 1000, "float32", "big")  # the LabJack map virtual-rig.yaml uses
+
+
+class FixedBank:
+    """The LabJack map (AIN0..AIN3 at 0..7, DAC0/DAC1 at 1000..1003, FLOAT32 big-endian)
+    with sensor voltages the test sets: a device that reads what we say."""
+
+    def __init__(self, volts: tuple[float, float, float, float]) -> None:
+        self.words: dict[int, int] = dict(zip(range(1000, 1004), encode(DAC, 0.0) * 2))
+        self.set_volts(volts)
+
+    def set_volts(self, volts: tuple[float, float, float, float]) -> None:
+        for i, v in enumerate(volts):
+            for a, w in zip((2 * i, 2 * i + 1), encode(Register("input", 2 * i, "float32", "big"), v)):
+                self.words[a] = w
+
+    def read(self, address: int, count: int) -> list[int]:
+        if any(a not in self.words for a in range(address, address + count)):
+            raise IllegalAddress(address)
+        return [self.words[a] for a in range(address, address + count)]
+
+    def write(self, address: int, values: Sequence[int]) -> None:
+        if not all(1000 <= a < 1004 for a in range(address, address + len(values))):
+            raise IllegalAddress(address)
+        self.words.update(zip(range(address, address + len(values)), values))
+
+    def dacs(self) -> tuple[float, float]:
+        return (decode(DAC, [self.words[1000], self.words[1001]]),
+                decode(DAC, [self.words[1002], self.words[1003]]))
 
 
 def rig_yaml(port: int, source: Path = VIRTUAL_RIG, timeout: float = LINK_TIMEOUT) -> str:

@@ -154,7 +154,34 @@ def test_pumps_not_confirmed_at_0_are_said_and_the_run_exits_1(tmp_path: Path) -
     assert result.status == 1
     lines = result.text.splitlines()
     assert any(line.startswith("FAULT      modbus 127.0.0.1:5020: OSError: cable cut") for line in lines), lines
-    assert lines[-1] == ("PUMPS      NOT confirmed at 0 (only the rig's watchdog stops them now): "
+    assert lines[-1] == ("PUMPS      NOT confirmed at 0 (left to the device's watchdog to stop them): "
                          "OSError: cable cut; OSError: cable cut")
     assert read_log(tmp_path / "cut.log").rows == 20
     assert backend.rig.pump_volts == (3.0, 3.0)  # indeed still running, as the line says
+
+
+class ZeroRefused(RigHere):
+    """The device refuses every write of 0 V to the pump outputs (busy at each)."""
+
+    def _write(self, address: int, values: list[int]) -> list[int]:
+        pumps = [self.config.pump_output(i).register for i in (1, 2)]
+        if address in [r.address for r in pumps] and \
+                all(v == 0 for v in values):  # 0.0 as FLOAT32 is all-zero words
+            raise OSError("device busy")
+        return super()._write(address, values)
+
+
+def test_a_run_whose_last_write_of_0_fails_says_so_after_the_stop_and_exits_1(tmp_path: Path) -> None:
+    """The run goes well; the engine's stop at its end cannot put the pumps at 0:
+    the summary (written after the stop) says so and the run exits 1.  Before, the
+    summary was written before the stop and said nothing: status 0, pumps at 3 V."""
+    config = load_daq_config(ROOT / "params" / "virtual-rig.yaml", read_par(PAR).params.process_plant())
+    backend = ZeroRefused(config, (5.0, 5.0, 2.0, 2.0))
+    result = run_headless(par=str(PAR), script=None, duration=2.0, out=tmp_path / "busy.log", clock="manual",
+                          daq=backend)
+    assert result.status == 1
+    assert result.text.splitlines()[-1] == (
+        "PUMPS      NOT confirmed at 0 (left to the device's watchdog to stop them): OSError: device busy; "
+        "OSError: device busy")
+    assert backend.rig.pump_volts == (3.0, 3.0)      # indeed still running, as the line says
+    assert backend.rig.watchdog is not None and backend.rig.watchdog.enabled  # left armed: it stops them

@@ -310,3 +310,52 @@ def test_coming_back_to_active_after_a_while_in_simul_is_no_stall(served: Callab
             b.read_levels()
     finally:
         b.close()
+
+class BusyPort(ShortPort):
+    """A port that answers whole level replies and fails the zero frame while `busy`."""
+
+    busy = False
+
+    def write(self, data: bytes) -> int:
+        if BusyPort.busy and data == p.pump_frame(0, 0, 0, 0):
+            raise OSError("write failed")
+        return super().write(data)
+
+    def read(self, n: int) -> bytes:
+        return p.levels_reply((500, 500, 500, 500, 1000))
+
+
+def test_a_paused_loop_with_an_unconfirmed_zero_frame_sends_no_level_request(tmp_path: Path) -> None:
+    """The zero frame of a Pause fails: the paused loop sends no '$' (the firmware's
+    watchdog must see the silence and stop the pumps) and tries the frame again
+    each tick, on a port opened again (which resets the Nano); confirmed, it polls again."""
+    from quadtank_tui.core.parameters import PRESET
+    from quadtank_tui.engine.commands import SetOperation, SetState
+    from quadtank_tui.engine.loop import ControlLoop
+
+    ports: list[BusyPort] = []
+
+    def opener(path: str, timeout: float) -> BusyPort:
+        ports.append(BusyPort())
+        return ports[-1]
+
+    b = IstBackend(IstConfig(port="/dev/fake", open_wait=0.0), opener=opener)
+    loop = ControlLoop(PRESET, daq=b, logs_dir=tmp_path)
+    try:
+        assert loop.apply(SetOperation("Active")).ok and loop.apply(SetState("Run")).ok
+        loop.step()
+        BusyPort.busy = True
+        assert loop.apply(SetState("Pause")).ok
+        assert "pumps NOT confirmed at 0 (left to the rig's firmware watchdog" in (loop.snapshot().fault or "")
+        for _ in range(3):
+            loop.step()
+        sent = [data for port in ports for data in port.written]
+        assert p.REQUEST not in sent[sent.index(p.pump_frame(*b.last_frame)) + 1:]  # no '$' since the pumps' frame
+        assert len(ports) == 1 + 3                    # the frame tried again each tick, on a port opened again
+        BusyPort.busy = False
+        loop.step()
+        assert loop.snapshot().fault is None and b.last_frame == (0, 0, 0, 0)
+        assert ports[-1].written == [p.pump_frame(0, 0, 0, 0), p.REQUEST]  # confirmed, then the levels
+    finally:
+        BusyPort.busy = False
+        loop.shut_down()

@@ -16,9 +16,11 @@ import io
 import json
 import os
 import subprocess
-from typing import Any, Callable
+from pathlib import Path
+from typing import Any, Callable, Sequence
 
 import pytest
+from pymodbus.client import ModbusTcpClient
 
 from daqkit import recording_guard
 
@@ -27,9 +29,11 @@ from quadtank_tui.daq.config import DaqConfigError, parse_daq_config
 from quadtank_tui.daq.guard import GuardSpec, guard_main
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.registers import Register, decode, encode
+from quadtank_tui.daq.server import IllegalAddress
 from test_device_watchdog import _rig_and_backend
 
 KEY = Register("holding", 61612, "uint32")
+ROOT = Path(__file__).parents[2]
 
 
 def _other_client_reads(rig: Any, clock: Any, seconds: float, every: float = 0.3) -> None:
@@ -128,3 +132,83 @@ def test_the_guard_disarms_only_a_watchdog_still_armed_as_the_dead_program_left_
             "has armed it since?)\n") if taken_over else "; its watchdog disarmed\n"
     assert said.getvalue().endswith(tail), said.getvalue()
     backend.close()
+
+
+def test_close_leaves_a_watchdog_another_program_armed(rig: Callable[..., Any]) -> None:
+    """Program A armed the device's watchdog; B (a take-over) armed it again with its
+    own key and drives; A, stopping late (it was frozen, or stuck in a timeout),
+    closes: its close reads the settings first, as the guard does, and leaves B's
+    watchdog on.  Before, A switched it off and B drove unprotected.  A real
+    `quadtank rig` subprocess on loopback."""
+    r = rig("--speed", "20")
+    cfg = r.config()
+    wd = cfg.watchdog
+    assert wd is not None and wd.strict
+
+    def enabled() -> float:
+        client = ModbusTcpClient("127.0.0.1", port=r.port, timeout=2.0)
+        try:
+            rr = client.read_holding_registers(wd.enable.address, count=wd.enable.count, device_id=1)
+            return decode(wd.enable, rr.registers)
+        finally:
+            client.close()
+
+    a = ModbusBackend(cfg, guard=False)
+    a.arm(0.1)
+    a.read_levels()
+    b = ModbusBackend(cfg, guard=False)
+    b.arm(0.1)
+    b.read_levels()
+    b.write_pumps((0.3, 0.3))
+    assert enabled() == 1.0 and a._key != b._key
+    a.safe_state()
+    a.close()
+    assert enabled() == 1.0                           # B's watchdog still on
+    b.safe_state()
+    b.close()
+    assert enabled() == 0.0                           # B's own close: still its settings, disarmed
+
+
+def test_a_pause_whose_zero_keeps_failing_leaves_the_watchdog_unfed(device: Callable[..., Any], tmp_path: Any) -> None:
+    """Pause while the device refuses every write of 0 to the pumps: the paused loop
+    tries again each tick and neither reads nor feeds, so the device's strict
+    watchdog (1 s at TSamp 0.1) stops the pumps within its timeout.  Before, the
+    paused loop read the levels and fed it: the pumps ran on at 3 V."""
+    from quadtank_tui.engine.commands import SetOperation, SetState
+    from quadtank_tui.engine.runner import build_engine
+
+    clock, rig, backend, written = _rig_and_backend(device)
+    write = rig.write
+
+    def refusing(address: int, values: Sequence[int]) -> None:
+        if address in (1000, 1002) and decode(Register("holding", 1000, "float32", "big"), list(values[:2])) == 0.0:
+            raise IllegalAddress(address)
+        write(address, values)
+
+    engine = build_engine(None, daq=backend, params_dir=ROOT / "params", logs_dir=tmp_path, clock="virtual",
+                          speed=20.0)
+    try:
+        for command in (SetOperation("Active"), SetState("Run")):
+            assert engine.submit(command).result().ok
+        for _ in range(5):
+            clock.now += 0.1
+            engine.step()
+            rig.tick()
+        assert rig.pump_volts == (3.0, 3.0)
+        rig.write = refusing  # type: ignore[method-assign]
+        assert engine.submit(SetState("Pause")).result().ok
+        fault = engine.snapshot().fault
+        assert fault is not None and "pumps NOT confirmed at 0 (left to the device's watchdog to stop them)" in fault
+        written.clear()
+        t = 0.0
+        while rig.pump_volts != (0.0, 0.0) and t < 3.0:
+            clock.now += 0.1
+            t += 0.1
+            engine.step()
+            rig.tick()
+        assert rig.pump_volts == (0.0, 0.0) and rig.watchdog_trips == 1
+        assert round(t, 6) <= 1.0, t                  # within its timeout of the failed zero (fed last before it)
+        assert 61614 not in written                   # never fed while unconfirmed
+    finally:
+        rig.write = write  # type: ignore[method-assign]
+        engine.stop()

@@ -178,6 +178,7 @@ class IstBackend(ProcessBackend):
             self._loop_called()
             self._write_frame((pwm[0], pwm[1], *self.disturbance))
         self.applied = applied
+        self.safe_state_error = ""  # the pumps are where this frame put them, under control again
 
     def written(self, requested: Pair) -> Pair:
         return self.applied
@@ -204,6 +205,9 @@ class IstBackend(ProcessBackend):
             self.safe_state_error = ""
         except Exception as exc:  # noqa: BLE001 - the contract: safe_state never raises
             self.safe_state_error = str(exc) or type(exc).__name__
+
+    #: What stops the pumps when this program cannot (for the messages).
+    safety_net = f"the rig's firmware watchdog (within {p.WATCHDOG_S:g} s of the last level request)"
 
     def plant_refused(self, plant: Plant) -> str | None:
         if plant.kind != "quadtank":
@@ -345,8 +349,8 @@ class IstBackend(ProcessBackend):
         while not self._stop.wait(period / 4):
             now = self._clock()
             tsamp = self._tsamp or 0.0
-            if self._loop_call is None or now - self._loop_call > tsamp + 1.0:
-                continue  # the loop is gone or frozen: let the firmware's watchdog act
+            if self._loop_call is None or now - self._loop_call > tsamp + 1.0 or self.safe_state_error:
+                continue  # the loop is gone or frozen, or its zero frame failed: let the firmware's watchdog act
             last = self._last_request
             if last is None or now - last < period:
                 continue
