@@ -76,6 +76,7 @@ class ModbusTcpServer:
         self.bank = bank
         self.reply_delay = reply_delay
         self._server: asyncio.Server | None = None
+        self._clients: set[asyncio.Task[None]] = set()
 
     async def start(self, host: str, port: int) -> tuple[str, int]:
         """Listen; returns the address bound (port 0 picks a free one)."""
@@ -84,11 +85,23 @@ class ModbusTcpServer:
         return sockname[0], sockname[1]
 
     async def stop(self) -> None:
+        """Stop listening and end every connection: on Python 3.11 closing the server
+        leaves its connections' tasks pending, and a loop stopped over them logs "Task
+        was destroyed but it is pending" when they are collected (a warning that once
+        crashed pytest's summary, CPython's "AST constructor recursion depth mismatch")."""
         if self._server is not None:
             self._server.close()
+            for task in list(self._clients):
+                task.cancel()
+            if self._clients:
+                await asyncio.gather(*self._clients, return_exceptions=True)
             await self._server.wait_closed()
 
     async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        task = asyncio.current_task()
+        if task is not None:
+            self._clients.add(task)
+            task.add_done_callback(self._clients.discard)
         try:
             while True:
                 tid, protocol, length, unit = struct.unpack(">HHHB", await reader.readexactly(7))
