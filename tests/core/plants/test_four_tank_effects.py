@@ -106,13 +106,13 @@ def test_quadtank_par_names_the_effects_in_a_plant_section_only_when_on() -> Non
 
 
 @pytest.mark.parametrize(("tail", "message"), [
-    ("spill3 1.4", "line 164: PLANT.spill3: spill3 must be in [0, 1], got 1.4"),
-    ("a1 0.07", "line 164: PLANT.a1: the quadruple tank's values live in SIMULATION"),
-    ("vmin1 x", "line 164: PLANT.vmin1: not a number"),
+    ("spill3 1.4", "line 165: PLANT.spill3: spill3 must be in [0, 1], got 1.4"),
+    ("a1 0.07", "line 165: PLANT.a1: the quadruple tank's values live in SIMULATION"),
+    ("vmin1 x", "line 165: PLANT.vmin1: not a number"),
 ])
 def test_quadtank_par_refuses_bad_effects(tail: str, message: str) -> None:
     text = format_par(PRESET, STAMP) + "\nPLANT\nKind quadtank\n" + tail + "\n"
-    assert text.count("\n") == 164
+    assert text.count("\n") == 165
     with pytest.raises(ParFileError, match=message.replace("[", r"\[").replace("]", r"\]")):
         parse_par(text)
 
