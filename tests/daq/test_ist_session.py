@@ -30,7 +30,7 @@ from quadtank_tui.daq.ist.device import Firmware, ServedDevice
 from quadtank_tui.engine.runner import engine_spec
 from quadtank_tui.session.client import SessionClient, stop_session_at
 from quadtank_tui.session.launch import SessionSpec, SessionStartError, start_session
-from quadtank_tui.session.runtime import list_sessions
+from quadtank_tui.session.runtime import list_sessions, pid_alive
 
 pytestmark = [pytest.mark.wallclock, pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a Linux pty")]
 
@@ -74,18 +74,9 @@ def ist_yaml(tmp_path: Path, port: str, name: str = "ist.yaml") -> Path:
     return path
 
 
-def wait_for(what: Callable[[], bool], timeout: float = 30.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while not what():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.02)
-    return True
-
-
 def test_the_tui_drives_the_ist_device_through_its_session_and_a_second_one_is_refused(
         device: ServedDevice, lab: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-        capsys: pytest.CaptureFixture[str]) -> None:
+        capsys: pytest.CaptureFixture[str], poll: Callable[..., bool]) -> None:
     cfg = ist_yaml(tmp_path, device.path)
     seen: dict[str, Any] = {}
 
@@ -156,25 +147,18 @@ def test_the_tui_drives_the_ist_device_through_its_session_and_a_second_one_is_r
         assert device.firmware.pwm[0] > 0  # still pumping, detached (the lab's grace)
         os.kill(info.pid, signal.SIGKILL)
         t0 = time.monotonic()
-        assert wait_for(lambda: device.firmware.pwm == (0, 0, 0, 0), 5.0)
+        assert poll(lambda: device.firmware.pwm == (0, 0, 0, 0), 5.0, 0.02)
         took = time.monotonic() - t0
         print(f"SIGKILL -> pumps 0: {took:.2f} s")
         assert took < 3.0  # the watchdog's 2 s after the last request (1.4-2.0 s measured), the device thread's lag under load
     finally:
-        if wait_for(lambda: not _alive(info.pid), 0.0) is False:
+        if pid_alive(info.pid):
             stop_session_at(info.socket)
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    return True
-
-
 def test_no_session_drives_the_ist_device_and_stops_it_when_the_tui_ends(
-        device: ServedDevice, lab: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        device: ServedDevice, lab: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        poll: Callable[..., bool]) -> None:
     """`quadtank --no-session --daq`: a private session on the device (the launcher
     holds the lock under the device's real path); the TUI's Exit stops it, all four
     pumps at 0, and the rig is free again."""
@@ -204,5 +188,5 @@ def test_no_session_drives_the_ist_device_and_stops_it_when_the_tui_ends(
     assert seen["pwm"][0] > 0 and seen["sessions"] == []  # it pumped; a private session is not listed
     assert seen["holder"] is not None and seen["holder"].pid == os.getpid()  # the launcher holds the rig
     # the TUI ended: pumps at 0 by the session's zero frame, not the watchdog 2 s later
-    assert wait_for(lambda: device.firmware.pwm == (0, 0, 0, 0), 1.0)
+    assert poll(lambda: device.firmware.pwm == (0, 0, 0, 0), 1.0, 0.02)
     assert holder_of(key, load_lab_config()) is None
