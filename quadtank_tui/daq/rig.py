@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from typing import Callable, Sequence, TextIO
 
 from quadtank_tui.core import faults as fx
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams, advance
+from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.daq.config import DaqConfig
 from quadtank_tui.daq.registers import decode, encode
@@ -133,11 +133,11 @@ class VirtualRig:
         if wall <= self._now:
             return
         dt = (wall - self._now) * self.speed
-        if self.plant is not None and not self.faults:
-            self.h = advance(self.h, self.pump_volts, dt, self.plant)
-        else:  # the DAQ's 0..10 V drive the plant's amplifiers over their range
-            v = [x * s.full_scale / FULL_SCALE_V for x, s in zip(self.pump_volts, self.process.inputs)]
-            self.h = fx.advance(self.process, self.faults, self.h, v, dt)
+        # the DAQ's 0..10 V drive the plant's amplifiers over their range (x 1.0 on the
+        # quadruple tank's 10 V ones: the volts as they are); the plant's own step
+        # (with its effects) whenever no fault acts (core.faults.advance)
+        v = [x * (s.full_scale / FULL_SCALE_V) for x, s in zip(self.pump_volts, self.process.inputs)]
+        self.h = fx.advance(self.process, self.faults, self.h, v, dt)
         self.t += dt
         self._now = wall
 

@@ -10,7 +10,7 @@ from textual.widgets import Input
 from uikit import Recording, make_app
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
+from quadtank_tui.engine.commands import ResetControllers, SetControlMode, SetParams, SetState
 from quadtank_tui.ui.widgets.controller_box import MPCCell
 from quadtank_tui.ui.windows.mpc import MPCWindow
 
@@ -74,6 +74,10 @@ async def test_a_control_horizon_past_the_horizon_is_refused_at_its_field(make_e
         assert isinstance(app.screen, MPCWindow) and len(engine.sent(SetParams)) == sent
         assert "50 is longer than the horizon (30)" in str(app.screen.query_one("#e-2").render())  # its row
         assert engine.snapshot().params.mpc.control_horizon == 0
+        before = len(engine.commands)  # Reset: the whole controller's states, nothing else; the window closes
+        await pilot.click("#reset_integrators")
+        await pilot.pause()
+        assert engine.commands[before:] == [ResetControllers()] and not isinstance(app.screen, MPCWindow)
 
 
 async def test_switching_a_running_loop_from_pi_to_mpc_and_back_has_no_bump(engine: Recording) -> None:

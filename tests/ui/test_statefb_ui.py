@@ -11,7 +11,7 @@ from uikit import Recording, make_app
 
 from quadtank_tui.core.parameters import PLANT_SETTINGS, PRESET, Parameters
 from quadtank_tui.core.plants.spec import PlantSpec
-from quadtank_tui.engine.commands import SetParams
+from quadtank_tui.engine.commands import ResetControllers, SetParams
 from quadtank_tui.ui.widgets.controller_box import StateFeedbackCell
 from quadtank_tui.ui.windows.statefb import StateFeedbackWindow
 
@@ -71,6 +71,10 @@ async def test_a_design_the_engine_refuses_is_shown_next_to_the_field(make_engin
         await pilot.pause()
         assert isinstance(app.screen, StateFeedbackWindow)
         assert "conjugate" in str(app.screen.query_one("#e-1").render())
+        before = len(engine.commands)  # Reset: the integrators, nothing else; the window closes
+        await pilot.click("#reset_integrators")
+        await pilot.pause()
+        assert engine.commands[before:] == [ResetControllers()] and not isinstance(app.screen, StateFeedbackWindow)
 
 
 # --- the coupled tanks (issue 15 item 3) -------------------------------------------------

@@ -12,20 +12,16 @@ from __future__ import annotations
 import math
 from typing import Callable, Sequence
 
-from quadtank_tui.core.plant import _A, _B, _E, PlantError
-
-# The tableau's coefficients by name: the stage sums below are written out term by
-# term, the same operations in the same order as sum(a[j] * k[j][i] for j), so the
-# numbers are bit for bit those of the loop form at about half its cost (a fit of
-# the physical constants runs thousands of these per iteration).
-_A21 = _A[1][0]
-_A31, _A32 = _A[2]
-_A41, _A42, _A43 = _A[3]
-_A51, _A52, _A53, _A54 = _A[4]
-_A61, _A62, _A63, _A64, _A65 = _A[5]
-_A71, _A72, _A73, _A74, _A75, _A76 = _A[6]
-_B1, _B2, _B3, _B4, _B5, _B6, _B7 = _B
-_E1, _E2, _E3, _E4, _E5, _E6, _E7 = _E
+# The tableau's coefficients by name (core.plant's, where its own step uses them): the
+# stage sums below are written out term by term, the same operations in the same order
+# as sum(a[j] * k[j][i] for j), so the numbers are bit for bit those of the loop form at
+# about half its cost (a fit of the physical constants runs thousands of these per
+# iteration).
+from quadtank_tui.core.plant import (
+    _A21, _A31, _A32, _A41, _A42, _A43, _A51, _A52, _A53, _A54, _A61, _A62, _A63, _A64, _A65,
+    _A71, _A72, _A73, _A74, _A75, _A76, _B1, _B2, _B3, _B4, _B5, _B6, _B7,
+    _E1, _E2, _E3, _E4, _E5, _E6, _E7, PlantError,
+)
 
 Rhs = Callable[[Sequence[float]], Sequence[float]]
 

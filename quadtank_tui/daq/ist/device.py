@@ -33,11 +33,12 @@ import select
 import threading
 import time
 import tty
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 from quadtank_tui.core import faults as fx
 from quadtank_tui.core.disturbance import DisturbancePumps
-from quadtank_tui.core.plant import PlantParams, advance
+from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams
 from quadtank_tui.core.plants import QuadTank
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.config import IstConfig
@@ -46,6 +47,25 @@ from quadtank_tui.daq.ist.config import IstConfig
 VCC = 5.0
 #: Wall seconds between two passes of the served loop when no byte comes.
 TICK_S = 0.02
+
+
+#: No fault acts on the IST rig's tanks (its disturbances are pumps: `inflow`).
+NO_FAULTS = fx.Faults()
+
+
+@dataclass(frozen=True)
+class PwmPumpedTanks(QuadTank):
+    """The quadruple tank as the Nano drives it: each pump takes the volts of its
+    identified law, up to the law's volts at full duty (`top`, 12 V with the
+    published constants), not the Lund amplifiers' 0..10 V.  So a disturbance pump
+    switched on adds its flow and changes nothing else (core.faults.advance
+    saturates the pumps at the plant's range)."""
+
+    top: float = FULL_SCALE_V
+
+    @property
+    def pump_max(self) -> float:
+        return self.top
 
 
 class Firmware:
@@ -57,6 +77,8 @@ class Firmware:
         if not speed > 0 or not math.isfinite(speed):
             raise ValueError(f"speed must be a number > 0, got {speed}")
         self.config, self.plant, self.speed, self.vcc = config, plant, speed, vcc
+        #: the tanks as the pumps' law drives them, up to its volts at full duty
+        self.tanks = PwmPumpedTanks(plant, top=max(c.volts(p.PWM_MAX) for c in config.pumps[:2]))
         self.h = tuple(float(x) for x in levels_cm)
         self.clock, self.reset_s, self.report = clock, reset_s, report
         #: u1, u2 (10-bit), d1, d2 (8-bit) as the pins have them
@@ -141,10 +163,7 @@ class Firmware:
         if dt <= 0:
             return
         q = self.disturbance_flows()
-        if any(q):
-            self.h = fx.advance(QuadTank(self.plant), fx.Faults(), self.h, self.volts(), dt, (q[0], q[1], 0.0, 0.0))
-        else:
-            self.h = tuple(advance(self.h, self.volts(), dt, self.plant))
+        self.h = fx.advance(self.tanks, NO_FAULTS, self.h, self.volts(), dt, (q[0], q[1], 0.0, 0.0))
 
     def status(self) -> str:
         return ("h = " + " ".join(f"{x:6.2f}" for x in self.h) + " cm   pwm u = "

@@ -13,7 +13,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Generic, Iterable, TypeVar
+from typing import Any, Callable, ClassVar, Generic, Iterable, TypeVar
 
 from textual import events, on
 from textual.app import ComposeResult
@@ -27,7 +27,7 @@ from textual.widgets.button import ButtonVariant
 
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.validation import ParameterError
-from quadtank_tui.engine.commands import Command, SetParams
+from quadtank_tui.engine.commands import Command, ResetControllers, SetParams
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Switch
 
@@ -284,6 +284,28 @@ class ParamWindow(Window[Commands]):
     @on(Input.Submitted)
     def _submitted(self) -> None:
         self.action_set()
+
+
+class WholeControllerWindow(ParamWindow):
+    """The window of a controller that is the whole loop (state feedback, MPC), not
+    one element of the 2x2 matrix: opened like an element's window (1-4), so it takes
+    an index it does not need; Reset starts all its states again (ResetControllers()
+    with no element: the integrators, the MPC's disturbance estimate and counts)."""
+
+    controller_title: ClassVar[str] = ""
+    controller_fields: ClassVar[tuple[Field, ...]] = ()
+
+    def __init__(self, index: int, params: Parameters, defaults: Parameters, *,
+                 opener: str | None = None) -> None:
+        super().__init__(self.controller_title, params, defaults, self.controller_fields, opener=opener)
+
+    def compose_buttons(self) -> ComposeResult:
+        yield from super().compose_buttons()
+        yield Button("Reset", id="reset_integrators")
+
+    def action_reset_integrators(self) -> None:
+        """The controller's states start again now (the window closes, nothing else changes)."""
+        self.dismiss((ResetControllers(),))
 
 
 class ConfirmWindow(Window[bool]):

@@ -16,12 +16,11 @@ from __future__ import annotations
 from typing import Any
 
 from textual.app import ComposeResult
-from textual.widgets import Button, Label
+from textual.widgets import Label
 
-from quadtank_tui.core.parameters import MPC_SECTION, Parameters
+from quadtank_tui.core.parameters import MPC_SECTION
 from quadtank_tui.core.validation import ParameterError
-from quadtank_tui.engine.commands import ResetControllers
-from quadtank_tui.ui.windows.base import Field, ParamWindow
+from quadtank_tui.ui.windows.base import Field, WholeControllerWindow
 
 S = MPC_SECTION
 FIELDS = (
@@ -40,13 +39,12 @@ FIELDS = (
 )
 
 
-class MPCWindow(ParamWindow):
+class MPCWindow(WholeControllerWindow):
     """Horizons, weights, limits and preview; Reset starts the disturbance estimate
-    and the counts again.  Opened like an element's window (1-4), so it takes an index."""
+    and the counts again."""
 
-    def __init__(self, index: int, params: Parameters, defaults: Parameters, *,
-                 opener: str | None = None) -> None:
-        super().__init__("Controller - MPC", params, defaults, FIELDS, opener=opener)
+    controller_title = "Controller - MPC"
+    controller_fields = FIELDS
 
     def compose_body(self) -> ComposeResult:
         yield from super().compose_body()
@@ -68,11 +66,3 @@ class MPCWindow(ParamWindow):
             self._error(exc.field, exc.reason)
             return None
         return {k: p.get(k) for k in out}  # as the file writes them ("Output" is output)
-
-    def compose_buttons(self) -> ComposeResult:
-        yield from super().compose_buttons()
-        yield Button("Reset", id="reset_integrators")
-
-    def action_reset_integrators(self) -> None:
-        """The disturbance estimate and the counts start again (the window closes)."""
-        self.dismiss((ResetControllers(),))

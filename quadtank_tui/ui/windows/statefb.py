@@ -8,11 +8,10 @@ placed poles and delta are in the Controller box.
 from __future__ import annotations
 
 from textual.app import ComposeResult
-from textual.widgets import Button, Input, Label
+from textual.widgets import Input, Label
 
-from quadtank_tui.core.parameters import STATEFB_SECTION, Parameters
-from quadtank_tui.engine.commands import ResetControllers
-from quadtank_tui.ui.windows.base import Field, ParamWindow
+from quadtank_tui.core.parameters import STATEFB_SECTION
+from quadtank_tui.ui.windows.base import Field, WholeControllerWindow
 
 S = STATEFB_SECTION
 FIELDS = (
@@ -26,13 +25,12 @@ FIELDS = (
 )
 
 
-class StateFeedbackWindow(ParamWindow):
+class StateFeedbackWindow(WholeControllerWindow):
     """Settling time, chosen poles, anti-windup and the operating point; Reset clears
-    the integrators.  Opened like an element's window (1-4), so it takes an index."""
+    the integrators."""
 
-    def __init__(self, index: int, params: Parameters, defaults: Parameters, *,
-                 opener: str | None = None) -> None:
-        super().__init__("Controller - State feedback", params, defaults, FIELDS, opener=opener)
+    controller_title = "Controller - State feedback"
+    controller_fields = FIELDS
 
     def compose_body(self) -> ComposeResult:
         yield from super().compose_body()
@@ -47,11 +45,3 @@ class StateFeedbackWindow(ParamWindow):
                 if f.key.endswith((".Level1", ".Level2")):
                     self.query_one(f"#row-{i}").set_class(True, "-unused")
                     self.query_one(f"#f-{i}", Input).disabled = True
-
-    def compose_buttons(self) -> ComposeResult:
-        yield from super().compose_buttons()
-        yield Button("Reset", id="reset_integrators")
-
-    def action_reset_integrators(self) -> None:
-        """Integrators to zero now (the window closes, nothing else changes)."""
-        self.dismiss((ResetControllers(),))
