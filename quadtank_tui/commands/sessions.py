@@ -333,6 +333,9 @@ def run_tui_on(client: SessionClient, refresh: float) -> int:
     sid = client.info.id
     if watch.reason is not None:
         _say(f"quadtank: detached from session {sid}: {watch.reason}; it keeps running")
+    elif client.dropped is not None and client.ended is None and not client.private:
+        _say(f"quadtank: session {sid} dropped this screen ({client.dropped}); it keeps running: "
+             f"quadtank attach {sid} comes back to it")
     elif client.stop_on_close:
         _say(f"quadtank: session {sid} stopped" + ("" if client.ended else " (it did not confirm)"))
     elif client.gone and not client.stop_on_close and client.ended is not None:
