@@ -14,10 +14,10 @@ same for anything its message makes go wrong); what the session sends is queued
 per connection and written when the socket takes it, so a slow or stopped client
 (a TUI suspended with Ctrl-Z, a link that stalls) costs the sampling nothing: past
 MAX_BACKLOG bytes queued it is dropped and may attach again.  A client dropped for
-what it did is told why (`Dropped`, after the rest of a line it was in the middle
-of receiving; before its Hello, `Refused`) as the connection's last line: without
-it, the client would take the closed connection for the session's death and put
-the pumps of a session that runs on at 0.
+what it did is told why as the connection's last line (`Dropped`, after the rest
+of a line it was in the middle of receiving; a peer not let in yet is closed
+without a word): without it, the client would take the closed connection for the
+session's death and put the pumps of a session that runs on at 0.
 
 Anyone on the machine may connect (the session decides who is let in), so what a
 peer can make the session hold is bounded: a line before Hello is at most
@@ -384,14 +384,14 @@ class Server:
             self.drop(conn)
 
     def drop(self, conn: Connection, why: str | None = None) -> None:
-        """Close `conn`; `why`: it is dropped for what it did, and told so (Dropped,
-        or Refused before its Hello) after the rest of the line it was receiving."""
+        """Close `conn`; `why`: it is dropped for what it did and, once let in, told
+        so (Dropped) after the rest of the line it was receiving."""
         if conn not in self.connections:
             return
         farewell = b""
-        if why is not None:
+        if why is not None and conn.role is not None:  # before its Hello it is no client of ours yet
             rest = bytes(conn.out[:conn.out.find(b"\n") + 1])  # a line half sent is finished first
-            farewell = rest + encode(Dropped(why) if conn.role is not None else Refused(why))
+            farewell = rest + encode(Dropped(why))
         self.connections.remove(conn)
         if conn.rank == "other":
             self._others_queued -= len(conn.out) + len(conn.held)

@@ -18,6 +18,7 @@ from quadtank_tui.engine.runner import engine_spec
 from quadtank_tui.session.client import SessionClient, stop_session_at
 from quadtank_tui.session.launch import SessionSpec, start_session
 from quadtank_tui.session.protocol import Hello, encode
+from quadtank_tui.session.runtime import pid_alive
 from daqkit import rig_yaml
 
 ROOT = Path(__file__).parents[2]
@@ -105,3 +106,5 @@ def test_a_dropped_operator_leaves_the_pumps_to_the_session_that_runs_on(
         client.close()
         if second is not None:
             second.close()
+        if pid_alive(info.pid):  # failed on the way: the session must not outlive the test
+            stop_session_at(info.socket)
