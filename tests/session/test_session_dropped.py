@@ -17,6 +17,7 @@ import pytest
 from sessionkit import ThreadSession
 from textual.widgets import Static
 
+from quadtank_tui.commands.sessions import after_the_screen
 from quadtank_tui.engine import commands as c
 from quadtank_tui.session.client import SessionClient
 from quadtank_tui.session.protocol import Dropped, Hello, decode, encode
@@ -86,6 +87,8 @@ def test_a_dropped_operator_is_told_why_and_leaves_the_pumps_to_the_session(
         assert fault == (f"session alice-1 dropped this screen ({client.dropped}) and runs on: "
                          "quadtank attach alice-1 comes back to it")
         assert client.submit(c.SetState("Pause")).result(5).message == "session alice-1 is gone"
+        assert after_the_screen(client, None) == (f"quadtank: session alice-1 dropped this screen ({client.dropped}); "
+                                                  "it keeps running: quadtank attach alice-1 comes back to it")
 
 
 def test_dropped_is_the_last_line_after_the_line_it_was_receiving(thread_session) -> None:
