@@ -154,3 +154,31 @@ async def test_the_screen_says_it_was_dropped_and_exit_only_leaves(thread_sessio
     assert not client.stop_on_close and rescues == []
     client.close()
     assert s.thread.is_alive() and s.reason is None
+
+
+def test_a_screen_too_slow_to_read_is_dropped_and_leaves_the_pumps_alone(
+        thread_session, poll, rescues, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A screen that stops reading (Ctrl-Z, a stalled link) falls MAX_BACKLOG behind
+    and is dropped; its socket is full, so Dropped cannot reach it within the
+    farewell's time (2 s; 0.2 here): when it reads again it finds the stream cut, and the session
+    still answering on its socket tells it that it was dropped, not that the
+    session died."""
+    from quadtank_tui.session import server as server_module
+
+    monkeypatch.setattr(server_module, "MAX_BACKLOG", 256 << 10)
+    monkeypatch.setattr(server_module, "FAREWELL_TIMEOUT", 0.2)
+    s: ThreadSession = thread_session(speed=200.0)
+    client = SessionClient(s.path)
+    try:
+        assert client.submit(c.SetState("Run")).result(30).ok
+        with client._read_lock:  # the screen stops reading
+            assert poll(lambda: not any(conn.role == "operator" for conn in s.host.server.connections), 30.0)
+            assert poll(lambda: not s.host.server._farewells, 10.0)  # the farewell gave up: the socket is closed
+        assert client.wait_gone(30)
+        k = s.engine.snapshot().k  # (no second screen: its history alone is past this small backlog)
+        assert poll(lambda: s.engine.snapshot().k > k + 5, 30.0) and s.reason is None
+        assert rescues == [] and client.rescue is None
+        assert client.dropped in ("its connection closed without a word",
+                                  "it fell too far behind in reading the session's updates")
+    finally:
+        client.close()
