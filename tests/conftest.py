@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import importlib.util
+import itertools
+import os
 import shutil
+import signal
 import time
 from pathlib import Path
 from types import ModuleType
-from typing import Callable
+from typing import Callable, Iterator
 
 import pytest
+
+from quadtank_tui.files.proc import process_state
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -38,6 +43,69 @@ def poll(condition: Callable[[], bool], timeout: float, every: float = 0.05) -> 
 @pytest.fixture(name="poll")
 def poll_fixture() -> Callable[..., bool]:
     return poll
+
+
+#: The environment variable that marks a test's processes: the test process sets it
+#: for the test's time, so whatever the test starts (a guard, a session that starts
+#: a guard, `quadtank run --daq`) inherits it.
+GUARD_MARK = "QUADTANK_TEST_MARK"
+_marks = itertools.count(1)
+
+
+class GuardsOfATest:
+    """The DAQ guard processes one test started, found by its mark in their
+    environment (never by name alone: other tests run in parallel, in other
+    pytest-xdist workers and other checkouts).  A guard retries its stop for up to
+    GIVE_UP_S (120 s) after a run against a dead or hung device: right on a rig,
+    a process left behind by a test."""
+
+    variable = GUARD_MARK
+
+    def __init__(self) -> None:
+        self.mark = f"{os.getpid()}-{next(_marks)}"
+        self._entry = f"{GUARD_MARK}={self.mark}".encode()
+
+    def alive(self) -> list[int]:
+        found = []
+        for name in os.listdir("/proc"):
+            if not name.isdigit():
+                continue
+            try:
+                with open(f"/proc/{name}/cmdline", "rb") as f:
+                    if b"quadtank_tui.daq.guard" not in f.read():
+                        continue
+                with open(f"/proc/{name}/environ", "rb") as f:
+                    if self._entry not in f.read().split(b"\0"):
+                        continue
+            except OSError:  # gone meanwhile, or another user's
+                continue
+            if process_state(int(name)):  # a zombie is gone
+                found.append(int(name))
+        return found
+
+    def end(self, timeout: float = 10.0) -> list[int]:
+        """SIGTERM each of them and wait until they are gone; those still there."""
+        found = self.alive()  # (one look at /proc, about 2 ms: most tests start no guard)
+        if not found:
+            return []
+        for pid in found:
+            try:
+                os.kill(pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        poll(lambda: not self.alive(), timeout, every=0.01)
+        return self.alive()
+
+
+@pytest.fixture
+def guards_of_this_test(monkeypatch: pytest.MonkeyPatch) -> Iterator[GuardsOfATest]:
+    """Marks the test's processes; at its end, ends the guards it started and fails
+    if one is left."""
+    guards = GuardsOfATest()
+    monkeypatch.setenv(GUARD_MARK, guards.mark)
+    yield guards
+    left = guards.end()
+    assert not left, f"the test left DAQ guard processes that would not end: {left}"
 
 
 @pytest.fixture(autouse=True)

@@ -330,17 +330,25 @@ def run_tui_on(client: SessionClient, refresh: float) -> int:
     finally:
         watch.close()
         client.close()  # detaches; stops the session if Exit chose that
-    sid = client.info.id
-    if watch.reason is not None:
-        _say(f"quadtank: detached from session {sid}: {watch.reason}; it keeps running")
-    elif client.stop_on_close:
-        _say(f"quadtank: session {sid} stopped" + ("" if client.ended else " (it did not confirm)"))
-    elif client.gone and not client.stop_on_close and client.ended is not None:
-        _say(f"quadtank: session {sid} ended: {client.ended}")
-    else:
-        _say(f"quadtank: detached from session {sid}: quadtank attach {sid} comes back to it, "
-             f"quadtank stop {sid} stops it. {client.policy}")
+    _say(after_the_screen(client, watch.reason))
     return app.return_code or watch.status
+
+
+def after_the_screen(client: SessionClient, hung_up: str | None) -> str:
+    """The line the terminal gets once the TUI on `client` is gone; `hung_up`: the
+    terminal went away (why)."""
+    sid = client.info.id
+    if hung_up is not None:
+        return f"quadtank: detached from session {sid}: {hung_up}; it keeps running"
+    if client.dropped is not None and client.ended is None and not client.private:
+        return (f"quadtank: session {sid} dropped this screen ({client.dropped}); it keeps running: "
+                f"quadtank attach {sid} comes back to it")
+    if client.stop_on_close:
+        return f"quadtank: session {sid} stopped" + ("" if client.ended else " (it did not confirm)")
+    if client.gone and client.ended is not None:
+        return f"quadtank: session {sid} ended: {client.ended}"
+    return (f"quadtank: detached from session {sid}: quadtank attach {sid} comes back to it, "
+            f"quadtank stop {sid} stops it. {client.policy}")
 
 
 def _say(line: str) -> None:

@@ -73,6 +73,10 @@ class LabSession(Protocol):
         """Why it ended, when it stopped in order."""
 
     @property
+    def dropped(self) -> str | None:
+        """Why the session dropped this screen, which it did while running on."""
+
+    @property
     def policy(self) -> str:
         """What it does once no operator is attached (the lab's policy), one sentence."""
 

@@ -16,6 +16,11 @@ window's "Stop the session").  If the session process dies without saying so (a
 SIGKILL), the snapshot says so, the commands are refused, and - for an operator of
 an Active session whose DAQ configuration it can read - the pumps are commanded to
 0 over a link of its own; the guard and the rig's watchdog are the last lines.
+A client the session dropped (it flooded, sent a line that is not a message, fell
+too far behind) is told so (`Dropped`): the session runs on and keeps driving the
+rig, so the screen says it was dropped and touches no pump.  A connection that
+closes without a word while the session's process still answers on its socket is
+taken the same way: only a session that is gone gets the rescue.
 
 A private session's client (`private`, `quadtank --no-session`) is its session's
 only screen: it offers no lab session (nothing to detach from), its close stops
@@ -46,9 +51,10 @@ from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log_writer import log_path
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.session.protocol import (
-    MAX_SESSION_LINE, Ended, Hello, HistoryPart, LineReader, ProtocolError, Refused, Result, Role, Roster,
+    MAX_SESSION_LINE, Dropped, Ended, Hello, HistoryPart, LineReader, ProtocolError, Refused, Result, Role, Roster,
     SessionInfo, StopSession, Submit, Update, Welcome, decode, encode,
 )
+from quadtank_tui.session.runtime import pid_alive
 
 #: Seconds to connect and receive the Welcome (with the whole history: 3.5 MB).
 ATTACH_TIMEOUT = 10.0
@@ -82,6 +88,7 @@ class SessionClient:
             sock.close()
             raise _unreachable(path, exc) from None
         self._sock = sock
+        self._path = str(path)
         self._reader = LineReader(MAX_SESSION_LINE)
         self._pending: list[bytes] = []
         try:
@@ -118,6 +125,7 @@ class SessionClient:
         self._lock = threading.Lock()
         self._send_lock = threading.Lock()
         self._gone = threading.Event()
+        self._finished = False   # _finish ran (once: the thread or the screen's loop)
         self._closing = False
         #: Who reads the socket: the thread, or (read_on) an event loop; one at a time
         #: reads under _read_lock, so a handover in either direction loses nothing.
@@ -125,6 +133,7 @@ class SessionClient:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._wake_r, self._wake_w = os.pipe()
         self.ended: str | None = None       # the session's own reason, when it stopped in order
+        self.dropped: str | None = None     # why the session dropped this client (it runs on)
         self.rescue: str | None = None
         self.private = private
         self._let_go = let_go
@@ -147,7 +156,10 @@ class SessionClient:
     def snapshot(self) -> Snapshot:
         snap = self._snap
         why = self._gone_reason()
-        return snap if why is None else replace(snap, state="Pause", fault=why)
+        if why is None:
+            return snap
+        # Dropped, this screen no longer sees the session, which still runs: its last state stays.
+        return replace(snap, fault=why) if self.dropped is not None else replace(snap, state="Pause", fault=why)
 
     def _gone_reason(self) -> str | None:
         """Why the session is no longer there (None while it is, or after we left)."""
@@ -155,6 +167,9 @@ class SessionClient:
             return None
         if self.ended is not None:
             return f"session {self.info.id} ended: {self.ended}"
+        if self.dropped is not None:
+            return (f"session {self.info.id} dropped this screen ({self.dropped}) and runs on: "
+                    f"quadtank attach {self.info.id} comes back to it")
         snap = self._snap
         pumps = f"; {self.rescue}" if self.rescue else \
             ("; the rig's watchdog puts its pumps at 0" if snap.operation == "Active" else "")
@@ -292,15 +307,35 @@ class SessionClient:
         """The session hung up (or we did): the commands still waiting are refused;
         an Active session that died without a word gets its pumps put at 0."""
         with self._lock:
-            if self._gone.is_set():
+            if self._finished:
                 return
+            self._finished = True
+        # Known before anyone sees it gone: dropped (the session runs on) or not.
+        if self.ended is None and self.dropped is None and not self._closing and self._session_answers():
+            self.dropped = "its connection closed without a word"
+        with self._lock:
             self._gone.set()
             waiting, self._futures = list(self._futures.values()), {}
         for fut in waiting:
             if not fut.done():
                 fut.set_result(CommandResult.refused(f"session {self.info.id} is gone"))
-        if self.ended is None and not self._closing:
+        if self.ended is None and self.dropped is None and not self._closing:
             self._pumps_to_zero()
+
+    def _session_answers(self) -> bool:
+        """The session's process is alive and accepts connections on its socket: the
+        connection closed, the session did not (one that dies closes its socket)."""
+        if not pid_alive(self.info.pid):
+            return False
+        probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        probe.settimeout(1.0)
+        try:
+            probe.connect(self._path)
+        except OSError:
+            return False
+        finally:
+            probe.close()
+        return True
 
     def read_on(self, loop: asyncio.AbstractEventLoop) -> None:
         """Read the session on `loop` (the screen's, from its own thread) instead of
@@ -367,6 +402,8 @@ class SessionClient:
             self.controller, self.clients, self.role = message.controller, message.clients, message.role
         elif isinstance(message, Ended):
             self.ended = message.reason
+        elif isinstance(message, Dropped):
+            self.dropped = message.reason
 
     def _pumps_to_zero(self) -> None:
         """The session died: an operator of an Active session puts the rig's pumps at 0."""

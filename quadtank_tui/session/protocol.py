@@ -164,9 +164,21 @@ class Ended:
     reason: str
 
 
-Message = Union[Hello, Submit, StopSession, Welcome, HistoryPart, Refused, Update, Result, Roster, Ended]
+@dataclass(frozen=True)
+class Dropped:
+    """The session drops this client (it flooded, sent a line that is not a message,
+    fell too far behind) and says why, as its last line to it: the session runs on
+    and keeps driving its process, so the client must not take the closed
+    connection for the session's death (and must not put the pumps at 0).  A client
+    older than this message takes the line for a protocol error, i.e. the session's
+    death, as it did every drop before."""
+
+    reason: str
+
+
+Message = Union[Hello, Submit, StopSession, Welcome, HistoryPart, Refused, Update, Result, Roster, Ended, Dropped]
 MESSAGES: tuple[type, ...] = (SessionInfo, Hello, Submit, StopSession, Welcome, HistoryPart, Refused, Update,
-                              Result, Roster, Ended)
+                              Result, Roster, Ended, Dropped)
 #: What a client may send.
 CLIENT_MESSAGES: tuple[type, ...] = (Hello, Submit, StopSession)
 

@@ -13,7 +13,11 @@ decoded (a line that is not a message drops that client, never the session: the
 same for anything its message makes go wrong); what the session sends is queued
 per connection and written when the socket takes it, so a slow or stopped client
 (a TUI suspended with Ctrl-Z, a link that stalls) costs the sampling nothing: past
-MAX_BACKLOG bytes queued it is dropped and may attach again.
+MAX_BACKLOG bytes queued it is dropped and may attach again.  A client dropped for
+what it did is told why as the connection's last line (`Dropped`, after the rest
+of a line it was in the middle of receiving; a peer not let in yet is closed
+without a word): without it, the client would take the closed connection for the
+session's death and put the pumps of a session that runs on at 0.
 
 Anyone on the machine may connect (the session decides who is let in), so what a
 peer can make the session hold is bounded: a line before Hello is at most
@@ -47,7 +51,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator, Literal
 
 from quadtank_tui.session.protocol import (
-    CLIENT_MESSAGES, MAX_CLIENT_LINE, MAX_HELLO_LINE, LineReader, ProtocolError, Refused, decode, encode,
+    CLIENT_MESSAGES, MAX_CLIENT_LINE, MAX_HELLO_LINE, Dropped, LineReader, ProtocolError, Refused, decode, encode,
 )
 from quadtank_tui.session.roles import Peer, peer_of as kernel_peer
 
@@ -77,6 +81,9 @@ MAX_LINE_BURST = 1000
 #: Seconds spent encoding a long message's parts per event-loop turn (send_parts):
 #: a part of the history takes about 0.12 ms, so a few go per turn.
 PARTS_PER_TURN_TIME = 0.001
+#: Seconds a dropped client's last words (Dropped) may take to go out before its
+#: socket is closed anyway (a client that does not read them gets none).
+FAREWELL_TIMEOUT = 2.0
 
 #: Who a peer is to this session: an administrator, its owner, anyone else.
 Rank = Literal["admin", "owner", "other"]
@@ -131,6 +138,7 @@ class Server:
         self._backoff = 0.0
         self._listening = False
         self._closed = False
+        self._farewells: dict[socket.socket, _Farewell] = {}
         #: Connections with lines queued that the socket has not taken yet, and with a
         #: long message still being encoded (send_parts).
         self.writing = 0
@@ -231,9 +239,9 @@ class Server:
             return
         try:
             lines = conn.reader.feed(data)
-        except ProtocolError:
+        except ProtocolError as exc:
             self.refused += 1
-            self.drop(conn)
+            self.drop(conn, f"it sent {exc}")
             return
         if lines and self._flooding(conn, len(lines)):
             return
@@ -248,9 +256,9 @@ class Server:
         if conn.allowance >= 0:
             return False
         self.refused += 1
-        _note(f"dropped {conn.name}: it sent lines faster than {MAX_LINE_RATE:g} a second "
-              f"(beyond a burst of {MAX_LINE_BURST})")
-        self.drop(conn)
+        why = f"it sent lines faster than {MAX_LINE_RATE:g} a second (beyond a burst of {MAX_LINE_BURST})"
+        _note(f"dropped {conn.name}: {why}")
+        self.drop(conn, why)
         return True
 
     def _handle(self, conn: Connection) -> None:
@@ -267,13 +275,14 @@ class Server:
                 self._on_message(conn, decode(line, CLIENT_MESSAGES))
                 if conn.role is not None:
                     conn.reader.limit = MAX_CLIENT_LINE  # let in: commands may be longer than a Hello
-            except ProtocolError:
+            except ProtocolError as exc:
                 self.refused += 1
-                self.drop(conn)
+                self.drop(conn, f"it sent a line that is not a message of the session's protocol ({exc})")
                 return
             except Exception as exc:  # noqa: BLE001 - what one client's message broke ends that client only
-                _note(f"dropped {conn.name}: its message failed: {type(exc).__name__}: {exc}")
-                self.drop(conn)
+                why = f"its message failed: {type(exc).__name__}: {exc}"
+                _note(f"dropped {conn.name}: {why}")
+                self.drop(conn, why)
                 return
         if conn not in self.connections:
             return
@@ -311,8 +320,9 @@ class Server:
             try:
                 part = next(conn.parts, None)
             except Exception as exc:  # noqa: BLE001 - what fails for one client ends that client only
-                _note(f"dropped {conn.name}: its message failed: {type(exc).__name__}: {exc}")
-                self.drop(conn)
+                why = f"a message to it failed: {type(exc).__name__}: {exc}"
+                _note(f"dropped {conn.name}: {why}")
+                self.drop(conn, why)
                 return
             if part is None:  # all sent: what waited behind them goes next
                 self._parts_done(conn)
@@ -336,7 +346,7 @@ class Server:
         full and `conn` was dropped."""
         if len(conn.out) + len(conn.held) + len(payload) > MAX_BACKLOG or \
                 conn.rank == "other" and self._others_queued + len(payload) > MAX_BACKLOG_OTHERS:
-            self.drop(conn)
+            self.drop(conn, "it fell too far behind in reading the session's updates")
             return False
         into += payload
         if conn.rank == "other":
@@ -373,9 +383,15 @@ class Server:
         if conn.closing and conn.parts is None:
             self.drop(conn)
 
-    def drop(self, conn: Connection) -> None:
+    def drop(self, conn: Connection, why: str | None = None) -> None:
+        """Close `conn`; `why`: it is dropped for what it did and, once let in, told
+        so (Dropped) after the rest of the line it was receiving."""
         if conn not in self.connections:
             return
+        farewell = b""
+        if why is not None and conn.role is not None:  # before its Hello it is no client of ours yet
+            rest = bytes(conn.out[:conn.out.find(b"\n") + 1])  # a line half sent is finished first
+            farewell = rest + encode(Dropped(why))
         self.connections.remove(conn)
         if conn.rank == "other":
             self._others_queued -= len(conn.out) + len(conn.held)
@@ -396,7 +412,10 @@ class Server:
             self.writing -= 1
         if conn.silence is not None:
             conn.silence.cancel()
-        conn.sock.close()
+        if farewell and not self._closed:
+            _Farewell(self, conn.sock, farewell)
+        else:
+            conn.sock.close()
         self._on_gone(conn)
 
     async def flush_all(self, timeout: float) -> None:
@@ -409,10 +428,50 @@ class Server:
     def close(self) -> None:
         self._unlisten()
         self._closed = True
+        for farewell in list(self._farewells.values()):
+            farewell.done()
         for conn in list(self.connections):
             conn.closing = True
             self.drop(conn)
         self.listener.close()
+
+
+class _Farewell:
+    """A dropped connection's last words, written as its socket takes them, for at
+    most FAREWELL_TIMEOUT; then the socket is closed.  The connection is gone for
+    the session already (roster, limits, on_gone): only these bytes are left."""
+
+    def __init__(self, server: Server, sock: socket.socket, data: bytes) -> None:
+        self._server = server
+        self._sock = sock
+        self._fd = sock.fileno()
+        self._rest = bytearray(data)
+        self._watching = False
+        self._timer = server.aloop.call_later(FAREWELL_TIMEOUT, self.done)
+        server._farewells[sock] = self
+        self._write()
+        if sock in server._farewells:
+            server.aloop.add_writer(self._fd, self._write)
+            self._watching = True
+
+    def _write(self) -> None:
+        try:
+            n = self._sock.send(self._rest)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            n = len(self._rest)  # the peer is gone: nobody left to tell
+        del self._rest[:n]
+        if not self._rest:
+            self.done()
+
+    def done(self) -> None:
+        if self._server._farewells.pop(self._sock, None) is None:
+            return
+        self._timer.cancel()
+        if self._watching:
+            self._server.aloop.remove_writer(self._fd)
+        self._sock.close()
 
 
 def listen(path: str, *, anyone: bool = False) -> socket.socket:

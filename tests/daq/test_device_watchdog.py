@@ -241,17 +241,6 @@ def test_a_new_sampling_time_gives_the_guard_the_new_timeout(
     assert released == [1.0, 10.0]
 
 
-def _wait(cond: Callable[[], bool], seconds: float) -> bool:
-    import time
-
-    deadline = time.monotonic() + seconds
-    while not cond():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.05)
-    return True
-
-
 def _driven_with_a_guard(device: Callable[..., Any]) -> tuple[ModbusBackend, Any]:
     """A backend driving the pumps at TSamp 0.1 s with a real guard process."""
     clock, rig, _, _ = _rig_and_backend(device)
@@ -263,7 +252,8 @@ def _driven_with_a_guard(device: Callable[..., Any]) -> tuple[ModbusBackend, Any
 
 
 @pytest.mark.wallclock
-def test_a_dead_guard_ends_active_control_and_run_starts_a_new_one(device: Callable[..., Any]) -> None:
+def test_a_dead_guard_ends_active_control_and_run_starts_a_new_one(device: Callable[..., Any],
+                                                                    poll: Callable[..., bool]) -> None:
     """The guard killed (its user, the OOM killer) while the program drives on: the
     next sample says so and pauses, instead of driving unguarded - after which a
     SIGKILL of the program left a map with `watchdog: none` at 3 V (review of issue 24)."""
@@ -272,7 +262,7 @@ def test_a_dead_guard_ends_active_control_and_run_starts_a_new_one(device: Calla
 
     backend, guard = _driven_with_a_guard(device)
     os.kill(guard.pid, signal.SIGKILL)
-    assert _wait(lambda: guard.ended() is not None, 10.0)
+    assert poll(lambda: guard.ended() is not None, 10.0)
     with pytest.raises(BackendError, match=r"^the guard process ended \(exit status -9\): nothing would stop "
                        r"the pumps if this program died\. Active control ends here"):
         backend.read_levels()
@@ -284,13 +274,14 @@ def test_a_dead_guard_ends_active_control_and_run_starts_a_new_one(device: Calla
 
 @pytest.mark.wallclock
 def test_the_guard_ignores_a_quadtank_tui_folder_in_the_current_folder(
-        device: Callable[..., Any], tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+        device: Callable[..., Any], tmp_path: Any, monkeypatch: pytest.MonkeyPatch,
+        poll: Callable[..., bool]) -> None:
     """`quadtank run --daq` started in a folder holding another `quadtank_tui/` (a
     checkout of another version): the guard imported that one and died at start."""
     (tmp_path / "quadtank_tui").mkdir()
     (tmp_path / "quadtank_tui" / "__init__.py").write_text('raise ImportError("another checkout")\n')
     monkeypatch.chdir(tmp_path)
     backend, guard = _driven_with_a_guard(device)
-    assert not _wait(lambda: guard._proc.poll() is not None, 2.0), "the guard died at start"
+    assert not poll(lambda: guard._proc.poll() is not None, 2.0), "the guard died at start"
     backend.safe_state()
     backend.close()

@@ -15,14 +15,14 @@ from typing import Any, Callable
 import pytest
 
 from quadtank_tui.daq.modbus import ModbusBackend
-from test_device_watchdog import _rig_and_backend, _wait
+from test_device_watchdog import _rig_and_backend
 
 pytestmark = [pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and pidfd"),
               pytest.mark.wallclock]
 
 
 def test_a_silent_program_has_its_pumps_stopped_once(
-        device: Callable[..., Any], capfd: pytest.CaptureFixture[str]) -> None:
+        device: Callable[..., Any], capfd: pytest.CaptureFixture[str], poll: Callable[..., bool]) -> None:
     clock, rig, _, _ = _rig_and_backend(device)  # the rig's clock stands still: its watchdog never fires
     backend = ModbusBackend(device((0.0,) * 4, bank=rig).config(), clock=clock)
     backend.arm(0.1)                                  # the guard allows 1 s of silence
@@ -30,7 +30,7 @@ def test_a_silent_program_has_its_pumps_stopped_once(
     guard = backend.guard
     assert guard is not None and rig.pump_volts == (3.0, 3.0)
     t0 = time.monotonic()
-    assert _wait(lambda: rig.pump_volts == (0.0, 0.0), 5.0), "the guard left a silent program's pumps on"
+    assert poll(lambda: rig.pump_volts == (0.0, 0.0), 5.0), "the guard left a silent program's pumps on"
     assert time.monotonic() - t0 >= 0.9               # not before the timeout
     # the program comes back (it would pause on its own gap; here the clock says none):
     # the guard, hearing it again, does not write again - a paused loop reads only

@@ -26,3 +26,9 @@ def thread_session(tmp_path: Path) -> Iterator[Callable[..., ThreadSession]]:
     yield make
     for s in made:
         s.stop()
+
+
+@pytest.fixture(autouse=True)
+def _no_guard_outlives_its_test(guards_of_this_test: object) -> None:
+    """A test against a dead or hung device leaves a guard retrying its stop for up
+    to 2 minutes (daq/guard.py GIVE_UP_S): the test's own guards end with it."""

@@ -18,7 +18,7 @@ import stat
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import pytest
 
@@ -34,18 +34,7 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="us
 ROOT = Path(__file__).parents[2]
 
 
-def wait_until(condition, timeout: float = 60.0) -> bool:
-    """True as soon as `condition()` holds, False after `timeout` s: the deadline is
-    for a test that fails, never what a passing one waits for."""
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.02)
-    return True
-
-
-def _stop_for_good(pid: int) -> None:
+def _stop_for_good(pid: int, poll: Callable[..., bool]) -> None:
     """SIGTERM, then SIGKILL if it is still there: a session a failed test leaves
     (one that no longer heeds SIGTERM, say) must not run on, sampling, through the
     rest of the suite."""
@@ -53,7 +42,7 @@ def _stop_for_good(pid: int) -> None:
         os.kill(pid, signal.SIGTERM)
     except ProcessLookupError:
         return
-    if not wait_until(lambda: not pid_alive(pid), timeout=10.0):
+    if not poll(lambda: not pid_alive(pid), 10.0):
         os.kill(pid, signal.SIGKILL)
 
 
@@ -62,7 +51,7 @@ def _start(tmp_path: Path, runtime: Path, **kwargs: object):
     return start_session(SessionSpec(spec, str(runtime), **kwargs))  # type: ignore[arg-type]
 
 
-def test_a_killed_session_is_reported_by_its_client(tmp_path: Path) -> None:
+def test_a_killed_session_is_reported_by_its_client(tmp_path: Path, poll: Callable[..., bool]) -> None:
     runtime = tmp_path / "run"
     info = _start(tmp_path, runtime)
     client = SessionClient(info.socket)
@@ -81,7 +70,7 @@ def test_a_killed_session_is_reported_by_its_client(tmp_path: Path) -> None:
         print(f"the client saw the SIGKILL after {took * 1000:.0f} ms")
     finally:
         client.close()
-    wait_until(lambda: not pid_alive(info.pid))
+    poll(lambda: not pid_alive(info.pid), 60.0)
     assert list_sessions(runtime) == []  # the stale record is no running session ...
     (ended,) = ended_sessions(runtime)   # ... but an ended one that says so
     assert ended.id == info.id and f"the session process (pid {info.pid}) was gone without stopping" in ended.ended
@@ -89,7 +78,7 @@ def test_a_killed_session_is_reported_by_its_client(tmp_path: Path) -> None:
 
 
 def test_quadtank_stop_leaves_no_process_nor_socket_and_says_why(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                             capsys: pytest.CaptureFixture[str]) -> None:
+                                             capsys: pytest.CaptureFixture[str], poll: Callable[..., bool]) -> None:
     runtime = tmp_path / "run"
     monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
     info = _start(tmp_path, runtime)
@@ -99,7 +88,7 @@ def test_quadtank_stop_leaves_no_process_nor_socket_and_says_why(tmp_path: Path,
     with SessionClient(info.socket) as client:
         assert client.submit(c.SetState("Run")).result(30).ok
         assert client.submit(c.LogOn(points=100000)).result(30).ok
-        assert wait_until(lambda: client.snapshot().log.rows >= 20)
+        assert poll(lambda: client.snapshot().log.rows >= 20, 60.0)
     deadline = time.monotonic() + 60
     while main(["sessions"]) == 0 and "1 (" in (table := capsys.readouterr().out) and time.monotonic() < deadline:
         time.sleep(0.05)  # the record follows the detach at once; wait for the session to see it
@@ -129,7 +118,7 @@ def test_a_bad_session_start_says_why(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("shell", [False, True], ids=["direct", "under a shell that keeps SIGHUP (make run)"])
-def test_a_hang_up_ends_the_client_never_the_session(tmp_path: Path, shell: bool, pty_kit: Any) -> None:
+def test_a_hang_up_ends_the_client_never_the_session(tmp_path: Path, shell: bool, pty_kit: Any, poll: Callable[..., bool]) -> None:
     kit = pty_kit
     runtime = tmp_path / "run"
     env = {"QUADTANK_RUNTIME": str(runtime)}
@@ -137,7 +126,7 @@ def test_a_hang_up_ends_the_client_never_the_session(tmp_path: Path, shell: bool
     try:
         pid, session = tui.started_session(runtime)
         os.write(tui.master, b"r")  # Run
-        assert wait_until(lambda: [i.state for i in list_sessions(runtime)] == ["Run"])
+        assert poll(lambda: [i.state for i in list_sessions(runtime)] == ["Run"], 60.0)
         tui.hang_up()
         took = kit._wait_gone([pid], kit.GONE_WITHIN)
         print(f"hang-up ({'shell' if shell else 'direct'}): the client was gone {took:.2f} s after")
@@ -151,7 +140,7 @@ def test_a_hang_up_ends_the_client_never_the_session(tmp_path: Path, shell: bool
     finally:
         tui.kill()
         for info in list_sessions(runtime):
-            _stop_for_good(info.pid)
+            _stop_for_good(info.pid, poll)
 
 
 def test_a_second_session_on_the_same_daq_is_refused_with_the_holders_name(tmp_path: Path,
@@ -178,7 +167,7 @@ def test_a_second_session_on_the_same_daq_is_refused_with_the_holders_name(tmp_p
 
 
 def test_run_detach_is_a_session_one_watches_until_the_run_is_over(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+                                                                   capsys: pytest.CaptureFixture[str], poll: Callable[..., bool]) -> None:
     """`quadtank run ... --detach` returns at once; a client attaching to the session
     watches it read-only (the script is the operator); at the end the log has every
     sample of the duration and the session is gone, leaving only its summary."""
@@ -201,14 +190,14 @@ def test_run_detach_is_a_session_one_watches_until_the_run_is_over(tmp_path: Pat
         assert len(watcher.history()["t"]) == 2000  # every sample, watched from wherever it was at attach
     log = read_log(out)
     assert log.rows == 2000
-    wait_until(lambda: not pid_alive(info.pid))
+    poll(lambda: not pid_alive(info.pid), 60.0)
     assert sorted(p.name for p in runtime.iterdir()) == [f"{info.id}.json", f"{info.id}.out"]
     assert f"log        {out} (2000 rows)" in (runtime / f"{info.id}.out").read_text()
     (ended,) = ended_sessions(runtime)
     assert ended.ended == f"the run is over; its log is {out}"
 
 
-def test_sigterm_stops_the_session_in_order(tmp_path: Path) -> None:
+def test_sigterm_stops_the_session_in_order(tmp_path: Path, poll: Callable[..., bool]) -> None:
     """SIGTERM (a shutdown, `kill`): the session stops as `quadtank stop` does - the
     clients are told why, the log is kept, nothing is left in the runtime folder."""
     runtime = tmp_path / "run"
@@ -222,7 +211,7 @@ def test_sigterm_stops_the_session_in_order(tmp_path: Path) -> None:
             assert client.wait_gone(30)
             assert client.ended == "SIGTERM"
             assert "ended: SIGTERM" in (client.snapshot().fault or "")
-        wait_until(lambda: not pid_alive(info.pid))
+        poll(lambda: not pid_alive(info.pid), 60.0)
     finally:
         if pid_alive(info.pid):  # the test failed: the session must not outlive it
             os.kill(info.pid, signal.SIGKILL)
@@ -233,7 +222,7 @@ def test_sigterm_stops_the_session_in_order(tmp_path: Path) -> None:
     assert list((tmp_path / "logs").glob("*.partial"))
 
 
-def test_a_session_launched_with_its_stop_signals_blocked_still_stops_on_sigterm(tmp_path: Path) -> None:
+def test_a_session_launched_with_its_stop_signals_blocked_still_stops_on_sigterm(tmp_path: Path, poll: Callable[..., bool]) -> None:
     """A process inherits its launcher's signal mask: a session spawned while they
     were blocked (a pytest whose main thread an interrupted IST write had left with
     every signal blocked) ignored SIGTERM and sat on, sampling, until SIGKILL."""
@@ -246,7 +235,7 @@ def test_a_session_launched_with_its_stop_signals_blocked_still_stops_on_sigterm
         signal.pthread_sigmask(signal.SIG_SETMASK, held)
     try:
         os.kill(info.pid, signal.SIGTERM)
-        assert wait_until(lambda: not pid_alive(info.pid), 30)
+        assert poll(lambda: not pid_alive(info.pid), 30)
     finally:
         if pid_alive(info.pid):
             os.kill(info.pid, signal.SIGKILL)
@@ -255,7 +244,7 @@ def test_a_session_launched_with_its_stop_signals_blocked_still_stops_on_sigterm
 
 
 def test_the_launchers_rig_lock_passes_to_the_session(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                      capsys: pytest.CaptureFixture[str]) -> None:
+                                                      capsys: pytest.CaptureFixture[str], poll: Callable[..., bool]) -> None:
     """`quadtank run --daq C --detach`: the command takes the rig's lock as every
     rig command does, then hands it to the session process (transfer), which holds
     it until it stops; meanwhile a second command on the rig is refused, naming the
@@ -281,7 +270,7 @@ def test_the_launchers_rig_lock_passes_to_the_session(tmp_path: Path, monkeypatc
         assert f"is driven by {info.owner} (pid {info.pid}, session {info.id})" in err
     finally:
         stop_session_at(info.socket)
-    wait_until(lambda: not pid_alive(info.pid))
+    poll(lambda: not pid_alive(info.pid), 60.0)
     assert holder_of(device, load_lab_config()) is None
 
 

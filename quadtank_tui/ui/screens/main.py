@@ -554,6 +554,12 @@ class MainScreen(CommandSender):
 
     def _exit_session(self, engine: LabSession) -> None:
         sid = engine.session_id
+        if engine.gone and engine.dropped is not None:  # this screen was dropped: the session runs on
+            self.app.push_screen(ConfirmWindow("Exit", f"Session {sid} dropped this screen ({engine.dropped}); "
+                                               f"it runs on: quadtank attach {sid} comes back to it.\nExit?",
+                                               yes="Exit"),
+                                 lambda yes: self.app.exit() if yes else None)
+            return
         if engine.gone:  # it ended (or died): nothing of it to stop, and its id is no one else's to offer
             why = engine.ended or "its process is gone"
             self.app.push_screen(ConfirmWindow("Exit", f"Session {sid} has ended: {why}.\nExit?", yes="Exit"),
