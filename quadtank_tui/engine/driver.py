@@ -12,10 +12,15 @@ its timeout up to whole milliseconds), so the jitter is the sleep's, not the
 event loop's.  On Linux the driving thread's timer slack is set to 1 us first: a
 sleep overshoots by the slack, 50 us by default, a whole x1000 sampling period
 (measured: time.sleep(20 us) takes 80 us by default, 28 us at 1 us slack).  The
-thread sleeps rather than spins, so a loaded machine's scheduler does not
-preempt it at its deadline, nor does it take a core from the clients.  A virtual clock at x1000 and 50 ms has a sample due every 50 us:
-every wait is a fine one, and the event loop gets a turn every YIELD_AFTER of
-wall time.  An injected time source (a ManualClock: tests, rehearsals) is waited
+thread sleeps rather than spins, so it does not take a core from the clients;
+only a wait shorter than SPIN_BELOW, which a sleep would overshoot, is spun.  A
+real-time clock's thread runs at real-time priority while it drives, if allowed
+(realtime_priority): woken at its deadline, it then gets a core at once.  A
+virtual clock at x1000 and 50 ms has a sample due every 50 us: every wait is a
+fine one (most are spun), the event loop gets a turn every YIELD_AFTER of wall
+time, and the lag such a turn leaves is made up by samples back to back
+(engine/clock.py, CATCH_UP).  Log rows held for the file thread
+(engine/filework.py) are handed on before every wait and at the end.  An injected time source (a ManualClock: tests, rehearsals) is waited
 on with the engine's own `sleep`, which only moves that time on.
 
 Without an event loop (:meth:`Driver.run`: no clients) the same coroutine is
