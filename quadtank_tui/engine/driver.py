@@ -12,10 +12,17 @@ its timeout up to whole milliseconds), so the jitter is the sleep's, not the
 event loop's.  On Linux the driving thread's timer slack is set to 1 us first: a
 sleep overshoots by the slack, 50 us by default, a whole x1000 sampling period
 (measured: time.sleep(20 us) takes 80 us by default, 28 us at 1 us slack).  The
-thread sleeps rather than spins, so a loaded machine's scheduler does not
-preempt it at its deadline, nor does it take a core from the clients.  A virtual clock at x1000 and 50 ms has a sample due every 50 us:
-every wait is a fine one, and the event loop gets a turn every YIELD_AFTER of
-wall time.  An injected time source (a ManualClock: tests, rehearsals) is waited
+thread sleeps rather than spins, so it does not take a core from the clients;
+only a wait shorter than SPIN_BELOW, which a sleep would overshoot, is spun.  A
+real-time clock's thread runs at real-time priority while it drives, if allowed
+(realtime_priority): woken at its deadline, it then gets a core at once.  A
+virtual clock at x1000 and 50 ms has a sample due every 50 us: every wait is a
+fine one (most are spun), the event loop gets a turn every YIELD_AFTER of wall
+time, and the lag such a turn leaves is made up by samples back to back
+(engine/clock.py, CATCH_UP).  A drive paced on the wall writes its log on the
+file thread (a virtual clock's too: at x1000 the row's write(2) inline was 8 of
+the 50 us), and the rows held for it (engine/filework.py) are handed on before
+every wait and at the end.  An injected time source (a ManualClock: tests, rehearsals) is waited
 on with the engine's own `sleep`, which only moves that time on.
 
 Without an event loop (:meth:`Driver.run`: no clients) the same coroutine is
@@ -30,6 +37,7 @@ from __future__ import annotations
 
 import asyncio
 import ctypes
+import os
 import sys
 import time
 from typing import TYPE_CHECKING, Awaitable, Callable, ClassVar
@@ -40,6 +48,14 @@ if TYPE_CHECKING:
 #: Below this, the last part of a wait is a sleep and a spin, not the event loop's
 #: timer (whose epoll timeout rounds up to whole milliseconds), s.
 FINE_WAIT = 0.002
+#: A wait shorter than this is spun, not slept, s: even at 1 us of timer slack a
+#: sleep of 2-10 us takes 18-20 us of wall time and 12 us of CPU (measured on the
+#: 2-core CI machine), more than the wait; at x1000 and 50 ms, when a sample costs
+#: 40 us, every wait is about 10 us, and sleeping them held x800.
+SPIN_BELOW = 20e-6
+#: The real-time priority (SCHED_FIFO, 1..99) a real-time clock's driving thread
+#: asks for: the lowest, which is enough to run before every ordinary process.
+RT_PRIORITY = 1
 #: The driving thread's timer slack, ns (Linux prctl PR_SET_TIMERSLACK).
 TIMER_SLACK_NS = 1000
 _PR_SET_TIMERSLACK = 29
@@ -73,10 +89,15 @@ class LoopTime:
 
 
 def fine_wait(deadline: float) -> None:
-    """Until `deadline` (time.monotonic): a sleep."""
-    rest = deadline - time.monotonic()
-    if rest > 0:
+    """Until `deadline` (time.monotonic): a sleep, or a spin when the wait is shorter
+    than SPIN_BELOW (a sleep would take longer than the wait)."""
+    monotonic = time.monotonic
+    rest = deadline - monotonic()
+    if rest >= SPIN_BELOW:
         time.sleep(rest)
+    else:
+        while monotonic() < deadline:
+            pass
 
 
 def tight_timer_slack() -> None:
@@ -88,6 +109,39 @@ def tight_timer_slack() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_TIMERSLACK, TIMER_SLACK_NS, 0, 0, 0)
     except (OSError, AttributeError):
         pass
+
+
+def realtime_priority() -> Callable[[], None]:
+    """This thread runs SCHED_FIFO at RT_PRIORITY from now on, if the system allows
+    it (Linux: root, CAP_SYS_NICE or an RLIMIT_RTPRIO of 1 at least; refused, the
+    thread keeps its policy); returns what gives the thread its old policy back.
+
+    A sleeping thread of an ordinary process that wakes at its deadline waits for
+    a core while both are busy (a client drawing, other users' programs): on the
+    2-core CI machine under load, sessions at 50 ms woke 0.7-9 ms late at p99
+    (measured inside the session: the sleep ended late, at a scheduler tick); at
+    SCHED_FIFO 1 the same sleep ended 0.2 ms late at p99.  Threads started from
+    this one (a LoadPar's read, an MPC's design) do not inherit it
+    (SCHED_RESET_ON_FORK); the kernel's real-time throttling keeps 5 % of a core
+    for the others whatever happens."""
+    if not hasattr(os, "sched_setscheduler"):
+        return _unchanged
+    try:
+        policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
+        os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(RT_PRIORITY))
+    except OSError:  # not allowed: the ordinary policy, and its jitter under load
+        return _unchanged
+
+    def restore() -> None:
+        try:
+            os.sched_setscheduler(0, policy, param)
+        except OSError:
+            pass
+    return restore
+
+
+def _unchanged() -> None:
+    pass
 
 
 def _release(waiter: asyncio.Future[None]) -> None:
@@ -201,38 +255,49 @@ class Driver:
         wall = engine.wall_paced
         if wall:
             tight_timer_slack()
+            loop.use_file_thread()  # paced on the wall: no sample waits for the disk (a virtual clock's too)
+        restore = realtime_priority() if wall and clock.realtime else _unchanged
         sleep = engine.sleep
         before, after, urgent, elapsed = self.before, self.after, self.urgent, self.elapsed
         aloop = self.aloop
         monotonic = time.monotonic
         turned = monotonic()
-        while not self._done():
-            if aloop is not None and (monotonic() - turned > YIELD_AFTER or urgent is not None and urgent()):
-                await asyncio.sleep(0)  # the clients and the signals get a turn (not between a fine wait and its sample)
-                turned = monotonic()
-            deadline = clock.deadline()
-            if deadline is not None:
-                if wall:
-                    delay = deadline - monotonic()
-                    if delay > FINE_WAIT and aloop is not None:
-                        await self._wait(aloop, deadline - FINE_WAIT)
-                        turned = monotonic()
-                        continue  # woken early maybe: look at the commands and the deadline again
-                    if delay > 0:
-                        fine_wait(deadline)
-                else:
-                    delay = deadline - clock.now()
-                    if delay > 0:
-                        sleep(delay)
-            if before is not None:
-                before(elapsed)
-                if self._stopping:
-                    break
-            h = loop.h
-            engine.sample()
-            elapsed.add(h, 1 + loop.missed if loop.backend is not loop.sim else 1)
-            if after is not None:
-                after()
+        flush = engine.flush_files
+        try:
+            while not self._done():
+                if aloop is not None and (monotonic() - turned > YIELD_AFTER or urgent is not None and urgent()):
+                    flush()
+                    await asyncio.sleep(0)  # the clients and the signals get a turn (not between a fine wait and its sample)
+                    turned = monotonic()
+                deadline = clock.deadline()
+                if deadline is not None:
+                    if wall:
+                        delay = deadline - monotonic()
+                        if delay > FINE_WAIT and aloop is not None:
+                            flush()
+                            await self._wait(aloop, deadline - FINE_WAIT)
+                            turned = monotonic()
+                            continue  # woken early maybe: look at the commands and the deadline again
+                        if delay >= SPIN_BELOW:
+                            flush()
+                        if delay > 0:
+                            fine_wait(deadline)
+                    else:
+                        delay = deadline - clock.now()
+                        if delay > 0:
+                            sleep(delay)
+                if before is not None:
+                    before(elapsed)
+                    if self._stopping:
+                        break
+                h = loop.h
+                engine.sample()
+                elapsed.add(h, 1 + loop.missed if loop.backend is not loop.sim else 1)
+                if after is not None:
+                    after()
+        finally:
+            flush()
+            restore()
 
     async def _wait(self, aloop: asyncio.AbstractEventLoop, until: float) -> None:
         """Until `until` (monotonic, the event loop's own time) or a poke."""

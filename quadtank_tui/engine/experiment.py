@@ -40,14 +40,18 @@ class Summary:
     fault: str | None
     #: the speed factor asked of a paced virtual clock (None: real time or unpaced)
     speed: float | None = None
+    #: slots the last sample was late by (a virtual clock's lag not made up yet: engine/clock.py)
+    behind: int = 0
 
     @property
     def speed_held(self) -> float | None:
-        """The speed the run kept: a slot skipped is process time that went by
-        without a sample, so asked x samples / (samples + skipped slots)."""
-        if self.speed is None or self.samples + self.skipped == 0:
+        """The speed the run kept, on the wall's time: every slot that went by was
+        sampled, skipped, or is still to be made up at the end (behind), so asked x
+        samples / (samples + skipped + behind)."""
+        slots = self.samples + self.skipped + self.behind
+        if self.speed is None or slots == 0:
             return None
-        return self.speed * self.samples / (self.samples + self.skipped)
+        return self.speed * self.samples / slots
 
 
 def event_commands(event: Event, engine: Engine) -> list[Command]:
@@ -119,7 +123,7 @@ def summarize(engine: Engine, duration: float) -> Summary:
     paced = not snap.realtime and math.isfinite(snap.speed)
     return Summary(duration, snap.stats.samples, snap.stats.overruns, snap.stats.skipped, snap.stats.jitter_max,
                    snap.stats.jitter_p99, snap.control, window, loops, (snap.y[0], snap.y[1]), snap.u, snap.fault,
-                   speed=snap.speed if paced else None)
+                   speed=snap.speed if paced else None, behind=engine.clock.behind if paced else 0)
 
 
 def format_summary(s: Summary) -> str:

@@ -11,12 +11,21 @@ it, and fsynced at most a second after the last sync.
 Until :meth:`FileWorker.start_thread` the worker runs each operation at once, on the
 caller's thread (tests, headless runs on a virtual clock): the same results, the
 same order, deterministic.
+
+Log rows go in batches (:meth:`FileWorker.submit_batched`): a row that comes within
+BATCH_WINDOW of the last hand-off is held, in order, and handed on with the next
+one, or when the driver is about to wait (:meth:`FileWorker.flush`).  A row per
+sample at 50 ms is handed on at once, as before; at x1000 (20,000 rows a second)
+one job of about 20 rows a millisecond, written in one write(2), not 20 Futures,
+queue puts, wake-ups of the thread and writes, which cost the session process
+20-25 us of CPU a sample (measured).
 """
 
 from __future__ import annotations
 
 import queue
 import threading
+import time
 from concurrent.futures import Future
 from typing import Any, Callable, TypeVar
 
@@ -24,6 +33,10 @@ T = TypeVar("T")
 
 #: How long close() waits for the writes still queued (a hung disk must not hang the exit).
 CLOSE_TIMEOUT = 30.0
+
+#: Operations given to submit_batched within this many seconds of the last hand-off
+#: to the thread are held and handed on together, s.
+BATCH_WINDOW = 0.001
 
 _Job = tuple[Callable[..., Any], tuple[Any, ...], "Future[Any]"]
 
@@ -36,6 +49,8 @@ class FileWorker:
         self._queue: queue.SimpleQueue[_Job | None] = queue.SimpleQueue()
         self._thread: threading.Thread | None = None
         self._closed = False
+        self._batch: list[tuple[Callable[[list[Any]], object], Any]] = []
+        self._handed = -float("inf")  # when the last batch went to the thread (time.monotonic)
 
     @property
     def threaded(self) -> bool:
@@ -53,13 +68,42 @@ class FileWorker:
         return value or the exception."""
         fut: Future[T] = Future()
         if self._thread is None or self._closed or threading.current_thread() is self._thread:
+            self.flush()
             _run_one(fn, args, fut)
         else:
+            self.flush()
             self._queue.put((fn, args, fut))
         return fut
 
+    def submit_batched(self, fn: Callable[[list[Any]], object], item: Any) -> None:
+        """Run ``fn([item, ...])`` after everything submitted before, without a Future:
+        `fn` keeps its own failure (a log row's: LogSession.check).  On the thread the
+        items of the same BATCH_WINDOW go to one call (the caller's thread, the one
+        that samples, calls :meth:`flush` before it waits); inline `fn([item])` runs
+        at once."""
+        if self._thread is None or self._closed or threading.current_thread() is self._thread:
+            self.flush()
+            _run_quietly(fn, [item])
+            return
+        self._batch.append((fn, item))
+        if time.monotonic() - self._handed >= BATCH_WINDOW:
+            self.flush()
+
+    def flush(self) -> None:
+        """Hand the operations held by submit_batched on now (to run inline if the
+        thread is gone)."""
+        if not self._batch:
+            return
+        batch, self._batch = self._batch, []
+        self._handed = time.monotonic()
+        if self._thread is None or self._closed or threading.current_thread() is self._thread:
+            _run_batch(batch)
+        else:
+            self._queue.put((_run_batch, (batch,), Future()))
+
     def drain(self, timeout: float | None = None) -> bool:
         """Wait until everything submitted so far has run; False on a timeout."""
+        self.flush()
         if self._thread is None or not self._thread.is_alive() or threading.current_thread() is self._thread:
             return True
         marker: Future[None] = Future()
@@ -89,6 +133,25 @@ class FileWorker:
             if job is None:
                 return
             _run_one(*job)
+
+
+def _run_quietly(fn: Callable[[list[Any]], object], items: list[Any]) -> None:
+    try:
+        fn(items)
+    except Exception:  # noqa: BLE001, S110 - fn kept its failure (submit_batched)
+        pass
+
+
+def _run_batch(batch: list[tuple[Callable[[list[Any]], object], Any]]) -> None:
+    """Each run of items for the same function in one call, in order."""
+    i = 0
+    while i < len(batch):
+        fn = batch[i][0]
+        j = i + 1
+        while j < len(batch) and batch[j][0] == fn:
+            j += 1
+        _run_quietly(fn, [item for _, item in batch[i:j]])
+        i = j
 
 
 def _run_one(fn: Callable[..., T], args: tuple[Any, ...], fut: Future[T]) -> None:

@@ -174,13 +174,28 @@ class LogSession:
         """Hand a row or a comment to the writer; a failure is raised by check()
         (at once when the file operations run inline)."""
         if self.files.threaded:
-            self.files.submit(self._run_write, op, arg)
+            self.files.submit_batched(self._run_writes, (op, arg))
         else:  # inline, as submit() would run it, without a Future per row
             try:
                 self._run_write(op, arg)
             except Exception:  # noqa: BLE001 - kept in _failure: check() raises it
                 pass
         self.check()
+
+    def _run_writes(self, ops: list[tuple[Callable[[LogWriter, object], object], object]]) -> None:
+        """Several of _write's operations on the file thread, handed to the OS in one
+        write; a failure is kept for check() as _run_write keeps it."""
+        writer = self._writer
+        if writer is None:
+            return
+        try:
+            with writer.held():
+                for op, arg in ops:
+                    op(writer, arg)
+        except Exception as exc:
+            if self._failure is None:
+                self._failure = (exc, writer.rows)
+            raise
 
     def _run_write(self, op: Callable[[LogWriter, object], object], arg: object) -> None:
         """One of _write's operations, as the file worker runs it: a failure is kept

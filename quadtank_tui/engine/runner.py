@@ -135,6 +135,12 @@ class Engine:
             self.loop.record_timing(timing.jitter, timing.missed, timing.actual)
             self.loop.sample()
 
+    def flush_files(self) -> None:
+        """The log rows held for the file thread go to it now (the driver calls this
+        before it waits: a row is never held while nothing samples)."""
+        with self._lock:
+            self.loop.files.flush()
+
     def step(self, n: int = 1) -> Snapshot:
         """Do `n` samples, each at its deadline (the driver, inline)."""
         Driver(self, samples=n).run()

@@ -26,6 +26,7 @@ import contextlib
 import errno
 import math
 import os
+import sys
 import tempfile
 import time
 from datetime import datetime
@@ -228,6 +229,18 @@ class LogWriter:
         self._pending.append(f"% {line}\n")
         self.flush()
         return True
+
+    @contextlib.contextmanager
+    def held(self) -> Iterator[None]:
+        """The rows taken inside go to the OS together, in one write at the end (a
+        batch of rows from the loop's file thread), not one write a row."""
+        every = self._flush_rows
+        self._flush_rows = sys.maxsize
+        try:
+            yield
+        finally:
+            self._flush_rows = every
+            self.flush()
 
     def flush(self) -> None:
         """Hand the pending rows to the OS in one write; fsync if a second passed.

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from quadtank_tui.engine.clock import ManualClock, RealTimeClock, VirtualClock
+from quadtank_tui.engine.clock import CATCH_UP, ManualClock, RealTimeClock, VirtualClock
 
 
 def test_realtime_deadlines_are_absolute_and_never_drift() -> None:
@@ -93,3 +93,56 @@ def test_speed_steps_are_1_2_5_and_stop_at_the_ends() -> None:
     assert [next_speed(s, -1) for s in SPEED_STEPS] == [1, 1, 2, 5, 10, 20, 50, 100, 200, 500]
     # A speed between the steps (quadtank --speed 3) goes to its neighbours.
     assert (next_speed(3.0, 1), next_speed(3.0, -1)) == (5, 2)
+
+
+def _hiccup(clock: RealTimeClock | VirtualClock, src: ManualClock, *, cost: float, hiccup: float,
+            samples: int) -> list[int]:
+    """`samples` samples each costing `cost` s of wall time, the 10th held up by
+    `hiccup` s more; each waits for its deadline.  The slots each one missed."""
+    clock.start()
+    missed = []
+    for k in range(samples):
+        due = clock.deadline()
+        assert due is not None
+        src.sleep(due - src.now())
+        missed.append(clock.tick().missed)
+        src.advance(cost + (hiccup if k == 10 else 0.0))
+    return missed
+
+
+def test_a_virtual_clock_makes_a_hiccup_up_in_a_burst_without_skipping() -> None:
+    # x1000 at 50 ms: a slot every 50 us, a sample costs 40 us; one sample is held
+    # up 0.3 ms (an event-loop turn, a fsync): 6 slots behind, made up by the next
+    # samples running back to back (10 us gained each), none skipped.
+    src = ManualClock(0.0)
+    clock = VirtualClock(0.05, 1000.0, src.now)
+    missed = _hiccup(clock, src, cost=40e-6, hiccup=0.3e-3, samples=100)
+    assert sum(missed) == 0 and (clock.overruns, clock.skipped) == (0, 0)
+    # Back on schedule after 0.29 ms / 10 us = 29 samples: 100 samples took 100 slots.
+    assert clock.behind == 0
+    assert clock.deadline() == pytest.approx(100 * 50e-6, abs=1e-12)
+    assert src.now() < clock.deadline()  # type: ignore[operator]
+
+
+def test_a_real_time_clock_still_skips_the_same_hiccup() -> None:
+    src = ManualClock(0.0)
+    clock = RealTimeClock(50e-6, src.now)
+    missed = _hiccup(clock, src, cost=40e-6, hiccup=0.3e-3, samples=100)
+    # The held-up sample's successor starts 0.29 ms late: 5 slots skipped, one overrun, no burst.
+    assert missed[11] == 5 and sum(missed) == 5
+    assert (clock.overruns, clock.skipped, clock.behind) == (1, 5, 0)
+
+
+def test_a_virtual_clock_skips_only_the_lag_beyond_its_catch_up() -> None:
+    # A stall of 0.1 s at x1000 (2000 slots of 50 us): CATCH_UP of it is made up,
+    # the rest skipped at once.
+    src = ManualClock(0.0)
+    clock = VirtualClock(0.05, 1000.0, src.now)
+    clock.start()
+    clock.tick()
+    src.advance(0.1)
+    timing = clock.tick()
+    assert timing.missed == round((0.1 - CATCH_UP) / 50e-6) - 1
+    assert clock.behind == round(CATCH_UP / 50e-6)
+    # Every slot of wall time is accounted for: sampled, skipped or still behind.
+    assert 2 + clock.skipped + clock.behind == round(0.1 / 50e-6) + 1

@@ -14,7 +14,7 @@ from typing import Callable
 
 import pytest
 
-from quadtank_tui.engine.clock import ManualClock, RealTimeClock
+from quadtank_tui.engine.clock import CATCH_UP, ManualClock, RealTimeClock
 from quadtank_tui.engine.commands import SetState
 from quadtank_tui.engine.experiment import format_summary, summarize
 from quadtank_tui.engine.runner import Engine
@@ -52,8 +52,12 @@ def test_a_run_too_fast_for_the_machine_says_the_speed_it_held(make_engine: Call
     # 20 s of loop time: 200 slots of 0.1 s, sampled or skipped (the simulator's
     # time waits for the loop, so every sample is one slot of process time).
     assert s.samples == samples == 200
-    assert s.samples - 1 <= s.overruns <= s.samples  # every sample but the first started late
-    assert s.skipped == pytest.approx(1.5 * s.samples, abs=2)
+    # Every sample falls 150 us further behind: the first CATCH_UP (20 ms) of lag is
+    # to be made up (no overrun, nothing skipped); the samples after that skip the
+    # slots beyond it, and the run ends CATCH_UP behind (200 slots of 100 us).
+    assert s.overruns == pytest.approx(s.samples - CATCH_UP / 150e-6, abs=2)
+    assert s.behind == round(CATCH_UP / 100e-6)
+    assert s.skipped + s.behind == pytest.approx(1.5 * s.samples, abs=2)
     assert s.speed == 1000.0 and s.speed_held == pytest.approx(400, rel=0.01)
     text = format_summary(s)
     assert f"{s.samples} samples, {s.overruns} overruns ({s.skipped} sampling slots skipped)" in text
