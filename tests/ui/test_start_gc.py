@@ -14,6 +14,7 @@ from quadtank_tui.ui.widgets.status_line import StatusLine
 
 async def test_the_collector_paused_for_the_start_runs_again_after_the_first_frame(engine: Recording) -> None:
     app = build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0, resume_gc=True)
+    gc.unfreeze()  # what the tests' fixture froze (conftest.py): a start with nothing frozen
     gc.disable()
     try:
         async with app.run_test(size=(120, 40)) as pilot:
@@ -28,6 +29,7 @@ async def test_the_collector_paused_for_the_start_runs_again_after_the_first_fra
 
 async def test_an_app_not_told_so_leaves_the_collector_alone(engine: Recording) -> None:
     app = build_app(engine, refresh_interval=0.05, wall_clock=lambda: 0.0)
+    gc.unfreeze()  # what the tests' fixture froze (conftest.py): a start with nothing frozen
     gc.disable()
     try:
         async with app.run_test(size=(120, 40)) as pilot:
