@@ -7,11 +7,13 @@ the wall clock the status line uses is fixed, so screens are reproducible.
 
 from __future__ import annotations
 
+import gc
 import sys
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
 import pytest
+import textual._wait as textual_wait
 
 # The tests import uikit and bursts from this folder (pytest's importlib mode
 # does not put the test folder on sys.path).
@@ -38,6 +40,37 @@ def _keys_wait_as_long_as_a_loaded_machine_needs(monkeypatch: pytest.MonkeyPatch
     next key of a burst went to the window behind (test_trust's logging burst).  The
     tests check where keys go, not the cap for a key lost on the way."""
     monkeypatch.setattr(keyorder, "KEY_CAP", 30.0)
+
+
+@pytest.fixture(autouse=True)
+def _collector_runs_between_tests() -> Iterator[None]:
+    """The cyclic garbage collector runs between tests, not during them: what the
+    previous test left is collected, what survives (modules, Textual's caches, the
+    analysis stack) is frozen out of later collections, as the CLI does after the
+    first frame (ui.app.resume_gc), and the collector pauses for the test (a UI test
+    leaves some 30,000 objects in cycles, which the next one's start collects).
+    It took 40 % of the UI tests' CPU time: 31 s of 77 s for test_main_keys.py and
+    test_setup_pilot.py.  A test about the collector sets it up itself
+    (test_start_gc.py)."""
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    yield
+    gc.enable()
+
+
+@pytest.fixture(autouse=True)
+def _idle_is_seen_in_5_ms_windows(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Textual's pilot waits, after each key and in `pause()`, until a window of
+    its process's CPU time shows it idle: windows of 20 ms at least, with under
+    1 ms of CPU in them, twice a key (textual._wait.wait_for_idle).  Windows of
+    5 ms with under 0.25 ms of CPU still see the app's work, which runs in this
+    process (its refresh timer ticks every 50 ms in the tests, its workers'
+    threads count too), and halve what a typed key costs (from about 90 ms).
+    Below about 2 ms the wait's own polling reads as work and a key waits the
+    1 s maximum."""
+    monkeypatch.setattr(textual_wait, "SLEEP_GRANULARITY", 0.005)
+    monkeypatch.setattr(textual_wait, "SLEEP_IDLE", 0.005 / 20)
 
 
 @pytest.fixture

@@ -26,7 +26,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
-from textual.widgets import Footer, Input, Label, Static
+from textual.widgets import Input, Label, Static
 from textual_plotext import PlotextPlot
 
 from quadtank_tui.core.delaytf import DelayTF, ModelError
@@ -41,6 +41,7 @@ from quadtank_tui.ui.screens.design_plots import (DesignPlots, draw_load_step, d
                                                   draw_reference_steps, draw_sensitivity)
 from quadtank_tui.ui.screens.sending import CommandSender
 from quadtank_tui.ui.widgets.candidates_table import CandidatesTable, label
+from quadtank_tui.ui.widgets.key_footer import KeyFooter
 
 if TYPE_CHECKING:  # the design core loads when the screen first computes (start-up time)
     from quadtank_tui.core.design.mimo import Matrix, MimoCheck
@@ -81,7 +82,6 @@ class DesignScreen(CommandSender):
     """Models per loop, the candidates table, Nyquist and load-step plots, the
     2x2 check, Apply."""
 
-    CSS_PATH = "../styles/design.tcss"
     AUTO_FOCUS = "#design-table"  # letter keys act; Tab or a click reaches a model
 
     BINDINGS = [
@@ -144,7 +144,7 @@ class DesignScreen(CommandSender):
                 yield PlotextPlot(id="nyquist")
                 yield PlotextPlot(id="response")
         yield Static(HELP, id="design-help")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.query_one("#nyquist", PlotextPlot).border_title = "Nyquist L(iω)"

@@ -136,7 +136,6 @@ def heading(text: str) -> Static:
 class HelpScreen(ModalScreen[None]):
     """Every key, by screen and window."""
 
-    CSS_PATH = "../styles/help.tcss"
     BINDINGS = [
         Binding("escape", "close", "Close"),
         Binding("question_mark", "close", "Close", show=False),

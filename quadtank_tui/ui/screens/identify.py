@@ -30,7 +30,7 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, ProgressBar, SelectionList, Static
+from textual.widgets import DataTable, ProgressBar, SelectionList, Static
 from textual.worker import get_current_worker
 from textual_plotext import PlotextPlot
 
@@ -38,6 +38,7 @@ from quadtank_tui.ui.colours import BLUE, GREY, RED, SIGNALS
 from quadtank_tui.ui.screens import identify_physical as fitui
 from quadtank_tui.ui.screens.sending import COMPACT_WIDTH
 from quadtank_tui.ui.widgets import plot_kit as kit
+from quadtank_tui.ui.widgets.key_footer import KeyFooter
 from quadtank_tui.ui.widgets.plot_kit import Series
 
 if TYPE_CHECKING:  # the analysis stack loads with the first fit, not with the app
@@ -111,7 +112,6 @@ def compute(paths: list[str], method: str, structure: int, cancel: threading.Eve
 class IdentifyScreen(Screen[None]):
     """Fit models to logs; Esc returns to Main."""
 
-    CSS_PATH = "../styles/identify.tcss"
     AUTO_FOCUS = "#logs"
 
     BINDINGS = [
@@ -160,7 +160,7 @@ class IdentifyScreen(Screen[None]):
             with Vertical(id="identify-right"):
                 yield PlotextPlot(id="outputs")
                 yield PlotextPlot(id="lower")
-        yield Footer()
+        yield KeyFooter()
 
     def on_resize(self) -> None:
         self.set_class(self.size.width < COMPACT_WIDTH, "-compact")

@@ -20,7 +20,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
-from textual.widgets import Footer, Static
+from textual.widgets import Static
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS, SimulationSettings
 from quadtank_tui.core.plant import FULL_SCALE_V
@@ -36,6 +36,7 @@ from quadtank_tui.ui.screens.sending import CommandSender
 from quadtank_tui.ui.widgets.analysis_panel import analysis_ready, warm_up
 from quadtank_tui.ui.widgets.controller_box import ControllerBox, element_used
 from quadtank_tui.ui.widgets.input_signals import ChannelPanel
+from quadtank_tui.ui.widgets.key_footer import KeyFooter
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.status_line import StatusLine
 from quadtank_tui.ui.widgets.trend_clock import ClockMap
@@ -183,7 +184,7 @@ class MainScreen(CommandSender):
         banner = self._session_banner()
         if banner is not None:  # a client of a lab session: whose it is, who drives it
             yield Static(banner, id="session-bar", markup=False)
-        yield Footer()
+        yield KeyFooter()
 
     def _session_banner(self) -> str | None:
         session = lab_session_of(self.engine)

@@ -19,7 +19,7 @@ from textual import events
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
-from textual.widgets import Footer, Static
+from textual.widgets import Static
 
 from quadtank_tui.core.parameters import PLANT_SETTINGS, TSAMP, Parameters, keys_of
 from quadtank_tui.core.plant import FULL_SCALE_V, PlantError, steady_state_inputs
@@ -33,6 +33,7 @@ from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.screens.sending import CommandSender
 from quadtank_tui.ui.values import fmt
 from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel
+from quadtank_tui.ui.widgets.key_footer import KeyFooter
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.setup_tables import ControllerTable, ParamTable, ProcessTable, ReferenceTable
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow
@@ -102,7 +103,6 @@ class SamplingLine(Static):
 class SetupScreen(CommandSender):
     """Configure the process, the references, the controllers; load and save."""
 
-    CSS_PATH = "../styles/setup.tcss"
     AUTO_FOCUS = ""
 
     # The tooltip is the longer description the help screen and the palette show.
@@ -148,7 +148,7 @@ class SetupScreen(CommandSender):
                 yield ProcessImage(caption="P1 P2: the inputs that hold it", id="setup-image")
                 yield ProcessTable(self.defaults, id="process")
                 yield AnalysisPanel(id="analysis")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.query_one("#references").border_title = "Reference configuration  i I"

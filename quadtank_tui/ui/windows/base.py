@@ -22,7 +22,7 @@ from textual.containers import Horizontal, Vertical
 from textual.content import Content
 from textual.screen import ModalScreen
 from textual.widget import Widget
-from textual.widgets import Button, Checkbox, Footer, Input, Label, Static
+from textual.widgets import Button, Checkbox, Input, Label, Static
 from textual.widgets.button import ButtonVariant
 
 from quadtank_tui.core.parameters import Parameters
@@ -30,6 +30,7 @@ from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import Command, ResetControllers, SetParams
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Switch
+from quadtank_tui.ui.widgets.key_footer import KeyFooter
 
 T = TypeVar("T")
 
@@ -79,7 +80,7 @@ class Window(ModalScreen[T], Generic[T]):
             yield Static("", id="message", classes="error", markup=False)
             with Horizontal(id="buttons"):
                 yield from self.compose_buttons()
-        yield Footer(compact=True)
+        yield KeyFooter(compact=True)
 
     def compose_body(self) -> ComposeResult:
         """The window's own content."""
