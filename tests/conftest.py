@@ -42,11 +42,15 @@ def poll_fixture() -> Callable[..., bool]:
 
 @pytest.fixture(autouse=True)
 def _runtime_of_its_own(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytest.TempPathFactory) -> None:
-    """Every test its own runtime folder (session sockets and records, DAQ locks) and
-    no lab file named: a test run leaves nothing in the machine's
-    /tmp/quadtank-sessions, and never lists, attaches to or locks out a lab's real
-    sessions.  A test about the runtime folder sets or removes the variable itself."""
+    """Every test its own runtime folder (session sockets and records, DAQ locks), its
+    own state folder (the ghosts a client remembers, files/ghost_memory.py) and no
+    lab file named: a test run leaves nothing in the machine's /tmp/quadtank-sessions
+    or the user's ~/.local/state, never lists, attaches to or locks out a lab's real
+    sessions, and tests running at the same time (`make test` runs them on every
+    core) share none of these.  A test about one of them sets or removes the
+    variable itself."""
     monkeypatch.setenv("QUADTANK_RUNTIME", str(tmp_path_factory.mktemp("runtime")))
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path_factory.mktemp("state")))
     monkeypatch.delenv("QUADTANK_LAB", raising=False)
 
 
