@@ -49,10 +49,10 @@ def test_check_reads_and_writes_nothing(rig: Callable, tmp_path: Path, capsys: p
 def test_check_without_a_device_says_why(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     import socket
 
-    with socket.socket() as s:
+    with socket.socket() as s:  # bound, never listening: refused, and no other test's port meanwhile
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    config = tmp_path / "rig.yaml"
-    config.write_text(f"host: 127.0.0.1\nport: {port}\n")
-    assert main(["daq", "check", str(config)]) == 1
+        config = tmp_path / "rig.yaml"
+        config.write_text(f"host: 127.0.0.1\nport: {port}\n")
+        assert main(["daq", "check", str(config)]) == 1
     assert "cannot connect" in capsys.readouterr().err

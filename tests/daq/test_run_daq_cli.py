@@ -54,11 +54,11 @@ def test_run_daq_logs_an_active_experiment(rig: Callable, tmp_path: Path,
 def test_run_daq_without_a_rig_says_why(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     import socket
 
-    with socket.socket() as s:  # a port nobody listens on
+    with socket.socket() as s:  # a port nobody listens on: bound (so no other test takes it), never listening
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    status = main(["--daq", str(config_for(tmp_path, port)), "run", "--speed", "20", "--duration", "1",
-                   "--log", str(tmp_path / "x.log"), "--par", str(ROOT / "params" / "default.par")])
+        status = main(["--daq", str(config_for(tmp_path, port)), "run", "--speed", "20", "--duration", "1",
+                       "--log", str(tmp_path / "x.log"), "--par", str(ROOT / "params" / "default.par")])
     text = capsys.readouterr().out
     assert status == 1
     assert f"FAULT      modbus 127.0.0.1:{port}: read of AIN0..AIN3" in text

@@ -222,6 +222,11 @@ def test_readme_keeps_the_two_commands_ci_runs() -> None:
     assert "make test" in (ROOT / ".ci" / "run").read_text()
     for command in ("make run", "make test", '.venv/bin/python -m pytest -m "not wallclock"'):
         assert command in readme
+    # and the commands `make test` runs (in parallel, issue 25), as the Makefile has them
+    recipe = re.search(r"^test:.*\n((?:\t.*\n)+)", (ROOT / "Makefile").read_text(), re.M)
+    assert recipe is not None
+    for line in recipe[1].splitlines():
+        assert f"`{line.strip().replace('$(BIN)/', '.venv/bin/')}`" in readme, line
     assert len(readme.splitlines()) < 200
 
 
