@@ -163,18 +163,6 @@ def short_switch_interval() -> Callable[[], None]:
     return lambda: sys.setswitchinterval(old)
 
 
-def _both(first: Callable[[], None], second: Callable[[], None]) -> Callable[[], None]:
-    if first is _unchanged:
-        return second
-    if second is _unchanged:
-        return first
-
-    def both() -> None:
-        first()
-        second()
-    return both
-
-
 def _release(waiter: asyncio.Future[None]) -> None:
     if not waiter.done():
         waiter.set_result(None)
@@ -287,7 +275,8 @@ class Driver:
         if wall:
             tight_timer_slack()
             loop.use_file_thread()  # paced on the wall: no sample waits for the disk (a virtual clock's too)
-        restore = _both(realtime_priority(), short_switch_interval()) if wall and clock.realtime else _unchanged
+        # What a real-time drive changes for its time, and what puts each back.
+        restores = [realtime_priority(), short_switch_interval()] if wall and clock.realtime else []
         sleep = engine.sleep
         before, after, urgent, elapsed = self.before, self.after, self.urgent, self.elapsed
         aloop = self.aloop
@@ -328,7 +317,8 @@ class Driver:
                     after()
         finally:
             flush()
-            restore()
+            for restore in restores:
+                restore()
 
     async def _wait(self, aloop: asyncio.AbstractEventLoop, until: float) -> None:
         """Until `until` (monotonic, the event loop's own time) or a poke."""
