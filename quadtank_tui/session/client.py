@@ -58,6 +58,12 @@ from quadtank_tui.session.runtime import pid_alive
 
 #: Seconds to connect and receive the Welcome (with the whole history: 3.5 MB).
 ATTACH_TIMEOUT = 10.0
+#: Seconds a session whose connection closed without a word is given to finish
+#: exiting before it is believed alive: a SIGKILLed session's connections close
+#: while its process still exits, and its listening socket may still accept for a
+#: moment (a fresh-clone CI took a killed session for one that dropped its screen,
+#: and so gave no rescue).
+GONE_SETTLE = 1.0
 #: Seconds `stop_session` waits for the session to stop (pumps at 0, log closed).
 STOP_TIMEOUT = 15.0
 
@@ -325,7 +331,12 @@ class SessionClient:
     def _session_answers(self) -> bool:
         """The session's process is alive and accepts connections on its socket: the
         connection closed, the session did not (one that dies closes its socket)."""
-        if not pid_alive(self.info.pid):
+        settled = time.monotonic() + GONE_SETTLE
+        while pid_alive(self.info.pid):
+            if time.monotonic() >= settled:
+                break
+            time.sleep(0.01)
+        else:
             return False
         probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         probe.settimeout(1.0)
