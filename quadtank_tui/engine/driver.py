@@ -24,7 +24,8 @@ time, and the lag such a turn leaves is made up by samples back to back
 file thread (a virtual clock's too: at x1000 the row's write(2) inline was 8 of
 the 50 us), and the rows held for it (engine/filework.py) are handed on before
 every wait and at the end.  An injected time source (a ManualClock: tests, rehearsals) is waited
-on with the engine's own `sleep`, which only moves that time on.
+on with the engine's own `sleep`, which only moves that time on; such a drive
+holds its log rows in the same batches, written inline (FileWorker.hold).
 
 Without an event loop (:meth:`Driver.run`: no clients) the same coroutine is
 stepped inline: it never has to give the event loop a turn, so it never awaits.
@@ -275,6 +276,8 @@ class Driver:
         if wall:
             tight_timer_slack()
             loop.use_file_thread()  # paced on the wall: no sample waits for the disk (a virtual clock's too)
+        else:
+            loop.files.hold(True)  # the log rows go in batches, as to the file thread (engine/filework.py)
         # What a real-time drive changes for its time, and what puts each back.
         restores = [realtime_priority(), short_switch_interval()] if wall and clock.realtime else []
         sleep = engine.sleep
@@ -317,6 +320,8 @@ class Driver:
                     after()
         finally:
             flush()
+            if not wall:
+                loop.files.hold(False)
             for restore in restores:
                 restore()
 

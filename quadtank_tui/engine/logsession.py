@@ -173,7 +173,7 @@ class LogSession:
     def _write(self, op: Callable[[LogWriter, object], object], arg: object) -> None:
         """Hand a row or a comment to the writer; a failure is raised by check()
         (at once when the file operations run inline)."""
-        if self.files.threaded:
+        if self.files.batches:
             self.files.submit_batched(self._run_writes, (op, arg))
         else:  # inline, as submit() would run it, without a Future per row
             try:
