@@ -189,13 +189,15 @@ class ControllerMatrix:
         The diagonal element i carries all of u_i; active off-diagonal elements are
         held at rest at zero output, so nothing winds up in them while the loop is open.
         """
-        for i, j in self.active_elements():
+        elements = self._pid if self._family is Family.PID else None
+        for e in self.active_elements():
+            i, j = e
             rj, yj = r[j - 1], y[j - 1]
             target = float(u_applied[i - 1]) if i == j else 0.0
-            if self._family is Family.PID:
-                self._pid[(i, j)].track(rj, yj, target)
+            if elements is not None:
+                elements[e].track(rj, yj, target)
             else:
-                self._general[(i, j)].track(rj - yj, target)
+                self._general[e].track(rj - yj, target)
 
     # --- changes ----------------------------------------------------------------------------
 

@@ -95,7 +95,8 @@ class LoopTime:
         self.samples += 1
 
     def reached(self, t: float) -> bool:
-        return t - self.seconds <= 1e-6 * self._h
+        h = self._h
+        return t - (self._base + self._n * h) <= 1e-6 * h  # (seconds, written out: asked every sample)
 
 
 def fine_wait(deadline: float) -> None:

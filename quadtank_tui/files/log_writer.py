@@ -31,6 +31,7 @@ import tempfile
 import time
 from datetime import datetime
 from decimal import Decimal
+from operator import itemgetter
 from pathlib import Path
 from typing import Callable, Iterator, Mapping, Sequence
 
@@ -143,8 +144,11 @@ class LogWriter:
         if flush_rows < 1:
             raise LogFileError(str(path), f"flush_rows must be >= 1, got {flush_rows}")
         header = format_header(self.variables, tsamp, created or datetime.now()).encode("ascii")
-        # append_row's way: the logged columns picked out of a full row, one `%` format.
-        self._columns = tuple(LOG_VARIABLES.index(name) for name in self.variables)
+        # append_row's way: the logged columns picked out of a full row (in C), one `%` format.
+        columns = [LOG_VARIABLES.index(name) for name in self.variables]
+        pick = itemgetter(*columns)
+        self._pick: Callable[[Sequence[float]], tuple[float, ...]] = (
+            pick if len(columns) > 1 else lambda row: (pick(row),))
         self._row_format = COLUMN_SEPARATOR.join(["%f"] * len(self.variables)) + "\n"
         self.path = Path(path)
         self.tsamp = float(tsamp)
@@ -203,7 +207,7 @@ class LogWriter:
         is 20,000 rows a second)."""
         if not self._writing:
             return False
-        line = self._row_format % tuple([row[i] for i in self._columns])
+        line = self._row_format % self._pick(row)
         # %f writes digits, '.', '-' and spaces; an 'n' is a nan or an inf, which
         # append refuses, and "-0.000000" is what _f writes unsigned: append's way.
         if "n" in line or "-0.000000" in line:
