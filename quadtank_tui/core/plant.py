@@ -278,7 +278,7 @@ def _flows(p: PlantParams, vv: Voltages) -> Callable[[float, float, float, float
     mostly this function)."""
     v1 = vv[0] if vv[0] > 0.0 else 0.0
     v2 = vv[1] if vv[1] > 0.0 else 0.0
-    g, hmax, sqrt = p.g, p.hmax, math.sqrt
+    g, hmax, sqrt, film = p.g, p.hmax, math.sqrt, H_FILM
     g2 = 2.0 * g  # outflow's 2.0 * g * h is (2.0 * g) * h: the same product, formed once
     a1, a2, a3, a4 = p.a1, p.a2, p.a3, p.a4
     A1, A2, A3, A4 = p.A1, p.A2, p.A3, p.A4
@@ -289,10 +289,10 @@ def _flows(p: PlantParams, vv: Voltages) -> Callable[[float, float, float, float
     in4 = (1.0 - p.gamma1) * p.k1 * v1
 
     def f(h1: float, h2: float, h3: float, h4: float) -> Levels:
-        q1 = a1 * sqrt(g2 * h1) if h1 >= H_FILM else outflow(h1, a1, g)
-        q2 = a2 * sqrt(g2 * h2) if h2 >= H_FILM else outflow(h2, a2, g)
-        q3 = a3 * sqrt(g2 * h3) if h3 >= H_FILM else outflow(h3, a3, g)
-        q4 = a4 * sqrt(g2 * h4) if h4 >= H_FILM else outflow(h4, a4, g)
+        q1 = a1 * sqrt(g2 * h1) if h1 >= film else outflow(h1, a1, g)
+        q2 = a2 * sqrt(g2 * h2) if h2 >= film else outflow(h2, a2, g)
+        q3 = a3 * sqrt(g2 * h3) if h3 >= film else outflow(h3, a3, g)
+        q4 = a4 * sqrt(g2 * h4) if h4 >= film else outflow(h4, a4, g)
         f1 = (-q1 + q3 + in1) / A1
         f2 = (-q2 + q4 + in2) / A2
         f3 = (-q3 + in3) / A3
@@ -351,10 +351,17 @@ def advance(
     y4 = 0.0 if y4 < 0.0 else (hmax if y4 > hmax else y4)
     if dt == 0.0:
         return (y1, y2, y3, y4)
-    f = _flows(p, (float(v[0]), float(v[1])))
+    v1, v2 = float(v[0]), float(v[1])
+    end = _end
+    if end is not None and end[0] is p and end[1] == v1 and end[2] == v2:  # the last call's plant and inputs
+        f = end[5]
+        a1, a2, a3, a4 = end[4] if h is end[3] else f(y1, y2, y3, y4)  # from where it ended: its slope there
+    else:
+        f = _flows(p, (v1, v2))
+        a1, a2, a3, a4 = f(y1, y2, y3, y4)  # f(t, y) at the start of the sub-step
     t = 0.0
     step = min(dt, 1.0)
-    a1, a2, a3, a4 = f(y1, y2, y3, y4)  # f(t, y) at the start of the sub-step
+    smooth = False
     while t < dt:
         if t + step >= dt:
             step = dt - t
@@ -399,15 +406,37 @@ def advance(
             y2 = 0.0 if n2 < 0.0 else (hmax if n2 > hmax else n2)
             y3 = 0.0 if n3 < 0.0 else (hmax if n3 > hmax else n3)
             y4 = 0.0 if n4 < 0.0 else (hmax if n4 > hmax else n4)
+            # Not projected: the levels are n, where the last stage j was taken (its
+            # sum is n's: b7 = 0), so j is the slope there (First Same As Last).
+            smooth = 0.0 <= n1 <= hmax and 0.0 <= n2 <= hmax and 0.0 <= n3 <= hmax and 0.0 <= n4 <= hmax
             if last:
-                break  # the slope at the end is not needed
+                break
             t += step
-            a1, a2, a3, a4 = f(y1, y2, y3, y4)
+            a1, a2, a3, a4 = (j1, j2, j3, j4) if smooth else f(y1, y2, y3, y4)
             factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
         else:
             factor = max(0.1, 0.9 * err ** -0.2)
         step = max(step * factor, _MIN_STEP)
-    return (y1, y2, y3, y4)
+    y = (y1, y2, y3, y4)
+    _remember(p, v1, v2, y if smooth else None, (j1, j2, j3, j4), f)
+    return y
+
+
+#: Where the last :func:`advance` ended: (plant, v1, v2, levels or None if they were
+#: projected, the slope there, the flows).  The simulator's next sample starts there
+#: with the same inputs as a rule (Manual, a held wave): that call then takes the
+#: flows and its first slope from here instead of forming them again (the same
+#: numbers: the plant is the same object, a frozen one, the inputs equal, the levels
+#: the same tuple), a seventh of a sample's plant work.  One entry, replaced whole:
+#: any thread may call advance.
+_end: tuple[PlantParams, float, float, Levels | None, Levels, Callable[[float, float, float, float], Levels]] | None
+_end = None
+
+
+def _remember(p: PlantParams, v1: float, v2: float, y: Levels | None, slope: Levels,
+              f: Callable[[float, float, float, float], Levels]) -> None:
+    global _end
+    _end = (p, v1, v2, y, slope, f)
 
 
 # --- Steady states ------------------------------------------------------------------
