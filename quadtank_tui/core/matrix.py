@@ -67,8 +67,13 @@ class Structure(str, Enum):
 
 
 def saturate(u: Sequence[float]) -> Pair:
-    """Clip both pump inputs to [U_MIN, U_MAX] (normalized)."""
-    return (min(U_MAX, max(U_MIN, float(u[0]))), min(U_MAX, max(U_MIN, float(u[1]))))
+    """Clip both pump inputs to [U_MIN, U_MAX] (normalized): min(U_MAX, max(U_MIN, u))
+    written out, as those builtins decide (the first argument unless the second is
+    beyond it: a nan gives U_MIN), without their four calls every sample."""
+    u1, u2 = float(u[0]), float(u[1])
+    u1 = u1 if u1 > U_MIN else U_MIN
+    u2 = u2 if u2 > U_MIN else U_MIN
+    return (u1 if u1 < U_MAX else U_MAX, u2 if u2 < U_MAX else U_MAX)
 
 
 def _matrix_family(family: Family | str) -> Family:

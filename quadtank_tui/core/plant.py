@@ -314,6 +314,17 @@ def _clip(x: float, hmax: float) -> float:
     return 0.0 if x < 0.0 else (hmax if x > hmax else x)
 
 
+#: Where the last :func:`advance` ended: (plant, v1, v2, levels or None if they were
+#: projected, the slope there, the flows).  The simulator's next sample starts there
+#: with the same inputs as a rule (Manual, a held wave): that call then takes the
+#: flows and its first slope from here instead of forming them again (the same
+#: numbers: the plant is the same object, a frozen one, the inputs equal, the levels
+#: the same tuple), a seventh of a sample's plant work.  One entry, replaced whole:
+#: any thread may call advance.
+_end: tuple[PlantParams, float, float, Levels | None, Levels, Callable[[float, float, float, float], Levels]] | None
+_end = None
+
+
 def advance(
     h: Sequence[float],
     v: Sequence[float],
@@ -340,6 +351,7 @@ def advance(
     >>> advance((10.0, 10.0, 0.0, 0.0), (0.0, 0.0), 0.0, PlantParams())
     (10.0, 10.0, 0.0, 0.0)
     """
+    global _end
     if dt < 0 or not math.isfinite(dt):
         raise PlantError(f"step length must be a finite number >= 0 s, got {dt}")
     hmax = p.hmax
@@ -418,25 +430,10 @@ def advance(
             factor = max(0.1, 0.9 * err ** -0.2)
         step = max(step * factor, _MIN_STEP)
     y = (y1, y2, y3, y4)
-    _remember(p, v1, v2, y if smooth else None, (j1, j2, j3, j4), f)
+    _end = (p, v1, v2, y if smooth else None, (j1, j2, j3, j4), f)
     return y
 
 
-#: Where the last :func:`advance` ended: (plant, v1, v2, levels or None if they were
-#: projected, the slope there, the flows).  The simulator's next sample starts there
-#: with the same inputs as a rule (Manual, a held wave): that call then takes the
-#: flows and its first slope from here instead of forming them again (the same
-#: numbers: the plant is the same object, a frozen one, the inputs equal, the levels
-#: the same tuple), a seventh of a sample's plant work.  One entry, replaced whole:
-#: any thread may call advance.
-_end: tuple[PlantParams, float, float, Levels | None, Levels, Callable[[float, float, float, float], Levels]] | None
-_end = None
-
-
-def _remember(p: PlantParams, v1: float, v2: float, y: Levels | None, slope: Levels,
-              f: Callable[[float, float, float, float], Levels]) -> None:
-    global _end
-    _end = (p, v1, v2, y, slope, f)
 
 
 # --- Steady states ------------------------------------------------------------------
