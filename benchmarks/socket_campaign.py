@@ -223,7 +223,8 @@ def campaign_sockets(t: Any, n: int, rng: random.Random, work: Path) -> None:
     """`t` is hardening.Tally: ran, accepted (rounds the session came through), failures."""
     from quadtank_tui.engine.runner import engine_spec
     from quadtank_tui.session.launch import SessionSpec, start_session
-    from quadtank_tui.session.runtime import list_sessions, pid_alive
+    from quadtank_tui.files.proc import pid_alive
+    from quadtank_tui.session.runtime import list_sessions
 
     runtime = Path(tempfile.mkdtemp(prefix="qhs-run-"))
     runtime.chmod(0o1777)

@@ -80,7 +80,8 @@ def hold_daq(config: str | None, *, take_over: bool = False, say: Callable[[str]
         return
     from quadtank_tui.session import roles
     from quadtank_tui.session.lab import load_lab_config
-    from quadtank_tui.session.lock import DaqLockHeld, pid_alive
+    from quadtank_tui.files.proc import pid_alive
+    from quadtank_tui.session.lock import DaqLockHeld
     from quadtank_tui.session.riglock import RigLock
 
     from quadtank_tui.daq.open import load_rig_config

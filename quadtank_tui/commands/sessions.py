@@ -116,7 +116,8 @@ def format_table(sessions: list[SessionInfo]) -> str:
 
 def cmd_stop(args: argparse.Namespace) -> int:
     from quadtank_tui.session.client import SessionError, stop_session_at
-    from quadtank_tui.session.runtime import NoSession, find_session, pid_alive
+    from quadtank_tui.files.proc import pid_alive
+    from quadtank_tui.session.runtime import NoSession, find_session
 
     try:
         info = find_session(runtime_folder(), args.session, os.getuid())

@@ -13,13 +13,17 @@ event loop's.  On Linux the driving thread's timer slack is set to 1 us first: a
 sleep overshoots by the slack, 50 us by default, a whole x1000 sampling period
 (measured: time.sleep(20 us) takes 80 us by default, 28 us at 1 us slack).  The
 thread sleeps rather than spins, so it does not take a core from the clients;
-only a wait shorter than SPIN_BELOW, which a sleep would overshoot, is spun.  A
-real-time clock's thread runs at real-time priority while it drives, if allowed
-(realtime_priority): woken at its deadline, it then gets a core at once, and the
-GIL within SWITCH_INTERVAL (short_switch_interval).  A
-virtual clock at x1000 and 50 ms has a sample due every 50 us: every wait is a
-fine one (most are spun), the event loop gets a turn every YIELD_AFTER of wall
-time, and the lag such a turn leaves is made up by samples back to back
+only a wait shorter than SPIN_BELOW, which a sleep would overshoot, is spun, and
+a real-time clock's last SPIN_LAST (a sleeping core wakes late: the machine's
+idle exit).  A real-time clock's thread runs at real-time priority while it
+drives, if allowed (realtime_priority): woken at its deadline, it then gets a
+core at once, and the GIL within SWITCH_INTERVAL (short_switch_interval).
+The event loop gets its turns (`loop.call_at`'s waits, and every YIELD_AFTER of
+wall time, or at once when a client has lines waiting) right after a sample and
+its publishing, never between a wait's end and its sample: the fine wait is the
+driver's alone.  A virtual clock at x1000 and 50 ms has a sample due every 50 us:
+every wait is a fine one (most are spun), the event loop gets a turn every
+YIELD_AFTER, and the lag such a turn leaves is made up by samples back to back
 (engine/clock.py, CATCH_UP).  A drive paced on the wall writes its log on the
 file thread (a virtual clock's too: at x1000 the row's write(2) inline was 8 of
 the 50 us), and the rows held for it (engine/filework.py) are handed on before
@@ -55,6 +59,14 @@ FINE_WAIT = 0.002
 #: 2-core CI machine), more than the wait; at x1000 and 50 ms, when a sample costs
 #: 40 us, every wait is about 10 us, and sleeping them held x800.
 SPIN_BELOW = 20e-6
+#: The last part of a real-time clock's fine wait that is spun, not slept, s.  A
+#: sleeping thread is woken late by the time its core takes to come out of idle
+#: (here a KVM guest's halted vCPU): a SCHED_FIFO thread's 10 ms sleeps ended
+#: 0.066 ms late at p50, 0.17 ms at p99 (the 2-core machine, load 2.3); spinning
+#: the last 0.1 ms took p99 to 0.007 ms.  It costs SPIN_LAST of CPU a sample
+#: (3 % of a core at 10 ms, 0.6 % at 50 ms); a virtual clock, whose jitter the
+#: simulated plant never sees, sleeps to its deadline.
+SPIN_LAST = 0.0003
 #: The real-time priority (SCHED_FIFO, 1..99) a real-time clock's driving thread
 #: asks for: the lowest, which is enough to run before every ordinary process.
 RT_PRIORITY = 1
@@ -99,16 +111,17 @@ class LoopTime:
         return t - (self._base + self._n * h) <= 1e-6 * h  # (seconds, written out: asked every sample)
 
 
-def fine_wait(deadline: float) -> None:
-    """Until `deadline` (time.monotonic): a sleep, or a spin when the wait is shorter
-    than SPIN_BELOW (a sleep would take longer than the wait)."""
+def fine_wait(deadline: float, spin: float = 0.0) -> None:
+    """Until `deadline` (time.monotonic): a sleep until `spin` s before it, then a
+    spin (all of it spun when the sleep would be shorter than SPIN_BELOW: a sleep
+    would take longer than the wait).  The spin holds the GIL: given away this close
+    to the deadline, it could take SWITCH_INTERVAL to get back."""
     monotonic = time.monotonic
-    rest = deadline - monotonic()
+    rest = deadline - spin - monotonic()
     if rest >= SPIN_BELOW:
         time.sleep(rest)
-    else:
-        while monotonic() < deadline:
-            pass
+    while monotonic() < deadline:
+        pass
 
 
 def tight_timer_slack() -> None:
@@ -287,12 +300,9 @@ class Driver:
         monotonic = time.monotonic
         turned = monotonic()
         flush = engine.flush_files
+        spin = SPIN_LAST if wall and clock.realtime else 0.0
         try:
             while not self._done():
-                if aloop is not None and (monotonic() - turned > YIELD_AFTER or urgent is not None and urgent()):
-                    flush()
-                    await asyncio.sleep(0)  # the clients and the signals get a turn (not between a fine wait and its sample)
-                    turned = monotonic()
                 deadline = clock.deadline()
                 if deadline is not None:
                     if wall:
@@ -305,7 +315,7 @@ class Driver:
                         if delay >= SPIN_BELOW:
                             flush()
                         if delay > 0:
-                            fine_wait(deadline)
+                            fine_wait(deadline, spin)
                     else:
                         delay = deadline - clock.now()
                         if delay > 0:
@@ -319,6 +329,13 @@ class Driver:
                 elapsed.add(h, 1 + loop.missed if loop.backend is not loop.sim else 1)
                 if after is not None:
                     after()
+                if aloop is not None and (monotonic() - turned > YIELD_AFTER or urgent is not None and urgent()):
+                    # The clients and the signals get a turn right after a sample, the
+                    # farthest from the next deadline: never between a wait's end and
+                    # its sample (a turn may encode a ring buffer's part, 1 ms).
+                    flush()
+                    await asyncio.sleep(0)
+                    turned = monotonic()
         finally:
             flush()
             if not wall:

@@ -1,7 +1,10 @@
-"""A process's state from /proc: alive, stopped, or gone (a zombie counts as gone).
+"""A process's state from /proc: alive, stopped, or gone (a zombie counts as gone),
+its start time and its owner.
 
-The session listing (session/runtime.py) and the guard (daq/guard.py) both ask it;
-where /proc cannot be read, a signal 0 tells alive from gone.
+The session listing (session/runtime.py), the DAQ lock (session/lock.py) and the
+guard (daq/guard.py) all ask it; where /proc cannot be read, a signal 0 tells alive
+from gone.  A pid read from a file another user may have written can be 0 or
+negative: never a probe of a process group.
 """
 
 from __future__ import annotations
@@ -12,7 +15,10 @@ from pathlib import Path
 
 def process_state(pid: int) -> str:
     """The state letter of /proc/PID/stat ("R", "S", "T" stopped, ...), "?" when it
-    lives but /proc does not say, "" when it is gone or a zombie."""
+    lives but /proc does not say, "" when it is gone or a zombie (or no pid: 0 or
+    below, which a signal 0 would take for a process group)."""
+    if pid <= 0:
+        return ""
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
     except (OSError, IndexError):
@@ -24,3 +30,42 @@ def process_state(pid: int) -> str:
             return "?"
         return "?"
     return "" if state in ("Z", "X") else state
+
+
+def pid_alive(pid: int, start: int | None = None) -> bool:
+    """Whether `pid` runs (another user's process counts, a zombie does not) and,
+    given its recorded start time, is still the same process and not a recycled pid."""
+    if process_state(pid) == "":
+        return False
+    if start is not None:
+        now = process_start(pid)
+        return now is None or now == start
+    return True
+
+
+def _proc_stat(pid: int) -> list[bytes] | None:
+    """The fields of /proc/<pid>/stat after the command name (state first), None
+    where there is no such file."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            data = f.read()
+        return data[data.rindex(b")") + 2:].split()
+    except (OSError, ValueError):
+        return None
+
+
+def process_start(pid: int) -> int | None:
+    """The start time of `pid` in clock ticks since boot (/proc), None where unknown."""
+    fields = _proc_stat(pid)
+    try:
+        return None if fields is None else int(fields[19])
+    except (ValueError, IndexError):
+        return None
+
+
+def process_owner(pid: int) -> int | None:
+    """The user id `pid` runs as (/proc), None where unknown."""
+    try:
+        return os.stat(f"/proc/{pid}").st_uid
+    except OSError:
+        return None

@@ -54,7 +54,7 @@ from quadtank_tui.session.protocol import (
     MAX_SESSION_LINE, Dropped, Ended, Hello, HistoryPart, LineReader, ProtocolError, Refused, Result, Role, Roster,
     SessionInfo, StopSession, Submit, Update, Welcome, decode, encode,
 )
-from quadtank_tui.session.runtime import pid_alive
+from quadtank_tui.files.proc import pid_alive
 
 #: Seconds to connect and receive the Welcome (with the whole history: 3.5 MB).
 ATTACH_TIMEOUT = 10.0

@@ -53,6 +53,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from quadtank_tui.files.proc import pid_alive, process_owner, process_start
 from quadtank_tui.session.lab import LabConfig, ensure_runtime_dir
 from quadtank_tui.session.roles import NotPermitted, current_user, is_administrator, user_name
 
@@ -138,56 +139,6 @@ class _Record:
 
     def held(self, device: str) -> DaqLockHeld:
         return DaqLockHeld(device, self.user, self.uid, self.pid, self.since, self.session)
-
-
-def _proc_stat(pid: int) -> list[bytes] | None:
-    """The fields of /proc/<pid>/stat after the command name (state first), None
-    where there is no such file."""
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as f:
-            data = f.read()
-        return data[data.rindex(b")") + 2:].split()
-    except (OSError, ValueError):
-        return None
-
-
-def process_start(pid: int) -> int | None:
-    """The start time of `pid` in clock ticks since boot (/proc), None where unknown."""
-    fields = _proc_stat(pid)
-    try:
-        return None if fields is None else int(fields[19])
-    except (ValueError, IndexError):
-        return None
-
-
-def process_owner(pid: int) -> int | None:
-    """The user id `pid` runs as (/proc), None where unknown."""
-    try:
-        return os.stat(f"/proc/{pid}").st_uid
-    except OSError:
-        return None
-
-
-def pid_alive(pid: int, start: int | None = None) -> bool:
-    """Whether `pid` runs (another user's process counts) and, given its recorded
-    start time, is still the same process and not a recycled pid."""
-    if pid <= 0:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        pass
-    fields = _proc_stat(pid)
-    if fields is None:
-        return True  # no /proc: the kill probe has the last word
-    if fields[:1] == [b"Z"]:
-        return False  # exited, not yet reaped by its parent: it holds nothing
-    if start is not None:
-        now = process_start(pid)
-        return now is None or now == start
-    return True
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ import tempfile
 from datetime import datetime, timedelta
 from pathlib import Path
 
-from quadtank_tui.files.proc import process_state
+from quadtank_tui.files.proc import pid_alive
 from quadtank_tui.session.info import SessionInfo
 
 #: How long an ended session's record and output file are kept, and how many per owner.
@@ -43,11 +43,6 @@ def runtime_dir(configured: Path | None = None) -> Path:
 
     lab = load_lab_config()
     return ensure_shared_dir(configured or lab.runtime_dir, trusted=lambda uid: is_administrator(uid, lab))
-
-
-def pid_alive(pid: int) -> bool:
-    """A running process (a zombie counts as gone)."""
-    return process_state(pid) != ""
 
 
 def record_path(runtime: Path, session_id: str) -> Path:

@@ -257,7 +257,6 @@ class Server:
             return False
         self.refused += 1
         why = f"it sent lines faster than {MAX_LINE_RATE:g} a second (beyond a burst of {MAX_LINE_BURST})"
-        _note(f"dropped {conn.name}: {why}")
         self.drop(conn, why)
         return True
 
@@ -281,7 +280,6 @@ class Server:
                 return
             except Exception as exc:  # noqa: BLE001 - what one client's message broke ends that client only
                 why = f"its message failed: {type(exc).__name__}: {exc}"
-                _note(f"dropped {conn.name}: {why}")
                 self.drop(conn, why)
                 return
         if conn not in self.connections:
@@ -321,7 +319,6 @@ class Server:
                 part = next(conn.parts, None)
             except Exception as exc:  # noqa: BLE001 - what fails for one client ends that client only
                 why = f"a message to it failed: {type(exc).__name__}: {exc}"
-                _note(f"dropped {conn.name}: {why}")
                 self.drop(conn, why)
                 return
             if part is None:  # all sent: what waited behind them goes next
@@ -384,10 +381,13 @@ class Server:
             self.drop(conn)
 
     def drop(self, conn: Connection, why: str | None = None) -> None:
-        """Close `conn`; `why`: it is dropped for what it did and, once let in, told
-        so (Dropped) after the rest of the line it was receiving."""
+        """Close `conn`; `why`: it is dropped for what it did, noted in the session's
+        output and, once let in, told so (Dropped) after the rest of the line it was
+        receiving."""
         if conn not in self.connections:
             return
+        if why is not None:
+            _note(f"dropped {conn.name}: {why}")
         farewell = b""
         if why is not None and conn.role is not None:  # before its Hello it is no client of ours yet
             rest = bytes(conn.out[:conn.out.find(b"\n") + 1])  # a line half sent is finished first

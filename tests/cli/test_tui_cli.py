@@ -9,7 +9,8 @@ from pathlib import Path
 
 from quadtank_tui.cli import build_parser, build_tui, main
 from quadtank_tui.engine.handle import lab_session_of
-from quadtank_tui.session.runtime import list_sessions, pid_alive
+from quadtank_tui.files.proc import pid_alive
+from quadtank_tui.session.runtime import list_sessions
 
 
 @pytest.mark.parametrize("argv, word", [

@@ -19,7 +19,8 @@ from typing import Any, Callable
 import pytest
 
 from quadtank_tui.session.client import SessionClient, stop_session_at
-from quadtank_tui.session.runtime import list_sessions, pid_alive
+from quadtank_tui.files.proc import pid_alive
+from quadtank_tui.session.runtime import list_sessions
 from daqkit import rig_yaml
 
 pytestmark = [pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and Linux ptys"),

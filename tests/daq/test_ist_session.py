@@ -30,7 +30,8 @@ from quadtank_tui.daq.ist.device import Firmware, ServedDevice
 from quadtank_tui.engine.runner import engine_spec
 from quadtank_tui.session.client import SessionClient, stop_session_at
 from quadtank_tui.session.launch import SessionSpec, SessionStartError, start_session
-from quadtank_tui.session.runtime import list_sessions, pid_alive
+from quadtank_tui.files.proc import pid_alive
+from quadtank_tui.session.runtime import list_sessions
 
 pytestmark = [pytest.mark.wallclock, pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a Linux pty")]
 

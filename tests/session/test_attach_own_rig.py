@@ -23,7 +23,8 @@ from quadtank_tui.session.client import stop_session_at
 from quadtank_tui.session.lab import load_lab_config
 from quadtank_tui.session import lock as lockmod
 from quadtank_tui.session.lock import holder_of, lock_path
-from quadtank_tui.session.runtime import list_sessions, pid_alive
+from quadtank_tui.files.proc import pid_alive
+from quadtank_tui.session.runtime import list_sessions
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc")
 

@@ -17,7 +17,8 @@ import pytest
 from quadtank_tui.cli import main
 from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.session import launch
-from quadtank_tui.session.runtime import ended_sessions, list_sessions, pid_alive
+from quadtank_tui.files.proc import pid_alive
+from quadtank_tui.session.runtime import ended_sessions, list_sessions
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc")
 

@@ -78,11 +78,13 @@ def _running(s: ThreadSession, poll) -> None:
     (bad_line, "it sent a line that is not a message of the session's protocol (not JSON: "),
 ], ids=["flood", "bad line"])
 def test_a_dropped_operator_is_told_why_and_leaves_the_pumps_to_the_session(
-        thread_session, poll, rescues, misbehave, reason) -> None:
+        thread_session, poll, rescues, misbehave, reason, capsys) -> None:
     s: ThreadSession = thread_session(speed=20.0)
     with _drop(s, poll, misbehave) as client:
         assert rescues == [] and client.rescue is None and client.ended is None
         assert client.dropped is not None and client.dropped.startswith(reason), client.dropped
+        noted = [line for line in capsys.readouterr().err.splitlines() if " dropped " in line]
+        assert len(noted) == 1 and noted[0].endswith(f": {client.dropped}"), noted  # the session's output says why
         fault = client.snapshot().fault or ""
         assert fault == (f"session alice-1 dropped this screen ({client.dropped}) and runs on: "
                          "quadtank attach alice-1 comes back to it")

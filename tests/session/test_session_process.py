@@ -27,7 +27,8 @@ from quadtank_tui.engine import commands as c
 from quadtank_tui.engine.runner import engine_spec
 from quadtank_tui.session.client import SessionClient
 from quadtank_tui.session.launch import SessionSpec, start_session
-from quadtank_tui.session.runtime import ended_sessions, list_sessions, pid_alive, socket_path
+from quadtank_tui.files.proc import pid_alive
+from quadtank_tui.session.runtime import ended_sessions, list_sessions, socket_path
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and Linux ptys")
 
