@@ -67,8 +67,13 @@ class Structure(str, Enum):
 
 
 def saturate(u: Sequence[float]) -> Pair:
-    """Clip both pump inputs to [U_MIN, U_MAX] (normalized)."""
-    return (min(U_MAX, max(U_MIN, float(u[0]))), min(U_MAX, max(U_MIN, float(u[1]))))
+    """Clip both pump inputs to [U_MIN, U_MAX] (normalized): min(U_MAX, max(U_MIN, u))
+    written out, as those builtins decide (the first argument unless the second is
+    beyond it: a nan gives U_MIN), without their four calls every sample."""
+    u1, u2 = float(u[0]), float(u[1])
+    u1 = u1 if u1 > U_MIN else U_MIN
+    u2 = u2 if u2 > U_MIN else U_MIN
+    return (u1 if u1 < U_MAX else U_MAX, u2 if u2 < U_MAX else U_MAX)
 
 
 def _matrix_family(family: Family | str) -> Family:
@@ -189,13 +194,15 @@ class ControllerMatrix:
         The diagonal element i carries all of u_i; active off-diagonal elements are
         held at rest at zero output, so nothing winds up in them while the loop is open.
         """
-        for i, j in self.active_elements():
+        elements = self._pid if self._family is Family.PID else None
+        for e in self.active_elements():
+            i, j = e
             rj, yj = r[j - 1], y[j - 1]
             target = float(u_applied[i - 1]) if i == j else 0.0
-            if self._family is Family.PID:
-                self._pid[(i, j)].track(rj, yj, target)
+            if elements is not None:
+                elements[e].track(rj, yj, target)
             else:
-                self._general[(i, j)].track(rj - yj, target)
+                self._general[e].track(rj - yj, target)
 
     # --- changes ----------------------------------------------------------------------------
 

@@ -220,7 +220,10 @@ class Generator:
                 self._level = self._prbs_level()
         else:
             self._t = (self._t + self._h) % p.period
-        self._ramp(1)
+        if self._mean != self._target:  # else _ramp(1) would set the mean to the target: it is
+            self._ramp(1)
+        else:
+            self._mean = self._target
 
     def advance_by(self, k: int) -> None:
         """k samples at once, as k calls of :meth:`advance` (up to the rounding of the

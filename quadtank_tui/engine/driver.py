@@ -28,7 +28,8 @@ YIELD_AFTER, and the lag such a turn leaves is made up by samples back to back
 file thread (a virtual clock's too: at x1000 the row's write(2) inline was 8 of
 the 50 us), and the rows held for it (engine/filework.py) are handed on before
 every wait and at the end.  An injected time source (a ManualClock: tests, rehearsals) is waited
-on with the engine's own `sleep`, which only moves that time on.
+on with the engine's own `sleep`, which only moves that time on; such a drive
+holds its log rows in the same batches, written inline (FileWorker.hold).
 
 Without an event loop (:meth:`Driver.run`: no clients) the same coroutine is
 stepped inline: it never has to give the event loop a turn, so it never awaits.
@@ -106,7 +107,8 @@ class LoopTime:
         self.samples += 1
 
     def reached(self, t: float) -> bool:
-        return t - self.seconds <= 1e-6 * self._h
+        h = self._h
+        return t - (self._base + self._n * h) <= 1e-6 * h  # (seconds, written out: asked every sample)
 
 
 def fine_wait(deadline: float, spin: float = 0.0) -> None:
@@ -288,6 +290,8 @@ class Driver:
         if wall:
             tight_timer_slack()
             loop.use_file_thread()  # paced on the wall: no sample waits for the disk (a virtual clock's too)
+        else:
+            loop.files.hold(True)  # the log rows go in batches, as to the file thread (engine/filework.py)
         # What a real-time drive changes for its time, and what puts each back.
         restores = [realtime_priority(), short_switch_interval()] if wall and clock.realtime else []
         sleep = engine.sleep
@@ -334,6 +338,8 @@ class Driver:
                     turned = monotonic()
         finally:
             flush()
+            if not wall:
+                loop.files.hold(False)
             for restore in restores:
                 restore()
 

@@ -83,6 +83,8 @@ def run_experiment(engine: Engine, script: Script | None, duration: float) -> in
         raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
     events = collections.deque(script.events if script else ())
     name = script.file if script else ""
+    if not events:  # nothing to apply: no call ahead of every sample
+        return engine.run_for(duration)
     return engine.run_for(duration, before=lambda elapsed: apply_due(engine, events, elapsed, name))
 
 

@@ -10,7 +10,12 @@ it, and fsynced at most a second after the last sync.
 
 Until :meth:`FileWorker.start_thread` the worker runs each operation at once, on the
 caller's thread (tests, headless runs on a virtual clock): the same results, the
-same order, deterministic.
+same order, deterministic.  While a driver drives inline (no thread, an injected
+time source: `quadtank run` as fast as possible) it holds the log rows as the
+thread's batches are held (:meth:`FileWorker.hold`): one write(2) of the rows of
+a BATCH_WINDOW, not one a row (at 40 us a sample, 2-3 us of each went to its own
+write), and the same promise as the thread's: a killed process loses at most the
+rows of the last millisecond.
 
 Log rows go in batches (:meth:`FileWorker.submit_batched`): a row that comes within
 BATCH_WINDOW of the last hand-off is held, in order, and handed on with the next
@@ -51,10 +56,16 @@ class FileWorker:
         self._closed = False
         self._batch: list[tuple[Callable[[list[Any]], object], Any]] = []
         self._handed = -float("inf")  # when the last batch went to the thread (time.monotonic)
+        self._holding = False  # inline, batches held as on the thread (hold)
 
     @property
     def threaded(self) -> bool:
         return self._thread is not None
+
+    @property
+    def batches(self) -> bool:
+        """submit_batched holds its items for a batch (on the thread, or held inline)."""
+        return self._holding or self._thread is not None
 
     def start_thread(self) -> None:
         """From now on, run the operations on the worker's own thread (idempotent)."""
@@ -75,13 +86,22 @@ class FileWorker:
             self._queue.put((fn, args, fut))
         return fut
 
+    def hold(self, on: bool) -> None:
+        """Inline, hold the items of submit_batched as the thread's are held, and
+        hand them on (run them) a BATCH_WINDOW at a time (on: an inline drive
+        begins), or run what is held and each one at once again (off: it ends)."""
+        if not on:
+            self.flush()
+        self._holding = on
+
     def submit_batched(self, fn: Callable[[list[Any]], object], item: Any) -> None:
         """Run ``fn([item, ...])`` after everything submitted before, without a Future:
-        `fn` keeps its own failure (a log row's: LogSession.check).  On the thread the
-        items of the same BATCH_WINDOW go to one call (the caller's thread, the one
-        that samples, calls :meth:`flush` before it waits); inline `fn([item])` runs
-        at once."""
-        if self._thread is None or self._closed or threading.current_thread() is self._thread:
+        `fn` keeps its own failure (a log row's: LogSession.check).  On the thread,
+        or inline while held (:meth:`hold`), the items of the same BATCH_WINDOW go
+        to one call (the caller's thread, the one that samples, calls :meth:`flush`
+        before it waits); otherwise inline `fn([item])` runs at once."""
+        if not self._holding and (self._thread is None or self._closed
+                                  or threading.current_thread() is self._thread):
             self.flush()
             _run_quietly(fn, [item])
             return

@@ -18,7 +18,7 @@ from __future__ import annotations
 from concurrent.futures import Future
 from datetime import datetime
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 from quadtank_tui.core.parameters import LoggingSettings
 from quadtank_tui.engine.filework import FileWorker
@@ -60,6 +60,7 @@ class LogSession:
         self._failure: tuple[Exception, int] | None = None  # set by a failed write, see check()
         #: Rows of this log that came late (each noted in the file), see `late`.
         self.late_rows = 0
+        self._batched = self._run_writes  # one bound method: the worker batches a row with the ones before it
 
     @property
     def running(self) -> bool:
@@ -153,7 +154,7 @@ class LogSession:
         self._rows += 1
         if self._rows >= self._points:
             self._active = False  # the writer stops by itself at its last point
-        self._write(_append, (t - self._t0, y[0], y[1], y[2], y[3], u[0], u[1], r[0], r[1]))
+        self._write(LogWriter.append_row, (t - self._t0, y[0], y[1], y[2], y[3], u[0], u[1], r[0], r[1]))
 
     def late(self, gap: float, tsamp: float) -> None:
         """The next row was sampled `gap` s after the previous one, not `tsamp` (a
@@ -161,20 +162,20 @@ class LogSession:
         assert self._active
         if self._rows == 0:
             return  # the first row: there is no previous one to be late after
-        self._write(_comment, f"late: the next row was sampled {gap:.6g} s after the previous one, "
+        self._write(LogWriter.comment, f"late: the next row was sampled {gap:.6g} s after the previous one, "
                     f"not TSamp {tsamp:g} s")
         self.late_rows += 1
 
     def comment(self, t: float, text: str) -> None:
         """A `%` line stamped with the log's time (s since LogOn), if logging is on."""
         if self._active:
-            self._write(_comment, f"t = {t - self._t0:g} s: {text}")
+            self._write(LogWriter.comment, f"t = {t - self._t0:g} s: {text}")
 
-    def _write(self, op: Callable[[LogWriter, object], object], arg: object) -> None:
+    def _write(self, op: Callable[[LogWriter, Any], object], arg: object) -> None:
         """Hand a row or a comment to the writer; a failure is raised by check()
         (at once when the file operations run inline)."""
-        if self.files.threaded:
-            self.files.submit_batched(self._run_writes, (op, arg))
+        if self.files.batches:
+            self.files.submit_batched(self._batched, (op, arg))
         else:  # inline, as submit() would run it, without a Future per row
             try:
                 self._run_write(op, arg)
@@ -182,7 +183,7 @@ class LogSession:
                 pass
         self.check()
 
-    def _run_writes(self, ops: list[tuple[Callable[[LogWriter, object], object], object]]) -> None:
+    def _run_writes(self, ops: list[tuple[Callable[[LogWriter, Any], object], object]]) -> None:
         """Several of _write's operations on the file thread, handed to the OS in one
         write; a failure is kept for check() as _run_write keeps it."""
         writer = self._writer
@@ -197,7 +198,7 @@ class LogSession:
                 self._failure = (exc, writer.rows)
             raise
 
-    def _run_write(self, op: Callable[[LogWriter, object], object], arg: object) -> None:
+    def _run_write(self, op: Callable[[LogWriter, Any], object], arg: object) -> None:
         """One of _write's operations, as the file worker runs it: a failure is kept
         for check() (the first one) and raised to the worker."""
         writer = self._writer
@@ -270,14 +271,6 @@ class LogSession:
             self._writer = None
 
         return self.files.submit(discard)
-
-
-def _append(writer: LogWriter, values: object) -> None:
-    writer.append_row(values)  # type: ignore[arg-type]  # the tuple row() built
-
-
-def _comment(writer: LogWriter, text: object) -> None:
-    writer.comment(str(text))
 
 
 def _reason(exc: Exception) -> str:

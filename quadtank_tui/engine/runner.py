@@ -131,9 +131,8 @@ class Engine:
     def sample(self) -> None:
         """Take one sample now (the driver calls this at its deadline)."""
         with self._lock:
-            timing = self.clock.tick()
-            self.loop.record_timing(timing.jitter, timing.missed, timing.actual)
-            self.loop.sample()
+            scheduled, actual, missed = self.clock.tick()
+            self.loop.timed_sample(actual - scheduled, missed, actual)
 
     def flush_files(self) -> None:
         """The log rows held for the file thread go to it now (the driver calls this

@@ -73,7 +73,7 @@ class SimBackend(ProcessBackend):
 
     def read_levels(self) -> Levels4:
         y = self._true_levels()
-        if not self._faults:
+        if not self._faults.active:  # (Faults' own bool, without its call: read every sample)
             return y
         normal = [self._rng.gauss(0.0, 1.0) for _ in y]
         m = fx.measure(y, self._faults, self._t, normal)
@@ -102,12 +102,13 @@ class SimBackend(ProcessBackend):
     def elapse(self, dt: float) -> None:
         """Integrate dt seconds with the pump voltages (and the disturbance pumps) held."""
         self._t += dt
-        if self._faults or any(self.disturbances):
+        d = self.disturbances
+        if self._faults.active or d[0] or d[1]:  # (bool(Faults) and any(d), without the calls)
             plant = self.plant  # built once: for the quadruple tank each `plant` is a new QuadTank
             drifted = fx.drift_valves(plant, self._faults, dt)
             if drifted is not plant:
                 self.set_plant(drifted)
-            inflow = dist.IST.inflow(self.disturbances) if any(self.disturbances) else ()
+            inflow = dist.IST.inflow(d) if d[0] or d[1] else ()
             self._h = fx.advance(drifted, self._faults, self._h, self._v, dt, inflow)
             return
         if self._plant is not None:

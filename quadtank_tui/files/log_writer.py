@@ -31,6 +31,7 @@ import tempfile
 import time
 from datetime import datetime
 from decimal import Decimal
+from operator import itemgetter
 from pathlib import Path
 from typing import Callable, Iterator, Mapping, Sequence
 
@@ -143,8 +144,11 @@ class LogWriter:
         if flush_rows < 1:
             raise LogFileError(str(path), f"flush_rows must be >= 1, got {flush_rows}")
         header = format_header(self.variables, tsamp, created or datetime.now()).encode("ascii")
-        # append_row's way: the logged columns picked out of a full row, one `%` format.
-        self._columns = tuple(LOG_VARIABLES.index(name) for name in self.variables)
+        # append_row's way: the logged columns picked out of a full row (in C), one `%` format.
+        columns = [LOG_VARIABLES.index(name) for name in self.variables]
+        pick = itemgetter(*columns)
+        self._pick: Callable[[Sequence[float]], tuple[float, ...]] = (
+            pick if len(columns) > 1 else lambda row: (pick(row),))
         self._row_format = COLUMN_SEPARATOR.join(["%f"] * len(self.variables)) + "\n"
         self.path = Path(path)
         self.tsamp = float(tsamp)
@@ -162,6 +166,7 @@ class LogWriter:
         fd, self.partial_path, self.recovered = _claim_partial(self.path)
         self._file = open(fd, "wb", buffering=0)  # holds the lock until closed
         self._size = 0  # bytes of whole lines in the file
+        self._kept = 0  # whole lines of the last write that failed part-way
         self._rows_written = 0
         try:
             self._write(header)
@@ -203,7 +208,7 @@ class LogWriter:
         is 20,000 rows a second)."""
         if not self._writing:
             return False
-        line = self._row_format % tuple([row[i] for i in self._columns])
+        line = self._row_format % self._pick(row)
         # %f writes digits, '.', '-' and spaces; an 'n' is a nan or an inf, which
         # append refuses, and "-0.000000" is what _f writes unsigned: append's way.
         if "n" in line or "-0.000000" in line:
@@ -260,6 +265,7 @@ class LogWriter:
                 self._last_sync = now
         except OSError as exc:
             self._writing = False
+            self._rows_written += self._kept  # the whole lines the disk took, of a batch
             self._pending.clear()
             self.rows = self._rows_written
             self.error = (f"cannot write ({exc.strerror or exc}): logging stopped; "
@@ -267,16 +273,27 @@ class LogWriter:
             raise LogFileError(str(self.path), self.error) from None
 
     def _write(self, data: bytes) -> None:
-        """Append `data` whole or not at all: a short write is undone."""
+        """Append `data` (whole lines); a write that fails part-way keeps the whole
+        lines written before it (`_kept`, of a batch of rows: those the disk took)
+        and cuts the rest off, so the file never ends in a torn line."""
         view = memoryview(data)
+        written = 0
+        self._kept = 0
         try:
-            while view:
-                view = view[self._file.write(view):]
+            while written < len(data):
+                written += self._file.write(view[written:])
         except OSError:
+            whole = data.rfind(b"\n", 0, written) + 1
             try:
-                os.ftruncate(self._file.fileno(), self._size)
+                os.ftruncate(self._file.fileno(), self._size + whole)
             except OSError:
-                pass
+                whole = 0  # cut back as far as it goes: the size the file had
+                try:
+                    os.ftruncate(self._file.fileno(), self._size)
+                except OSError:
+                    pass
+            self._size += whole
+            self._kept = data.count(b"\n", 0, whole)
             raise
         self._size += len(data)
 

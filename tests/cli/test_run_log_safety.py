@@ -130,6 +130,22 @@ def test_disk_full_leaves_whole_rows_and_says_how_many(tmp_path: Path) -> None:
     assert read_log(w.save()).rows == 2
 
 
+def test_a_batch_of_rows_the_disk_fills_in_keeps_the_whole_rows_it_took(tmp_path: Path) -> None:
+    # The file thread (and an inline drive) writes the rows of a millisecond in one
+    # write: the disk taking three and a half of five keeps three, not none.
+    w = LogWriter(tmp_path / "full.log", ("y1", "u1"), 1.0, 100, created=datetime(2000, 1, 1))
+    w.append({"y1": 0.1, "u1": 0.1})
+    w._file = _FullDisk(w._file, room=3 * 18 + 9)  # type: ignore[assignment]
+    with pytest.raises(LogFileError, match=r"the 4 whole rows written are kept"):
+        with w.held():
+            for k in range(2, 7):
+                w.append_row((0.0, k / 10, 0.0, 0.0, 0.0, k / 10, 0.0, 0.0, 0.0))
+    assert (w.running, w.rows) == (False, 4)
+    text = w.partial_path.read_text()
+    assert text.endswith("\n0.100000  0.100000\n0.200000  0.200000\n0.300000  0.300000\n0.400000  0.400000\n")
+    assert read_log(w.save()).rows == 4
+
+
 def test_a_run_whose_disk_fills_exits_non_zero_and_keeps_whole_rows(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     real_open = open

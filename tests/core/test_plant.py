@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -166,3 +167,23 @@ def test_film_outflow_is_c1_continuous_and_invertible() -> None:
     assert outflow(12.4, a, g) == torricelli(12.4)  # the paper's law above the film
     for h in (0.0, 1e-4, 0.002, 0.0049, 0.005, 0.3, 12.4):
         assert _level_for_outflow(outflow(h, a, g), a, g) == pytest.approx(h, abs=1e-12)
+
+
+@pytest.mark.parametrize("volts, dt", [((5.0, 6.0), 0.05), ((12.0, 12.0), 0.05), ((0.0, 0.0), 0.05), ((5.0, 6.0), 3.0)])
+def test_a_step_from_where_the_last_one_ended_is_the_step_from_those_levels(volts: tuple[float, float],
+                                                                            dt: float) -> None:
+    # advance starts from its last end (the flows and the slope there, First Same
+    # As Last) when given the tuple it returned with the same plant and inputs; a
+    # copy of the levels and of the plant takes the long way. Bit for bit the same, every step:
+    # filling to the brim, draining to empty, sub-steps within one call, and the
+    # inputs changing every third step (nothing carried over then).
+    p = P_MINUS.params
+    carried = [(1.0, 2.0, 0.0, 19.9)]
+    for k in range(400):
+        carried.append(advance(carried[-1], volts if k % 3 else (volts[1], volts[0]), dt, p))
+    fresh = [(1.0, 2.0, 0.0, 19.9)]
+    for k in range(400):  # each step with a copy of the levels and of the plant (equal constants, another object)
+        fresh.append(advance(tuple(list(fresh[-1])), volts if k % 3 else (volts[1], volts[0]), dt,
+                             dataclasses.replace(p)))
+    assert carried == fresh
+    assert len(set(carried)) > 100

@@ -94,3 +94,25 @@ def _counting(flush: Callable[[FileWorker], None], calls: list[int]) -> Callable
             calls.append(len(self._batch))  # noqa: SLF001
         flush(self)
     return counted
+
+
+def test_an_inline_drive_writes_its_rows_in_batches_and_holds_none_when_it_ends(
+        make_engine: Callable[..., Engine], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # quadtank run as fast as possible: the rows of a BATCH_WINDOW go in one
+    # write(2), as to the file thread; once the drive is over, every row is in the
+    # partial file (a reader, a crash, the next LoadPar find them all).
+    engine = make_engine()
+    engine.submit(SetState("Run"))
+    assert engine.submit(LogOn(points=1000)).result(5).ok
+    batches: list[int] = []
+    monkeypatch.setattr(filework, "BATCH_WINDOW", 1e9)  # only the first row goes on its own
+    monkeypatch.setattr(FileWorker, "flush", _counting(FileWorker.flush, batches))
+    engine.run_for(30.0)                                   # 300 samples of 0.1 s
+    assert batches == [1, 299]
+    assert not engine.loop.files.batches                   # inline and at once again
+    partial = next((tmp_path / "logs").glob("*.partial"))
+    rows = [line for line in partial.read_bytes().splitlines() if line and not line.startswith(b"%")]
+    assert len(rows) == 300
+    engine.loop.step()                                     # a step outside a drive: written at once
+    rows = [line for line in partial.read_bytes().splitlines() if line and not line.startswith(b"%")]
+    assert len(rows) == 301
