@@ -7,6 +7,7 @@ import itertools
 import os
 import shutil
 import signal
+import socket
 import time
 from pathlib import Path
 from types import ModuleType
@@ -52,6 +53,16 @@ def poll(condition: Callable[[], bool], timeout: float, every: float = 0.05) -> 
 @pytest.fixture(name="poll")
 def poll_fixture() -> Callable[..., bool]:
     return poll
+
+
+@pytest.fixture
+def unused_port() -> Iterator[int]:
+    """A loopback TCP port nobody listens on, bound (never listening) for the test's
+    time: a connection to it is refused, and no rig or server of a test running at
+    the same time takes it meanwhile, as it could a port found free and let go."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        yield int(s.getsockname()[1])
 
 
 #: The environment variable that marks a test's processes: the test process sets it
