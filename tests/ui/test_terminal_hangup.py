@@ -189,7 +189,7 @@ def _wait_gone(pids: list[int], within: float) -> float:
 
 # On a busy machine the TUI may not close in order within terminal_watch.GRACE (0.8 s):
 # the watch's fallback then ends it, saying why as well (at load 5-7 it had ended it
-# without the line, in 3 of 5 runs of the wallclock tests on both cores).
+# without the line, in 3 of 6 runs of the wallclock tests on both cores).
 @pytest.mark.parametrize("how, shell, status", [
     ("hang-up under a shell that keeps SIGHUP (make run)", True, 129),
     ("SIGHUP", False, 129),  # what the TUI gets from a hang-up when it leads the session
