@@ -18,10 +18,11 @@ run: $(STAMP)
 
 # The suite in two parts (docs/development.md): the tests off the wall clock on every
 # core (pytest-xdist: `-n auto` is a worker a core, none on a single core), then the
-# `wallclock` tests one at a time with nothing else running, as their bounds expect.
+# `wallclock` tests among themselves, on every core too (they mostly wait); a test
+# marked `alone` (a bound another test beside it would miss) runs with none beside it.
 test: $(STAMP)
 	$(BIN)/python -m pytest -n auto -m "not wallclock" --durations=25
-	$(BIN)/python -m pytest -n 0 -m wallclock --durations=10
+	$(BIN)/python -m pytest -n auto -m wallclock --durations=10
 
 # Errors (ruff), types (mypy, pyproject's options: the package, its tests and the
 # benchmarks; then each folder's conftest.py alone, as they are all named `conftest`),

@@ -336,7 +336,7 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     pause_gc()
     engine, app = build_tui(args)
     warn(engine.warnings)
-    watch = TerminalWatch(app.exit_soon, engine.stop)
+    watch = TerminalWatch(app.exit_soon, engine.stop, farewell=_stopped_by)
     hold = getattr(args, "daq_hold", None)  # the rig's lock (main takes it): lost, the TUI ends
     if hold is not None:
         hold.watch(lambda why: app.exit_soon(1))
@@ -352,10 +352,16 @@ def _cmd_tui(args: argparse.Namespace) -> int:
         engine.stop()  # stops the private session: the loop, pumps to 0
         slow.cancel()
     if watch.reason is not None:
-        _say(f"quadtank: stopped: {watch.reason}")
+        _stopped_by(watch.reason)
     if hold is not None and hold.lost_reason is not None:
         _say(f"quadtank: stopped (pumps at 0): {hold.lost_reason}")
     return app.return_code or watch.status
+
+
+def _stopped_by(reason: str) -> None:
+    """The TUI's last line when its terminal went away ("SIGTERM", "the terminal hung
+    up"): after an exit in order, or from the watch that ended it (TerminalWatch)."""
+    _say(f"quadtank: stopped: {reason}")
 
 
 def build_parser() -> argparse.ArgumentParser:

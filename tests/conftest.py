@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import importlib.util
 import itertools
 import os
 import shutil
 import signal
+import socket
 import time
 from pathlib import Path
 from types import ModuleType
@@ -39,6 +42,44 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.wallclock)
 
 
+@pytest.fixture(autouse=True)
+def _alone_when_marked(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """Under pytest-xdist, a test marked `alone` runs while no other test of the run
+    does, and the others wait for it (a lock every test takes before its fixtures
+    start anything: shared, or exclusive for an `alone` one).  `make test` runs the
+    wallclock tests on every core; an `alone` one is a bound that another test's
+    processes beside it would miss (a grace of 0.8 s, a sample's jitter under h/2),
+    the test says which.  Serially (no xdist worker) there is nothing to wait for."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        yield
+        return
+    with _turn(tmp_path_factory.getbasetemp().parent, request.node.get_closest_marker("alone") is not None):
+        yield
+
+
+@contextlib.contextmanager
+def _turn(folder: Path, alone: bool) -> Iterator[None]:
+    """A readers-writer lock across the run's workers (flock on two files in the
+    run's temporary folder, which the workers share).  The gate: an `alone` test
+    holds it from its request to its end, so no test starts meanwhile and the
+    tests already running finish (flock alone would let new shared holders in
+    ahead of a waiting exclusive one for ever)."""
+    gate = os.open(folder / "alone.gate", os.O_RDWR | os.O_CREAT, 0o600)
+    turn = os.open(folder / "alone.turn", os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        if alone:
+            fcntl.flock(gate, fcntl.LOCK_EX)
+            fcntl.flock(turn, fcntl.LOCK_EX)
+        else:
+            fcntl.flock(gate, fcntl.LOCK_SH)
+            fcntl.flock(turn, fcntl.LOCK_SH)
+            fcntl.flock(gate, fcntl.LOCK_UN)
+        yield
+    finally:
+        os.close(turn)  # closing drops the flocks
+        os.close(gate)
+
+
 def poll(condition: Callable[[], bool], timeout: float, every: float = 0.05) -> bool:
     """True as soon as `condition()` holds; False after `timeout` s of trying."""
     deadline = time.monotonic() + timeout
@@ -52,6 +93,16 @@ def poll(condition: Callable[[], bool], timeout: float, every: float = 0.05) -> 
 @pytest.fixture(name="poll")
 def poll_fixture() -> Callable[..., bool]:
     return poll
+
+
+@pytest.fixture
+def unused_port() -> Iterator[int]:
+    """A loopback TCP port nobody listens on, bound (never listening) for the test's
+    time: a connection to it is refused, and no rig or server of a test running at
+    the same time takes it meanwhile, as it could a port found free and let go."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        yield int(s.getsockname()[1])
 
 
 #: The environment variable that marks a test's processes: the test process sets it

@@ -324,7 +324,7 @@ def run_tui_on(client: SessionClient, refresh: float) -> int:
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
     app = build_app(client, refresh_interval=refresh, resume_gc=not gc.isenabled(), read_on=client.read_on)
-    watch = TerminalWatch(app.exit_soon, client.close)
+    watch = TerminalWatch(app.exit_soon, client.close, farewell=lambda why: _say(after_the_screen(client, why)))
     watch.start()
     try:
         app.run()

@@ -13,8 +13,10 @@ or stdout, which poll reports without reading a byte of the user's input), SIGHU
 SIGTERM - and asks the app to exit in order, as its Exit does (the terminal put
 back as it was; the caller then stops the loop: pumps at 0, the log kept).  If the
 app has not closed within `grace` seconds (its writer blocked on a dead terminal,
-say), the watch puts the terminal back itself, stops the engine and ends the
-process: the program never outlives its terminal by more than about a second.
+say, or a machine too busy to close it that fast), the watch puts the terminal back
+itself, stops the engine, says why the program stopped (the line the caller would
+have printed: `farewell`) and ends the process: the program never outlives its
+terminal by more than about a second, and never ends without saying why.
 """
 
 from __future__ import annotations
@@ -48,14 +50,19 @@ class TerminalWatch:
     stop_engine() : stops the loop (pumps at 0); used only when the app does not
         close within `grace`.
     fds : the terminal's file descriptors to watch for a hang-up.
+    farewell(reason) : says why the program stopped ("SIGTERM", "the terminal hung
+        up"), as the caller does after an exit in order; used only when the app does
+        not close within `grace` (the process then ends without coming back).
     """
 
     def __init__(self, request_exit: Callable[[int], None], stop_engine: Callable[[], None], *,
                  fds: Sequence[int] = (0, 1), grace: float = GRACE,
                  stop_signals: Sequence[signal.Signals] = (signal.SIGHUP, signal.SIGTERM),
-                 end_process: Callable[[int], None] = os._exit) -> None:
+                 end_process: Callable[[int], None] = os._exit,
+                 farewell: Callable[[str], None] = lambda reason: None) -> None:
         self._request_exit = request_exit
         self._stop_engine = stop_engine
+        self._farewell = farewell
         self._fds = tuple(fds)
         self._grace = grace
         self._signals = tuple(stop_signals)
@@ -153,6 +160,10 @@ class TerminalWatch:
         stopper = threading.Thread(target=self._stop_engine, name="quadtank-stop", daemon=True)
         stopper.start()
         stopper.join(STOP_GRACE)
+        try:  # (the app may have closed meanwhile: the caller's line may come too, or be cut by the end)
+            self._farewell(reason)
+        except Exception:  # noqa: BLE001 - a farewell that fails must not keep the process
+            pass
         self._end_process(status)
 
     def restore_terminal(self) -> None:

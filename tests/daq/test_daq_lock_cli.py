@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import textwrap
@@ -40,10 +39,13 @@ def config_for(tmp_path: Path, port: int) -> Path:
     return path
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+def logged(partial: Path, rows: int) -> bool:
+    """Whether the run's partial log holds `rows` rows yet (not there yet, or its
+    header half-written: not yet)."""
+    try:
+        return read_log(partial).rows >= rows
+    except (OSError, ValueError):
+        return False
 
 
 def holder_pid(port: int) -> int | None:
@@ -85,10 +87,10 @@ def holding(tmp_path: Path):
 ], ids=["run", "global-daq-run", "tui", "calibrate"])
 def test_a_second_program_is_refused_naming_the_holder(argv: list[str], tmp_path: Path, holding: Callable,
                                                        monkeypatch: pytest.MonkeyPatch,
-                                                       capsys: pytest.CaptureFixture[str]) -> None:
+                                                       capsys: pytest.CaptureFixture[str], unused_port: int) -> None:
     from quadtank_tui.daq import modbus
 
-    port = free_port()
+    port = unused_port
     child = holding(port)
     since = datetime.now()
     opened: list[object] = []
@@ -107,9 +109,9 @@ def test_a_second_program_is_refused_naming_the_holder(argv: list[str], tmp_path
 
 
 def test_calibrate_from_pairs_takes_no_lock(tmp_path: Path, holding: Callable,
-                                            capsys: pytest.CaptureFixture[str]) -> None:
+                                            capsys: pytest.CaptureFixture[str], unused_port: int) -> None:
     """Fitting pairs from a file drives nothing: the rig may be in use meanwhile."""
-    port = free_port()
+    port = unused_port
     holding(port)
     pairs = tmp_path / "pairs.txt"
     pairs.write_text("u1 volts1 level1\n4 0.5864 3.5\n5 1.3422 7.5\n6 2.2396 12.25\n")
@@ -174,7 +176,7 @@ def test_a_student_may_not_take_over_an_administrator_may(rig: Callable, poll: C
     partial = first_log.with_name("first.log.partial")
     try:
         assert poll(lambda: holder_pid(r.port) == child.pid, 60.0)
-        assert poll(lambda: partial.exists() and read_log(partial).rows >= 5, 60.0)  # it drives the rig
+        assert poll(lambda: logged(partial, 5), 60.0)  # it drives the rig
         out = tmp_path / "second.log"
         argv = ["run", "--daq", str(cfg), "--realtime", "--duration", "1", "--log", str(out), "--par", PAR,
                 "--take-over"]
@@ -239,12 +241,12 @@ class FakeApp:
 
 
 def test_the_tui_ends_when_its_rig_is_taken_over(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                 capsys: pytest.CaptureFixture[str]) -> None:
+                                                 capsys: pytest.CaptureFixture[str], unused_port: int) -> None:
     """The TUI holds the lock for its whole run; taken over, it exits (status 1), its
     engine stopped (pumps at 0), saying who took the rig; the new holder keeps it."""
     import threading
 
-    port = free_port()
+    port = unused_port
     engine, app = FakeEngine(), FakeApp()
     running = threading.Event()
 
@@ -278,7 +280,7 @@ def test_a_terminated_run_gives_the_rig_back(rig: Callable, poll: Callable, tmp_
     child = run_in_child(cfg, tmp_path / "first.log")
     partial = tmp_path / "first.log.partial"
     try:
-        assert poll(lambda: partial.exists() and read_log(partial).rows >= 3, 60.0)  # under way
+        assert poll(lambda: logged(partial, 3), 60.0)  # under way
         assert holder_pid(r.port) == child.pid
         child.terminate()
         assert child.wait(60) == 143

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import os
+import select
+import sys
+
 import pytest
 
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.commands import IST_PLANT, IST_VOLTS
 from quadtank_tui.daq.ist.config import IstConfig
-from quadtank_tui.daq.ist.device import Firmware
+from quadtank_tui.daq.ist.device import Firmware, PtyDevice
 from quadtank_tui.core.plant import steady_state_levels
 
 LEVELS = steady_state_levels(IST_VOLTS, IST_PLANT)
@@ -68,6 +72,37 @@ def test_opening_the_port_resets_the_nano() -> None:
     assert fw.feed(b"$") == b""          # the bootloader hears nothing
     clock[0] = 0.6
     assert len(fw.feed(b"$")) == 14
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a Linux pty")
+def test_a_late_pass_of_the_pty_device_counts_the_reset_from_when_the_port_was_closed() -> None:
+    """The serving thread learns of the host's opening at its next pass, which a
+    loaded machine may hold up past the reset (a fresh-clone CI, two tests side by
+    side): the host, having waited its open_wait, has sent its '$' by then.  The reset
+    counts from the last pass that saw the port closed, so that '$' is answered; one
+    sent within the reset of that moment is still lost, as the bootloader loses it.
+    Passes by hand on a test clock (serve_once), the host a plain file descriptor."""
+    clock = [0.0]
+    fw = Firmware(IstConfig(port=""), IST_PLANT, LEVELS, clock=lambda: clock[0], reset_s=0.05)
+    device = PtyDevice(fw)
+    try:
+        device.serve_once(wait=0.01)     # nobody has the port open (EIO) at t = 0
+        host = os.open(device.path, os.O_RDWR | os.O_NOCTTY)
+        clock[0] = 0.1                   # the host waited its open_wait; the thread made no pass
+        os.write(host, b"$")
+        device.serve_once(wait=5.0)      # sees the opening and the '$' together
+        assert select.select([host], [], [], 5.0)[0]
+        assert p.parse_levels_reply(os.read(host, 64))[4] == 26667 and fw.requests == 1
+        os.close(host)
+        device.serve_once(wait=0.01)     # closed again (EIO) at t = 0.1
+        host = os.open(device.path, os.O_RDWR | os.O_NOCTTY)
+        clock[0] = 0.14                  # within the reset of the moment the port was closed
+        os.write(host, b"$")
+        device.serve_once(wait=5.0)
+        assert bytes(device.received) == b"$$" and fw.requests == 1  # heard by the bootloader only
+        os.close(host)
+    finally:
+        device.close()
 
 
 def test_pumps_and_disturbances_drive_the_model() -> None:

@@ -169,21 +169,23 @@ def test_cable_cut_times_out_and_the_rig_watchdog_stops_the_pumps(
 ) -> None:
     """The link goes silent (no reset): each try waits out the timeout, the sample
     fails with the reason, safe_state cannot reach the rig either, and the rig's own
-    watchdog is what stops its pumps.  Reconnected, the next sample works."""
+    watchdog is what stops its pumps.  Reconnected, the next sample works (within
+    the timeout of 0.5 s: a new connection through the relay's threads and the
+    rig's answer; at 0.2 s it missed it at load 5, another test beside it)."""
     r = rig("--watchdog", "0.5")
     proxy = link_proxy(r.port)
-    backend = ModbusBackend(r.config(timeout=0.2, port=proxy.port))
+    backend = ModbusBackend(r.config(timeout=0.5, port=proxy.port))
     try:
         backend.read_levels()
         backend.write_pumps((0.4, 0.4))
         assert r.dacs() == pytest.approx((4.0, 4.0))
         proxy.cut.set()
         t0 = time.monotonic()
-        with pytest.raises(BackendError, match=r"read of AIN0..AIN3 .* failed: no answer within 0.2 s$"):
+        with pytest.raises(BackendError, match=r"read of AIN0..AIN3 .* failed: no answer within 0.5 s$"):
             backend.read_levels()
-        assert 0.19 < time.monotonic() - t0 < 5.0       # one try of 0.2 s: a silence is not waited twice
+        assert 0.49 < time.monotonic() - t0 < 5.0       # one try of 0.5 s: a silence is not waited twice
         backend.safe_state()
-        assert "no answer within 0.2 s" in backend.safe_state_error
+        assert "no answer within 0.5 s" in backend.safe_state_error
         assert poll(lambda: r.dacs() == (0.0, 0.0), timeout=30.0)  # the rig's firmware
         proxy.cut.clear()
         assert len(backend.read_levels()) == 4

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import sys
 from pathlib import Path
 from typing import Any, Callable
@@ -31,20 +30,14 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="us
 ROOT = Path(__file__).parents[2]
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def test_your_own_session_on_the_rig_is_attached_to(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                     capsys: pytest.CaptureFixture[str],
-                                                    poll: Callable[..., bool]) -> None:
+                                                    poll: Callable[..., bool], unused_port: int) -> None:
     runtime = tmp_path / "run"
     monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
     monkeypatch.delenv("QUADTANK_LAB", raising=False)
     monkeypatch.chdir(tmp_path)
-    port = free_port()
+    port = unused_port  # bound, never listening: no rig answers, none of another test
     text = (ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {port}")
     cfg, named = tmp_path / "rig.yaml", tmp_path / "rig-by-name.yaml"
     cfg.write_text(text)

@@ -15,7 +15,10 @@ the commit protocol.py cites), on an injected clock:
 - every pass of the loop: no ``$`` for more than 2 s sets all four pumps to 0 (so a
   pump frame without a recent ``$`` is undone at once);
 - opening the port resets the Nano: for `reset_s` it hears nothing (the bootloader),
-  then starts with the pumps off.
+  then starts with the pumps off.  The pseudo-terminal tells the serving thread of an
+  opening only at its next pass, so the reset is counted from the last moment the
+  port was seen closed, the earliest the host can have opened it (PtyDevice): a
+  host that waited its `open_wait` is never refused because this thread was late.
 
 The plant is core.plant's quadruple tank (the .par's constants) driven by the
 pumps' volts of the identified law (protocol.PumpCurve.volts of each PWM code); the
@@ -97,11 +100,13 @@ class Firmware:
         """In the middle of a pump frame: the loop waits for its bytes, watchdog included."""
         return self._frame is not None
 
-    def reset(self) -> None:
-        """The port was opened (DTR): the Nano restarts, pumps off, deaf for `reset_s`."""
+    def reset(self, opened_at: float | None = None) -> None:
+        """The port was opened (DTR) at `opened_at` (the clock's time; now if None):
+        the Nano restarts, pumps off, deaf for `reset_s` from then."""
         self._advance()
         self.pwm, self._frame = (0, 0, 0, 0), None
-        self._booted_at = self._prev_com = self._t + self.reset_s
+        since = self._t if opened_at is None else min(opened_at, self._t)
+        self._booted_at = self._prev_com = since + self.reset_s
 
     def feed(self, data: bytes) -> bytes:
         """The bytes the host sent; returns the firmware's answers."""
@@ -172,7 +177,15 @@ class Firmware:
 
 
 class PtyDevice:
-    """A pseudo-terminal whose far end is `firmware`: `path` is what the host opens."""
+    """A pseudo-terminal whose far end is `firmware`: `path` is what the host opens.
+
+    The host's opening is seen at the next pass (a read no longer fails with EIO),
+    which a loaded machine may hold up for longer than the Nano's reset: the host,
+    having waited its `open_wait`, has sent its first '$' by then.  So the reset is
+    counted from the last pass that saw the port closed (`_closed_at`), the earliest
+    the host can have opened it.  Counted from the pass that saw the opening, a
+    thread held 0.2 s lost that '$' though the host had waited twice the reset: a
+    "no answer" fault, the pumps left at 0 (two tests side by side in a CI run)."""
 
     def __init__(self, firmware: Firmware) -> None:
         self.firmware = firmware
@@ -181,6 +194,8 @@ class PtyDevice:
         self.path = os.ttyname(slave)
         os.close(slave)  # the host's open is then seen (EIO ends): the Nano's reset
         self._host = False
+        #: the firmware's time when the port was last seen closed (nobody had it open)
+        self._closed_at = firmware.clock()
         #: every byte the host sent, in order (tests read it)
         self.received = bytearray()
 
@@ -199,8 +214,8 @@ class PtyDevice:
         except OSError as exc:
             if exc.errno != errno.EIO:
                 raise
-            if self._host:  # the host closed the port
-                self._host = False
+            self._host = False  # nobody has the port open (the host closed it, or never opened it)
+            self._closed_at = self.firmware.clock()
             time.sleep(wait)  # nobody has the port open: EIO until someone does
             self.firmware.tick()
             return
@@ -213,7 +228,7 @@ class PtyDevice:
     def _opened(self) -> None:
         if not self._host:
             self._host = True
-            self.firmware.reset()
+            self.firmware.reset(opened_at=self._closed_at)
 
     def close(self) -> None:
         os.close(self.master)
