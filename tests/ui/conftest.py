@@ -14,6 +14,8 @@ from typing import Any, Callable, Iterator
 
 import pytest
 import textual._wait as textual_wait
+from textual.css.model import RuleSet
+from textual.css.stylesheet import Stylesheet
 
 # The tests import uikit and bursts from this folder (pytest's importlib mode
 # does not put the test folder on sys.path).
@@ -71,6 +73,33 @@ def _idle_is_seen_in_5_ms_windows(monkeypatch: pytest.MonkeyPatch) -> None:
     1 s maximum."""
     monkeypatch.setattr(textual_wait, "SLEEP_GRANULARITY", 0.005)
     monkeypatch.setattr(textual_wait, "SLEEP_IDLE", 0.005 / 20)
+
+
+#: Parsed stylesheets, for every app of the session (see _stylesheets_parsed_once).
+_PARSED: dict[tuple[object, ...], list[RuleSet]] = {}
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _stylesheets_parsed_once() -> Iterator[None]:
+    """Each test builds a new app, and Textual parses every stylesheet again for
+    it (the app's files, each widget's DEFAULT_CSS; its cache is the app's): here
+    what was parsed once, for the same CSS text, origin and variables (the theme),
+    is reused by the later apps, as one app reuses it.  The tests still check the
+    app's own stylesheet: the first app of each worker parses it, and a CSS error
+    fails there.  About 3 % of the UI tests' CPU time."""
+    parse_rules = Stylesheet._parse_rules
+
+    def parsed_once(self: Stylesheet, css: str, read_from: Any, is_default_rules: bool = False,
+                    tie_breaker: int = 0, scope: str = "") -> list[RuleSet]:
+        key = (css, read_from, is_default_rules, tie_breaker, scope, tuple(sorted(self._variables.items())))
+        rules = _PARSED.get(key)
+        if rules is None:
+            rules = _PARSED[key] = parse_rules(self, css, read_from, is_default_rules, tie_breaker, scope)
+        return rules
+
+    Stylesheet._parse_rules = parsed_once  # type: ignore[method-assign]
+    yield
+    Stylesheet._parse_rules = parse_rules  # type: ignore[method-assign]
 
 
 @pytest.fixture

@@ -11,7 +11,7 @@ from quadtank_tui.ui.screens.design import DesignScreen
 from quadtank_tui.ui.screens.main import MainScreen
 from quadtank_tui.ui.widgets.controller_box import ControllerBox
 
-from uikit import make_app  # noqa: E402
+from uikit import make_app, workers_done  # noqa: E402
 
 
 @pytest.fixture
@@ -25,7 +25,7 @@ async def _open(pilot) -> DesignScreen:
     await pilot.pause()
     screen = pilot.app.screen
     assert isinstance(screen, DesignScreen)
-    await pilot.app.workers.wait_for_complete()
+    await workers_done(pilot.app)
     await pilot.pause()
     return screen
 
@@ -36,7 +36,7 @@ async def _type_model(pilot, screen: DesignScreen, loop: int, text: str) -> None
     box.value = ""
     box.focus()
     await pilot.press(*text, "enter")
-    await pilot.app.workers.wait_for_complete()
+    await workers_done(pilot.app)
     await pilot.pause()
 
 
@@ -49,7 +49,7 @@ async def _apply_through_the_preview(pilot, *, confirm: bool = False) -> None:
     await pilot.press("A")
     await pilot.pause()
     assert isinstance(pilot.app.screen, DesignPreviewWindow)
-    await pilot.app.workers.wait_for_complete()
+    await workers_done(pilot.app)
     await pilot.pause()
     assert pilot.app.screen.result is not None
     await pilot.press("enter")
@@ -72,7 +72,7 @@ async def test_design_2x2_apply_shows_in_the_controller_box(app, engine) -> None
         assert screen.query_one("#model-1", Input).value == "2.61/(62.7*s+1)"  # gain, time constant
         assert screen.query_one("#design-table", DataTable).row_count == 9
         await pilot.press("2")
-        await app.workers.wait_for_complete()
+        await workers_done(app)
         await pilot.pause()
         mimo = str(screen.query_one("#design-mimo", Static).render())
         assert "closed loop stable" in mimo

@@ -17,7 +17,6 @@ from typing import Any
 import numpy as np
 import pytest
 from textual.widgets import Input, Static
-from textual.worker import WorkerCancelled
 
 from quadtank_tui.core.design.preview import STEP
 from quadtank_tui.core.design.sampled_eval import CHATTER_SHARE, reversals
@@ -30,7 +29,7 @@ from quadtank_tui.ui.windows.base import ChoiceWindow
 from quadtank_tui.ui.windows.design_preview import DesignPreviewWindow
 
 from bursts import burst  # noqa: E402
-from uikit import make_app  # noqa: E402
+from uikit import make_app, workers_done  # noqa: E402
 import test_identify_screen  # noqa: E402
 from test_identify_screen import fit_both, simo_logs  # noqa: E402
 
@@ -42,12 +41,7 @@ async def settle(pilot: Any) -> None:
     """Until every worker is done; an exclusive worker (the plots) that a newer one
     cancelled while we waited is not a failure."""
     await pilot.pause()
-    while True:
-        try:
-            await pilot.app.workers.wait_for_complete()
-            break
-        except WorkerCancelled:
-            continue
+    await workers_done(pilot.app)
     await pilot.pause()
 
 

@@ -11,6 +11,7 @@ from quadtank_tui.engine.commands import Command, LogOn, LogSave, NudgeMean, Set
 from quadtank_tui.engine.runner import Engine
 from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.ui.screens.setup import SetupScreen
+from quadtank_tui.ui.widgets.setup_tables import ProcessTable
 
 from uikit import make_app, manual_engine, open_setup  # noqa: E402
 from quadtank_tui.ui.screens.main import MainScreen
@@ -97,3 +98,47 @@ async def test_a_sampling_time_change_mid_run_is_bumpless(setup_engine: Engine) 
     allowed = 2 * typical * 0.5 / 0.1
     assert abs(u1[change + 1] - u1[change]) < allowed and abs(u2[change + 1] - u2[change]) < allowed
     assert t[-1] == pytest.approx(44.5)  # 400 samples of 0.1 s, then 10 of 0.5 s
+
+
+async def test_setup_is_built_once_and_shows_what_changed_while_away(setup_engine: Engine) -> None:
+    # Main keeps the Setup screen between visits (composing it again cost 230-390 ms
+    # at each S): coming back it shows the parameters in use now, not those of the
+    # last visit, at the terminal's size now, with no table chosen.
+    engine = setup_engine
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await open_setup(pilot)
+        setup = app.screen
+        assert isinstance(setup, SetupScreen)
+        assert "100 ms" in str(setup.query_one("#sampling").render())
+        assert not setup.has_class("-compact")
+        await pilot.press("h")  # the process table chosen, then back to Main
+        assert app.focused is setup.query_one("#process")
+        await pilot.press("escape")
+        await pilot.pause()
+        assert isinstance(app.screen, MainScreen)
+        # Changed while away: a file loaded, another client's Set, the terminal.
+        ok(engine, SetParams({"SAMPLING TIME.TSamp": 200, "SIMULATION.Valve1": 0.5}))
+        ok(engine, SetState("Run"))
+        engine.run_for(3.0)
+        await pilot.resize_terminal(100, 30)
+        await pilot.pause()
+        await pilot.press("S")
+        await pilot.pause()
+        assert app.screen is setup  # the same screen, not built again
+        assert "200 ms" in str(setup.query_one("#sampling").render())
+        assert "t = 3.0 s" in str(setup.query_one("#setup-status").render())
+        process = setup.query_one("#process", ProcessTable)
+        assert process.params == engine.snapshot().params
+        assert str(process.get_row_at(0)[-1]) == "0.50", process.get_row_at(0)  # tank 1: gamma 1
+        assert setup.has_class("-compact") and app.focused is None
+        # Its timer runs again (every 0.25 s): a sample taken while it is in front shows.
+        engine.run_for(1.0)
+        for _ in range(50):  # 0.3 s on an idle machine; a loaded one may take longer
+            await pilot.pause(0.1)
+            if "t = 4.0 s" in str(setup.query_one("#setup-status").render()):
+                break
+        assert "t = 4.0 s" in str(setup.query_one("#setup-status").render())
+        await pilot.press("S")
+        await pilot.pause()
+        assert isinstance(app.screen, MainScreen)

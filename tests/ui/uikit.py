@@ -15,6 +15,7 @@ from typing import Any
 
 from rich.text import Text
 from textual.widget import Widget
+from textual.worker import WorkerCancelled
 
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.commands import Command
@@ -67,6 +68,17 @@ async def open_setup(pilot: Any) -> None:
     await pilot.pause()
     await pilot.press("S")
     await pilot.pause()
+
+
+async def workers_done(app: Any) -> None:
+    """Until every worker is done; an exclusive worker (the Design screen's plots)
+    that a newer one cancelled while we waited is not a failure."""
+    while True:
+        try:
+            await app.workers.wait_for_complete()
+            return
+        except WorkerCancelled:
+            continue
 
 
 def plot_text(widget: Widget) -> str:

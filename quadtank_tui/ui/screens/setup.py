@@ -135,6 +135,8 @@ class SetupScreen(CommandSender):
         self.snap: Snapshot = engine.snapshot()
         #: The name last used in the Parameters window (offered again next time).
         self.par_name = ""
+        #: Back on Main (action_main), to come back on the next visit.
+        self._away = False
 
     def compose(self) -> ComposeResult:
         yield Static(id="setup-status")
@@ -156,7 +158,16 @@ class SetupScreen(CommandSender):
         self.query_one("#setup-image").border_title = "Operating point"
         self.query_one("#analysis").border_title = "At the operating point"
         self.refresh_view(force=True)
-        self.set_interval(self.refresh_interval, self._tick)
+        self._timer = self.set_interval(self.refresh_interval, self._tick)
+
+    def on_screen_resume(self) -> None:
+        """Back from Main (Main keeps this screen between visits): what changed while
+        away (a parameter set on Main, a file loaded) shown at once, the timer again.
+        Not on a window's closing: the timer kept the screen up to date under it."""
+        if self._away:
+            self._away = False
+            self.refresh_view()
+            self._timer.resume()
 
     # --- attributes down ----------------------------------------------------------------
 
@@ -288,6 +299,11 @@ class SetupScreen(CommandSender):
     # --- back to Main ---------------------------------------------------------------------------
 
     def action_main(self) -> None:
+        """Back to Main; the screen is kept for the next visit, idle (no timer), and
+        opens again as on the first one, with no table chosen."""
+        self._timer.pause()
+        self._away = True
+        self.set_focus(None)
         self.dismiss(None)
 
 
