@@ -123,6 +123,7 @@ KEY_SECTIONS = {
     "Window": "Every window",
     "ParamWindow": "Every window",
     "ConfirmWindow": "Every window",
+    "ChoiceWindow": "Every window",
     "Switch": "Every window",
     "ControllerTypeWindow": "Controller type",
     "PlotTypeWindow": "Plot type",

@@ -6,6 +6,7 @@ shows afterwards.
 
 from __future__ import annotations
 
+import pytest
 from uikit import Recording, make_app
 
 from quadtank_tui.core.parameters import PRESET
@@ -201,7 +202,11 @@ async def test_logging_window_logon_and_save_asks_before_overwriting(engine: Rec
     assert not engine.snapshot().log.unsaved
 
 
-async def test_exit_asks_and_discards_an_unsaved_log(engine: Recording) -> None:
+@pytest.mark.parametrize("to_second", [("tab",), ("right", "right", "left")], ids=["tab", "arrows"])
+async def test_exit_asks_and_discards_an_unsaved_log(engine: Recording, to_second: tuple[str, ...]) -> None:
+    """The second answer, Discard, reached by Tab or by the arrows (over SSH a user
+    reaches for the arrows in a dialog: before, they did nothing, and Enter then
+    took the first answer)."""
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
         for command in (c.SetState("Run"), c.LogOn()):
@@ -211,7 +216,9 @@ async def test_exit_asks_and_discards_an_unsaved_log(engine: Recording) -> None:
         assert isinstance(app.screen, ChoiceWindow)
         await pilot.press("escape")
         assert app.screen is app.main and not engine.sent(c.LogDiscard)
-        await pilot.press("ctrl+q", "tab", "enter")  # the second answer: Discard
+        await pilot.press("ctrl+q", *to_second)
+        assert app.screen.focused is not None and app.screen.focused.id == "choice-1"
+        await pilot.press("enter")
         await pilot.pause()
     assert engine.sent(c.LogDiscard) == [c.LogDiscard()]
     assert app.return_code == 0

@@ -309,11 +309,17 @@ class WholeControllerWindow(ParamWindow):
         self.dismiss((ResetControllers(),))
 
 
+#: A window of answers only (no field to type in): the arrows move along its row of
+#: buttons, as in any dialog; Tab still does.
+ANSWER_ARROWS = [Binding("left", "app.focus_previous", show=False),
+                 Binding("right", "app.focus_next", show=False)]
+
+
 class ConfirmWindow(Window[bool]):
     """A yes/no question (Exit, overwriting a file); Esc answers no."""
 
     BINDINGS = [Binding("y", "answer(True)", "Yes", show=False),
-                Binding("n", "answer(False)", "No", show=False)]
+                Binding("n", "answer(False)", "No", show=False), *ANSWER_ARROWS]
 
     def __init__(self, title: str, question: str, yes: str = "Yes", no: str = "Cancel") -> None:
         super().__init__(title)
@@ -353,6 +359,8 @@ class ChoiceWindow(Window[str | None]):
     Unlike other windows' buttons, these are not named after actions: their ids
     are their positions (choice-0, choice-1, ...), so nothing a user typed (a log
     name in a label) can become an action name."""
+
+    BINDINGS = [*ANSWER_ARROWS]
 
     def __init__(self, title: str, question: str, choices: Iterable[Choice]) -> None:
         super().__init__(title)
