@@ -162,9 +162,8 @@ class PID:
         what the error itself does.
         """
         p = self._p
-        # _derivative and _proportional written out (Manual tracks every sample): the same operations.
-        D = self._derivative(p, r, y) if p.derivative and p.Td != 0.0 else 0.0
-        self._I = u_applied - p.K * (p.b * r - y) - D
+        D = self._derivative(p, r, y)
+        self._I = u_applied - self._proportional(p, r, y) - D
         self._D = D
         self._last = (r, y)
 

@@ -78,11 +78,10 @@ class FileWorker:
         """Run ``fn(*args)`` after everything submitted before; its Future has the
         return value or the exception."""
         fut: Future[T] = Future()
+        self.flush()  # what submit_batched holds goes first: the order kept
         if self._thread is None or self._closed or threading.current_thread() is self._thread:
-            self.flush()
             _run_one(fn, args, fut)
         else:
-            self.flush()
             self._queue.put((fn, args, fut))
         return fut
 

@@ -15,10 +15,11 @@ A write that fails there (disk full) is noted and raised at the loop's next
 
 from __future__ import annotations
 
+import contextlib
 from concurrent.futures import Future
 from datetime import datetime
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 from quadtank_tui.core.parameters import LoggingSettings
 from quadtank_tui.engine.filework import FileWorker
@@ -187,25 +188,24 @@ class LogSession:
         """Several of _write's operations on the file thread, handed to the OS in one
         write; a failure is kept for check() as _run_write keeps it."""
         writer = self._writer
-        if writer is None:
-            return
-        try:
-            with writer.held():
+        if writer is not None:
+            with self._keeping_failure(writer), writer.held():
                 for op, arg in ops:
                     op(writer, arg)
-        except Exception as exc:
-            if self._failure is None:
-                self._failure = (exc, writer.rows)
-            raise
 
     def _run_write(self, op: Callable[[LogWriter, Any], object], arg: object) -> None:
-        """One of _write's operations, as the file worker runs it: a failure is kept
-        for check() (the first one) and raised to the worker."""
+        """One of _write's operations, as the file worker runs it."""
         writer = self._writer
-        if writer is None:
-            return
+        if writer is not None:
+            with self._keeping_failure(writer):
+                op(writer, arg)
+
+    @contextlib.contextmanager
+    def _keeping_failure(self, writer: LogWriter) -> Iterator[None]:
+        """A failure of the writes inside is kept for check() (the first one) and
+        raised on to the worker."""
         try:
-            op(writer, arg)
+            yield
         except Exception as exc:
             if self._failure is None:
                 self._failure = (exc, writer.rows)

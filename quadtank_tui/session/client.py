@@ -49,12 +49,12 @@ from quadtank_tui.engine.handle import LabSession
 from quadtank_tui.engine.history import History
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log_writer import log_path
+from quadtank_tui.files.proc import pid_alive
 from quadtank_tui.files.par import ParStore
 from quadtank_tui.session.protocol import (
     MAX_SESSION_LINE, Dropped, Ended, Hello, HistoryPart, LineReader, ProtocolError, Refused, Result, Role, Roster,
     SessionInfo, StopSession, Submit, Update, Welcome, decode, encode,
 )
-from quadtank_tui.files.proc import pid_alive
 
 #: Seconds to connect and receive the Welcome (with the whole history: 3.5 MB).
 ATTACH_TIMEOUT = 10.0

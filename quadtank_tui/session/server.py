@@ -256,8 +256,7 @@ class Server:
         if conn.allowance >= 0:
             return False
         self.refused += 1
-        why = f"it sent lines faster than {MAX_LINE_RATE:g} a second (beyond a burst of {MAX_LINE_BURST})"
-        self.drop(conn, why)
+        self.drop(conn, f"it sent lines faster than {MAX_LINE_RATE:g} a second (beyond a burst of {MAX_LINE_BURST})")
         return True
 
     def _handle(self, conn: Connection) -> None:
@@ -279,8 +278,7 @@ class Server:
                 self.drop(conn, f"it sent a line that is not a message of the session's protocol ({exc})")
                 return
             except Exception as exc:  # noqa: BLE001 - what one client's message broke ends that client only
-                why = f"its message failed: {type(exc).__name__}: {exc}"
-                self.drop(conn, why)
+                self.drop(conn, f"its message failed: {type(exc).__name__}: {exc}")
                 return
         if conn not in self.connections:
             return
@@ -318,8 +316,7 @@ class Server:
             try:
                 part = next(conn.parts, None)
             except Exception as exc:  # noqa: BLE001 - what fails for one client ends that client only
-                why = f"a message to it failed: {type(exc).__name__}: {exc}"
-                self.drop(conn, why)
+                self.drop(conn, f"a message to it failed: {type(exc).__name__}: {exc}")
                 return
             if part is None:  # all sent: what waited behind them goes next
                 self._parts_done(conn)
