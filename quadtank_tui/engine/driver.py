@@ -27,7 +27,7 @@ YIELD_AFTER, and the lag such a turn leaves is made up by samples back to back
 (engine/clock.py, CATCH_UP).  A drive paced on the wall writes its log on the
 file thread (a virtual clock's too: at x1000 the row's write(2) inline was 8 of
 the 50 us), and the rows held for it (engine/filework.py) are handed on before
-every wait and at the end.  An injected time source (a ManualClock: tests, rehearsals) is waited
+every wait of FLUSH_BEFORE or more and at the end.  An injected time source (a ManualClock: tests, rehearsals) is waited
 on with the engine's own `sleep`, which only moves that time on; such a drive
 holds its log rows in the same batches, written inline (FileWorker.hold).
 
@@ -78,6 +78,12 @@ RT_PRIORITY = 1
 #: 0.16 ms and 0.87 -> 0.12 ms with a client drawing; 10 ms 0.78 -> 0.20 ms and
 #: 0.80 -> 0.60 ms.
 SWITCH_INTERVAL = 0.0005
+#: A fine wait at least this long hands the held log rows to the file thread
+#: first, s; a shorter one keeps them for the next batch (engine/filework.py,
+#: BATCH_WINDOW), so a row waits at most about two batch windows.  Handing them on
+#: before every wait, as before, woke the file thread every sample at x1000 and 50
+#: ms (the wait is 10-20 us there) and defeated the batches.
+FLUSH_BEFORE = 0.001
 #: The driving thread's timer slack, ns (Linux prctl PR_SET_TIMERSLACK).
 TIMER_SLACK_NS = 1000
 _PR_SET_TIMERSLACK = 29
@@ -312,7 +318,7 @@ class Driver:
                             await self._wait(aloop, deadline - FINE_WAIT)
                             turned = monotonic()
                             continue  # woken early maybe: look at the commands and the deadline again
-                        if delay >= SPIN_BELOW:
+                        if delay >= FLUSH_BEFORE:
                             flush()
                         if delay > 0:
                             fine_wait(deadline, spin)

@@ -19,7 +19,8 @@ rows of the last millisecond.
 
 Log rows go in batches (:meth:`FileWorker.submit_batched`): a row that comes within
 BATCH_WINDOW of the last hand-off is held, in order, and handed on with the next
-one, or when the driver is about to wait (:meth:`FileWorker.flush`).  A row per
+one, or when the driver is about to wait a millisecond or more
+(:meth:`FileWorker.flush`; engine/driver.py, FLUSH_BEFORE).  A row per
 sample at 50 ms is handed on at once, as before; at x1000 (20,000 rows a second)
 one job of about 20 rows a millisecond, written in one write(2), not 20 Futures,
 queue puts, wake-ups of the thread and writes, which cost the session process

@@ -116,3 +116,19 @@ def test_an_inline_drive_writes_its_rows_in_batches_and_holds_none_when_it_ends(
     engine.loop.step()                                     # a step outside a drive: written at once
     rows = [line for line in partial.read_bytes().splitlines() if line and not line.startswith(b"%")]
     assert len(rows) == 301
+
+
+def test_a_paced_drive_keeps_its_rows_through_waits_shorter_than_a_batch(
+        make_engine: Callable[..., Engine], monkeypatch: pytest.MonkeyPatch) -> None:
+    # x1000 at 0.1 s: a sample every 100 us of wall time, each wait a few tens of
+    # us.  Handing the rows on before every such wait woke the file thread every
+    # sample and undid the batches; now only a wait of FLUSH_BEFORE or more does.
+    engine = make_engine(clock="virtual", speed=1000.0)
+    engine.submit(SetState("Run"))
+    assert engine.submit(LogOn(points=1000)).result(5).ok
+    batches: list[int] = []
+    monkeypatch.setattr(filework, "BATCH_WINDOW", 1e9)  # only the first row goes on its own
+    monkeypatch.setattr(FileWorker, "flush", _counting(FileWorker.flush, batches))
+    engine.run_for(30.0)                                   # 300 samples, 30 ms of wall time
+    assert engine.loop.files.threaded                      # paced on the wall: the file thread
+    assert batches == [1, 299]
