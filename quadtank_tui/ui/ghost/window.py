@@ -12,9 +12,10 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.content import Content
 from textual.containers import Horizontal
-from textual.widgets import Button, Input, Label, OptionList, RadioButton, RadioSet, Static
+from textual.widgets import Input, Label, OptionList, RadioButton, RadioSet, Static
 from textual.widgets.option_list import Option
 
+from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.windows.base import Window
 
 #: Logs listed, newest first.
@@ -60,8 +61,8 @@ class GhostWindow(Window[GhostChoice]):
                     classes="hint")
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("Load", id="load", variant="primary")
-        yield Button("Cancel", id="cancel")
+        yield KeyButton("Load", id="load", variant="primary")
+        yield KeyButton("Cancel", id="cancel")
 
     def on_mount(self) -> None:
         if self.logs:

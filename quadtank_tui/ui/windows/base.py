@@ -30,6 +30,7 @@ from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import Command, ResetControllers, SetParams
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Switch
+from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.widgets.key_footer import KeyFooter
 
 T = TypeVar("T")
@@ -95,7 +96,7 @@ class Window(ModalScreen[T], Generic[T]):
                 field.cursor_blink = False
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("Cancel", id="cancel")
+        yield KeyButton("Cancel", id="cancel")
 
     def cancelled(self) -> T | None:
         """What Cancel returns."""
@@ -136,9 +137,9 @@ def field_row(row_id: str, label: str, field: Widget, unit: str, error_id: str) 
 
 def set_default_cancel() -> ComposeResult:
     """The buttons of a window that edits values (their ids are the actions)."""
-    yield Button("Set", id="set", variant="primary")
-    yield Button("Default", id="default")
-    yield Button("Cancel", id="cancel")
+    yield KeyButton("Set", id="set", variant="primary")
+    yield KeyButton("Default", id="default")
+    yield KeyButton("Cancel", id="cancel")
 
 
 @dataclass(frozen=True)
@@ -302,7 +303,7 @@ class WholeControllerWindow(ParamWindow):
 
     def compose_buttons(self) -> ComposeResult:
         yield from super().compose_buttons()
-        yield Button("Reset", id="reset_integrators")
+        yield KeyButton("Reset", id="reset_integrators")
 
     def action_reset_integrators(self) -> None:
         """The controller's states start again now (the window closes, nothing else changes)."""
@@ -330,8 +331,8 @@ class ConfirmWindow(Window[bool]):
         yield Static(self.question, id="question", markup=False)
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button(self.yes, id="yes", variant="error")
-        yield Button(self.no, id="cancel")
+        yield KeyButton(self.yes, id="yes", variant="error")
+        yield KeyButton(self.no, id="cancel")
 
     def cancelled(self) -> bool:
         return False
@@ -372,7 +373,7 @@ class ChoiceWindow(Window[str | None]):
 
     def compose_buttons(self) -> ComposeResult:
         for n, choice in enumerate(self.choices):
-            yield Button(Content(choice.label), id=f"choice-{n}", variant=choice.variant)
+            yield KeyButton(Content(choice.label), id=f"choice-{n}", variant=choice.variant)
 
     def on_mount(self) -> None:
         self.query_one("#choice-0", Button).focus()

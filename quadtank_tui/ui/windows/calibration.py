@@ -29,6 +29,7 @@ from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import CalibrationHeights, CancelCalibration, Command, StartCalibration
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.par import RESERVED
+from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow, Window
 
 SIMUL_TEXT = ("Calibration runs on the rig, in Active mode (start with --daq CONFIG, then A on Main): "
@@ -126,10 +127,10 @@ class CalibrationWindow(Window[Commands]):
 
     def compose_buttons(self) -> ComposeResult:
         if self.active_mode:
-            yield Button("Start", id="start", variant="primary")
-            yield Button("Record", id="record", variant="success")
-            yield Button("Write", id="write", variant="warning")
-        yield Button("Cancel", id="cancel")
+            yield KeyButton("Start", id="start", variant="primary")
+            yield KeyButton("Record", id="record", variant="success")
+            yield KeyButton("Write", id="write", variant="warning")
+        yield KeyButton("Cancel", id="cancel")
 
     def on_mount(self) -> None:
         self.watch_snapshot(self.snapshot)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.widgets import Button, Input, Label, OptionList
+from textual.widgets import Input, Label, OptionList
 from textual.widgets.option_list import Option
 
 from quadtank_tui.core.general import MAX_DEGREE
@@ -14,6 +14,7 @@ from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Parameters
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import ResetControllers, SetParams
 from quadtank_tui.ui.labels import ELEMENT_NAMES, TYPES, type_index
+from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.windows.base import Commands, Field, ParamWindow, Window, set_default_cancel
 
 def element_ij(index: int) -> tuple[int, int]:
@@ -92,7 +93,7 @@ class PIDWindow(ParamWindow):
 
     def compose_buttons(self) -> ComposeResult:
         yield from super().compose_buttons()
-        yield Button("Reset", id="reset_element")
+        yield KeyButton("Reset", id="reset_element")
 
     def action_reset_element(self) -> None:
         """Reset this element's states now (the window closes, nothing else changes)."""

@@ -32,6 +32,7 @@ from quadtank_tui.core.plants.base import Plant
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.colours import BLUE, RED
 from quadtank_tui.ui.widgets import plot_kit as kit
+from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.widgets.plot_kit import Series
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Window
 
@@ -104,8 +105,8 @@ class DesignPreviewWindow(Window[bool]):
             yield Static("", id="preview-figures", markup=False)
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("Apply", id="apply", variant="primary", disabled=True)
-        yield Button("Cancel", id="cancel")
+        yield KeyButton("Apply", id="apply", variant="primary", disabled=True)
+        yield KeyButton("Cancel", id="cancel")
 
     def on_mount(self) -> None:
         for i in (1, 2):

@@ -18,7 +18,7 @@ from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
-from textual.widgets import Button, Input, Label, OptionList, Static
+from textual.widgets import Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
 from quadtank_tui.core.faults import KINDS
@@ -26,6 +26,7 @@ from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import SetDisturbance, SetFault
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.values import parse_number
+from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.windows.base import Commands, Window
 
 NAMES = tuple(KINDS)
@@ -74,11 +75,11 @@ class FaultWindow(Window[Commands]):
                          classes="error")
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("On", id="on", variant="primary")
-        yield Button("Off", id="off")
+        yield KeyButton("On", id="on", variant="primary")
+        yield KeyButton("Off", id="off")
         if self.snapshot.disturbances is not None:
-            yield Button("Set d", id="disturb")
-        yield Button("Cancel", id="cancel")
+            yield KeyButton("Set d", id="disturb")
+        yield KeyButton("Cancel", id="cancel")
 
     def on_mount(self) -> None:
         self.query_one(OptionList).highlighted = 0

@@ -28,6 +28,7 @@ from quadtank_tui.ui.labels import log_state
 from quadtank_tui.ui.log_timing import log_timing
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Check
+from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.windows.base import (
     Choice, ChoiceWindow, Commands, ConfirmWindow, Window, free_log_name, show_live,
 )
@@ -101,12 +102,12 @@ class LoggingWindow(Window[Commands]):
             yield Label("", id="log-state", markup=False)
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("LogOn", id="log_on", variant="success")
-        yield Button("LogOff", id="log_off", variant="warning")
-        yield Button("Save", id="save")
-        yield Button("Set", id="set", variant="primary")
-        yield Button("Default", id="default")
-        yield Button("Cancel", id="cancel")
+        yield KeyButton("LogOn", id="log_on", variant="success")
+        yield KeyButton("LogOff", id="log_off", variant="warning")
+        yield KeyButton("Save", id="save")
+        yield KeyButton("Set", id="set", variant="primary")
+        yield KeyButton("Default", id="default")
+        yield KeyButton("Cancel", id="cancel")
 
     def on_mount(self) -> None:
         self._mark_all()

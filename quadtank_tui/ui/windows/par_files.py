@@ -19,13 +19,14 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
 from textual.content import Content
-from textual.widgets import Button, Input, Label, OptionList, Static
+from textual.widgets import Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
 from quadtank_tui.files.names import check_file_name
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import LoadPar, SavePar
 from quadtank_tui.files.par import RESERVED, SUFFIX
+from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow, Window
 
 #: What the reserved names stand for, shown in the list.
@@ -71,9 +72,9 @@ class ParFileWindow(Window[Commands]):
         yield Static(self.error, id="par-error", classes="error", markup=False)
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("Load", id="load", variant="primary")
-        yield Button("Save", id="save")
-        yield Button("Cancel", id="cancel")
+        yield KeyButton("Load", id="load", variant="primary")
+        yield KeyButton("Save", id="save")
+        yield KeyButton("Cancel", id="cancel")
 
     def _entry(self, name: str) -> str:
         note = RESERVED_NOTES.get(name)

@@ -12,7 +12,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
 from textual.reactive import var
-from textual.widgets import Button, Input, Label, Static
+from textual.widgets import Input, Label, Static
 
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.plant import FULL_SCALE_V
@@ -20,6 +20,7 @@ from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import AddWater
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.values import fixed, fmt, parse_number
+from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.windows.base import Commands, Window, show_live
 
 _TANK_ROWS = (("Op. Point", "OpPoint"), ("Diameter", "Diameter"), ("Time Const.", "TimeConst"))
@@ -108,8 +109,8 @@ class TankWindow(_LiveWindow):
                     "heights are fractions of the sensor range.", classes="hint")
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("Set", id="set", variant="primary")
-        yield Button("Cancel", id="cancel")
+        yield KeyButton("Set", id="set", variant="primary")
+        yield KeyButton("Cancel", id="cancel")
 
     def on_mount(self) -> None:
         super().on_mount()
@@ -184,7 +185,7 @@ class PumpWindow(_LiveWindow):
         super().__init__("Pumps", snapshot, defaults, pump, count=2, opener=opener)
 
     def compose_buttons(self) -> ComposeResult:
-        yield Button("Close", id="cancel")
+        yield KeyButton("Close", id="cancel")
 
     def table(self, snapshot: Snapshot) -> str:
         p = snapshot.params

@@ -1,0 +1,47 @@
+"""Each Enter on a window's button presses it, however soon after the last press
+(ui/widgets/key_button.py): a burst typed over SSH loses no key."""
+
+from __future__ import annotations
+
+from textual.app import App, ComposeResult
+from textual.widgets import Button
+
+from quadtank_tui.ui.widgets.key_button import KeyButton
+
+
+class _Presses(App[None]):
+    def __init__(self, button: Button) -> None:
+        super().__init__()
+        self.button = button
+        self.pressed = 0
+
+    def compose(self) -> ComposeResult:
+        yield self.button
+
+    def on_button_pressed(self) -> None:
+        self.pressed += 1
+
+
+async def _pressed(button: Button, *keys: str) -> int:
+    app = _Presses(button)
+    async with app.run_test() as pilot:
+        button.focus()
+        await pilot.press(*keys)
+        await pilot.pause()
+        return app.pressed
+
+
+async def test_every_enter_in_a_burst_presses() -> None:
+    assert await _pressed(KeyButton("Apply"), "enter", "enter", "enter") == 3
+    # Textual's own button drops the keys that come while it shows the last press.
+    assert await _pressed(Button("Apply"), "enter", "enter", "enter") == 1
+
+
+async def test_a_click_repeated_at_once_still_presses_once() -> None:
+    button = KeyButton("Apply")
+    app = _Presses(button)
+    async with app.run_test() as pilot:
+        await pilot.click(KeyButton)
+        await pilot.click(KeyButton)
+        await pilot.pause()
+        assert app.pressed == 1
