@@ -17,7 +17,7 @@ run: $(STAMP)
 	$(BIN)/quadtank
 
 # The suite in two parts (docs/development.md): the tests off the wall clock on every
-# core (pytest-xdist: `-n auto` is a worker a core, none on a single core), then the
+# core (pytest-xdist: `-n auto` is a worker a core and one more, none on a single core), then the
 # `wallclock` tests among themselves, on every core too (they mostly wait); a test
 # marked `alone` (a bound another test beside it would miss) runs with none beside it.
 test: $(STAMP)
