@@ -8,9 +8,10 @@ the wall clock the status line uses is fixed, so screens are reproducible.
 from __future__ import annotations
 
 import gc
+import inspect
 import sys
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterable, Iterator
 
 import pytest
 import textual._wait as textual_wait
@@ -27,7 +28,7 @@ from quadtank_tui.files.shipped import write_shipped  # noqa: E402
 from quadtank_tui.ui import keyorder  # noqa: E402
 from quadtank_tui.ui.app import QuadTankApp  # noqa: E402
 from quadtank_tui.ui.widgets.analysis_panel import warm_up  # noqa: E402
-from uikit import EPOCH, Recording, make_app, manual_engine, write_params  # noqa: E402
+from uikit import EPOCH, Recording, make_app, manual_engine, presses_shown, write_params  # noqa: E402
 
 # The analysis stack loaded once, up front: the Setup screen then shows its
 # analysis at once, as it does after the Main screen's warm-up in a terminal
@@ -100,6 +101,27 @@ def _stylesheets_parsed_once() -> Iterator[None]:
     Stylesheet._parse_rules = parsed_once  # type: ignore[method-assign]
     yield
     Stylesheet._parse_rules = parse_rules  # type: ignore[method-assign]
+
+
+@pytest.fixture
+def snap_compare(snap_compare: Callable[..., bool]) -> Callable[..., bool]:
+    """pytest-textual-snapshot's snap_compare, whose picture is taken once no button
+    shows its last press (uikit.presses_shown): the run_before and the keys, then
+    that wait.  A click or an Enter 0.2 s or less before the picture drew the
+    button pressed or not depending on the machine's speed (the calibration
+    window's fit failed in CI that way: same text, other colours)."""
+    def compare(app: Any, *, press: Iterable[str] = (), run_before: Callable[[Any], Any] | None = None,
+                **kwargs: Any) -> bool:
+        async def before(pilot: Any) -> None:
+            if run_before is not None:
+                result = run_before(pilot)
+                if inspect.isawaitable(result):
+                    await result
+            await pilot.pause()
+            await pilot.press(*press)
+            await presses_shown(pilot)
+        return snap_compare(app, run_before=before, **kwargs)
+    return compare
 
 
 @pytest.fixture

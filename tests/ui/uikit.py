@@ -9,6 +9,7 @@ found whichever folder's conftest was imported first.
 
 from __future__ import annotations
 
+import time
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -79,6 +80,16 @@ async def workers_done(app: Any) -> None:
             return
         except WorkerCancelled:
             continue
+
+
+async def presses_shown(pilot: Any, timeout: float = 2.0) -> None:
+    """Until no button shows its last press (Textual's `-active` look, 0.2 s after a
+    click or an Enter): a snapshot taken right after a click had the pressed look
+    or not depending on the machine's speed (the calibration window's fit failed
+    in CI that way, same text, other colours)."""
+    deadline = time.monotonic() + timeout
+    while pilot.app.screen.query(".-active") and time.monotonic() < deadline:
+        await pilot.pause(0.05)
 
 
 def plot_text(widget: Widget) -> str:
