@@ -51,3 +51,16 @@ async def test_a_click_repeated_at_once_still_presses_once() -> None:
         await pilot.click(KeyButton)
         await pilot.pause()
         assert app.pressed == 1
+
+
+def test_the_interface_makes_its_buttons_as_key_buttons() -> None:
+    """A window added later with Textual's Button would drop keys again."""
+    import re
+    from pathlib import Path
+
+    import quadtank_tui.ui
+
+    made = {str(path.relative_to(Path(quadtank_tui.ui.__file__).parent)): len(found)
+            for path in Path(quadtank_tui.ui.__file__).parent.rglob("*.py")
+            if (found := re.findall(r"(?<![\w.])Button\(", path.read_text()))}
+    assert made == {}
