@@ -434,8 +434,6 @@ def advance(
     return y
 
 
-
-
 # --- Steady states ------------------------------------------------------------------
 
 class SteadyStateError(PlantError):

@@ -220,9 +220,9 @@ class Generator:
                 self._level = self._prbs_level()
         else:
             self._t = (self._t + self._h) % p.period
-        if self._mean != self._target:  # else _ramp(1) would set the mean to the target: it is
+        if self._mean != self._target:
             self._ramp(1)
-        else:
+        else:  # at its target, the usual case: what _ramp(1) does there, without its call every sample
             self._mean = self._target
 
     def advance_by(self, k: int) -> None:

@@ -61,7 +61,7 @@ class LogSession:
         self._failure: tuple[Exception, int] | None = None  # set by a failed write, see check()
         #: Rows of this log that came late (each noted in the file), see `late`.
         self.late_rows = 0
-        self._batched = self._run_writes  # one bound method: the worker batches a row with the ones before it
+        self._batched = self._run_writes  # bound once, not at every row (compared equal either way by the batch)
 
     @property
     def running(self) -> bool:

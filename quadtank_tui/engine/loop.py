@@ -296,13 +296,11 @@ class ControlLoop:
         backend = self.backend
         backend.write_pumps(u)
         written = backend.written(u)
-        holds = backend.interlock_holds()
-        if holds or self.interlock.acted:  # (note would return nothing: the every-sample case)
-            began, released = self.interlock.note(self.t, holds)
-            for hold in began:
-                self.log.comment(self.t, hold.alarm)
-            for tank in released:
-                self.log.comment(self.t, f"interlock: tank {tank} released, its pumps follow the controller again")
+        began, released = self.interlock.note(self.t, backend.interlock_holds())
+        for hold in began:
+            self.log.comment(self.t, hold.alarm)
+        for tank in released:
+            self.log.comment(self.t, f"interlock: tank {tank} released, its pumps follow the controller again")
         return written
 
     def _skip(self, missed: int) -> None:

@@ -10,7 +10,6 @@ negative: never a probe of a process group.
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 
 def process_state(pid: int) -> str:
@@ -19,9 +18,8 @@ def process_state(pid: int) -> str:
     below, which a signal 0 would take for a process group)."""
     if pid <= 0:
         return ""
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except (OSError, IndexError):
+    fields = _proc_stat(pid)
+    if not fields:
         try:
             os.kill(pid, 0)
         except ProcessLookupError:
@@ -29,6 +27,7 @@ def process_state(pid: int) -> str:
         except PermissionError:
             return "?"
         return "?"
+    state = fields[0].decode("ascii", "replace")
     return "" if state in ("Z", "X") else state
 
 

@@ -3,9 +3,13 @@
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 from textual.app import App, ComposeResult
 from textual.widgets import Button
 
+import quadtank_tui.ui
 from quadtank_tui.ui.widgets.key_button import KeyButton
 
 
@@ -55,11 +59,6 @@ async def test_a_click_repeated_at_once_still_presses_once() -> None:
 
 def test_the_interface_makes_its_buttons_as_key_buttons() -> None:
     """A window added later with Textual's Button would drop keys again."""
-    import re
-    from pathlib import Path
-
-    import quadtank_tui.ui
-
     made = {str(path.relative_to(Path(quadtank_tui.ui.__file__).parent)): len(found)
             for path in Path(quadtank_tui.ui.__file__).parent.rglob("*.py")
             if (found := re.findall(r"(?<![\w.])Button\(", path.read_text()))}

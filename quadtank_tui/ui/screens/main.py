@@ -20,7 +20,6 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
-from textual.screen import Screen
 from textual.widgets import Static
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS, SimulationSettings
@@ -172,8 +171,6 @@ class MainScreen(CommandSender):
         self._clock_k = -1  # the sample count at the last look (-1: none yet)
         self._scales: tuple[object, tuple[tuple[str, Scale], ...]] = (None, ())
         self.ghost = GhostControl(self)
-        #: The Setup screen, once visited (kept for the next visit: action_setup).
-        self._setup: Screen[None] | None = None
 
     def compose(self) -> ComposeResult:
         yield StatusLine(id="status")
@@ -532,10 +529,10 @@ class MainScreen(CommandSender):
         # a slower refresh asked for a slow link is kept.
         from quadtank_tui.ui.screens.setup import SetupScreen  # loaded by _warm_up, not at start
 
-        if self._setup is None:
-            self._setup = SetupScreen(self.engine, refresh_interval=max(0.25, self.refresh_interval))
-            self.app.install_screen(self._setup, name=SETUP_SCREEN)
-        self.app.push_screen(self._setup)
+        if not self.app.is_screen_installed(SETUP_SCREEN):
+            self.app.install_screen(SetupScreen(self.engine, refresh_interval=max(0.25, self.refresh_interval)),
+                                    name=SETUP_SCREEN)
+        self.app.push_screen(SETUP_SCREEN)
 
     def action_design(self) -> None:
         """The Design screen (B3): PI/PID from a model; the process runs on, and
