@@ -26,6 +26,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
+from textual.geometry import Size
 from textual.widgets import Input, Label, Static
 from textual_plotext import PlotextPlot
 
@@ -175,9 +176,9 @@ class DesignScreen(CommandSender):
     def action_back(self, to: str) -> None:
         self.app.pop_screen()
 
-    def on_resize(self) -> None:
-        super().on_resize()
-        narrow = self.size.width < NARROW
+    def _pack(self, size: Size) -> None:
+        super()._pack(size)
+        narrow = size.width < NARROW
         if narrow != self.has_class("-narrow"):
             self.set_class(narrow, "-narrow")
             self.refresh_bindings()

@@ -166,6 +166,7 @@ class IdentifyScreen(Screen[None]):
         self.set_class(self.size.width < COMPACT_WIDTH, "-compact")
 
     def on_mount(self) -> None:
+        self.set_class(self.app.size.width < COMPACT_WIDTH, "-compact")  # in the first frame (ui/screens/sending.py)
         self.query_one("#logs", SelectionList).border_title = Content(f"Logs in {self.logs_dir}/ (space ticks)")
         self.query_one("#compare", DataTable).border_title = "Identified | physical"
         free = self.query_one("#free", SelectionList)

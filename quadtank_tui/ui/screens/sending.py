@@ -12,6 +12,7 @@ import threading
 from concurrent.futures import Future
 from typing import Callable
 
+from textual.geometry import Size
 from textual.message import Message
 
 from quadtank_tui.engine.commands import Command, CommandResult
@@ -50,8 +51,16 @@ class CommandSender(QuietBehind):
     engine: EngineHandle
     snap: Snapshot
 
+    def on_mount(self) -> None:
+        # Packed from the first frame: set on the first Resize, which comes after
+        # it, the whole screen was drawn again at 80x24 (and a second frame sent).
+        self._pack(self.app.size)
+
     def on_resize(self) -> None:
-        self.set_class(self.size.width < COMPACT_WIDTH or self.size.height < COMPACT_HEIGHT, "-compact")
+        self._pack(self.size)
+
+    def _pack(self, size: Size) -> None:
+        self.set_class(size.width < COMPACT_WIDTH or size.height < COMPACT_HEIGHT, "-compact")
 
     async def on_action_requested(self, message: ActionRequested) -> None:
         """A widget's intent runs the action its key runs (see ActionRequested)."""

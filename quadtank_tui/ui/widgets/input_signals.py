@@ -19,6 +19,7 @@ from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fixed, fmt
 from quadtank_tui.ui.labels import channel_label
+from quadtank_tui.ui.widgets.sized import FitsItsSize
 
 #: Nudge steps, normalized (0.01 = 0.1 V = 0.2 cm at the sensor).
 NUDGE = 0.01
@@ -33,7 +34,7 @@ def bar(fraction: float, width: int) -> str:
     return ("█" * full + (_BLOCKS[part] if part else "")).ljust(width)
 
 
-class ChannelPanel(Static, can_focus=True):
+class ChannelPanel(FitsItsSize, Static, can_focus=True):
     """One generator's mean, amplitude, period, on/off and current value."""
 
     BINDINGS = [
@@ -90,7 +91,7 @@ class ChannelPanel(Static, can_focus=True):
         self.border_subtitle = "i" if self.channel == 1 else "I"
         self.update(Content.from_markup(shown[1]))
 
-    def on_resize(self) -> None:
+    def fit_to_size(self) -> None:
         self.watch_snapshot(self.snapshot)
 
     def action_nudge(self, steps: float) -> None:

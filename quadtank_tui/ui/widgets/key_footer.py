@@ -14,9 +14,18 @@ changed: at each focus change (each Tab between a window's fields), each time a
 window opens over its screen or closes, each time the screen comes back.  Mostly
 they have not: this footer rebuilds only when the keys it would show differ
 from those it shows (3 % of the UI tests' CPU time went to those rebuilds).
+
+And Textual's Footer shows no keys until its screen's bindings are first announced,
+which comes after the first frame: every screen was drawn, then its footer
+rebuilt and drawn again (8 ms of the Main screen's start at 120x40, and a second
+frame to the terminal).  This footer makes its keys when it is composed, from the
+screen's bindings then; the announcement rebuilds them only if the focus
+brought others.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -30,6 +39,10 @@ class KeyFooter(Footer):
 
     #: What the keys shown were made from (`_shown_keys`); None: not made yet.
     _shown: list[tuple[Binding, bool, str]] | None = None
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.set_reactive(Footer._bindings_ready, True)  # the keys in the first frame
 
     def _shown_keys(self) -> list[tuple[Binding, bool, str]]:
         """Everything Footer.compose makes the keys from: each active binding it

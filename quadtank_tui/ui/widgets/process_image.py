@@ -27,12 +27,12 @@ from rich.style import Style
 from rich.text import Text
 from textual import events
 from textual.reactive import reactive
-from textual.widget import Widget
 
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fixed
+from quadtank_tui.ui.widgets.sized import FitsItsSize
 
 _FILL = " ▁▂▃▄▅▆▇█"
 WATER = Style(color="dodger_blue1")
@@ -283,7 +283,7 @@ def draw_plant(snapshot: Snapshot, width: int, height: int) -> tuple[Text, list[
     return c.render(), boxes
 
 
-class ProcessImage(Widget):
+class ProcessImage(FitsItsSize):
     """Renders the latest snapshot; a click on a tank or pump asks for its window.
 
     A new snapshot repaints the image only if the drawing differs (levels move by
@@ -333,7 +333,7 @@ class ProcessImage(Widget):
             self.refresh()
         self._subtitle()
 
-    def on_resize(self) -> None:
+    def fit_to_size(self) -> None:
         self._subtitle()
 
     def _subtitle(self) -> None:

@@ -34,6 +34,7 @@ from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.files.ghost import LoggedRun
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.plot_axes import AXIS_ROWS, MIN_SPAN, XDOTS, decimate, visible, x_axis, y_axis
+from quadtank_tui.ui.widgets.sized import FitsItsSize
 from quadtank_tui.ui.widgets.trend_clock import ClockMap, Ticks, clock_ticks, process_ticks, wall_label
 from quadtank_tui.ui.widgets.trend_style import DOT_GAP, TraceStyle, trace_styles
 
@@ -124,7 +125,7 @@ class TrendView:
         return self.scale(self.names[0]).unit if self.scales else ""
 
 
-class Trend(PlotextPlot):
+class Trend(FitsItsSize, PlotextPlot):
     """One trend: the legend row (each signal's latest value in its colour), then
     the plot, relative time on x."""
 
@@ -135,6 +136,7 @@ class Trend(PlotextPlot):
         self._history: Mapping[str, np.ndarray] | None = None
         self._drawn: tuple[object, ...] = ()
         self._columns = 0
+        self._titles: tuple[str, str] | None = None  # the border's title and subtitle as last set
         self._title()
 
     @property
@@ -171,7 +173,6 @@ class Trend(PlotextPlot):
             title = "live, t h:m:s" + ("" if since is None else f", clock from {wall_label(v.clock, since)}")
         if v.ghost is not None:
             title += f" · ghost {v.ghost.name}"
-        self.border_title = title
         keys = f"{key} type · z {v.window / 60:g} min · Z {scale} · u {unit} · c {axis}"
         # the border's corners and a line and a space each side (34 at 80x24)
         room = self.size.width - 6 if self.size.width else 34
@@ -179,9 +180,13 @@ class Trend(PlotextPlot):
         for form in (keys, short, short.replace(" min", "m"), short.replace(" min", "m").replace(" · ", "·")):
             if len(form) <= room:
                 break
-        self.border_subtitle = form
+        # Set only when changed: setting a border title repaints the whole plot, and
+        # every start's first Resize (after the first frame) would draw it again.
+        if (title, form) != self._titles:
+            self._titles = (title, form)
+            self.border_title, self.border_subtitle = title, form
 
-    def on_resize(self, event: events.Resize) -> None:
+    def fit_to_size(self) -> None:
         self._title()  # the subtitle's form depends on the width
 
     def _clock_known(self, view: TrendView, history: Mapping[str, np.ndarray] | None) -> ClockMap | None:

@@ -109,6 +109,7 @@ class DesignPreviewWindow(Window[bool]):
         yield KeyButton("Cancel", id="cancel")
 
     def on_mount(self) -> None:
+        self.set_class(self.app.size.height < SHORT, "-short")  # in the first frame (ui/screens/sending.py)
         for i in (1, 2):
             self.query_one(f"#preview-loop{i}", PlotextPlot).border_title = f"y{i}: simulating"
         self.query_one("#cancel", Button).focus()
