@@ -85,7 +85,7 @@ async def test_a_running_sample_repaints_the_numbers_line_and_not_the_rest_of_th
     engine.run_for(100.0)
     app = paused_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
-        await pilot.pause()
+        await ticks(app, pilot, engine, 0.5)  # the first frame and the layout settle (whole-screen repaints)
         wire = Wire(app)
         for _ in range(10):
             engine.step()
