@@ -20,6 +20,12 @@ async def test_the_collector_paused_for_the_start_runs_again_after_the_first_fra
         async with app.run_test(size=(120, 40)) as pilot:
             await pilot.pause()
             assert app.screen.query_one(StatusLine).region.height > 0  # the first frame is there
+            # Turned on once the screen has refreshed after it (the screen's idle or
+            # its update timer runs the callbacks): within a few of its ticks.
+            for _ in range(100):
+                if gc.isenabled():
+                    break
+                await pilot.pause(0.01)
             assert gc.isenabled()
             assert gc.get_freeze_count() > frozen  # the start-up's objects, out of later collections
     finally:
