@@ -10,6 +10,8 @@ largest value seen).
 
 from __future__ import annotations
 
+import bisect
+import itertools
 import math
 
 import numpy as np
@@ -71,5 +73,5 @@ class JitterHistogram:
             i = at[0]
         else:
             rank = max(1, math.ceil(q / 100.0 * self.n))
-            i = int(np.searchsorted(np.cumsum(self.counts), rank))
+            i = bisect.bisect_left(list(itertools.accumulate(self.counts)), rank)  # numpy's cumsum of a list: 2x slower
         return min(float(EDGES[i]), self.max)

@@ -47,7 +47,7 @@ from quadtank_tui.engine.runner import Engine
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.session.protocol import (
     Ended, Hello, Refused, Result, Role, Roster, SessionInfo, StopSession, Submit, Update, Welcome, encode,
-    encode_history_part,
+    encode_history_part, encode_update,
 )
 from quadtank_tui.session.lab import LabConfig
 from quadtank_tui.session.policy import UnattendedPolicy, describe, unattended_action
@@ -243,7 +243,7 @@ class SessionHost:
         self._last_publish = now
         update = self._update(self.engine.snapshot())
         if any(c.role is not None for c in self.server.connections):
-            self.server.broadcast(encode(update))
+            self.server.broadcast(encode_update(update))
 
     # --- messages ----------------------------------------------------------------------------
 

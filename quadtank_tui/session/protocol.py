@@ -287,6 +287,18 @@ def encode_history_part(rows: np.ndarray) -> bytes:
         *data.shape, base64.b64encode(data.tobytes()))
 
 
+def encode_update(update: Update) -> bytes:
+    """encode(update), byte for byte, the rows spliced in as encode_history_part
+    does: a session publishes one every PUBLISH_INTERVAL, at x1000 and 50 ms with
+    400 rows (39 KB), and json's pass over their base64 was half its encoding (0.6 ms
+    of the sampling thread's time each, 1.4 us a sample)."""
+    data = np.ascontiguousarray(update.rows, dtype="<f8")
+    snapshot = json.dumps(_enc(update.snapshot), separators=(",", ":")).encode()
+    return b'{"@":"Update","snapshot":%s,"rows":{"@":"array","shape":%s,"b64":"%s"},"cleared":%s}\n' % (
+        snapshot, json.dumps(list(data.shape), separators=(",", ":")).encode(),
+        base64.b64encode(data.tobytes()), b"true" if update.cleared else b"false")
+
+
 # --- decoding ----------------------------------------------------------------------------------
 
 

@@ -206,3 +206,31 @@ def test_a_history_part_is_encoded_as_any_message_is() -> None:
     line = encode_history_part(rows)
     assert line == encode(HistoryPart(rows))
     np.testing.assert_array_equal(decode(line).rows, rows)
+
+
+@pytest.mark.parametrize("cleared", [False, True])
+@pytest.mark.parametrize("same_params", [False, True])
+def test_an_update_is_encoded_as_any_message_is(tmp_path, cleared: bool, same_params: bool) -> None:
+    """The publishing's fast path writes the same line the generic encoder would (a
+    snapshot of a running loop, with its parameters or without), and it decodes to
+    the same rows, exactly."""
+    import dataclasses
+
+    from quadtank_tui.engine.runner import build_engine
+    from quadtank_tui.session.protocol import Update, decode, encode_update
+
+    engine = build_engine(clock="manual", params_dir=tmp_path, logs_dir=tmp_path)
+    engine.submit(c.SetParams({"SAMPLING TIME.TSamp": 50}))
+    engine.submit(c.SetState("Run"))
+    engine.run_for(20.0)
+    snap = engine.snapshot()
+    if same_params:
+        snap = dataclasses.replace(snap, params=None)  # type: ignore[arg-type]
+    rows = np.random.default_rng(2).normal(size=(400, len(SIGNALS)))
+    rows[5, 3] = np.nan
+    update = Update(snap, rows, cleared)
+    line = encode_update(update)
+    assert line == encode(update)
+    back = decode(line)
+    np.testing.assert_array_equal(back.rows, rows)
+    assert back.cleared is cleared and back.snapshot.k == snap.k == 400
