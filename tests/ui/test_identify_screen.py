@@ -163,3 +163,37 @@ async def test_d_designs_on_the_identified_model(app) -> None:
         assert isinstance(ident_screen, IdentifyScreen) and ident_screen.method == "oe"
         await burst(pilot, "escape", "m")
         assert pilot.app.screen is ident_screen and ident_screen.method != "oe"
+
+
+@pytest.mark.parametrize("fitted", [False, True])
+async def test_a_resize_draws_the_plots_for_their_new_width(app, monkeypatch: pytest.MonkeyPatch, fitted: bool) -> None:
+    """A plot is decimated for its width when it is drawn (plot_kit.draw's columns):
+    after the terminal changes size, the log's preview (or the fit) is drawn again
+    for the width the plot now has, not shown decimated for the old one."""
+    from textual_plotext import PlotextPlot
+
+    from quadtank_tui.ui.widgets import plot_kit
+
+    widths: list[int] = []
+    draw = plot_kit.draw
+
+    def recorded(plt: Any, x: Any, y: Any, style: Any, columns: int) -> None:
+        widths.append(columns)
+        draw(plt, x, y, style, columns)
+    monkeypatch.setattr(plot_kit, "draw", recorded)
+    async with app.run_test(size=(120, 40)) as pilot:
+        if fitted:
+            await fit_both(pilot)
+        else:
+            await pilot.pause()
+            await pilot.press("y")
+            await pilot.pause()
+        top = pilot.app.screen.query_one("#outputs", PlotextPlot)
+        assert widths and widths[-1] == top.size.width
+        wide = top.size.width
+        for size in ((80, 24), (120, 40)):
+            await pilot.resize_terminal(*size)
+            for _ in range(4):
+                await pilot.pause()
+            assert top.size.width != wide if size == (80, 24) else top.size.width == wide
+            assert widths[-1] == top.size.width, (size, widths[-4:])

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
@@ -143,6 +144,8 @@ class IdentifyScreen(Screen[None]):
         self.view: FitView | None = None
         #: the last physical fit (method "physical"), and a .par that `k` would overwrite
         self.physical: fitui.PhysicalView | None = None
+        #: What drew the plots last (_preview of a log, or _draw): a resize draws it again.
+        self._drawn: Callable[[], None] | None = None
         self._overwrite: Path | None = None
         self._cancel = threading.Event()
         self._fitting = False
@@ -164,6 +167,14 @@ class IdentifyScreen(Screen[None]):
 
     def on_resize(self) -> None:
         self.set_class(self.size.width < COMPACT_WIDTH, "-compact")
+        # The plots are decimated for their width when drawn: drawn again once the
+        # new layout (compacted or not) has given them theirs.
+        self.call_after_refresh(self._redraw)
+
+    def _redraw(self) -> None:
+        """The plots again, as last drawn (a log's preview, or the fit's)."""
+        if self.is_attached and self._drawn is not None:
+            self._drawn()
 
     def on_mount(self) -> None:
         self.set_class(self.app.size.width < COMPACT_WIDTH, "-compact")  # in the first frame (ui/screens/sending.py)
@@ -192,6 +203,7 @@ class IdentifyScreen(Screen[None]):
     def _preview(self, path: str) -> None:
         from quadtank_tui.files.log_reader import read_log
 
+        self._drawn = partial(self._preview, path)
         top = self.query_one("#outputs", PlotextPlot)
         top.plt.clear_figure()
         top.plt.theme("clear")
@@ -428,6 +440,7 @@ class IdentifyScreen(Screen[None]):
         return self.view, key, self.view.ident.elements[key]
 
     def _draw(self) -> None:
+        self._drawn = self._draw
         top = self.query_one("#outputs", PlotextPlot)
         low = self.query_one("#lower", PlotextPlot)
         for plot in (top, low):
