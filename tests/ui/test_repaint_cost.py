@@ -12,9 +12,7 @@ import re
 from typing import Any
 
 import pytest
-from uikit import Recording
-
-from textual._compositor import CompositorUpdate
+from uikit import Recording, Wire
 
 from quadtank_tui.engine import commands as c
 from quadtank_tui.ui.app import QuadTankApp, build_app
@@ -23,24 +21,6 @@ from quadtank_tui.ui.windows.process import TankWindow
 
 #: The screen's refresh interval, s; the engine's default.par samples every 0.1 s.
 TICK = 0.05
-
-
-class Wire:
-    """Counts the bytes the app's display updates would put on the terminal."""
-
-    def __init__(self, app: QuadTankApp) -> None:
-        self.bytes = 0
-        self.updates: list[str] = []
-        display = app._display
-
-        def counting(screen: Any, renderable: Any) -> None:
-            if isinstance(renderable, CompositorUpdate):
-                data = renderable.render_segments(app.console)
-                self.bytes += len(data.encode())
-                self.updates.append(data)
-            display(screen, renderable)
-
-        app._display = counting  # type: ignore[method-assign]
 
 
 def paused_app(engine: Recording) -> QuadTankApp:

@@ -10,8 +10,7 @@ from typing import Any
 
 import pytest
 from textual.widgets._footer import FooterKey
-from test_repaint_cost import Wire
-from uikit import Recording, make_app
+from uikit import Recording, Wire, make_app
 
 from quadtank_tui.ui.widgets.key_footer import KeyFooter
 from quadtank_tui.ui.widgets.process_image import ProcessImage

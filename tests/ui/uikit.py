@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from rich.text import Text
+from textual._compositor import CompositorUpdate
 from textual.widget import Widget
 from textual.worker import WorkerCancelled
 
@@ -97,3 +98,21 @@ def plot_text(widget: Widget) -> str:
     rendered = widget.render()
     assert isinstance(rendered, Text), type(rendered)
     return rendered.plain
+
+
+class Wire:
+    """Counts the bytes the app's display updates would put on the terminal."""
+
+    def __init__(self, app: QuadTankApp) -> None:
+        self.bytes = 0
+        self.updates: list[str] = []
+        display = app._display
+
+        def counting(screen: Any, renderable: Any) -> None:
+            if isinstance(renderable, CompositorUpdate):
+                data = renderable.render_segments(app.console)
+                self.bytes += len(data.encode())
+                self.updates.append(data)
+            display(screen, renderable)
+
+        app._display = counting  # type: ignore[method-assign]

@@ -176,8 +176,8 @@ class DesignScreen(CommandSender):
     def action_back(self, to: str) -> None:
         self.app.pop_screen()
 
-    def _pack(self, size: Size) -> None:
-        super()._pack(size)
+    def pack(self, size: Size) -> None:
+        super().pack(size)
         narrow = size.width < NARROW
         if narrow != self.has_class("-narrow"):
             self.set_class(narrow, "-narrow")

@@ -30,7 +30,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
-from textual.screen import Screen
+from textual.geometry import Size
 from textual.widgets import DataTable, ProgressBar, SelectionList, Static
 from textual.worker import get_current_worker
 from textual_plotext import PlotextPlot
@@ -41,6 +41,7 @@ from quadtank_tui.ui.screens.sending import COMPACT_WIDTH
 from quadtank_tui.ui.widgets import plot_kit as kit
 from quadtank_tui.ui.widgets.key_footer import KeyFooter
 from quadtank_tui.ui.widgets.plot_kit import Series
+from quadtank_tui.ui.widgets.sized import PacksForSize
 
 if TYPE_CHECKING:  # the analysis stack loads with the first fit, not with the app
     from quadtank_tui.engine.handle import EngineHandle
@@ -110,7 +111,7 @@ def compute(paths: list[str], method: str, structure: int, cancel: threading.Eve
     return FitView(ident, cmp, setting.title, residuals, coh, freq)
 
 
-class IdentifyScreen(Screen[None]):
+class IdentifyScreen(PacksForSize):
     """Fit models to logs; Esc returns to Main."""
 
     AUTO_FOCUS = "#logs"
@@ -165,10 +166,12 @@ class IdentifyScreen(Screen[None]):
                 yield PlotextPlot(id="lower")
         yield KeyFooter()
 
+    def pack(self, size: Size) -> None:
+        self.set_class(size.width < COMPACT_WIDTH, "-compact")
+
     def on_resize(self) -> None:
-        self.set_class(self.size.width < COMPACT_WIDTH, "-compact")
-        # The plots are decimated for their width when drawn: drawn again once the
-        # new layout (compacted or not) has given them theirs.
+        # Besides the packing (PacksForSize): the plots are decimated for their width
+        # when drawn, so they are drawn again once the new layout has given them theirs.
         self.call_after_refresh(self._redraw)
 
     def _redraw(self) -> None:
@@ -177,7 +180,6 @@ class IdentifyScreen(Screen[None]):
             self._drawn()
 
     def on_mount(self) -> None:
-        self.set_class(self.app.size.width < COMPACT_WIDTH, "-compact")  # in the first frame (ui/screens/sending.py)
         self.query_one("#logs", SelectionList).border_title = Content(f"Logs in {self.logs_dir}/ (space ticks)")
         self.query_one("#compare", DataTable).border_title = "Identified | physical"
         free = self.query_one("#free", SelectionList)

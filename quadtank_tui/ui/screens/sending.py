@@ -20,6 +20,7 @@ from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.screens.behind import QuietBehind
+from quadtank_tui.ui.widgets.sized import PacksForSize
 from quadtank_tui.ui.windows.base import Commands
 
 #: Below this width or height a screen packs tighter (80x24 terminals).
@@ -43,7 +44,7 @@ class CommandAnswered(Message, bubble=False):
         self.command, self.future, self.on_refused, self.on_done = command, future, on_refused, on_done
 
 
-class CommandSender(QuietBehind):
+class CommandSender(PacksForSize, QuietBehind):
     """A screen that sends commands; it has `engine`, `snap` (the snapshot it
     shows) and `refresh_view()`, runs its widgets' ActionRequested and packs
     tighter (`-compact`) on a small terminal."""
@@ -51,15 +52,7 @@ class CommandSender(QuietBehind):
     engine: EngineHandle
     snap: Snapshot
 
-    def on_mount(self) -> None:
-        # Packed from the first frame: set on the first Resize, which comes after
-        # it, the whole screen was drawn again at 80x24 (and a second frame sent).
-        self._pack(self.app.size)
-
-    def on_resize(self) -> None:
-        self._pack(self.size)
-
-    def _pack(self, size: Size) -> None:
+    def pack(self, size: Size) -> None:
         self.set_class(size.width < COMPACT_WIDTH or size.height < COMPACT_HEIGHT, "-compact")
 
     async def on_action_requested(self, message: ActionRequested) -> None:

@@ -12,11 +12,19 @@ A :class:`FitsItsSize` widget is told its size while the layout is made
 (Textual's `_size_updated`, which sets the size the frame is drawn at): what
 `fit_to_size` changes is in that frame.  tests/ui/test_start_frame.py counts the
 drawings, so a Textual whose layout no longer calls it fails there.
+
+A screen that packs tighter on a small terminal (a class its CSS reads) is a
+:class:`PacksForSize`: packed on its mount, from the app's size, so its first
+frame is laid out packed; set on the first Resize instead, the whole screen was
+drawn again at 80x24.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 from textual.geometry import Size
+from textual.screen import Screen
 from textual.widget import Widget
 
 
@@ -32,3 +40,18 @@ class FitsItsSize(Widget):
         if changed:
             self.fit_to_size()
         return changed
+
+
+class PacksForSize(Screen[Any]):
+    """A screen (or window) whose classes depend on the terminal's size: :meth:`pack`
+    on its mount, from the app's size, and on each resize.  (Textual runs each
+    class's `on_mount` and `on_resize`: a subclass's own run beside these.)"""
+
+    def on_mount(self) -> None:
+        self.pack(self.app.size)
+
+    def on_resize(self) -> None:
+        self.pack(self.size)
+
+    def pack(self, size: Size) -> None:
+        """Set the classes for a terminal of `size`."""

@@ -136,7 +136,6 @@ class Trend(FitsItsSize, PlotextPlot):
         self._history: Mapping[str, np.ndarray] | None = None
         self._drawn: tuple[object, ...] = ()
         self._columns = 0
-        self._titles: tuple[str, str] | None = None  # the border's title and subtitle as last set
         self._title()
 
     @property
@@ -180,11 +179,7 @@ class Trend(FitsItsSize, PlotextPlot):
         for form in (keys, short, short.replace(" min", "m"), short.replace(" min", "m").replace(" · ", "·")):
             if len(form) <= room:
                 break
-        # Set only when changed: setting a border title repaints the whole plot, and
-        # every start's first Resize (after the first frame) would draw it again.
-        if (title, form) != self._titles:
-            self._titles = (title, form)
-            self.border_title, self.border_subtitle = title, form
+        self.border_title, self.border_subtitle = title, form
 
     def fit_to_size(self) -> None:
         self._title()  # the subtitle's form depends on the width

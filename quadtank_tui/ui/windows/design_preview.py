@@ -20,7 +20,7 @@ import numpy as np
 from textual import work
 from textual.app import ComposeResult
 from textual.containers import Horizontal, VerticalScroll
-from textual.events import Resize
+from textual.geometry import Size
 from textual.widgets import Button, ProgressBar, Static
 from textual_plotext import PlotextPlot
 
@@ -34,6 +34,7 @@ from quadtank_tui.ui.colours import BLUE, RED
 from quadtank_tui.ui.widgets import plot_kit as kit
 from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.widgets.plot_kit import Series
+from quadtank_tui.ui.widgets.sized import PacksForSize
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Window
 
 
@@ -83,7 +84,7 @@ def preview_request(snap: Snapshot, pair: tuple[PID | None, PID | None],
 SHORT = 32
 
 
-class DesignPreviewWindow(Window[bool]):
+class DesignPreviewWindow(PacksForSize, Window[bool]):
     """Predicted and simulated steps of the chosen pair; Apply or Cancel."""
 
     def __init__(self, request: PreviewRequest) -> None:
@@ -109,16 +110,15 @@ class DesignPreviewWindow(Window[bool]):
         yield KeyButton("Cancel", id="cancel")
 
     def on_mount(self) -> None:
-        self.set_class(self.app.size.height < SHORT, "-short")  # in the first frame (ui/screens/sending.py)
         for i in (1, 2):
             self.query_one(f"#preview-loop{i}", PlotextPlot).border_title = f"y{i}: simulating"
         self.query_one("#cancel", Button).focus()
         self._simulate()
 
-    def on_resize(self, event: Resize) -> None:
+    def pack(self, size: Size) -> None:
         """Below SHORT rows the plots shrink and the figures scroll, so Apply and
         Cancel stay on the screen (at 80x24 they were below its edge)."""
-        self.set_class(event.size.height < SHORT, "-short")
+        self.set_class(size.height < SHORT, "-short")
 
     @work(thread=True, exclusive=True, group="preview")
     def _simulate(self) -> None:
