@@ -16,13 +16,13 @@ run: $(STAMP)
 	$(BIN)/python -m compileall -q quadtank_tui
 	$(BIN)/quadtank
 
-# The suite in two parts (docs/development.md): the tests off the wall clock on every
-# core (pytest-xdist: `-n auto` is a worker a core and one more, none on a single core), then the
-# `wallclock` tests among themselves, on every core too (they mostly wait); a test
+# The suite, one pytest session on every core (pytest-xdist: `-n auto` is a worker a
+# core and one more, none on a single core), in two phases (docs/development.md): the
+# tests off the wall clock, then the `wallclock` tests among themselves (they mostly
+# wait; tests/conftest.py holds them back until the first phase is over); a test
 # marked `alone` (a bound another test beside it would miss) runs with none beside it.
 test: $(STAMP)
-	$(BIN)/python -m pytest -n auto -m "not wallclock" --durations=25
-	$(BIN)/python -m pytest -n auto -m wallclock --durations=10
+	$(BIN)/python -m pytest -n auto --durations=30
 
 # Errors (ruff), types (mypy, pyproject's options: the package, its tests and the
 # benchmarks; then each folder's conftest.py alone, as they are all named `conftest`),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import gc
 import importlib.util
 import itertools
 import os
@@ -14,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 from types import ModuleType
-from typing import Callable, Iterator
+from typing import Callable, Generator, Iterator
 
 import pytest
 
@@ -84,16 +85,123 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     return cores + 1 if cores > 1 else 0
 
 
+#: The most tests xdist hands a worker at once (unless --maxschedchunk says).
+SCHEDULE_CHUNK = 2
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """xdist hands a worker that runs short of tests up to a sixth of those left, in
+    the order: tests/ui's pilot tests (1.4 s each on average, 0.2 s in tests/core)
+    come near the end, so one worker was handed some 50 of them at once, 70 s of
+    work, and ran them alone while the two others had finished the first phase:
+    it ended 46-56 s after them.  Two at a time, the workers finish together: that
+    run's test durations replayed under xdist's rule end the first phase at 311 s
+    without a limit, at 280 s with 2 (277.6 s of tests a worker, evenly shared)."""
+    if hasattr(config.option, "maxschedchunk") and config.option.maxschedchunk is None:
+        config.option.maxschedchunk = SCHEDULE_CHUNK
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Mark `wallclock` every test that uses a real device (tests/daq/conftest.py);
-    modules on the wall clock for other reasons say so with `pytestmark`."""
+    modules on the wall clock for other reasons say so with `pytestmark`.  Then the
+    order of the two phases (below): the tests off the wall clock as collected, then
+    the wallclock ones."""
     for item in items:
         if WALLCLOCK_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.wallclock)
-    # The wallclock tests that start a whole TUI in a terminal (tests/ui) are the
-    # longest of that part (3-10 s); last in the folders' order, they made its tail:
-    # first, the part took 88-92 s against 99-100 s (3 workers, idle, in turns).
-    items.sort(key=lambda item: not (item.nodeid.startswith("tests/ui/") and item.get_closest_marker("wallclock")))
+    items.sort(key=_phase_and_turn)
+
+
+def _phase_and_turn(item: pytest.Item) -> tuple[int, bool]:
+    """The first phase as collected, then the wallclock tests.  Among those, the ones
+    that start a whole TUI in a terminal (tests/ui) are the longest (3-10 s); last in
+    the folders' order, they made the phase's tail: first, it took 88-92 s against
+    99-100 s (3 workers, idle, in turns).  (The first phase with tests/ui first, the
+    slowest folder, made it worse: xdist hands a worker up to a quarter of its share
+    at once, and one was left with 65 s of pilot tests.)"""
+    if _on_the_wall_clock(item):
+        return (1, not item.nodeid.startswith("tests/ui/"))
+    return (0, False)
+
+
+# --- One session, two phases -------------------------------------------------------------
+#
+# `make test` is one pytest session on every core.  The tests on the wall clock do
+# not run beside the others: a Textual pilot test on each core made the TUI in a pty
+# miss its 0.8 s grace (docs/development.md).  They used to be a second pytest run,
+# which started its workers and collected the whole suite again (about 13 s before
+# its first test).  Now they come last in the order (above), and a worker that
+# reaches one waits until every test off the wall clock has finished, on any worker:
+# each worker adds a byte to a file the run's workers share when one of those ends.
+
+#: The number of tests off the wall clock in this run (after -m, -k, deselection).
+_FIRST_PHASE = pytest.StashKey[int]()
+#: How long a worker waits with no test of the first phase ending before it gives up
+#: (a worker that crashed never ends its test; xdist reports the crash, the run is red).
+FIRST_PHASE_STALL_S = 180.0
+_first_phase_over = False
+
+
+def _on_the_wall_clock(item: pytest.Item) -> bool:
+    return item.get_closest_marker("wallclock") is not None
+
+
+def _first_phase_file(config: pytest.Config) -> Path:
+    """In the run's temporary folder, shared by its workers: xdist gives each worker
+    a folder in it as its --basetemp."""
+    return Path(config.getoption("basetemp")).parent / "first-phase.done"
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    session.config.stash[_FIRST_PHASE] = sum(not _on_the_wall_clock(item) for item in session.items)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Generator[None, object, object]:
+    """A test off the wall clock that ends, passed, failed or broken, adds its byte."""
+    del nextitem
+    try:
+        return (yield)
+    finally:
+        if os.environ.get("PYTEST_XDIST_WORKER") is not None and not _on_the_wall_clock(item):
+            fd = os.open(_first_phase_file(item.config), os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
+            try:
+                os.write(fd, b".")  # one byte, O_APPEND: the workers' writes never overlap
+            finally:
+                os.close(fd)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """A wallclock test, under pytest-xdist, starts once the first phase is over:
+    before any of its fixtures (a module's included) starts anything."""
+    global _first_phase_over
+    if _first_phase_over or os.environ.get("PYTEST_XDIST_WORKER") is None or not _on_the_wall_clock(item):
+        return
+    need = item.config.stash.get(_FIRST_PHASE, 0)
+    path = _first_phase_file(item.config)
+    seen, since = -1, time.monotonic()
+    while True:
+        done = path.stat().st_size if path.exists() else 0
+        if done >= need:
+            break
+        if done != seen:
+            seen, since = done, time.monotonic()
+        elif time.monotonic() - since > FIRST_PHASE_STALL_S:
+            sys.stderr.write(f"\nconftest: {done} of the {need} tests off the wall clock have ended, none for "
+                             f"{FIRST_PHASE_STALL_S:.0f} s (a worker crashed?): the wallclock tests start anyway\n")
+            break
+        time.sleep(0.05)
+    _first_phase_over = True
+    # What the first phase left in this worker is collected, and what survives is
+    # frozen out of later collections (as tests/ui does before each of its tests).
+    # Up to 25,000 objects were left unfrozen (a full collection of them: 38 ms),
+    # and with so few long-lived objects counted the collector makes a full
+    # collection often: a pause of every thread of the process.  The likely cause
+    # of the one sample 74 ms late that a session host on a thread of a wallclock
+    # test saw (h = 100 ms, its bound h/2), in the first runs of this one session.
+    gc.collect()
+    gc.freeze()
 
 
 @pytest.fixture(autouse=True)
