@@ -158,12 +158,18 @@ def pytest_collection_finish(session: pytest.Session) -> None:
 
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Generator[None, object, object]:
-    """A test off the wall clock that ends, passed, failed or broken, adds its byte."""
+    """A wallclock test waits for the first phase to be over before its setup (so
+    before any of its fixtures, a module's included, starts anything, and outside
+    its times in --durations); a test off the wall clock that ends, passed, failed
+    or broken, adds its byte."""
     del nextitem
+    on_the_wall_clock = _on_the_wall_clock(item)
+    if on_the_wall_clock:
+        _wait_for_the_first_phase(item.config)
     try:
         return (yield)
     finally:
-        if os.environ.get("PYTEST_XDIST_WORKER") is not None and not _on_the_wall_clock(item):
+        if os.environ.get("PYTEST_XDIST_WORKER") is not None and not on_the_wall_clock:
             fd = os.open(_first_phase_file(item.config), os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
             try:
                 os.write(fd, b".")  # one byte, O_APPEND: the workers' writes never overlap
@@ -171,15 +177,13 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
                 os.close(fd)
 
 
-@pytest.hookimpl(tryfirst=True)
-def pytest_runtest_setup(item: pytest.Item) -> None:
-    """A wallclock test, under pytest-xdist, starts once the first phase is over:
-    before any of its fixtures (a module's included) starts anything."""
+def _wait_for_the_first_phase(config: pytest.Config) -> None:
+    """Under pytest-xdist, until every test off the wall clock has ended."""
     global _first_phase_over
-    if _first_phase_over or os.environ.get("PYTEST_XDIST_WORKER") is None or not _on_the_wall_clock(item):
+    if _first_phase_over or os.environ.get("PYTEST_XDIST_WORKER") is None:
         return
-    need = item.config.stash.get(_FIRST_PHASE, 0)
-    path = _first_phase_file(item.config)
+    need = config.stash.get(_FIRST_PHASE, 0)
+    path = _first_phase_file(config)
     seen, since = -1, time.monotonic()
     while True:
         done = path.stat().st_size if path.exists() else 0
