@@ -256,6 +256,34 @@ def poll(condition: Callable[[], bool], timeout: float, every: float = 0.05) -> 
     return condition()
 
 
+@pytest.fixture(scope="session")
+def built_once(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, Callable[[Path], None]], Path]:
+    """built_once(name, build): a folder `build` fills once for the whole run.  Under
+    pytest-xdist the first worker that needs it builds it in the run's temporary
+    folder, holding a lock the others wait on, and they read it.  The workers are
+    handed two tests at a time (pytest_configure), so a module's tests are spread
+    over them: test_identify_experiments' six 4200-s runs (6.5 s) and its two
+    models were built on two or three workers.  A build that failed is done again."""
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+
+    def get(name: str, build: Callable[[Path], None]) -> Path:
+        folder = root / name
+        lock = os.open(root / f"{name}.lock", os.O_RDWR | os.O_CREAT, 0o600)
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if not (folder / ".built").exists():
+                shutil.rmtree(folder, ignore_errors=True)
+                folder.mkdir()
+                build(folder)
+                (folder / ".built").touch()
+        finally:
+            os.close(lock)  # closing drops the flock
+        return folder
+
+    return get
+
+
 @pytest.fixture(name="poll")
 def poll_fixture() -> Callable[..., bool]:
     return poll

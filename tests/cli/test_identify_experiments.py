@@ -8,7 +8,7 @@ import json
 import os
 import shutil
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import pytest
@@ -22,27 +22,29 @@ from quadtank_tui.files.log_reader import read_log
 ROOT = Path(__file__).resolve().parents[2]
 PAR = {"pminus": "minphase", "pplus": "nonminphase"}
 SETTING = {"pminus": P_MINUS, "pplus": P_PLUS}
+#: tests/conftest.py's fixture: a folder built once for the run, by the first worker that needs it.
+BuiltOnce = Callable[[str, Callable[[Path], None]], Path]
 
 
 @pytest.fixture(scope="module")
-def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """The six experiments' logs, run once for the module."""
-    out = tmp_path_factory.mktemp("identify")
-    made = {}
-    cwd = Path.cwd()
-    shutil.copytree(ROOT / "params", out / "params")  # run from a copy, never from the checkout
-    os.chdir(out)
-    try:
-        for s in PAR:
-            for e in ("u1", "u2", "mimo"):
-                log = out / f"{s}-{e}.log"
-                code = main(["run", "--par", PAR[s], "--script", f"params/identify-{s}-{e}.yaml",
-                             "--duration", "4200", "--log", str(log)])
-                assert code == 0
-                made[f"{s}-{e}"] = log
-    finally:
-        os.chdir(cwd)
-    return made
+def logs(built_once: BuiltOnce) -> dict[str, Path]:
+    """The six experiments' logs, run once for the whole run (the module's tests may
+    be on several workers)."""
+    def build(out: Path) -> None:
+        cwd = Path.cwd()
+        shutil.copytree(ROOT / "params", out / "params")  # run from a copy, never from the checkout
+        os.chdir(out)
+        try:
+            for s in PAR:
+                for e in ("u1", "u2", "mimo"):
+                    code = main(["run", "--par", PAR[s], "--script", f"params/identify-{s}-{e}.yaml",
+                                 "--duration", "4200", "--log", str(out / f"{s}-{e}.log")])
+                    assert code == 0
+        finally:
+            os.chdir(cwd)
+
+    out = built_once("identify-logs", build)
+    return {f"{s}-{e}": out / f"{s}-{e}.log" for s in PAR for e in ("u1", "u2", "mimo")}
 
 
 def _identify(capsys: pytest.CaptureFixture[str], *args: str) -> dict:
@@ -52,14 +54,15 @@ def _identify(capsys: pytest.CaptureFixture[str], *args: str) -> dict:
 
 
 @pytest.fixture(scope="module")
-def models(logs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """`quadtank identify LOG_u1 LOG_u2 --save` of each setting, once for the module."""
-    out = tmp_path_factory.mktemp("models")
-    made = {}
-    for s in PAR:
-        made[s] = out / f"{s}.model.json"
-        assert main(["identify", str(logs[f"{s}-u1"]), str(logs[f"{s}-u2"]), "--save", str(made[s])]) == 0
-    return made
+def models(logs: dict[str, Path], built_once: BuiltOnce) -> dict[str, Path]:
+    """`quadtank identify LOG_u1 LOG_u2 --save` of each setting, once for the whole run."""
+    def build(out: Path) -> None:
+        for s in PAR:
+            assert main(["identify", str(logs[f"{s}-u1"]), str(logs[f"{s}-u2"]), "--save",
+                         str(out / f"{s}.model.json")]) == 0
+
+    out = built_once("identify-models", build)
+    return {s: out / f"{s}.model.json" for s in PAR}
 
 
 def _physical(setting: Setting, result: dict) -> Analysis:
