@@ -33,7 +33,6 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.dont_write_bytecode = False
 
 
-
 def pytest_sessionstart(session: pytest.Session) -> None:
     """An xdist worker rewrites the test modules' asserts ahead of its collection,
     starting a 1/n of the way into the list for the n-th of n workers, and skips
@@ -146,10 +145,21 @@ def _on_the_wall_clock(item: pytest.Item) -> bool:
     return item.get_closest_marker("wallclock") is not None
 
 
+def _in_a_worker() -> bool:
+    """This process is a pytest-xdist worker (not a serial run, nor xdist's controller)."""
+    return os.environ.get("PYTEST_XDIST_WORKER") is not None
+
+
+def _run_folder(config: pytest.Config) -> Path:
+    """The folder all the workers of an xdist run share (the run's temporary folder:
+    xdist gives each worker a folder in it as its --basetemp).  What the workers
+    coordinate by lives there: the `alone` turn, the first phase's count, what is
+    built once."""
+    return Path(config.getoption("basetemp")).parent
+
+
 def _first_phase_file(config: pytest.Config) -> Path:
-    """In the run's temporary folder, shared by its workers: xdist gives each worker
-    a folder in it as its --basetemp."""
-    return Path(config.getoption("basetemp")).parent / "first-phase.done"
+    return _run_folder(config) / "first-phase.done"
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
@@ -169,7 +179,7 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     try:
         return (yield)
     finally:
-        if os.environ.get("PYTEST_XDIST_WORKER") is not None and not on_the_wall_clock:
+        if _in_a_worker() and not on_the_wall_clock:
             fd = os.open(_first_phase_file(item.config), os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
             try:
                 os.write(fd, b".")  # one byte, O_APPEND: the workers' writes never overlap
@@ -180,7 +190,7 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
 def _wait_for_the_first_phase(config: pytest.Config) -> None:
     """Under pytest-xdist, until every test off the wall clock has ended."""
     global _first_phase_over
-    if _first_phase_over or os.environ.get("PYTEST_XDIST_WORKER") is None:
+    if _first_phase_over or not _in_a_worker():
         return
     need = config.stash.get(_FIRST_PHASE, 0)
     path = _first_phase_file(config)
@@ -209,17 +219,17 @@ def _wait_for_the_first_phase(config: pytest.Config) -> None:
 
 
 @pytest.fixture(autouse=True)
-def _alone_when_marked(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+def _alone_when_marked(request: pytest.FixtureRequest) -> Iterator[None]:
     """Under pytest-xdist, a test marked `alone` runs while no other test of the run
     does, and the others wait for it (a lock every test takes before its fixtures
     start anything: shared, or exclusive for an `alone` one).  `make test` runs the
     wallclock tests on every core; an `alone` one is a bound that another test's
     processes beside it would miss (a grace of 0.8 s, a sample's jitter under h/2),
     the test says which.  Serially (no xdist worker) there is nothing to wait for."""
-    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+    if not _in_a_worker():
         yield
         return
-    with _turn(tmp_path_factory.getbasetemp().parent, request.node.get_closest_marker("alone") is not None):
+    with _turn(_run_folder(request.config), request.node.get_closest_marker("alone") is not None):
         yield
 
 
@@ -257,15 +267,15 @@ def poll(condition: Callable[[], bool], timeout: float, every: float = 0.05) -> 
 
 
 @pytest.fixture(scope="session")
-def built_once(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, Callable[[Path], None]], Path]:
+def built_once(pytestconfig: pytest.Config,
+               tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, Callable[[Path], None]], Path]:
     """built_once(name, build): a folder `build` fills once for the whole run.  Under
     pytest-xdist the first worker that needs it builds it in the run's temporary
     folder, holding a lock the others wait on, and they read it.  The workers are
     handed two tests at a time (pytest_configure), so a module's tests are spread
     over them: test_identify_experiments' six 4200-s runs (6.5 s) and its two
     models were built on two or three workers.  A build that failed is done again."""
-    base = tmp_path_factory.getbasetemp()
-    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    root = _run_folder(pytestconfig) if _in_a_worker() else tmp_path_factory.getbasetemp()
 
     def get(name: str, build: Callable[[Path], None]) -> Path:
         folder = root / name
