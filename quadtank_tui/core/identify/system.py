@@ -21,6 +21,7 @@ import numpy as np
 from scipy import linalg, signal
 
 from quadtank_tui.core.delaytf import DelayTF
+from quadtank_tui.core.plants.linear import AT_INFINITY, finite_zeros
 
 #: Poles of one output's elements closer than this (relative) are one pole.
 MERGE_TOL = 0.05
@@ -93,6 +94,8 @@ def _det_zeros(rows: Sequence[Sequence[DelayTF]]) -> tuple[complex, ...]:
     # The poles of det G's denominator, each element's own (np.roots of the product
     # would split its double roots by ~1e-8).
     poles = [p for g in (g11, g22, g12, g21) for p in g.poles()]
+    fastest = max((abs(p) for p in poles), default=0.0)
+    zeros = [z for z in zeros if not fastest or abs(z) < AT_INFINITY * fastest]  # rounding's leading coefficient
     kept = []
     for z in zeros:
         near = [k for k, p in enumerate(poles) if abs(z - p) <= max(CANCEL_TOL * abs(p), 1e-12)]
@@ -143,9 +146,7 @@ def from_state_space(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> SystemModel
         elements.append(tuple(row))
     zeros: tuple[complex, ...] = ()
     if p == m and p >= 2:
-        import control  # python-control (and matplotlib) take ~1.3 s to import: only here
-
-        zeros = _clean(np.asarray(control.zeros(control.ss(A, B, C, np.zeros((p, m)))), dtype=complex))
+        zeros = _clean(finite_zeros(A, B, C, np.zeros((p, m))))
     return SystemModel(tuple(elements), np.asarray(A, float), np.asarray(B, float), np.asarray(C, float), zeros)
 
 

@@ -1,0 +1,54 @@
+"""Transmission zeros: the finite ones only, whatever the machine's rounding does
+with the Rosenbrock pencil's infinite eigenvalues (found when the n4sid model of the
+shipped P- experiment was called nonminimum phase on an AVX-512 machine: a zero at
++3.3e14 s^-1 that python-control's zeros() kept)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from quadtank_tui.core.analysis import analyze, linearize
+from quadtank_tui.core.identify.system import from_state_space
+from quadtank_tui.core.plant import P_MINUS, P_PLUS
+from quadtank_tui.core.plants.linear import finite_zeros
+
+A = np.diag([-0.016, -0.011, -0.04, -0.025])  # s^-1: the quadruple tank's time scale
+B = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 0.0], [0.0, 1.0]])
+
+
+def _c(eps: float) -> np.ndarray:
+    """G = [[1/(s+a), 1/(s+b)], [1/(s+c), (1+eps)/(s+d)]]: det G's numerator is
+    eps s^2 + (0.01 + 0.051 eps) s + 4e-5 + 4.4e-4 eps, a zero near -0.004 s^-1 and
+    one near -0.01/eps."""
+    return np.array([[1.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 1.0 + eps]])
+
+
+def test_the_two_settings_zeros_are_the_papers() -> None:
+    """P- has two zeros in the left half-plane, P+ one in the right (Johansson's
+    process, Nunes 2.2); the identified-model path gives the same zeros."""
+    for setting, rhp in ((P_MINUS, 0), (P_PLUS, 1)):
+        a = analyze(setting.params, setting.op.h)
+        m = linearize(setting.params, setting.op.h)
+        z = finite_zeros(m.A, m.B, m.C, m.D)
+        assert len(z) == 2 and sum(z.real > 0) == rhp
+        assert np.array(from_state_space(m.A, m.B, m.C).zeros) == pytest.approx(np.array(a.zeros), rel=1e-9)
+
+
+@pytest.mark.parametrize("eps", [1e-13, -1e-13, 1e-15, -1e-15])
+def test_a_zero_at_infinity_left_finite_by_rounding_is_dropped(eps: float) -> None:
+    """C B nearly singular: the pencil has a third eigenvalue near 1/eps, of either
+    sign, which no sampled response can see.  Kept, its sign decided the phase."""
+    C = _c(eps)
+    z = finite_zeros(A, B, C, np.zeros((2, 2)))
+    assert z == pytest.approx([-0.004], rel=1e-3)
+    model = from_state_space(A, B, C)
+    assert model.zeros == pytest.approx(tuple(z)) and model.phase == "minimum"
+
+
+def test_a_zero_far_out_but_within_reach_is_kept() -> None:
+    """A zero a thousand times faster than the fastest pole is a zero (it shapes the
+    response in the first sample): only those beyond 1e8 times go."""
+    z = finite_zeros(A, B, _c(1e-3), np.zeros((2, 2)))
+    assert z == pytest.approx(np.sort(np.roots([1e-3, 0.01 + 0.051e-3, 4e-5 + 4.4e-4 * 1e-3])), rel=1e-9)
+    assert z[0] == pytest.approx(-10.0, rel=0.01)
