@@ -51,7 +51,9 @@ class ParamTable(DataTable[Text]):
         self.defaults = defaults
 
     def on_mount(self) -> None:
-        self.watch_params(self.params)
+        # Not through watch_params: Textual's is_mounted turns True only after on_mount.
+        if self.params is not None:
+            self.show(self.params)
 
     def columns_for(self, params: Parameters) -> tuple[Column, ...]:
         """The columns for these parameters (the controller's follow its family)."""
@@ -75,8 +77,11 @@ class ParamTable(DataTable[Text]):
         return Text(text, style=MODIFIED if params.is_modified(key, self.defaults) else "")
 
     def watch_params(self, params: Parameters | None) -> None:
-        if params is None or not self.is_mounted:
-            return
+        if params is not None and self.is_mounted:
+            self.show(params)
+
+    def show(self, params: Parameters) -> None:
+        """The rows for `params`."""
         columns = self.columns_for(params)
         if [c.header for c in columns] != [str(c.label) for c in list(self.columns.values())[1:]]:
             self._build(columns)
@@ -164,9 +169,9 @@ class ProcessTable(ParamTable):
         Column("γ", _tank("Valve", (1, 2)), lambda v: f"{v:.2f}"),
     )
 
-    def watch_params(self, params: Parameters | None) -> None:
-        if params is None or not self.is_mounted or params.process is None:
-            super().watch_params(params)
+    def show(self, params: Parameters) -> None:
+        if params.process is None:
+            super().show(params)
             return
         # another plant (a PLANT section): its constants and operating levels (Enter
         # opens the plant window that edits them; core.plants.spec)

@@ -133,7 +133,8 @@ class CalibrationWindow(Window[Commands]):
         yield KeyButton("Cancel", id="cancel")
 
     def on_mount(self) -> None:
-        self.watch_snapshot(self.snapshot)
+        if self.snapshot is not None and self.active_mode:  # is_mounted turns True after on_mount
+            self._show(self.snapshot)
 
     # --- the live part ------------------------------------------------------------------
 
@@ -142,8 +143,10 @@ class CalibrationWindow(Window[Commands]):
         return self.snapshot.calibration if self.snapshot is not None else None
 
     def watch_snapshot(self, snapshot: Snapshot | None) -> None:
-        if snapshot is None or not self.active_mode or not self.is_mounted or not self.is_attached:
-            return
+        if snapshot is not None and self.active_mode and self.is_mounted and self.is_attached:
+            self._show(snapshot)
+
+    def _show(self, snapshot: Snapshot) -> None:
         s = snapshot.calibration
         self.query_one("#cal-progress", Static).update(progress_text(s))
         self.query_one("#cal-pairs", Static).update(pairs_text(s))

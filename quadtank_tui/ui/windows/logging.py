@@ -112,13 +112,16 @@ class LoggingWindow(Window[Commands]):
     def on_mount(self) -> None:
         self._mark_all()
         self._warn_if_exists()
-        self.watch_snapshot(self.snapshot)
+        if self.snapshot is not None:  # not watch_snapshot: is_mounted turns True after on_mount
+            self._show(self.snapshot)
 
     # --- the live part ------------------------------------------------------------
 
     def watch_snapshot(self, snapshot: Snapshot | None) -> None:
-        if snapshot is None or not self.is_mounted or not self.is_attached:
-            return
+        if snapshot is not None and self.is_mounted and self.is_attached:
+            self._show(snapshot)
+
+    def _show(self, snapshot: Snapshot) -> None:
         log = snapshot.log
         self.query_one(ProgressBar).update(progress=round(100 * log.progress, 1))
         show_live(self.query_one("#log-state", Label), log_state(log))

@@ -63,7 +63,11 @@ class _LiveWindow(Window[Commands]):
         yield TankTable(id="table")
 
     def on_mount(self) -> None:
-        self.watch_snapshot(self.snapshot)
+        # Drawn here, not by watch_snapshot: during on_mount is_mounted is still
+        # False, and the window opened blank until the app's next refresh handed it
+        # a snapshot (never, while nothing samples: the pump window's snapshot test).
+        if self.snapshot is not None:
+            show_live(self.query_one("#table", Static), self.table(self.snapshot))
         self.query_one(TankTable).focus()
 
     def action_select(self, n: int) -> None:
