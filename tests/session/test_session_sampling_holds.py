@@ -3,7 +3,8 @@ issue 25): a read-only observer flooding Submits, a command whose file work wait
 for a slow disk, attaches with a full ring buffer.  Each case runs a session on a
 wall-paced clock (virtual x1, TSamp 100 ms as default.par) and asserts on the
 driver's own LoopStats: no sampling slot skipped, and no sample later than h/2
-(the quiet session's worst on a loaded 2-core machine is 10-15 ms).  Before the
+(the quiet session's worst on a loaded 2-core machine is 10-15 ms), in a first run
+of the case or in a second on a new session (_held).  Before the
 fixes: 1 s stalls (the flood), 1 s (LogSave with fsync at 0.4 s), 100-200 ms per
 attach."""
 
@@ -29,15 +30,31 @@ from quadtank_tui.session.protocol import Hello, Submit, encode
 from quadtank_tui.session.server import MAX_LINE_BURST, MAX_LINE_RATE
 
 
-# The tests that call _held are marked `alone` (tests/conftest.py: no other test runs
-# beside them under pytest-xdist): the session is a thread of the test's process, and
-# with another wallclock test beside it (its TUI drawing, its session's thread at
-# real-time priority) the slow-disk case saw a sample 53 ms late in a -n 2 run at load 5.
-def _held(s: ThreadSession) -> None:
-    """The sampling held: no slot skipped, no sample late by h/2."""
+# The tests that check the sampling are marked `alone` (tests/conftest.py: no other
+# test runs beside them under pytest-xdist): the session is a thread of the test's
+# process, and with another wallclock test beside it (its TUI drawing, its session's
+# thread at real-time priority) the slow-disk case saw a sample 53 ms late in a -n 2
+# run at load 5.
+def _stall(s: ThreadSession) -> str | None:
+    """Why the sampling did not hold (a slot skipped, a sample late by h/2), or None."""
     stats, h = s.engine.snapshot().stats, s.engine.loop.h
-    assert stats.skipped == 0 and stats.jitter_max < h / 2, \
-        f"skipped {stats.skipped}, overruns {stats.overruns}, jitter_max {stats.jitter_max * 1e3:.0f} ms"
+    s.stop()
+    if stats.skipped == 0 and stats.jitter_max < h / 2:
+        return None
+    return f"skipped {stats.skipped}, overruns {stats.overruns}, jitter_max {stats.jitter_max * 1e3:.0f} ms"
+
+
+def _held(scenario: Callable[[], ThreadSession]) -> None:
+    """The sampling held through `scenario` (which returns its session), or through a
+    second run of it on a new session.  Alone, the machine still stalls a process now
+    and then: one sample 156 ms late in the burst case in a CI run (stop 37), one
+    74 ms late in the flooding case in a local run, each passing in every run since;
+    what these tests guard against (the host working for the client on the sampling's
+    thread) stalled every run, for 0.3-1 s."""
+    first = _stall(scenario())
+    if first is not None:
+        second = _stall(scenario())
+        assert second is None, f"the sampling did not hold, twice: {first}; then {second}"
 
 
 def _observer(s: ThreadSession) -> socket.socket:
@@ -79,19 +96,21 @@ def test_a_burst_of_refused_submits_is_answered_without_holding_a_sample(thread_
     refused, none forces an update to every client, and they are handled a few per
     event-loop turn.  Before: all in one read's callback, each with an update and a
     record check: 0.3-0.5 ms each, a stall of a few hundred ms."""
-    s: ThreadSession = thread_session(speed=1.0)
-    sock = _observer(s)
-    n = MAX_LINE_BURST - 100
-    answered = [0]
-    reader = threading.Thread(target=_count, args=(sock, "Result", n, answered), daemon=True)
-    reader.start()
-    time.sleep(0.3)
-    sock.sendall(encode(Submit(1, c.NudgeMean(1, 0.0))) * n)
-    reader.join(15)
-    assert answered[0] == n
-    _held(s)
-    assert any(conn.role == "observer" for conn in s.host.server.connections)  # within the rate: kept
-    sock.close()
+    def scenario() -> ThreadSession:
+        s: ThreadSession = thread_session(speed=1.0)
+        sock = _observer(s)
+        n = MAX_LINE_BURST - 100
+        answered = [0]
+        reader = threading.Thread(target=_count, args=(sock, "Result", n, answered), daemon=True)
+        reader.start()
+        time.sleep(0.3)
+        sock.sendall(encode(Submit(1, c.NudgeMean(1, 0.0))) * n)
+        reader.join(15)
+        assert answered[0] == n
+        assert any(conn.role == "observer" for conn in s.host.server.connections)  # within the rate: kept
+        sock.close()
+        return s
+    _held(scenario)
 
 
 @pytest.mark.wallclock
@@ -100,24 +119,26 @@ def test_a_flooding_observer_is_dropped_and_the_sampling_holds(thread_session, c
     """An observer writing Submits as fast as it can (the review's: 10000 in 5 s held
     the sampling 1 s) goes within a second, and the session's output says why; the
     operator is not disturbed."""
-    s: ThreadSession = thread_session(speed=1.0)
-    s.host.access._may_connect = lambda uid: True  # bob may observe
-    with SessionClient(s.path) as alice:
-        assert alice.submit(c.SetState("Run")).result(10).ok
-        s.peers.queue.append(STUDENT)
-        sock = _observer(s)
-        threading.Thread(target=_count, args=(sock, "-", 1, [0]), daemon=True).start()  # drain it
-        burst = encode(Submit(1, c.NudgeMean(1, 0.0))) * 800
-        t0 = time.monotonic()
-        with pytest.raises(OSError):  # the session hung up on it
-            while time.monotonic() - t0 < 4.0:
-                sock.sendall(burst)
-        assert time.monotonic() - t0 < 2.0
-        sock.close()
-        assert alice.submit(c.SetState("Pause")).result(10).ok
-    _held(s)
-    err = capfd.readouterr().err
-    assert "dropped bob (pid " in err and f"faster than {MAX_LINE_RATE:g} a second" in err, err
+    def scenario() -> ThreadSession:
+        s: ThreadSession = thread_session(speed=1.0)
+        s.host.access._may_connect = lambda uid: True  # bob may observe
+        with SessionClient(s.path) as alice:
+            assert alice.submit(c.SetState("Run")).result(10).ok
+            s.peers.queue.append(STUDENT)
+            sock = _observer(s)
+            threading.Thread(target=_count, args=(sock, "-", 1, [0]), daemon=True).start()  # drain it
+            burst = encode(Submit(1, c.NudgeMean(1, 0.0))) * 800
+            t0 = time.monotonic()
+            with pytest.raises(OSError):  # the session hung up on it
+                while time.monotonic() - t0 < 4.0:
+                    sock.sendall(burst)
+            assert time.monotonic() - t0 < 2.0
+            sock.close()
+            assert alice.submit(c.SetState("Pause")).result(10).ok
+        err = capfd.readouterr().err
+        assert "dropped bob (pid " in err and f"faster than {MAX_LINE_RATE:g} a second" in err, err
+        return s
+    _held(scenario)
 
 
 @pytest.mark.wallclock
@@ -127,49 +148,54 @@ def test_a_slow_disk_delays_the_answer_not_the_samples(thread_session, monkeypat
     the answers wait for the file thread, the samples do not (before: the host waited
     for the Future on the driver's thread, LogSave 1 s, 13 slots skipped).  A command
     sent behind LogSave is answered after it, in order."""
-    s: ThreadSession = thread_session(speed=1.0)
     real_fsync = os.fsync
 
     def slow_fsync(fd: int) -> None:
         time.sleep(0.4)
         real_fsync(fd)
 
-    with SessionClient(s.path) as alice:
-        assert alice.submit(c.SetState("Run")).result(10).ok
-        monkeypatch.setattr(os, "fsync", slow_fsync)
-        t0 = time.monotonic()
-        assert alice.submit(c.LogOn(points=1000)).result(10).ok
-        time.sleep(0.3)
-        save = alice.submit(c.LogSave("slow"))
-        after = alice.submit(c.SetState("Pause"))
-        assert after.result(10).ok and save.done() and save.result().ok
-        assert time.monotonic() - t0 > 1.0  # the fsyncs were waited for (by the file thread)
-    _held(s)
-    assert s.engine.snapshot().state == "Pause"
+    def scenario() -> ThreadSession:
+        s: ThreadSession = thread_session(speed=1.0)
+        with SessionClient(s.path) as alice:
+            assert alice.submit(c.SetState("Run")).result(10).ok
+            monkeypatch.setattr(os, "fsync", slow_fsync)
+            t0 = time.monotonic()
+            assert alice.submit(c.LogOn(points=1000)).result(10).ok
+            time.sleep(0.3)
+            save = alice.submit(c.LogSave("slow"))
+            after = alice.submit(c.SetState("Pause"))
+            assert after.result(10).ok and save.done() and save.result().ok
+            assert time.monotonic() - t0 > 1.0  # the fsyncs were waited for (by the file thread)
+        monkeypatch.setattr(os, "fsync", real_fsync)
+        assert s.engine.snapshot().state == "Pause"
+        return s
+    _held(scenario)
 
 
 @pytest.mark.wallclock
 @pytest.mark.alone  # a sample late by h/2 at most: see _held
 def test_attaching_with_a_full_ring_buffer_holds_no_sample(thread_session) -> None:
-    """Ten attaches, each receiving the whole ring buffer (36000 rows, 3.5 MB of
+    """Ten attaches and a client's, each receiving the whole ring buffer (36000 rows, 3.5 MB of
     lines): the session sends it a part per event-loop turn (before: encoded at once,
     100-200 ms per attach on the driver's thread).  A client holds the whole history,
     exactly, before it is live."""
-    s: ThreadSession = thread_session(speed=1.0)
-    history = s.engine.loop.history
-    rows = np.arange(history.capacity * len(SIGNALS), dtype=float).reshape(-1, len(SIGNALS))
-    rows[:, 0] = 0.1 * np.arange(history.capacity) - 3600.0
-    history.extend(rows)  # before any sample is due: a session that ran for an hour
-    for _ in range(10):
-        sock = _observer(s)
-        lines = _lines(sock)
-        parts = json.loads(next(lines)).get("parts", 0)  # the Welcome
-        assert all(next(lines).startswith(b'{"@":"HistoryPart"') for _ in range(parts))
-        sock.close()
-    _held(s)
-    with SessionClient(s.path, role="observer") as client:
-        got = client.history()
-        np.testing.assert_array_equal(np.column_stack([got[n] for n in SIGNALS])[:len(rows)], rows)
+    def scenario() -> ThreadSession:
+        s: ThreadSession = thread_session(speed=1.0)
+        history = s.engine.loop.history
+        rows = np.arange(history.capacity * len(SIGNALS), dtype=float).reshape(-1, len(SIGNALS))
+        rows[:, 0] = 0.1 * np.arange(history.capacity) - 3600.0
+        history.extend(rows)  # before any sample is due: a session that ran for an hour
+        for _ in range(10):
+            sock = _observer(s)
+            lines = _lines(sock)
+            parts = json.loads(next(lines)).get("parts", 0)  # the Welcome
+            assert all(next(lines).startswith(b'{"@":"HistoryPart"') for _ in range(parts))
+            sock.close()
+        with SessionClient(s.path, role="observer") as client:  # an eleventh, whole
+            got = client.history()
+            np.testing.assert_array_equal(np.column_stack([got[n] for n in SIGNALS])[:len(rows)], rows)
+        return s
+    _held(scenario)
 
 
 def test_rights_are_asked_once_per_user_while_remembered(monkeypatch: pytest.MonkeyPatch) -> None:
