@@ -50,43 +50,73 @@ class BatchRun:
     u: np.ndarray
 
 
-def _outflow(x: np.ndarray, a: np.ndarray, g: float) -> np.ndarray:
-    """core.plant.outflow for arrays; rows of `x` are tanks, `a` their outlets (4, 1)."""
-    q = a * np.sqrt(2.0 * g * np.maximum(x, 0.0))
+def _root_level(x: np.ndarray) -> np.ndarray:
+    """core.plant.outflow / (a sqrt(2 g)) for arrays of levels (cm): sqrt(h), with the
+    film blend near empty; the outlet's area and gravity are in the flow matrix."""
+    r = np.sqrt(np.maximum(x, 0.0))
     low = x < H_FILM
     if low.any():  # the film blend near empty (rare: only where a tank runs dry)
-        film = a * math.sqrt(2.0 * g) * (x / math.sqrt(H_FILM)) * (1.5 - 0.5 * x / H_FILM)
-        q = np.where(low, np.where(x <= 0.0, 0.0, film), q)
-    return q
+        film = (x / math.sqrt(H_FILM)) * (1.5 - 0.5 * x / H_FILM)
+        r = np.where(low, np.where(x <= 0.0, 0.0, film), r)
+    return r
+
+
+@dataclass(frozen=True)
+class _Flows:
+    """dh/dt = F sqrt(h) + G v+ (cm/s), the plant's balance as two small matrices:
+    F (4, 4) takes each outlet's flow a sqrt(2 g h) out of its tank and into the one
+    below; G (4, 2) splits each pump's k v between its two tanks by the valve.  Four
+    numpy operations a right-hand side instead of thirty (core.plant.rhs's terms)."""
+
+    F: np.ndarray
+    G: np.ndarray
+    hmax: float
+
+    @classmethod
+    def of(cls, p: PlantParams) -> _Flows:
+        area = np.array([p.A1, p.A2, p.A3, p.A4])
+        out = np.array([p.a1, p.a2, p.a3, p.a4]) * math.sqrt(2.0 * p.g)
+        F = -np.diag(out)
+        F[0, 2], F[1, 3] = out[2], out[3]  # tank 3 drains into 1, tank 4 into 2
+        G = np.array([[p.gamma1 * p.k1, 0.0], [0.0, p.gamma2 * p.k2],
+                      [0.0, (1.0 - p.gamma2) * p.k2], [(1.0 - p.gamma1) * p.k1, 0.0]])
+        return cls(F / area[:, None], G / area[:, None], p.hmax)
+
+    def rhs(self, x: np.ndarray, inflow: np.ndarray) -> np.ndarray:
+        """dh/dt (cm/s) at levels x (4, N) with the pumps' share `inflow` (4, N) = G v+."""
+        f = self.F @ _root_level(x)
+        f += inflow
+        full = x >= self.hmax
+        if full.any():  # a full tank spills what would raise it
+            f = np.where(full & (f > 0.0), 0.0, f)
+        return f
 
 
 def rhs_batch(x: np.ndarray, v: np.ndarray, p: PlantParams) -> np.ndarray:
     """dh/dt (cm/s) of N plants: x (4, N) cm, v (2, N) V (core.plant.rhs, vectorized)."""
-    q = _outflow(x, np.array([[p.a1], [p.a2], [p.a3], [p.a4]]), p.g)
-    v1 = np.maximum(v[0], 0.0)
-    v2 = np.maximum(v[1], 0.0)
-    f = np.stack((
-        (-q[0] + q[2] + p.gamma1 * p.k1 * v1) / p.A1,
-        (-q[1] + q[3] + p.gamma2 * p.k2 * v2) / p.A2,
-        (-q[2] + (1.0 - p.gamma2) * p.k2 * v2) / p.A3,
-        (-q[3] + (1.0 - p.gamma1) * p.k1 * v1) / p.A4,
-    ))
-    full = x >= p.hmax
-    if full.any():  # a full tank spills what would raise it
-        f = np.where(full & (f > 0.0), 0.0, f)
-    return f
+    flows = _Flows.of(p)
+    return flows.rhs(x, flows.G @ np.maximum(v, 0.0))
 
 
-def advance_batch(x: np.ndarray, v: np.ndarray, dt: float, p: PlantParams, *, substep: float = SUBSTEP) -> np.ndarray:
+def advance_batch(x: np.ndarray, v: np.ndarray, dt: float, p: PlantParams | _Flows, *,
+                  substep: float = SUBSTEP) -> np.ndarray:
     """Levels (4, N) cm after dt s with voltages v (2, N) held: RK4, clipped to [0, hmax]."""
+    flows = p if isinstance(p, _Flows) else _Flows.of(p)
+    inflow = flows.G @ np.maximum(v, 0.0)  # held over the sample
     n = max(1, math.ceil(dt / substep - 1e-9))
     s = dt / n
     for _ in range(n):
-        k1 = rhs_batch(x, v, p)
-        k2 = rhs_batch(x + 0.5 * s * k1, v, p)
-        k3 = rhs_batch(x + 0.5 * s * k2, v, p)
-        k4 = rhs_batch(x + s * k3, v, p)
-        x = np.clip(x + s / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), 0.0, p.hmax)
+        k1 = flows.rhs(x, inflow)
+        k2 = flows.rhs(x + 0.5 * s * k1, inflow)
+        k3 = flows.rhs(x + 0.5 * s * k2, inflow)
+        k4 = flows.rhs(x + s * k3, inflow)
+        k2 += k3
+        k2 *= 2.0
+        k2 += k1
+        k2 += k4
+        k2 *= s / 6.0
+        k2 += x
+        x = np.clip(k2, 0.0, flows.hmax, out=k2)
     return x
 
 
@@ -120,6 +150,7 @@ def pi_batch(
     y0 = p.kc * x[:2] / FULL_SCALE_V
     integ = np.asarray(u0, dtype=float)[:, None] - K * (b * y0 - y0)   # PID.track at r = y0
     rt = np.ascontiguousarray(refs.transpose(1, 2, 0))               # (K, 2, N)
+    flows = _Flows.of(p)
     ys = np.empty((k_total, 4, n))
     us = np.empty((k_total, 2, n))
     for k in range(k_total):
@@ -130,6 +161,6 @@ def pi_batch(
         u = np.clip(v, U_MIN, U_MAX)
         integ = integ + gain_i * e + track * (u - v)
         ys[k], us[k] = y, u
-        x = advance_batch(x, FULL_SCALE_V * u, h, p, substep=substep)
+        x = advance_batch(x, FULL_SCALE_V * u, h, flows, substep=substep)
     ys, us = ys.transpose(2, 0, 1), us.transpose(2, 0, 1)
     return BatchRun(np.ascontiguousarray(ys), np.ascontiguousarray(us))
