@@ -128,6 +128,10 @@ class ControllerMatrix:
             e: PID(pid.get(e, PIDParams()), h, anti_windup=e in DIAGONAL) for e in ELEMENTS
         }
         self._general = {e: General(general.get(e, GeneralParams()), h) for e in ELEMENTS}
+        # This sample's compute: (r, y, v_ij, their row sums), which update reuses when
+        # it is handed the same r and y objects (the engine's sample: compute, write,
+        # update); any other change of the elements forgets it.
+        self._computed: tuple[Sequence[float], Sequence[float], dict[Element, float], Pair] | None = None
 
     # --- what is configured ------------------------------------------------------------
 
@@ -173,18 +177,26 @@ class ControllerMatrix:
 
     def compute(self, r: Sequence[float], y: Sequence[float]) -> Pair:
         """Unsaturated inputs (u1, u2) for this sample; no state change."""
-        return _row_sums(self.element_outputs(r, y))
+        v = self.element_outputs(r, y)
+        total = _row_sums(v)
+        self._computed = (r, y, v, total)
+        return total
 
     def update(self, r: Sequence[float], y: Sequence[float], u_applied: Sequence[float]) -> None:
         """Automatic: commit the sample after ``u_applied`` (saturated) went out."""
-        v = self.element_outputs(r, y)
-        total = _row_sums(v)
+        computed, self._computed = self._computed, None
+        if computed is not None and computed[0] is r and computed[1] is y:
+            v, total = computed[2], computed[3]  # what compute() gave for these r and y: the same numbers
+        else:
+            v = self.element_outputs(r, y)
+            total = _row_sums(v)
+        pid = self._family is Family.PID
         for (i, j), vij in v.items():
             rj, yj = r[j - 1], y[j - 1]
-            if self._family is Family.PID:
+            if pid:
                 # The diagonal element sees the whole saturation excess of its input.
                 applied = vij + (u_applied[i - 1] - total[i - 1]) if i == j else vij
-                self._pid[(i, j)].update(rj, yj, applied)
+                self._pid[(i, j)].update(rj, yj, applied, vij)
             else:
                 self._general[(i, j)].update(rj - yj)
 
@@ -194,6 +206,7 @@ class ControllerMatrix:
         The diagonal element i carries all of u_i; active off-diagonal elements are
         held at rest at zero output, so nothing winds up in them while the loop is open.
         """
+        self._computed = None
         elements = self._pid if self._family is Family.PID else None
         for e in self.active_elements():
             i, j = e
@@ -209,6 +222,7 @@ class ControllerMatrix:
     def set_element_params(self, i: int, j: int, params: PIDParams | GeneralParams) -> None:
         """New PID or General settings for element ij (bumpless if it is running)."""
         e = _check_element(i, j)
+        self._computed = None
         if isinstance(params, PIDParams):
             self._pid[e].set_params(params)
         elif isinstance(params, GeneralParams):
@@ -222,6 +236,7 @@ class ControllerMatrix:
         going to full matrix start from rest (they had no part in the decentralized
         controller)."""
         family, structure = _matrix_family(family), Structure(structure)
+        self._computed = None
         if family is not self._family:
             self._family = family
             self._structure = structure
@@ -241,6 +256,7 @@ class ControllerMatrix:
     def reset_element(self, i: int, j: int) -> None:
         """Reset one element's states (its own Reset button), both families."""
         e = _check_element(i, j)
+        self._computed = None
         self._pid[e].reset()
         self._general[e].reset()
 
@@ -251,6 +267,7 @@ class ControllerMatrix:
         cannot map at the new h refuses the change before any element has moved.
         """
         h = check_sampling_time(h)
+        self._computed = None
         for g in self._general.values():
             tustin(g.params.numerator, g.params.denominator, h)
         for e in ELEMENTS:

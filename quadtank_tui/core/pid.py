@@ -137,16 +137,18 @@ class PID:
         p = self._p
         return self._proportional(p, r, y) + self._I + self._derivative(p, r, y)
 
-    def update(self, r: float, y: float, u_applied: float) -> None:
+    def update(self, r: float, y: float, u_applied: float, v: float | None = None) -> None:
         """Commit the sample after ``u_applied`` (the saturated input) went out.
 
         Integrates the error (forward difference) and, if ``anti_windup``, pulls the
         integral towards the applied input with time constant Tr: the term
         ``h/Tr (u - v)`` is zero while unsaturated and unwinds I while saturated.
+        ``v``: this sample's :meth:`compute`, if the caller has it (the same number).
         """
         p = self._p
         D = self._derivative(p, r, y)
-        v = self._proportional(p, r, y) + self._I + D
+        if v is None:
+            v = self._proportional(p, r, y) + self._I + D
         if p.integral:
             self._I += p.K * self._h / p.Ti * (r - y)
             if self.anti_windup:

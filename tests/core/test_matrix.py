@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from quadtank_tui.core.general import GeneralParams
@@ -138,3 +139,39 @@ def test_sampling_time_change_is_all_or_nothing() -> None:
     assert m.h == 0.5
     m.set_sampling_time(0.25)
     assert m.h == 0.25
+
+
+def _full_pi(h: float = 1.0) -> ControllerMatrix:
+    pid = {e: PIDParams(K=1.0 + 0.3 * n, Ti=20.0 + 5 * n, Td=2.0 * (n % 2), derivative=n % 2 == 1)
+           for n, e in enumerate(((1, 1), (1, 2), (2, 1), (2, 2)))}
+    return ControllerMatrix(h, Family.PID, Structure.FULL_MATRIX, pid=pid)
+
+
+def test_update_after_compute_is_update_alone_bit_for_bit() -> None:
+    """update reuses this sample's compute (the engine's order: compute, write,
+    update) only for the same r and y, and not across a change of the elements: the
+    states come out as those of update alone, to the bit, over a saturating run with
+    a change of parameters, a reset and a new sampling time between a compute and
+    its update."""
+    rng = np.random.default_rng(3)
+    cached, alone = _full_pi(), _full_pi()
+    for k in range(400):
+        r = tuple(rng.uniform(0.0, 1.0, 2))
+        y = tuple(rng.uniform(0.0, 1.0, 2))
+        u = saturate(cached.compute(r, y))
+        assert u == saturate(alone.compute(r, y))
+        if k == 100:
+            for m in (cached, alone):
+                m.set_element_params(1, 1, PIDParams(K=4.0, Ti=9.0))
+        if k == 200:
+            for m in (cached, alone):
+                m.reset_element(2, 2)
+        if k == 300:
+            for m in (cached, alone):
+                m.set_sampling_time(0.5)
+        if k == 350:
+            r = (r[0], r[1])  # equal values, another object: computed again
+        alone.update((r[0], r[1]), (y[0], y[1]), u)  # other objects: never what compute saw
+        cached.update(r, y, u)
+        assert [(p.integral_state, p.derivative_state) for p in cached._pid.values()] == \
+            [(p.integral_state, p.derivative_state) for p in alone._pid.values()]
