@@ -9,7 +9,7 @@ import numpy as np
 
 from quadtank_tui.core.identify.compare import Comparison, physical_time_constants
 from quadtank_tui.core.identify.experiment import Element, Identification
-from quadtank_tui.core.identify.system import time_constants
+from quadtank_tui.core.identify.system import element_zeros, time_constants
 from quadtank_tui.core.plant import FULL_SCALE_V
 
 
@@ -18,7 +18,7 @@ def phase(ident: Identification) -> str:
     any element has a zero in the right half-plane."""
     if ident.system.zeros or (ident.system.complete and len(ident.inputs) == len(ident.outputs) > 1):
         return ident.system.phase
-    rhp = any(z.real >= 0 for e in ident.elements.values() for z in e.tf.zeros())
+    rhp = any(z.real >= 0 for e in ident.elements.values() for z in element_zeros(e.tf))
     return "nonminimum" if rhp else "minimum"
 
 

@@ -150,6 +150,18 @@ def from_state_space(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> SystemModel
     return SystemModel(tuple(elements), np.asarray(A, float), np.asarray(B, float), np.asarray(C, float), zeros)
 
 
+def element_zeros(g: DelayTF) -> np.ndarray:
+    """The zeros of one element (1/s), less those beyond AT_INFINITY times its
+    fastest pole: a numerator's leading coefficient that should be 0 (a state-space
+    fit's C B of an element of relative degree 2) is left at rounding's 1e-10 or so,
+    and its root at +-1e10, its sign by the machine's rounding."""
+    z = g.zeros()
+    poles = g.poles()
+    if not len(z) or not len(poles):
+        return z
+    return z[np.abs(z) < AT_INFINITY * np.abs(poles).max()]
+
+
 def time_constants(g: DelayTF) -> list[float]:
     """-1/p for the real stable poles of an element (s), largest first."""
     out = [-1.0 / p.real for p in g.poles() if abs(p.imag) < 1e-9 and p.real < 0]

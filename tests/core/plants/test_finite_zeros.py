@@ -52,3 +52,16 @@ def test_a_zero_far_out_but_within_reach_is_kept() -> None:
     z = finite_zeros(A, B, _c(1e-3), np.zeros((2, 2)))
     assert z == pytest.approx(np.sort(np.roots([1e-3, 0.01 + 0.051e-3, 4e-5 + 4.4e-4 * 1e-3])), rel=1e-9)
     assert z[0] == pytest.approx(-10.0, rel=0.01)
+
+
+@pytest.mark.parametrize("lead", [1e-11, -1e-11])
+def test_an_elements_zero_at_infinity_is_not_a_zero(lead: float) -> None:
+    """An element of relative degree 2 whose numerator kept a leading coefficient of
+    rounding: its far root goes (either sign), the real zero stays."""
+    from quadtank_tui.core.delaytf import DelayTF
+    from quadtank_tui.core.identify.system import element_zeros
+
+    g = DelayTF((lead, 0.02, 0.0004), (1.0, 0.06, 0.0008, 0.0), 0.0)  # zero at -0.02, poles to 0.04
+    assert len(g.zeros()) == 2 and np.abs(g.zeros()).max() > 1e8
+    assert element_zeros(g) == pytest.approx([-0.02])
+    assert element_zeros(DelayTF((0.02, 0.0004), (1.0, 0.06, 0.0008), 0.0)) == pytest.approx([-0.02])
