@@ -176,7 +176,9 @@ class ControllerMatrix:
         return out
 
     def compute(self, r: Sequence[float], y: Sequence[float]) -> Pair:
-        """Unsaturated inputs (u1, u2) for this sample; no state change."""
+        """Unsaturated inputs (u1, u2) for this sample; no state change.  An update
+        with the same r and y objects reuses it: a caller that changes them in place
+        in between (a list, an array) must hand update copies."""
         v = self.element_outputs(r, y)
         total = _row_sums(v)
         self._computed = (r, y, v, total)

@@ -147,15 +147,20 @@ def _full_pi(h: float = 1.0) -> ControllerMatrix:
     return ControllerMatrix(h, Family.PID, Structure.FULL_MATRIX, pid=pid)
 
 
-def test_update_after_compute_is_update_alone_bit_for_bit() -> None:
+@pytest.mark.parametrize("family", [Family.PID, Family.GENERAL])
+def test_update_after_compute_is_update_alone_bit_for_bit(family: Family) -> None:
     """update reuses this sample's compute (the engine's order: compute, write,
     update) only for the same r and y, and not across a change of the elements: the
     states come out as those of update alone, to the bit, over a saturating run with
-    a change of parameters, a reset and a new sampling time between a compute and
-    its update."""
+    a change of parameters, a reset, a new sampling time, a change of structure and
+    a Manual sample between a compute and its update."""
     rng = np.random.default_rng(3)
     cached, alone = _full_pi(), _full_pi()
-    for k in range(400):
+    general = GeneralParams(degree=1, s=(0.5, 0.1, 0.0, 0.0, 0.0), r=(0.2, 0.0, 0.0, 0.0))
+    for m in (cached, alone):
+        m.set_element_params(2, 1, general)
+        m.set_type(family, Structure.FULL_MATRIX)
+    for k in range(500):
         r = tuple(rng.uniform(0.0, 1.0, 2))
         y = tuple(rng.uniform(0.0, 1.0, 2))
         u = saturate(cached.compute(r, y))
@@ -171,7 +176,14 @@ def test_update_after_compute_is_update_alone_bit_for_bit() -> None:
                 m.set_sampling_time(0.5)
         if k == 350:
             r = (r[0], r[1])  # equal values, another object: computed again
+        if k == 400:
+            for m in (cached, alone):
+                m.set_type(family, Structure.DECENTRALIZED)
+        if k == 450:
+            for m in (cached, alone):
+                m.track(r, y, u)
         alone.update((r[0], r[1]), (y[0], y[1]), u)  # other objects: never what compute saw
         cached.update(r, y, u)
         assert [(p.integral_state, p.derivative_state) for p in cached._pid.values()] == \
             [(p.integral_state, p.derivative_state) for p in alone._pid.values()]
+        assert cached.compute((0.5, 0.5), (0.4, 0.6)) == alone.compute((0.5, 0.5), (0.4, 0.6))

@@ -154,15 +154,18 @@ def test_a_slow_disk_delays_the_answer_not_the_samples(thread_session, monkeypat
         time.sleep(0.4)
         real_fsync(fd)
 
+    runs = iter(range(2))
+
     def scenario() -> ThreadSession:
-        s: ThreadSession = thread_session(speed=1.0)
+        s: ThreadSession = thread_session(speed=1.0)  # the same logs/ folder: a new name each run
+        name = f"slow{next(runs)}"
         with SessionClient(s.path) as alice:
             assert alice.submit(c.SetState("Run")).result(10).ok
             monkeypatch.setattr(os, "fsync", slow_fsync)
             t0 = time.monotonic()
             assert alice.submit(c.LogOn(points=1000)).result(10).ok
             time.sleep(0.3)
-            save = alice.submit(c.LogSave("slow"))
+            save = alice.submit(c.LogSave(name))
             after = alice.submit(c.SetState("Pause"))
             assert after.result(10).ok and save.done() and save.result().ok
             assert time.monotonic() - t0 > 1.0  # the fsyncs were waited for (by the file thread)

@@ -2,7 +2,8 @@
 first drawing ran in on_mount behind an is_mounted guard, which Textual sets only
 after on_mount, so the Pump window opened blank (its snapshot test failed every time
 on a fast machine; on the others the refresh came first, by timing).  Here the app
-refreshes once an hour: what the window shows, it drew itself."""
+refreshes once an hour: what the window shows, it drew itself.  The Setup screen's
+tables had the same guard."""
 
 from __future__ import annotations
 
@@ -49,7 +50,21 @@ async def test_the_logging_window_has_its_state_when_it_opens(engine: Recording)
         assert str(pilot.app.screen.query_one("#log-state", Label).content).strip()
 
 
-async def test_the_setup_tables_are_filled_when_they_open(engine: Recording) -> None:
-    async with _opened(engine, "S", (120, 40)) as pilot:
-        table = pilot.app.screen.query_one(ProcessTable)
+async def test_a_parameter_table_given_its_parameters_before_it_mounts_shows_them(engine: Recording) -> None:
+    """A Setup table whose parameters were set before it was mounted fills itself
+    (the Setup screen sets them after, so its own tables do not show this)."""
+    from textual.app import App, ComposeResult
+
+    params = engine.snapshot().params
+
+    class One(App[None]):
+        def compose(self) -> ComposeResult:
+            table = ProcessTable(params, id="process")
+            table.set_reactive(ProcessTable.params, params)
+            yield table
+
+    app = One()
+    async with app.run_test(size=(80, 12)) as pilot:
+        await pilot.pause()
+        table = app.query_one(ProcessTable)
         assert table.row_count == 4 and "0." in str(table.get_cell("0", "Op.Pt"))

@@ -21,7 +21,7 @@ import numpy as np
 from scipy import linalg, signal
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.plants.linear import AT_INFINITY, finite_zeros
+from quadtank_tui.core.plants.linear import finite_zeros, zero_limit
 
 #: Poles of one output's elements closer than this (relative) are one pole.
 MERGE_TOL = 0.05
@@ -94,8 +94,8 @@ def _det_zeros(rows: Sequence[Sequence[DelayTF]]) -> tuple[complex, ...]:
     # The poles of det G's denominator, each element's own (np.roots of the product
     # would split its double roots by ~1e-8).
     poles = [p for g in (g11, g22, g12, g21) for p in g.poles()]
-    fastest = max((abs(p) for p in poles), default=0.0)
-    zeros = [z for z in zeros if not fastest or abs(z) < AT_INFINITY * fastest]  # rounding's leading coefficient
+    limit = zero_limit(max((abs(p) for p in poles), default=0.0))
+    zeros = [z for z in zeros if abs(z) < limit]  # not a root of rounding's leading coefficient
     kept = []
     for z in zeros:
         near = [k for k, p in enumerate(poles) if abs(z - p) <= max(CANCEL_TOL * abs(p), 1e-12)]
@@ -151,15 +151,13 @@ def from_state_space(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> SystemModel
 
 
 def element_zeros(g: DelayTF) -> np.ndarray:
-    """The zeros of one element (1/s), less those beyond AT_INFINITY times its
-    fastest pole: a numerator's leading coefficient that should be 0 (a state-space
-    fit's C B of an element of relative degree 2) is left at rounding's 1e-10 or so,
-    and its root at +-1e10, its sign by the machine's rounding."""
+    """The zeros of one element (1/s), less those beyond zero_limit of its fastest
+    pole: a numerator's leading coefficient that should be 0 (a state-space fit's
+    C B of an element of relative degree 2) is left at rounding's 1e-10 or so, and
+    its root at +-1e10, its sign by the machine's rounding."""
     z = g.zeros()
     poles = g.poles()
-    if not len(z) or not len(poles):
-        return z
-    return z[np.abs(z) < AT_INFINITY * np.abs(poles).max()]
+    return z[np.abs(z) < zero_limit(float(np.abs(poles).max(initial=0.0)))]
 
 
 def time_constants(g: DelayTF) -> list[float]:

@@ -96,16 +96,25 @@ class LinearModel:
 #: one at +3.3e14 on an AVX-512 machine (python-control's zeros() keeps all that are
 #: not exactly inf) and was called nonminimum phase.
 AT_INFINITY = 1e8
-#: The same bound, s^-1, for a model whose poles are all at 0.
+#: The fastest pole is taken as at least this, s^-1 (a time constant of 10^4 s): a
+#: model of integrators, its poles at 0 or rounding's 1e-8, keeps its zeros up to
+#: 1e4 s^-1, far beyond any sampling rate a rig runs at.
+SLOWEST_RATE = 1e-4
+#: Nor is any bound above this, s^-1.
 ZERO_LIMIT = 1e12
+
+
+def zero_limit(fastest: float) -> float:
+    """|z| (s^-1) beyond which a zero of a model whose fastest pole is `fastest`
+    (s^-1) is one at infinity: AT_INFINITY times it, within [1e4, ZERO_LIMIT]."""
+    return min(AT_INFINITY * max(fastest, SLOWEST_RATE), ZERO_LIMIT)
 
 
 def finite_zeros(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> np.ndarray:
     """Finite transmission zeros of the square system (A, B, C, D), sorted by real
     part: the finite generalized eigenvalues (alpha/beta) of the Rosenbrock pencil
-    ([[A, B], [C, D]], [[I, 0], [0, 0]]), less those beyond AT_INFINITY times the
-    fastest pole (or ZERO_LIMIT); a zero within 1e-12 (relative) of the real axis is
-    made real."""
+    ([[A, B], [C, D]], [[I, 0], [0, 0]]), less those beyond zero_limit of the
+    fastest pole; a zero within 1e-12 (relative) of the real axis is made real."""
     from scipy.linalg import eig, eigvals
 
     n = A.shape[0]
@@ -114,8 +123,7 @@ def finite_zeros(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> 
     N[:n, :n] = np.eye(n)
     alpha, beta = eig(M, N, right=False, homogeneous_eigvals=True)
     fastest = float(np.abs(eigvals(A)).max(initial=0.0)) if n else 0.0
-    limit = min(AT_INFINITY * fastest, ZERO_LIMIT) if fastest > 0 else ZERO_LIMIT
-    finite = np.abs(alpha) < limit * np.abs(beta)
+    finite = np.abs(alpha) < zero_limit(fastest) * np.abs(beta)
     z = alpha[finite] / beta[finite]
     z = np.where(np.abs(z.imag) < 1e-12 * np.maximum(1.0, np.abs(z.real)), z.real + 0j, z)
     return np.array(sorted(z, key=lambda c: (c.real, c.imag)))

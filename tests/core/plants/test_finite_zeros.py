@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from quadtank_tui.core.analysis import analyze, linearize
+from quadtank_tui.core.analysis import linearize, zeros_from_valves
 from quadtank_tui.core.identify.system import from_state_space
 from quadtank_tui.core.plant import P_MINUS, P_PLUS
 from quadtank_tui.core.plants.linear import finite_zeros
@@ -26,13 +26,14 @@ def _c(eps: float) -> np.ndarray:
 
 def test_the_two_settings_zeros_are_the_papers() -> None:
     """P- has two zeros in the left half-plane, P+ one in the right (Johansson's
-    process, Nunes 2.2); the identified-model path gives the same zeros."""
+    process, Nunes 2.2), where the paper's closed form puts them; the identified-model
+    path gives the same zeros."""
     for setting, rhp in ((P_MINUS, 0), (P_PLUS, 1)):
-        a = analyze(setting.params, setting.op.h)
         m = linearize(setting.params, setting.op.h)
         z = finite_zeros(m.A, m.B, m.C, m.D)
         assert len(z) == 2 and sum(z.real > 0) == rhp
-        assert np.array(from_state_space(m.A, m.B, m.C).zeros) == pytest.approx(np.array(a.zeros), rel=1e-9)
+        assert z.real == pytest.approx(zeros_from_valves(setting.params, setting.op.h), rel=1e-9)
+        assert np.array(from_state_space(m.A, m.B, m.C).zeros) == pytest.approx(z, rel=1e-12)
 
 
 @pytest.mark.parametrize("eps", [1e-13, -1e-13, 1e-15, -1e-15])
@@ -65,3 +66,16 @@ def test_an_elements_zero_at_infinity_is_not_a_zero(lead: float) -> None:
     assert len(g.zeros()) == 2 and np.abs(g.zeros()).max() > 1e8
     assert element_zeros(g) == pytest.approx([-0.02])
     assert element_zeros(DelayTF((0.02, 0.0004), (1.0, 0.06, 0.0008), 0.0)) == pytest.approx([-0.02])
+
+
+@pytest.mark.parametrize("slow", [0.0, 1e-8])
+def test_a_model_of_integrators_keeps_its_zeros(slow: float) -> None:
+    """Poles at 0 (or at rounding's 1e-8): the bound is taken from a pole of 1e-4 s^-1
+    at least, so (s + 10) / s^2 keeps its zero at -10 s^-1, and (s + 1) / s its -1."""
+    from quadtank_tui.core.delaytf import DelayTF
+    from quadtank_tui.core.identify.system import element_zeros
+
+    A = np.array([[-slow, 1.0], [0.0, -slow]])
+    z = finite_zeros(A, np.array([[0.0], [1.0]]), np.array([[10.0, 1.0]]), np.zeros((1, 1)))
+    assert z == pytest.approx([-10.0 + slow * 0])
+    assert element_zeros(DelayTF((1.0, 1.0), (1.0, slow), 0.0)) == pytest.approx([-1.0])
