@@ -10,7 +10,7 @@ from typing import Any, Callable
 from uikit import Recording, make_app, open_setup
 
 import pytest
-from textual.widgets import Input
+from textual.widgets import Button, Input
 
 from quadtank_tui.core.parameters import PLANT_SETTINGS, PRESET, Parameters
 from quadtank_tui.engine.commands import SetOperation
@@ -59,6 +59,20 @@ async def _settle(pilot: Any, engine: Recording, phase: str) -> CalibrationWindo
     raise AssertionError(window.status)
 
 
+async def _click_when_ready(pilot: Any, button: Button) -> None:
+    """A click once the button's last press has ended: Textual's Button ignores a
+    click while it shows its press (-active, 0.2 s).  On a fast machine the second
+    Record came 0.1-0.2 s after the first and was dropped: the test ran the cascade's
+    calibration to its second voltage and waited there for ever (the whole module
+    alone failed every time; within a loaded suite it passed)."""
+    for _ in range(40):
+        if not button.has_class("-active"):
+            break
+        await pilot.pause(0.05)
+    assert await pilot.click(button)
+    await pilot.pause()
+
+
 async def _start(pilot: Any, engine: Recording, volts: str = "2 3") -> CalibrationWindow:
     await open_setup(pilot)
     await pilot.press("c")
@@ -104,8 +118,7 @@ def test_calibration_window_shows_the_fit(snap_compare, make_engine: Callable[..
             assert rig.voltages[0] == pytest.approx(v)
             for i, h in enumerate(rig.levels_cm, start=1):  # what the scales show now
                 window.query_one(f"#cal-h{i}", Input).value = f"{h:.3f}"
-            await pilot.click("#record")
-            await pilot.pause()
+            await _click_when_ready(pilot, window.query_one("#record", Button))
         await _settle(pilot, engine, "done")
         await pilot.app.workers.wait_for_complete()
         await pilot.pause()
