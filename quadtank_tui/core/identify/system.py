@@ -136,12 +136,17 @@ def from_state_space(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> SystemModel
     """Elements of a (continuous, D = 0) state-space model as SISO transfer functions,
     and the model's own transmission zeros."""
     p, m = C.shape[0], B.shape[1]
+    limit = zero_limit(float(np.abs(linalg.eigvals(A)).max(initial=0.0)))
     elements = []
     for o in range(p):
         row = []
         for i in range(m):
             num, den = signal.ss2tf(A, B[:, [i]], C[[o], :], np.zeros((1, 1)))
             n = np.trim_zeros(np.where(np.abs(num[0]) <= 1e-12 * np.abs(num[0]).max(), 0.0, num[0]), "f")
+            # A leading coefficient of rounding (C B of an element of relative degree
+            # 2, 1e-10 or so) puts a root beyond zero_limit: it goes, with its root.
+            while n.size > 1 and np.abs(np.roots(n)).max() >= limit:
+                n = n[1:]
             row.append(DelayTF(tuple(n) if n.size else (0.0,), tuple(den), 0.0))
         elements.append(tuple(row))
     zeros: tuple[complex, ...] = ()

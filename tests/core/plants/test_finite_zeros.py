@@ -79,3 +79,18 @@ def test_a_model_of_integrators_keeps_its_zeros(slow: float) -> None:
     z = finite_zeros(A, np.array([[0.0], [1.0]]), np.array([[10.0, 1.0]]), np.zeros((1, 1)))
     assert z == pytest.approx([-10.0 + slow * 0])
     assert element_zeros(DelayTF((1.0, 1.0), (1.0, slow), 0.0)) == pytest.approx([-1.0])
+
+
+@pytest.mark.parametrize("eps, degree", [(1e-11, 0), (-1e-11, 0), (1e-3, 1)])
+def test_a_fitted_elements_numerator_loses_a_leading_coefficient_of_rounding(eps: float, degree: int) -> None:
+    """y = x2 + eps x1 behind two lags: G = (eps (s + 0.02) + 1) / ((s + 0.05)(s + 0.02)),
+    a zero near -1/eps.  At eps = +-1e-11 (rounding's C B) the numerator is the
+    constant it should be, its static gain kept; at 1e-3 the zero (-1000) stays."""
+    A = np.array([[-0.05, 0.0], [1.0, -0.02]])
+    B = np.array([[1.0], [0.0]])
+    C = np.array([[eps, 1.0]])
+    (g,), = from_state_space(A, B, C).elements
+    assert g is not None and len(g.num) - 1 == degree
+    assert g.static_gain == pytest.approx((eps * 0.02 + 1) / (0.05 * 0.02), rel=1e-12)
+    if degree:
+        assert g.zeros() == pytest.approx([-(0.02 * eps + 1) / eps], rel=1e-9)
