@@ -98,10 +98,13 @@ def rhs_batch(x: np.ndarray, v: np.ndarray, p: PlantParams) -> np.ndarray:
     return flows.rhs(x, flows.G @ np.maximum(v, 0.0))
 
 
-def advance_batch(x: np.ndarray, v: np.ndarray, dt: float, p: PlantParams | _Flows, *,
-                  substep: float = SUBSTEP) -> np.ndarray:
+def advance_batch(x: np.ndarray, v: np.ndarray, dt: float, p: PlantParams, *, substep: float = SUBSTEP) -> np.ndarray:
     """Levels (4, N) cm after dt s with voltages v (2, N) held: RK4, clipped to [0, hmax]."""
-    flows = p if isinstance(p, _Flows) else _Flows.of(p)
+    return _advance(x, v, dt, _Flows.of(p), substep)
+
+
+def _advance(x: np.ndarray, v: np.ndarray, dt: float, flows: _Flows, substep: float) -> np.ndarray:
+    """advance_batch with the plant's matrices built once (pi_batch's every sample)."""
     inflow = flows.G @ np.maximum(v, 0.0)  # held over the sample
     n = max(1, math.ceil(dt / substep - 1e-9))
     s = dt / n
@@ -161,6 +164,6 @@ def pi_batch(
         u = np.clip(v, U_MIN, U_MAX)
         integ = integ + gain_i * e + track * (u - v)
         ys[k], us[k] = y, u
-        x = advance_batch(x, FULL_SCALE_V * u, h, flows, substep=substep)
+        x = _advance(x, FULL_SCALE_V * u, h, flows, substep)
     ys, us = ys.transpose(2, 0, 1), us.transpose(2, 0, 1)
     return BatchRun(np.ascontiguousarray(ys), np.ascontiguousarray(us))

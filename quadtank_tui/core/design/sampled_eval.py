@@ -141,30 +141,25 @@ def propagate_from(A: np.ndarray, const: np.ndarray, out: np.ndarray, z0: np.nda
     to report: numpy's RuntimeWarnings for it are silenced here (every CI run printed
     four, for one design test)."""
     with np.errstate(over="ignore", invalid="ignore"):
-        return _propagate_from(A, const, out, z0, samples, block)
-
-
-def _propagate_from(A: np.ndarray, const: np.ndarray, out: np.ndarray, z0: np.ndarray, samples: int,
-                    block: int) -> np.ndarray:
-    n = A.shape[0]
-    # the powers take block n^2 numbers: a long dead time (many buffer states) gets shorter blocks
-    block = max(1, min(block, samples, 4_000_000 // (n * n)))
-    powers = np.empty((block, n, n))
-    sums = np.empty((block, n))
-    P, S = np.eye(n), np.zeros(n)
-    for j in range(block):  # A^j and sum_(i<j) A^i const, j = 0..block-1
-        powers[j], sums[j] = P, S
-        S = A @ S + const
-        P = A @ P
-    OP = np.einsum("pn,jnm->jpm", out, powers)  # out A^j
-    OS = sums @ out.T
-    res = np.empty((samples, out.shape[0]))
-    z = np.asarray(z0, dtype=float)
-    for k0 in range(0, samples, block):
-        j = min(block, samples - k0)
-        res[k0:k0 + j] = OP[:j] @ z + OS[:j]
-        z = P @ z + S  # A^block z + sum_(i<block) A^i const
-    return res
+        n = A.shape[0]
+        # the powers take block n^2 numbers: a long dead time (many buffer states) gets shorter blocks
+        block = max(1, min(block, samples, 4_000_000 // (n * n)))
+        powers = np.empty((block, n, n))
+        sums = np.empty((block, n))
+        P, S = np.eye(n), np.zeros(n)
+        for j in range(block):  # A^j and sum_(i<j) A^i const, j = 0..block-1
+            powers[j], sums[j] = P, S
+            S = A @ S + const
+            P = A @ P
+        OP = np.einsum("pn,jnm->jpm", out, powers)  # out A^j
+        OS = sums @ out.T
+        res = np.empty((samples, out.shape[0]))
+        z = np.asarray(z0, dtype=float)
+        for k0 in range(0, samples, block):
+            j = min(block, samples - k0)
+            res[k0:k0 + j] = OP[:j] @ z + OS[:j]
+            z = P @ z + S  # A^block z + sum_(i<block) A^i const
+        return res
 
 
 def reversals(u: np.ndarray, step: float) -> float:

@@ -20,6 +20,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
+from textual.reactive import var
 from textual.screen import ModalScreen
 from textual.widget import Widget
 from textual.widgets import Button, Checkbox, Input, Label, Static
@@ -28,6 +29,7 @@ from textual.widgets.button import ButtonVariant
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import Command, ResetControllers, SetParams
+from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Switch
 from quadtank_tui.ui.widgets.key_button import KeyButton
@@ -123,6 +125,35 @@ class Window(ModalScreen[T], Generic[T]):
         # on the title closes the window too (thesis 5.2).
         if event.widget is self or (event.widget is not None and event.widget.id == "title"):
             self.action_cancel()
+
+
+class LiveWindow(Window[Commands]):
+    """A window that follows the loop: the screen behind it hands it each new
+    snapshot (`snapshot`, attributes down) and `show` draws it, from the moment the
+    window opens.  Textual's is_mounted turns True only after on_mount, so the first
+    drawing is on_mount's (through the watcher, whose guard is for a window being
+    taken down, it was skipped, and the Pump, Tanks and Logging windows opened blank
+    until the app's next refresh)."""
+
+    # A var, not a reactive: setting a reactive on a screen repaints all of it
+    # (the whole terminal, each sample); the watcher updates only what changed.
+    snapshot: var[Snapshot | None] = var(None, always_update=True)
+
+    def __init__(self, title: str, snapshot: Snapshot, *, opener: str | None = None) -> None:
+        super().__init__(title, opener=opener)
+        self.set_reactive(type(self).snapshot, snapshot)
+
+    def on_mount(self) -> None:
+        if self.snapshot is not None:
+            self.show(self.snapshot)
+
+    def watch_snapshot(self, snapshot: Snapshot | None) -> None:
+        if snapshot is not None and self.is_mounted and self.is_attached:
+            self.show(snapshot)
+
+    def show(self, snapshot: Snapshot) -> None:
+        """Draw `snapshot` in the window's widgets."""
+        raise NotImplementedError
 
 
 def field_row(row_id: str, label: str, field: Widget, unit: str, error_id: str) -> ComposeResult:

@@ -30,7 +30,7 @@ from quadtank_tui.engine.commands import CalibrationHeights, CancelCalibration, 
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.par import RESERVED
 from quadtank_tui.ui.widgets.key_button import KeyButton
-from quadtank_tui.ui.windows.base import Commands, ConfirmWindow, Window
+from quadtank_tui.ui.windows.base import ConfirmWindow, LiveWindow
 
 SIMUL_TEXT = ("Calibration runs on the rig, in Active mode (start with --daq CONFIG, then A on Main): "
               "it holds the pumps, reads the raw sensor voltages and asks for the heights on the "
@@ -83,14 +83,13 @@ def par_name_problem(name: str) -> str:
     return ""
 
 
-class CalibrationWindow(Window[Commands]):
+class CalibrationWindow(LiveWindow):
     """Start, follow and write the calibration; fed snapshots by Setup."""
 
     snapshot: reactive[Snapshot | None] = reactive(None, always_update=True)
 
     def __init__(self, snapshot: Snapshot, *, submit: Callable[[Command], Any], opener: str | None = None) -> None:
-        super().__init__("Calibration (Desautel 2.3)", opener=opener)
-        self.set_reactive(CalibrationWindow.snapshot, snapshot)
+        super().__init__("Calibration (Desautel 2.3)", snapshot, opener=opener)
         self.submit = submit
         self.active_mode = snapshot.operation == "Active"
         self.tanks = len(snapshot.params.process_plant().states)
@@ -132,21 +131,15 @@ class CalibrationWindow(Window[Commands]):
             yield KeyButton("Write", id="write", variant="warning")
         yield KeyButton("Cancel", id="cancel")
 
-    def on_mount(self) -> None:
-        if self.snapshot is not None and self.active_mode:  # is_mounted turns True after on_mount
-            self._show(self.snapshot)
-
     # --- the live part ------------------------------------------------------------------
 
     @property
     def status(self) -> CalibrationStatus | None:
         return self.snapshot.calibration if self.snapshot is not None else None
 
-    def watch_snapshot(self, snapshot: Snapshot | None) -> None:
-        if snapshot is not None and self.active_mode and self.is_mounted and self.is_attached:
-            self._show(snapshot)
-
-    def _show(self, snapshot: Snapshot) -> None:
+    def show(self, snapshot: Snapshot) -> None:
+        if not self.active_mode:  # Simul: the window only says why (no progress to show)
+            return
         s = snapshot.calibration
         self.query_one("#cal-progress", Static).update(progress_text(s))
         self.query_one("#cal-pairs", Static).update(pairs_text(s))

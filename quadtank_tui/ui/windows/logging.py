@@ -16,7 +16,6 @@ from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
-from textual.reactive import var
 from textual.widgets import Button, Checkbox, Input, Label, ProgressBar, Static
 
 from quadtank_tui.core.parameters import POINTS_MAX, Parameters
@@ -30,7 +29,7 @@ from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.check import Check
 from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.windows.base import (
-    Choice, ChoiceWindow, Commands, ConfirmWindow, Window, free_log_name, show_live,
+    Choice, ChoiceWindow, ConfirmWindow, LiveWindow, free_log_name, show_live,
 )
 
 _POINTS, _FILE, _VARS = "LOGGING.Points", "LOGGING.LogFile", "LOGGING.Variables"
@@ -51,7 +50,7 @@ def name_problem(name: str) -> str | None:
     return None
 
 
-class LoggingWindow(Window[Commands]):
+class LoggingWindow(LiveWindow):
     """Set up, start, stop and save a log."""
 
     BINDINGS = [
@@ -61,15 +60,10 @@ class LoggingWindow(Window[Commands]):
         Binding("ctrl+r", "default", "Default"),
     ]
 
-    # A var, not a reactive: setting a reactive on a screen repaints all of it
-    # (the whole terminal, each sample); the watcher updates only what changed.
-    snapshot: var[Snapshot | None] = var(None, always_update=True)
-
     def __init__(self, snapshot: Snapshot, defaults: Parameters, *,
                  submit: Callable[[Command], Any], log_exists: Callable[[str], bool],
                  opener: str | None = None, now: Callable[[], datetime] = datetime.now) -> None:
-        super().__init__("Logging", opener=opener)
-        self.set_reactive(LoggingWindow.snapshot, snapshot)
+        super().__init__("Logging", snapshot, opener=opener)
         self.params = snapshot.params
         self.defaults = defaults
         self.submit = submit
@@ -112,16 +106,10 @@ class LoggingWindow(Window[Commands]):
     def on_mount(self) -> None:
         self._mark_all()
         self._warn_if_exists()
-        if self.snapshot is not None:  # not watch_snapshot: is_mounted turns True after on_mount
-            self._show(self.snapshot)
 
     # --- the live part ------------------------------------------------------------
 
-    def watch_snapshot(self, snapshot: Snapshot | None) -> None:
-        if snapshot is not None and self.is_mounted and self.is_attached:
-            self._show(snapshot)
-
-    def _show(self, snapshot: Snapshot) -> None:
+    def show(self, snapshot: Snapshot) -> None:
         log = snapshot.log
         self.query_one(ProgressBar).update(progress=round(100 * log.progress, 1))
         show_live(self.query_one("#log-state", Label), log_state(log))

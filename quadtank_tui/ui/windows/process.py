@@ -11,7 +11,6 @@ from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
-from textual.reactive import var
 from textual.widgets import Input, Label, Static
 
 from quadtank_tui.core.parameters import Parameters
@@ -21,7 +20,7 @@ from quadtank_tui.engine.commands import AddWater
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.values import fixed, fmt, parse_number
 from quadtank_tui.ui.widgets.key_button import KeyButton
-from quadtank_tui.ui.windows.base import Commands, Window, show_live
+from quadtank_tui.ui.windows.base import LiveWindow, show_live
 
 _TANK_ROWS = (("Op. Point", "OpPoint"), ("Diameter", "Diameter"), ("Time Const.", "TimeConst"))
 
@@ -41,15 +40,10 @@ def water_problem(amount: float, tank: int, level: float, full: float) -> str | 
     return None
 
 
-class _LiveWindow(Window[Commands]):
-    # A var, not a reactive: setting a reactive on a screen repaints all of it
-    # (the whole terminal, each sample); the watcher updates only what changed.
-    snapshot: var[Snapshot | None] = var(None, always_update=True)
-
+class _LiveWindow(LiveWindow):
     def __init__(self, title: str, snapshot: Snapshot, defaults: Parameters, selected: int, *,
                  count: int, opener: str | None = None) -> None:
-        super().__init__(title, opener=opener)
-        self.set_reactive(_LiveWindow.snapshot, snapshot)
+        super().__init__(title, snapshot, opener=opener)
         self.defaults = defaults
         self.selected = selected
         self.count = count
@@ -63,11 +57,6 @@ class _LiveWindow(Window[Commands]):
         yield TankTable(id="table")
 
     def on_mount(self) -> None:
-        # Drawn here, not by watch_snapshot: during on_mount is_mounted is still
-        # False, and the window opened blank until the app's next refresh handed it
-        # a snapshot (never, while nothing samples: the pump window's snapshot test).
-        if self.snapshot is not None:
-            show_live(self.query_one("#table", Static), self.table(self.snapshot))
         self.query_one(TankTable).focus()
 
     def action_select(self, n: int) -> None:
@@ -77,9 +66,8 @@ class _LiveWindow(Window[Commands]):
     def action_cycle(self, step: int) -> None:
         self.action_select((self.selected - 1 + step) % self.count + 1)
 
-    def watch_snapshot(self, snapshot: Snapshot | None) -> None:
-        if snapshot is not None and self.is_mounted and self.is_attached:
-            show_live(self.query_one("#table", Static), self.table(snapshot))
+    def show(self, snapshot: Snapshot) -> None:
+        show_live(self.query_one("#table", Static), self.table(snapshot))
 
     def table(self, snapshot: Snapshot) -> str:
         raise NotImplementedError
