@@ -210,3 +210,26 @@ def test_log_variables_can_grow_and_shrink_through_with_values() -> None:
     p = PRESET.with_values({"LOGGING.Variables": "t y1 y2 u1 u2 r1 r2"})
     assert p.logging.variables == ("t", "y1", "y2", "u1", "u2", "r1", "r2")
     assert p.with_value("LOGGING.Variables", "y1").logging.variables == ("y1",)
+
+
+def test_a_change_rebuilds_only_the_objects_on_its_path() -> None:
+    """with_values rebuilds (and validates) the objects holding a changed value and
+    shares the rest: a controller's gain leaves the references and the simulation
+    the very objects they were, and the other controllers too."""
+    p = PRESET.with_values({"CONTROLLER TWO.K": 1.5, "REFERENCE ONE.Mean": 0.4})
+    assert p.controllers[1].pid.K == 1.5 and p.references[0].mean == 0.4
+    assert p.controllers[1] is not PRESET.controllers[1] and p.references[0] is not PRESET.references[0]
+    assert p.simulation is PRESET.simulation and p.logging is PRESET.logging
+    assert all(p.controllers[i] is PRESET.controllers[i] for i in (0, 2, 3))
+    assert p.references[1] is PRESET.references[1]
+    # Every other value as it was, key by key.
+    changed = {"CONTROLLER TWO.K", "REFERENCE ONE.Mean"}
+    assert {k: v for k, v in p.values().items() if k not in changed} == {
+        k: v for k, v in PRESET.values().items() if k not in changed}
+
+
+def test_every_key_set_to_its_own_value_gives_an_equal_model() -> None:
+    """Each key through with_value, its value unchanged: the same model (the path
+    copy puts a value back where it came from, for every kind of path)."""
+    for k in KEYS:
+        assert PRESET.with_value(k.name, PRESET.get(k.name)) == PRESET, k.name

@@ -20,7 +20,7 @@ from quadtank_tui.core.parameters.constants import (
     ControlMode,
 )
 from quadtank_tui.core.parameters.keys import KEYS, spec
-from quadtank_tui.core.parameters.tree import from_tree, set_leaf, to_tree, walk
+from quadtank_tui.core.parameters.tree import replaced, walk
 from quadtank_tui.core.pid import PIDParams
 from quadtank_tui.core.plant import (
     FULL_SCALE_V,
@@ -248,11 +248,12 @@ class Parameters:
         Applied together, then validated together: a pair of values that is only
         valid jointly (a sampling time and a period) can be set in one call.
         """
-        tree = to_tree(self)
+        new: dict[tuple[str | int, ...], Any] = {}
         for key, value in changes.items():
             k = spec(key)
-            set_leaf(tree, k.path, k.coerce(value))
-        return from_tree(self, tree, ())
+            new[k.path] = k.coerce(value)
+        changed: Parameters = replaced(self, new)
+        return changed
 
     # `default` is always given (the preset, or a params folder's default.par):
     # presets.py builds PRESET from these classes, so this module never imports it.
