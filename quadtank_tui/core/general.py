@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -95,6 +96,21 @@ def realize(numd: np.ndarray, dend: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     return Phi, Gam, C, b0
 
 
+Realization = tuple[np.ndarray, np.ndarray, np.ndarray, float]
+
+
+@functools.lru_cache(maxsize=256)
+def _realization(num: tuple[float, ...], den: tuple[float, ...], h: float) -> Realization:
+    """realize(*tustin(num, den, h)), once per element and sampling time: every
+    engine and every installation builds four elements, mostly the default gain, and
+    the discretization is numpy work of some 30 us.  The arrays are read-only, since
+    the elements holding them share them."""
+    Phi, Gam, C, D = realize(*tustin(num, den, h))
+    for a in (Phi, Gam, C):
+        a.setflags(write=False)
+    return Phi, Gam, C, D
+
+
 class General:
     """One SISO General element: C(s) of degree 0..4, Tustin-discretized, stepped as a
     discrete state-space system every sample (all signals normalized, h in seconds).
@@ -120,7 +136,7 @@ class General:
     def __init__(self, params: GeneralParams, h: float) -> None:
         self._h = check_sampling_time(h)
         self._p = params
-        self._Phi, self._Gam, self._C, self._D = realize(*tustin(params.numerator, params.denominator, self._h))
+        self._Phi, self._Gam, self._C, self._D = _realization(params.numerator, params.denominator, self._h)
         self._x: np.ndarray = np.zeros(params.degree)
         self._bias = 0.0
         self._last: tuple[float, float] | None = None  # (e, u) of the previous sample
@@ -160,7 +176,7 @@ class General:
 
     def set_params(self, params: GeneralParams) -> None:
         """New coefficients (and degree) without a jump in u."""
-        realization = realize(*tustin(params.numerator, params.denominator, self._h))
+        realization = _realization(params.numerator, params.denominator, self._h)
         self._p = params
         self._Phi, self._Gam, self._C, self._D = realization
         self._after_change()
@@ -168,7 +184,7 @@ class General:
     def set_sampling_time(self, h: float) -> None:
         """Re-discretize at the new sampling time (s) without a jump in u."""
         h = check_sampling_time(h)
-        realization = realize(*tustin(self._p.numerator, self._p.denominator, h))
+        realization = _realization(self._p.numerator, self._p.denominator, h)
         self._h = h
         self._Phi, self._Gam, self._C, self._D = realization
         self._after_change()
