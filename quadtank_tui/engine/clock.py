@@ -54,8 +54,8 @@ def next_speed(speed: float, direction: int) -> float:
 
 
 class Timing(NamedTuple):
-    """What :meth:`Clock.tick` measured for one sample (seconds).  A named tuple,
-    not a frozen dataclass: one is made every sample, at a third of the cost."""
+    """What :meth:`Clock.tick` measured for one sample (seconds).  The driver takes
+    the plain tuple (:meth:`Clock.tick_values`)."""
 
     scheduled: float
     actual: float
@@ -126,10 +126,15 @@ class Clock(ABC):
 
     def tick(self) -> Timing:
         """A sample starts now: measure it and schedule the next one."""
+        return Timing(*self.tick_values())
+
+    def tick_values(self) -> tuple[float, float, int]:
+        """:meth:`tick` as a plain (scheduled, actual, missed): the driver's every
+        sample (a named tuple costs 0.2 us to make, a hundredth of a sample)."""
         actual = self.now()
         scheduled = self.deadline()
         if scheduled is None:
-            return Timing(actual, actual)
+            return (actual, actual, 0)
         step = self._wall_period()
         nxt = scheduled + step
         missed = 0
@@ -144,7 +149,7 @@ class Clock(ABC):
         self.skipped += missed
         self.behind = int((actual - nxt) // step) + 1 if actual >= nxt else 0
         self._next = nxt
-        return Timing(scheduled, actual, missed)
+        return (scheduled, actual, missed)
 
     def set_period(self, period: float) -> None:
         """A new sampling time: the next sample stays where it is, later ones follow

@@ -131,7 +131,7 @@ class Engine:
     def sample(self) -> None:
         """Take one sample now (the driver calls this at its deadline)."""
         with self._lock:
-            scheduled, actual, missed = self.clock.tick()
+            scheduled, actual, missed = self.clock.tick_values()
             self.loop.timed_sample(actual - scheduled, missed, actual)
 
     def flush_files(self) -> None:
