@@ -88,6 +88,7 @@ class PID:
     def __init__(self, params: PIDParams, h: float, *, anti_windup: bool = True) -> None:
         check_sampling_time(h)
         self._p = params
+        self._d_on = _derivative_on(params)
         self._h = float(h)
         self.anti_windup = anti_windup
         self._I = 0.0
@@ -122,7 +123,7 @@ class PID:
 
     def _derivative(self, p: PIDParams, r: float, y: float) -> float:
         """D(k) from D(k-1); zero with the D part off, no kick on the first sample."""
-        if not p.derivative or p.Td == 0.0:
+        if not _derivative_on(p):
             return 0.0
         den = p.Td + p.N * self._h
         ad = p.Td / den
@@ -135,7 +136,8 @@ class PID:
     def compute(self, r: float, y: float) -> float:
         """Unsaturated control value v for this sample (no state change; idempotent)."""
         p = self._p
-        return self._proportional(p, r, y) + self._I + self._derivative(p, r, y)
+        D = self._derivative(p, r, y) if self._d_on else 0.0  # (a PI's every sample: no call)
+        return p.K * (p.b * r - y) + self._I + D  # P + I + D, as _proportional forms P
 
     def update(self, r: float, y: float, u_applied: float, v: float | None = None) -> None:
         """Commit the sample after ``u_applied`` (the saturated input) went out.
@@ -146,7 +148,7 @@ class PID:
         ``v``: this sample's :meth:`compute`, if the caller has it (the same number).
         """
         p = self._p
-        D = self._derivative(p, r, y)
+        D = self._derivative(p, r, y) if self._d_on else 0.0
         if v is None:
             v = self._proportional(p, r, y) + self._I + D
         if p.integral:
@@ -189,7 +191,8 @@ class PID:
 
     def _set(self, params: PIDParams) -> None:
         self._p = params
-        if not params.derivative or params.Td == 0.0:
+        self._d_on = _derivative_on(params)
+        if not self._d_on:
             self._D = 0.0
 
     def _absorb(self, change: Callable[[], None]) -> None:
@@ -206,3 +209,8 @@ class PID:
         self._I = 0.0
         self._D = 0.0
         self._last = None
+
+
+def _derivative_on(p: PIDParams) -> bool:
+    """Whether the D part acts (switched on, with a derivative time)."""
+    return p.derivative and p.Td != 0.0
