@@ -163,7 +163,7 @@ def parts(engine: Any) -> dict[str, Callable[[], object]]:
     gen, m, sim = loop._gens[0], loop.matrix, loop.sim
     row = (loop.t, y[0], y[1], y[2], y[3], u[0], u[1], r[0], r[1])
     return {
-        "Clock.tick (the schedule)": engine.clock.tick,
+        "Clock.tick_values (the schedule)": engine.clock.tick_values,
         "ControlLoop.record_timing (stats, jitter)": lambda: loop.record_timing(0.0, 0, 0.0),
         "SimBackend.read_levels": sim.read_levels,
         "Generator.value x2": lambda: (gen.value(), gen.value()),

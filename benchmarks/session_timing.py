@@ -49,7 +49,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from loop_timing import ui_work  # noqa: E402
 
-from quadtank_tui.engine.clock import Timing  # noqa: E402
 from quadtank_tui.engine.commands import LogOn, SetControlMode, SetParams, SetSpeed, SetState  # noqa: E402
 from quadtank_tui.engine.headless import run_headless  # noqa: E402
 from quadtank_tui.engine.history import DEFAULT_CAPACITY  # noqa: E402
@@ -79,14 +78,14 @@ def _host(period: float, tmp: str, ready: Any) -> None:
         assert engine.submit(command).result().ok
     engine.clock.set_period(period)
     taken: list[tuple[float, float]] = []
-    tick = engine.clock.tick
+    tick = engine.clock.tick_values
 
-    def noted() -> Timing:  # each sample's timing, as the loop records it
-        timing = tick()
-        taken.append((timing.actual, timing.jitter))
+    def noted() -> tuple[float, float, int]:  # each sample's timing, as the loop records it
+        scheduled, actual, missed = timing = tick()
+        taken.append((actual, actual - scheduled))
         return timing
 
-    engine.clock.tick = noted  # type: ignore[method-assign]
+    engine.clock.tick_values = noted  # type: ignore[method-assign]
     path = str(Path(tmp) / "s.sock")
     info = SessionInfo(id="bench-1", owner="bench", uid=os.getuid(), pid=os.getpid(), started="", plant="quadtank",
                        socket=path)
