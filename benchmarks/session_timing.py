@@ -20,7 +20,12 @@ holds at x1000, and the cost of attaching.
 2. x1000 at Ts = 50 ms with every sample logged, headless (`quadtank run --speed
    1000`) and in a session process with a client attached: the speed held, asked
    x samples / (samples + slots skipped), as the run's summary states it, and the
-   session process's CPU a sample (its waits included).  A paced virtual clock
+   session process's CPU a sample (its waits included); then the same session
+   in a host of this benchmark's whose driver times its fine waits: the process's
+   CPU a sample less the driving thread's waiting is the busy CPU a sample, all
+   included (the loop, the log's file thread, publishing to the client).  On a
+   machine where a sleep of 5 us costs 28 us of CPU (a KVM guest), the waits are
+   a third of the process's CPU at x1000.  A paced virtual clock
    makes up to 20 ms of lag up in a burst (engine/clock.py, CATCH_UP): the slots
    it is behind at either end of the window are not counted, at most 0.13 % of a
    30 s window.
@@ -202,6 +207,62 @@ def session_speed(seconds: float) -> dict[str, float]:
             "cpu_us": 1e6 * (cpu1 - cpu0) / max(1, samples)}
 
 
+def _waits_host(tmp: str, ready: Any, waited: Any) -> None:
+    """session_speed's session, in a process of this benchmark's whose driver times
+    its fine waits: their CPU (the driving thread's, seconds) adds up in `waited`."""
+    from quadtank_tui.engine import driver
+    from quadtank_tui.engine.runner import build_engine
+    from quadtank_tui.session.host import Access, SessionHost
+    from quadtank_tui.session.info import SessionInfo
+    from quadtank_tui.session.server import listen
+
+    fine_wait = driver.fine_wait
+
+    def timed(deadline: float, spin: float = 0.0) -> None:
+        c = time.thread_time()
+        fine_wait(deadline, spin)
+        with waited.get_lock():
+            waited.value += time.thread_time() - c
+
+    driver.fine_wait = timed  # the drive looks it up at each wait
+    engine = build_engine(clock="virtual", speed=1000.0, params_dir=Path(tmp), logs_dir=Path(tmp))
+    path = str(Path(tmp) / "w.sock")
+    info = SessionInfo(id="bench-2", owner="bench", uid=os.getuid(), pid=os.getpid(), started="", plant="quadtank",
+                       socket=path)
+    host = SessionHost(engine, listen(path), info, runtime=Path(tmp), access=Access(os.getuid()))
+    host.install_signal_handlers()
+    ready.put(path)
+    host.serve()
+
+
+def session_busy(seconds: float) -> dict[str, float]:
+    """session_speed's run with the driver's fine waits timed (a host of this
+    benchmark's, see _waits_host): the process's CPU a sample with and without the
+    driving thread's waiting.  On a machine where a sleep of a few microseconds
+    costs tens of microseconds of CPU, the process's CPU at x1000 is mostly the
+    waits' (each is 50 us less the sample's work: a sleep of it, or a spin)."""
+    with _folder() as tmp:
+        ctx = multiprocessing.get_context("fork")
+        ready, waited = ctx.Queue(), ctx.Value("d", 0.0)
+        proc = ctx.Process(target=_waits_host, args=(tmp, ready, waited))
+        proc.start()
+        sock = ready.get(timeout=30)
+        with SessionClient(sock) as client:
+            for command in (SetParams({"SAMPLING TIME.TSamp": 50}), SetSpeed(1000.0), LogOn(points=10**7),
+                            SetState("Run")):
+                assert client.submit(command).result(10).ok
+            time.sleep(1.0)  # the first waits and the log's start behind it
+            assert proc.pid is not None
+            first, cpu0, w0 = client.snapshot().stats, process_cpu(proc.pid), waited.value
+            time.sleep(seconds)
+            last, cpu1, w1 = client.snapshot().stats, process_cpu(proc.pid), waited.value
+        stop_session_at(sock)
+        proc.join(10)
+    samples, skipped = last.samples - first.samples, last.skipped - first.skipped
+    return {"samples": samples, "skipped": skipped, "held": 1000.0 * samples / max(1, samples + skipped),
+            "cpu_us": 1e6 * (cpu1 - cpu0) / max(1, samples), "wait_us": 1e6 * (w1 - w0) / max(1, samples)}
+
+
 def process_cpu(pid: int) -> float:
     """CPU seconds (user + system) process `pid` has used (Linux /proc; nan elsewhere)."""
     try:
@@ -253,6 +314,11 @@ def main() -> None:
     print(f"session  x1000 at 50 ms, logging, a client, {args.seconds:g} s: {r['samples']:.0f} samples, "
           f"{r['skipped']:.0f} slots skipped: x{r['held']:.0f} held; the session process "
           f"{r['cpu_us']:.1f} us CPU a sample", flush=True)
+    r = session_busy(args.seconds)
+    print(f"session  x1000 at 50 ms, logging, a client, {args.seconds:g} s, the driver's waits timed: "
+          f"x{r['held']:.0f} held, {r['skipped']:.0f} slots skipped; the session process {r['cpu_us']:.1f} us CPU "
+          f"a sample, {r['wait_us']:.1f} of them waiting: {r['cpu_us'] - r['wait_us']:.1f} us busy a sample, "
+          "all included", flush=True)
     took, rows = attach_cost()
     print(f"attach with a full ring buffer: {rows} samples in {took * 1000:.0f} ms")
     print(f"load average {os.getloadavg()[0]:.1f} at the end")
