@@ -233,3 +233,13 @@ def test_every_key_set_to_its_own_value_gives_an_equal_model() -> None:
     copy puts a value back where it came from, for every kind of path)."""
     for k in KEYS:
         assert PRESET.with_value(k.name, PRESET.get(k.name)) == PRESET, k.name
+
+
+def test_of_several_bad_values_the_first_in_the_model_is_refused() -> None:
+    """Whatever order the caller gives them in (a .par's lines, a window's fields),
+    as when the whole model was rebuilt: REFERENCE ONE comes before CONTROLLER ONE."""
+    for changes in ({"CONTROLLER ONE.K": 5000, "REFERENCE ONE.Mean": 9},
+                    {"REFERENCE ONE.Mean": 9, "CONTROLLER ONE.K": 5000}):
+        with pytest.raises(ParameterError) as info:
+            PRESET.with_values(changes)
+        assert info.value.field == "REFERENCE ONE.Mean"

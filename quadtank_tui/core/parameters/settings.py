@@ -40,6 +40,8 @@ from quadtank_tui.core.mpc.settings import MPCSettings
 from quadtank_tui.core.statefb.settings import StateFeedbackParams
 from quadtank_tui.core.validation import ParameterError, check_range
 
+#: Each key's place in the model (KEYS is in file order, the model's order).
+_POSITION = {k.name: i for i, k in enumerate(KEYS)}
 
 @dataclass(frozen=True)
 class ControlSettings:
@@ -248,11 +250,14 @@ class Parameters:
         Applied together, then validated together: a pair of values that is only
         valid jointly (a sampling time and a period) can be set in one call.
         """
-        new: dict[tuple[str | int, ...], Any] = {}
+        coerced = []
         for key, value in changes.items():
             k = spec(key)
-            new[k.path] = k.coerce(value)
-        changed: Parameters = replaced(self, new)
+            coerced.append((k, k.coerce(value)))
+        # Rebuilt in the model's order whatever the caller's: of several bad values,
+        # the one refused is the first in the file (a .par's keys come in its order).
+        coerced.sort(key=lambda kv: _POSITION[kv[0].name])
+        changed: Parameters = replaced(self, {k.path: value for k, value in coerced})
         return changed
 
     # `default` is always given (the preset, or a params folder's default.par):
