@@ -107,3 +107,17 @@ def unconfirmed_stop(backend: ProcessBackend | None) -> str:
         return ""
     net = getattr(backend, "safety_net", ProcessBackend.safety_net)
     return f"pumps NOT confirmed at 0 (left to {net} to stop them): {error}"
+
+
+def arm(backend: ProcessBackend, tsamp: float) -> None:
+    """`backend.arm(tsamp)` (a backend written before the hook, or a test's stand-in, may not have one)."""
+    hook = getattr(backend, "arm", None)
+    if hook is not None:
+        hook(tsamp)
+
+
+def plant_refused(daq: ProcessBackend | None, plant: Plant) -> str | None:
+    """Why the DAQ cannot be `plant` (wired for another rig), or None; a backend
+    without the question (a test's stand-in) takes any plant."""
+    ask = getattr(daq, "plant_refused", None)
+    return ask(plant) if ask is not None else None

@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from quadtank_tui.engine.snapshot import LoopStats
+
 BINS_PER_DECADE = 50
 LOWEST = 1e-6     # s; |jitter| below this counts in bin 0
 DECADES = 7       # up to 10 s; beyond that in the last bin
@@ -75,3 +77,33 @@ class JitterHistogram:
             rank = max(1, math.ceil(q / 100.0 * self.n))
             i = bisect.bisect_left(list(itertools.accumulate(self.counts)), rank)  # numpy's cumsum of a list: 2x slower
         return min(float(EDGES[i]), self.max)
+
+
+class LoopTiming:
+    """A loop's timing as the driver measures it, counted as it comes (a few additions a sample);
+    :meth:`stats` makes the frozen LoopStats a snapshot carries, when one is built."""
+
+    def __init__(self) -> None:
+        self.samples = self.overruns = self.skipped = 0
+        self.jitter_last = self.jitter_max = self.last_wall = 0.0
+        # No tracked percentiles: they are read a snapshot at a time, not every sample,
+        # and a full count then is cheaper than moving pointers at each add.
+        self.histogram = JitterHistogram(tracked=())
+
+    def add(self, jitter: float, missed: int, wall: float) -> None:
+        self.samples += 1
+        if missed:
+            self.overruns += 1
+            self.skipped += missed
+        self.jitter_last, self.last_wall = jitter, wall
+        a = abs(jitter)
+        if a > self.jitter_max:
+            self.jitter_max = a
+        self.histogram.add(jitter)
+
+    def stats(self) -> LoopStats:
+        h = self.histogram
+        return LoopStats(samples=self.samples, overruns=self.overruns, skipped=self.skipped,
+                         jitter_last=self.jitter_last, jitter_max=self.jitter_max,
+                         jitter_p50=h.percentile(50), jitter_p99=h.percentile(99),
+                         last_sample_wall=self.last_wall)

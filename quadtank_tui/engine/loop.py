@@ -46,17 +46,16 @@ from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 from concurrent.futures import Future
-from typing import TYPE_CHECKING, Any, Callable, Mapping, TypeVar
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 from quadtank_tui.core.faults import Fault
 from quadtank_tui.core.matrix import ControllerMatrix, Family, saturate
 from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
 from quadtank_tui.core.plant import PlantError
-from quadtank_tui.core.plants import Plant
 from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
 from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError
-from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend, unconfirmed_stop
+from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend, arm, plant_refused, unconfirmed_stop
 from quadtank_tui.engine.calibration_step import RigCalibration
 from quadtank_tui.engine.commands import (
     AddWater, CalibrationHeights, CancelCalibration, Command, CommandResult, InstallPar, LoadPar, LogDiscard, LogOff,
@@ -66,19 +65,19 @@ from quadtank_tui.engine.commands import (
 from quadtank_tui.engine.controllers import Controllers
 from quadtank_tui.engine.filework import FileWorker
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, History
-from quadtank_tui.engine.jitter import JitterHistogram
-from quadtank_tui.engine.logsession import LogRefused, LogSession
+from quadtank_tui.engine.jitter import LoopTiming
+from quadtank_tui.engine.logsession import LogSession
+from quadtank_tui.engine.outcome import refusal, resolved, then
+from quadtank_tui.engine.parload import prepare_load
 from quadtank_tui.engine.safety import InterlockRecord
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.engine.snapshot import LoopStats, Snapshot
-from quadtank_tui.files.log_writer import LogFileError
 from quadtank_tui.files.names import check_names
-from quadtank_tui.files.par import RESERVED, ParFileError, ParStore
+from quadtank_tui.files.par import RESERVED, ParStore
 
 if TYPE_CHECKING:
     from quadtank_tui.engine.controllers import AnyStateFeedback
 
-T = TypeVar("T")
 
 MODE_KEY = "CONTROL.Mode"
 MEAN_KEYS = ("REFERENCE ONE.Mean", "REFERENCE TWO.Mean")
@@ -117,7 +116,7 @@ class ControlLoop:
         self.store = store if store is not None else ParStore(Path("params"))
         self.logs_dir = Path(logs_dir)
         self.sim = SimBackend.for_plant(params.process_plant(), params.process_levels())
-        refused = _plant_refused(daq, params.process_plant())
+        refused = plant_refused(daq, params.process_plant())
         if refused is not None:
             raise ValueError(refused)
         self.daq = daq
@@ -157,7 +156,7 @@ class ControlLoop:
         # Timing, filled in by the runner (the loop itself has no clock).
         self.realtime = False
         self.speed = math.inf
-        self._timing = _Timing()
+        self._timing = LoopTiming()
         self._stats: LoopStats | None = None  # built from _timing when asked (stats)
         self._missed = 0  # sampling slots missed before the sample about to be done
         self._sampled_last = False  # the last step was a sample (not an idle tick, not a fault)
@@ -446,16 +445,16 @@ class ControlLoop:
         file thread on (:meth:`use_file_thread`) a slow disk never delays a sample."""
         handler = _HANDLERS.get(type(command))
         if handler is None:
-            return _done(CommandResult.refused(f"unknown command {type(command).__name__}"))
+            return resolved(CommandResult.refused(f"unknown command {type(command).__name__}"))
         try:
             result = handler(self, command)
         except Exception as exc:
-            refusal = _refusal(exc)
-            if refusal is None:
+            refused = refusal(exc)
+            if refused is None:
                 raise
-            return _done(refusal)
+            return resolved(refused)
         self._stale()
-        return result if isinstance(result, Future) else _done(result)
+        return result if isinstance(result, Future) else resolved(result)
 
     def use_file_thread(self) -> None:
         """Run the file operations (log rows, saves) on a writer thread from now on,
@@ -505,7 +504,7 @@ class ControlLoop:
         self.controllers.check(new)
         changed = new.simulation != old.simulation or new.process != old.process
         plant = new.process_plant() if changed else None
-        refused = _plant_refused(self.daq, plant) if plant is not None else None
+        refused = plant_refused(self.daq, plant) if plant is not None else None
         if refused is not None:
             raise ParameterError("PLANT.Kind", refused)
         change = self.controllers.prepare(new, old)
@@ -526,7 +525,7 @@ class ControlLoop:
             self.sim.set_plant(plant, new.process_levels())
         self.params = new
         if h != old.tsamp and self.backend is not self.sim:
-            _arm(self.backend, h)  # the rig's watchdog timeout follows the sampling time
+            arm(self.backend, h)  # the rig's watchdog timeout follows the sampling time
 
     def _switch_mode(self, mode: ControlMode, *, adjust_means: bool = True) -> None:
         """Manual <-> Automatic, bumpless (M3): Manual -> Automatic sets the reference
@@ -603,7 +602,7 @@ class ControlLoop:
             self.backend = target
             self.fault = None
             if target is not self.sim:
-                _arm(target, self.h)
+                arm(target, self.h)
         return CommandResult(True)
 
     def _nudge(self, cmd: NudgeMean) -> CommandResult:
@@ -665,18 +664,18 @@ class ControlLoop:
     # --- logging --------------------------------------------------------------------------
 
     def _log_on(self, cmd: LogOn) -> Future[CommandResult]:
-        return _then(self.log.on(self.params.logging, self.h, self.t, cmd.points),
+        return then(self.log.on(self.params.logging, self.h, self.t, cmd.points),
                      lambda warnings: CommandResult(True, warnings=warnings))
 
     def _log_off(self, cmd: LogOff) -> Future[CommandResult]:
-        return _then(self.log.off(), lambda _: CommandResult(True))
+        return then(self.log.off(), lambda _: CommandResult(True))
 
     def _log_save(self, cmd: LogSave) -> Future[CommandResult]:
-        return _then(self.log.save_later(cmd.name or self.params.logging.log_file, cmd.overwrite),
+        return then(self.log.save_later(cmd.name or self.params.logging.log_file, cmd.overwrite),
                      lambda saved: CommandResult(True, f"saved {saved}"))
 
     def _log_discard(self, cmd: LogDiscard) -> Future[CommandResult]:
-        return _then(self.log.discard(), lambda _: CommandResult(True))
+        return then(self.log.discard(), lambda _: CommandResult(True))
 
     def close_log(self) -> None:
         """Exit: stop logging; an unsaved log stays on disk as the partial file
@@ -721,7 +720,7 @@ class ControlLoop:
                 return CommandResult.refused(f"{store.path_of(cmd.name)} exists (save again to overwrite)")
             return CommandResult(True, f"saved {store.save(cmd.name, params)}")
 
-        return _then(self.files.submit(save), lambda result: result)
+        return then(self.files.submit(save), lambda result: result)
 
     # --- calibration on the rig (Desautel 2.3) ---------------------------------------------
 
@@ -764,92 +763,6 @@ class ControlLoop:
         self._y = self.sim.read_levels()
         self._r = (self._y[0], self._y[1])
         self._stale()
-
-
-class _Timing:
-    """The driver's measurements, counted as they come (a few additions a sample);
-    :meth:`stats` makes the frozen LoopStats a snapshot carries, when one is built."""
-
-    def __init__(self) -> None:
-        self.samples = self.overruns = self.skipped = 0
-        self.jitter_last = self.jitter_max = self.last_wall = 0.0
-        # No tracked percentiles: they are read a snapshot at a time, not every sample,
-        # and a full count then is cheaper than moving pointers at each add.
-        self.histogram = JitterHistogram(tracked=())
-
-    def add(self, jitter: float, missed: int, wall: float) -> None:
-        self.samples += 1
-        if missed:
-            self.overruns += 1
-            self.skipped += missed
-        self.jitter_last, self.last_wall = jitter, wall
-        a = abs(jitter)
-        if a > self.jitter_max:
-            self.jitter_max = a
-        self.histogram.add(jitter)
-
-    def stats(self) -> LoopStats:
-        h = self.histogram
-        return LoopStats(samples=self.samples, overruns=self.overruns, skipped=self.skipped,
-                         jitter_last=self.jitter_last, jitter_max=self.jitter_max,
-                         jitter_p50=h.percentile(50), jitter_p99=h.percentile(99),
-                         last_sample_wall=self.last_wall)
-
-
-def _arm(backend: ProcessBackend, tsamp: float) -> None:
-    """`backend.arm(tsamp)` (a backend written before the hook, or a test's stand-in, may not have one)."""
-    arm = getattr(backend, "arm", None)
-    if arm is not None:
-        arm(tsamp)
-
-
-def _plant_refused(daq: ProcessBackend | None, plant: Plant) -> str | None:
-    """Why the DAQ cannot be `plant` (wired for another rig), or None; a backend
-    without the question (a test's stand-in) takes any plant."""
-    ask = getattr(daq, "plant_refused", None)
-    return ask(plant) if ask is not None else None
-
-
-def prepare_load(store: ParStore, cmd: LoadPar) -> InstallPar | CommandResult:
-    """Read and check the `.par` a LoadPar names (no loop state touched: any thread);
-    its refusal (file:line and why) if it cannot be loaded."""
-    try:
-        read = store.load(cmd.name)
-    except Exception as exc:  # noqa: BLE001 - as begin() and Engine._drain would say it
-        return _refusal(exc) or CommandResult.refused(f"LoadPar failed: {type(exc).__name__}: {exc}")
-    return InstallPar(cmd.name, read.params, tuple(read.warnings))
-
-
-def _refusal(exc: Exception) -> CommandResult | None:
-    """The refusal an exception of a command stands for (None: a bug, not a refusal)."""
-    if isinstance(exc, (ParameterError, KeyError, PlantError, ParFileError, LogFileError, LogRefused, ValueError)):
-        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
-        return CommandResult.refused(str(message))
-    if isinstance(exc, OSError):
-        return CommandResult.refused(f"{getattr(exc, 'filename', '') or ''} {exc.strerror or exc}".strip())
-    return None
-
-
-def _done(result: CommandResult) -> Future[CommandResult]:
-    fut: Future[CommandResult] = Future()
-    fut.set_result(result)
-    return fut
-
-
-def _then(fut: Future[T], make: Callable[[T], CommandResult]) -> Future[CommandResult]:
-    """The CommandResult of a file operation: `make(value)`, or the refusal its
-    exception stands for."""
-    out: Future[CommandResult] = Future()
-
-    def done(f: Future[T]) -> None:
-        try:
-            result = make(f.result())
-        except Exception as exc:  # noqa: BLE001 - every outcome resolves the command
-            result = _refusal(exc) or CommandResult.refused(f"{type(exc).__name__}: {exc}")
-        out.set_result(result)
-
-    fut.add_done_callback(done)
-    return out
 
 
 _HANDLERS: Mapping[type, Callable[[ControlLoop, Any], CommandResult | Future[CommandResult]]] = {

@@ -6,7 +6,7 @@ that samples (the engine's thread, a session) starts the read on a thread of its
 own (`ParReading.start`) and keeps sampling; the commands that came after the
 LoadPar wait behind it, in order, and once the file is read and checked the loop
 only installs the parameters (InstallPar).  A bad file gives the refusal the
-loop would have given (file:line and why: engine.loop.prepare_load).
+loop would have given (file:line and why: prepare_load).
 """
 
 from __future__ import annotations
@@ -17,8 +17,18 @@ from dataclasses import dataclass
 from typing import Callable
 
 from quadtank_tui.engine.commands import CommandResult, InstallPar, LoadPar
-from quadtank_tui.engine.loop import prepare_load
+from quadtank_tui.engine.outcome import refusal
 from quadtank_tui.files.par import ParStore
+
+
+def prepare_load(store: ParStore, cmd: LoadPar) -> InstallPar | CommandResult:
+    """Read and check the `.par` a LoadPar names (no loop state touched: any thread);
+    its refusal (file:line and why) if it cannot be loaded."""
+    try:
+        read = store.load(cmd.name)
+    except Exception as exc:  # noqa: BLE001 - as begin() and Engine._drain would say it
+        return refusal(exc) or CommandResult.refused(f"LoadPar failed: {type(exc).__name__}: {exc}")
+    return InstallPar(cmd.name, read.params, tuple(read.warnings))
 
 
 @dataclass(frozen=True)
