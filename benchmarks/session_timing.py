@@ -74,9 +74,6 @@ def _host(period: float, tmp: str, ready: Any) -> None:
     last command, as loop_timing.py does), serving until stopped; then every
     sample's (monotonic wall time, jitter) is left in `tmp`/JITTERS."""
     from quadtank_tui.engine.runner import build_engine
-    from quadtank_tui.session.host import Access, SessionHost
-    from quadtank_tui.session.info import SessionInfo
-    from quadtank_tui.session.server import listen
 
     engine = build_engine(clock="realtime", params_dir=Path(tmp), logs_dir=Path(tmp))
     for command in PREPARE:
@@ -91,14 +88,24 @@ def _host(period: float, tmp: str, ready: Any) -> None:
         return timing
 
     engine.clock.tick_values = noted  # type: ignore[method-assign]
-    path = str(Path(tmp) / "s.sock")
-    info = SessionInfo(id="bench-1", owner="bench", uid=os.getuid(), pid=os.getpid(), started="", plant="quadtank",
+    _serve(engine, tmp, "bench-1", ready)
+    np.save(Path(tmp) / JITTERS, np.array(taken, dtype=float).reshape(-1, 2))
+
+
+def _serve(engine: Any, tmp: str, name: str, ready: Any) -> None:
+    """Serve `engine` as a session host in this process (a host of this benchmark's)
+    until stopped; its socket's path goes to `ready` once it listens."""
+    from quadtank_tui.session.host import Access, SessionHost
+    from quadtank_tui.session.info import SessionInfo
+    from quadtank_tui.session.server import listen
+
+    path = str(Path(tmp) / f"{name}.sock")
+    info = SessionInfo(id=name, owner="bench", uid=os.getuid(), pid=os.getpid(), started="", plant="quadtank",
                        socket=path)
     host = SessionHost(engine, listen(path), info, runtime=Path(tmp), access=Access(os.getuid()))
     host.install_signal_handlers()
     ready.put(path)
     host.serve()
-    np.save(Path(tmp) / JITTERS, np.array(taken, dtype=float).reshape(-1, 2))
 
 
 #: The file a host of this benchmark's leaves its samples' jitter in.
@@ -194,17 +201,30 @@ def session_speed(seconds: float) -> dict[str, float]:
     with _folder() as tmp:
         spec = engine_spec(clock="virtual", speed=1000.0, params_dir=Path(tmp), logs_dir=Path(tmp))
         info = start_session(SessionSpec(spec, str(Path(tmp) / "run")))
-        with SessionClient(info.socket) as client:
-            for command in (SetParams({"SAMPLING TIME.TSamp": 50}), SetSpeed(1000.0), LogOn(points=10**7),
-                            SetState("Run")):
-                assert client.submit(command).result(10).ok
-            first, cpu0 = client.snapshot().stats, process_cpu(info.pid)
-            time.sleep(seconds)
-            last, cpu1 = client.snapshot().stats, process_cpu(info.pid)
-        stop_session_at(info.socket)
+        return _x1000_window(info.socket, info.pid, seconds)
+
+
+def _x1000_window(sock: str, pid: int, seconds: float, waited: Any = None, settle: float = 0.0) -> dict[str, float]:
+    """The session at `sock` (process `pid`) set to x1000 at 50 ms, logging, and
+    run; after `settle` s, `seconds` of it measured with a client attached: the
+    samples, the slots skipped, the speed held and the process's CPU a sample (and,
+    with `waited`, a shared value of the driver's waiting, that part of it).  The
+    session is stopped at the end."""
+    with SessionClient(sock) as client:
+        for command in (SetParams({"SAMPLING TIME.TSamp": 50}), SetSpeed(1000.0), LogOn(points=10**7),
+                        SetState("Run")):
+            assert client.submit(command).result(10).ok
+        time.sleep(settle)
+        w0 = waited.value if waited is not None else 0.0
+        first, cpu0 = client.snapshot().stats, process_cpu(pid)
+        time.sleep(seconds)
+        last, cpu1 = client.snapshot().stats, process_cpu(pid)
+        w1 = waited.value if waited is not None else 0.0
+    stop_session_at(sock)
     samples, skipped = last.samples - first.samples, last.skipped - first.skipped
+    n = max(1, samples)
     return {"samples": samples, "skipped": skipped, "held": 1000.0 * samples / max(1, samples + skipped),
-            "cpu_us": 1e6 * (cpu1 - cpu0) / max(1, samples)}
+            "cpu_us": 1e6 * (cpu1 - cpu0) / n, "wait_us": 1e6 * (w1 - w0) / n}
 
 
 def _waits_host(tmp: str, ready: Any, waited: Any) -> None:
@@ -212,9 +232,6 @@ def _waits_host(tmp: str, ready: Any, waited: Any) -> None:
     its fine waits: their CPU (the driving thread's, seconds) adds up in `waited`."""
     from quadtank_tui.engine import driver
     from quadtank_tui.engine.runner import build_engine
-    from quadtank_tui.session.host import Access, SessionHost
-    from quadtank_tui.session.info import SessionInfo
-    from quadtank_tui.session.server import listen
 
     fine_wait = driver.fine_wait
 
@@ -226,13 +243,7 @@ def _waits_host(tmp: str, ready: Any, waited: Any) -> None:
 
     driver.fine_wait = timed  # the drive looks it up at each wait
     engine = build_engine(clock="virtual", speed=1000.0, params_dir=Path(tmp), logs_dir=Path(tmp))
-    path = str(Path(tmp) / "w.sock")
-    info = SessionInfo(id="bench-2", owner="bench", uid=os.getuid(), pid=os.getpid(), started="", plant="quadtank",
-                       socket=path)
-    host = SessionHost(engine, listen(path), info, runtime=Path(tmp), access=Access(os.getuid()))
-    host.install_signal_handlers()
-    ready.put(path)
-    host.serve()
+    _serve(engine, tmp, "bench-2", ready)
 
 
 def session_busy(seconds: float) -> dict[str, float]:
@@ -247,20 +258,11 @@ def session_busy(seconds: float) -> dict[str, float]:
         proc = ctx.Process(target=_waits_host, args=(tmp, ready, waited))
         proc.start()
         sock = ready.get(timeout=30)
-        with SessionClient(sock) as client:
-            for command in (SetParams({"SAMPLING TIME.TSamp": 50}), SetSpeed(1000.0), LogOn(points=10**7),
-                            SetState("Run")):
-                assert client.submit(command).result(10).ok
-            time.sleep(1.0)  # the first waits and the log's start behind it
-            assert proc.pid is not None
-            first, cpu0, w0 = client.snapshot().stats, process_cpu(proc.pid), waited.value
-            time.sleep(seconds)
-            last, cpu1, w1 = client.snapshot().stats, process_cpu(proc.pid), waited.value
-        stop_session_at(sock)
+        assert proc.pid is not None
+        # settle: the first waits and the log's start behind it
+        r = _x1000_window(sock, proc.pid, seconds, waited, settle=1.0)
         proc.join(10)
-    samples, skipped = last.samples - first.samples, last.skipped - first.skipped
-    return {"samples": samples, "skipped": skipped, "held": 1000.0 * samples / max(1, samples + skipped),
-            "cpu_us": 1e6 * (cpu1 - cpu0) / max(1, samples), "wait_us": 1e6 * (w1 - w0) / max(1, samples)}
+    return r
 
 
 def process_cpu(pid: int) -> float:

@@ -106,12 +106,11 @@ def main() -> None:
     print(f"experiment: P-, decentralized PI (3.0, 30) (2.7, 40), PRBS references, {SAMPLES} samples at {H:g} s")
     print(f"load average {os.getloadavg()[0]:.1f}; times are CPU (process_time), wall in brackets; "
           "the ratios are of CPU times (a shared machine's other programs inflate wall time unevenly)")
-    run_engine(seed=1, samples=100)  # warm: the imports and first calls, as python-control's are below
     # In turns, `--repeat` times: one run of ours is 60-90 ms, a spot of the machine's
     # speed, python-control's 2-3 s an average of it; the medians are compared.  Each
     # run starts on a collected heap, ours warmed again by a short run: right after
     # python-control's, ours took 15-25 % longer once (its garbage, the caches), and
-    # the next run not.
+    # the next run not.  (The first warm-up also takes the imports and first calls.)
     ours, theirs = [], []
     for _ in range(args.repeat):
         gc.collect()

@@ -100,11 +100,13 @@ Realization = tuple[np.ndarray, np.ndarray, np.ndarray, float]
 
 
 @functools.lru_cache(maxsize=256)
-def _realization(num: tuple[float, ...], den: tuple[float, ...], h: float) -> Realization:
+def realization(num: tuple[float, ...], den: tuple[float, ...], h: float) -> Realization:
     """realize(*tustin(num, den, h)), once per element and sampling time: every
     engine and every installation builds four elements, mostly the default gain, and
     the discretization is numpy work of some 30 us.  The arrays are read-only, since
-    the elements holding them share them."""
+    the elements holding them share them.  The check that an element can be
+    discretized at all (ParameterError, never cached) is this call too, so the
+    element built after it finds its realization made."""
     Phi, Gam, C, D = realize(*tustin(num, den, h))
     for a in (Phi, Gam, C):
         a.setflags(write=False)
@@ -136,7 +138,7 @@ class General:
     def __init__(self, params: GeneralParams, h: float) -> None:
         self._h = check_sampling_time(h)
         self._p = params
-        self._Phi, self._Gam, self._C, self._D = _realization(params.numerator, params.denominator, self._h)
+        self._Phi, self._Gam, self._C, self._D = realization(params.numerator, params.denominator, self._h)
         self._x: np.ndarray = np.zeros(params.degree)
         self._bias = 0.0
         self._last: tuple[float, float] | None = None  # (e, u) of the previous sample
@@ -176,17 +178,17 @@ class General:
 
     def set_params(self, params: GeneralParams) -> None:
         """New coefficients (and degree) without a jump in u."""
-        realization = _realization(params.numerator, params.denominator, self._h)
+        discrete = realization(params.numerator, params.denominator, self._h)
         self._p = params
-        self._Phi, self._Gam, self._C, self._D = realization
+        self._Phi, self._Gam, self._C, self._D = discrete
         self._after_change()
 
     def set_sampling_time(self, h: float) -> None:
         """Re-discretize at the new sampling time (s) without a jump in u."""
         h = check_sampling_time(h)
-        realization = _realization(self._p.numerator, self._p.denominator, h)
+        discrete = realization(self._p.numerator, self._p.denominator, h)
         self._h = h
-        self._Phi, self._Gam, self._C, self._D = realization
+        self._Phi, self._Gam, self._C, self._D = discrete
         self._after_change()
 
     def reset(self) -> None:

@@ -26,7 +26,7 @@ from __future__ import annotations
 from enum import Enum
 from typing import Mapping, Sequence
 
-from quadtank_tui.core.general import General, GeneralParams, tustin
+from quadtank_tui.core.general import General, GeneralParams, realization
 from quadtank_tui.core.pid import PID, PIDParams
 from quadtank_tui.core.validation import ParameterError, check_sampling_time
 
@@ -214,7 +214,7 @@ class ControllerMatrix:
         held at rest at zero output, so nothing winds up in them while the loop is open.
         """
         self._computed = None
-        elements = self._pid if self._family is Family.PID else None
+        elements = self._pid if self._family is _PID else None
         for e in self.active_elements():
             i, j = e
             rj, yj = r[j - 1], y[j - 1]
@@ -276,7 +276,7 @@ class ControllerMatrix:
         h = check_sampling_time(h)
         self._computed = None
         for g in self._general.values():
-            tustin(g.params.numerator, g.params.denominator, h)
+            realization(g.params.numerator, g.params.denominator, h)
         for e in ELEMENTS:
             self._pid[e].set_sampling_time(h)
             self._general[e].set_sampling_time(h)

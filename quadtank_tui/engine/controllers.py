@@ -19,7 +19,7 @@ import importlib
 import threading
 from typing import TYPE_CHECKING, Union
 
-from quadtank_tui.core.general import tustin
+from quadtank_tui.core.general import realization
 from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, Family
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.backend import Levels4, Pair
@@ -137,7 +137,7 @@ class Controllers:
         """Refuse (ParameterError) what no controller of `new` can be: a General
         element with a pole at 2/h (Tustin's z = -1)."""
         for e in new.controllers:
-            tustin(e.general.numerator, e.general.denominator, new.tsamp)
+            realization(e.general.numerator, e.general.denominator, new.tsamp)
 
     def prepare(self, new: Parameters, old: Parameters) -> StateFbChange:
         """What the state feedback needs for `new`, designed (or refused) before

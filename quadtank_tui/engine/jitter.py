@@ -6,6 +6,10 @@ A histogram with logarithmic bins from 1 µs to 10 s (50 per decade, so a bin is
 4.7 % wide) holds any run in 352 counters; a percentile is reported as the upper
 edge of its bin, so it is never smaller than the true value and at most 4.7 % above (nor above the
 largest value seen).
+
+:class:`LoopTiming` is a loop's record of its driver's measurements (samples,
+overruns, the last and largest jitter, and this histogram), the LoopStats of a
+snapshot when one is built.
 """
 
 from __future__ import annotations

@@ -395,11 +395,8 @@ class ControlLoop:
         self._snapshot = None
 
     def timed_sample(self, jitter: float, missed: int, wall: float) -> None:
-        """:meth:`record_timing` then :meth:`sample`: the driver's every sample, in one
-        call (sample forgets the snapshot itself)."""
-        self._missed = missed
-        self._timing.add(jitter, missed, wall)
-        self._stats = None
+        """:meth:`record_timing` then :meth:`sample`: the driver's every sample, in one call."""
+        self.record_timing(jitter, missed, wall)
         self.sample()
 
     def set_clock_info(self, realtime: bool, speed: float) -> None:

@@ -43,6 +43,7 @@ from quadtank_tui.core.validation import ParameterError, check_range
 #: Each key's place in the model (KEYS is in file order, the model's order).
 _POSITION = {k.name: i for i, k in enumerate(KEYS)}
 
+
 @dataclass(frozen=True)
 class ControlSettings:
     """CONTROL section: mode and the controller matrix's type."""
@@ -257,8 +258,7 @@ class Parameters:
         # Rebuilt in the model's order whatever the caller's: of several bad values,
         # the one refused is the first in the file (a .par's keys come in its order).
         coerced.sort(key=lambda kv: _POSITION[kv[0].name])
-        changed: Parameters = replaced(self, {k.path: value for k, value in coerced})
-        return changed
+        return replaced(self, {k.path: value for k, value in coerced})
 
     # `default` is always given (the preset, or a params folder's default.par):
     # presets.py builds PRESET from these classes, so this module never imports it.

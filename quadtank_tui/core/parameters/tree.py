@@ -11,15 +11,15 @@ small part of its cost (a Setup edit, a command's parameters: every SetParams)."
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping, Sequence, TypeVar
 
 from quadtank_tui.core.parameters.keys import SECTION_OF_PATH
 from quadtank_tui.core.validation import ParameterError
 
-Path = Sequence[str | int]
+T = TypeVar("T")
 
 
-def walk(obj: Any, path: Path) -> Any:
+def walk(obj: Any, path: Sequence[str | int]) -> Any:
     """The value at `path` (attribute names and tuple indices) inside `obj`."""
     for step in path:
         obj = obj[step] if isinstance(step, int) else getattr(obj, step)
@@ -35,7 +35,7 @@ class _Leaf:
         self.value = value
 
 
-def replaced(obj: Any, changes: Mapping[tuple[str | int, ...], Any]) -> Any:
+def replaced(obj: T, changes: Mapping[tuple[str | int, ...], Any]) -> T:
     """A copy of `obj` with the value at each path of `changes` replaced, every
     object on those paths rebuilt (validated); a nested object's ParameterError is
     renamed to the full "SECTION.Key".  A later path equal to an earlier one wins."""
@@ -45,7 +45,8 @@ def replaced(obj: Any, changes: Mapping[tuple[str | int, ...], Any]) -> Any:
         for step in path[:-1]:
             node = node.setdefault(step, {})
         node[path[-1]] = _Leaf(value)
-    return _rebuild(obj, tree, ())
+    rebuilt: T = _rebuild(obj, tree, ())
+    return rebuilt
 
 
 def _rebuild(obj: Any, tree: dict[str | int, Any], path: tuple[str | int, ...]) -> Any:
