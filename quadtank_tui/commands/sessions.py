@@ -91,22 +91,30 @@ def _kept() -> str:
 
 def format_ended(sessions: list[SessionInfo]) -> str:
     """The ended sessions, one a line: when and why (the reason last: it may be long)."""
+    from quadtank_tui.files.shared import shown
+
     head = ("ID", "OWNER", "STARTED", "ENDED", "WHY")
-    rows = [head] + [(i.id, i.owner, i.started.replace("T", " "), i.ended_at.replace("T", " ") or "?", i.ended)
+    rows = [head] + [tuple(map(shown, (i.id, i.owner, i.started.replace("T", " "),
+                                       i.ended_at.replace("T", " ") or "?", i.ended)))
                      for i in sessions]
     widths = [max(len(r[c]) for r in rows) for c in range(len(head) - 1)]
     return "\n".join("  ".join([*(v.ljust(w) for v, w in zip(r, widths)), r[-1]]).rstrip() for r in rows)
 
 
 def format_table(sessions: list[SessionInfo]) -> str:
+    """The running sessions, one a line; what a record says shown with its control
+    characters escaped (another user wrote it: files.shared.shown)."""
+    from quadtank_tui.files.shared import shown
+
     head = ("ID", "OWNER", "STARTED", "PLANT", "OPERATION", "STATE", "LOGGING", "CLIENTS")
-    rows = [head]
+    rows: list[tuple[str, ...]] = [head]
     for i in sessions:
         clients = f"{i.clients}" + (f" ({i.operator} operates)" if i.operator else "")
         state = i.state + (f" - {i.note}" if i.note else "")
         operation = i.operation + (" (no watchdog)" if i.daq and i.watchdog == "none" else "")
-        rows.append((i.id, i.owner, i.started.replace("T", " "), i.plant + (" (headless)" if i.headless else ""),
-                     operation, state, i.logging, clients))
+        rows.append(tuple(map(shown, (i.id, i.owner, i.started.replace("T", " "),
+                                      i.plant + (" (headless)" if i.headless else ""),
+                                      operation, state, i.logging, clients))))
     widths = [max(len(r[c]) for r in rows) for c in range(len(head))]
     return "\n".join("  ".join(v.ljust(w) for v, w in zip(r, widths)).rstrip() for r in rows)
 
@@ -128,7 +136,10 @@ def cmd_stop(args: argparse.Namespace) -> int:
         if not pid_alive(info.pid):
             break
         threading.Event().wait(0.05)
-    print(f"session {info.id} stopped ({reason}): pumps at 0, logging stopped, its rows kept in {info.cwd}")
+    from quadtank_tui.files.shared import shown
+
+    print(f"session {info.id} stopped ({shown(reason)}): pumps at 0, logging stopped, its rows kept in "
+          f"{shown(info.cwd)}")
     return 0
 
 

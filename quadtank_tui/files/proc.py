@@ -63,8 +63,17 @@ def process_start(pid: int) -> int | None:
 
 
 def process_owner(pid: int) -> int | None:
-    """The user id `pid` runs as (/proc), None where unknown."""
-    try:
-        return os.stat(f"/proc/{pid}").st_uid
-    except OSError:
+    """The real user id `pid` runs as (the `Uid:` line of /proc/PID/status: the
+    kernel's, whoever wrote the pid down), None where unknown (no such process, or
+    no /proc).  Not the owner of /proc/PID, which is the effective uid and, for a
+    process that is not dumpable, root."""
+    if pid <= 0:
         return None
+    try:
+        with open(f"/proc/{pid}/status", "rb") as f:
+            for line in f:
+                if line.startswith(b"Uid:"):
+                    return int(line.split()[1])
+    except (OSError, ValueError, IndexError):
+        return None
+    return None

@@ -23,13 +23,18 @@ import re
 import tempfile
 from datetime import datetime, timedelta
 from pathlib import Path
+from typing import Any
 
 from quadtank_tui.files.proc import pid_alive
+from quadtank_tui.files.shared import read_untrusted
 from quadtank_tui.session.info import SessionInfo
 
 #: How long an ended session's record and output file are kept, and how many per owner.
 ENDED_KEPT = timedelta(days=7)
 ENDED_PER_OWNER = 20
+#: Entries of a runtime folder looked at by a listing (a folder of a million junk
+#: files costs a bounded time).
+MAX_ENTRIES = 20000
 
 class NoSession(LookupError):
     """No session matches what was asked; the message says what there is."""
@@ -43,6 +48,25 @@ def runtime_dir(configured: Path | None = None) -> Path:
 
     lab = load_lab_config()
     return ensure_shared_dir(configured or lab.runtime_dir, trusted=lambda uid: is_administrator(uid, lab))
+
+
+#: A session id: its owner's name (letters, digits, '_', '.', '-'; never "..") and
+#: a number.  Every path of a session is its folder and this id, so an id that does
+#: not match names nothing (a record saying "../victim/b" is no record).
+SESSION_ID = re.compile(r"(?!.*\.\.)[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}-[0-9]{1,9}")
+#: A record is a few hundred bytes; a file larger than this is no record.
+MAX_RECORD = 64 * 1024
+
+
+def valid_id(session_id: str) -> bool:
+    """Whether `session_id` may be a session id (SESSION_ID): no '/', no '..'."""
+    return isinstance(session_id, str) and SESSION_ID.fullmatch(session_id) is not None
+
+
+def id_name(user: str) -> str:
+    """A user name as the first part of a session id: any other character '_'."""
+    name = re.sub(r"[^A-Za-z0-9_.-]", "_", user).replace("..", "__")[:64]
+    return name if name and name[0] not in ".-" else "_" + name[:63]
 
 
 def record_path(runtime: Path, session_id: str) -> Path:
@@ -64,6 +88,7 @@ def claim_id(runtime: Path, user: str) -> str:
     output file may still name is never given to another session.  Claimed by
     creating its record (O_EXCL: two sessions starting at once get different ids)."""
     list_sessions(runtime)  # marks the dead ones ended, removes the old ones
+    user = id_name(user)
     own = re.compile(re.escape(user) + r"-([0-9]{1,9})\.(?:json|sock|out)")
     n = 1 + max((int(m.group(1)) for p in runtime.iterdir() if (m := own.fullmatch(p.name))), default=0)
     while True:
@@ -93,19 +118,46 @@ def write_record(runtime: Path, info: SessionInfo) -> None:
         raise
 
 
-def read_record(path: Path) -> SessionInfo | None:
-    """The record at `path`; None if it is not one (being claimed, or garbage)."""
-    try:
-        obj = json.loads(path.read_text())
-    except (OSError, ValueError):
+def read_record(runtime: Path, session_id: str) -> SessionInfo | None:
+    """The record of `session_id` in `runtime`; None if there is none or it is not
+    one (being claimed, garbage, not a regular file, larger than MAX_RECORD, a
+    record of another id).  Opened as read_untrusted does: a FIFO, a link to
+    /dev/zero or a huge file there costs one open and one fstat.  Its socket is
+    where the folder and the id say, whatever the file says."""
+    if not valid_id(session_id):
         return None
+    try:
+        data, _ = read_untrusted(record_path(runtime, session_id), MAX_RECORD)
+        obj = json.loads(data)
+    except (OSError, ValueError, RecursionError):
+        return None
+    info = record_from(obj)
+    if info is None or info.id != session_id:
+        return None
+    return dataclasses.replace(info, socket=str(socket_path(runtime, session_id)))
+
+
+def record_from(obj: object) -> SessionInfo | None:
+    """A SessionInfo from a record's JSON object if every field it has is of the
+    type SessionInfo says (unknown keys dropped); None otherwise."""
     if not isinstance(obj, dict):
         return None
-    names = {f.name for f in dataclasses.fields(SessionInfo)}
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(SessionInfo):
+        if f.name not in obj:
+            continue
+        v = obj[f.name]
+        want = _FIELD_TYPES[f.name]
+        if type(v) is not want:  # bool is no int here, nor an int a bool
+            return None
+        values[f.name] = v
     try:
-        return SessionInfo(**{k: v for k, v in obj.items() if k in names})
-    except TypeError:
+        return SessionInfo(**values)
+    except TypeError:  # a required field missing
         return None
+
+
+_FIELD_TYPES = {f.name: {"str": str, "int": int, "bool": bool}[str(f.type)] for f in dataclasses.fields(SessionInfo)}
 
 
 def remove_files(runtime: Path, session_id: str, *, output: bool = False) -> None:
@@ -146,8 +198,8 @@ def _records(runtime: Path, *, prune: bool) -> list[SessionInfo]:
     """Every record, those of dead processes marked ended; `prune`: ended ones past
     ENDED_KEPT or past the owner's newest ENDED_PER_OWNER removed (when ours to remove)."""
     records = []
-    for path in sorted(runtime.glob("*.json")):
-        info = read_record(path)
+    for sid in _record_ids(runtime):
+        info = read_record(runtime, sid)
         if info is None:
             continue
         if not info.ended and not pid_alive(info.pid):
@@ -167,6 +219,23 @@ def _records(runtime: Path, *, prune: bool) -> list[SessionInfo]:
             kept.append(info)
         records = kept
     return records
+
+
+def _record_ids(runtime: Path) -> list[str]:
+    """The ids of the records in `runtime` (the names `<id>.json` with a valid id),
+    at most MAX_ENTRIES names looked at."""
+    out = []
+    try:
+        with os.scandir(runtime) as entries:
+            for n, entry in enumerate(entries):
+                if n >= MAX_ENTRIES:
+                    break
+                name = entry.name
+                if name.endswith(".json") and valid_id(name[:-5]):
+                    out.append(name[:-5])
+    except OSError:
+        return []
+    return sorted(out)
 
 
 def list_sessions(runtime: Path, *, prune: bool = True) -> list[SessionInfo]:
