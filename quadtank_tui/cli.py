@@ -316,7 +316,8 @@ def build_tui(args: argparse.Namespace) -> tuple[SessionClient, QuadTankApp]:
         from quadtank_tui.session.client import SessionClient
         from quadtank_tui.ui.app import build_app
 
-        client = SessionClient(spawned.wait_ready().socket, private=True, let_go=spawned.let_go)
+        info = spawned.wait_ready()
+        client = SessionClient(info.socket, private=True, let_go=spawned.let_go, expect=info)
     except BaseException:
         spawned.cancel()
         raise

@@ -76,11 +76,35 @@ def cmd_sessions(args: argparse.Namespace) -> int:
         return 0
     if not sessions and not ended:
         print("no sessions")
-        return 0
-    print(format_table(sessions) if sessions else "no running sessions")
-    if ended:
-        print(f"\nended (kept {_kept()}):\n" + format_ended(ended))
+    else:
+        print(format_table(sessions) if sessions else "no running sessions")
+        if ended:
+            print(f"\nended (kept {_kept()}):\n" + format_ended(ended))
+    _name_the_ignored(runtime)
     return 0
+
+
+#: Ignored files named by `quadtank sessions`, at most (a folder of junk is one line more).
+MAX_IGNORED_SHOWN = 20
+
+
+def _name_the_ignored(runtime: Path) -> None:
+    """For an administrator: the files of the runtime folder that are no one's
+    record (a FIFO, a link, a record the OS disagrees with), each with why."""
+    from quadtank_tui.files.shared import shown
+    from quadtank_tui.session.lab import load_lab_config
+    from quadtank_tui.session.roles import is_administrator
+    from quadtank_tui.session.runtime import ignored_records
+
+    if not is_administrator(os.getuid(), load_lab_config()):
+        return
+    ignored = ignored_records(runtime)
+    if ignored:
+        print("\nignored (not what the operating system says; an administrator may remove them):")
+        for item in ignored[:MAX_IGNORED_SHOWN]:
+            print(f"  {shown(item.why)}")
+        if len(ignored) > MAX_IGNORED_SHOWN:
+            print(f"  ... and {len(ignored) - MAX_IGNORED_SHOWN} more")
 
 
 def _kept() -> str:
@@ -129,7 +153,7 @@ def cmd_stop(args: argparse.Namespace) -> int:
 
     try:
         info = find_session(runtime_folder(), args.session, os.getuid())
-        reason = stop_session_at(info.socket)
+        reason = stop_session_at(info.socket, expect=info)
     except (NoSession, SessionError) as exc:
         raise UsageError(str(exc)) from None
     for _ in range(200):  # the process ends right after it said so
@@ -164,7 +188,7 @@ def cmd_attach(args: argparse.Namespace) -> int:
 def _connect(info: SessionInfo, role: Role, *, take_over: bool = False) -> SessionClient:
     from quadtank_tui.session.client import SessionClient
 
-    return SessionClient(info.socket, role=role, take_over=take_over)
+    return SessionClient(info.socket, role=role, take_over=take_over, expect=info)
 
 
 def cmd_tui_session(args: argparse.Namespace) -> int:

@@ -80,11 +80,13 @@ class SessionClient:
     take_over : an administrator takes the operator's place
     private : the session is this client's own (it stops when this client closes);
         `let_go` is called once it has (the session's lifeline)
+    expect : the session's record: the process answering on the socket must be its
+        pid, running as its uid (SO_PEERCRED), or nothing is sent (`check_peer`)
     """
 
     def __init__(self, path: str | Path, *, role: Role = "operator", take_over: bool = False,
                  client: str = "tui", timeout: float = ATTACH_TIMEOUT, private: bool = False,
-                 let_go: Callable[[], None] | None = None) -> None:
+                 let_go: Callable[[], None] | None = None, expect: SessionInfo | None = None) -> None:
         self.warnings: tuple[str, ...] = ()
         sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         sock.settimeout(timeout)
@@ -93,6 +95,11 @@ class SessionClient:
         except OSError as exc:
             sock.close()
             raise _unreachable(path, exc) from None
+        try:
+            check_peer(sock, path, expect)
+        except SessionError:
+            sock.close()
+            raise
         self._sock = sock
         self._path = str(path)
         self._reader = LineReader(MAX_SESSION_LINE)
@@ -482,14 +489,16 @@ class SessionClient:
         self.close()
 
 
-def stop_session_at(path: str | Path, timeout: float = STOP_TIMEOUT) -> str:
+def stop_session_at(path: str | Path, timeout: float = STOP_TIMEOUT, *, expect: SessionInfo | None = None) -> str:
     """Ask the session at `path` to stop (pumps at 0, log kept) without attaching;
     returns its reason once it has stopped.  SessionError if it refused (not its
-    owner nor an administrator) or did not stop within `timeout`."""
+    owner nor an administrator), did not stop within `timeout`, or (`expect`: its
+    record) the process on the socket is not the record's (check_peer)."""
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     sock.settimeout(timeout)
     try:
         connect(sock, path, min(timeout, ATTACH_TIMEOUT))
+        check_peer(sock, path, expect)
         sock.sendall(encode(Hello("control", "stop")) + encode(StopSession()))
         reader = LineReader(MAX_SESSION_LINE)
         while True:
@@ -510,6 +519,27 @@ def stop_session_at(path: str | Path, timeout: float = STOP_TIMEOUT) -> str:
         raise _unreachable(path, exc) from None
     finally:
         sock.close()
+
+
+def check_peer(sock: socket.socket, path: str | Path, expect: SessionInfo | None) -> None:
+    """SessionError unless the process listening on the connected `sock` is the
+    session `expect` describes: the kernel's SO_PEERCRED (the pid and uid of the
+    process that listens) must be the record's pid and uid.  A socket someone else
+    put where a record points, answering "Ended" to a stop, is refused before a
+    byte is sent.  `expect` None: not checked (our own child's socket)."""
+    if expect is None:
+        return
+    from quadtank_tui.session.roles import peer_of, user_name
+
+    try:
+        peer = peer_of(sock)
+    except OSError as exc:
+        raise SessionError(f"the session at {path}: whose socket it is cannot be told ({exc.strerror or exc})") \
+            from None
+    if peer.uid != expect.uid or peer.pid != expect.pid:
+        raise SessionError(f"the socket at {path} is not session {expect.id}'s: it is answered by pid {peer.pid} "
+                           f"of {user_name(peer.uid)}, the session is pid {expect.pid} of {user_name(expect.uid)}; "
+                           "nothing was sent (an administrator may look at it)")
 
 
 def connect(sock: socket.socket, path: str | Path, timeout: float) -> None:

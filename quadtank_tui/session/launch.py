@@ -185,7 +185,8 @@ class Spawned:
             from quadtank_tui.session.client import SessionError, stop_session_at
 
             try:
-                stop_session_at(SessionInfo(**json.loads(reply[6:])).socket)
+                info = SessionInfo(**json.loads(reply[6:]))
+                stop_session_at(info.socket, expect=info)
             except (SessionError, OSError, ValueError):
                 self._proc.terminate()
 

@@ -19,14 +19,15 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import pwd
 import re
 import tempfile
 from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
 
-from quadtank_tui.files.proc import pid_alive
-from quadtank_tui.files.shared import read_untrusted
+from quadtank_tui.files.proc import pid_alive, process_owner
+from quadtank_tui.files.shared import Untrusted, read_untrusted
 from quadtank_tui.session.info import SessionInfo
 
 #: How long an ended session's record and output file are kept, and how many per owner.
@@ -56,6 +57,15 @@ def runtime_dir(configured: Path | None = None) -> Path:
 SESSION_ID = re.compile(r"(?!.*\.\.)[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}-[0-9]{1,9}")
 #: A record is a few hundred bytes; a file larger than this is no record.
 MAX_RECORD = 64 * 1024
+
+
+def user_name(uid: int) -> str:
+    """The login name of `uid` (the number itself when it has none): roles.user_name,
+    without the lab file's modules a launcher need not load."""
+    try:
+        return pwd.getpwuid(uid).pw_name
+    except KeyError:
+        return str(uid)
 
 
 def valid_id(session_id: str) -> bool:
@@ -118,23 +128,56 @@ def write_record(runtime: Path, info: SessionInfo) -> None:
         raise
 
 
+@dataclasses.dataclass(frozen=True)
+class Ignored:
+    """A file in the runtime folder that is no one's record: what it is and why
+    (for an administrator: `quadtank sessions` names them)."""
+
+    path: str
+    why: str
+
+
 def read_record(runtime: Path, session_id: str) -> SessionInfo | None:
-    """The record of `session_id` in `runtime`; None if there is none or it is not
-    one (being claimed, garbage, not a regular file, larger than MAX_RECORD, a
-    record of another id).  Opened as read_untrusted does: a FIFO, a link to
-    /dev/zero or a huge file there costs one open and one fstat.  Its socket is
-    where the folder and the id say, whatever the file says."""
+    """The record of `session_id` in `runtime` if the OS agrees with it (see
+    checked_record); None otherwise."""
+    info, _ = checked_record(runtime, session_id)
+    return info
+
+
+def checked_record(runtime: Path, session_id: str) -> tuple[SessionInfo | None, str | None]:
+    """(the record of `session_id` in `runtime`, None) if it is one and the OS
+    agrees with what it says; else (None, why it is not, or None for a file that is
+    merely no record yet: being claimed, gone meanwhile).
+
+    Opened as read_untrusted does (a FIFO, a link to /dev/zero or a huge file there
+    costs one open and one fstat).  It counts only if its file's owner is the uid
+    it names, its owner field is that uid's name and its id that name's; its socket
+    is where the folder and the id say, whatever the file says.  Whether its pid is
+    a process of that uid is the listing's to ask (it may have ended since)."""
     if not valid_id(session_id):
-        return None
+        return None, None
+    path = record_path(runtime, session_id)
     try:
-        data, _ = read_untrusted(record_path(runtime, session_id), MAX_RECORD)
+        data, st = read_untrusted(path, MAX_RECORD)
+    except FileNotFoundError:
+        return None, None
+    except OSError as exc:
+        return None, str(exc) if isinstance(exc, Untrusted) else f"{path}: {exc.strerror or exc}"
+    if not data:
+        return None, None  # claimed, not written yet
+    try:
         obj = json.loads(data)
-    except (OSError, ValueError, RecursionError):
-        return None
+    except (ValueError, RecursionError):
+        return None, f"{path}: not a session record (of {user_name(st.st_uid)})"
     info = record_from(obj)
-    if info is None or info.id != session_id:
-        return None
-    return dataclasses.replace(info, socket=str(socket_path(runtime, session_id)))
+    if info is None:
+        return None, f"{path}: not a session record (of {user_name(st.st_uid)})"
+    if info.uid != st.st_uid:
+        return None, f"{path}: written by {user_name(st.st_uid)}, says it is uid {info.uid}'s"
+    name = user_name(info.uid)
+    if info.owner != name or info.id != session_id or not session_id.startswith(id_name(name) + "-"):
+        return None, f"{path}: written by {name}, names '{info.owner}' and session '{info.id}'"
+    return dataclasses.replace(info, socket=str(socket_path(runtime, session_id))), None
 
 
 def record_from(obj: object) -> SessionInfo | None:
@@ -194,26 +237,45 @@ def died(info: SessionInfo) -> str:
             "crashed, or the machine went down); pumps and log as it left them")
 
 
-def _records(runtime: Path, *, prune: bool) -> list[SessionInfo]:
-    """Every record, those of dead processes marked ended; `prune`: ended ones past
-    ENDED_KEPT or past the owner's newest ENDED_PER_OWNER removed (when ours to remove)."""
+def _records(runtime: Path, *, prune: bool, ignored: list[Ignored] | None = None) -> list[SessionInfo]:
+    """Every record the OS agrees with (checked_record), those whose process is gone
+    (or whose pid is now another user's process) ended; `prune`: our own such
+    records marked ended on disk, and our ended ones past ENDED_KEPT or past our
+    newest ENDED_PER_OWNER removed.  Nothing of another user's is ever written or
+    removed.  `ignored` gets the files that are no one's record, and the records
+    whose pid runs as someone else."""
+    me = os.getuid()
     records = []
-    for sid in _record_ids(runtime):
-        info = read_record(runtime, sid)
+    bad: list[str] = []
+    ids = _record_ids(runtime, bad)
+    if ignored is not None:
+        ignored.extend(Ignored(str(runtime / name), f"{runtime / name}: not a session id") for name in sorted(bad))
+    for sid in ids:
+        info, why = checked_record(runtime, sid)
         if info is None:
+            if why is not None and ignored is not None:
+                ignored.append(Ignored(str(record_path(runtime, sid)), why))
             continue
-        if not info.ended and not pid_alive(info.pid):
-            info = end_record(runtime, info, died(info)) if prune else \
-                dataclasses.replace(info, ended=died(info), clients=0, operator="")
+        if not info.ended:
+            runs_as = process_owner(info.pid) if pid_alive(info.pid) else None
+            if runs_as != info.uid:
+                if runs_as is not None and info.uid != me:  # a forgery, or a pid reused: not ours to say
+                    if ignored is not None:
+                        ignored.append(Ignored(str(record_path(runtime, sid)),
+                                               f"names pid {info.pid}, a process of {user_name(runs_as)}, "
+                                               f"not of {user_name(info.uid)}"))
+                    continue
+                info = end_record(runtime, info, died(info)) if prune and info.uid == me else \
+                    dataclasses.replace(info, ended=died(info), clients=0, operator="")
         records.append(info)
     if prune:
         kept: list[SessionInfo] = []
         oldest = (datetime.now() - ENDED_KEPT).isoformat(timespec="seconds")
-        per_owner: dict[int, int] = {}
+        ours = 0
         for info in sorted(records, key=lambda i: (i.ended_at or i.started, i.id), reverse=True):
-            if info.ended:
-                per_owner[info.uid] = per_owner.get(info.uid, 0) + 1
-                if (info.ended_at or info.started) < oldest or per_owner[info.uid] > ENDED_PER_OWNER:
+            if info.ended and info.uid == me:
+                ours += 1
+                if (info.ended_at or info.started) < oldest or ours > ENDED_PER_OWNER:
                     remove_files(runtime, info.id, output=True)
                     continue
             kept.append(info)
@@ -221,9 +283,17 @@ def _records(runtime: Path, *, prune: bool) -> list[SessionInfo]:
     return records
 
 
-def _record_ids(runtime: Path) -> list[str]:
+def ignored_records(runtime: Path) -> list[Ignored]:
+    """The files of the runtime folder that are no one's record, and the records
+    the OS disagrees with, each with why (for an administrator to look at)."""
+    out: list[Ignored] = []
+    _records(runtime, prune=False, ignored=out)
+    return out
+
+
+def _record_ids(runtime: Path, bad: list[str] | None = None) -> list[str]:
     """The ids of the records in `runtime` (the names `<id>.json` with a valid id),
-    at most MAX_ENTRIES names looked at."""
+    at most MAX_ENTRIES names looked at; `bad` gets the other `.json` names."""
     out = []
     try:
         with os.scandir(runtime) as entries:
@@ -231,8 +301,11 @@ def _record_ids(runtime: Path) -> list[str]:
                 if n >= MAX_ENTRIES:
                     break
                 name = entry.name
-                if name.endswith(".json") and valid_id(name[:-5]):
-                    out.append(name[:-5])
+                if name.endswith(".json"):
+                    if valid_id(name[:-5]):
+                        out.append(name[:-5])
+                    elif bad is not None:
+                        bad.append(name)
     except OSError:
         return []
     return sorted(out)

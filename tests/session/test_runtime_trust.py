@@ -21,13 +21,17 @@ import pytest
 from quadtank_tui.commands.sessions import format_ended, format_table
 from quadtank_tui.files.shared import Untrusted, read_untrusted, shown
 from quadtank_tui.session.info import SessionInfo
-from quadtank_tui.session.runtime import claim_id, ended_sessions, list_sessions, read_record, valid_id
+from quadtank_tui.session.runtime import claim_id, ended_sessions, list_sessions, read_record, user_name, valid_id
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
+ME = user_name(os.getuid())
+
+
 def record(**fields: object) -> str:
-    base = {"id": "alice-1", "owner": "alice", "uid": os.getuid(), "pid": os.getpid(),
+    """A record of ours (this process's: its file is ours, its pid lives)."""
+    base = {"id": f"{ME}-1", "owner": ME, "uid": os.getuid(), "pid": os.getpid(),
             "started": "2026-12-01T10:00:00", "plant": "quadtank"}
     return json.dumps({**base, **fields})
 
@@ -75,7 +79,7 @@ def test_a_record_whose_id_is_a_path_touches_nothing_outside(tmp_path: Path) -> 
     (runtime / "alice-forged-a.json").write_text(record(id="../victim/b", pid=dead.pid, ended="x",
                                                         ended_at="2020-01-01T00:00:00"))
     (runtime / "alice-forged-b.json").write_text(record(id="/.." * 12 + str(victim / "a"), pid=dead.pid))
-    (runtime / "alice-2.json").write_text(record(id="bob-2"))  # another id than its name says
+    (runtime / f"{ME}-2.json").write_text(record(id="bob-2"))  # another id than its name says
     assert list_sessions(runtime) == [] and ended_sessions(runtime) == []
     assert sorted(p.name for p in victim.iterdir()) == ["a.json", "b.json", "b.out", "b.sock"]
     assert all(p.read_text() == "root's\n" for p in victim.iterdir())
@@ -91,9 +95,9 @@ def test_a_fifo_a_dev_zero_link_and_a_huge_file_cost_one_fstat(tmp_path: Path) -
     (runtime / "zero-1.json").symlink_to("/dev/zero")
     with open(runtime / "huge-1.json", "wb") as f:
         f.truncate(1_500_000_000)
-    (runtime / "alice-1.json").write_text(record())
-    assert [i.id for i in bounded(lambda: list_sessions(runtime))] == ["alice-1"]  # type: ignore[attr-defined]
-    assert bounded(lambda: claim_id(runtime, "alice")) == "alice-2"  # what a detached session does first
+    (runtime / f"{ME}-1.json").write_text(record())
+    assert [i.id for i in bounded(lambda: list_sessions(runtime))] == [f"{ME}-1"]  # type: ignore[attr-defined]
+    assert bounded(lambda: claim_id(runtime, ME)) == f"{ME}-2"  # what a detached session does first
     for sid in ("fifo-1", "zero-1", "huge-1"):
         assert read_record(runtime, sid) is None
 
@@ -120,10 +124,12 @@ def test_read_untrusted_refuses_links_fifos_devices_others_and_the_oversized(tmp
 def test_fields_of_the_wrong_type_make_no_record(tmp_path: Path) -> None:
     wrong: list[dict[str, object]] = [{"pid": "1"}, {"uid": True}, {"headless": 1}, {"owner": ["x"]}, {"clients": 1.5}]
     for i, bad in enumerate(wrong, 1):
-        (tmp_path / f"alice-{i}.json").write_text(record(id=f"alice-{i}", **bad))
-        assert read_record(tmp_path, f"alice-{i}") is None
-    (tmp_path / "alice-9.json").write_text("[" * 100_000)  # nested beyond the parser's recursion
-    assert read_record(tmp_path, "alice-9") is None
+        (tmp_path / f"{ME}-{i}.json").write_text(record(id=f"{ME}-{i}", **bad))
+        assert read_record(tmp_path, f"{ME}-{i}") is None
+    (tmp_path / f"{ME}-9.json").write_text("[" * 100_000)  # nested beyond the parser's recursion
+    assert read_record(tmp_path, f"{ME}-9") is None
+    (tmp_path / f"{ME}-8.json").write_text(record(id=f"{ME}-8"))
+    assert read_record(tmp_path, f"{ME}-8") is not None
 
 
 ESCAPES = "alice\x1b]0;PWNED\x07\x1b[2J\x9b31m\u202e"
@@ -149,7 +155,8 @@ def test_quadtank_sessions_on_a_hostile_folder(tmp_path: Path) -> None:
     runtime.mkdir()
     os.mkfifo(runtime / "fifo.json")
     (runtime / "zero.json").symlink_to("/dev/zero")
-    (runtime / "alice-1.json").write_text(record(owner=ESCAPES))
+    (runtime / f"{ME}-1.json").write_text(record(plant=ESCAPES))
+    (runtime / f"{ME}-2.json").write_text(record(id=f"{ME}-2", owner=ESCAPES))  # named to an administrator
     (tmp_path / "victim").mkdir()
     (tmp_path / "victim" / "b.json").write_text("root's\n")
     (runtime / "alice-forged-a.json").write_text(record(id="../victim/b", pid=1 << 22))
@@ -165,5 +172,7 @@ def test_quadtank_sessions_on_a_hostile_folder(tmp_path: Path) -> None:
     assert p.returncode == 0, p.stderr
     assert "\x1b" not in p.stdout and "\x07" not in p.stdout
     lines = p.stdout.splitlines()
-    assert lines[0].split()[:2] == ["ID", "OWNER"] and lines[1].startswith("alice-1  alice\\x1b]0;PWNED\\x07")
+    assert lines[0].split()[:2] == ["ID", "OWNER"] and lines[1].split()[:4] == [f"{ME}-1", ME, "2026-12-01", "10:00:00"]
+    assert "  alice\\x1b]0;PWNED\\x07" in lines[1]
+    assert "names 'alice\\x1b]0;PWNED\\x07" in p.stdout  # root is an administrator: told what was ignored
     assert (tmp_path / "victim" / "b.json").read_text() == "root's\n"

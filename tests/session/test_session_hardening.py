@@ -10,6 +10,8 @@ test_session_peers.py.
 
 from __future__ import annotations
 
+import os
+
 import socket
 import time
 
@@ -165,23 +167,24 @@ def test_a_session_id_is_never_given_again_while_its_record_is_there(tmp_path) -
     import subprocess
 
     from quadtank_tui.session.info import SessionInfo
-    from quadtank_tui.session.runtime import claim_id, end_record, ended_sessions, write_record
+    from quadtank_tui.session.runtime import claim_id, end_record, ended_sessions, user_name, write_record
 
     runtime = tmp_path / "run"
     runtime.mkdir()
     gone = subprocess.Popen(["true"])
     gone.wait()
-    first = SessionInfo(id="alice-1", owner="alice", uid=OWNER, pid=gone.pid, started="2026-11-26T10:00:00",
+    me = user_name(os.getuid())  # records count only as their file's owner's
+    first = SessionInfo(id=f"{me}-1", owner=me, uid=os.getuid(), pid=gone.pid, started="2026-11-26T10:00:00",
                         plant="quadtank")
     end_record(runtime, first, "stopped by teacher")
-    write_record(runtime, SessionInfo(id="alice-2", owner="alice", uid=OWNER, pid=gone.pid,
+    write_record(runtime, SessionInfo(id=f"{me}-2", owner=me, uid=os.getuid(), pid=gone.pid,
                                       started="2026-11-26T11:00:00", plant="quadtank"))
-    assert claim_id(runtime, "alice") == "alice-3"
-    assert claim_id(runtime, "alice") == "alice-4"  # claimed: its record exists
+    assert claim_id(runtime, me) == f"{me}-3"
+    assert claim_id(runtime, me) == f"{me}-4"  # claimed: its record exists
     assert claim_id(runtime, "bob") == "bob-1"
     ended = {i.id: i.ended for i in ended_sessions(runtime)}
-    assert ended["alice-1"] == "stopped by teacher"
-    assert ended["alice-2"].startswith(f"the session process (pid {gone.pid}) was gone without stopping in order")
+    assert ended[f"{me}-1"] == "stopped by teacher"
+    assert ended[f"{me}-2"].startswith(f"the session process (pid {gone.pid}) was gone without stopping in order")
 
 
 def test_observers_that_never_read_hold_a_bounded_share_of_memory(thread_session, poll,
