@@ -11,7 +11,7 @@ from typing import Mapping
 import numpy as np
 
 from quadtank_tui.core.parameters import PRESET, ControlMode
-from quadtank_tui.core.plant import P_MINUS, levels_to_normalized, steady_state_levels
+from quadtank_tui.core.plants.johansson import P_MINUS, levels_to_normalized, steady_state_levels
 from quadtank_tui.engine.commands import SetParams, SetState
 from quadtank_tui.engine.runner import build_engine
 

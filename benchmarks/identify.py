@@ -46,7 +46,7 @@ from quadtank_tui.core.identify.physical import (  # noqa: E402
     fit_physical,
     simulate,
 )
-from quadtank_tui.core.plant import P_MINUS, P_PLUS  # noqa: E402
+from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS  # noqa: E402
 from quadtank_tui.core.plants import CoupledCascade, CoupledTITO, Plant, QuadTank  # noqa: E402
 from quadtank_tui.core.identify.step import fit_step  # noqa: E402
 from quadtank_tui.core.identify.subspace import fit_subspace  # noqa: E402

@@ -33,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).parents[1]
 sys.path.insert(0, str(ROOT))
 
-from quadtank_tui.core.plant import steady_state_levels  # noqa: E402
+from quadtank_tui.core.plants.johansson import steady_state_levels  # noqa: E402
 from quadtank_tui.daq.ist.config import IstConfig  # noqa: E402
 from quadtank_tui.daq.ist.device import Firmware, ServedDevice  # noqa: E402
 from quadtank_tui.engine.commands import SetOperation, SetParams, SetState  # noqa: E402

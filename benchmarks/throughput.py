@@ -41,7 +41,8 @@ import control  # noqa: E402
 
 from benchmarks.experiment import H0, PI, PLANT, U0, references, run_engine  # noqa: E402
 from quadtank_tui.core.batch import pi_batch  # noqa: E402
-from quadtank_tui.core.plant import FULL_SCALE_V, rhs  # noqa: E402
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import rhs  # noqa: E402
 
 SAMPLES = 3600
 H = 1.0

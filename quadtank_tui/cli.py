@@ -25,7 +25,8 @@ from quadtank_tui.commands import plot as plot_command
 from quadtank_tui.commands import identify as identify_command
 from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.commands import lab as lab_command
-from quadtank_tui.core.plant import SETTINGS, PlantError, steady_state_levels
+from quadtank_tui.core.plants.common import PlantError
+from quadtank_tui.core.plants.johansson import SETTINGS, steady_state_levels
 from quadtank_tui.commands.daq import add_daq_option, add_daq_parser, add_rig_parser, run_clock
 from quadtank_tui.daq.open import open_daq
 
@@ -76,6 +77,7 @@ def _add_analyze(sub: argparse._SubParsersAction) -> None:
 def _cmd_analyze(args: argparse.Namespace) -> int:
     from quadtank_tui.core.analysis import analyze, format_report
 
+    h0: Sequence[float]
     if args.par is not None:
         from quadtank_tui.files.par import read_par
 
@@ -90,11 +92,11 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
         title = f"{args.par}, linearized at its operating levels"
     else:
         setting = SETTINGS[args.preset]
-        params, h0 = setting.params, setting.op.h
+        params, h0 = setting.params, setting.op.x
         where = "operating levels"
         if args.at == "steady":
-            h0 = steady_state_levels(setting.op.v, params)
-            where = f"steady state of v = ({setting.op.v[0]:.2f}, {setting.op.v[1]:.2f}) V"
+            h0 = steady_state_levels(setting.op.u, params)
+            where = f"steady state of v = ({setting.op.u[0]:.2f}, {setting.op.u[1]:.2f}) V"
         source = {"setting": setting.name}
         title = f"{setting.title}, linearized at the {where}"
     result = analyze(params, h0)

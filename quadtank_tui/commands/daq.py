@@ -16,7 +16,7 @@ import sys
 from typing import TYPE_CHECKING, Literal
 
 from quadtank_tui.commands import warn
-from quadtank_tui.core.plant import FULL_SCALE_V
+from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.daq.config import PRESETS, DaqConfig, load_daq_config
 from quadtank_tui.daq.ist.config import IstConfig
 from quadtank_tui.daq.open import load_rig_config, open_daq

@@ -18,7 +18,7 @@ import argparse
 import json
 
 from quadtank_tui.commands import warn
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantError
+from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

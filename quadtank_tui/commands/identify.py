@@ -17,7 +17,7 @@ from quadtank_tui.commands import UsageError, warn
 if TYPE_CHECKING:
     from quadtank_tui.core.identify.crossval import Figure
     from quadtank_tui.core.identify.experiment import Identification
-    from quadtank_tui.core.plant import PlantParams
+    from quadtank_tui.core.plants.johansson import PlantParams
     from quadtank_tui.files.log_reader import LogData
 
 METHODS = ("step", "oe", "n4sid", "arx", "physical")
@@ -74,20 +74,20 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=run)
 
 
-def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams | None, str, tuple[float, float]]:
+def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams | None, str, tuple[float, ...]]:
     """The physical model to compare with, its name, and the pump voltages to
     assume for an input the logs do not hold.  The comparison is with a quadruple
     tank's linearization: for another plant in use (a PLANT section) there is none
     (None), rather than the SIMULATION section's four tanks, which it is not."""
     from quadtank_tui.core.identify.compare import closest_setting
-    from quadtank_tui.core.plant import SETTINGS
+    from quadtank_tui.core.plants.johansson import SETTINGS
 
     if par is None:
         s = closest_setting(op)
-        return s.params, f"{s.title} (the preset nearest the log's levels; --par to choose)", s.op.v
+        return s.params, f"{s.title} (the preset nearest the log's levels; --par to choose)", s.op.u
     if par in SETTINGS:
         s = SETTINGS[par]
-        return s.params, s.title, s.op.v
+        return s.params, s.title, s.op.u
     from quadtank_tui.files.par import read_par
 
     read = read_par(par)
@@ -129,7 +129,7 @@ def cross_validate(ident: Identification, paths: list[str], gains: dict[str, flo
     """The identified model on each log's inputs: fit % and RMS of each output
     (volts: 10 V per log unit; levels through each sensor's gain in V per `unit`)."""
     from quadtank_tui.core.identify.crossval import figure, simulate_linear
-    from quadtank_tui.core.plant import FULL_SCALE_V
+    from quadtank_tui.core.plants.common import FULL_SCALE_V
 
     out = []
     for path in paths:

@@ -25,7 +25,7 @@ def replay(args: argparse.Namespace) -> int:
     """Run the replay `args` asks for and print a one-line summary."""
     from quadtank_tui.commands.identify import read_sampled
     from quadtank_tui.core.identify.physical import experiment_from_columns, initial_levels, simulate
-    from quadtank_tui.core.plant import FULL_SCALE_V
+    from quadtank_tui.core.plants.common import FULL_SCALE_V
     from quadtank_tui.engine.runner import load_parameters, virtual_epoch
     from quadtank_tui.files.atomic import atomic_write_text
     from quadtank_tui.files.log_writer import format_header, format_row

@@ -19,8 +19,8 @@ printed formula swaps k1 and k2 in these two entries.
 
 Example
 -------
->>> from quadtank_tui.core.plant import P_MINUS
->>> r = analyze(P_MINUS.params, P_MINUS.op.h)
+>>> from quadtank_tui.core.plants.johansson import P_MINUS
+>>> r = analyze(P_MINUS.params, P_MINUS.op.x)
 >>> r.phase
 'minimum'
 """
@@ -32,7 +32,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from quadtank_tui.core.plant import PlantError, PlantParams, time_constant
+from quadtank_tui.core.plants.common import PlantError
+from quadtank_tui.core.plants.johansson import PlantParams, time_constant
 from quadtank_tui.core.plants.linear import LinearModel, finite_zeros
 
 

@@ -7,7 +7,7 @@ N at once.  The loop is the engine's, term by term: y = kc h / 10; v = K (b r - 
 u = sat(v); I += K h / Ti (r - y) + h / Tr (u - v) (PIDParams' algorithm without the D
 part); the levels advance over the sample with u held.  The plant is integrated with
 classical RK4 on fixed sub-steps (default 0.25 s, far below the fastest time
-constant, ~20 s), with the same flow law as core.plant.rhs (the film blend near
+constant, ~20 s), with the same flow law as johansson.rhs (the film blend near
 empty, the spill at the brim); it agrees with the engine's adaptive integrator to
 about 1e-9 normalized over an hour.
 
@@ -15,7 +15,7 @@ Example
 -------
 >>> import numpy as np
 >>> from quadtank_tui.core.pid import PIDParams
->>> from quadtank_tui.core.plant import P_MINUS, steady_state_levels
+>>> from quadtank_tui.core.plants.johansson import P_MINUS, steady_state_levels
 >>> h0 = steady_state_levels((3.0, 3.0), P_MINUS.params)
 >>> y0 = [P_MINUS.params.kc * x / 10 for x in h0[:2]]
 >>> refs = np.tile(np.array(y0) + [0.05, 0.0], (2, 100, 1))     # 2 experiments, 100 samples
@@ -34,7 +34,8 @@ import numpy as np
 
 from quadtank_tui.core.matrix import U_MAX, U_MIN
 from quadtank_tui.core.pid import PIDParams
-from quadtank_tui.core.plant import FULL_SCALE_V, H_FILM, PlantParams
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import H_FILM, PlantParams
 
 #: Default RK4 sub-step, s: the local error (s / T)^5 / 120 is ~1e-12 for the
 #: fastest tank (T ~ 20 s).
@@ -51,7 +52,7 @@ class BatchRun:
 
 
 def _root_level(x: np.ndarray) -> np.ndarray:
-    """core.plant.outflow / (a sqrt(2 g)) for arrays of levels (cm): sqrt(h), with the
+    """johansson.outflow / (a sqrt(2 g)) for arrays of levels (cm): sqrt(h), with the
     film blend near empty; the outlet's area and gravity are in the flow matrix."""
     r = np.sqrt(np.maximum(x, 0.0))
     low = x < H_FILM
@@ -66,7 +67,7 @@ class _Flows:
     """dh/dt = F sqrt(h) + G v+ (cm/s), the plant's balance as two small matrices:
     F (4, 4) takes each outlet's flow a sqrt(2 g h) out of its tank and into the one
     below; G (4, 2) splits each pump's k v between its two tanks by the valve.  Four
-    numpy operations a right-hand side instead of thirty (core.plant.rhs's terms)."""
+    numpy operations a right-hand side instead of thirty (johansson.rhs's terms)."""
 
     F: np.ndarray
     G: np.ndarray
@@ -93,7 +94,7 @@ class _Flows:
 
 
 def rhs_batch(x: np.ndarray, v: np.ndarray, p: PlantParams) -> np.ndarray:
-    """dh/dt (cm/s) of N plants: x (4, N) cm, v (2, N) V (core.plant.rhs, vectorized)."""
+    """dh/dt (cm/s) of N plants: x (4, N) cm, v (2, N) V (johansson.rhs, vectorized)."""
     flows = _Flows.of(p)
     return flows.rhs(x, flows.G @ np.maximum(v, 0.0))
 

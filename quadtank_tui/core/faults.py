@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Sequence
 
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants.base import RELATIVE_ATOL, Plant, orifice_flow
 from quadtank_tui.core.plants.stepping import dopri_advance
 
@@ -148,7 +148,7 @@ def advance(plant: Plant, faults: Faults, x: Sequence[float], u: Sequence[float]
         return p.advance(x, uu, dt)
     g = p.gravity
     hi = [s.hi for s in p.states]
-    film = 2.5e-4 * max(hi)  # 0.05 mm on a 20 cm tank, as core.plant.H_FILM
+    film = 2.5e-4 * max(hi)  # 0.05 mm on a 20 cm tank, as johansson.H_FILM
 
     def rates(y: Sequence[float]) -> list[float]:
         d = list(p.rhs(y, uu))

@@ -38,7 +38,8 @@ from quadtank_tui.core.calibration import (
 )
 from quadtank_tui.core.calibration_run import SettleRule, SettleWindow
 from quadtank_tui.core.parameters import Parameters
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams, area_from_diameter, time_constant
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import PlantParams, area_from_diameter, time_constant
 from quadtank_tui.core.plants import CoupledCascade, Plant, QuadTank
 
 COLUMNS = ("u1", "u2", *(f"volts{i}" for i in range(1, 5)), *(f"level{i}" for i in range(1, 5)))

@@ -53,7 +53,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
-from quadtank_tui.core.plant import FULL_SCALE_V
+from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.daq.config import DaqConfig, DaqConfigError, Output
 from quadtank_tui.daq.guard import Guard, GuardSpec
 from quadtank_tui.daq.interlock import Interlock

@@ -30,7 +30,8 @@ from dataclasses import dataclass
 from typing import Callable, Sequence, TextIO
 
 from quadtank_tui.core import faults as fx
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import PlantParams
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.daq.config import DaqConfig
 from quadtank_tui.daq.registers import decode, encode

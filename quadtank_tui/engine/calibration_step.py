@@ -15,7 +15,7 @@ from pathlib import Path
 
 from quadtank_tui.core.calibration import CalibrationError
 from quadtank_tui.core.calibration_run import CalibrationRun, CalibrationStatus, SettleRule
-from quadtank_tui.core.plant import FULL_SCALE_V
+from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants import Plant
 from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend
 from quadtank_tui.engine.commands import CalibrationHeights, CommandResult, StartCalibration

@@ -19,7 +19,7 @@ import numpy as np
 from quadtank_tui.core.design.apply import controller_values, one_pump_values
 from quadtank_tui.core.design.controller import PID
 from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
-from quadtank_tui.core.plant import FULL_SCALE_V
+from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
 from quadtank_tui.engine.headless import must
 from quadtank_tui.engine.history import DEFAULT_CAPACITY

@@ -51,7 +51,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping
 from quadtank_tui.core.faults import Fault
 from quadtank_tui.core.matrix import ControllerMatrix, Family, saturate
 from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
 from quadtank_tui.core.signals import Generator
 from quadtank_tui.core.validation import ParameterError

@@ -6,7 +6,7 @@ from __future__ import annotations
 from concurrent.futures import Future
 from typing import Callable, TypeVar
 
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import CommandResult
 from quadtank_tui.engine.logsession import LogRefused

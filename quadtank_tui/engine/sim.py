@@ -2,7 +2,7 @@
 
 It speaks the same normalized units as a DAQ: the loop writes u in [0, 1] (10 u
 volts to the pumps) and reads y = kc h / 10.  Between samples the nonlinear model is
-integrated accurately with the inputs held (core.plant.advance), so the result does
+integrated accurately with the inputs held (johansson.advance), so the result does
 not depend on the sampling time beyond the zero-order hold.  It also offers what a
 real rig cannot do from software (B7): pour water, change a valve, a cross-section
 or an outlet while running, and jump back to the operating point on Reset.
@@ -15,7 +15,7 @@ and `safe_state` and Reset stop them.
 Any plant of core.plants runs behind it (:meth:`SimBackend.for_plant`): its sensors
 are read as y = volts / 10 (y3, y4 read 0 on a two-tank rig) and pump i gets
 u_i times the pump's full scale (22 V on a Quanser amplifier).  The quadruple tank
-built from PlantParams keeps calling core.plant directly, bit for bit as before
+built from PlantParams keeps calling core.plants.johansson directly, bit for bit as before
 (one with a real-rig effect on runs through the plant interface).
 """
 
@@ -25,13 +25,8 @@ import random
 
 from quadtank_tui.core import disturbance as dist
 from quadtank_tui.core import faults as fx
-from quadtank_tui.core.plant import (
-    FULL_SCALE_V,
-    PlantError,
-    PlantParams,
-    add_water,
-    advance,
-)
+from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
+from quadtank_tui.core.plants.johansson import PlantParams, add_water, advance
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend
 

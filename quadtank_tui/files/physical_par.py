@@ -20,7 +20,8 @@ from __future__ import annotations
 
 from typing import Mapping, Sequence
 
-from quadtank_tui.core.plant import FULL_SCALE_V, time_constant
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import time_constant
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.files.par import ParFileError, format_number, parse_par
 from quadtank_tui.files.par_edit import with_par_values

@@ -16,7 +16,7 @@ import pytest
 from quadtank_tui.cli import main
 from quadtank_tui.core.analysis import Analysis, analyze
 from quadtank_tui.core.identify.compare import operating_levels
-from quadtank_tui.core.plant import P_MINUS, P_PLUS, Setting
+from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS, Setting
 from quadtank_tui.files.log_reader import read_log
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -66,7 +66,7 @@ def models(logs: dict[str, Path], built_once: BuiltOnce) -> dict[str, Path]:
 
 
 def _physical(setting: Setting, result: dict) -> Analysis:
-    h = operating_levels(result["operating_point"], setting.params, setting.op.v)
+    h = operating_levels(result["operating_point"], setting.params, setting.op.u)
     return analyze(setting.params, h)
 
 

@@ -15,7 +15,7 @@ import pytest
 from quadtank_tui.cli import main
 from quadtank_tui.core.identify.physical import simulate
 from quadtank_tui.core.identify.sampling import simulate as simulate_tf
-from quadtank_tui.core.plant import P_MINUS
+from quadtank_tui.core.plants.johansson import P_MINUS
 from quadtank_tui.core.plants import CoupledCascade
 from quadtank_tui.files.log_writer import format_header, format_row
 from quadtank_tui.files.par import read_par

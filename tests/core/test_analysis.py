@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from quadtank_tui.core.analysis import analyze, linearize, zeros_from_valves
-from quadtank_tui.core.plant import P_MINUS, P_PLUS, steady_state_levels
+from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS, steady_state_levels
 
 PUBLISHED = {
     "minphase": {
@@ -36,7 +36,7 @@ SETTINGS = {"minphase": P_MINUS, "nonminphase": P_PLUS}
 @pytest.mark.parametrize("name", ["minphase", "nonminphase"])
 def test_published_figures_within_rounding(name: str) -> None:
     s, pub = SETTINGS[name], PUBLISHED[name]
-    r = analyze(s.params, s.op.h)
+    r = analyze(s.params, s.op.x)
     assert r.time_constants == pytest.approx(pub["T"], abs=1.0)
     assert r.static_gains == pytest.approx(np.array(pub["G0"]), abs=0.07)
     assert sorted(z.real for z in r.zeros) == pytest.approx(sorted(pub["zeros"]), abs=0.003)
@@ -46,7 +46,7 @@ def test_published_figures_within_rounding(name: str) -> None:
 
 def test_minphase_exact_values_at_table_levels() -> None:
     """control.md: at the table's levels T = (62.70, 90.34, 23.89, 29.99), zeros -0.0580, -0.0172."""
-    r = analyze(P_MINUS.params, P_MINUS.op.h)
+    r = analyze(P_MINUS.params, P_MINUS.op.x)
     assert r.time_constants == pytest.approx((62.7034, 90.3353, 23.8900, 29.9930), abs=1e-4)
     assert sorted(z.real for z in r.zeros) == pytest.approx((-0.0580175, -0.0171821), abs=1e-7)
     assert r.static_gains == pytest.approx(np.array([[2.610029, 1.500403], [1.410078, 2.837093]]), abs=1e-6)
@@ -55,7 +55,7 @@ def test_minphase_exact_values_at_table_levels() -> None:
 def test_minphase_exact_values_at_steady_state_of_table_voltages() -> None:
     """control.md: levels 12.26/12.78/1.63/1.41 give T = (62.36, 90.63, 22.76, 30.09),
     zeros -0.0597, -0.0175 - closer to the printed figures."""
-    h = steady_state_levels(P_MINUS.op.v, P_MINUS.params)
+    h = steady_state_levels(P_MINUS.op.u, P_MINUS.params)
     r = analyze(P_MINUS.params, h)
     assert r.time_constants == pytest.approx((62.36, 90.63, 22.76, 30.09), abs=0.005)
     assert sorted(z.real for z in r.zeros) == pytest.approx((-0.0597, -0.0175), abs=5e-5)
@@ -64,7 +64,7 @@ def test_minphase_exact_values_at_steady_state_of_table_voltages() -> None:
 @pytest.mark.parametrize("setting", [P_MINUS, P_PLUS])
 def test_against_closed_form(setting) -> None:
     """G(0), T_i and zeros from the thesis's formulas, written out independently."""
-    p, h = setting.params, setting.op.h
+    p, h = setting.params, setting.op.x
     A, a = (p.A1, p.A2, p.A3, p.A4), (p.a1, p.a2, p.a3, p.a4)
     T = [A[i] / a[i] * math.sqrt(2 * h[i] / p.g) for i in range(4)]
     c1, c2 = T[0] * p.kc / p.A1, T[1] * p.kc / p.A2
@@ -87,7 +87,7 @@ def test_against_closed_form(setting) -> None:
 def test_paper_swaps_k1_k2_in_off_diagonal_gains() -> None:
     """The printed P+ G(0) (2.5, 2.5 off-diagonal) is matched better by the physics
     (G12 with k2, G21 with k1) than by the paper's printed formula (swapped)."""
-    p, h = P_PLUS.params, P_PLUS.op.h
+    p, h = P_PLUS.params, P_PLUS.op.x
     r = analyze(p, h)
     T1, T2 = r.time_constants[:2]
     c1, c2 = T1 * p.kc / p.A1, T2 * p.kc / p.A2
@@ -98,7 +98,7 @@ def test_paper_swaps_k1_k2_in_off_diagonal_gains() -> None:
 
 def test_rga_undefined_when_valves_sum_to_one() -> None:
     p = P_MINUS.params.with_valves(0.5, 0.5)
-    r = analyze(p, P_MINUS.op.h)
+    r = analyze(p, P_MINUS.op.x)
     assert r.rga is None
     assert r.phase == "nonminimum"
     assert min(abs(z) for z in r.zeros) < 1e-9  # a zero at the origin
@@ -118,7 +118,7 @@ def test_pencil_zeros_equal_python_controls(gammas: tuple[float, float]) -> None
     from quadtank_tui.core.analysis import transmission_zeros
 
     p = replace(P_MINUS.params, gamma1=gammas[0], gamma2=gammas[1])
-    m = linearize(p, P_MINUS.op.h)
+    m = linearize(p, P_MINUS.op.x)
     ours = np.sort_complex(np.array(transmission_zeros(m)))
     theirs = np.sort_complex(np.asarray(control.zeros(m.ss()), dtype=complex))
     assert len(ours) == len(theirs)
@@ -132,9 +132,9 @@ def test_one_linear_model_class_for_the_quadruple_tank_and_the_plant_family() ->
     from quadtank_tui.core import analysis
     from quadtank_tui.core.plants.linear import LinearModel
 
-    m = linearize(P_MINUS.params, P_MINUS.op.h)
+    m = linearize(P_MINUS.params, P_MINUS.op.x)
     assert analysis.LinearModel is LinearModel and isinstance(m, LinearModel)
     assert (m.states, m.inputs, m.outputs) == (("h1", "h2", "h3", "h4"), ("v1", "v2"), ("y1", "y2"))
-    assert m.x0 == tuple(P_MINUS.op.h)
-    assert [-1.0 / m.A[i, i] for i in range(4)] == pytest.approx(analyze(P_MINUS.params, P_MINUS.op.h).time_constants,
+    assert m.x0 == tuple(P_MINUS.op.x)
+    assert [-1.0 / m.A[i, i] for i in range(4)] == pytest.approx(analyze(P_MINUS.params, P_MINUS.op.x).time_constants,
                                                                  rel=1e-12)

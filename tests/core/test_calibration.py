@@ -58,7 +58,7 @@ def test_desautel_table_1_alphas() -> None:
 
 def test_quadtank_outlets_are_recovered_from_simulated_steady_states() -> None:
     from quadtank_tui.core.calibration import fit_quadtank_outlets
-    from quadtank_tui.core.plant import P_MINUS, steady_state_levels
+    from quadtank_tui.core.plants.johansson import P_MINUS, steady_state_levels
 
     p = P_MINUS.params
     volts = [(2.5, 2.5), (3.0, 3.2), (3.4, 2.8)]

@@ -17,8 +17,9 @@ import pytest
 from quadtank_tui.core.analysis import linearize
 from quadtank_tui.core.matrix import ControllerMatrix, Family, Structure, saturate
 from quadtank_tui.core.pid import PIDParams
-from quadtank_tui.core.plant import (
-    FULL_SCALE_V, P_MINUS, P_PLUS, Setting, advance, levels_to_normalized, steady_state_levels,
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import (
+    P_MINUS, P_PLUS, Setting, advance, levels_to_normalized, steady_state_levels,
 )
 
 STEP = 0.1  # 1 V
@@ -47,8 +48,8 @@ def step_response(setting: Setting, pi1: tuple[float, float], pi2: tuple[float, 
     p = setting.params
     m = ControllerMatrix(h, Family.PID, Structure.DECENTRALIZED, pid={
         (1, 1): PIDParams(K=pi1[0], Ti=pi1[1]), (2, 2): PIDParams(K=pi2[0], Ti=pi2[1])})
-    levels = steady_state_levels(setting.op.v, p)
-    u = (setting.op.v[0] / FULL_SCALE_V, setting.op.v[1] / FULL_SCALE_V)
+    levels = steady_state_levels(setting.op.u, p)
+    u = (setting.op.u[0] / FULL_SCALE_V, setting.op.u[1] / FULL_SCALE_V)
     y0 = tuple(levels_to_normalized(levels[:2], p))
     m.track(y0, y0, u)  # Manual at the operating point, then Automatic
     r = tuple(y0[i] + (STEP if i == channel else 0.0) for i in range(2))
@@ -121,7 +122,7 @@ def closed_loop_poles(setting: Setting, K: tuple[float, float], Ti: tuple[float,
     States (x, z): x' = A x + B' u, u = Kd (e + Ti^-1 z), z' = e, e = -C' x, with
     B' = 10 B (u is a fraction of 10 V) and C' = C / 10.
     """
-    lin = linearize(setting.params, setting.op.h)
+    lin = linearize(setting.params, setting.op.x)
     Bn, Cn = lin.B * FULL_SCALE_V, lin.C / FULL_SCALE_V
     Kd, Tinv = np.diag(K), np.diag([1.0 / Ti[0], 1.0 / Ti[1]])
     top = np.hstack([lin.A - Bn @ Kd @ Cn, Bn @ Kd @ Tinv])

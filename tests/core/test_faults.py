@@ -7,7 +7,7 @@ import math
 import pytest
 
 from quadtank_tui.core import faults as fx
-from quadtank_tui.core import plant as qt
+from quadtank_tui.core.plants import johansson as qt
 from quadtank_tui.core.faults import Fault, Faults
 from quadtank_tui.core.plants import CoupledCascade, CoupledTITO, QuadTank
 from quadtank_tui.engine.sim import SimBackend
@@ -21,8 +21,8 @@ def settle(plant, faults: Faults, x, u, seconds: float = 4000.0):
 
 def test_without_faults_it_is_the_plant() -> None:
     p = QuadTank(qt.P_MINUS.params)
-    assert fx.advance(p, Faults(), qt.P_MINUS.op.h, (3.0, 3.0), 7.0) == qt.advance(
-        qt.P_MINUS.op.h, (3.0, 3.0), 7.0, qt.P_MINUS.params)
+    assert fx.advance(p, Faults(), qt.P_MINUS.op.x, (3.0, 3.0), 7.0) == qt.advance(
+        qt.P_MINUS.op.x, (3.0, 3.0), 7.0, qt.P_MINUS.params)
 
 
 def test_leak_in_the_upper_cascade_tank_lowers_both_levels_to_the_hand_values() -> None:
@@ -70,7 +70,7 @@ def test_murray_smith_drain_partly_closed() -> None:
 
 def test_weak_pump_is_a_lower_voltage() -> None:
     p = QuadTank(qt.P_MINUS.params)
-    x = settle(p, Faults().on(Fault("weak_pump", 1, 0.5)), qt.P_MINUS.op.h, (3.0, 3.0), 6000.0)
+    x = settle(p, Faults().on(Fault("weak_pump", 1, 0.5)), qt.P_MINUS.op.x, (3.0, 3.0), 6000.0)
     assert x == pytest.approx(qt.steady_state_levels((1.5, 3.0), qt.P_MINUS.params), abs=1e-6)
 
 

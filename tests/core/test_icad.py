@@ -10,7 +10,7 @@ import pytest
 from quadtank_tui.core.icad import analyze_icad, channel_responses, pi_controller
 from quadtank_tui.core.plants import CoupledTITO, QuadTank
 from quadtank_tui.core.plants.linear import LinearModel
-from quadtank_tui.core import plant as qt
+from quadtank_tui.core.plants import johansson as qt
 
 # his optimised controllers (27), (28), volts per volt
 K1 = ((5.0 * 6.2, 5.0), (1.0, 0.0))
@@ -95,7 +95,7 @@ def test_channels_satisfy_their_definition() -> None:
 
 def test_unstable_loop_is_reported() -> None:
     """P+ with both PI gains positive cannot be stabilized (control.md: det G+(0) < 0)."""
-    G = QuadTank(qt.P_PLUS.params).control_model(qt.P_PLUS.op.h)
+    G = QuadTank(qt.P_PLUS.params).control_model(qt.P_PLUS.op.x)
     r = analyze_icad(G, pi_controller(1.5, 110.0), pi_controller(0.12, 220.0))
     assert not r.stable
     assert r.gamma_at_0 > 1.0  # the structure function beyond (1, 0) at steady state

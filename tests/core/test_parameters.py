@@ -19,7 +19,7 @@ from quadtank_tui.core.parameters import (
     keys_of,
     spec,
 )
-from quadtank_tui.core.plant import P_MINUS, P_PLUS
+from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS
 from quadtank_tui.core.signals import Wave
 from quadtank_tui.core.validation import ParameterError
 
@@ -56,7 +56,7 @@ def test_nonminphase_setting() -> None:
     p = NAMED_SETTINGS["nonminphase"]
     plant = p.quadtank_constants()
     assert (plant.k1, plant.k2, plant.gamma1, plant.gamma2) == (3.14, 3.29, 0.43, 0.34)
-    assert p.operating_levels() == pytest.approx(P_PLUS.op.h, abs=1e-12)
+    assert p.operating_levels() == pytest.approx(P_PLUS.op.x, abs=1e-12)
     assert (p.controllers[0].pid.K, p.controllers[0].pid.Ti) == (1.5, 110.0)
     assert (p.controllers[3].pid.K, p.controllers[3].pid.Ti) == (-0.12, 220.0)
     assert [r.mean for r in p.references] == [0.315, 0.315]

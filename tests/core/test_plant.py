@@ -7,26 +7,11 @@ import math
 
 import pytest
 
-from quadtank_tui.core.plant import (
-    H_FILM,
-    _level_for_outflow,
-    outflow,
-    P_MINUS,
-    P_PLUS,
-    PlantError,
-    PlantParams,
-    SteadyStateError,
-    add_water,
-    advance,
-    area_from_diameter,
-    diameter_from_area,
-    levels_to_normalized,
-    normalized_to_levels,
-    outlet_from_time_constant,
-    rhs,
-    steady_state_inputs,
-    steady_state_levels,
-    time_constant,
+from quadtank_tui.core.plants.common import PlantError, SteadyStateError
+from quadtank_tui.core.plants.johansson import (
+    H_FILM, level_for_outflow, outflow, P_MINUS, P_PLUS, PlantParams, add_water, advance,
+    area_from_diameter, diameter_from_area, levels_to_normalized, normalized_to_levels,
+    outlet_from_time_constant, rhs, steady_state_inputs, steady_state_levels, time_constant,
 )
 
 
@@ -39,8 +24,8 @@ def test_paper_table_constants() -> None:
     assert (P_MINUS.params.gamma1, P_MINUS.params.gamma2) == (0.70, 0.60)
     assert (P_PLUS.params.k1, P_PLUS.params.k2) == (3.14, 3.29)
     assert (P_PLUS.params.gamma1, P_PLUS.params.gamma2) == (0.43, 0.34)
-    assert P_MINUS.op.h == (12.4, 12.7, 1.8, 1.4) and P_MINUS.op.v == (3.0, 3.0)
-    assert P_PLUS.op.h == (12.6, 13.0, 4.8, 4.9) and P_PLUS.op.v == (3.15, 3.15)
+    assert P_MINUS.op.x == (12.4, 12.7, 1.8, 1.4) and P_MINUS.op.u == (3.0, 3.0)
+    assert P_PLUS.op.x == (12.6, 13.0, 4.8, 4.9) and P_PLUS.op.u == (3.15, 3.15)
 
 
 @pytest.mark.parametrize(
@@ -84,20 +69,20 @@ def test_valve_change_keeps_everything_else() -> None:
 
 def test_steady_state_levels_match_hand_formula() -> None:
     """control.md: P- levels for the table's 3.00 V are 12.26, 12.78, 1.63, 1.41 cm."""
-    h = steady_state_levels(P_MINUS.op.v, P_MINUS.params)
+    h = steady_state_levels(P_MINUS.op.u, P_MINUS.params)
     assert h == pytest.approx((12.263, 12.783, 1.634, 1.409), abs=1e-3)
-    assert rhs(h, tuple(P_MINUS.op.v), P_MINUS.params) == pytest.approx((0, 0, 0, 0), abs=1e-12)
+    assert rhs(h, tuple(P_MINUS.op.u), P_MINUS.params) == pytest.approx((0, 0, 0, 0), abs=1e-12)
 
 
 def test_steady_state_inputs_inverts_levels() -> None:
     p = P_MINUS.params
     op = steady_state_inputs(12.4, 12.7, p)
-    h = steady_state_levels(op.v, p)
+    h = steady_state_levels(op.u, p)
     assert h[0] == pytest.approx(12.4) and h[1] == pytest.approx(12.7)
     # The paper's rounded table is not exactly a steady state: holding 12.4/12.7 cm
     # needs 3.05/2.96 V and gives upper levels 1.59/1.46 cm (table: 3.00 V, 1.8/1.4 cm).
-    assert op.v == pytest.approx((3.0486, 2.9612), abs=1e-4)
-    assert op.h[2:] == pytest.approx((1.5919, 1.4551), abs=1e-4)
+    assert op.u == pytest.approx((3.0486, 2.9612), abs=1e-4)
+    assert op.x[2:] == pytest.approx((1.5919, 1.4551), abs=1e-4)
 
 
 def test_steady_state_inputs_singular_valves_refused() -> None:
@@ -116,7 +101,7 @@ def test_steady_state_with_overflowing_upper_tank() -> None:
     p = PlantParams(gamma1=0.1, gamma2=0.1)
     h = steady_state_levels((10.0, 10.0), p)
     assert h[2] == h[3] == p.hmax
-    h_sim = tuple(P_MINUS.op.h)
+    h_sim = tuple(P_MINUS.op.x)
     for _ in range(40):
         h_sim = advance(h_sim, (10.0, 10.0), 100.0, p)
     assert h_sim == pytest.approx(h, abs=1e-6)
@@ -136,7 +121,7 @@ def test_cross_section_change_while_running_speeds_up_the_tank() -> None:
     """An object in tank 1 halves its free cross-section: the level rises ~twice as fast."""
     p = P_MINUS.params
     narrow = p.with_tank(1, area=14.0)
-    h0 = P_MINUS.op.h
+    h0 = P_MINUS.op.x
     wide_after = advance(h0, (6.0, 3.0), 10.0, p)
     narrow_after = advance(h0, (6.0, 3.0), 10.0, narrow)
     assert narrow_after[0] - h0[0] > 1.8 * (wide_after[0] - h0[0])
@@ -166,7 +151,7 @@ def test_film_outflow_is_c1_continuous_and_invertible() -> None:
     assert outflow(0.0, a, g) == 0.0 and outflow(-1.0, a, g) == 0.0
     assert outflow(12.4, a, g) == torricelli(12.4)  # the paper's law above the film
     for h in (0.0, 1e-4, 0.002, 0.0049, 0.005, 0.3, 12.4):
-        assert _level_for_outflow(outflow(h, a, g), a, g) == pytest.approx(h, abs=1e-12)
+        assert level_for_outflow(outflow(h, a, g), a, g) == pytest.approx(h, abs=1e-12)
 
 
 @pytest.mark.parametrize("volts, dt", [((5.0, 6.0), 0.05), ((12.0, 12.0), 0.05), ((0.0, 0.0), 0.05), ((5.0, 6.0), 3.0)])

@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from quadtank_tui.core.plant import P_MINUS, P_PLUS, PlantParams, advance, rhs
+from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS, PlantParams, advance, rhs
 
 DURATION = 600.0
 
 # name -> (setting params, initial levels cm, [(start time s, (v1, v2) V), ...])
 SCENARIOS: dict[str, tuple[PlantParams, tuple[float, ...], list[tuple[float, tuple[float, float]]]]] = {
-    "P- step": (P_MINUS.params, P_MINUS.op.h, [(0.0, (3.0, 3.0)), (300.0, (3.3, 2.7))]),
-    "P+ step": (P_PLUS.params, P_PLUS.op.h, [(0.0, (3.15, 3.15)), (200.0, (3.15, 3.6))]),
+    "P- step": (P_MINUS.params, P_MINUS.op.x, [(0.0, (3.0, 3.0)), (300.0, (3.3, 2.7))]),
+    "P+ step": (P_PLUS.params, P_PLUS.op.x, [(0.0, (3.15, 3.15)), (200.0, (3.15, 3.6))]),
     "tanks empty": (P_MINUS.params, (12.0, 12.0, 5.0, 5.0), [(0.0, (0.0, 0.0))]),
     "fill to brim": (P_MINUS.params, (15.0, 15.0, 10.0, 10.0), [(0.0, (10.0, 10.0)), (400.0, (0.0, 10.0))]),
     "from empty": (P_PLUS.params, (0.0, 0.0, 0.0, 0.0), [(0.0, (2.0, 1.0)), (200.0, (0.0, 6.0)), (500.0, (10.0, 0.0))]),

@@ -7,7 +7,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from quadtank_tui.core.analysis import analyze, linearize
-from quadtank_tui.core.plant import PlantParams, advance, rhs, steady_state_levels, total_volume
+from quadtank_tui.core.plants.johansson import PlantParams, advance, rhs, steady_state_levels, total_volume
 
 areas = st.floats(15.0, 60.0)
 outlets = st.floats(0.03, 0.15)

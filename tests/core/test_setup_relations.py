@@ -8,7 +8,7 @@ import math
 import pytest
 
 from quadtank_tui.core.parameters import PRESET, Parameters
-from quadtank_tui.core.plant import P_MINUS, area_from_diameter, time_constant
+from quadtank_tui.core.plants.johansson import P_MINUS, area_from_diameter, time_constant
 from quadtank_tui.core.setup_relations import (
     apply_changes,
     edit_by_key,

@@ -252,7 +252,7 @@ def test_smart_integrator_overshoots_less_than_plain_with_the_pump_limit_active(
 def test_quadtank_level_limits_hold_each_upper_tank_below_its_trigger() -> None:
     """Tank 3 is filled by pump 2 alone, tank 4 by pump 1: U_ssmax of each holds its
     tank at top - 1.5 margin, below the trigger at top - margin (3.2.2)."""
-    from quadtank_tui.core.plant import P_MINUS, steady_state_levels
+    from quadtank_tui.core.plants.johansson import P_MINUS, steady_state_levels
     from quadtank_tui.core.statefb.quadtank import level_limits
 
     p = P_MINUS.params

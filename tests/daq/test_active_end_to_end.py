@@ -20,7 +20,7 @@ from typing import Callable
 import numpy as np
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.core.plant import FULL_SCALE_V
+from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.rig import SensorModel, VirtualRig

@@ -17,7 +17,7 @@ import pytest
 
 from quadtank_tui.cli import main
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.core.plant import steady_state_levels
+from quadtank_tui.core.plants.johansson import steady_state_levels
 from quadtank_tui.daq.calibrate import Pairs, Settle, fit_pairs, parse_pairs, run_procedure
 from quadtank_tui.files.par import write_par
 from daqkit import VIRTUAL_RIG, rig_yaml

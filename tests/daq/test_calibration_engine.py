@@ -11,7 +11,7 @@ from typing import Callable
 import pytest
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.core.plant import steady_state_levels
+from quadtank_tui.core.plants.johansson import steady_state_levels
 from quadtank_tui.daq.calibrate import Pairs, fit_pairs
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.engine.commands import (

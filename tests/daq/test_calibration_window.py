@@ -15,7 +15,7 @@ import pytest
 from textual.widgets import Input
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.core.plant import steady_state_levels
+from quadtank_tui.core.plants.johansson import steady_state_levels
 from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.engine.commands import SetOperation

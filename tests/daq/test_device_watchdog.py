@@ -9,7 +9,7 @@ from typing import Any, Callable, Literal, Sequence
 import pytest
 
 from quadtank_tui.commands.sessions import format_table
-from quadtank_tui.core.plant import P_MINUS
+from quadtank_tui.core.plants.johansson import P_MINUS
 from quadtank_tui.daq.config import DaqConfigError, load_daq_config, parse_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.daq.registers import Register
@@ -84,7 +84,7 @@ class Clock:
 def _rig_and_backend(device: Callable[..., Any]) -> tuple[Clock, VirtualRig, ModbusBackend, list[int]]:
     clock = Clock()
     config = load_daq_config(VIRTUAL_RIG)
-    rig = VirtualRig(config, P_MINUS.params, P_MINUS.op.h, clock=clock)
+    rig = VirtualRig(config, P_MINUS.params, P_MINUS.op.x, clock=clock)
     written: list[int] = []
     write = rig.write
 

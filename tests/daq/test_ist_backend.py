@@ -14,7 +14,7 @@ from typing import Any, Callable, Iterator
 
 import pytest
 
-from quadtank_tui.core.plant import steady_state_levels
+from quadtank_tui.core.plants.johansson import steady_state_levels
 from quadtank_tui.daq.ist import backend as ist_backend
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.backend import IstBackend

@@ -15,7 +15,8 @@ from typing import Callable
 import pytest
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.core.plant import FULL_SCALE_V, steady_state_levels
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import steady_state_levels
 from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.modbus import ModbusBackend
 from quadtank_tui.engine.backend import BackendError

@@ -8,7 +8,7 @@ import statistics
 
 import pytest
 
-from quadtank_tui.core.plant import P_MINUS, advance
+from quadtank_tui.core.plants.johansson import P_MINUS, advance
 from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.registers import decode, encode
 from quadtank_tui.daq.rig import SensorModel, VirtualRig
@@ -16,7 +16,7 @@ from quadtank_tui.daq.server import IllegalAddress, answer
 
 CONFIG = load_daq_config("labjack")
 P = P_MINUS.params
-H0 = P_MINUS.op.h
+H0 = P_MINUS.op.x
 
 
 class FakeClock:
@@ -45,9 +45,9 @@ def test_registers_carry_kc_h_of_the_model() -> None:
     clock = FakeClock()
     rig = make(clock, watchdog=0.0)
     assert read_volts(rig) == pytest.approx([P.kc * h for h in H0], abs=1e-6)
-    write_volts(rig, *P_MINUS.op.v)
+    write_volts(rig, *P_MINUS.op.u)
     clock.now += 30.0
-    expected = advance(H0, P_MINUS.op.v, 30.0, P)
+    expected = advance(H0, P_MINUS.op.u, 30.0, P)
     assert read_volts(rig) == pytest.approx([P.kc * h for h in expected], abs=1e-5)
 
 

@@ -7,7 +7,7 @@ import pytest
 
 from quadtank_tui.core import faults as fx
 from quadtank_tui.core.faults import Fault
-from quadtank_tui.core.plant import P_MINUS, steady_state_levels
+from quadtank_tui.core.plants.johansson import P_MINUS, steady_state_levels
 from quadtank_tui.core.plants import CoupledCascade, QuadTank
 from quadtank_tui.commands.daq import parse_fault
 from quadtank_tui.daq.config import DaqConfigError, load_daq_config
@@ -83,7 +83,7 @@ def test_a_leak_at_the_rig() -> None:
 
 def test_a_stuck_sensor_at_the_rig() -> None:
     clock = FakeClock()
-    rig = VirtualRig(CONFIG, P_MINUS.params, P_MINUS.op.h, clock=clock, watchdog=0)
+    rig = VirtualRig(CONFIG, P_MINUS.params, P_MINUS.op.x, clock=clock, watchdog=0)
     before = read_volts(rig)
     rig.set_fault(Fault("sensor_stuck", 1))
     clock.now += 100.0  # pumps off: the tanks drain, sensor 1 does not say so

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from quadtank_tui.core.plant import PlantParams, advance
+from quadtank_tui.core.plants.johansson import PlantParams, advance
 from quadtank_tui.core.plants import QuadTank
 from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.ist import protocol as p

@@ -28,7 +28,7 @@ from pathlib import Path
 import pytest
 
 from quadtank_tui.core.disturbance import IST
-from quadtank_tui.core.plant import steady_state_levels
+from quadtank_tui.core.plants.johansson import steady_state_levels
 from quadtank_tui.engine import commands as c
 from quadtank_tui.engine.experiment import run_experiment
 from quadtank_tui.engine.runner import build_engine

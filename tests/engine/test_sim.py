@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from quadtank_tui.core.plant import P_MINUS, PlantError, advance, steady_state_levels
+from quadtank_tui.core.plants.common import PlantError
+from quadtank_tui.core.plants.johansson import P_MINUS, advance, steady_state_levels
 from quadtank_tui.engine.sim import SimBackend
 
 

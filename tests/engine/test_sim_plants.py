@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from quadtank_tui.cli import main
-from quadtank_tui.core import plant as qt
+from quadtank_tui.core.plants import johansson as qt
 from quadtank_tui.core.plants import CoupledCascade, CoupledTITO, QuadTank
 from quadtank_tui.engine.sim import SimBackend
 from quadtank_tui.files.log_reader import read_log
@@ -48,16 +48,16 @@ def test_a_four_tank_plant_starts_at_its_operating_levels() -> None:
 
 
 def test_switching_plants_keeps_what_fits() -> None:
-    sim = SimBackend(qt.P_MINUS.params, qt.P_MINUS.op.h)
+    sim = SimBackend(qt.P_MINUS.params, qt.P_MINUS.op.x)
     sim.set_plant(CoupledTITO(), (0.115, 0.071))
     assert sim.levels_cm == (0.115, 0.071) and sim.plant == CoupledTITO()
     sim.set_plant(CoupledTITO(Cd2=0.3))  # an outlet changed: the water stays
     assert sim.levels_cm == (0.115, 0.071)
-    sim.set_plant(QuadTank(qt.P_PLUS.params), qt.P_PLUS.op.h)
-    assert sim.levels_cm == qt.P_PLUS.op.h and sim.params == qt.P_PLUS.params
+    sim.set_plant(QuadTank(qt.P_PLUS.params), qt.P_PLUS.op.x)
+    assert sim.levels_cm == qt.P_PLUS.op.x and sim.params == qt.P_PLUS.params
     sim.write_pumps((0.3, 0.3))
     sim.elapse(2.0)
-    assert sim.levels_cm == qt.advance(qt.P_PLUS.op.h, (3.0, 3.0), 2.0, qt.P_PLUS.params)
+    assert sim.levels_cm == qt.advance(qt.P_PLUS.op.x, (3.0, 3.0), 2.0, qt.P_PLUS.params)
 
 
 def test_headless_run_of_murray_smith_preset(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -13,7 +13,7 @@ import pytest
 from textual.widgets import DataTable, SelectionList
 
 from quadtank_tui.core.identify.physical import simulate
-from quadtank_tui.core.plant import P_MINUS
+from quadtank_tui.core.plants.johansson import P_MINUS
 from quadtank_tui.core.plants import QuadTank
 from quadtank_tui.files.log_writer import format_header, format_row
 from quadtank_tui.files.par import parse_par

@@ -12,7 +12,7 @@ import pytest
 
 from quadtank_tui.core.analysis import analyze
 from quadtank_tui.core.identify.sampling import simulate
-from quadtank_tui.core.plant import P_MINUS, steady_state_levels
+from quadtank_tui.core.plants.johansson import P_MINUS, steady_state_levels
 from quadtank_tui.files.log_writer import format_header, format_row
 from quadtank_tui.files.model import read_model
 from quadtank_tui.ui.screens.identify import IdentifyScreen
@@ -31,7 +31,7 @@ def write_log(path: Path, columns: dict[str, np.ndarray]) -> None:
 
 def simo_logs(folder: Path) -> None:
     """The linearized P- process under a PRBS on u1, then on u2 (fixed seeds)."""
-    h = steady_state_levels(P_MINUS.op.v, P_MINUS.params)
+    h = steady_state_levels(P_MINUS.op.u, P_MINUS.params)
     a = analyze(P_MINUS.params, h)
     folder.mkdir(exist_ok=True)
     for i in range(2):

@@ -39,7 +39,8 @@ from quadtank_tui.core.design.controller import PID, DesignError
 from quadtank_tui.core.design.evaluate import Evaluation, evaluate
 from quadtank_tui.core.design.lambda_tuning import first_order, lambda_pi
 from quadtank_tui.core.design.optimize import pi_ms, pid_ms
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import PlantParams
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.plants.base import Plant
 

@@ -32,7 +32,7 @@ from quadtank_tui.core.design.sampled_eval import (
     CHATTER_SHARE, SATURATION_SHARE, TR_DEFAULT, propagate_from, reversals, running_pid,
 )
 from quadtank_tui.core.metrics import loop_metrics
-from quadtank_tui.core.plant import FULL_SCALE_V
+from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.base import Plant
 
 STEP = 0.1  # normalized: 1 V of sensor, 10 % of the range

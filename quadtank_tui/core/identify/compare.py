@@ -7,15 +7,14 @@ the logged pump inputs.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
 from quadtank_tui.core.analysis import Analysis, analyze
 from quadtank_tui.core.identify.system import time_constants
-from quadtank_tui.core.plant import (
-    FULL_SCALE_V, SETTINGS, PlantError, PlantParams, Setting, steady_state_levels,
-)
+from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
+from quadtank_tui.core.plants.johansson import SETTINGS, PlantParams, Setting, steady_state_levels
 
 
 @dataclass(frozen=True)
@@ -28,7 +27,7 @@ class Comparison:
     gain_error: np.ndarray
 
 
-def operating_levels(op: Mapping[str, float], p: PlantParams, v_default: tuple[float, float]
+def operating_levels(op: Mapping[str, float], p: PlantParams, v_default: Sequence[float]
                      ) -> tuple[float, float, float, float]:
     """Levels (cm) at the operating point `op` (normalized log values by name)."""
     v = tuple(op.get(f"u{i + 1}", v_default[i] / FULL_SCALE_V) * FULL_SCALE_V for i in range(2))
@@ -44,14 +43,14 @@ def closest_setting(op: Mapping[str, float]) -> Setting:
     """The named setting whose steady state at the logged inputs is nearest the logged
     lower levels (what a log from `quadtank run --par minphase` was run on)."""
     def distance(s: Setting) -> float:
-        h = operating_levels({k: v for k, v in op.items() if k in ("u1", "u2")}, s.params, s.op.v)
+        h = operating_levels({k: v for k, v in op.items() if k in ("u1", "u2")}, s.params, s.op.u)
         return sum((op[f"y{i}"] * FULL_SCALE_V / s.params.kc - h[i - 1]) ** 2
                    for i in (1, 2) if f"y{i}" in op)
     return min(SETTINGS.values(), key=distance)
 
 
 def compare(op: Mapping[str, float], p: PlantParams, gains: np.ndarray,
-            inputs: tuple[str, ...], outputs: tuple[str, ...], v_default: tuple[float, float] = (3.0, 3.0)
+            inputs: tuple[str, ...], outputs: tuple[str, ...], v_default: Sequence[float] = (3.0, 3.0)
             ) -> Comparison:
     """Linearize `p` at the operating point and set the identified gains beside it."""
     levels = operating_levels(op, p, v_default)

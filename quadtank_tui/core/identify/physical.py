@@ -35,7 +35,7 @@ from scipy.optimize import least_squares
 
 from quadtank_tui.core.identify import IdentificationError
 from quadtank_tui.core.identify.crossval import Figure, figure
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantError
+from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
 from quadtank_tui.core.plants import Plant
 
 #: Constants fitted when none are named: outlets, pumps, valves (not the tank

@@ -10,7 +10,7 @@ import numpy as np
 from quadtank_tui.core.identify.compare import Comparison, physical_time_constants
 from quadtank_tui.core.identify.experiment import Element, Identification
 from quadtank_tui.core.identify.system import element_zeros, time_constants
-from quadtank_tui.core.plant import FULL_SCALE_V
+from quadtank_tui.core.plants.common import FULL_SCALE_V
 
 
 def phase(ident: Identification) -> str:

@@ -16,7 +16,8 @@ from quadtank_tui.core.parameters.settings import (
     SimulationSettings,
 )
 from quadtank_tui.core.pid import PIDParams
-from quadtank_tui.core.plant import FULL_SCALE_V, P_MINUS, P_PLUS, Setting
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS, Setting
 from quadtank_tui.core.plants import Plant
 from quadtank_tui.core.plants.spec import PlantSpec
 from quadtank_tui.core.signals import Wave, WaveParams
@@ -45,7 +46,7 @@ def from_setting(setting: Setting, pi1: tuple[float, float], pi2: tuple[float, f
     (K, Ti) on the diagonal; the generators' means are the setting's pump voltages
     (normalized), so Manual mode starts at the operating point.  The state feedback
     linearizes at the setting's lower levels with a settling time in s."""
-    means = [round(v / FULL_SCALE_V, 6) for v in setting.op.v]
+    means = [round(v / FULL_SCALE_V, 6) for v in setting.op.u]
     refs = tuple(
         WaveParams(wave=Wave.SQUARE, mean=m, amplitude=0.05, period=60.0, on=False, seed=1) for m in means
     )
@@ -55,7 +56,7 @@ def from_setting(setting: Setting, pi1: tuple[float, float], pi2: tuple[float, f
         control=ControlSettings(),
         controllers=(_pi_element(*pi1), _ZERO_ELEMENT, _ZERO_ELEMENT, _pi_element(*pi2)),
         simulation=SimulationSettings.from_setting(setting),
-        statefb=StateFeedbackParams(settling_time=settling_time, level1=setting.op.h[0], level2=setting.op.h[1]),
+        statefb=StateFeedbackParams(settling_time=settling_time, level1=setting.op.x[0], level2=setting.op.x[1]),
     )
 
 

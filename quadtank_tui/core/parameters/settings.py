@@ -22,16 +22,10 @@ from quadtank_tui.core.parameters.constants import (
 from quadtank_tui.core.parameters.keys import KEYS, spec
 from quadtank_tui.core.parameters.tree import replaced, walk
 from quadtank_tui.core.pid import PIDParams
-from quadtank_tui.core.plant import (
-    FULL_SCALE_V,
-    Levels,
-    PlantParams,
-    Setting,
-    area_from_diameter,
-    diameter_from_area,
-    levels_to_normalized,
-    outlet_from_time_constant,
-    time_constant,
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import (
+    Levels, PlantParams, Setting, area_from_diameter, diameter_from_area, levels_to_normalized,
+    outlet_from_time_constant, time_constant,
 )
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.core.plants.spec import PlantSpec, check_quadtank_effects
@@ -135,7 +129,7 @@ class SimulationSettings:
     def from_setting(cls, setting: Setting) -> SimulationSettings:
         """The Setup-screen view of a physical setting, rounded to six decimals."""
         p = setting.params
-        h = setting.op.h
+        h = setting.op.x
         return cls(
             # Each a tuple of exactly four (one per tank), which tuple() cannot tell mypy.
             diameters=tuple(round(diameter_from_area(p.area(i)), 6) for i in range(4)),  # type: ignore[arg-type]

@@ -3,7 +3,7 @@ and the other rigs of the source documents.
 
 Plants by `kind` (the key a `.par` file's PLANT section names):
 
-- ``quadtank``: Johansson's quadruple tank (core.plant, unchanged)
+- ``quadtank``: Johansson's quadruple tank (core.plants.johansson, unchanged)
 - ``desautel-qtp``: the same process in Desautel's alpha/beta form (Quanser QTP)
 - ``coupled-cascade``: Quanser coupled tanks, one pump (Desautel's CTP)
 - ``coupled-tito``: two tanks side by side, two pumps (Murray-Smith)
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants.base import OperatingPoint, Plant, SteadyStateError
 from quadtank_tui.core.plants.coupled import CoupledCascade, CoupledTITO
 from quadtank_tui.core.plants.quadtank import DesautelQTP, QuadTank

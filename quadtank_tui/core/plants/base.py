@@ -19,20 +19,24 @@ Conventions shared by every plant (control.md, "The quadruple-tank process"):
 from __future__ import annotations
 
 import dataclasses
-import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, Sequence
 
-from quadtank_tui.core.plant import PlantError
-from quadtank_tui.core.plants.linear import LinearModel
+from quadtank_tui.core.plants.common import (
+    FULL_SCALE_V,
+    OperatingPoint,
+    PlantError,
+    SteadyStateError,
+    Vector,
+    head_for_flow,
+    orifice_flow,
+    orifice_slope,
+)
 from quadtank_tui.core.plants.stepping import dopri_advance
 
-Vector = tuple[float, ...]
-
-
-class SteadyStateError(PlantError):
-    """No (unique, physical) steady state for the request; the message says why."""
+if TYPE_CHECKING:
+    from quadtank_tui.core.plants.linear import LinearModel
 
 
 @dataclass(frozen=True)
@@ -47,15 +51,7 @@ class Signal:
     unit: str
     lo: float
     hi: float
-    full_scale: float = 10.0
-
-
-@dataclass(frozen=True)
-class OperatingPoint:
-    """Levels x (state units) and pump voltages u (V) in equilibrium."""
-
-    x: Vector
-    u: Vector
+    full_scale: float = FULL_SCALE_V
 
 
 # --- what the UI draws ------------------------------------------------------------------
@@ -108,42 +104,10 @@ class Layout:
         return 1 + max(t.row for t in self.tanks)
 
 
-# --- the flow law --------------------------------------------------------------------------
-
-def orifice_flow(head: float, coef: float, g: float, film: float) -> float:
-    """Flow c sqrt(2 g head) through an orifice, signed like `head` (water runs from
-    the higher level to the lower one), blended over |head| < `film` by
-    c sqrt(2 g) (h / sqrt(d)) (3/2 - |h| / (2 d)): value and slope match Torricelli
-    at |h| = d, the slope at 0 is finite (core.plant.H_FILM explains why)."""
-    a = abs(head)
-    if a >= film:
-        q = coef * math.sqrt(2.0 * g * a)
-    else:
-        q = coef * math.sqrt(2.0 * g) * (a / math.sqrt(film)) * (1.5 - 0.5 * a / film)
-    return q if head >= 0.0 else -q
-
-
-def orifice_slope(head: float, coef: float, g: float, film: float) -> float:
-    """d(orifice_flow)/d(head): c sqrt(g / (2 |h|)) above the film."""
-    a = abs(head)
-    if a >= film:
-        return coef * math.sqrt(g / (2.0 * a))
-    return coef * math.sqrt(2.0 * g) / math.sqrt(film) * (1.5 - a / film)
-
-
-def head_for_flow(q: float, coef: float, g: float, film: float) -> float:
-    """Inverse of :func:`orifice_flow` for q >= 0: the head that passes q."""
-    q_film = coef * math.sqrt(2.0 * g * film)
-    if q >= q_film:
-        return (q / (coef * math.sqrt(2.0 * g))) ** 2
-    r = max(q, 0.0) / q_film
-    return film * (3.0 - math.sqrt(9.0 - 8.0 * r)) / 2.0
-
-
 # --- the interface ---------------------------------------------------------------------------
 
 #: Local error tolerance of the ZOH step relative to the tank height: 1e-10 cm on
-#: the quadruple tank's 20 cm (core.plant.ATOL), the same fraction on every plant.
+#: the quadruple tank's 20 cm (core.plants.johansson.ATOL), the same fraction on every plant.
 RELATIVE_ATOL = 5e-12
 
 
@@ -263,6 +227,8 @@ class Plant(ABC):
 
     def linearize(self, x0: Sequence[float], u0: Sequence[float] | None = None) -> LinearModel:
         """The Jacobians about (x0, u0); deviations in state units, V and sensor V."""
+        from quadtank_tui.core.plants.linear import LinearModel  # numpy: only when asked
+
         x0t = self.clip(x0)
         u0t = self.saturate(u0) if u0 is not None else tuple(0.0 for _ in self.inputs)
         A, B, C = self.jacobians(x0t, u0t)
@@ -282,6 +248,6 @@ class Plant(ABC):
 
 
 __all__ = [
-    "Layout", "OperatingPoint", "PipeView", "Plant", "PlantError", "PumpView", "Signal",
-    "SteadyStateError", "TankView", "head_for_flow", "orifice_flow", "orifice_slope",
+    "FULL_SCALE_V", "Layout", "OperatingPoint", "PipeView", "Plant", "PlantError", "PumpView", "Signal",
+    "SteadyStateError", "TankView", "Vector", "head_for_flow", "orifice_flow", "orifice_slope",
 ]

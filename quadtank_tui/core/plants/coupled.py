@@ -22,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar, Sequence
 
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants import effects as fx
 from quadtank_tui.core.plants.base import (
     Layout,
@@ -39,7 +39,7 @@ from quadtank_tui.core.plants.base import (
     orifice_slope,
 )
 
-#: Head below which Torricelli's law is blended to 0: 0.05 mm, as core.plant.H_FILM.
+#: Head below which Torricelli's law is blended to 0: 0.05 mm, as johansson.H_FILM.
 FILM_CM = 0.005
 FILM_M = 0.005e-2
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.common import PlantError
 
 
 def check_effects(obj: object, fractions: Sequence[str], thresholds: Sequence[str], vmax: float,

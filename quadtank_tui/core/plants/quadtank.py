@@ -1,6 +1,6 @@
 """The quadruple tank through the plant interface: Johansson's rig, and Desautel's.
 
-:class:`QuadTank` presents core.plant (which stays as it is) unchanged: every method
+:class:`QuadTank` presents core.plants.johansson unchanged: every method
 calls the functions there, so a simulation through the interface is bit for bit the
 one the program has always run.  :class:`DesautelQTP` is the same process in
 Desautel's parameterization (001_..., 2.2.1 and Table 9)::
@@ -20,8 +20,9 @@ from __future__ import annotations
 from dataclasses import dataclass, fields, replace
 from typing import Any, ClassVar, Sequence
 
-from quadtank_tui.core import plant as qt
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantError, PlantParams
+from quadtank_tui.core.plants import johansson as qt
+from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
+from quadtank_tui.core.plants.johansson import PlantParams
 from quadtank_tui.core.plants import effects as fx
 from quadtank_tui.core.plants.base import (
     Layout,
@@ -61,7 +62,7 @@ class _FourTankEffects:
 
 
 class _FourTanks(_FourTankEffects, Plant):
-    """What both parameterizations share: the model is core.plant's, and with an
+    """What both parameterizations share: the model is core.plants.johansson's, and with an
     effect on, that model with the effect (the plain model runs while all are off)."""
 
     effect_names = FOUR_TANK_EFFECTS
@@ -85,7 +86,7 @@ class _FourTanks(_FourTankEffects, Plant):
         return fx.any_on(self, FOUR_TANK_EFFECTS)
 
     def _rhs_effects(self, x: Sequence[float], u: Sequence[float]) -> Vector:
-        """core.plant.rhs with the pump thresholds and the upper tanks' overflow
+        """johansson.rhs with the pump thresholds and the upper tanks' overflow
         falling (in the fractions spill3, spill4) into the tanks below them."""
         p = self.plant_params()
         v1 = fx.pump_volts(max(float(u[0]), 0.0), self.vmin1)
@@ -151,7 +152,7 @@ class _FourTanks(_FourTankEffects, Plant):
 
     def jacobians(self, x0: Sequence[float], u0: Sequence[float]) -> tuple[Any, Any, Any]:
         """core.analysis.linearize's matrices (bit for bit); a level inside the last
-        film of water (core.plant.H_FILM), where that refuses, follows the blend."""
+        film of water (johansson.H_FILM), where that refuses, follows the blend."""
         from quadtank_tui.core.analysis import linearize as linearize_levels  # loads python-control
 
         p = self.plant_params()
@@ -186,7 +187,7 @@ class _FourTanks(_FourTankEffects, Plant):
         for i, inflow in ((0, p.gamma1 * p.k1 * v1 + qt.outflow(h[2], p.a3, p.g)),
                           (1, p.gamma2 * p.k2 * v2 + qt.outflow(h[3], p.a4, p.g))):
             if extra[i] > 0.0:
-                h[i] = min(qt._level_for_outflow(inflow + extra[i], p.outlet(i), p.g), p.hmax)
+                h[i] = min(qt.level_for_outflow(inflow + extra[i], p.outlet(i), p.g), p.hmax)
         return (h[0], h[1], h[2], h[3])
 
     def steady_inputs(self, levels: Sequence[float | None]) -> OperatingPoint:
@@ -194,24 +195,21 @@ class _FourTanks(_FourTankEffects, Plant):
         if len(levels) not in (2, 4) or levels[0] is None or levels[1] is None or any(
                 v is not None for v in levels[2:]):
             raise SteadyStateError("give the lower levels (h1, h2); the upper levels follow from them")
-        try:
-            op = qt.steady_state_inputs(float(levels[0]), float(levels[1]), self.plant_params())
-        except qt.SteadyStateError as exc:
-            raise SteadyStateError(str(exc)) from None
-        v = tuple(op.v)
+        op = qt.steady_state_inputs(float(levels[0]), float(levels[1]), self.plant_params())
+        v = tuple(op.u)
         if self.effects_on:  # a pump below its threshold moves nothing: what it needs comes on top
             v = tuple(x + t if x > 0.0 else x for x, t in zip(v, (self.vmin1, self.vmin2)))
         if max(v) > self.pump_max:
             raise SteadyStateError(f"levels ({levels[0]:g}, {levels[1]:g}) cm need pump voltages "
                                    f"({v[0]:.3g}, {v[1]:.3g}) V, above the pumps' {self.pump_max:g} V")
-        return OperatingPoint(tuple(op.h), v)
+        return OperatingPoint(tuple(op.x), v)
 
 
 @dataclass(frozen=True)
 class QuadTank(_FourTanks):
-    """Johansson's quadruple tank (Lund), constants as core.plant.PlantParams, and
+    """Johansson's quadruple tank (Lund), constants as johansson.PlantParams, and
     the real-rig effects (:data:`FOUR_TANK_EFFECTS`, off at 0: then every method is
-    core.plant's, bit for bit)."""
+    core.plants.johansson's, bit for bit)."""
 
     params: PlantParams = PlantParams()
 

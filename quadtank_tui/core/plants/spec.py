@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants import KINDS, Plant, QuadTank, make_plant
 from quadtank_tui.core.validation import ParameterError, check_number
 

@@ -27,7 +27,7 @@ from typing import Sequence
 
 import numpy as np
 
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantError
+from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
 from quadtank_tui.core.plants.base import Plant
 from quadtank_tui.core.statefb.controller import LevelLimit, StateFeedback
 from quadtank_tui.core.statefb.design import Design, OperatingModel

@@ -18,7 +18,8 @@ from typing import Sequence
 import numpy as np
 
 from quadtank_tui.core.analysis import linearize
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantError, PlantParams, steady_state_inputs
+from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
+from quadtank_tui.core.plants.johansson import PlantParams, steady_state_inputs
 from quadtank_tui.core.statefb.controller import AntiWindup, LevelLimit, StateFeedback, u_ssmax
 from quadtank_tui.core.statefb.design import Design, DesignError, OperatingModel, design
 from quadtank_tui.core.statefb.settings import StateFeedbackParams
@@ -34,14 +35,14 @@ def operating_model(plant: PlantParams, s: StateFeedbackParams) -> OperatingMode
     overflow)."""
     try:
         op = steady_state_inputs(s.level1, s.level2, plant)
-        lin = linearize(plant, op.h)
+        lin = linearize(plant, op.x)
     except PlantError as exc:
         raise ParameterError(f"{SECTION}.Level1", f"cannot linearize there: {exc}") from None
-    if max(op.v) > FULL_SCALE_V:
+    if max(op.u) > FULL_SCALE_V:
         raise ParameterError(f"{SECTION}.Level1",
-                             f"levels ({s.level1:g}, {s.level2:g}) cm need {max(op.v):.3g} V, above {FULL_SCALE_V:g} V")
+                             f"levels ({s.level1:g}, {s.level2:g}) cm need {max(op.u):.3g} V, above {FULL_SCALE_V:g} V")
     C = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0]])  # h1, h2 in cm
-    return OperatingModel(lin.A, lin.B, C, np.array(op.h), np.array(op.v),
+    return OperatingModel(lin.A, lin.B, C, np.array(op.x), np.array(op.u),
                           u_min=np.zeros(2), u_max=np.full(2, FULL_SCALE_V))
 
 

@@ -45,7 +45,7 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 from quadtank_tui.core.disturbance import updated
-from quadtank_tui.core.plant import FULL_SCALE_V
+from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.daq.interlock import Interlock
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.config import IstConfig

@@ -8,7 +8,8 @@ import contextlib
 import sys
 from typing import TYPE_CHECKING
 
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams, steady_state_levels
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import PlantParams, steady_state_levels
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.config import IstConfig, load_ist_config
 from quadtank_tui.engine.backend import BackendError

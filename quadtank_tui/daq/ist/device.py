@@ -20,7 +20,7 @@ the commit protocol.py cites), on an injected clock:
   port was seen closed, the earliest the host can have opened it (PtyDevice): a
   host that waited its `open_wait` is never refused because this thread was late.
 
-The plant is core.plant's quadruple tank (the .par's constants) driven by the
+The plant is core.plants.johansson's quadruple tank (the .par's constants) driven by the
 pumps' volts of the identified law (protocol.PumpCurve.volts of each PWM code); the
 disturbance pumps pour into tanks 1 and 2 by the law of the rig's own simulator
 (core.disturbance, with the configuration's pump 1 constants, d = PWM / 255), in
@@ -41,7 +41,8 @@ from typing import Callable, Sequence
 
 from quadtank_tui.core import faults as fx
 from quadtank_tui.core.disturbance import DisturbancePumps
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantParams
+from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.core.plants.johansson import PlantParams
 from quadtank_tui.core.plants import QuadTank
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.config import IstConfig

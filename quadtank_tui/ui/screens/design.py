@@ -32,7 +32,7 @@ from textual_plotext import PlotextPlot
 
 from quadtank_tui.core.delaytf import DelayTF, ModelError
 from quadtank_tui.core.design.controller import PID, DesignError
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
@@ -194,7 +194,7 @@ class DesignScreen(CommandSender):
         """Both loops' models from the physical linearization of the current setting."""
         from quadtank_tui.core.design.controller import DesignError
         from quadtank_tui.core.design.mimo import model_in_use
-        from quadtank_tui.core.plant import PlantError
+        from quadtank_tui.core.plants.common import PlantError
 
         p = self.engine.snapshot().params
         self.source = "the physical linearization"

@@ -95,7 +95,7 @@ def compute(paths: list[str], method: str, structure: int, cancel: threading.Eve
     cmp = None
     if set(ident.inputs) <= {"u1", "u2"} and set(ident.outputs) <= {"y1", "y2"}:
         cmp = compare(ident.operating_point, setting.params, ident.system.static_gains,
-                      ident.inputs, ident.outputs, setting.op.v)
+                      ident.inputs, ident.outputs, setting.op.u)
     residuals, coh, freq = {}, {}, {}
     for key, e in ident.elements.items():
         k = e.split

@@ -23,7 +23,7 @@ from textual.css.query import NoMatches
 from textual.widgets import Static
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS, SimulationSettings
-from quadtank_tui.core.plant import FULL_SCALE_V
+from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.engine.commands import (
     LogDiscard, LogSave, NudgeMean, ResetControllers, SetControlMode,
     SetOperation, SetParams, SetSpeed, SetState,

@@ -22,7 +22,8 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import Static
 
 from quadtank_tui.core.parameters import PLANT_SETTINGS, TSAMP, Parameters, keys_of
-from quadtank_tui.core.plant import FULL_SCALE_V, PlantError, steady_state_inputs
+from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
+from quadtank_tui.core.plants.johansson import steady_state_inputs
 from quadtank_tui.core.plants.spec import KIND_KEY
 from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
 from quadtank_tui.core.setup_relations import TANKS
@@ -78,7 +79,7 @@ def operating_point_view(snap: Snapshot) -> Snapshot:
     y = p.simulation.op_points
     try:
         h = p.operating_levels()
-        v = steady_state_inputs(h[0], h[1], p.quadtank_constants()).v
+        v = steady_state_inputs(h[0], h[1], p.quadtank_constants()).u
         u = (v[0] / FULL_SCALE_V, v[1] / FULL_SCALE_V)
     except PlantError:
         u = snap.u

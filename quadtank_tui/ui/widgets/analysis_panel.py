@@ -20,7 +20,7 @@ from textual.reactive import reactive
 from textual.widgets import Static
 
 from quadtank_tui.core.parameters import Parameters, SimulationSettings
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants.spec import PlantSpec
 
 if TYPE_CHECKING:

@@ -27,7 +27,7 @@ from textual_plotext import PlotextPlot
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import PID, DesignError
 from quadtank_tui.core.design.preview import Preview, PreviewStep, format_preview, preview
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants.base import Plant
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.colours import BLUE, RED
@@ -61,7 +61,7 @@ def preview_request(snap: Snapshot, pair: tuple[PID | None, PID | None],
     from quadtank_tui.core.design.apply import in_force
     from quadtank_tui.core.design.evaluate import evaluate
     from quadtank_tui.core.design.preview import window_for
-    from quadtank_tui.core.plant import FULL_SCALE_V
+    from quadtank_tui.core.plants.common import FULL_SCALE_V
 
     p = snap.params
     plant = p.process_plant()

@@ -14,7 +14,7 @@ from textual.containers import Horizontal
 from textual.widgets import Input, Label, Static
 
 from quadtank_tui.core.parameters import Parameters
-from quadtank_tui.core.plant import FULL_SCALE_V
+from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import AddWater
 from quadtank_tui.engine.snapshot import Snapshot

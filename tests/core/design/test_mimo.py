@@ -10,17 +10,17 @@ from quadtank_tui.core.design.mimo import (
     closed_loop_poles, design_2x2, design_loop, format_check, lambda11,
     loop2_with_loop1_closed, physical_model,
 )
-from quadtank_tui.core.plant import P_MINUS, P_PLUS
+from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS
 
 
 @pytest.fixture(scope="module")
 def g_minus():
-    return physical_model(P_MINUS.params, P_MINUS.op.h)
+    return physical_model(P_MINUS.params, P_MINUS.op.x)
 
 
 @pytest.fixture(scope="module")
 def g_plus():
-    return physical_model(P_PLUS.params, P_PLUS.op.h)
+    return physical_model(P_PLUS.params, P_PLUS.op.x)
 
 
 def test_rga_at_zero_matches_the_analysis(g_minus, g_plus) -> None:

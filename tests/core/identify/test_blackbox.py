@@ -16,7 +16,7 @@ from quadtank_tui.core.identify.sampling import d2c, simulate
 from quadtank_tui.core.identify.step import StepModel, find_steps, simulate_steps
 from quadtank_tui.core.identify.subspace import fit_subspace
 from quadtank_tui.core.identify.system import from_elements, from_state_space
-from quadtank_tui.core.plant import P_MINUS, P_PLUS, steady_state_levels
+from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS, steady_state_levels
 
 H = 1.0
 
@@ -29,7 +29,7 @@ def prbs(n: int, hold: int, seed: int) -> np.ndarray:
 
 
 def physical(setting):
-    return analyze(setting.params, steady_state_levels(setting.op.v, setting.params))
+    return analyze(setting.params, steady_state_levels(setting.op.u, setting.params))
 
 
 def element_tf(a, o: int, i: int) -> tuple[np.ndarray, np.ndarray]:

@@ -17,7 +17,7 @@ from quadtank_tui.core.identify.physical import (
     simulate,
     validate_physical,
 )
-from quadtank_tui.core.plant import P_PLUS
+from quadtank_tui.core.plants.johansson import P_PLUS
 from quadtank_tui.core.plants import CoupledCascade, CoupledTITO, QuadTank
 
 TRUE = CoupledCascade()  # Desautel's constants

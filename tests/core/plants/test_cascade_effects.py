@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from quadtank_tui.core.parameters import PLANT_SETTINGS
-from quadtank_tui.core.plant import PlantError
+from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants import CoupledCascade
 from quadtank_tui.files.par import format_par, parse_par
 

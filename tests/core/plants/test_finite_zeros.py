@@ -10,7 +10,7 @@ import pytest
 
 from quadtank_tui.core.analysis import linearize, zeros_from_valves
 from quadtank_tui.core.identify.system import from_state_space
-from quadtank_tui.core.plant import P_MINUS, P_PLUS
+from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS
 from quadtank_tui.core.plants.linear import finite_zeros
 
 A = np.diag([-0.016, -0.011, -0.04, -0.025])  # s^-1: the quadruple tank's time scale
@@ -29,10 +29,10 @@ def test_the_two_settings_zeros_are_the_papers() -> None:
     process, Nunes 2.2), where the paper's closed form puts them; the identified-model
     path gives the same zeros."""
     for setting, rhp in ((P_MINUS, 0), (P_PLUS, 1)):
-        m = linearize(setting.params, setting.op.h)
+        m = linearize(setting.params, setting.op.x)
         z = finite_zeros(m.A, m.B, m.C, m.D)
         assert len(z) == 2 and sum(z.real > 0) == rhp
-        assert z.real == pytest.approx(zeros_from_valves(setting.params, setting.op.h), rel=1e-9)
+        assert z.real == pytest.approx(zeros_from_valves(setting.params, setting.op.x), rel=1e-9)
         assert np.array(from_state_space(m.A, m.B, m.C).zeros) == pytest.approx(z, rel=1e-12)
 
 

@@ -11,9 +11,10 @@ from datetime import datetime
 
 import pytest
 
-from quadtank_tui.core import plant as qt
+from quadtank_tui.core.plants import johansson as qt
 from quadtank_tui.core.parameters import PLANT_SETTINGS, PRESET
-from quadtank_tui.core.plant import P_MINUS, P_PLUS, PlantError
+from quadtank_tui.core.plants.common import PlantError
+from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS
 from quadtank_tui.core.plants import CoupledTITO, DesautelQTP, QuadTank
 from quadtank_tui.files.par import ParFileError, format_par, parse_par
 from quadtank_tui.files.physical_par import with_fit

@@ -1,13 +1,13 @@
 """Every plant behind the interface: steady states both ways, linearization against
 finite differences, limits, and the quadruple-tank adapter's bit-for-bit identity
-with core.plant (issue 14)."""
+with core.plants.johansson (issue 14)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from quadtank_tui.core import plant as qt
+from quadtank_tui.core.plants import johansson as qt
 from quadtank_tui.core.analysis import linearize as qt_linearize
 from quadtank_tui.core.plants import (
     KINDS,
@@ -128,7 +128,7 @@ def test_make_plant_and_bad_values() -> None:
 def test_quadtank_adapter_is_core_plant_bit_for_bit() -> None:
     p = qt.P_PLUS.params
     a = QuadTank(p)
-    h = qt.P_PLUS.op.h
+    h = qt.P_PLUS.op.x
     for v in ((3.15, 3.15), (0.0, 6.0), (10.0, 0.0)):
         assert a.advance(h, v, 1.7) == qt.advance(h, v, 1.7, p)
         assert a.rhs(h, v) == qt.rhs(h, v, p)
@@ -139,12 +139,12 @@ def test_quadtank_adapter_is_core_plant_bit_for_bit() -> None:
     np.testing.assert_array_equal(m.C, ref.C)
     op = a.steady_inputs((12.6, 13.0))
     ref_op = qt.steady_state_inputs(12.6, 13.0, p)
-    assert op.u == ref_op.v and op.x == ref_op.h
+    assert op.u == ref_op.u and op.x == ref_op.x
 
 
 def test_quadtank_adapter_zeros_are_the_published_ones() -> None:
     """control.md: P- at the table's levels gives zeros -0.0580, -0.0172."""
-    z = QuadTank(qt.P_MINUS.params).control_model(qt.P_MINUS.op.h).zeros()
+    z = QuadTank(qt.P_MINUS.params).control_model(qt.P_MINUS.op.x).zeros()
     assert z.real == pytest.approx([-0.0580, -0.0172], abs=5e-5)
 
 

@@ -1,4 +1,7 @@
-"""The nonlinear quadruple-tank process (Johansson & Nunes; Nunes 1998, section 2).
+"""Johansson's quadruple tank as pure functions of its constants (Johansson & Nunes;
+Nunes 1998, section 2): the flow law, the zero-order-hold step, the steady states,
+the settings P- and P+ and the Setup screen's relations.  :class:`~quadtank_tui.core.plants.quadtank.QuadTank`
+presents them through the plant interface.
 
 Levels h1..h4 in cm, tanks 1 and 2 below, 3 above 1, 4 above 2.  Pump i delivers
 k_i v_i cm^3/s for v_i volts; valve i sends gamma_i of it to the lower tank on its
@@ -11,32 +14,32 @@ side and 1 - gamma_i to the upper tank on the other side::
 
 Everything here is a pure function of its arguments: no clock, no I/O.  The
 stepping function integrates the model accurately over one sampling period with
-the pump voltages held (zero-order hold), so a simulation does not depend on the
-sampling time beyond the hold itself (the original used forward Euler).
+the pump voltages held (zero-order hold; core.plants.stepping), so a simulation does
+not depend on the sampling time beyond the hold itself (the original used forward
+Euler).
 
 Example
 -------
->>> h = advance(P_MINUS.op.h, P_MINUS.op.v, 1.0, P_MINUS.params)
+>>> h = advance(P_MINUS.op.x, P_MINUS.op.u, 1.0, P_MINUS.params)
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields, replace
-from typing import Callable, Sequence
+from typing import Sequence
 
-Levels = tuple[float, float, float, float]
+from quadtank_tui.core.plants.common import (
+    FULL_SCALE_V,
+    OperatingPoint,
+    PlantError,
+    SteadyStateError,
+    head_for_flow,
+    orifice_flow,
+)
+from quadtank_tui.core.plants.stepping import Levels, Rhs4, check_step, dopri_advance4
+
 Voltages = tuple[float, float]
-
-#: Full scale of every analog signal: normalized 1.0 is 10 V (product.md, "Units").
-FULL_SCALE_V = 10.0
-
-
-class PlantError(ValueError):
-    """A parameter or a request the physics cannot honour; the message says which."""
-
-    field: str | None = None
-
 
 @dataclass(frozen=True)
 class PlantParams:
@@ -115,14 +118,6 @@ class PlantParams:
 
 
 @dataclass(frozen=True)
-class OperatingPoint:
-    """Levels h (cm, tanks 1..4) and pump voltages v (V) of a named setting."""
-
-    h: Levels
-    v: Voltages
-
-
-@dataclass(frozen=True)
 class Setting:
     """A named physical setting: the rig's constants and where it is operated."""
 
@@ -137,7 +132,7 @@ P_MINUS = Setting(
     "minphase",
     "P- (minimum phase)",
     PlantParams(k1=3.33, k2=3.35, gamma1=0.70, gamma2=0.60),
-    OperatingPoint(h=(12.4, 12.7, 1.8, 1.4), v=(3.00, 3.00)),
+    OperatingPoint(x=(12.4, 12.7, 1.8, 1.4), u=(3.00, 3.00)),
 )
 
 #: Nonminimum-phase setting P+ (gamma1 + gamma2 = 0.77 < 1: a RHP zero).
@@ -145,7 +140,7 @@ P_PLUS = Setting(
     "nonminphase",
     "P+ (nonminimum phase)",
     PlantParams(k1=3.14, k2=3.29, gamma1=0.43, gamma2=0.34),
-    OperatingPoint(h=(12.6, 13.0, 4.8, 4.9), v=(3.15, 3.15)),
+    OperatingPoint(x=(12.6, 13.0, 4.8, 4.9), u=(3.15, 3.15)),
 )
 
 SETTINGS: dict[str, Setting] = {s.name: s for s in (P_MINUS, P_PLUS)}
@@ -207,21 +202,14 @@ H_FILM = 0.005
 
 
 def outflow(h: float, a: float, g: float) -> float:
-    """Outlet flow (cm^3/s) of a tank at level h (cm) through area a (cm^2)."""
-    if h >= H_FILM:
-        return a * math.sqrt(2.0 * g * h)
-    if h <= 0.0:
-        return 0.0
-    return a * math.sqrt(2.0 * g) * (h / math.sqrt(H_FILM)) * (1.5 - 0.5 * h / H_FILM)
+    """Outlet flow (cm^3/s) of a tank at level h (cm) through area a (cm^2): the
+    orifice law with the film blend, 0 for an empty tank."""
+    return 0.0 if h <= 0.0 else orifice_flow(h, a, g, H_FILM)
 
 
-def _level_for_outflow(q: float, outlet: float, g: float) -> float:
+def level_for_outflow(q: float, outlet: float, g: float) -> float:
     """Inverse of :func:`outflow`: the level (cm) at which the tank passes q cm^3/s."""
-    q_film = outlet * math.sqrt(2.0 * g * H_FILM)
-    if q >= q_film:
-        return (q / (outlet * math.sqrt(2.0 * g))) ** 2
-    r = max(q, 0.0) / q_film  # x (3 - x) / 2 = r with x = h / H_FILM in [0, 1]
-    return H_FILM * (3.0 - math.sqrt(9.0 - 8.0 * r)) / 2.0
+    return head_for_flow(q, outlet, g, H_FILM)
 
 
 def rhs(h: Sequence[float], v: Sequence[float], p: PlantParams) -> Levels:
@@ -235,43 +223,13 @@ def rhs(h: Sequence[float], v: Sequence[float], p: PlantParams) -> Levels:
     return _flows(p, (v[0], v[1]))(h1, h2, h3, h4)
 
 
-# Dormand-Prince 5(4) tableau (Hairer, Norsett & Wanner, Table 5.2).
-_C = (0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0)
-_A = (
-    (),
-    (1 / 5,),
-    (3 / 40, 9 / 40),
-    (44 / 45, -56 / 15, 32 / 9),
-    (19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729),
-    (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
-    (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84),
-)
-_B = (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84, 0.0)
-_E = (  # b - b_hat: the embedded error estimate
-    71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40,
-)
-
 #: Local error tolerances of :func:`advance`, cm.  Chosen so 600 s runs agree with a
 #: 1e-12 reference to far better than 1e-6 cm (see tests/core/test_plant_accuracy.py).
 RTOL = 1e-10
 ATOL = 1e-10
-#: Smallest sub-step, s; a step this small is accepted whatever its error estimate,
-#: so no input can make :func:`advance` loop forever.
-_MIN_STEP = 1e-9
 
 
-# The tableau's entries by name, for the stage sums written out in advance.
-_A21 = _A[1][0]
-_A31, _A32 = _A[2]
-_A41, _A42, _A43 = _A[3]
-_A51, _A52, _A53, _A54 = _A[4]
-_A61, _A62, _A63, _A64, _A65 = _A[5]
-_A71, _A72, _A73, _A74, _A75, _A76 = _A[6]
-_B1, _B2, _B3, _B4, _B5, _B6, _B7 = _B
-_E1, _E2, _E3, _E4, _E5, _E6, _E7 = _E
-
-
-def _flows(p: PlantParams, vv: Voltages) -> Callable[[float, float, float, float], Levels]:
+def _flows(p: PlantParams, vv: Voltages) -> Rhs4:
     """:func:`rhs` for the constants `p` and the voltages `vv` held over a step, with
     every product of constants formed once: the same operations on the same values
     as :func:`rhs`, so the same bits, at half its cost (the simulator's sample is
@@ -321,7 +279,7 @@ def _clip(x: float, hmax: float) -> float:
 #: numbers: the plant is the same object, a frozen one, the inputs equal, the levels
 #: the same tuple), a seventh of a sample's plant work.  One entry, replaced whole:
 #: any thread may call advance.
-_end: tuple[PlantParams, float, float, Levels | None, Levels, Callable[[float, float, float, float], Levels]] | None
+_end: tuple[PlantParams, float, float, Levels | None, Levels, Rhs4] | None
 _end = None
 
 
@@ -343,20 +301,16 @@ def advance(
     bounds the stiffness of a nearly empty tank, so a step never needs to be
     much shorter than a tenth of a second away from those events.
 
-    Written out level by level, in plain floats, in one function: the stage sums
-    are the same operations in the same order as sum(a[j] * k[j][i] for j), so the
-    numbers are bit for bit those of the loop form; the simulator's sample is
-    mostly this function (x1000 at 50 ms leaves 50 us a sample).
+    The four-level form of the one integrator (stepping.dopri_advance4).
 
     >>> advance((10.0, 10.0, 0.0, 0.0), (0.0, 0.0), 0.0, PlantParams())
     (10.0, 10.0, 0.0, 0.0)
     """
     global _end
-    if dt < 0 or not math.isfinite(dt):
-        raise PlantError(f"step length must be a finite number >= 0 s, got {dt}")
+    check_step(dt)
     hmax = p.hmax
     y1, y2, y3, y4 = float(h[0]), float(h[1]), float(h[2]), float(h[3])
-    # Projected onto [0, hmax] (each accepted sub-step below is too).
+    # Projected onto [0, hmax] (each accepted sub-step is too).
     y1 = 0.0 if y1 < 0.0 else (hmax if y1 > hmax else y1)
     y2 = 0.0 if y2 < 0.0 else (hmax if y2 > hmax else y2)
     y3 = 0.0 if y3 < 0.0 else (hmax if y3 > hmax else y3)
@@ -367,78 +321,16 @@ def advance(
     end = _end
     if end is not None and end[0] is p and end[1] == v1 and end[2] == v2:  # the last call's plant and inputs
         f = end[5]
-        a1, a2, a3, a4 = end[4] if h is end[3] else f(y1, y2, y3, y4)  # from where it ended: its slope there
+        k0 = end[4] if h is end[3] else f(y1, y2, y3, y4)  # from where it ended: its slope there
     else:
         f = _flows(p, (v1, v2))
-        a1, a2, a3, a4 = f(y1, y2, y3, y4)  # f(t, y) at the start of the sub-step
-    t = 0.0
-    step = min(dt, 1.0)
-    smooth = False
-    while t < dt:
-        if t + step >= dt:
-            step = dt - t
-            last = True
-        else:
-            last = False
-        # One Dormand-Prince step: stages b..j, the 5th-order solution n, the error e.
-        b1, b2, b3, b4 = f(y1 + step * (_A21 * a1), y2 + step * (_A21 * a2),
-                           y3 + step * (_A21 * a3), y4 + step * (_A21 * a4))
-        c1, c2, c3, c4 = f(y1 + step * (_A31 * a1 + _A32 * b1), y2 + step * (_A31 * a2 + _A32 * b2),
-                           y3 + step * (_A31 * a3 + _A32 * b3), y4 + step * (_A31 * a4 + _A32 * b4))
-        d1, d2, d3, d4 = f(y1 + step * (_A41 * a1 + _A42 * b1 + _A43 * c1),
-                           y2 + step * (_A41 * a2 + _A42 * b2 + _A43 * c2),
-                           y3 + step * (_A41 * a3 + _A42 * b3 + _A43 * c3),
-                           y4 + step * (_A41 * a4 + _A42 * b4 + _A43 * c4))
-        e1, e2, e3, e4 = f(y1 + step * (_A51 * a1 + _A52 * b1 + _A53 * c1 + _A54 * d1),
-                           y2 + step * (_A51 * a2 + _A52 * b2 + _A53 * c2 + _A54 * d2),
-                           y3 + step * (_A51 * a3 + _A52 * b3 + _A53 * c3 + _A54 * d3),
-                           y4 + step * (_A51 * a4 + _A52 * b4 + _A53 * c4 + _A54 * d4))
-        g1, g2, g3, g4 = f(y1 + step * (_A61 * a1 + _A62 * b1 + _A63 * c1 + _A64 * d1 + _A65 * e1),
-                           y2 + step * (_A61 * a2 + _A62 * b2 + _A63 * c2 + _A64 * d2 + _A65 * e2),
-                           y3 + step * (_A61 * a3 + _A62 * b3 + _A63 * c3 + _A64 * d3 + _A65 * e3),
-                           y4 + step * (_A61 * a4 + _A62 * b4 + _A63 * c4 + _A64 * d4 + _A65 * e4))
-        j1, j2, j3, j4 = f(y1 + step * (_A71 * a1 + _A72 * b1 + _A73 * c1 + _A74 * d1 + _A75 * e1 + _A76 * g1),
-                           y2 + step * (_A71 * a2 + _A72 * b2 + _A73 * c2 + _A74 * d2 + _A75 * e2 + _A76 * g2),
-                           y3 + step * (_A71 * a3 + _A72 * b3 + _A73 * c3 + _A74 * d3 + _A75 * e3 + _A76 * g3),
-                           y4 + step * (_A71 * a4 + _A72 * b4 + _A73 * c4 + _A74 * d4 + _A75 * e4 + _A76 * g4))
-        n1 = y1 + step * (_B1 * a1 + _B2 * b1 + _B3 * c1 + _B4 * d1 + _B5 * e1 + _B6 * g1 + _B7 * j1)
-        n2 = y2 + step * (_B1 * a2 + _B2 * b2 + _B3 * c2 + _B4 * d2 + _B5 * e2 + _B6 * g2 + _B7 * j2)
-        n3 = y3 + step * (_B1 * a3 + _B2 * b3 + _B3 * c3 + _B4 * d3 + _B5 * e3 + _B6 * g3 + _B7 * j3)
-        n4 = y4 + step * (_B1 * a4 + _B2 * b4 + _B3 * c4 + _B4 * d4 + _B5 * e4 + _B6 * g4 + _B7 * j4)
-        # The error estimate per level, scaled by atol + rtol max(|y|, |n|); err is the
-        # largest, in order (max: a later one replaces only if larger).
-        s1 = step * (_E1 * a1 + _E2 * b1 + _E3 * c1 + _E4 * d1 + _E5 * e1 + _E6 * g1 + _E7 * j1)
-        s2 = step * (_E1 * a2 + _E2 * b2 + _E3 * c2 + _E4 * d2 + _E5 * e2 + _E6 * g2 + _E7 * j2)
-        s3 = step * (_E1 * a3 + _E2 * b3 + _E3 * c3 + _E4 * d3 + _E5 * e3 + _E6 * g3 + _E7 * j3)
-        s4 = step * (_E1 * a4 + _E2 * b4 + _E3 * c4 + _E4 * d4 + _E5 * e4 + _E6 * g4 + _E7 * j4)
-        err = max(0.0, abs(s1) / (atol + rtol * max(abs(y1), abs(n1))), abs(s2) / (atol + rtol * max(abs(y2), abs(n2))),
-                  abs(s3) / (atol + rtol * max(abs(y3), abs(n3))), abs(s4) / (atol + rtol * max(abs(y4), abs(n4))))
-        if err <= 1.0 or step <= _MIN_STEP:
-            y1 = 0.0 if n1 < 0.0 else (hmax if n1 > hmax else n1)
-            y2 = 0.0 if n2 < 0.0 else (hmax if n2 > hmax else n2)
-            y3 = 0.0 if n3 < 0.0 else (hmax if n3 > hmax else n3)
-            y4 = 0.0 if n4 < 0.0 else (hmax if n4 > hmax else n4)
-            # Not projected: the levels are n, where the last stage j was taken (its
-            # sum is n's: b7 = 0), so j is the slope there (First Same As Last).
-            smooth = 0.0 <= n1 <= hmax and 0.0 <= n2 <= hmax and 0.0 <= n3 <= hmax and 0.0 <= n4 <= hmax
-            if last:
-                break
-            t += step
-            a1, a2, a3, a4 = (j1, j2, j3, j4) if smooth else f(y1, y2, y3, y4)
-            factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
-        else:
-            factor = max(0.1, 0.9 * err ** -0.2)
-        step = max(step * factor, _MIN_STEP)
-    y = (y1, y2, y3, y4)
-    _end = (p, v1, v2, y if smooth else None, (j1, j2, j3, j4), f)
+        k0 = f(y1, y2, y3, y4)
+    y, smooth, slope = dopri_advance4(f, (y1, y2, y3, y4), k0, dt, hmax, rtol=rtol, atol=atol)
+    _end = (p, v1, v2, y if smooth else None, slope, f)
     return y
 
 
 # --- Steady states ------------------------------------------------------------------
-
-class SteadyStateError(PlantError):
-    """No (unique, physical) steady state exists for the request."""
-
 
 def steady_state_levels(v: Sequence[float], p: PlantParams) -> Levels:
     """Levels (cm) the process settles at with constant pump voltages `v`.
@@ -447,12 +339,12 @@ def steady_state_levels(v: Sequence[float], p: PlantParams) -> Levels:
     its outlet flow reaches the tank below.
     """
     v1, v2 = max(float(v[0]), 0.0), max(float(v[1]), 0.0)
-    h3 = min(_level_for_outflow((1 - p.gamma2) * p.k2 * v2, p.a3, p.g), p.hmax)
-    h4 = min(_level_for_outflow((1 - p.gamma1) * p.k1 * v1, p.a4, p.g), p.hmax)
+    h3 = min(level_for_outflow((1 - p.gamma2) * p.k2 * v2, p.a3, p.g), p.hmax)
+    h4 = min(level_for_outflow((1 - p.gamma1) * p.k1 * v1, p.a4, p.g), p.hmax)
     q3 = outflow(h3, p.a3, p.g)
     q4 = outflow(h4, p.a4, p.g)
-    h1 = min(_level_for_outflow(p.gamma1 * p.k1 * v1 + q3, p.a1, p.g), p.hmax)
-    h2 = min(_level_for_outflow(p.gamma2 * p.k2 * v2 + q4, p.a2, p.g), p.hmax)
+    h1 = min(level_for_outflow(p.gamma1 * p.k1 * v1 + q3, p.a1, p.g), p.hmax)
+    h2 = min(level_for_outflow(p.gamma2 * p.k2 * v2 + q4, p.a2, p.g), p.hmax)
     return (h1, h2, h3, h4)
 
 
@@ -487,7 +379,7 @@ def steady_state_inputs(h1: float, h2: float, p: PlantParams) -> OperatingPoint:
     h = steady_state_levels((v1, v2), p)
     if h[2] >= p.hmax or h[3] >= p.hmax:
         raise SteadyStateError(f"levels ({h1:g}, {h2:g}) cm would overflow an upper tank")
-    return OperatingPoint(h=(h1, h2, h[2], h[3]), v=(v1, v2))
+    return OperatingPoint(x=(h1, h2, h[2], h[3]), u=(v1, v2))
 
 
 # --- Disturbances (exposed by the simulator while it runs) ---------------------------
@@ -510,3 +402,12 @@ def add_water(h: Sequence[float], tank: int, amount_cm: float, p: PlantParams) -
 def total_volume(h: Sequence[float], p: PlantParams) -> float:
     """Water held in the four tanks, cm^3."""
     return sum(p.area(i) * h[i] for i in range(4))
+
+
+__all__ = [
+    "ATOL", "FULL_SCALE_V", "H_FILM", "P_MINUS", "P_PLUS", "RTOL", "SETTINGS", "Levels", "OperatingPoint",
+    "PlantError", "PlantParams", "Setting", "SteadyStateError", "Voltages", "add_water", "advance",
+    "area_from_diameter", "diameter_from_area", "level_for_outflow", "levels_to_normalized",
+    "normalized_to_levels", "outflow", "outlet_from_time_constant", "rhs", "steady_state_inputs",
+    "steady_state_levels", "time_constant", "total_volume",
+]
