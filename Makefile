@@ -7,7 +7,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test lint install clean
+.PHONY: run test lint install clean browser-deps
 
 # compileall: the package's bytecode, so the TUI starts without compiling its
 # modules (an editable install never writes it, nor Python under
@@ -34,6 +34,19 @@ lint: $(STAMP)
 	$(BIN)/lint-imports
 
 install: $(STAMP)
+
+# What tests/serve needs beyond Python (Debian's packages, installed only where
+# missing and only as root; elsewhere those tests skip and say why): headless
+# Chromium and its driver for the browser test, acl (setfacl) for test users to
+# reach an interpreter kept under /root.
+BROWSER_DEBS := chromium chromium-driver acl
+browser-deps:
+	@missing=""; for p in $(BROWSER_DEBS); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	if [ -z "$$missing" ]; then exit 0; fi; \
+	if [ "$$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then \
+	  echo "browser-deps:$$missing missing (needs root and apt-get): tests/serve's browser test will skip"; exit 0; fi; \
+	apt-get update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends $$missing >/dev/null \
+	  || echo "browser-deps: could not install$$missing: tests/serve's browser test will skip"
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)

@@ -25,6 +25,7 @@ from quadtank_tui.commands import plot as plot_command
 from quadtank_tui.commands import identify as identify_command
 from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.commands import lab as lab_command
+from quadtank_tui.commands import serve as serve_command
 from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants.johansson import SETTINGS, steady_state_levels
 from quadtank_tui.commands.daq import add_daq_option, add_daq_parser, add_rig_parser, run_clock
@@ -388,6 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
     identify_command.add_parser(sub)
     sessions_command.add_parsers(sub)
     lab_command.add_parser(sub)
+    serve_command.add_parser(sub)
     return parser
 
 
@@ -446,7 +448,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def terminal_missing() -> str | None:
     """Why the screen cannot run here: stdin or stdout closed (`quadtank <&-`) or
-    not a terminal (a pipe, a file, cron); None when both are terminals."""
+    not a terminal (a pipe, a file, cron); None when both are terminals.  A browser
+    tab of `quadtank serve` runs Textual's web driver, whose screen is a pipe."""
+    if os.environ.get("TEXTUAL_DRIVER") == "textual.drivers.web_driver:WebDriver":
+        return None
     for fd, name in ((0, "stdin"), (1, "stdout")):
         try:
             os.fstat(fd)

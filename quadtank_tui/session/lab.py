@@ -42,7 +42,10 @@ DEFAULT_RUNTIME_DIR = Path("/tmp/quadtank-sessions")
 #: administrator of the lab for it (issue 24).
 DEFAULT_PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
 
-KEYS = ("admin_group", "share_group", "runtime_dir", "defaults", "unattended")
+KEYS = ("admin_group", "share_group", "runtime_dir", "defaults", "unattended", "serve", "bookings")
+#: Sections whose keys their own readers check (serve/config.py, session/bookings.py):
+#: here only that each is a mapping; LabConfig.sections holds them with their lines.
+SECTIONS = ("serve", "bookings")
 POLICY_KEYS = ("keep_while_logging", "grace_minutes")
 
 
@@ -67,6 +70,10 @@ class LabConfig:
     source: Path | None = None
     #: the folder holding the lab's default.par
     params_dir: Path = DEFAULT_PARAMS_DIR
+    #: the `serve:` and `bookings:` sections as written (their readers check them)
+    sections: Mapping[str, Mapping[str, Any]] = field(default_factory=dict, compare=False)
+    #: dotted key -> line in the file, for those readers' messages
+    lines: Mapping[str, int] = field(default_factory=dict, compare=False)
 
     @property
     def locks_dir(self) -> Path:
@@ -137,6 +144,12 @@ def parse_lab_config(text: str, *, name: str = "<lab config>", source: Path | No
                    f"got {_show(grace)}")
     runtime = _path(data, "runtime_dir", base, fail)
     params = _path(data, "defaults", base, fail)
+    sections: dict[str, Mapping[str, Any]] = {}
+    for key in SECTIONS:
+        value = data.get(key)
+        if value is not None and not isinstance(value, dict):
+            raise fail(key, f"must be a mapping of keys, got {_show(value)}")
+        sections[key] = value or {}
     return LabConfig(
         admin_group=_group(data, "admin_group", fail),
         runtime_dir=runtime if runtime is not None else default_runtime_dir(),
@@ -144,6 +157,8 @@ def parse_lab_config(text: str, *, name: str = "<lab config>", source: Path | No
         unattended=UnattendedPolicy(keep, float(grace)),
         source=source,
         params_dir=params if params is not None else DEFAULT_PARAMS_DIR,
+        sections=sections,
+        lines=lines,
     )
 
 

@@ -1,0 +1,8 @@
+"""The browser tests' fixtures; their helpers live in servekit.py."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))

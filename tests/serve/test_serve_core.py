@@ -1,0 +1,94 @@
+"""The login's slowing, the login store's expiry, the tab's packets and the lab
+file's serve: section, without a server (issue 44)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from quadtank_tui.serve.auth import FREE_FAILURES, MAX_WAIT, WINDOW, Account, Throttle
+from quadtank_tui.serve.config import serve_settings
+from quadtank_tui.serve.server import InFlight
+from quadtank_tui.serve.websessions import LoginStore
+from quadtank_tui.session.lab import LabConfigError, parse_lab_config
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_failures_wait_twice_as_long_each_time_up_to_a_minute_then_are_forgotten() -> None:
+    clock = Clock()
+    t = Throttle(clock=clock)
+    keys = ("user:bob", "addr:10.0.0.5")
+    waits = []
+    for _ in range(FREE_FAILURES + 8):
+        waits.append(t.wait(keys))
+        t.failed(keys)
+    assert waits[:FREE_FAILURES + 1] == [0.0] * (FREE_FAILURES + 1)
+    assert waits[FREE_FAILURES + 1:] == [2.0, 4.0, 8.0, 16.0, 32.0, 60.0, 60.0]
+    assert t.wait(("user:alice", "addr:10.0.0.6")) == 0.0  # others are not slowed
+    assert t.wait(("user:alice", "addr:10.0.0.5")) == MAX_WAIT  # the same address is
+    clock.now += 30.0
+    assert t.wait(keys) == MAX_WAIT - 30.0
+    clock.now += WINDOW
+    assert t.wait(keys) == 0.0 and t.failures("user:bob") == 0
+    t.failed(keys)
+    t.succeeded(keys)
+    assert t.failures("user:bob") == 0
+
+
+def test_one_check_per_name_and_four_per_address_at_once() -> None:
+    f = InFlight()
+    assert f.enter(("user:bob", "addr:a"))
+    assert not f.enter(("user:bob", "addr:b"))
+    assert all(f.enter((f"user:u{i}", "addr:a")) for i in range(3))
+    assert not f.enter(("user:u9", "addr:a"))
+    f.leave(("user:bob", "addr:a"))
+    assert f.enter(("user:bob", "addr:c")) and f.enter(("user:u9", "addr:a"))
+
+
+def test_a_login_ends_when_idle_at_its_maximum_and_at_logout() -> None:
+    clock = Clock()
+    store = LoginStore(idle=600.0, maximum=3600.0, clock=clock)
+    who = Account("alice", 1001, 1001, "/home/alice", "pam")
+    a = store.open(who, "127.0.0.1")
+    clock.now += 599.0
+    assert store.find(a) is not None
+    clock.now += 599.0
+    assert store.find(a) is not None  # used: idle time starts again
+    clock.now += 601.0
+    assert store.find(a) is None
+    b = store.open(who, "127.0.0.1")
+    for _ in range(7):
+        clock.now += 500.0
+        assert store.find(b) is not None
+    clock.now += 200.0  # 3700 s after the login, never idle
+    assert store.find(b) is None
+    c = store.open(who, "127.0.0.1")
+    assert store.close(c) is not None and store.find(c) is None and store.close(c) is None
+    assert store.find("forged") is None and store.find("x" * 5000) is None
+
+
+def test_the_lab_files_serve_section() -> None:
+    lab = parse_lab_config("serve:\n  idle_minutes: 10\n  accounts:\n    alice: '$argon2id$v=19$x'\n"
+                           "  trusted_proxy: 127.0.0.1\n  public_url: https://rig7.example.org/\n", name="lab.yaml",
+                           source=Path("lab.yaml"))
+    s = serve_settings(lab)
+    assert (s.idle_minutes, s.max_hours, dict(s.accounts), s.trusted_proxy, s.public_url) == \
+        (10.0, 12.0, {"alice": "$argon2id$v=19$x"}, "127.0.0.1", "https://rig7.example.org")
+    for text, message in (
+            ("serve:\n  idle: 3\n", "lab.yaml:2: serve.idle: unknown key"),
+            ("serve:\n  max_hours: 0\n", "lab.yaml:2: serve.max_hours: must be a number 0.05..168, got 0"),
+            ("serve:\n  accounts:\n    bob: plain\n", "lab.yaml:3: serve.accounts.bob: must be a user name and an "
+                                                      "argon2 hash"),
+            ("serve:\n  trusted_proxy: proxy.lab\n", "lab.yaml:2: serve.trusted_proxy: must be the proxy's IP"),
+            ("serve: 3\n", "lab.yaml:1: serve: must be a mapping of keys")):
+        with pytest.raises(LabConfigError) as exc:
+            serve_settings(parse_lab_config(text, name="lab.yaml", source=Path("lab.yaml")))
+        assert str(exc.value).startswith(message), (text, str(exc.value))
