@@ -46,10 +46,41 @@ import ctypes
 import os
 import sys
 import time
-from typing import TYPE_CHECKING, Awaitable, Callable, ClassVar
+from typing import Awaitable, Callable, ClassVar, Protocol
 
-if TYPE_CHECKING:
-    from quadtank_tui.engine.runner import Engine
+from quadtank_tui.engine.clock import Clock
+
+
+class Drivable(Protocol):
+    """What the driver needs of what it drives: the engine (engine/runner.py)."""
+
+    @property
+    def clock(self) -> Clock:
+        """The deadlines of the samples."""
+
+    @property
+    def wall_paced(self) -> bool:
+        """The deadlines are on the wall's monotonic clock: waited for for real."""
+
+    @property
+    def sampling_time(self) -> float:
+        """The sampling time in force, s."""
+
+    def sleep(self, seconds: float) -> None:
+        """Wait `seconds` of an injected time source (a ManualClock's moves on)."""
+
+    def sample(self) -> int:
+        """Take one sample now; returns the sampling slots it stands for (1, and on a
+        real process the ones the clock skipped before it)."""
+
+    def flush_files(self) -> None:
+        """The log rows held for the file thread go to it now."""
+
+    def hold_files(self, hold: bool) -> None:
+        """Hold the log rows for batches (a drive off the wall) or let them go."""
+
+    def use_file_thread(self) -> None:
+        """From now on the log rows go to a file thread, so no sample waits for the disk."""
 
 #: Below this, the last part of a wait is a sleep and a spin, not the event loop's
 #: timer (whose epoll timeout rounds up to whole milliseconds), s.
@@ -204,7 +235,7 @@ class Driver:
     #: Drives started since the program began (the test that every mode goes through here counts them).
     started: ClassVar[int] = 0
 
-    def __init__(self, engine: Engine, *, duration: float | None = None, samples: int | None = None,
+    def __init__(self, engine: Drivable, *, duration: float | None = None, samples: int | None = None,
                  before: Callable[[LoopTime], None] | None = None,
                  after: Callable[[], None] | None = None, urgent: Callable[[], bool] | None = None) -> None:
         self.engine = engine
@@ -213,7 +244,7 @@ class Driver:
         self.before = before
         self.after = after
         self.urgent = urgent
-        self.elapsed = LoopTime(engine.loop.h)
+        self.elapsed = LoopTime(engine.sampling_time)
         self.aloop: asyncio.AbstractEventLoop | None = None
         self._stopping = False
         self._waiter: asyncio.Future[None] | None = None
@@ -291,13 +322,13 @@ class Driver:
         return self.samples is not None and self.elapsed.samples >= self.samples
 
     async def _drive(self) -> None:
-        engine, clock, loop = self.engine, self.engine.clock, self.engine.loop
+        engine, clock = self.engine, self.engine.clock
         wall = engine.wall_paced
         if wall:
             tight_timer_slack()
-            loop.use_file_thread()  # paced on the wall: no sample waits for the disk (a virtual clock's too)
+            engine.use_file_thread()  # paced on the wall: no sample waits for the disk (a virtual clock's too)
         else:
-            loop.files.hold(True)  # the log rows go in batches, as to the file thread (engine/filework.py)
+            engine.hold_files(True)  # the log rows go in batches, as to the file thread (engine/filework.py)
         # What a real-time drive changes for its time, and what puts each back.
         restores = [realtime_priority(), short_switch_interval()] if wall and clock.realtime else []
         sleep = engine.sleep
@@ -330,9 +361,8 @@ class Driver:
                     before(elapsed)
                     if self._stopping:
                         break
-                h = loop.h
-                engine.sample()
-                elapsed.add(h, 1 + loop.missed if loop.backend is not loop.sim else 1)
+                h = engine.sampling_time
+                elapsed.add(h, engine.sample())
                 if after is not None:
                     after()
                 if aloop is not None and (monotonic() - turned > YIELD_AFTER or urgent is not None and urgent()):
@@ -345,7 +375,7 @@ class Driver:
         finally:
             flush()
             if not wall:
-                loop.files.hold(False)
+                engine.hold_files(False)
             for restore in restores:
                 restore()
 

@@ -128,11 +128,28 @@ class Engine:
 
     # --- samples ------------------------------------------------------------------------------
 
-    def sample(self) -> None:
-        """Take one sample now (the driver calls this at its deadline)."""
+    def sample(self) -> int:
+        """Take one sample now (the driver calls this at its deadline); returns the
+        sampling slots it stands for: 1, and on a real process the ones the clock
+        skipped before it (a simulator's time waits for the loop)."""
         with self._lock:
             scheduled, actual, missed = self.clock.tick_values()
-            self.loop.timed_sample(actual - scheduled, missed, actual)
+            loop = self.loop
+            loop.timed_sample(actual - scheduled, missed, actual)
+            return 1 + loop.missed if loop.backend is not loop.sim else 1
+
+    @property
+    def sampling_time(self) -> float:
+        """The sampling time in force, s."""
+        return self.loop.h
+
+    def hold_files(self, hold: bool) -> None:
+        """Hold the log rows for batches (True) or let them go (engine/filework.py)."""
+        self.loop.files.hold(hold)
+
+    def use_file_thread(self) -> None:
+        """The log rows go to a file thread from now on: no sample waits for the disk."""
+        self.loop.use_file_thread()
 
     def flush_files(self) -> None:
         """The log rows held for the file thread go to it now (the driver calls this
