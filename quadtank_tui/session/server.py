@@ -34,6 +34,17 @@ MAX_CONNECTIONS are kept for the owner and the administrators: another user's
 flood never locks them out.  Out of file descriptors (EMFILE), accept backs off
 instead of spinning.
 
+The loop first: a user who connects and hangs up in a loop (a million connections
+in 30 s) must not hold a sample back.  Accepting is bounded per event-loop turn
+(ACCEPTS_PER_TURN, ACCEPT_TURN_TIME: the listener stays readable, the rest wait
+for the next turn, after the sample that is due); a user (not an administrator)
+connects at most MAX_CONNECT_RATE times a second beyond a burst of
+MAX_CONNECT_BURST, and past that is told so and hung up on at once, before the
+connection costs a reader, a timer or a line to decode.  What the session turns
+away is said in its output once per user a minute (`Refusals`): the first at once,
+then how many more there were; one line each filled a root session's output with
+1,889 lines in 30 s.
+
 The connecting user is whom the kernel says (SO_PEERCRED), never what a message
 claims.
 """
@@ -81,6 +92,25 @@ MAX_LINE_BURST = 1000
 #: Seconds spent encoding a long message's parts per event-loop turn (send_parts):
 #: a part of the history takes about 0.12 ms, so a few go per turn.
 PARTS_PER_TURN_TIME = 0.001
+#: Connections accepted per event-loop turn, and the wall time one turn's accepts may
+#: take, s: a sample due waits behind one turn at most (the driver gives the loop
+#: its turns until FINE_WAIT before the deadline), and a connection accepted, looked
+#: up (SO_PEERCRED, the user's name) and let in costs 30-60 us.
+ACCEPTS_PER_TURN = 8
+ACCEPT_TURN_TIME = 0.0003
+#: Seconds the listener rests after a turn that left connections in the backlog: a
+#: churn then takes at most about ACCEPT_TURN_TIME / ACCEPT_REST of the loop's
+#: thread.  Unpaced, the turns followed each other at once and the thread, at
+#: real-time priority on a rig, used its whole core: the kernel's real-time
+#: throttling then held it back 50 ms in every second, and samples came 5-12 ms late.
+ACCEPT_REST = 0.002
+#: Connections a second one user (not an administrator) may open on average, and in
+#: one burst: a screen attaches once, `quadtank sessions` and `stop` connect once a
+#: session; beyond it each is told Refused and closed at once.
+MAX_CONNECT_RATE = 20.0
+MAX_CONNECT_BURST = 50.0
+#: Seconds between two lines in the output about what one user had turned away.
+REFUSALS_EVERY = 60.0
 #: Seconds a dropped client's last words (Dropped) may take to go out before its
 #: socket is closed anyway (a client that does not read them gets none).
 FAREWELL_TIMEOUT = 2.0
@@ -146,6 +176,11 @@ class Server:
         #: Connections turned away (limits, a silent peer, a bad line) and accept's pauses, for the record.
         self.refused = 0
         self.paused = 0
+        self.accepted = 0
+        self.rests = 0
+        #: Per user id: connections it may still open now, and when that was counted.
+        self._connect_allowance: dict[int, tuple[float, float]] = {}
+        self.refusals = Refusals(_note, aloop)
         listener.setblocking(False)
         self._listen()
 
@@ -160,7 +195,10 @@ class Server:
             self._listening = False
 
     def _accept(self) -> None:
-        while True:
+        """At most ACCEPTS_PER_TURN connections, for at most ACCEPT_TURN_TIME: the
+        rest stay in the backlog for the next turn (the listener is still readable)."""
+        end = time.monotonic() + ACCEPT_TURN_TIME
+        for _ in range(ACCEPTS_PER_TURN):
             try:
                 sock, _ = self.listener.accept()
             except (BlockingIOError, InterruptedError):
@@ -171,27 +209,58 @@ class Server:
                 self._pause_accept(exc)
                 return
             self._backoff = 0.0
-            sock.setblocking(False)
+            self.accepted += 1
+            self._take(sock)
+            if time.monotonic() > end:
+                break
+        # The turn's share is used up and more may wait: rest a moment (see ACCEPT_REST).
+        self.rests += 1
+        self._unlisten()
+        self.aloop.call_later(ACCEPT_REST, self._resume_accept)
+
+    def _take(self, sock: socket.socket) -> None:
+        """A connection just accepted: let in, or told why not and closed."""
+        sock.setblocking(False)
+        try:
+            peer = self._peer_of(sock)
+        except OSError:
+            sock.close()
+            return
+        rank = self._rank(peer)
+        why = self._too_often(peer, rank) or self._no_room(peer, rank)
+        if why is not None:
+            self.refused += 1
+            self.refusals.note(peer, why)
             try:
-                peer = self._peer_of(sock)
+                sock.send(encode(Refused(why)))  # a fresh socket takes one short line
             except OSError:
-                sock.close()
-                continue
-            rank = self._rank(peer)
-            why = self._no_room(peer, rank)
-            if why is not None:
-                self.refused += 1
-                try:
-                    sock.send(encode(Refused(why)))  # a fresh socket takes one short line
-                except OSError:
-                    pass
-                sock.close()
-                continue
-            conn = Connection(sock, peer, rank)
-            self.connections.append(conn)
-            self._per_user[peer.uid] = self._per_user.get(peer.uid, 0) + 1
-            self.aloop.add_reader(sock.fileno(), self._read, conn)
-            conn.silence = self.aloop.call_later(HELLO_TIMEOUT, self._silent, conn)
+                pass
+            sock.close()
+            return
+        conn = Connection(sock, peer, rank)
+        self.connections.append(conn)
+        self._per_user[peer.uid] = self._per_user.get(peer.uid, 0) + 1
+        self.aloop.add_reader(sock.fileno(), self._read, conn)
+        conn.silence = self.aloop.call_later(HELLO_TIMEOUT, self._silent, conn)
+
+    def _too_often(self, peer: Peer, rank: Rank) -> str | None:
+        """Count one more connection of `peer`'s user; why it is one too many (None: not)."""
+        if rank == "admin":
+            return None
+        now = time.monotonic()
+        left, counted = self._connect_allowance.get(peer.uid, (MAX_CONNECT_BURST, now))
+        left = min(MAX_CONNECT_BURST, left + (now - counted) * MAX_CONNECT_RATE)
+        if left < 1.0:
+            self._connect_allowance[peer.uid] = (left, now)
+            return (f"{peer.user} connects to this session more than {MAX_CONNECT_RATE:g} times a second "
+                    f"(beyond a burst of {MAX_CONNECT_BURST:g}); try again in a moment")
+        self._connect_allowance[peer.uid] = (left - 1.0, now)
+        if len(self._connect_allowance) > 4 * MAX_CONNECTIONS:  # users long gone: their allowance is full again
+            full = [uid for uid, (n, t) in self._connect_allowance.items()
+                    if n + (now - t) * MAX_CONNECT_RATE >= MAX_CONNECT_BURST]
+            for uid in full:
+                del self._connect_allowance[uid]
+        return None
 
     def _no_room(self, peer: Peer, rank: Rank) -> str | None:
         """Why `peer` is turned away now (None: let in)."""
@@ -384,7 +453,7 @@ class Server:
         if conn not in self.connections:
             return
         if why is not None:
-            _note(f"dropped {conn.name}: {why}")
+            self.refusals.note(conn.peer, why, dropped=True)
         farewell = b""
         if why is not None and conn.role is not None:  # before its Hello it is no client of ours yet
             rest = bytes(conn.out[:conn.out.find(b"\n") + 1])  # a line half sent is finished first
@@ -425,12 +494,56 @@ class Server:
     def close(self) -> None:
         self._unlisten()
         self._closed = True
+        self.refusals.flush()
         for farewell in list(self._farewells.values()):
             farewell.done()
         for conn in list(self.connections):
             conn.closing = True
             self.drop(conn)
         self.listener.close()
+
+
+class Refusals:
+    """What the session turned away, in its output once per user a minute: the first
+    refusal of a user at once (who, which process, why), then, REFUSALS_EVERY after
+    it, how many more there were and the last reason (a count by reason would be
+    one more thing a user could make grow)."""
+
+    def __init__(self, note: Callable[[str], None], aloop: asyncio.AbstractEventLoop) -> None:
+        self._note = note
+        self._aloop = aloop
+        #: uid -> [user name, refusals since the last line, last reason, the timer of the next line]
+        self._quiet: dict[int, list[Any]] = {}
+
+    def note(self, peer: Peer, why: str, *, dropped: bool = False) -> None:
+        what = f"dropped {peer.user} (pid {peer.pid}): {why}" if dropped else \
+            f"turned away {peer.user} (pid {peer.pid}): {why}"
+        entry = self._quiet.get(peer.uid)
+        if entry is not None:
+            entry[1] += 1
+            entry[2] = what
+            return
+        self._note(what)
+        timer = self._aloop.call_later(REFUSALS_EVERY, self._summary, peer.uid)
+        self._quiet[peer.uid] = [peer.user, 0, what, timer]
+
+    def _summary(self, uid: int) -> None:
+        entry = self._quiet.pop(uid, None)
+        if entry is not None and entry[1]:
+            self._say(entry)
+
+    def _say(self, entry: list[Any]) -> None:
+        user, n, last = entry[0], entry[1], entry[2]
+        self._note(f"{user}: {n} more connection{'s' if n != 1 else ''} turned away or dropped in the last "
+                   f"{REFUSALS_EVERY:g} s (the last: {last})")
+
+    def flush(self) -> None:
+        """The counts not said yet (the session ends)."""
+        for uid in list(self._quiet):
+            entry = self._quiet.pop(uid)
+            entry[3].cancel()
+            if entry[1]:
+                self._say(entry)
 
 
 class _Farewell:
