@@ -41,6 +41,10 @@ FORMAT = "quadtank-model"
 VERSION = 1
 #: A model file is a few kilobytes; anything far larger is not one.
 MAX_BYTES = 1_000_000
+#: The highest degree of an element's numerator or denominator: identification
+#: fits up to a few poles, and design's work grows with the order (a denominator
+#: of 5,000 coefficients took 77 s and 504 MB before it was refused).
+MAX_DEGREE = 20
 SUFFIX = ".model.json"
 
 
@@ -136,6 +140,9 @@ def read_model(path: Path | str) -> ModelFile:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ModelFileError(name, f"not JSON (line {exc.lineno}: {exc.msg})") from None
+    except RecursionError:  # 100,000 nested [ : the parser's stack, before any field is looked at
+        raise ModelFileError(name, "nested deeper than any model file (lists or objects inside each other): "
+                             "not a model file") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise ModelFileError(name, f"not a model file (no \"format\": \"{FORMAT}\")")
     if data.get("version") != VERSION:
@@ -200,4 +207,7 @@ def _element(file: str, where: str, g: Any) -> DelayTF | None:
 def _coeffs(v: Any) -> tuple[float, ...]:
     if not isinstance(v, list) or not v or not all(is_finite_number(x) for x in v):
         raise ValueError("num and den must be non-empty lists of finite numbers")
+    if len(v) > MAX_DEGREE + 1:
+        raise ValueError(f"a polynomial of degree {len(v) - 1}: at most {MAX_DEGREE} in a model file "
+                         f"({MAX_DEGREE + 1} coefficients)")
     return tuple(float(x) for x in v)

@@ -71,6 +71,37 @@ def test_bad_files_are_one_clear_line(tmp_path: Path, text: str, reason: str) ->
     assert "\n" not in str(err.value)
 
 
+def _model_text(element: str, extra: str = "") -> str:
+    return ('{"format": "quadtank-model", "version": 1, "inputs": ["u1"], "outputs": ["y1"], '
+            f'"elements": [[{element}]]{extra}}}')
+
+
+@pytest.mark.parametrize("text,reason", [
+    ("[" * 100_000, "nested deeper than any model file"),
+    (_model_text('{"num": [1], "den": [1, 1]}', ', "notes": ' + "[" * 100_000 + "]" * 100_000),
+     "nested deeper than any model file"),
+    (_model_text('{"num": [1], "den": [' + ", ".join(["1"] * 5000) + "]}"),
+     "elements[0][0]: a polynomial of degree 4999: at most 20 in a model file (21 coefficients)"),
+    (_model_text('{"num": [' + ", ".join(["1"] * 22) + '], "den": [1, 1]}'),
+     "elements[0][0]: a polynomial of degree 21: at most 20"),
+], ids=["nested", "nested inside a valid model", "5000 coefficients", "numerator of degree 21"])
+def test_deep_and_long_files_are_refused_at_once(tmp_path: Path, text: str, reason: str) -> None:
+    """100,000 nested [ was a RecursionError traceback; a denominator of 5,000
+    coefficients took design 77 s and 504 MB."""
+    path = tmp_path / "hostile.model.json"
+    path.write_text(text)
+    with pytest.raises(ModelFileError) as err:
+        read_model(path)
+    assert str(err.value) == f"{path}: {reason}" or str(err.value).startswith(f"{path}: {reason}")
+
+
+def test_degree_twenty_is_read(tmp_path: Path) -> None:
+    path = tmp_path / "m.model.json"
+    path.write_text(_model_text('{"num": [1], "den": [' + ", ".join(["1"] * 21) + "]}"))
+    g = read_model(path).elements[0][0]
+    assert g is not None and len(g.den) == 21
+
+
 def test_missing_file(tmp_path: Path) -> None:
     with pytest.raises(ModelFileError, match="no such file"):
         read_model(tmp_path / "none.model.json")
