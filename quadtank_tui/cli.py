@@ -28,6 +28,8 @@ from quadtank_tui.commands import lab as lab_command
 from quadtank_tui.commands import serve as serve_command
 from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants.johansson import SETTINGS, steady_state_levels
+from quadtank_tui.commands import exercise as exercise_command
+from quadtank_tui.commands import grade as grade_command
 from quadtank_tui.commands.daq import add_daq_option, add_daq_parser, add_rig_parser, run_clock
 from quadtank_tui.daq.open import open_daq
 
@@ -195,7 +197,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--inputs-from", metavar="LOG",
                    help="drive the simulator open loop with this log's pump signals, from the levels of its "
                    "first row, and write a log whose rows line up with it (a rig's run and its twin)")
-    p.add_argument("--log", metavar="OUT.log", required=True, help="where the .log is written")
+    p.add_argument("--log", metavar="OUT.log", help="where the .log is written (needed but with --exercise)")
     p.add_argument("--seed", metavar="N", type=int, help="seed both PRBS generators (N and N + 1)")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--realtime", action="store_true", help="keep the sampling time in wall time")
@@ -205,6 +207,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
                    help="run it as a lab session and return at once: quadtank attach SESSION watches it, "
                    "quadtank stop SESSION ends it early (the summary goes to the session's output file)")
     lab_command.add_take_over_option(p, dest="take_over")
+    exercise_command.add_run_options(p)
     p.set_defaults(handler=_cmd_run)
 
 
@@ -241,6 +244,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from quadtank_tui.commands.replay import replay
 
         return replay(args)
+    if args.exercise:
+        daq_config = args.daq or getattr(args, "daq_global", None)
+        clock, daq = run_clock(realtime=args.realtime, speed=args.speed, config=daq_config,
+                               plant=_plant_in_use(args.par) if daq_config else None)
+        return exercise_command.run_exercise(args, clock, daq, daq_config)
+    if args.record:
+        raise UsageError("--record keeps an exercise's attempt: it needs --exercise")
+    if args.log is None:
+        raise UsageError("--log is needed (where the .log is written)")
     if args.duration is None:
         raise UsageError("--duration is needed (the length of the run, s)")
     if not args.duration > 0:  # NaN too
@@ -390,6 +402,7 @@ def build_parser() -> argparse.ArgumentParser:
     sessions_command.add_parsers(sub)
     lab_command.add_parser(sub)
     serve_command.add_parser(sub)
+    grade_command.add_parser(sub)
     return parser
 
 

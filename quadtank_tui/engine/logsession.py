@@ -68,6 +68,11 @@ class LogSession:
         return self._active
 
     @property
+    def started_at(self) -> float:
+        """Process time of the last LogOn: the log's `t` column counts from it."""
+        return self._t0
+
+    @property
     def rows(self) -> int:
         """Rows of the log (once the writes handed out are done: a run's end)."""
         self._settle()
