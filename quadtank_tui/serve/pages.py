@@ -7,8 +7,9 @@ from __future__ import annotations
 from html import escape
 
 STYLE = """
+html, body { height: 100%; overflow: hidden; }
 body { background: #0c181f; color: #e0e0e0; font-family: menlo, "DejaVu Sans Mono", monospace; margin: 0; }
-.bar { display: flex; gap: 1.5em; align-items: center; padding: 4px 10px; background: #12232d; font-size: 14px; }
+.bar { display: flex; gap: 1.5em; align-items: center; height: 24px; box-sizing: border-box; padding: 0 10px; background: #12232d; font-size: 14px; }
 .bar a, .bar button { color: #ffa62b; background: none; border: none; font: inherit; cursor: pointer; padding: 0; }
 .bar form { display: inline; margin: 0; }
 .login { max-width: 26em; margin: 12vh auto; padding: 2em; background: #12232d; }
@@ -28,7 +29,7 @@ body.-first-byte .textual-terminal { opacity: 1; }
 body.-closed .closed-dialog { display: flex; }
 #start { display: none; }
 #start.-delay { display: flex; }
-#terminal { position: absolute; top: 28px; bottom: 0; left: 0; right: 0; }
+#terminal { position: absolute; top: 24px; bottom: 12px; left: 0; right: 0; overflow: hidden; }
 """
 
 

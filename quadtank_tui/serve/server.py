@@ -199,7 +199,7 @@ class Server:
                      "frame-ancestors 'none'; form-action 'self'; base-uri 'none'")
         h.setdefault("X-Frame-Options", "DENY")
         h.setdefault("X-Content-Type-Options", "nosniff")
-        h.setdefault("Referrer-Policy", "no-referrer")
+        h.setdefault("Referrer-Policy", "same-origin")  # no-referrer makes Chromium send Origin: null
         h.setdefault("Cache-Control", "no-store")
         if self.o.tls is not None:
             h.setdefault("Strict-Transport-Security", "max-age=31536000")

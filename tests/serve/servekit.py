@@ -22,7 +22,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable, Iterator, TypeVar
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -195,7 +195,10 @@ def serving(*extra: str, lab: Path | None = None) -> Iterator[Serve]:
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def wait_for(predicate: Callable[[], object], timeout: float, step: float = 0.1) -> object:
+T = TypeVar("T")
+
+
+def wait_for(predicate: Callable[[], T], timeout: float, step: float = 0.1) -> T:
     deadline = time.monotonic() + timeout
     while True:
         value = predicate()
