@@ -237,7 +237,7 @@ def _terminate(signum: int, frame: object) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from quadtank_tui.engine.headless import run_headless
+    from quadtank_tui.engine.headless import check_duration, run_headless
     from quadtank_tui.files.script import read_script
 
     if args.inputs_from:
@@ -255,8 +255,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise UsageError("--log is needed (where the .log is written)")
     if args.duration is None:
         raise UsageError("--duration is needed (the length of the run, s)")
-    if not args.duration > 0:  # NaN too
-        raise UsageError(f"--duration must be a positive number of seconds, got {args.duration:g}")
+    try:
+        check_duration(args.duration)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     if args.speed is not None and not 1.0 <= args.speed <= 1000.0:
         raise UsageError(f"--speed must be 1..1000, got {args.speed:g}")
     if args.seed is not None and args.seed < 0:

@@ -26,6 +26,7 @@ def replay(args: argparse.Namespace) -> int:
     from quadtank_tui.commands.identify import read_sampled
     from quadtank_tui.core.identify.physical import experiment_from_columns, initial_levels, simulate
     from quadtank_tui.core.plants.common import FULL_SCALE_V
+    from quadtank_tui.engine.headless import refuse_log_target
     from quadtank_tui.engine.runner import load_parameters, virtual_epoch
     from quadtank_tui.files.atomic import atomic_write_text
     from quadtank_tui.files.log_writer import format_header, format_row
@@ -37,6 +38,10 @@ def replay(args: argparse.Namespace) -> int:
             raise UsageError(f"--inputs-from replays a log on the simulator, open loop: {option} does not apply")
     source = args.inputs_from
     out = Path(args.log)
+    try:
+        refuse_log_target(out)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     if out.resolve() == Path(source).resolve():
         raise UsageError(f"--log {out}: that is the log being replayed; name another file")
     params, warnings = load_parameters(args.par, ParStore(Path("params")))

@@ -33,6 +33,23 @@ INTERLOCK_ACTED = 3
 #: The ring buffers of a long headless run hold the whole run for the summary, up to
 #: this many samples (9 signals x 8 bytes x 2e6 = 144 MB at most).
 MAX_HISTORY = 2_000_000
+#: The longest run, s of loop time: a week (a lab's longest unattended experiment
+#: is a weekend).  `--duration 1e12` was accepted (31,710 years) and `inf` was an
+#: OverflowError traceback.
+MAX_DURATION = 7 * 86400.0
+
+
+def check_duration(duration: float, what: str = "--duration") -> float:
+    """`duration` if it is a run's length; ValueError saying why not."""
+    if not duration > 0:  # NaN too
+        raise ValueError(f"{what} must be a positive number of seconds, got {duration:g}")
+    if not duration <= MAX_DURATION:
+        years = duration / (365.25 * 86400)
+        how_long = "forever" if math.isinf(duration) else \
+            f"{years:,.0f} years" if years >= 1 else f"{duration / 86400:,.1f} days"
+        raise ValueError(f"{what} {duration:g} s would run {how_long}: at most {MAX_DURATION:g} s "
+                         f"({MAX_DURATION / 86400:g} days)")
+    return duration
 
 
 @dataclass(frozen=True)
@@ -98,6 +115,7 @@ def prepare_headless(
 ) -> HeadlessRun:
     """The engine of `run_headless`, set up (log file, Active, Automatic, LogOn,
     Run as the run asks) and not yet sampled; a session process drives it too."""
+    check_duration(duration)
     out = checked_out(out)
     stem = out.name.removesuffix(SUFFIX)
     before = file_identity(out)  # an earlier run's log, which this run replaces
@@ -126,16 +144,35 @@ def prepare_headless(
     return HeadlessRun(engine, script, duration, out, before)
 
 
+def refuse_log_target(out: Path, *, given: Path | None = None) -> None:
+    """ValueError if `out` (what `--log` named: `given`) is a folder, a device, a
+    FIFO or a socket, or its folder does not exist."""
+    given = out if given is None else given
+    if out.is_dir():
+        raise ValueError(f"--log {given}: a folder; --log names the .log to write (e.g. {given / 'run.log'})")
+    if out.exists() and not out.is_file():
+        raise ValueError(f"--log {given}: not a regular file (a device, a FIFO or a socket); "
+                         "--log names the .log to write")
+    folder = out.parent
+    if not folder.is_dir():
+        what = "is not a folder" if folder.exists() else "does not exist"
+        raise ValueError(f"--log {given}: the folder {folder} {what} (make it first, or name another)")
+
+
 def checked_out(out: Path) -> Path:
-    """The run's `.log` path (`.log` added), its folder created and checked now,
-    not at a LogOn far into the run; ValueError saying what is wrong."""
+    """The run's `.log` path (`.log` added), its folder checked now, not at a LogOn
+    far into the run; ValueError saying what is wrong.  A directory or a device is
+    refused, and so is a folder that does not exist: `--log /dev/null` wrote
+    /dev/null.log, `--log /tmp` /tmp.log, and `--log /nonexistent/x.log` created
+    /nonexistent."""
+    refuse_log_target(out)
     stem = out.name.removesuffix(SUFFIX)
     try:
         check_file_name(stem, "--log")
     except ParameterError as exc:
         raise ValueError(str(exc)) from None
+    refuse_log_target(out.with_name(stem + SUFFIX), given=out)
     out = out.with_name(stem + SUFFIX)
-    out.parent.mkdir(parents=True, exist_ok=True)
     check_log_folder(out.parent)
     if out.exists() and not out.is_file():
         raise ValueError(f"{out}: not a regular file; --log names the .log to write")

@@ -37,6 +37,11 @@ def test_without_a_script_it_logs_the_whole_run(tmp_path: Path, capsys: pytest.C
 
 @pytest.mark.parametrize("args, message", [
     (["--duration", "0"], "--duration must be a positive number"),
+    # issue 41: an OverflowError traceback, and a run of 31,710 years accepted
+    (["--duration", "inf"], "--duration inf s would run forever: at most 604800 s (7 days)"),
+    (["--duration", "1e12"], "--duration 1e+12 s would run 31,688 years: at most 604800 s (7 days)"),
+    (["--duration", "1e12", "--realtime", "--detach"], "--duration 1e+12 s would run 31,688 years"),
+    (["--duration", "604801"], "--duration 604801 s would run 7.0 days: at most 604800 s"),
     (["--duration", "10", "--speed", "5000"], "--speed must be 1..1000"),
     (["--duration", "10", "--seed", "-3"], "--seed must be >= 0"),
     (["--duration", "10", "--script", "missing.yaml"], "missing.yaml: no such file"),

@@ -63,6 +63,8 @@ def test_another_par_gives_another_twin_that_log_compare_reads(rig_log: Path,
 @pytest.mark.parametrize(("args", "message"), [
     (["--script", "prbs.yaml"], "--inputs-from replays a log on the simulator, open loop: --script does not apply"),
     (["--log", "rig.log"], "--log rig.log: that is the log being replayed"),
+    (["--log", "/dev/null"], "--log /dev/null: not a regular file (a device, a FIFO or a socket)"),
+    (["--log", "nowhere/x.log"], "--log nowhere/x.log: the folder nowhere does not exist"),
     (["--par", "minphase"], "rig.log: no column u1 (pump v1 of the quadtank)"),
 ])
 def test_bad_input_is_one_line_and_status_2(rig_log: Path, capsys: pytest.CaptureFixture[str],

@@ -236,5 +236,31 @@ def test_a_log_target_that_is_not_a_file_is_refused_at_the_start(
     os.mkfifo(out) if kind == "fifo" else out.mkdir()
     assert main(["run", "--duration", "5", "--log", str(out)]) == 2
     err = capsys.readouterr().err
-    assert err == f"quadtank: error: {out}: not a regular file; --log names the .log to write\n"
+    what = ("not a regular file (a device, a FIFO or a socket)" if kind == "fifo"
+            else f"a folder; --log names the .log to write (e.g. {out / 'run.log'})")
+    assert err.startswith(f"quadtank: error: --log {out}: {what}") and err.count("\n") == 1
     assert sorted(os.listdir(tmp_path)) == ["x.log"]
+
+
+@pytest.mark.parametrize("detach", [False, True], ids=["run", "detach"])
+@pytest.mark.parametrize("case", ["device", "folder", "no folder"])
+def test_a_log_path_to_a_device_a_folder_or_no_folder_is_refused(
+        case: str, detach: bool, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 41: `--log /dev/null` wrote /dev/null.log, `--log /tmp` /tmp.log, and
+    `--log /nonexistent/x.log` created /nonexistent."""
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(tmp_path / "rt"))
+    target = {"device": Path("/dev/null"), "folder": tmp_path / "logs", "no folder": tmp_path / "none" / "x.log"}[case]
+    (tmp_path / "logs").mkdir()
+    before = sorted(os.listdir(tmp_path))
+    args = ["run", "--duration", "5", "--log", str(target)] + (["--realtime", "--detach"] if detach else [])
+    assert main(args) == 2
+    err = capsys.readouterr().err.splitlines()
+    said = {"device": f"--log {target}: not a regular file (a device, a FIFO or a socket)",
+            "folder": f"--log {target}: a folder; --log names the .log to write",
+            "no folder": f"--log {target}: the folder {target.parent} does not exist"}[case]
+    assert [line for line in err if "warning" not in line] == [
+        line for line in err if line.startswith(f"quadtank: error: {said}")], err
+    assert any(line.startswith(f"quadtank: error: {said}") for line in err), err
+    assert sorted(os.listdir(tmp_path)) == before and not Path("/dev/null.log").exists()
+    assert not (tmp_path / "logs.log").exists() and not (tmp_path / "none").exists()
