@@ -21,7 +21,7 @@ from typing import Callable
 from quadtank_tui.core.design.expr import parse_model
 from quadtank_tui.core.design.optimize import pi_ms, pid_ms
 from quadtank_tui.core.design.mimo import design_2x2, model_in_use
-from quadtank_tui.core.design.preview import preview, window_for
+from quadtank_tui.core.design.preview import preview
 from quadtank_tui.core.design.table import candidates, format_table
 from quadtank_tui.core.parameters import PRESET
 
@@ -57,9 +57,10 @@ def main() -> None:
     op = plant.steady_inputs([levels[0], levels[1], None, None])
     for h in (1.0, 0.1):
         chk = design_2x2(G, h=h)
-        window = window_for([d.evaluation.setpoint_settling for d in chk.loops], h)
-        t_pv = best_of(lambda: preview(plant, op.x, op.u, chk.pid_pair(), h, window=window, model=G), n=2)
-        print(f"P- lambda pair, preview on the nonlinear plant at {h:g} s ({window:.0f} s a loop): "
+        pv = preview(plant, op.x, op.u, chk.pid_pair(), h, model=G)
+        t_pv = best_of(lambda: preview(plant, op.x, op.u, chk.pid_pair(), h, model=G), n=2)
+        ran = ", ".join(f"{s.window:.0f} s" for s in pv.steps)
+        print(f"P- lambda pair, preview on the nonlinear plant at {h:g} s (until settled: {ran}): "
               f"{t_pv:.2f} s (target 1)")
     print()
     print("process 1 table:")

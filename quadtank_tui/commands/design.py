@@ -58,7 +58,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-step", action="store_true",
                    help="with --par: skip the preview (a step on each loop on the nonlinear simulator)")
     p.add_argument("--window", type=float, metavar="SECONDS",
-                   help="length of each preview step, s (default: four times the slower loop's designed settling time)")
+                   help="length of each preview step, s (default: each step runs until it settles, at most "
+                   "10 times the slowest time constant)")
     p.add_argument("--write-par", metavar="OUT.par",
                    help="with --par: save the parameters with the designed controllers (and TSamp "
                    "set to the sampling time they were designed for)")
@@ -222,8 +223,9 @@ def identified_matrix(path: str | Path) -> Any:
 
 
 def _run_2x2(args: argparse.Namespace) -> int:
+    from quadtank_tui.app.design import METHOD_DEFAULT, design_pair
     from quadtank_tui.core.design.apply import controller_values
-    from quadtank_tui.core.design.mimo import design_2x2, format_check, model_in_use
+    from quadtank_tui.core.design.mimo import format_check, model_in_use
     from quadtank_tui.files.par import read_par
 
     if args.evaluate_on:
@@ -263,14 +265,13 @@ def _run_2x2(args: argparse.Namespace) -> int:
         h = h_file
     else:
         h = params.tsamp if params is not None else 0.0
-    method = args.method or "lambda"
-    chk = design_2x2(G, method, lam=(args.lam, args.lam), ms=args.ms, h=h)
+    method = args.method or METHOD_DEFAULT
+    chk = design_pair(G, h, method=method, lam=(args.lam, args.lam), ms=args.ms)
     pv = None
     if not args.no_step and chk.stable and params is not None:
         if h <= 0.0:
             raise ValueError("the preview on the simulator needs a sampling time: --sampling > 0")
-        pv = _preview(params, chk.pid_pair(), [d.evaluation for d in chk.loops], G, h, args.window,
-                      _model_inputs(args.model_file))
+        pv = _preview(params, chk.pid_pair(), G, h, args.window, _model_inputs(args.model_file))
     written = None
     if args.write_par:
         assert params is not None
@@ -326,31 +327,25 @@ def _model_inputs(path: str | None) -> list[float] | None:
     return [u for u in us if u is not None] or None
 
 
-def _start(plant: Any, params: Any, inputs: list[float] | None) -> tuple[Any, Any]:
+def _start(params: Any, inputs: list[float] | None) -> tuple[Any, Any] | None:
     """Levels and pump volts the preview starts from: the identification experiment's
     rest (a model is linear about it) when the model gives all the plant's inputs,
-    else the steady state of the parameters' operating levels."""
+    else None (the parameters' operating point: app.design.operating_start)."""
+    plant = params.process_plant()
     if inputs is not None and len(inputs) >= len(plant.inputs):
         volts = [u * s.full_scale for u, s in zip(inputs, plant.inputs)]
         return plant.steady_state(volts), volts
-    levels = params.process_levels()
-    op = plant.steady_inputs([x if i in plant.controlled else None for i, x in enumerate(levels)])
-    return op.x, op.u
+    return None
 
 
-def _preview(params: Any, pair: Any, evaluations: Any, G: Any, h: float, window: float | None,
-             inputs: list[float] | None = None, tr_keys: tuple[str, ...] = ("CONTROLLER ONE.Tr",
-                                                                            "CONTROLLER FOUR.Tr")) -> Any:
-    """The designed controllers on the nonlinear plant in use from its operating point."""
-    from quadtank_tui.core.design.preview import preview, window_for
+def _preview(params: Any, pair: Any, G: Any, h: float, window: float | None,
+             inputs: list[float] | None = None, tr_keys: tuple[str, ...] | None = None) -> Any:
+    """The designed controllers on the nonlinear plant in use (app.design's preview,
+    the one the Design screen runs)."""
+    from quadtank_tui.app.design import TR_KEYS, preview_plan
 
-    plant = params.process_plant()
-    x0, u0 = _start(plant, params, inputs)
-    tr = [params.get(k) for k in tr_keys]
-    if window is None:
-        window = window_for([ev.setpoint_settling for ev in evaluations], h)
-    return preview(plant, x0, u0, pair, h, window=window, model=G,
-                   tr=tuple(float(getattr(x, "value", x)) for x in tr))
+    return preview_plan(params, pair, G, h, start=_start(params, inputs), window=window,
+                        tr_keys=tr_keys or TR_KEYS).run()
 
 
 def _run_one_pump(args: argparse.Namespace, params: Any) -> int:
@@ -387,7 +382,7 @@ def _run_one_pump(args: argparse.Namespace, params: Any) -> int:
     if not args.no_step and ev.stable:
         if h <= 0.0:
             raise ValueError("the preview on the simulator needs a sampling time: --sampling > 0")
-        pv = _preview(params, [ctrl], [ev], ((g,),), h, args.window, _model_inputs(args.model_file),
+        pv = _preview(params, [ctrl], ((g,),), h, args.window, _model_inputs(args.model_file),
                       (f"{ONE_PUMP_ELEMENT}.Tr",))
     written = _write(args.write_par, params, one_pump_values(ctrl), h) if args.write_par else None
     figure = _figure(args.figure, [(f"{y} <- u1", g, ctrl)], f"{source}, method {method}")

@@ -110,7 +110,7 @@ async def test_typed_model_and_chosen_row(app, engine) -> None:
         assert "loop 1: Kc=0.1483, Ti=2.455  (PI Ms 1.4)" in str(screen.query_one("#design-chosen", Static).render())
         await _apply_through_the_preview(pilot)
         p = engine.snapshot().params
-        assert p.get("CONTROLLER ONE.K") == 0.1483 and p.get("CONTROLLER FOUR.K") == 2.7  # loop 2 kept
+        assert p.get("CONTROLLER ONE.K") == 0.1483 and p.get("CONTROLLER FOUR.K") == 1.758  # loop 2: the default design, as `quadtank design`
 
 
 async def test_a_bad_model_is_pointed_at(app) -> None:

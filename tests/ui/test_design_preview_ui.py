@@ -9,7 +9,8 @@ from textual.widgets import Button, Static
 from quadtank_tui.core.design.controller import PID
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.ui.windows.base import ChoiceWindow
-from quadtank_tui.ui.windows.design_preview import DesignPreviewWindow, PreviewRequest
+from quadtank_tui.app.design import PreviewPlan
+from quadtank_tui.ui.windows.design_preview import DesignPreviewWindow
 
 from uikit import make_app  # noqa: E402
 
@@ -19,13 +20,13 @@ def app(engine):
     return make_app(engine)
 
 
-def _request() -> PreviewRequest:
+def _request() -> PreviewPlan:
     """The issue's loop 1 (Kc 165.2, Ti 0.2753 s, designed in continuous time) at Ts = 1 s on P-."""
     plant = PRESET.process_plant()
     levels = PRESET.process_levels()
     op = plant.steady_inputs([levels[0], levels[1], None, None])
-    return PreviewRequest(plant, tuple(op.x), tuple(op.u), (PID(165.2, 0.2753), PID(1.758, 90.34)), 1.0,
-                          120.0, None, (1.0, 1.0))
+    return PreviewPlan(plant, tuple(op.x), tuple(op.u), (PID(165.2, 0.2753), PID(1.758, 90.34)), 1.0,
+                       None, (1.0, 1.0), window=120.0)
 
 
 async def _opened(pilot, answers: list):

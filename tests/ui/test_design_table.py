@@ -159,8 +159,8 @@ async def test_lambdas_and_ms_are_typed_and_the_table_follows(app) -> None:
     async with app.run_test(size=(120, 40)) as pilot:
         screen = await open_design(pilot)
         assert "v" not in screen.active_bindings  # table and plots side by side: no swap to offer
-        # P-'s g11 = 2.61/(62.7 s + 1): the defaults T/4, T/2, T shown in seconds
-        assert screen.query_one("#lambdas", Input).value == "15.7 31.4 62.7"
+        # P-'s g11 = 2.61/(62.7 s + 1): the defaults T/5 (quadtank design's), T/2, T shown in seconds
+        assert screen.query_one("#lambdas", Input).value == "12.5 31.4 62.7"
         assert "T 62.7 s, L 0 s" in str(screen.query_one("#tuning-note").render())
         await type_into(pilot, "lambdas", "T/8 20")
         await type_into(pilot, "ms", "1.3", fast=True)  # as a burst

@@ -133,7 +133,7 @@ async def test_identify_design_preview_apply_step(app) -> None:
 
 
 async def test_a_flagged_row_needs_a_yes_and_no_or_esc_applies_nothing(engine) -> None:
-    """A model typed with 1/500 of g11's gain (2.61 at P-): λ = T/4 gives Kc 775 at
+    """A model typed with 1/500 of g11's gain (2.61 at P-): λ = T/5 gives Kc 962 at
     1 s, which the table flags (its 10 % step does not settle with the pumps
     limited) and which on the simulated plant flips the pump between its limits."""
     engine.submit(SetParams({"SAMPLING TIME.TSamp": 1000}))
@@ -153,7 +153,7 @@ async def test_a_flagged_row_needs_a_yes_and_no_or_esc_applies_nothing(engine) -
         await settle(pilot)
         rows = screen.loops[1].rows
         assert rows[0].method == "lambda" and rows[0].controller is not None
-        assert rows[0].controller.Kc == pytest.approx(62.7 / (0.005 * (62.7 / 4 + 0.5)))  # the hold: h/2
+        assert rows[0].controller.Kc == pytest.approx(62.7 / (0.005 * (62.7 / 5 + 0.5)))  # the hold: h/2
         assert rows[0].problem == "the reference step does not settle" and screen.loops[1].best is None
         table = screen.query_one(CandidatesTable)
         assert str(table.get_row_at(0)[-1]) == "settle?"
@@ -161,10 +161,10 @@ async def test_a_flagged_row_needs_a_yes_and_no_or_esc_applies_nothing(engine) -
         await pilot.press(*["up"] * table.cursor_row)
         await pilot.pause()
         status = str(screen.query_one("#design-status", Static).render())
-        assert "λ 15.7 s: the reference step does not settle" in status
+        assert "λ 12.5 s: the reference step does not settle" in status
         await pilot.press("enter")
         await pilot.pause()
-        assert screen.loops[1].chosen is not None and screen.loops[1].chosen.Kc == 775.3
+        assert screen.loops[1].chosen is not None and screen.loops[1].chosen.Kc == 961.7
         window = await preview_of(pilot)
         assert window.result is not None
         assert any(w.startswith("loop 1: the simulated plant limit-cycles") for w in window.result.warnings)

@@ -213,14 +213,15 @@ async def test_the_design_preview_draws_prediction_and_simulation_and_reads_back
     Cancel are on the screen."""
     from quadtank_tui.core.design.mimo import design_2x2, model_in_use
     from quadtank_tui.core.parameters import PRESET
-    from quadtank_tui.ui.windows.design_preview import DesignPreviewWindow, PreviewRequest
+    from quadtank_tui.app.design import PreviewPlan
+    from quadtank_tui.ui.windows.design_preview import DesignPreviewWindow
 
     G = model_in_use(PRESET)
     pair = tuple(loop.controller for loop in design_2x2(G, h=1.0).loops)
     plant = PRESET.process_plant()
     levels = PRESET.process_levels()
     op = plant.steady_inputs([levels[0], levels[1], None, None])
-    request = PreviewRequest(plant, tuple(op.x), tuple(op.u), pair, 1.0, 300.0, G, (1.0, 1.0))  # type: ignore[arg-type]
+    request = PreviewPlan(plant, tuple(op.x), tuple(op.u), pair, 1.0, G, (1.0, 1.0), window=300.0)
     app = make_app(engine)
     async with app.run_test(size=size) as pilot:
         pilot.app.push_screen(DesignPreviewWindow(request))

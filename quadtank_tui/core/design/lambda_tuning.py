@@ -104,6 +104,20 @@ def lambda_for_tau(fo: FirstOrder, tau: float) -> float:
     return tau * max(fo.L, fo.T)
 
 
+#: default lambda of a self-regulating loop: a fifth of max(L, T) of its first-order model
+#: (a 0.1 step then settles in 138 s at P- with no overshoot and the pumps clear of their
+#: limits; T/3: 207 s; T/8: 90 s with Kc = 3).
+LAMBDA_FRACTION = 1.0 / 5.0
+
+
+def default_lambda(fo: FirstOrder) -> float:
+    """The one default lambda (s) the 2x2 design and the Design screen propose:
+    max(L, T)/5; an integrating loop twice its delay (1 s without one)."""
+    if fo.integrating:
+        return 2.0 * (fo.L if fo.L > 0.0 else 1.0)
+    return LAMBDA_FRACTION * max(fo.L, fo.T)
+
+
 def lambda_pi(fo: FirstOrder, lam: float, h: float = 0.0) -> PID:
     """The lambda-tuned PI for the closed-loop time constant (or load time) `lam` s.
 

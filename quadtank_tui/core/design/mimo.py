@@ -37,7 +37,7 @@ from quadtank_tui.core.analysis import analyze
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import PID, DesignError
 from quadtank_tui.core.design.evaluate import Evaluation, evaluate
-from quadtank_tui.core.design.lambda_tuning import first_order, lambda_pi
+from quadtank_tui.core.design.lambda_tuning import default_lambda, first_order, lambda_pi
 from quadtank_tui.core.design.optimize import pi_ms, pid_ms
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.johansson import PlantParams
@@ -46,9 +46,6 @@ from quadtank_tui.core.plants.base import Plant
 
 Matrix = tuple[tuple[DelayTF, DelayTF], tuple[DelayTF, DelayTF]]
 
-#: default lambda of a delay-free loop: a fifth of the first-order time constant (a 0.1
-#: step then settles in 138 s at P- with no overshoot; T/3: 207 s, T/8: 90 s with Kc = 3).
-LAMBDA_FRACTION = 1.0 / 5.0
 
 
 def physical_model(p: PlantParams, h0: Sequence[float]) -> Matrix:
@@ -288,13 +285,11 @@ class MimoCheck:
 
 def design_loop(g: DelayTF, method: str, *, lam: float | None = None, ms: float = 1.4,
                 h: float = 0.0) -> PID:
-    """One loop: lambda (default lambda: LAMBDA_FRACTION x the first-order T, or
-    its max(L, T)), pi-ms or pid-ms; h > 0: for the loop sampled at h s."""
+    """One loop: lambda (default: lambda_tuning.default_lambda), pi-ms or pid-ms;
+    h > 0: for the loop sampled at h s."""
     if method == "lambda":
         fo = first_order(g)
-        if lam is None:
-            lam = LAMBDA_FRACTION * max(fo.L, fo.T) if not fo.integrating else 3.0 * max(fo.L, 1.0)
-        return lambda_pi(fo, lam, h)
+        return lambda_pi(fo, default_lambda(fo) if lam is None else lam, h)
     if method in ("pi-ms", "pid-ms"):
         return pi_ms(g, ms, h=h) if method == "pi-ms" else pid_ms(g, ms, h=h)
     raise DesignError(f"unknown method {method!r}: lambda, pi-ms or pid-ms")

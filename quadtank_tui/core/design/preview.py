@@ -103,13 +103,16 @@ class PreviewStep:
 class Preview:
     steps: tuple[PreviewStep, ...]
     h: float
+    span: Horizon | None = None
 
     @property
     def warnings(self) -> list[str]:
         return [w for s in self.steps for w in s.warnings]
 
     def to_dict(self) -> dict[str, object]:
-        return {"sampling_time": self.h, "warnings": self.warnings, "steps": [
+        span = None if self.span is None else {"cap": self.span.cap, "hold": self.span.hold,
+                                                "time_constant": self.span.tau, "fixed": self.span.fixed}
+        return {"sampling_time": self.h, "warnings": self.warnings, "horizon": span, "steps": [
             {"loop": s.loop, "window": s.window, "simulated": s.sim.to_dict(),
              "predicted": None if s.pred is None else s.pred.to_dict(), "brim_time": s.brim_time,
              "unstable": s.unstable, "limit_cycle": s.limit_cycle, "saturates": s.saturates}
@@ -165,30 +168,16 @@ def _predicted(G: Sequence[Sequence[DelayTF]], pair: Sequence[PID], h: float, lo
     return y + np.asarray(r0)[None, :], u + np.asarray(u0)[None, :], np.asarray(r)
 
 
-#: the window when no settling time is known, and its bounds, s
-DEFAULT_WINDOW = 600.0
-WINDOW_RANGE = (120.0, 3000.0)
-
-
 #: samples per step at most (the nonlinear plant costs 0.1-0.3 ms a sample): 3000 s at 0.1 s,
-#: enough for P+'s slow loop 2 (1100 s to settle)
+#: above the cap of P+'s slow loop 2 (10 x 275 s)
 MAX_SAMPLES = 30000
-
-
-def window_for(settling_times: Sequence[float | None], h: float) -> float:
-    """Four times the slower loop's designed (single-loop, unlimited) settling time
-    within WINDOW_RANGE and MAX_SAMPLES samples of h: the other loop's coupling slows
-    the steps (about 2x at P-); a step that needs longer is reported not settled."""
-    if not settling_times or any(t is None for t in settling_times):
-        w = DEFAULT_WINDOW
-    else:
-        w = min(WINDOW_RANGE[1], max(WINDOW_RANGE[0], 4.0 * max(t for t in settling_times if t is not None)))
-    return min(w, MAX_SAMPLES * h)
 
 
 def format_preview(pv: Preview) -> str:
     """Predicted (linear sampled) and simulated (nonlinear plant) figures of each step."""
     lines = [f"preview on the nonlinear simulator, sampled at {pv.h:g} s, pumps 0..10 V: step 0.1 on each loop"]
+    if pv.span is not None:
+        lines.append(f"  {pv.span.describe()}; ran " + ", ".join(f"r{s.loop} {s.window:.0f} s" for s in pv.steps))
     for s in pv.steps:
         for name, f in (("predicted", s.pred), ("simulated", s.sim)):
             if f is None:
@@ -202,19 +191,85 @@ def format_preview(pv: Preview) -> str:
     return "\n".join(lines)
 
 
+def time_constant(plant: Plant, levels: Sequence[float], inputs: Sequence[float],
+                  model: Sequence[Sequence[DelayTF]] | None, pair: Sequence[PID], h: float) -> float:
+    """The slowest time constant the steps must wait for, s: the larger of the plant's
+    slowest open-loop one at the start (its linearization) and the designed loop's
+    slowest closed-loop one (the sampled linear loop on `model` with `pair`), when
+    `model` is given and that loop is stable."""
+    lin = plant.linearize(list(levels), list(inputs))
+    rates = -np.linalg.eigvals(lin.A).real
+    rates = rates[rates > 1e-12]
+    tau = float(1.0 / rates.min()) if rates.size else 0.0
+    if model is not None:
+        from quadtank_tui.core.design.sampled import closed_loop_matrix, slowest_rate
+
+        p = len(pair)
+        models = [[sample(model[i][j], h) for j in range(p)] for i in range(p)]
+        rate = slowest_rate(np.linalg.eigvals(closed_loop_matrix(models, list(pair), h)), h)
+        if rate < 0.0:
+            tau = max(tau, -1.0 / rate)
+    if not math.isfinite(tau) or tau <= 0.0:
+        raise ValueError("no time constant to size the preview by (the plant does not respond)")
+    return tau
+
+
+#: the preview runs at most this many slowest time constants (time_constant) per step
+CAP_TIME_CONSTANTS = 10.0
+
+
+@dataclass(frozen=True)
+class Horizon:
+    """How long each step runs: until the stepped output has stayed in its 2 % band
+    for `hold` s after it settled, at most `cap` s; `fixed`: exactly `cap` s."""
+
+    cap: float
+    hold: float
+    tau: float  # the slowest time constant the cap is CAP_TIME_CONSTANTS of, s
+    fixed: bool = False
+
+    def describe(self) -> str:
+        if self.fixed:
+            return f"each step {self.cap:.0f} s"
+        return (f"each step until it settles and holds {self.hold:.0f} s, at most {self.cap:.0f} s "
+                f"({CAP_TIME_CONSTANTS:g} x the slowest time constant, {self.tau:.0f} s)")
+
+
+def horizon(tau: float, h: float, window: float | None = None) -> Horizon:
+    """The horizon of a preview with slowest time constant `tau` (s) at sampling time
+    h: a given `window` runs fixed; else CAP_TIME_CONSTANTS tau (within MAX_SAMPLES
+    samples), each step held one tau in its band before it counts as settled."""
+    if window is not None:
+        return Horizon(min(window, MAX_SAMPLES * h), 0.0, tau, fixed=True)
+    return Horizon(min(CAP_TIME_CONSTANTS * tau, MAX_SAMPLES * h), tau, tau)
+
+
+def _settled(t: np.ndarray, y: np.ndarray, r: float, y_before: float, hold: float) -> bool:
+    """The stepped output has been in its 2 % band for `hold` s up to t[-1]."""
+    lm = loop_metrics(np.concatenate([[t[0] - (t[1] - t[0] if t.size > 1 else 1.0)], t]),
+                      np.concatenate([[y_before], y]), np.concatenate([[y_before], np.full(t.size, r)]))
+    return lm.settling_time is not None and t[-1] - t[0] - lm.settling_time >= hold
+
+
 def preview(plant: Plant, levels: Sequence[float], inputs: Sequence[float], pair: Sequence[PID], h: float, *,
-            window: float, model: Sequence[Sequence[DelayTF]] | None = None,
-            tr: Sequence[float] = (TR_DEFAULT, TR_DEFAULT),
+            window: float | None = None, model: Sequence[Sequence[DelayTF]] | None = None,
+            tr: Sequence[float] = (TR_DEFAULT, TR_DEFAULT), span: Horizon | None = None,
             progress: Callable[[float], None] | None = None) -> Preview:
     """A STEP on each loop in turn from `levels` (all tanks, the plant's unit) and
-    `inputs` (pump volts), `window` s each, sampled at h; `model` (1x1 or 2x2,
-    normalized) adds the predicted curves; `progress` hears the share done (0..1)."""
+    `inputs` (pump volts), sampled at h; `model` (1x1 or 2x2, normalized) adds the
+    predicted curves; `progress` hears the share done (0..1).
+
+    Each step runs `window` s when given, else until it settles (`span`, by default
+    horizon(time_constant(...))): the TUI and the CLI call this with the same start
+    and get the same run, to the sample."""
+    if span is None:
+        span = horizon(time_constant(plant, levels, inputs, model, pair, h), h, window)
     p = len(pair)
     ctrl = list(plant.controlled)[:p]
     scale = [s.full_scale for s in plant.inputs][:p]
     brims = [s.hi for s in plant.states]
-    n = int(math.ceil(window / h)) + 1
-    t = np.arange(n) * h
+    cap = int(math.ceil(span.cap / h)) + 1
+    chunk = max(1, int(span.hold / h / 4)) if not span.fixed else cap
     steps = []
     for loop in range(1, p + 1):
         x = tuple(float(v) for v in levels)
@@ -225,11 +280,13 @@ def preview(plant: Plant, levels: Sequence[float], inputs: Sequence[float], pair
             pids[i].track(y0[i], y0[i], u0[i])
         r = list(y0)
         r[loop - 1] += STEP
-        ys = np.zeros((n, p))
-        us = np.zeros((n, p))
+        ys = np.zeros((cap, p))
+        us = np.zeros((cap, p))
+        t_all = np.arange(cap) * h
         brim = 0.0
         volts = [0.0] * len(plant.inputs)
-        for k in range(n):
+        n = cap
+        for k in range(cap):
             out = plant.output(x)
             yk = [out[c] / FULL_SCALE_V for c in ctrl]
             for i in range(p):
@@ -243,7 +300,13 @@ def preview(plant: Plant, levels: Sequence[float], inputs: Sequence[float], pair
                 brim += h
             x = plant.advance(x, volts, h)
             if progress is not None and k % 200 == 0:
-                progress(((loop - 1) + k / n) / p)
+                progress(((loop - 1) + k / cap) / p)
+            if (not span.fixed and (k + 1) % chunk == 0
+                    and _settled(t_all[:k + 1], ys[:k + 1, loop - 1], r[loop - 1], y0[loop - 1], span.hold)):
+                n = k + 1
+                break
+        t, ys, us = t_all[:n], ys[:n], us[:n]
+        window_run = float(t[-1])
         i = loop - 1
         other = ys[:, 1 - i] if p == 2 else None
         rr = np.full(n, r[i])
@@ -253,5 +316,5 @@ def preview(plant: Plant, levels: Sequence[float], inputs: Sequence[float], pair
             py, pu, _ = _predicted(model, pair, h, loop, y0, u0, n, tr[0])
             pred_y = py[:, i]
             pred = _figures(t, py[:, i], rr, py[:, 1 - i] if p == 2 else None, pu, i, h)
-        steps.append(PreviewStep(loop, t, ys[:, i], pred_y, us, sim, pred, brim, window))
-    return Preview(tuple(steps), h)
+        steps.append(PreviewStep(loop, t, ys[:, i], pred_y, us, sim, pred, brim, window_run))
+    return Preview(tuple(steps), h, span)

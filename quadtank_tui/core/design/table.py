@@ -16,12 +16,11 @@ from typing import Callable, Sequence
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import PID, DesignError
 from quadtank_tui.core.design.evaluate import Evaluation, evaluate
-from quadtank_tui.core.design.lambda_tuning import FirstOrder, first_order, lambda_for_tau, lambda_pi
+from quadtank_tui.core.design.lambda_tuning import FirstOrder, default_lambda, first_order, lambda_pi
 from quadtank_tui.core.design.optimize import pi_ms, pid_ms
 from quadtank_tui.core.design.sampled import sample
 from quadtank_tui.core.design.sampled_eval import LimitCheck, evaluate_sampled
 
-TAUS = (1.0, 2.0, 3.0)
 MS_VALUES = (1.6, 1.4, 1.2)
 
 
@@ -34,16 +33,21 @@ class Candidate:
     error: str | None = None
     #: the sampled loop's steps with the pumps limited (h > 0 only)
     limits: LimitCheck | None = None
+    #: the 2x2 loop with the other loop's controller, when it is unstable: why (None: stable or unchecked)
+    pair: str | None = None
 
     @property
     def problem(self) -> str | None:
-        """Why this row must not be suggested: no design, unstable, or the limit
-        check's verdict (saturates, chatters, never settles)."""
+        """Why this row must not be suggested: no design, unstable, the limit
+        check's verdict (saturates, chatters, never settles), or the 2x2 loop with
+        the other loop's controller unstable."""
         if self.controller is None or self.evaluation is None:
             return self.error or "no controller"
         if not self.evaluation.stable:
             return "unstable"
-        return None if self.limits is None else self.limits.problem
+        if self.limits is not None and self.limits.problem is not None:
+            return self.limits.problem
+        return self.pair
 
     @property
     def label(self) -> str:
@@ -52,15 +56,14 @@ class Candidate:
 
 
 def default_lambdas(fo: FirstOrder) -> tuple[float, ...]:
-    """Andersson's tau = 1, 2, 3 (lambda = tau max(L, T)); without a dead time T/4,
-    T/2, T; an integrating model: 2, 4, 8 times its delay (his process 4 used 3, 5
-    and 9 L, process 2 2.3-6.8 L)."""
+    """The default lambda (lambda_tuning.default_lambda, the one `quadtank design`
+    uses) first, then slower ones: T/5, T/2, T without a dead time; an integrating
+    model 2, 4 and 8 times its delay (Andersson's process 4 used 3, 5 and 9 L,
+    process 2 2.3-6.8 L)."""
+    lam = default_lambda(fo)
     if fo.integrating:
-        base = fo.L if fo.L > 0 else 1.0
-        return (2.0 * base, 4.0 * base, 8.0 * base)
-    if fo.L == 0.0:  # no dead time (a physical linearization): faster than open loop
-        return (fo.T / 4.0, fo.T / 2.0, fo.T)
-    return tuple(lambda_for_tau(fo, t) for t in TAUS)
+        return (lam, 2.0 * lam, 4.0 * lam)
+    return (lam, 2.5 * lam, 5.0 * lam)
 
 
 def candidates(g: DelayTF, *, evaluate_on: DelayTF | None = None,

@@ -47,6 +47,7 @@ from quadtank_tui.ui.widgets.key_footer import KeyFooter
 if TYPE_CHECKING:  # the design core loads when the screen first computes (start-up time)
     from quadtank_tui.core.design.mimo import Matrix, MimoCheck
     from quadtank_tui.core.design.simulate import Response
+    from quadtank_tui.app.design import LoopTable
     from quadtank_tui.core.design.table import Candidate
 
 HELP = "Tab: models, λ, Ms; Enter designs · Enter on a row: choose it for the loop"
@@ -62,6 +63,9 @@ class LoopState:
 
     text: str = ""
     model: DelayTF | None = None
+    #: what the rows are designed on (app.design.loop_table): the model, or g22 with loop 1 closed
+    design_model: DelayTF | None = None
+    how: str = ""
     rows: list[Candidate] = field(default_factory=list)
     chosen: PID | None = None
     chosen_label: str = ""
@@ -226,7 +230,26 @@ class DesignScreen(CommandSender):
         for i, g in ((1, g11), (2, g22)):
             self._set_model(i, g, "" if g is None else model_text(g))
         self._show_tuning()
-        self.design_loop(self.loop)
+        self._start_design()
+
+    def typed_matrix(self) -> Matrix | None:
+        """The 2x2 model with the loops' models as shown (typed over or not);
+        None without a full 2x2 model."""
+        g1, g2 = self.loops[1].model, self.loops[2].model
+        if self.G is None or g1 is None or g2 is None:
+            return None
+        return ((g1, self.G[0][1]), (self.G[1][0], g2))
+
+    def _start_design(self) -> None:
+        """The default pair first (app.design.design_pair: what `quadtank design`
+        gives), chosen for both loops, then the table of the loop shown, checked
+        with the other loop's choice."""
+        G = self.typed_matrix()
+        if G is None:
+            self.design_loop(self.loop)
+            return
+        self._status(f"designing both loops on {self.source} ...")
+        self._compute_2x2(G, default=True)
 
     def _set_model(self, loop: int, g: DelayTF | None, text: str) -> None:
         """Loop `loop` on model `g` (nothing chosen yet); its lambdas and Ms stay typed."""
@@ -252,7 +275,7 @@ class DesignScreen(CommandSender):
             self._set_model(loop, g, event.value)
         self.loop = loop
         self._show_tuning()
-        self.design_loop(loop)
+        self._start_design()
         self._show_chosen()
 
     @on(Input.Submitted, ".tuning")
@@ -293,38 +316,45 @@ class DesignScreen(CommandSender):
             return
         self._status(f"designing loop {loop} ...")
         self._compute_table(loop, state.model, state.request, state.lambdas if lambdas is None else lambdas,
-                            state.ms if ms is None else ms)
+                            state.ms if ms is None else ms, self.typed_matrix(), self.loops[3 - loop].chosen,
+                            self.loops[1].chosen)
 
     @work(thread=True, exclusive=True, group="table")
-    def _compute_table(self, loop: int, model: DelayTF | None, request: int, lambdas: str, ms: str) -> None:
+    def _compute_table(self, loop: int, model: DelayTF | None, request: int, lambdas: str, ms: str,
+                       G: Matrix | None, other: PID | None, first: PID | None) -> None:
+        """app.design.loop_table (the rows on what the loop sees, each checked in the
+        2x2 loop with the other loop's choice), after the typed entries are parsed
+        against the design model's T and L."""
+        from quadtank_tui.app.design import loop1_must_close, loop_table
         from quadtank_tui.core.design.controller import DesignError
         from quadtank_tui.core.design.lambda_tuning import first_order
-        from quadtank_tui.core.design.table import candidates, default_lambdas, suggested
+        from quadtank_tui.core.design.mimo import loop2_with_loop1_closed
 
         if model is None:
             return
+        on = model
+        if loop == 2 and G is not None and first is not None and loop1_must_close(G):
+            on = loop2_with_loop1_closed(G, first)
         try:
-            fo = first_order(model)
+            fo = first_order(on)
             T, L = (0.0 if fo.integrating else fo.T), fo.L
         except DesignError:  # no lambda rows (the table says why); the lambdas are not used
-            fo, T, L = None, 0.0, 0.0
+            T, L = 0.0, 0.0
         try:
             ms_values = parse_ms(ms)
-            lams = (parse_lambdas(lambdas, T, L) if lambdas
-                    else default_lambdas(fo) if fo is not None else ())
+            lams = parse_lambdas(lambdas, T, L) if lambdas else None
         except InputError as exc:
             self.app.call_from_thread(self._refused, loop, request, str(exc))
             return
         snap = self.engine.snapshot()  # the loop as it runs: its sampling time, its pump's input
         h = snap.params.tsamp
         try:
-            rows = candidates(model, lambdas=lams, ms_values=ms_values, h=h,
-                              u0=snap.u[loop - 1] if snap.state == "Run" else 0.5)
-        except ValueError as exc:  # a model the evaluation cannot simulate: one line, no crash
+            table = loop_table(loop, model, h, G=G, other=other, first=first, lambdas=lams, ms_values=ms_values,
+                               u0=snap.u[loop - 1] if snap.state == "Run" else 0.5)
+        except (ValueError, DesignError) as exc:  # a model the evaluation cannot simulate: one line, no crash
             self.app.call_from_thread(self._status, f"loop {loop}: {exc}", error=True)
             return
-        self.app.call_from_thread(self._show_table, loop, request, rows, suggested(rows), h,
-                                  (lambdas, ms, T, L, lams))
+        self.app.call_from_thread(self._show_table, loop, request, table, (lambdas, ms))
 
     def _refused(self, loop: int, request: int, why: str) -> None:
         """A bad lambda or Ms entry: said, and the table and the entries in force kept."""
@@ -332,22 +362,25 @@ class DesignScreen(CommandSender):
             self._status(f"loop {loop}: {why}; the table is as it was", error=True)
             self.notify(why, title=f"Loop {loop}", severity="error", timeout=8, markup=False)
 
-    def _show_table(self, loop: int, request: int, rows: list[Candidate], best: int | None, h: float,
-                    tuning: tuple[str, str, float, float, tuple[float, ...]]) -> None:
+    def _show_table(self, loop: int, request: int, table: LoopTable, tuning: tuple[str, str]) -> None:
         state = self.loops[loop]
         if request != state.request:
             return  # a newer model or entry came meanwhile
-        state.rows, state.best, state.h = rows, best, h
-        state.lambdas, state.ms, state.T, state.L, state.used = tuning
+        rows, best = table.rows, table.best
+        state.rows, state.best, state.h = rows, best, table.h
+        state.design_model, state.how = table.model, table.how
+        state.lambdas, state.ms = tuning
+        state.T, state.L, state.used = table.T, table.L, table.lambdas
         if loop == self.loop:
             self._fill_table(to_best=True)
             self._show_tuning()
         shown = model_text(state.model) if state.model is not None else ""
-        best_text = (f"; suggested {label(rows[best])}" if best is not None
-                     else "; none suggested (each fails the check)")
+        on = f" ({table.how})" if table.how.endswith("closed") else ""
+        best_text = (f"; suggested {label(rows[best])}" + (" (the default design)" if best == table.default else "")
+                     if best is not None else "; none suggested (each fails the check)")
         # the table's highlight of its suggested row comes next: this line stays
         self._told_best = loop == self.loop and best is not None
-        self._status(f"loop {loop}: {len(rows)} candidates on {shown}{best_text}")
+        self._status(f"loop {loop}: {len(rows)} candidates on {shown}{on}{best_text}")
 
     def _fill_table(self, *, to_best: bool = False) -> None:
         """The loop's rows; `to_best`: a new table, the cursor on its suggested row."""
@@ -377,7 +410,7 @@ class DesignScreen(CommandSender):
     def row_highlighted(self, event: CandidatesTable.RowHighlighted) -> None:
         row = self._row(event.row_key.value)
         state = self.loops[self.loop]
-        model = state.model
+        model = state.design_model or state.model
         if row is not None and row.error:
             self._status(f"{label(row)}: {row.error}")
         elif row is not None and row.problem is not None:  # the check column's word, in full
@@ -399,6 +432,10 @@ class DesignScreen(CommandSender):
             return
         state = self.loops[self.loop]
         state.chosen, state.chosen_label = row.controller.rounded(), label(row)
+        other = self.loops[3 - self.loop]
+        other.rows, other.request = [], other.request + 1  # its rows' 2x2 check (and P+'s loop 2 model) changed
+        if row.pair is not None:
+            self.notify(row.pair, title=f"Loop {self.loop}", severity="warning", markup=False)
         self._show_chosen()
 
     def _show_chosen(self) -> None:
@@ -432,7 +469,7 @@ class DesignScreen(CommandSender):
         steps: dict[int, Response] = {}
         for i in (1, 2):
             other = self.loops[i]
-            g, ci = (model, c) if i == self.loop else (other.model, other.chosen)
+            g, ci = (model, c) if i == self.loop else (other.design_model or other.model, other.chosen)
             if g is not None and ci is not None:
                 try:
                     steps[i] = settled_response(g, ci, margins(ci.loop(g)), r=1.0)
@@ -469,44 +506,55 @@ class DesignScreen(CommandSender):
         if self.G is None:
             self.notify(f"no 2x2 model: {self.source} lacks an element", severity="error", markup=False)
             return
+        G = self.typed_matrix() or self.G
         self._status(f"designing both loops on {self.source} ...")
-        self._compute_2x2(self.G)
+        self._compute_2x2(G)
 
     @work(thread=True, exclusive=True, group="mimo")
-    def _compute_2x2(self, G: Matrix) -> None:
-        """On the matrix of the moment it was asked for: self.G may change (a model
-        typed) while the worker runs."""
+    def _compute_2x2(self, G: Matrix, default: bool = False) -> None:
+        """app.design.design_pair (what `quadtank design` gives) on the matrix of the
+        moment it was asked for: self.G may change (a model typed) while the worker
+        runs.  `default`: the screen's start (then each loop's table follows)."""
+        from quadtank_tui.app.design import design_pair
         from quadtank_tui.core.design.controller import DesignError
-        from quadtank_tui.core.design.mimo import design_2x2, format_check
+        from quadtank_tui.core.design.mimo import format_check
 
         try:
-            chk = design_2x2(G, h=self.engine.snapshot().params.tsamp)
-        except DesignError as exc:
+            chk = design_pair(G, self.engine.snapshot().params.tsamp)
+        except (DesignError, ValueError) as exc:
             self.app.call_from_thread(self.notify, str(exc), severity="error", markup=False)
+            if default:
+                self.app.call_from_thread(self.design_loop, self.loop)
             return
-        self.app.call_from_thread(self._show_2x2, chk, format_check(chk))
+        self.app.call_from_thread(self._show_2x2, chk, format_check(chk), default)
 
-    def _show_2x2(self, chk: MimoCheck, text: str) -> None:
+    def _show_2x2(self, chk: MimoCheck, text: str, default: bool = False) -> None:
         for d in chk.loops:
             s = self.loops[d.loop]
-            s.chosen, s.chosen_label = d.controller, f"2x2 design on {d.how}"
+            s.chosen, s.chosen_label = d.controller, f"default design on {d.how}"
+            s.design_model, s.how = d.model, d.how
+            s.rows, s.request = [], s.request + 1  # each table anew: checked with this pair
         self._show_chosen()
         self.query_one("#design-mimo", Static).update(text)
-        self._status("2x2 design done: A applies it")
+        verdict = "A applies it" if chk.stable else "the pair is UNSTABLE: choose other rows"
+        self._status(f"{'default' if default else '2x2'} design ({chk.loops[0].controller.describe()}; "
+                     f"{chk.loops[1].controller.describe()}): {verdict}")
+        self.design_loop(self.loop)
 
     def action_check(self) -> None:
         c1, c2 = self.loops[1].chosen, self.loops[2].chosen
-        if self.G is None or c1 is None or c2 is None:
+        G = self.typed_matrix()
+        if G is None or c1 is None or c2 is None:
             self.notify("choose a controller for both loops first (Enter on a row, or 2)", severity="warning")
             return
         from quadtank_tui.core.design.mimo import lambda11, slowest_pole
 
         h = self.engine.snapshot().params.tsamp
-        worst = slowest_pole(self.G, c1, c2, h)  # the loop sampled at the Ts in force
+        worst = slowest_pole(G, c1, c2, h)  # the loop sampled at the Ts in force
         verdict = "stable" if worst < 0 else "UNSTABLE"
         self.query_one("#design-mimo", Static).update(
             f"2x2 closed loop with the chosen pair, sampled at {h:g} s: {verdict} (slowest pole {worst:.3g} 1/s)\n"
-            f"λ11(0) = {lambda11(self.G, 0.0).real:.3f}")
+            f"λ11(0) = {lambda11(G, 0.0).real:.3f}")
 
     # --- apply ---------------------------------------------------------------------
 

@@ -104,12 +104,11 @@ BEST = "best"
 
 def verdict(c: Candidate) -> str:
     """The check column's word for a designed, stable row: "ok" when it holds, ""
-    when it was not checked (h = 0), else a word from _VERDICTS."""
-    if c.limits is None:
-        return ""
+    when it was not checked (h = 0), "2x2 uns" when the pair with the other loop's
+    controller is unstable, else a word from _VERDICTS."""
+    if c.limits is None or c.limits.problem is None:
+        return "2x2 uns" if c.pair is not None else "" if c.limits is None else "ok"
     why = c.limits.problem
-    if why is None:
-        return "ok"
     return next((word for words, word in _VERDICTS if words in why), why[: COLUMNS[-1][2] - 2])
 
 

@@ -12,7 +12,6 @@ Cancel hands back None: nothing is applied.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -26,9 +25,9 @@ from textual_plotext import PlotextPlot
 
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import PID, DesignError
-from quadtank_tui.core.design.preview import Preview, PreviewStep, format_preview, preview
+from quadtank_tui.app.design import PreviewPlan, preview_plan
+from quadtank_tui.core.design.preview import Preview, PreviewStep, format_preview
 from quadtank_tui.core.plants.common import PlantError
-from quadtank_tui.core.plants.base import Plant
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.colours import BLUE, RED
 from quadtank_tui.ui.widgets import plot_kit as kit
@@ -38,46 +37,23 @@ from quadtank_tui.ui.widgets.sized import PacksForSize
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Window
 
 
-@dataclass(frozen=True)
-class PreviewRequest:
-    """What the preview simulates (core.design.preview's arguments)."""
-
-    plant: Plant
-    levels: tuple[float, ...]  # all tanks, the plant's length unit
-    inputs: tuple[float, ...]  # pump volts
-    pair: tuple[PID, PID]
-    h: float
-    window: float
-    model: Sequence[Sequence[DelayTF]] | None
-    tr: tuple[float, float]
-
-
 def preview_request(snap: Snapshot, pair: tuple[PID | None, PID | None],
-                    G: Sequence[Sequence[DelayTF]] | None) -> PreviewRequest:
-    """The preview of `pair` (None: the loop's controller in force) on the plant in use:
-    from the levels and inputs of the moment while the process runs, else from the
-    parameters' operating point; at the sampling time in force; the window four
-    times the slower loop's designed settling time."""
+                    G: Sequence[Sequence[DelayTF]] | None) -> PreviewPlan:
+    """The preview of `pair` (None: the loop's controller in force) on the plant in use
+    (app.design.preview_plan, the one `quadtank design` runs): from the levels and
+    inputs of the moment while the process runs, else from the parameters'
+    operating point; at the sampling time in force; each step until it settles."""
     from quadtank_tui.core.design.apply import in_force
-    from quadtank_tui.core.design.evaluate import evaluate
-    from quadtank_tui.core.design.preview import window_for
     from quadtank_tui.core.plants.common import FULL_SCALE_V
 
     p = snap.params
     plant = p.process_plant()
     chosen = (pair[0] or in_force(p, 1), pair[1] or in_force(p, 2))
+    start = None
     if snap.state == "Run":
-        levels = tuple(y * FULL_SCALE_V * st.hi / out.hi for y, st, out in zip(snap.y, plant.states, plant.outputs))
-        inputs = tuple(u * s.full_scale for u, s in zip(snap.u, plant.inputs))
-    else:
-        given = [x if i in plant.controlled else None for i, x in enumerate(p.process_levels())]
-        op = plant.steady_inputs(given)
-        levels, inputs = tuple(op.x), tuple(op.u)
-    h = p.tsamp
-    settling = [evaluate(c, G[i][i], h=h).setpoint_settling for i, c in enumerate(chosen)] if G else []
-    tr = (float(getattr(p.get("CONTROLLER ONE.Tr"), "value", p.get("CONTROLLER ONE.Tr"))),
-          float(getattr(p.get("CONTROLLER FOUR.Tr"), "value", p.get("CONTROLLER FOUR.Tr"))))
-    return PreviewRequest(plant, levels, inputs, chosen, h, window_for(settling, h), G, tr)
+        start = (tuple(y * FULL_SCALE_V * st.hi / out.hi for y, st, out in zip(snap.y, plant.states, plant.outputs)),
+                 tuple(u * s.full_scale for u, s in zip(snap.u, plant.inputs)))
+    return preview_plan(p, chosen, G, p.tsamp, start=start)
 
 
 #: Terminal rows below which the window is laid out short (windows.tcss).
@@ -87,14 +63,14 @@ SHORT = 32
 class DesignPreviewWindow(PacksForSize, Window[bool]):
     """Predicted and simulated steps of the chosen pair; Apply or Cancel."""
 
-    def __init__(self, request: PreviewRequest) -> None:
+    def __init__(self, request: PreviewPlan) -> None:
         super().__init__("Preview on the simulated plant")
         self.request = request
         self.result: Preview | None = None
 
     def compose_body(self) -> ComposeResult:
         r = self.request
-        yield Static(f"{r.plant.title}: step 0.1 on each loop, {r.window:.0f} s each, sampled at {r.h:g} s, "
+        yield Static(f"{r.plant.title}: step 0.1 on each loop until it settles, sampled at {r.h:g} s, "
                      "pumps 0..10 V; y1 after the r1 step, y2 after the r2 step; the design's prediction "
                      "dotted over the nonlinear simulation",
                      id="preview-what", markup=False)
@@ -124,8 +100,7 @@ class DesignPreviewWindow(PacksForSize, Window[bool]):
     def _simulate(self) -> None:
         r = self.request
         try:
-            pv = preview(r.plant, r.levels, r.inputs, r.pair, r.h, window=r.window, model=r.model, tr=r.tr,
-                         progress=lambda f: self.app.call_from_thread(self._progress, f))
+            pv = r.run(progress=lambda f: self.app.call_from_thread(self._progress, f))
         except (DesignError, PlantError, ValueError) as exc:
             self.app.call_from_thread(self._failed, str(exc))
             return
