@@ -257,7 +257,7 @@ def controllers(ex: Exercise, params: Parameters) -> dict[str, Any]:
     try:
         from quadtank_tui.core.design.apply import in_force
         from quadtank_tui.core.design.mimo import model_in_use
-        from quadtank_tui.core.design.preview import preview, window_for
+        from quadtank_tui.app.design import preview_plan
         from quadtank_tui.core.design.sampled_eval import evaluate_sampled
 
         G = model_in_use(exercise_params(ex))
@@ -265,11 +265,7 @@ def controllers(ex: Exercise, params: Parameters) -> dict[str, Any]:
         evs = [evaluate_sampled(c, G[i][i], params.tsamp, u0=None).evaluation for i, c in enumerate(pair)]
         out["loops"] = [{"loop": i + 1, "K": c.Kc, "Ti": c.Ti if math.isfinite(c.Ti) else None, "Td": c.Td,
                          **ev.to_dict()} for i, (c, ev) in enumerate(zip(pair, evs))]
-        plant = params.process_plant()
-        levels = params.process_levels()
-        op = plant.steady_inputs([x if i in plant.controlled else None for i, x in enumerate(levels)])
-        settle = [ev.setpoint_settling for ev in evs]
-        pv = preview(plant, op.x, op.u, pair, params.tsamp, window=window_for(settle, params.tsamp), model=G)
+        pv = preview_plan(params, pair, G, params.tsamp).run()  # each step until it settles
         out["preview"] = pv.to_dict()
     except (ValueError, ArithmeticError) as exc:  # a design error, a plant the 2x2 check cannot take
         out["design_error"] = str(exc)
