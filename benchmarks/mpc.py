@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix
+from quadtank_tui.core.controllers.matrix import ELEMENTS, ControllerMatrix
 from quadtank_tui.core.mpc.controller import MPC, design_mpc
 from quadtank_tui.core.mpc.model import plant_in_use
 from quadtank_tui.core.mpc.settings import MPCSettings

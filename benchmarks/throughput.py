@@ -169,7 +169,7 @@ def _median(times: list[tuple[float, float]]) -> tuple[float, float]:
 
 def _prbs_refs(seed: int) -> np.ndarray:
     """The engine's references for `seed`, from its own generators (no plant run)."""
-    from quadtank_tui.core.signals import Generator, Wave, WaveParams
+    from quadtank_tui.core.controllers.signals import Generator, Wave, WaveParams
     from benchmarks.experiment import AMPLITUDE, PERIOD, Y0
 
     gens = [Generator(WaveParams(wave=Wave.PRBS, mean=Y0[i], amplitude=AMPLITUDE, period=PERIOD,

@@ -183,7 +183,7 @@ def format_design(source: str, r: dict[str, Any]) -> str:
 def compare(params: Any, plant: Any, d: Any, phase: float) -> dict[str, Any]:
     """MPC and (when the file has one for this plant) the PI matrix on the standard
     scenario; the figures of each as JSON values."""
-    from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, Family
+    from quadtank_tui.core.controllers.matrix import ELEMENTS, ControllerMatrix, Family
     from quadtank_tui.core.mpc.controller import MPC
     from quadtank_tui.core.mpc.simulate import figures, run_mpc, run_pi, standard_scenario
 
@@ -219,7 +219,7 @@ def _figures_dict(f: Any) -> dict[str, Any]:
 
 def pi_missing(params: Any, plant: Any) -> str:
     """Why the file's controllers cannot be compared on this plant ("" when they can)."""
-    from quadtank_tui.core.matrix import Family
+    from quadtank_tui.core.controllers.matrix import Family
 
     if params.control.family is Family.STATE_FEEDBACK:
         return "the file's controller type is state feedback"

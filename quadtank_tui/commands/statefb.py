@@ -1,6 +1,6 @@
 """`quadtank statefb`: print the state-feedback design a `.par` file asks for.
 
-The design is the one the loop would run (core.statefb.quadtank.design_for): the
+The design is the one the loop would run (core.controllers.statefb.quadtank.design_for): the
 ZOH model Phi, Gamma at the sampling time, the poles (s and z), the gains L1, L2 and
 the robustness delta.  --ts and --sampling override the file's settling time and
 sampling time; errors are one line naming the file or the option.  The design stack
@@ -38,7 +38,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from quadtank_tui.core.parameters import STATEFB_SECTION, TSAMP, TSAMP_MAX_MS, TSAMP_MIN_MS
-    from quadtank_tui.core.statefb.in_use import design_in_use
+    from quadtank_tui.core.controllers.statefb.in_use import design_in_use
     from quadtank_tui.core.validation import ParameterError
 
     params, source = params_of(args.par)

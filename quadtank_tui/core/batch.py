@@ -14,7 +14,7 @@ about 1e-9 normalized over an hour.
 Example
 -------
 >>> import numpy as np
->>> from quadtank_tui.core.pid import PIDParams
+>>> from quadtank_tui.core.controllers.pid import PIDParams
 >>> from quadtank_tui.core.plants.johansson import P_MINUS, steady_state_levels
 >>> h0 = steady_state_levels((3.0, 3.0), P_MINUS.params)
 >>> y0 = [P_MINUS.params.kc * x / 10 for x in h0[:2]]
@@ -32,8 +32,8 @@ from typing import Sequence
 
 import numpy as np
 
-from quadtank_tui.core.matrix import U_MAX, U_MIN
-from quadtank_tui.core.pid import PIDParams
+from quadtank_tui.core.controllers.matrix import U_MAX, U_MIN
+from quadtank_tui.core.controllers.pid import PIDParams
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.johansson import H_FILM, PlantParams
 

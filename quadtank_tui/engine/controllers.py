@@ -1,5 +1,5 @@
 """The loop's controllers, C: the PID/General matrix on y1, y2 and, while it is the
-type in force, the state feedback on every level of the plant (core.statefb) or the
+type in force, the state feedback on every level of the plant (core.controllers.statefb) or the
 MPC (core.mpc, through engine/mpc_control.py).
 
 Split from engine/loop.py (issue 25) along the seam the loop has: the sample uses
@@ -19,15 +19,15 @@ import importlib
 import threading
 from typing import TYPE_CHECKING, Union
 
-from quadtank_tui.core.general import realization
-from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix, Family
+from quadtank_tui.core.controllers.general import realization
+from quadtank_tui.core.controllers.matrix import ELEMENTS, ControllerMatrix, Family
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.backend import Levels4, Pair
 
 if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is chosen
-    from quadtank_tui.core.statefb.design import Design
-    from quadtank_tui.core.statefb.plants import PlantStateFeedback
-    from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+    from quadtank_tui.core.controllers.statefb.design import Design
+    from quadtank_tui.core.controllers.statefb.plants import PlantStateFeedback
+    from quadtank_tui.core.controllers.statefb.quadtank import QuadTankStateFeedback
     from quadtank_tui.engine.mpc_control import LoopMPC
 
     AnyStateFeedback = Union[QuadTankStateFeedback, PlantStateFeedback]
@@ -43,8 +43,8 @@ if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is cho
 #: thread at the first switch, that stalled a rig's samples past its watchdog (the
 #: guard set the pumps to 0); so a loop on a rig imports them on a thread of their
 #: own as it starts (preload_designs).
-DESIGN_MODULES = ("quadtank_tui.core.statefb.in_use", "quadtank_tui.core.statefb.quadtank",
-                  "quadtank_tui.core.statefb.plants", "quadtank_tui.engine.mpc_control", "osqp")
+DESIGN_MODULES = ("quadtank_tui.core.controllers.statefb.in_use", "quadtank_tui.core.controllers.statefb.quadtank",
+                  "quadtank_tui.core.controllers.statefb.plants", "quadtank_tui.engine.mpc_control", "osqp")
 
 
 def preload_designs() -> threading.Thread:
@@ -66,17 +66,17 @@ def preload_designs() -> threading.Thread:
 def new_statefb(p: Parameters) -> AnyStateFeedback:
     """The state feedback `p` asks for, on its plant (ParameterError: no such design)."""
     if p.process is None:
-        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+        from quadtank_tui.core.controllers.statefb.quadtank import QuadTankStateFeedback
 
         return QuadTankStateFeedback(p.quadtank_constants(), p.statefb, p.tsamp)
-    from quadtank_tui.core.statefb.plants import PlantStateFeedback
+    from quadtank_tui.core.controllers.statefb.plants import PlantStateFeedback
 
     return PlantStateFeedback(p.process_plant(), p.process_levels(), p.statefb, p.tsamp)
 
 
 def _statefb_design(p: Parameters) -> Design:
     """A new design for the state feedback running on `p`'s plant."""
-    from quadtank_tui.core.statefb.in_use import design_in_use
+    from quadtank_tui.core.controllers.statefb.in_use import design_in_use
 
     return design_in_use(p)
 
@@ -198,9 +198,9 @@ class Controllers:
         if new.control.family is not Family.STATE_FEEDBACK:
             self.statefb = None
             return
-        from quadtank_tui.core.statefb.design import Design
-        from quadtank_tui.core.statefb.plants import PlantStateFeedback
-        from quadtank_tui.core.statefb.quadtank import QuadTankStateFeedback
+        from quadtank_tui.core.controllers.statefb.design import Design
+        from quadtank_tui.core.controllers.statefb.plants import PlantStateFeedback
+        from quadtank_tui.core.controllers.statefb.quadtank import QuadTankStateFeedback
 
         if isinstance(change, (QuadTankStateFeedback, PlantStateFeedback)):
             self.statefb = change

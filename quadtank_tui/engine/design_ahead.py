@@ -19,7 +19,7 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable
 
-from quadtank_tui.core.matrix import Family
+from quadtank_tui.core.controllers.matrix import Family
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.engine import controllers

@@ -23,7 +23,7 @@ One sample (Run)::
     Manual:    u = sat(w), r = y,         C.track(r, y, u)    (bumpless later)
     write u; log a row; history; snapshot; let h seconds of process time pass
 
-C is the PID/General matrix on y1, y2, or the state feedback (core.statefb) on every
+C is the PID/General matrix on y1, y2, or the state feedback (core.controllers.statefb) on every
 level of the plant; while the state feedback runs, the matrix tracks u so that switching
 back to its family is bumpless too.  Making and changing C is engine/controllers.py's;
 the calibration on the rig, which replaces the sample while it holds the pumps, is
@@ -49,11 +49,11 @@ from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 from quadtank_tui.core.faults import Fault
-from quadtank_tui.core.matrix import ControllerMatrix, Family, saturate
+from quadtank_tui.core.controllers.matrix import ControllerMatrix, Family, saturate
 from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
 from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
-from quadtank_tui.core.signals import Generator
+from quadtank_tui.core.controllers.signals import Generator
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend, arm, plant_refused, unconfirmed_stop
 from quadtank_tui.engine.calibration_step import RigCalibration

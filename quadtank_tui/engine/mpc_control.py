@@ -25,7 +25,7 @@ from quadtank_tui.core.mpc.model import plant_in_use
 from quadtank_tui.core.mpc.simulate import sensor_gains
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.plants.common import FULL_SCALE_V
-from quadtank_tui.core.signals import Generator
+from quadtank_tui.core.controllers.signals import Generator
 
 Pair = tuple[float, float]
 

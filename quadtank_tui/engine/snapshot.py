@@ -15,7 +15,7 @@ from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.backend import Levels4, Pair
 
 if TYPE_CHECKING:  # scipy behind it; the loop process starts without it
-    from quadtank_tui.core.statefb.quadtank import StateFeedbackInfo
+    from quadtank_tui.core.controllers.statefb.quadtank import StateFeedbackInfo
 
 
 @dataclass(frozen=True)

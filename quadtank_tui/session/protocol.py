@@ -186,7 +186,7 @@ CLIENT_MESSAGES: tuple[type, ...] = (Hello, Submit, StopSession)
 # --- the types a line may build ----------------------------------------------------------------
 
 #: Types whose annotations cannot be resolved without a heavy import (scipy): by name.
-_LAZY = {"StateFeedbackInfo": ("quadtank_tui.core.statefb.quadtank", "StateFeedbackInfo")}
+_LAZY = {"StateFeedbackInfo": ("quadtank_tui.core.controllers.statefb.quadtank", "StateFeedbackInfo")}
 
 
 @dataclass

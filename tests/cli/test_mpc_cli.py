@@ -70,7 +70,7 @@ def test_a_file_whose_type_is_mpc_is_compared_with_its_pid_settings(capsys: pyte
                                                                    tmp_path: Path) -> None:
     """CONTROL.Type MPC round-trips through a .par file; the comparison uses the
     file's PID settings (the matrix cannot be of family MPC)."""
-    from quadtank_tui.core.matrix import Family
+    from quadtank_tui.core.controllers.matrix import Family
     from quadtank_tui.files.par import read_par, write_par
 
     src = read_par(PARAMS / "minphase.par").params.with_values({"CONTROL.Type": "MPC", "MPC.Horizon": 12})

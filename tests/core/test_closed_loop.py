@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from quadtank_tui.core.analysis import linearize
-from quadtank_tui.core.matrix import ControllerMatrix, Family, Structure, saturate
-from quadtank_tui.core.pid import PIDParams
+from quadtank_tui.core.controllers.matrix import ControllerMatrix, Family, Structure, saturate
+from quadtank_tui.core.controllers.pid import PIDParams
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.johansson import (
     P_MINUS, P_PLUS, Setting, advance, levels_to_normalized, steady_state_levels,

@@ -20,7 +20,7 @@ from quadtank_tui.core.parameters import (
     spec,
 )
 from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS
-from quadtank_tui.core.signals import Wave
+from quadtank_tui.core.controllers.signals import Wave
 from quadtank_tui.core.validation import ParameterError
 
 

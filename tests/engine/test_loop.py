@@ -7,7 +7,7 @@ from typing import Callable
 
 import pytest
 
-from quadtank_tui.core.matrix import Family, Structure
+from quadtank_tui.core.controllers.matrix import Family, Structure
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend
 from quadtank_tui.engine.commands import (

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.core.statefb.settings import StateFeedbackParams
+from quadtank_tui.core.controllers.statefb.settings import StateFeedbackParams
 from quadtank_tui.files.par import ParFileError, format_par, parse_par, read_par
 
 GOLDEN = Path(__file__).parent / "golden"

@@ -1,7 +1,7 @@
 """A designed PI/PID pair as the parameter changes that put it in the controller
 matrix: a decentralized PID with the loops on elements 11 (CONTROLLER ONE) and 22
 (CONTROLLER FOUR).  Applying them is an ordinary SetParams, so it is bumpless like
-any parameter change (the integrator absorbs a new K; core.pid)."""
+any parameter change (the integrator absorbs a new K; core.controllers.pid)."""
 
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ def controller_values(pair: Sequence[PID | None]) -> dict[str, Any]:
 #: element 12 of the matrix, u1 from error 2: CONTROLLER TWO, in the full matrix.
 #: CONTROLLER ONE keeps K 0 with its integrator: it holds the input the Manual ->
 #: Automatic switch found (bumpless) and takes the pump's saturation excess, the
-#: anti-windup the matrix gives the element that owns input 1 (core.matrix).
+#: anti-windup the matrix gives the element that owns input 1 (core.controllers.matrix).
 ONE_PUMP_ELEMENT = "CONTROLLER TWO"
 
 

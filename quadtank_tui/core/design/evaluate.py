@@ -93,7 +93,7 @@ def evaluate(c: PID, g: DelayTF, w: np.ndarray | None = None, *, setpoint: bool 
              h: float = 0.0) -> Evaluation:
     """All figures of controller `c` on process model `g` (setpoint=False: skip the
     setpoint step, which Andersson's table does not show; its figures are then nan).
-    h > 0: the figures of the loop sampled at h with core.pid's PID
+    h > 0: the figures of the loop sampled at h with core.controllers.pid's PID
     (core.design.sampled_eval); h = 0: the continuous-time loop."""
     if h > 0.0:
         from quadtank_tui.core.design.sampled_eval import evaluate_sampled

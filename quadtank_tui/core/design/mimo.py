@@ -241,7 +241,7 @@ def _pade(delay: float, order: int) -> tuple[np.ndarray, np.ndarray]:
 
 def sampled_poles(G: Matrix, c1: PID, c2: PID, h: float) -> np.ndarray:
     """z-plane poles of the 2x2 loop sampled at h: every element behind the ZOH with
-    its dead time exact (whole samples and the fraction), both PIDs as core.pid runs them."""
+    its dead time exact (whole samples and the fraction), both PIDs as core.controllers.pid runs them."""
     from quadtank_tui.core.design.sampled import closed_loop_matrix, sample
 
     models = [[sample(G[i][j], h) for j in range(2)] for i in range(2)]
@@ -332,7 +332,7 @@ def design_2x2(G: Matrix, method: str = "lambda", *, lam: tuple[float | None, fl
 
 def format_check(check: MimoCheck) -> str:
     """The MIMO check as text (CLI and screen)."""
-    where = (f"sampled at h = {check.sampling_time:g} s (ZOH, core.pid's PID)" if check.sampling_time > 0
+    where = (f"sampled at h = {check.sampling_time:g} s (ZOH, core.controllers.pid's PID)" if check.sampling_time > 0
              else "continuous time")
     lines = [f"det G(0) = {check.det_G0:.4g}   lambda11(0) = {check.lambda11_0:.3f}   {where}"]
     for d, lw in zip(check.loops, check.lambda11_wc):

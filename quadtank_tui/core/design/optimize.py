@@ -119,7 +119,7 @@ def _best_kc(Gw: np.ndarray, Q: np.ndarray, D: np.ndarray, r: float) -> tuple[fl
 def _loop_shapes(g: DelayTF, h: float, w: np.ndarray | None, sign: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(w, G, Q = G x the integral's shape): G(iw) and 1/(iw) for h = 0; for h > 0 the
-    ZOH model G(e^(iwh)) and core.pid's forward-difference integral h/(z - 1), on
+    ZOH model G(e^(iwh)) and core.controllers.pid's forward-difference integral h/(z - 1), on
     0 < w < pi/h: the exact discrete-time design of the loop as it runs."""
     if h > 0.0:
         w = sampled_grid(g, h) if w is None else w[w < math.pi / h]
@@ -160,7 +160,7 @@ def pid_ms(g: DelayTF, ms: float, w: np.ndarray | None = None,
     The search over Td runs on a band of 600 frequencies around the PI design's
     binding frequency; the chosen Td is then re-optimized over Kc on the full grid,
     so the constraint is met everywhere, not only on the band.  h > 0: the sampled
-    loop, with core.pid's backward-difference derivative (see _loop_shapes)."""
+    loop, with core.controllers.pid's backward-difference derivative (see _loop_shapes)."""
     check_ms(ms)
     sign = process_sign(g)
     w, Gw, Q = _loop_shapes(g, h, w, sign)

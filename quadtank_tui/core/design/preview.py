@@ -5,8 +5,8 @@ design) and simulated (the plant's nonlinear equations) side by side.
 Pure numbers (no engine, no files), so the CLI, the TUI's worker and the tests
 call the same function and it runs in a fraction of a second: the loop is what
 the engine runs in Automatic with a decentralized PID (elements 11 and 22,
-core.pid at the sampling time, normalized signals, pumps clipped to 0..1 as
-core.matrix.saturate does, the anti-windup time Tr of the parameters), started
+core.controllers.pid at the sampling time, normalized signals, pumps clipped to 0..1 as
+core.controllers.matrix.saturate does, the anti-windup time Tr of the parameters), started
 bumpless from the given levels and inputs (references at the measured levels,
 integrators holding the inputs, as the Manual -> Automatic switch does).  The
 rig's DAQ interlock stops a pump whose tank reaches its brim: the simulation

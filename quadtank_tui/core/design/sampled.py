@@ -1,5 +1,5 @@
 """The loop as it runs: a model behind a zero-order hold, sampled every h seconds,
-closed by the PID of core.pid (its own discretization), pumps limited to 0..1.
+closed by the PID of core.controllers.pid (its own discretization), pumps limited to 0..1.
 
 Exact at the sampling instants, no approximation of the hold or of the dead time:
 
@@ -7,13 +7,13 @@ Exact at the sampling instants, no approximation of the hold or of the dead time
   d whole samples and a fraction tau = L - d h),
   x(k+1) = Phi x(k) + Gamma0 u(k-d) + Gamma1 u(k-d-1),
   Gamma0 = int_0^(h-tau) e^(As) ds B,  Gamma1 = e^(A(h-tau)) int_0^tau e^(As) ds B;
-* the controller as core.pid computes it (forward-difference integral, backward-
+* the controller as core.controllers.pid computes it (forward-difference integral, backward-
   difference filtered derivative on y): from -y to u,
   C(z) = K [1 + h/(Ti (z-1)) + Td N/(Td + N h) (1 - 1/z)/(1 - ad/z)], ad = Td/(Td + N h).
 
 The frequency figures (Ms, margins, crossover) are those of L(e^(iwh)) = C(z) G(z)
 for 0 < w < pi/h; stability is the closed loop's eigenvalues (|z| < 1); the time
-figures are simulations with core.pid's own PID object (anti-windup included).
+figures are simulations with core.controllers.pid's own PID object (anti-windup included).
 """
 
 from __future__ import annotations
@@ -125,7 +125,7 @@ def _sample(num: tuple[float, ...], den: tuple[float, ...], delay: float, h: flo
 
 
 def derivative_gain(c: PID, h: float) -> tuple[float, float]:
-    """(ad, Td N/(Td + N h)): core.pid's backward-difference filter at h."""
+    """(ad, Td N/(Td + N h)): core.controllers.pid's backward-difference filter at h."""
     if c.Td <= 0.0:
         return 0.0, 0.0
     den = c.Td + c.N * h
@@ -148,14 +148,14 @@ def integral_shape(h: float, w: np.ndarray) -> np.ndarray:
 
 
 def controller_freqresp(c: PID, h: float, w: np.ndarray) -> np.ndarray:
-    """C(e^(iwh)) from -y to u, as core.pid implements the PID."""
+    """C(e^(iwh)) from -y to u, as core.controllers.pid implements the PID."""
     integral = c.Kc / c.Ti * integral_shape(h, w) if math.isfinite(c.Ti) else 0.0
     return c.Kc * derivative_shape(c.Td, c.N, h, w) + integral
 
 
 def controller_ss(c: PID, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """(Ac, Bc, Cc, Dc): xc(k+1) = Ac xc + Bc y, u = Cc xc + Dc y (r = 0), states
-    [I, D, y(k-1)] as core.pid keeps them (D and y(k-1) only with a derivative)."""
+    [I, D, y(k-1)] as core.controllers.pid keeps them (D and y(k-1) only with a derivative)."""
     ki = c.Kc * h / c.Ti if math.isfinite(c.Ti) else 0.0
     ad, gd = derivative_gain(c, h)
     bd = c.Kc * gd

@@ -27,8 +27,8 @@ from quadtank_tui.core.design.sampled import (
     slowest_rate,
 )
 from quadtank_tui.core.metrics import loop_metrics
-from quadtank_tui.core.pid import PID as RunningPID
-from quadtank_tui.core.pid import PIDParams
+from quadtank_tui.core.controllers.pid import PID as RunningPID
+from quadtank_tui.core.controllers.pid import PIDParams
 
 #: reference and load step of the limit check, normalized (10 % of the pump/sensor range)
 STEP = 0.1
@@ -42,7 +42,7 @@ MAX_SAMPLES = 40_000
 
 
 def running_pid(c: PID, h: float, tr: float = TR_DEFAULT) -> RunningPID:
-    """The PID element core.pid runs, with this design's settings."""
+    """The PID element core.controllers.pid runs, with this design's settings."""
     if abs(c.Kc) > 1e3:
         raise DesignError(f"Kc = {c.Kc:.4g}: beyond the PID element's range (|K| <= 1000)")
     integral = math.isfinite(c.Ti) and c.Ti < 1e6
@@ -56,10 +56,10 @@ def simulate(m: SampledModel, c: PID, *, r: float = 0.0, d: float = 0.0, samples
     """From rest (deviations), a reference step r and a load step d at the process
     input at sample 0; the controller output clipped to `limits` (deviation).
 
-    The controller is core.pid's algorithm sample by sample (P on b r - y, the
+    The controller is core.controllers.pid's algorithm sample by sample (P on b r - y, the
     backward-difference derivative on y, the forward-difference integral with the
     back-calculation anti-windup h/Tr (u - v); tests/core/design check it against
-    core.pid.PID to rounding).  While the output stays inside the limits the loop
+    core.controllers.pid.PID to rounding).  While the output stays inside the limits the loop
     is linear: from each unsaturated sample the rest is propagated in blocks
     (`propagate`), and kept up to the first sample it would leave the limits."""
     if m.Dd != 0.0:

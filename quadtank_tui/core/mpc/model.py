@@ -29,9 +29,9 @@ import numpy as np
 from quadtank_tui.core.mpc.settings import SECTION, MPCSettings
 from quadtank_tui.core.plants.base import Plant
 from quadtank_tui.core.plants.linear import zoh
-from quadtank_tui.core.statefb.design import OperatingModel
-from quadtank_tui.core.statefb.plants import _CM_PER_UNIT as CM_PER_UNIT  # LevelMargin is in cm
-from quadtank_tui.core.statefb.plants import operating_model
+from quadtank_tui.core.controllers.statefb.design import OperatingModel
+from quadtank_tui.core.controllers.statefb.plants import _CM_PER_UNIT as CM_PER_UNIT  # LevelMargin is in cm
+from quadtank_tui.core.controllers.statefb.plants import operating_model
 from quadtank_tui.core.validation import ParameterError
 
 if TYPE_CHECKING:
@@ -118,7 +118,7 @@ class MPCModel:
 
 
 def nearest_operating_model(plant: Plant, levels: Sequence[float]) -> tuple[OperatingModel, str]:
-    """The linearization state feedback designs on (core.statefb.plants) at the
+    """The linearization state feedback designs on (core.controllers.statefb.plants) at the
     operating levels; when no pump setting holds them (the two-input rig's file
     levels need pump 2 to run backwards without Murray-Smith's clogged drain), at the
     steady state of the pumps within their range whose tracked levels come closest,

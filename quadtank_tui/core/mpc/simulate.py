@@ -17,7 +17,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from quadtank_tui.core import faults as fx
-from quadtank_tui.core.matrix import ControllerMatrix
+from quadtank_tui.core.controllers.matrix import ControllerMatrix
 from quadtank_tui.core.metrics import loop_metrics
 from quadtank_tui.core.mpc.controller import MPC, percentiles
 from quadtank_tui.core.plants.base import Plant

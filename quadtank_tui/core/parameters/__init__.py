@@ -34,7 +34,7 @@ Example
 
 from __future__ import annotations
 
-from quadtank_tui.core.matrix import Family, Structure
+from quadtank_tui.core.controllers.matrix import Family, Structure
 from quadtank_tui.core.parameters.constants import (
     CONTROLLER_SECTIONS,
     MAX_ABS,

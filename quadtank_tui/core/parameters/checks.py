@@ -6,7 +6,7 @@ from __future__ import annotations
 from enum import Enum
 from typing import Any
 
-from quadtank_tui.core.signals import Wave, WaveParams
+from quadtank_tui.core.controllers.signals import Wave, WaveParams
 from quadtank_tui.core.validation import ParameterError, check_number, check_range
 
 

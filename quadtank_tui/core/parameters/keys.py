@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from enum import Enum
 from typing import Any, Iterator
 
-from quadtank_tui.core.matrix import Family, Structure
+from quadtank_tui.core.controllers.matrix import Family, Structure
 from quadtank_tui.core.mpc.settings import DISTURBANCE_MODELS
 from quadtank_tui.core.parameters.checks import whole
 from quadtank_tui.core.parameters.constants import (
@@ -23,7 +23,7 @@ from quadtank_tui.core.parameters.constants import (
     STATEFB_SECTION,
     ControlMode,
 )
-from quadtank_tui.core.signals import Wave
+from quadtank_tui.core.controllers.signals import Wave
 from quadtank_tui.core.validation import ParameterError, check_number
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Sequence
 
-from quadtank_tui.core.general import GeneralParams
+from quadtank_tui.core.controllers.general import GeneralParams
 from quadtank_tui.core.mpc.settings import MPCSettings
 from quadtank_tui.core.parameters.constants import ControlMode
 from quadtank_tui.core.parameters.settings import (
@@ -15,13 +15,13 @@ from quadtank_tui.core.parameters.settings import (
     Parameters,
     SimulationSettings,
 )
-from quadtank_tui.core.pid import PIDParams
+from quadtank_tui.core.controllers.pid import PIDParams
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS, Setting
 from quadtank_tui.core.plants import Plant
 from quadtank_tui.core.plants.spec import PlantSpec
-from quadtank_tui.core.signals import Wave, WaveParams
-from quadtank_tui.core.statefb.settings import StateFeedbackParams
+from quadtank_tui.core.controllers.signals import Wave, WaveParams
+from quadtank_tui.core.controllers.statefb.settings import StateFeedbackParams
 
 
 def _pi_element(k: float, ti: float) -> ControllerElement:

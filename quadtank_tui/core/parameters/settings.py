@@ -6,8 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
 
-from quadtank_tui.core.general import GeneralParams
-from quadtank_tui.core.matrix import Family, Structure
+from quadtank_tui.core.controllers.general import GeneralParams
+from quadtank_tui.core.controllers.matrix import Family, Structure
 from quadtank_tui.core.parameters.checks import check_period, enum_value, integer
 from quadtank_tui.core.parameters.constants import (
     OP_POINT_MIN,
@@ -21,7 +21,7 @@ from quadtank_tui.core.parameters.constants import (
 )
 from quadtank_tui.core.parameters.keys import KEYS, spec
 from quadtank_tui.core.parameters.tree import replaced, walk
-from quadtank_tui.core.pid import PIDParams
+from quadtank_tui.core.controllers.pid import PIDParams
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.johansson import (
     Levels, PlantParams, Setting, area_from_diameter, diameter_from_area, levels_to_normalized,
@@ -29,9 +29,9 @@ from quadtank_tui.core.plants.johansson import (
 )
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.core.plants.spec import PlantSpec, check_quadtank_effects
-from quadtank_tui.core.signals import WaveParams
+from quadtank_tui.core.controllers.signals import WaveParams
 from quadtank_tui.core.mpc.settings import MPCSettings
-from quadtank_tui.core.statefb.settings import StateFeedbackParams
+from quadtank_tui.core.controllers.statefb.settings import StateFeedbackParams
 from quadtank_tui.core.validation import ParameterError, check_range
 
 #: Each key's place in the model (KEYS is in file order, the model's order).

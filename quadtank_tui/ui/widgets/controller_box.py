@@ -26,7 +26,7 @@ from quadtank_tui.ui.values import fmt
 from quadtank_tui.ui.labels import ELEMENT_NAMES, TYPES, type_index, type_modified
 
 if TYPE_CHECKING:  # scipy behind it: the Main screen starts without the analysis stack
-    from quadtank_tui.core.statefb.quadtank import StateFeedbackInfo
+    from quadtank_tui.core.controllers.statefb.quadtank import StateFeedbackInfo
 
 
 def element_used(p: Parameters, index: int) -> bool:

@@ -9,7 +9,7 @@ from textual.binding import Binding
 from textual.widgets import Input, Label, OptionList
 from textual.widgets.option_list import Option
 
-from quadtank_tui.core.general import MAX_DEGREE
+from quadtank_tui.core.controllers.general import MAX_DEGREE
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Parameters
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.engine.commands import ResetControllers, SetParams

@@ -19,7 +19,7 @@ from textual.containers import Horizontal
 from textual.widgets import Input, Label, RadioButton, RadioSet
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS, Parameters
-from quadtank_tui.core.signals import Wave
+from quadtank_tui.core.controllers.signals import Wave
 from quadtank_tui.ui.windows.base import Field, ParamWindow
 
 WAVES = tuple(w.value for w in Wave)

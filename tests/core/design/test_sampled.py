@@ -1,4 +1,4 @@
-"""The sampled loop (issue 23): the ZOH model with its dead time, core.pid's own
+"""The sampled loop (issue 23): the ZOH model with its dead time, core.controllers.pid's own
 discretization, the exact discrete-time Ms design, the limit check, the sampled 2x2
 check, and the identified-model case that limit-cycled on the rig at Ts = 1 s."""
 
@@ -86,7 +86,7 @@ def _core_pid_loop(m, c: PID, *, r: float = 0.0, d: float = 0.0, samples: int,
 @pytest.mark.parametrize("c", [PID(14.9, 3.75), PID(28.23, 1.676, 0.04114)])
 def test_the_simulation_is_core_pid_sample_by_sample(c: PID) -> None:
     """Limits, anti-windup and the derivative filter included: the same numbers as
-    stepping core.pid.PID itself."""
+    stepping core.controllers.pid.PID itself."""
     m = sample(IDENTIFIED, 0.5)
     for kw in ({"r": 0.1}, {"d": -0.1}, {"d": 0.3}):
         got = simulate(m, c, samples=600, limits=(-0.3, 0.7), **kw)

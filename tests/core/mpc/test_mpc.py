@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_discrete_are
 
-from quadtank_tui.core.matrix import ELEMENTS, ControllerMatrix
+from quadtank_tui.core.controllers.matrix import ELEMENTS, ControllerMatrix
 from quadtank_tui.core.mpc.controller import MPC, MPCStats, design_mpc, percentiles
 from quadtank_tui.core.mpc.model import plant_in_use
 from quadtank_tui.core.mpc.settings import MPCSettings

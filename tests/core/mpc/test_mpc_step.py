@@ -18,7 +18,7 @@ from quadtank_tui.core.mpc.controller import MPC, design_mpc
 from quadtank_tui.core.mpc.model import plant_in_use
 from quadtank_tui.core.mpc.settings import MPCSettings
 from quadtank_tui.core.mpc.simulate import run_mpc, standard_scenario
-from quadtank_tui.core.signals import Generator, Wave, WaveParams
+from quadtank_tui.core.controllers.signals import Generator, Wave, WaveParams
 from quadtank_tui.engine.mpc_control import future_references
 from quadtank_tui.files.par import read_par
 

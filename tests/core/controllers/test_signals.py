@@ -8,7 +8,7 @@ from dataclasses import replace
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from quadtank_tui.core.signals import (
+from quadtank_tui.core.controllers.signals import (
     LFSR, Generator, Wave, WaveParams, check_period,
 )
 from quadtank_tui.core.validation import ParameterError

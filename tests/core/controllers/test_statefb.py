@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from quadtank_tui.core.statefb.controller import AntiWindup, LevelLimit, StateFeedback, u_ssmax
-from quadtank_tui.core.statefb.design import (
+from quadtank_tui.core.controllers.statefb.controller import AntiWindup, LevelLimit, StateFeedback, u_ssmax
+from quadtank_tui.core.controllers.statefb.design import (
     DesignError,
     OperatingModel,
     bessel_poles,
@@ -253,7 +253,7 @@ def test_quadtank_level_limits_hold_each_upper_tank_below_its_trigger() -> None:
     """Tank 3 is filled by pump 2 alone, tank 4 by pump 1: U_ssmax of each holds its
     tank at top - 1.5 margin, below the trigger at top - margin (3.2.2)."""
     from quadtank_tui.core.plants.johansson import P_MINUS, steady_state_levels
-    from quadtank_tui.core.statefb.quadtank import level_limits
+    from quadtank_tui.core.controllers.statefb.quadtank import level_limits
 
     p = P_MINUS.params
     limits = {lim.state: lim for lim in level_limits(p, 2.0)}

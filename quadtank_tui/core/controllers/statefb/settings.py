@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from quadtank_tui.core.statefb.bessel import BESSEL_POLES
+from quadtank_tui.core.controllers.statefb.bessel import BESSEL_POLES
 from quadtank_tui.core.validation import ParameterError, check_range
 
 #: Largest design-model order Table 8 covers (4 states + 2 integrators on the QTP).

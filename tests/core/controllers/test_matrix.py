@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from quadtank_tui.core.general import GeneralParams
-from quadtank_tui.core.matrix import ControllerMatrix, Family, Structure, saturate
-from quadtank_tui.core.pid import PIDParams
+from quadtank_tui.core.controllers.general import GeneralParams
+from quadtank_tui.core.controllers.matrix import ControllerMatrix, Family, Structure, saturate
+from quadtank_tui.core.controllers.pid import PIDParams
 from quadtank_tui.core.validation import ParameterError
 
 P = PIDParams(K=0.0, integral=False)  # a silent element

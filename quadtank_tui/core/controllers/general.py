@@ -117,7 +117,7 @@ class General:
     """One SISO General element: C(s) of degree 0..4, Tustin-discretized, stepped as a
     discrete state-space system every sample (all signals normalized, h in seconds).
 
-    Two phases per sample like :class:`~quadtank_tui.core.pid.PID`: :meth:`compute`
+    Two phases per sample like :class:`~quadtank_tui.core.controllers.pid.PID`: :meth:`compute`
     (pure) gives u(k) = C x(k) + D e(k); :meth:`update` commits x(k+1) = Phi x(k) + Gam
     e(k) once the input went out.  In Manual mode :meth:`track` keeps the state
     matched to the applied input.  General elements have no anti-windup: the original

@@ -26,8 +26,8 @@ from __future__ import annotations
 from enum import Enum
 from typing import Mapping, Sequence
 
-from quadtank_tui.core.general import General, GeneralParams, realization
-from quadtank_tui.core.pid import PID, PIDParams
+from quadtank_tui.core.controllers.general import General, GeneralParams, realization
+from quadtank_tui.core.controllers.pid import PID, PIDParams
 from quadtank_tui.core.validation import ParameterError, check_sampling_time
 
 Element = tuple[int, int]
@@ -45,7 +45,7 @@ class Family(str, Enum):
     """Controller family, spelled as the `.par` file's CONTROL `Type`.
 
     State feedback and MPC are controller types but not matrices of SISO elements:
-    the loop runs them from core.statefb and core.mpc, and the matrix keeps its own
+    the loop runs them from core.controllers.statefb and core.mpc, and the matrix keeps its own
     family meanwhile."""
 
     PID = "PID"
@@ -84,7 +84,7 @@ def saturate(u: Sequence[float]) -> Pair:
 def _matrix_family(family: Family | str) -> Family:
     family = Family(family)
     if family.whole:
-        raise ParameterError("Type", f"{family.value} is not a matrix family (core.statefb, core.mpc run it)")
+        raise ParameterError("Type", f"{family.value} is not a matrix family (core.controllers.statefb, core.mpc run it)")
     return family
 
 

@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from quadtank_tui.core.pid import PID, PIDParams
+from quadtank_tui.core.controllers.pid import PID, PIDParams
 from quadtank_tui.core.validation import ParameterError
 
 P_ONLY = PIDParams(K=2.0, integral=False)

@@ -46,7 +46,7 @@ import numpy as np
 from scipy import linalg, optimize, signal
 
 from quadtank_tui.core.plants.linear import zoh
-from quadtank_tui.core.statefb.bessel import BESSEL_POLES  # noqa: E402  (re-exported)
+from quadtank_tui.core.controllers.statefb.bessel import BESSEL_POLES  # noqa: E402  (re-exported)
 
 #: Placement method of scipy.signal.place_poles (see the module docstring).
 PLACEMENT_METHOD = "YT"

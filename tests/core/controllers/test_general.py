@@ -7,7 +7,7 @@ import pytest
 import scipy.signal
 from hypothesis import given, settings, strategies as st
 
-from quadtank_tui.core.general import General, GeneralParams, tustin
+from quadtank_tui.core.controllers.general import General, GeneralParams, tustin
 from quadtank_tui.core.validation import ParameterError
 
 # A PID with derivative filter written as a General element, degree 2:

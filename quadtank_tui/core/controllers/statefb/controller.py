@@ -38,7 +38,7 @@ from typing import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from quadtank_tui.core.statefb.design import Design, DesignError
+from quadtank_tui.core.controllers.statefb.design import Design, DesignError
 
 
 class AntiWindup(str, Enum):

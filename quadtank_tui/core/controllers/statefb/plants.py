@@ -29,10 +29,10 @@ import numpy as np
 
 from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
 from quadtank_tui.core.plants.base import Plant
-from quadtank_tui.core.statefb.controller import LevelLimit, StateFeedback
-from quadtank_tui.core.statefb.design import Design, OperatingModel
-from quadtank_tui.core.statefb.quadtank import NormalizedStateFeedback, _aw, design_with, info_of
-from quadtank_tui.core.statefb.settings import StateFeedbackParams
+from quadtank_tui.core.controllers.statefb.controller import LevelLimit, StateFeedback
+from quadtank_tui.core.controllers.statefb.design import Design, OperatingModel
+from quadtank_tui.core.controllers.statefb.quadtank import NormalizedStateFeedback, _aw, design_with, info_of
+from quadtank_tui.core.controllers.statefb.settings import StateFeedbackParams
 from quadtank_tui.core.validation import ParameterError
 
 Pair = tuple[float, float]

@@ -20,9 +20,9 @@ import numpy as np
 from quadtank_tui.core.analysis import linearize
 from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
 from quadtank_tui.core.plants.johansson import PlantParams, steady_state_inputs
-from quadtank_tui.core.statefb.controller import AntiWindup, LevelLimit, StateFeedback, u_ssmax
-from quadtank_tui.core.statefb.design import Design, DesignError, OperatingModel, design
-from quadtank_tui.core.statefb.settings import StateFeedbackParams
+from quadtank_tui.core.controllers.statefb.controller import AntiWindup, LevelLimit, StateFeedback, u_ssmax
+from quadtank_tui.core.controllers.statefb.design import Design, DesignError, OperatingModel, design
+from quadtank_tui.core.controllers.statefb.settings import StateFeedbackParams
 from quadtank_tui.core.validation import ParameterError
 
 Pair = tuple[float, float]
