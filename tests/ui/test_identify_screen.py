@@ -167,20 +167,19 @@ async def test_d_designs_on_the_identified_model(app) -> None:
 
 @pytest.mark.parametrize("fitted", [False, True])
 async def test_a_resize_draws_the_plots_for_their_new_width(app, monkeypatch: pytest.MonkeyPatch, fitted: bool) -> None:
-    """A plot is decimated for its width when it is drawn (plot_kit.draw's columns):
+    """A plot's ticks are laid out for its width when it is drawn (plot_kit.axes):
     after the terminal changes size, the log's preview (or the fit) is drawn again
-    for the width the plot now has, not shown decimated for the old one."""
-    from textual_plotext import PlotextPlot
-
+    for the width the plot now has, not with the ticks for the old one."""
     from quadtank_tui.ui.widgets import plot_kit
+    from quadtank_tui.ui.widgets.plot_view import PlotView
 
     widths: list[int] = []
-    draw = plot_kit.draw
+    axes = plot_kit.axes
 
-    def recorded(plt: Any, x: Any, y: Any, style: Any, columns: int) -> None:
-        widths.append(columns)
-        draw(plt, x, y, style, columns)
-    monkeypatch.setattr(plot_kit, "draw", recorded)
+    def recorded(fig: Any, xlim: Any, ylim: Any, width: int, height: int, **kw: Any) -> None:
+        widths.append(width)
+        axes(fig, xlim, ylim, width, height, **kw)
+    monkeypatch.setattr(plot_kit, "axes", recorded)
     async with app.run_test(size=(120, 40)) as pilot:
         if fitted:
             await fit_both(pilot)
@@ -188,12 +187,12 @@ async def test_a_resize_draws_the_plots_for_their_new_width(app, monkeypatch: py
             await pilot.pause()
             await pilot.press("y")
             await pilot.pause()
-        top = pilot.app.screen.query_one("#outputs", PlotextPlot)
-        assert widths and widths[-1] == top.size.width
-        wide = top.size.width
+        top = pilot.app.screen.query_one("#outputs", PlotView)
+        assert widths and widths[-1] == top.content_size.width
+        wide = top.content_size.width
         for size in ((80, 24), (120, 40)):
             await pilot.resize_terminal(*size)
             for _ in range(4):
                 await pilot.pause()
-            assert top.size.width != wide if size == (80, 24) else top.size.width == wide
-            assert widths[-1] == top.size.width, (size, widths[-4:])
+            assert top.content_size.width != wide if size == (80, 24) else top.content_size.width == wide
+            assert widths[-1] == top.content_size.width, (size, widths[-4:])

@@ -28,7 +28,6 @@ from textual.containers import Horizontal, Vertical
 from textual.content import Content
 from textual.geometry import Size
 from textual.widgets import Input, Label, Static
-from textual_plotext import PlotextPlot
 
 from quadtank_tui.core.delaytf import DelayTF, ModelError
 from quadtank_tui.core.design.controller import PID, DesignError
@@ -43,6 +42,7 @@ from quadtank_tui.ui.screens.design_plots import (DesignPlots, draw_load_step, d
 from quadtank_tui.ui.screens.sending import CommandSender
 from quadtank_tui.ui.widgets.candidates_table import CandidatesTable, label
 from quadtank_tui.ui.widgets.key_footer import KeyFooter
+from quadtank_tui.ui.widgets.plot_view import PlotView
 
 if TYPE_CHECKING:  # the design core loads when the screen first computes (start-up time)
     from quadtank_tui.core.design.mimo import Matrix, MimoCheck
@@ -146,14 +146,14 @@ class DesignScreen(CommandSender):
                 yield Static(id="design-chosen")
                 yield Static(id="design-mimo")
             with Vertical(id="design-right"):
-                yield PlotextPlot(id="nyquist")
-                yield PlotextPlot(id="response")
+                yield PlotView(id="nyquist")
+                yield PlotView(id="response")
         yield Static(HELP, id="design-help")
         yield KeyFooter()
 
     def on_mount(self) -> None:
-        self.query_one("#nyquist", PlotextPlot).border_title = "Nyquist L(iω)"
-        self.query_one("#response", PlotextPlot).border_title = "Reference steps"
+        self.query_one("#nyquist", PlotView).border_title = "Nyquist L(iω)"
+        self.query_one("#response", PlotView).border_title = "Reference steps"
         self._show_tuning()
         if self.identified is not None:
             self.action_identified()
@@ -487,10 +487,10 @@ class DesignScreen(CommandSender):
 
     def _draw_plots(self, plots: DesignPlots) -> None:
         self._plots = plots
-        top, low = self.query_one("#nyquist", PlotextPlot), self.query_one("#response", PlotextPlot)
+        top, low = self.query_one("#nyquist", PlotView), self.query_one("#response", PlotView)
         dark, no_color = self.app.current_theme.dark, self.app.no_color
         for p in (top, low):
-            p.plt.clear_data()
+            p.figure.reset()
         if self.frequency_view:
             draw_sensitivity(top, plots, dark, no_color)
             draw_load_step(low, plots.load, dark, no_color)

@@ -33,7 +33,6 @@ from textual.content import Content
 from textual.geometry import Size
 from textual.widgets import DataTable, ProgressBar, SelectionList, Static
 from textual.worker import get_current_worker
-from textual_plotext import PlotextPlot
 
 from quadtank_tui.ui.colours import BLUE, GREY, RED, SIGNALS
 from quadtank_tui.ui.screens import identify_physical as fitui
@@ -41,6 +40,7 @@ from quadtank_tui.ui.screens.sending import COMPACT_WIDTH
 from quadtank_tui.ui.widgets import plot_kit as kit
 from quadtank_tui.ui.widgets.key_footer import KeyFooter
 from quadtank_tui.ui.widgets.plot_kit import Series
+from quadtank_tui.ui.widgets.plot_view import PlotView
 from quadtank_tui.ui.widgets.sized import PacksForSize
 
 if TYPE_CHECKING:  # the analysis stack loads with the first fit, not with the app
@@ -162,8 +162,8 @@ class IdentifyScreen(PacksForSize):
                 yield DataTable(id="compare", cursor_type="none", zebra_stripes=True)
                 yield Static("", id="zeros")
             with Vertical(id="identify-right"):
-                yield PlotextPlot(id="outputs")
-                yield PlotextPlot(id="lower")
+                yield PlotView(id="outputs")
+                yield PlotView(id="lower")
         yield KeyFooter()
 
     def pack(self, size: Size) -> None:
@@ -206,9 +206,8 @@ class IdentifyScreen(PacksForSize):
         from quadtank_tui.files.log_reader import read_log
 
         self._drawn = partial(self._preview, path)
-        top = self.query_one("#outputs", PlotextPlot)
-        top.plt.clear_figure()
-        top.plt.theme("clear")
+        top = self.query_one("#outputs", PlotView)
+        top.figure.reset()
         try:
             log = read_log(path)
         except ValueError as exc:
@@ -220,15 +219,14 @@ class IdentifyScreen(PacksForSize):
         # levels solid, the inputs that moved them dotted (the same hue per loop)
         drawn = kit.styles([Series(n, SIGNALS[n], dotted=n.startswith("u")) for n in shown],
                            dark=self.app.current_theme.dark, no_color=self.app.no_color)
-        width, height = top.size.width, top.size.height
+        width, height = top.content_size.width, top.content_size.height
         for st in drawn:
-            kit.draw(top.plt, t, log[st.series.label], st, width)
+            kit.draw(top.figure, t, log[st.series.label], st)
         if shown:
             values = np.concatenate([log[n] for n in shown])
-            kit.axes(top.plt, (0.0, float(t[-1])), (float(values.min()), float(values.max())), width, height,
+            kit.axes(top.figure, (0.0, float(t[-1])), (float(values.min()), float(values.max())), width, height,
                      xlabel="t (s)")
         top.border_title = kit.legend(drawn, f"{Path(path).name}: {log.rows} rows at {h:g} s: ")
-        top.plt.xlabel("t (s)")
         top.refresh()
 
     def action_rescan(self) -> None:
@@ -443,11 +441,10 @@ class IdentifyScreen(PacksForSize):
 
     def _draw(self) -> None:
         self._drawn = self._draw
-        top = self.query_one("#outputs", PlotextPlot)
-        low = self.query_one("#lower", PlotextPlot)
+        top = self.query_one("#outputs", PlotView)
+        low = self.query_one("#lower", PlotView)
         for plot in (top, low):
-            plot.plt.clear_figure()
-            plot.plt.theme("clear")
+            plot.figure.reset()
         if self.method == "physical" and self.physical is not None:
             self._draw_physical(top, low, self.physical)
             return
@@ -455,26 +452,26 @@ class IdentifyScreen(PacksForSize):
         if shown is None:
             top.border_title = "Measured and model output"
             low.border_title = "Residual autocorrelation"
-            top.plt.title("no fit yet")
+            top.figure.note = "no fit yet"
         else:
             view, key, e = shown
             dark, no_color = self.app.current_theme.dark, self.app.no_color
             h = view.ident.h
             t = np.arange(len(e.y)) * h
             name = f"G{key[0][1:]}{key[1][1:]}"
-            # the model under the measurement, dotted: both stay visible where they meet
-            drawn = kit.styles([Series("model", RED, dotted=True), Series(key[0], BLUE)],
-                               dark=dark, no_color=no_color)
-            for st, y in zip(drawn, (e.ym, e.y)):
-                kit.draw(top.plt, t, y, st, top.size.width)
+            # the model over the measurement: where they meet, the cells take both colours
+            meas_st, model_st = kit.styles([Series(key[0], BLUE), Series("model", RED)],
+                                           dark=dark, no_color=no_color)
+            for st, y in ((meas_st, e.y), (model_st, e.ym)):
+                kit.draw(top.figure, t, y, st)
             both = np.concatenate([e.y, e.ym])
-            kit.axes(top.plt, (0.0, float(t[-1])), (float(np.nanmin(both)), float(np.nanmax(both))),
-                     top.size.width, top.size.height, xlabel="t (s)")
+            kit.axes(top.figure, (0.0, float(t[-1])), (float(np.nanmin(both)), float(np.nanmax(both))),
+                     top.content_size.width, top.content_size.height, xlabel="t (s)")
             if e.split:
-                top.plt.vline(float(t[e.split]), None if no_color else GREY.rgb(dark))
-            top.border_title = kit.legend(drawn[::-1], f"{name}: ") + Content(
+                kit.vline(top.figure, float(t[e.split]), GREY, dark=dark, no_color=no_color)
+            top.border_title = kit.legend([meas_st, model_st], f"{name}: ") + Content(
                 f"  fit {e.fit_percent:.1f} % past the line")
-            width, height = low.size.width, low.size.height
+            width, height = low.content_size.width, low.content_size.height
             if self.lower == "residuals":
                 band_style, r_style = kit.styles([Series("99 % band", GREY, dotted=True),
                                                   Series("residual autocorrelation", BLUE)],
@@ -483,52 +480,53 @@ class IdentifyScreen(PacksForSize):
                 if key in view.residuals:
                     lags, r, band = view.residuals[key]
                     for sign in (1, -1):
-                        kit.draw(low.plt, lags, np.full(len(lags), sign * band), band_style, width)
+                        kit.draw(low.figure, lags, np.full(len(lags), sign * band), band_style)
                     # a stem per lag: lags are whole numbers, a line between them means nothing
-                    for lag, value in zip(lags.tolist(), r.tolist()):
-                        low.plt.plot([lag, lag], [0.0, value], marker=r_style.marker, color=r_style.color)
-                    kit.axes(low.plt, (float(lags[0]) - 0.5, float(lags[-1]) + 0.5),
+                    gaps = np.full(len(lags), np.nan)
+                    kit.draw(low.figure, np.column_stack([lags, lags, gaps]).ravel(),
+                             np.column_stack([np.zeros(len(r)), r, gaps]).ravel(), r_style)
+                    kit.axes(low.figure, (float(lags[0]) - 0.5, float(lags[-1]) + 0.5),
                              (min(-band, float(r.min())), max(band, float(r.max()))), width, height,
                              whole_x=True, xlabel="lag (samples)")
-                low.plt.xlabel("lag (samples)")
             elif self.lower == "frequency":
                 w, est, mod = view.frequency[key]
-                drawn = kit.styles([Series("model", RED, dotted=True), Series("spectral estimate", BLUE)],
+                drawn = kit.styles([Series("spectral estimate", BLUE), Series("model", RED)],
                                    dark=dark, no_color=no_color)
                 lw = np.log10(w)
-                for st, g in zip(drawn, (mod, est)):
-                    kit.draw(low.plt, lw, np.log10(g), st, width)
+                for st, g in zip(drawn, (est, mod)):
+                    kit.draw(low.figure, lw, np.log10(g), st)
                 both = np.log10(np.concatenate([est, mod]))
-                kit.axes(low.plt, (float(lw.min()), float(lw.max())),
+                kit.axes(low.figure, (float(lw.min()), float(lw.max())),
                          (float(np.nanmin(both)), float(np.nanmax(both))), width, height,
                          xlabel="log10 ω (rad/s)")
-                low.border_title = kit.legend(drawn[::-1], f"log10 |{name}(iω)|: ")
+                low.border_title = kit.legend(drawn, f"log10 |{name}(iω)|: ")
             else:
                 f, c = view.coherence[key]
                 keep = f <= 0.1  # the thesis's range: a linear model holds up to 0.05-0.1 Hz
                 (st,) = kit.styles([Series(f"coherence {key[1]} -> {key[0]}", BLUE)], dark=dark,
                                    no_color=no_color)
-                kit.draw(low.plt, f[keep], c[keep], st, width)
-                kit.axes(low.plt, (0.0, 0.1), (0.0, 1.0), width, height, xlabel="f (Hz)")
+                kit.draw(low.figure, f[keep], c[keep], st)
+                kit.axes(low.figure, (0.0, 0.1), (0.0, 1.0), width, height, xlabel="f (Hz)")
                 low.border_title = kit.legend([st]) + " (Hamming window, 720 points)"
         top.refresh()
         low.refresh()
 
-    def _draw_physical(self, top: PlotextPlot, low: PlotextPlot, view: fitui.PhysicalView) -> None:
+    def _draw_physical(self, top: PlotView, low: PlotView, view: fitui.PhysicalView) -> None:
         """The measured and simulated sensor on the held-out log, and their difference."""
         name, t, y, ym, where = fitui.overlay(view, self.element_index)
         dark, no_color = self.app.current_theme.dark, self.app.no_color
-        drawn = kit.styles([Series("model", RED, dotted=True), Series(name, BLUE)], dark=dark, no_color=no_color)
-        for st, v in zip(drawn, (ym, y)):
-            kit.draw(top.plt, t, v, st, top.size.width)
+        drawn = kit.styles([Series(name, BLUE), Series("model", RED)], dark=dark, no_color=no_color)
+        for st, v in zip(drawn, (y, ym)):  # the model last, over the measurement
+            kit.draw(top.figure, t, v, st)
         both = np.concatenate([y, ym])
-        kit.axes(top.plt, (0.0, float(t[-1])), (float(both.min()), float(both.max())), top.size.width,
-                 top.size.height, xlabel="t (s)")
-        top.border_title = kit.legend(drawn[::-1], f"{where}, V: ")
+        kit.axes(top.figure, (0.0, float(t[-1])), (float(both.min()), float(both.max())), top.content_size.width,
+                 top.content_size.height, xlabel="t (s)")
+        top.border_title = kit.legend(drawn, f"{where}, V: ")
         (st,) = kit.styles([Series(f"{name} measured - model", BLUE)], dark=dark, no_color=no_color)
         r = y - ym
-        kit.draw(low.plt, t, r, st, low.size.width)
-        kit.axes(low.plt, (0.0, float(t[-1])), (float(r.min()), float(r.max())), low.size.width, low.size.height,
+        kit.draw(low.figure, t, r, st)
+        kit.axes(low.figure, (0.0, float(t[-1])), (float(r.min()), float(r.max())), low.content_size.width,
+                 low.content_size.height,
                  xlabel="t (s)")
         low.border_title = kit.legend([st], "Output error, V: ")
         top.refresh()

@@ -1,11 +1,12 @@
-"""What every small terminal plot of Identify and Design draws the same way
-(issue 28): braille lines, round ticks, a legend outside the data, measured
-curves over models and references, and a mark per series without colour.
+"""What every small terminal plot of Identify, Design and the Apply preview draws
+the same way (issues 28, 43): braille lines, round ticks, a legend outside the
+data, and a mark per series without colour, on plot_raster's Figure.
 
-- Lines use plotext's braille marker (2 x 4 dots a cell); a reference or a
-  model is drawn first and *dotted* (a dot every DOT_GAP columns), so the curve
-  measured or simulated over it stays whole where the two meet and the
-  reference still shows between its dots.
+- Lines join their samples dot by dot (2 x 4 dots a cell), so a step is a
+  stroke; a reference or a limit is *dotted* (dashed: a cell drawn, a cell left;
+  its steps whole).  Where curves share a cell the cell shows both curves'
+  dots and takes their colours in turn, so a model lying on the measurement, or
+  a prediction on the simulation, stays in sight (plot_raster.py).
 - Ticks are 1-2-5 steps with one number of decimals per axis (0.60 0.62 0.64,
   not 0.649 0.637 0.624); lags are whole numbers.
 - The legend is text for the plot's border title, generated from the same
@@ -18,26 +19,27 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 from textual.content import Content
 
 from quadtank_tui.ui.colours import RGB, Hue
 from quadtank_tui.ui.plot_axes import y_axis
-from quadtank_tui.ui.widgets.trend_style import DOT_GAP, DOTTED_MARKER, MARKERS
+from quadtank_tui.ui.widgets.plot_raster import Figure, Pen, equal_aspect
+from quadtank_tui.ui.widgets.trend_style import DOTTED_MARKER, MARKERS
 
 #: A legend's sample of a solid and of a dotted line.
 LINE_SOLID, LINE_DOTTED = "━", "┈"
-#: Rows of a framed plotext plot that are not canvas: the frame's top and bottom
-#: lines and the x tick labels (the x label takes one more).
-FRAME_ROWS = 3
+#: Rows of a plot that are not canvas: the x axis and its tick labels (the x
+#: label takes one more).
+FRAME_ROWS = 2
 
 
 @dataclass(frozen=True)
 class Series:
     """One curve of a plot: its legend label, hue, and whether it is a
-    reference or model (dotted, drawn under the others)."""
+    reference or a limit (dotted)."""
 
     label: str
     hue: Hue
@@ -57,6 +59,10 @@ class Style:
         return "" if self.color is None else "rgb({},{},{})".format(*self.color)
 
     @property
+    def pen(self) -> Pen:
+        return Pen(self.color, self.marker, dashed=self.series.dotted)
+
+    @property
     def sample(self) -> str:
         """What the legend writes before the label: a piece of the line as drawn
         (solid or dotted), or the marker without colour."""
@@ -74,7 +80,7 @@ def styles(series: Sequence[Series], *, dark: bool, no_color: bool) -> list[Styl
             marker = DOTTED_MARKER if s.dotted else MARKERS[solid % len(MARKERS)]
             out.append(Style(s, None, marker))
         else:
-            out.append(Style(s, s.hue.rgb(dark), "braille"))
+            out.append(Style(s, s.hue.rgb(dark), MARKERS[solid % len(MARKERS)]))
         solid += not s.dotted
     return out
 
@@ -110,33 +116,18 @@ def round_ticks(lo: float, hi: float, most: int, *, whole: bool = False) -> tupl
     return values, [f"{v:.{decimals}f}" for v in values]
 
 
-def draw(plt: Any, x: np.ndarray, y: np.ndarray, style: Style, columns: int) -> None:
-    """One series on plotext's `plt`: a braille line (or its marker without
-    colour), or for a dotted series a dot every DOT_GAP columns of x."""
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    ok = np.isfinite(x) & np.isfinite(y)
-    x, y = x[ok], y[ok]
-    if not len(x):
-        return
-    if style.series.dotted:
-        if len(x) > 1 and np.all(np.diff(x) > 0):
-            grid = np.arange(x[0], x[-1] + 1e-12, (x[-1] - x[0]) * DOT_GAP / max(2, columns))
-            x, y = grid, np.interp(grid, x, y)
-        plt.scatter(x.tolist(), y.tolist(), marker="braille" if style.color is not None else style.marker,
-                    color=style.color)
-        return
-    step = max(1, len(x) // (4 * max(2, columns)))
-    plt.plot(x[::step].tolist(), y[::step].tolist(), marker=style.marker, color=style.color)
+def draw(fig: Figure, x: np.ndarray, y: np.ndarray, style: Style) -> None:
+    """One series on the figure, its samples joined (NaNs break the line)."""
+    fig.line(np.asarray(x, float), np.asarray(y, float), style.pen)
 
 
-def axes(plt: Any, xlim: tuple[float, float], ylim: tuple[float, float], width: int, height: int, *,
+def axes(fig: Figure, xlim: tuple[float, float], ylim: tuple[float, float], width: int, height: int, *,
          whole_x: bool = False, xlabel: str | None = None) -> None:
-    """Limits and round ticks on both axes for a framed plot of width x height
-    cells (a label every 8 columns or more), and the x label.  The y axis is laid
-    out as the trends' (plot_axes.y_axis): each row stands for one round value and
-    every label sits on the row whose dots show its value, so a curve is read
-    off its labels to within a row (plotext's own rounding put a label up to a
-    row away from its value)."""
+    """Limits and round ticks on both axes for a plot of width x height cells
+    (inside its border; a label every 8 columns or more), and the x label.  The
+    y axis is laid out as the trends' (plot_axes.y_axis): each row stands for one
+    round value and every label sits on the row whose dots show its value, so a
+    curve is read off its labels to within a row."""
     y_lo, y_hi = ylim
     if not y_hi > y_lo:
         y_lo, y_hi = y_lo - 0.5, y_hi + 0.5
@@ -147,9 +138,28 @@ def axes(plt: Any, xlim: tuple[float, float], ylim: tuple[float, float], width: 
     xv, xl = round_ticks(x_lo, x_hi, most, whole=whole_x)
     if len(xv) < 3:  # 0..300 in three: 0 200 (steps of 100 make four); take the four
         xv, xl = round_ticks(x_lo, x_hi, most + 1, whole=whole_x)
-    plt.xlim(x_lo, x_hi)
-    plt.ylim(ya.lo, ya.hi)
-    plt.xticks(xv, xl)
-    plt.yticks(list(ya.ticks), list(ya.labels))
-    if xlabel is not None:
-        plt.xlabel(xlabel)
+    fig.xlim, fig.ylim = (x_lo, x_hi), (ya.lo, ya.hi)
+    fig.xticks = list(zip(xv, xl))
+    fig.yticks = list(zip(ya.ticks, ya.labels))
+    fig.xlabel = xlabel
+
+
+def equal_axes(fig: Figure, xlim: tuple[float, float], ylim: tuple[float, float], width: int,
+               height: int) -> None:
+    """Limits holding xlim and ylim in which a unit is as long across as up (a
+    circle is drawn round: the Nyquist plot), with round ticks on both axes."""
+    fig.xlabel = None
+    fig.yticks = list(zip(*round_ticks(*ylim, max(2, (height - FRAME_ROWS) // 2))))
+    for _ in range(2):  # the y labels' width decides the columns, the columns the y range
+        columns, rows = (max(2, n) for n in fig.canvas_size(width, height))
+        (x_lo, x_hi), (y_lo, y_hi) = equal_aspect(xlim, ylim, columns, rows)
+        fig.yticks = list(zip(*round_ticks(y_lo, y_hi, max(2, rows // 2))))
+    # the limits are the first and last dots' centres: half a dot inside the cells' edges
+    fig.xlim = (x_lo + (x_hi - x_lo) / (4 * columns), x_hi - (x_hi - x_lo) / (4 * columns))
+    fig.ylim = (y_lo + (y_hi - y_lo) / (8 * rows), y_hi - (y_hi - y_lo) / (8 * rows))
+    fig.xticks = list(zip(*round_ticks(x_lo, x_hi, max(3, columns // 6))))
+
+
+def vline(fig: Figure, x: float, hue: Hue, *, dark: bool, no_color: bool) -> None:
+    """A vertical line across the canvas at x (where validation starts), after `axes`."""
+    fig.line([x, x], list(fig.ylim), Pen(None if no_color else hue.rgb(dark), "│", cells=True))

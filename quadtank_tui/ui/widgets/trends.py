@@ -1,7 +1,8 @@
-"""The two live trends (M7), drawn with textual-plotext.
+"""The two live trends (M7), drawn by the plot kit (plot_raster.py, issue 43):
+every sample in view joined into a line, references dashed, and no signal lost
+where it shares a cell with another.
 
-Each trend owns its `PlotextPlot.plt` (never the global plotext module) and is
-redrawn by the screen's UI timer from the engine's ring buffers, never from the
+Each trend owns its Figure and is redrawn by the screen's UI timer from the engine's ring buffers, never from the
 control loop.  The screen hands down the history once per refresh and only when
 a new sample arrived, so a paused process costs nothing over SSH; `show` itself
 redraws only when the newest sample or the view differs from the last drawing.
@@ -24,19 +25,19 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
-from rich.console import RenderableType
 from rich.text import Text
 from textual import events
 from textual.color import Color
-from textual_plotext import PlotextPlot
 
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.files.ghost import LoggedRun
 from quadtank_tui.ui.messages import ActionRequested
-from quadtank_tui.ui.plot_axes import AXIS_ROWS, MIN_SPAN, XDOTS, decimate, visible, x_axis, y_axis
+from quadtank_tui.ui.plot_axes import AXIS_ROWS, MIN_SPAN, visible, x_axis, y_axis
 from quadtank_tui.ui.widgets.sized import FitsItsSize
 from quadtank_tui.ui.widgets.trend_clock import ClockMap, Ticks, clock_ticks, process_ticks, wall_label
-from quadtank_tui.ui.widgets.trend_style import DOT_GAP, TraceStyle, trace_styles
+from quadtank_tui.ui.widgets.plot_raster import Pen
+from quadtank_tui.ui.widgets.plot_view import PlotView
+from quadtank_tui.ui.widgets.trend_style import TraceStyle, trace_styles
 
 #: Time windows the `z` key cycles through, s.
 WINDOWS = (120.0, 300.0, 600.0, 1800.0)
@@ -125,7 +126,7 @@ class TrendView:
         return self.scale(self.names[0]).unit if self.scales else ""
 
 
-class Trend(FitsItsSize, PlotextPlot):
+class Trend(FitsItsSize, PlotView):
     """One trend: the legend row (each signal's latest value in its colour), then
     the plot, relative time on x."""
 
@@ -145,7 +146,7 @@ class Trend(FitsItsSize, PlotextPlot):
     @property
     def columns(self) -> int:
         """The plot's columns of data at the last drawing (an estimate before)."""
-        return self._columns or max(2, self.size.width - 7)
+        return self._columns or max(2, self.content_size.width - 7)
 
     def _title(self) -> None:
         v = self.view
@@ -216,68 +217,50 @@ class Trend(FitsItsSize, PlotextPlot):
         return trace_styles(names, dark=self.app.current_theme.dark, no_color=self.app.no_color,
                             background=Color.parse(surface).rgb)
 
-    def render(self) -> RenderableType:
-        width, height = self.size.width, self.size.height
+    def render(self) -> Text:
+        width, height = self.content_size.width, self.content_size.height
         view, history = self.view, self._history
         names = view.names
         styles = self._styles(names)
         t = history["t"] if history is not None else np.zeros(0)
         t_new = float(t[-1]) if len(t) else 0.0
         ghost = self._ghost_curves(t_new)
-        plt = self.plt
-        plt.clear_data()
+        fig = self.figure
+        fig.clear()
         plot_height = max(1, height - 1)  # the legend takes the first row
-        plt.plotsize(width, plot_height)
-        plt._set_size(width, plot_height)
-        plt.theme("clear" if self.app.no_color else self._get_plotext_theme_name(self.app.theme))
-        plt.xaxes(True, False)  # no frame line on top: the legend row is there
 
         # y first: the labels' width decides the columns left for the data.
         rows = plot_height - AXIS_ROWS
         yaxis = y_axis(*self._y_range(view, history, ghost), rows,
                        min_span=MIN_SPAN * view.scale(names[0]).factor)
-        columns = self._columns = max(2, width - max(map(len, yaxis.labels), default=0) - 2)
+        fig.yticks = list(zip(yaxis.ticks, yaxis.labels))
+        columns = self._columns = max(2, fig.canvas_size(width, plot_height)[0])
         xaxis = x_axis(view.window, columns, -view.offset)
         x_lo, x_hi = xaxis.first - xaxis.per_column, -view.offset
-        plt.ylim(yaxis.lo, yaxis.hi)
-        plt.yticks(list(yaxis.ticks), list(yaxis.labels))
-        plt.xlim(xaxis.lo, xaxis.hi)
+        fig.ylim, fig.xlim = (yaxis.lo, yaxis.hi), (xaxis.lo, xaxis.hi)
         if view.clock is None:
-            plt.xticks(list(xaxis.ticks), list(xaxis.labels))
+            fig.xticks = list(zip(xaxis.ticks, xaxis.labels))
         else:
             ticks = self._clock_axis(view, history, t_new, xaxis.first, xaxis.per_column, columns)
-            plt.xticks([xaxis.first + c * xaxis.per_column for c in ticks.columns], list(ticks.labels))
+            fig.xticks = [(xaxis.first + c * xaxis.per_column, label) for c, label in zip(ticks.columns, ticks.labels)]
 
-        for name, (gx, gy) in ghost.items():  # first: the live curves draw over it
+        for name, (gx, gy) in ghost.items():  # first: in a cell shared with a live curve it takes turns
             pick = visible(gx, x_lo, x_hi)
-            keep = decimate(len(gx[pick]), XDOTS * columns)
-            plt.plot(gx[pick][keep].tolist(), gy[pick][keep].tolist(), marker=styles[name].ghost_marker,
-                     color=styles[name].ghost_color)
+            fig.line(gx[pick], gy[pick], Pen(styles[name].ghost_color, styles[name].ghost_marker))
         latest: dict[str, float] = {}
         if history is not None and len(t):
             x = t - t_new
             pick = visible(x, x_lo, x_hi)
-            keep = decimate(len(x[pick]), XDOTS * columns)
-            dots = decimate(len(x[pick]), max(1, columns // DOT_GAP))
-            # References first and dotted: the outputs are drawn over them whole,
-            # and a reference still shows between its dots once y sits on it.
+            # References first and dashed: where an output lies on its reference the
+            # shared cells take the two colours in turn, so both stay in sight.
             for name in sorted(names, key=lambda n: not n.startswith("ref")):
                 y = history[name][pick] * view.scale(name).factor
                 if not len(y):
                     continue
                 latest[name] = float(y[-1])
-                if name.startswith("ref"):
-                    plt.scatter(x[pick][dots].tolist(), y[dots].tolist(), marker=styles[name].marker,
-                                color=styles[name].color)
-                else:
-                    plt.plot(x[pick][keep].tolist(), y[keep].tolist(), marker=styles[name].marker,
-                             color=styles[name].color)  # None: plotext's default foreground
-        if not latest and not ghost:
-            # plotext draws no axes without data: one point left of the plot (not
-            # drawn) gives an empty trend its labelled axes, as at start-up.
-            plt.plot([xaxis.lo - 10 * xaxis.per_column], [yaxis.ticks[0] if yaxis.ticks else yaxis.lo])
+                fig.line(x[pick], y, Pen(styles[name].color, styles[name].marker, dashed=name.startswith("ref")))
         legend = self._legend(names, styles, latest, width)
-        return Text("\n").join([legend, Text.from_ansi(plt.build())])
+        return Text("\n").join([legend, fig.render(width, plot_height)])
 
     def _clock_axis(self, view: TrendView, history: Mapping[str, np.ndarray] | None, t_new: float,
                     first: float, per_column: float, columns: int) -> Ticks:

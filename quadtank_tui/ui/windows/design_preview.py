@@ -21,7 +21,6 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal, VerticalScroll
 from textual.geometry import Size
 from textual.widgets import Button, ProgressBar, Static
-from textual_plotext import PlotextPlot
 
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.controller import PID, DesignError
@@ -33,6 +32,7 @@ from quadtank_tui.ui.colours import BLUE, RED
 from quadtank_tui.ui.widgets import plot_kit as kit
 from quadtank_tui.ui.widgets.key_button import KeyButton
 from quadtank_tui.ui.widgets.plot_kit import Series
+from quadtank_tui.ui.widgets.plot_view import PlotView
 from quadtank_tui.ui.widgets.sized import PacksForSize
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Window
 
@@ -77,7 +77,7 @@ class DesignPreviewWindow(PacksForSize, Window[bool]):
         yield ProgressBar(total=100, show_eta=False, id="preview-progress")
         with Horizontal(id="preview-plots"):
             for i in (1, 2):
-                yield PlotextPlot(id=f"preview-loop{i}", classes="preview-plot")
+                yield PlotView(id=f"preview-loop{i}", classes="preview-plot")
         with VerticalScroll(id="preview-figures-box"):
             yield Static("", id="preview-figures", markup=False)
 
@@ -87,7 +87,7 @@ class DesignPreviewWindow(PacksForSize, Window[bool]):
 
     def on_mount(self) -> None:
         for i in (1, 2):
-            self.query_one(f"#preview-loop{i}", PlotextPlot).border_title = f"y{i}: simulating"
+            self.query_one(f"#preview-loop{i}", PlotView).border_title = f"y{i}: simulating"
         self.query_one("#cancel", Button).focus()
         self._simulate()
 
@@ -118,7 +118,7 @@ class DesignPreviewWindow(PacksForSize, Window[bool]):
         self.query_one(ProgressBar).display = False
         dark, no_color = self.app.current_theme.dark, self.app.no_color
         for s in pv.steps:
-            draw_preview_step(self.query_one(f"#preview-loop{s.loop}", PlotextPlot), s, dark, no_color)
+            draw_preview_step(self.query_one(f"#preview-loop{s.loop}", PlotView), s, dark, no_color)
         self.query_one("#preview-figures", Static).update(format_preview(pv))
         apply = self.query_one("#apply", Button)
         apply.disabled = False
@@ -147,26 +147,26 @@ class DesignPreviewWindow(PacksForSize, Window[bool]):
                                            Choice("apply", "Apply anyway", "error"))), answered)
 
 
-def draw_preview_step(plot: PlotextPlot, step: PreviewStep, dark: bool, no_color: bool) -> None:
+def draw_preview_step(plot: PlotView, step: PreviewStep, dark: bool, no_color: bool) -> None:
     """One loop's step: the simulation solid and the design's prediction dotted
-    over it (plot_kit's lines, ticks and legend, as on the Design screen: issue
-    28).  Unlike a reference, the prediction is drawn last: a good design's
-    prediction lies on the simulation, and drawn first it vanished under it (a
-    braille cell takes the colour drawn last), so the student could not see
-    that the two agree; its dots, a few columns apart, leave the line readable."""
+    over it (plot_kit's lines, ticks and legend, as on the Design screen: issues
+    28, 43).  The prediction is drawn last: where a good design's prediction lies
+    on the simulation the cells they share take the two colours in turn, so the
+    student sees that the two agree."""
     predicted, simulated = kit.styles([Series("predicted", BLUE, dotted=True), Series("simulated", RED)],
                                       dark=dark, no_color=no_color)
-    width, height = plot.size.width, plot.size.height
-    plot.plt.clear_data()
+    width, height = plot.content_size.width, plot.content_size.height
+    fig = plot.figure
+    fig.reset()
     curves = [step.simulated]
-    kit.draw(plot.plt, step.t, step.simulated, simulated, width)
+    kit.draw(fig, step.t, step.simulated, simulated)
     if step.predicted is not None:  # last: where the two agree, its dots still show
-        kit.draw(plot.plt, step.t, step.predicted, predicted, width)
+        kit.draw(fig, step.t, step.predicted, predicted)
         curves.append(step.predicted)
     both = np.concatenate(curves)
     both = both[np.isfinite(both)]
     lo, hi = (float(both.min()), float(both.max())) if len(both) else (0.0, 1.0)
-    kit.axes(plot.plt, (0.0, float(step.t[-1])), (lo, hi), width, height, xlabel="t (s)")
+    kit.axes(fig, (0.0, float(step.t[-1])), (lo, hi), width, height, xlabel="t (s)")
     shown = [simulated, predicted] if step.predicted is not None else [simulated]
     plot.border_title = kit.legend(shown, f"y{step.loop}: ")  # the window's line says which step
     plot.refresh()
