@@ -340,7 +340,7 @@ def build_tui(args: argparse.Namespace) -> tuple[SessionClient, QuadTankApp]:
         raise
     client.warnings = tuple(spec.warnings)
     return client, build_app(client, refresh_interval=args.refresh, resume_gc=not gc.isenabled(),
-                             read_on=client.read_on)
+                             read_on=client.read_on, exercise=getattr(args, "exercise_tracker", None))
 
 
 def _cmd_tui(args: argparse.Namespace) -> int:
@@ -376,6 +376,16 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     return app.return_code or watch.status
 
 
+def _cmd_exercise(args: argparse.Namespace) -> int:
+    """`quadtank exercise FILE`: the TUI in a private session with the exercise's window."""
+    missing = terminal_missing()
+    if missing is not None:
+        raise UsageError(f"the exercise window needs a terminal and {missing}; headless: "
+                         "quadtank run --exercise FILE --par MINE.par")
+    exercise_command.prepare(args)
+    return _cmd_tui(args)
+
+
 def _stopped_by(reason: str) -> None:
     """The TUI's last line when its terminal went away ("SIGTERM", "the terminal hung
     up"): after an exit in order, or from the watch that ended it (TerminalWatch)."""
@@ -404,6 +414,7 @@ def build_parser() -> argparse.ArgumentParser:
     sessions_command.add_parsers(sub)
     lab_command.add_parser(sub)
     serve_command.add_parser(sub)
+    exercise_command.add_parser(sub, _cmd_exercise)
     grade_command.add_parser(sub)
     return parser
 

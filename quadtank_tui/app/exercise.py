@@ -18,7 +18,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from quadtank_tui.core.exercise import KINDS, Requirement, RequirementError, Verdict, judge, signal_figure
+from quadtank_tui.core.exercise import (
+    KINDS, Requirement, RequirementError, Verdict, judge, live_state, signal_figure,
+)
 from quadtank_tui.core.exercise.figures import relative_error
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.parameters.keys import iter_keys
@@ -345,3 +347,123 @@ def run_attempt(ex: Exercise, par: str, *, record: Path | None = None, own_scrip
                 started=started, ended=ended, user=user, automatic_since=automatic_since,
                 summary=result.text, seed=seed))
         return Attempt(ex, verdicts, result.text, result.status, saved, result.log if record else None)
+
+
+#: The engine's history names its references ref1, ref2; a log r1, r2.
+HISTORY_NAMES = {"ref1": "r1", "ref2": "r2"}
+
+
+def watch_time(ex: Exercise) -> float:
+    """Seconds an attempt is watched in Automatic: the experiment's duration after its
+    script's first switch to Automatic (the whole duration for the student's own run)."""
+    if ex.experiment.script is None:
+        return ex.experiment.duration
+    switch = [e.at for e in read_script(ex.experiment.script).events
+              if e.action == "mode" and e.value == "Automatic"]
+    return ex.experiment.duration - (min(switch) if switch else 0.0)
+
+
+@dataclass(frozen=True)
+class LiveRow:
+    """One requirement as the exercise window shows it now."""
+
+    name: str
+    limit: str
+    figure: str
+    state: str  # "pending", "met" or "missed"
+    detail: str
+
+
+@dataclass(frozen=True)
+class LiveState:
+    rows: tuple[LiveRow, ...]
+    time_left: float | None  # s of the exercise's time limit left (None: no limit)
+    watched: float           # s of the attempt watched so far (in Automatic)
+    watch: float             # s it is watched for
+    finished: bool
+
+    def summary(self) -> str:
+        met = sum(r.state == "met" for r in self.rows)
+        if not self.finished:
+            return f"attempt running: {self.watched:.0f} of {self.watch:.0f} s watched, {met} of {len(self.rows)} met so far"
+        verdict = "PASSED" if met == len(self.rows) else "NOT PASSED"
+        return f"attempt finished: {met} of {len(self.rows)} requirements met: {verdict}"
+
+
+class LiveExercise:
+    """An exercise followed in the TUI as the student works: when the loops went
+    into Automatic (the attempt's start), the figures of the history since then, the
+    time left.  The model kinds (an identification: seconds of CPU) are judged once
+    the attempt is finished; the design kinds whenever the controllers change."""
+
+    def __init__(self, ex: Exercise, *, started: float, params_dir: Path = Path("params")) -> None:
+        self.exercise = ex
+        self.started = started  # wall clock (s) the exercise was opened
+        self.watch = watch_time(ex)
+        self.params_dir = params_dir
+        self.automatic_since: float | None = None
+        self._final: LiveState | None = None
+        self._design: dict[tuple[Any, ...], tuple[float | None, str]] = {}
+
+    def note(self, automatic_since: float | None) -> None:
+        """Each snapshot's switch to Automatic (engine Snapshot.automatic_since): the
+        attempt starts there (again at each new switch); Manual ends it unfinished."""
+        if automatic_since != self.automatic_since:
+            self.automatic_since, self._final = automatic_since, None
+
+    def state(self, history: Mapping[str, np.ndarray], params: Parameters, now: float) -> LiveState:
+        """The requirements' states on the history given (the engine's, names as its
+        SIGNALS) at wall time `now`."""
+        ex = self.exercise
+        left = None if ex.time_limit is None else ex.time_limit - (now - self.started)
+        if self._final is not None:
+            return dataclasses.replace(self._final, time_left=left)
+        since = self.automatic_since
+        t = np.asarray(history.get("t", np.zeros(0)))
+        # the newest sample is at t[-1]: it covers the sampling period after it
+        watched = 0.0 if since is None or t.size == 0 else float(t[-1] - since + params.tsamp)
+        finished = since is not None and watched >= self.watch - 1e-9
+        rows = []
+        keep = t >= since - 1e-9 if since is not None else np.zeros(t.size, dtype=bool)
+        cols = {HISTORY_NAMES.get(k, k): np.asarray(v)[keep] for k, v in history.items()}
+        if since is not None and cols["t"].size:
+            cols["t"] = cols["t"] - cols["t"][0]
+        for req in ex.requirements:
+            what = KINDS[req.kind].what
+            figure: float | None = None
+            detail = ""
+            if what == "design":
+                figure, detail = self._design_figure(params, req)
+            elif what == "attempt":
+                figure = now - self.started
+            elif what == "model":
+                detail = "identified when the attempt is finished" if not finished else ""
+                if finished:
+                    try:
+                        figure, detail = model_figure(req, identified(ex, params, cols, params.tsamp))
+                    except RequirementError as exc:
+                        detail = str(exc)
+            elif since is None or cols["t"].size < 2:
+                detail = "waits for Automatic"
+            else:
+                try:
+                    figure, detail = signal_figure(req, cols, params.tsamp)
+                except RequirementError as exc:
+                    detail = str(exc)
+            state = live_state(req, figure, finished or what == "design")
+            v = judge(req, figure, detail)
+            rows.append(LiveRow(req.name, req.limit_text(), v.figure_text(), state, detail))
+        out = LiveState(tuple(rows), left, watched, self.watch, finished)
+        if finished:
+            self._final = out
+        return out
+
+    def _design_figure(self, params: Parameters, req: Requirement) -> tuple[float | None, str]:
+        key = (req.name, *(getattr(params.get(k), "value", params.get(k)) for k in iter_keys()
+                           if k.startswith("CONTROLLER") or k == "SAMPLING TIME.TSamp"))
+        if key not in self._design:
+            try:
+                self._design[key] = design_figure(self.exercise, params, req)
+            except (ValueError, ArithmeticError) as exc:
+                self._design[key] = (None, str(exc))
+        return self._design[key]

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
-from quadtank_tui.commands import UsageError
+from quadtank_tui.commands import UsageError, warn
 
 if TYPE_CHECKING:
     from quadtank_tui.app.exercise import Attempt
@@ -77,3 +77,40 @@ def format_attempt(attempt: Attempt) -> str:
     if attempt.record is not None:
         lines.append(f"record     {attempt.record}")
     return "\n".join(lines)
+
+
+def add_parser(sub: argparse._SubParsersAction, handler: Callable[[argparse.Namespace], int]) -> None:
+    """`quadtank exercise FILE`; `handler` starts the TUI (cli.py's, which this layer
+    may not import) once `prepare` has checked the files."""
+    p = sub.add_parser(
+        "exercise", help="open an exercise in the TUI: its text, its requirements live, the time left",
+        description="The TUI on the simulator with an exercise's window open: the exercise's text, "
+        "each requirement's state (pending, met, missed) with its figure as the run goes, the time "
+        "left; the process image and trends as usual. The exercise's .par is loaded at the start.")
+    p.add_argument("file", metavar="FILE", help="the exercise (YAML, docs/exercises.md)")
+    p.add_argument("--par", metavar="MINE.par", dest="exercise_par",
+                   help="start from your own .par (checked against what the exercise lets you change)")
+    p.set_defaults(handler=handler)
+
+
+def prepare(args: argparse.Namespace) -> None:
+    """Check the exercise and the .par to start from, and set the TUI's options:
+    a private session on that .par, and the exercise followed (args.exercise_tracker)."""
+    import time
+
+    from quadtank_tui.app.exercise import ExerciseRefused, LiveExercise, student_params
+
+    ex = read_checked(args.file)
+    if ex.runs_on == "rig" and not args.daq_global:
+        raise UsageError(f"{ex.id} runs on the rig: quadtank --daq RIG.yaml exercise {args.file}")
+    if ex.runs_on == "simulator" and args.daq_global:
+        raise UsageError(f"{ex.id} runs on the simulator, not on a rig")
+    par = args.exercise_par or ex.par
+    try:
+        _, warnings = student_params(ex, par)
+    except ExerciseRefused as exc:
+        raise UsageError(str(exc)) from None
+    warn(warnings)
+    args.tui_par = par
+    args.no_session = True
+    args.exercise_tracker = LiveExercise(ex, started=time.time())

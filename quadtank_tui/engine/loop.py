@@ -354,6 +354,7 @@ class ControlLoop:
             alarms=tuple(getattr(self.backend, "alarms", ()) or ()),
             faults=self.sim.faults.labels() if self.backend is self.sim else "",
             disturbances=self._disturbances(),
+            automatic_since=self.automatic_since,
         )
 
     def _disturbances(self) -> tuple[float, float] | None:

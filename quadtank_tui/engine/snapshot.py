@@ -93,3 +93,6 @@ class Snapshot:
     mpc: MPCInfo | None = None
     #: The calibration procedure on the rig, while one runs or its last result is shown.
     calibration: CalibrationStatus | None = None
+    #: Process time of the switch to Automatic the loop is in (None: in Manual): where an
+    #: attempt at an exercise starts (app/exercise.py), exact whatever the screen's refresh.
+    automatic_since: float | None = None

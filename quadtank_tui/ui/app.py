@@ -13,7 +13,7 @@ import os
 import threading
 import time
 from functools import partial
-from typing import Callable, Iterable
+from typing import Any, Callable, Iterable
 
 from textual.app import SystemCommand
 from textual.binding import Binding
@@ -58,6 +58,8 @@ class QuadTankApp(OrderedKeys):
         self._early_exit: int | None = None
         self._resume_gc = resume_gc
         self._read_on = read_on
+        #: the exercise the TUI follows (app/exercise.py's LiveExercise), None without one
+        self.exercise: Any = None
 
     def on_mount(self) -> None:
         with self._exit_lock:
@@ -69,6 +71,8 @@ class QuadTankApp(OrderedKeys):
         if self._read_on is not None:  # the session's client reads on this loop from now on
             self._read_on(self._aloop)
         self.push_screen(self.main)
+        if self.exercise is not None:  # quadtank exercise FILE: its window first
+            self.call_after_refresh(self.main.action_exercise)
         self._check_size()
         if self._resume_gc:
             self.call_after_refresh(resume_gc)
@@ -161,11 +165,14 @@ def resume_gc() -> None:
 
 def build_app(engine: EngineHandle, *, refresh_interval: float = 0.05,
               wall_clock: Callable[[], float] = time.monotonic, resume_gc: bool = False,
-              read_on: Callable[[asyncio.AbstractEventLoop], None] | None = None) -> QuadTankApp:
+              read_on: Callable[[asyncio.AbstractEventLoop], None] | None = None,
+              exercise: Any = None) -> QuadTankApp:
     """The app on `engine`; `refresh_interval` is the UI timer in seconds (raise it
     on a slow link); `wall_clock` is injected so tests are deterministic;
     `resume_gc`: the caller paused the garbage collector for the start
     (commands.pause_gc); `read_on`: given the app's event loop once it runs (a
     session client then reads its socket there: session/client.py read_on)."""
-    return QuadTankApp(engine, refresh_interval=refresh_interval, wall_clock=wall_clock, resume_gc=resume_gc,
-                       read_on=read_on)
+    app = QuadTankApp(engine, refresh_interval=refresh_interval, wall_clock=wall_clock, resume_gc=resume_gc,
+                      read_on=read_on)
+    app.exercise = exercise  # an app/exercise.LiveExercise: `x` on Main opens its window
+    return app

@@ -43,7 +43,7 @@ from quadtank_tui.ui.widgets.trend_clock import ClockMap
 from quadtank_tui.ui.plot_axes import scroll_step
 from quadtank_tui.ui.widgets.trends import WINDOWS, Scale, Trend, TrendView, physical_scales
 from quadtank_tui.ui.ghost import GhostControl
-from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, ConfirmWindow, free_log_name
+from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, ConfirmWindow, LiveWindow, free_log_name
 from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
 from quadtank_tui.ui.windows.faults import FaultWindow
 from quadtank_tui.ui.windows.mpc import MPCWindow
@@ -138,6 +138,8 @@ class MainScreen(CommandSender):
                 tooltip="Simul: next speed of 1, 2, 5 ... 1000 x real time"),
         Binding("minus", "speed(-1)", "Slower", show=False, tooltip="Simul: previous speed step"),
         Binding("l", "logging", "Log", show=False, tooltip="Logging window: points, file, variables, LogOn, LogOff, Save"),
+        Binding("x", "exercise", "Exercise", show=False,
+                tooltip="Exercise window: its text, the requirements live, the time left"),
         Binding("question_mark", "app.help", "Help", tooltip="Every key of every screen and window"),
         Binding("f1", "app.help", "Help", show=False, tooltip="Every key of every screen and window"),
         Binding("q", "exit", "Exit", show=False, tooltip="Exit: asks first, and says so if a log would be thrown away"),
@@ -303,11 +305,18 @@ class MainScreen(CommandSender):
             self.clock_map.stand(t, wall)
 
     def _feed_live(self, snap: Snapshot) -> None:
-        """Hand the snapshot to the live window in front (Tank, Pump, Logging)."""
+        """Hand the snapshot to the live window in front (Tank, Pump, Logging,
+        Exercise); an exercise followed hears the loop's mode even with its window closed."""
+        exercise = getattr(self.app, "exercise", None)
+        if exercise is not None:
+            exercise.note(snap.automatic_since)
         live = self.app.screen
         # A live window gets the snapshot only when more than the loop's timing
         # changed (a paused loop's idle ticks).
-        if isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) and live.is_mounted:
+        fed = isinstance(live, (TankWindow, PumpWindow, LoggingWindow)) or (
+            isinstance(live, LiveWindow) and getattr(live, "follows_loop", False))
+        if fed and live.is_mounted:
+            assert isinstance(live, LiveWindow)
             untimed = _untimed(snap)
             if live is not self._live or untimed != self._live_snap:
                 self._live, self._live_snap = live, untimed
@@ -512,6 +521,17 @@ class MainScreen(CommandSender):
         export(self, Path(self.engine.logs_dir), "trends", build)
 
     # --- logging (M8) and exit (M9) ---------------------------------------------------
+
+    def action_exercise(self) -> None:
+        """The exercise window, when the TUI follows an exercise (quadtank exercise FILE)."""
+        tracker = getattr(self.app, "exercise", None)
+        if tracker is None:
+            self.notify("No exercise: open one with quadtank exercise FILE (docs/exercises.md)")
+            return
+        from quadtank_tui.ui.windows.exercise import ExerciseWindow
+
+        self.app.push_screen(ExerciseWindow(self.current(), tracker, self.engine, opener="x",
+                                            wall_clock=getattr(self.app, "exercise_clock", time.time)))
 
     def action_logging(self) -> None:
         snap = self.current()
