@@ -23,6 +23,9 @@ if TYPE_CHECKING:
 METHODS = ("step", "oe", "n4sid", "arx", "physical")
 
 
+#: The real-rig effects a physical fit can add (core.identify.physical.PHYSICS_NAMES).
+PHYSICS_CHOICES = ("laminar", "overflow", "deadzone", "saturation")
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "identify", help="identify the process from logs: step, output-error, subspace or ARX models",
@@ -66,7 +69,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "model from rest at the first row; physical: levels fitted to the first 20 rows)")
     p.add_argument("--free", nargs="+", metavar="NAME",
                    help="physical: the constants to fit (default: outlets, pumps and valves)")
-    p.add_argument("--offsets", action="store_true", help="physical: fit a sensor offset per output too")
+    p.add_argument("--offsets", action="store_true",
+                   help="physical: fit a sensor offset per output (the default: no rig's zero is exactly 0 V)")
+    p.add_argument("--no-offsets", action="store_true", help="physical: no sensor offsets (the sensors read 0 V at 0)")
+    p.add_argument("--physics", nargs="+", metavar="EFFECT", choices=("auto", "plain", *PHYSICS_CHOICES),
+                   help="physical: the effects to fit besides Torricelli outlets: auto (default: the plain "
+                   "model, extended when the logs ask), plain, or any of " + ", ".join(PHYSICS_CHOICES))
+    p.add_argument("--budget", type=float, metavar="SECONDS",
+                   help="physical: stop the fit after this long with its best point (default 90)")
     p.add_argument("--figure", metavar="FILE",
                    help="also draw the validation as a figure (.png, .svg or .pdf): per element the measured "
                    "and model output on the validation part, the residual autocorrelation and the coherence")
@@ -175,8 +185,8 @@ def run(args: argparse.Namespace) -> int:
         if args.figure is not None:
             raise UsageError("--figure draws a linear model's validation; --method physical has none yet")
         return identify_physical.run(args)
-    if args.free or args.offsets:
-        raise UsageError("--free and --offsets belong to --method physical")
+    if args.free or args.offsets or args.no_offsets or args.physics or args.budget is not None:
+        raise UsageError("--free, --offsets, --no-offsets, --physics and --budget belong to --method physical")
     if not 0.0 <= args.validate < 1.0:
         raise UsageError(f"--validate must be a fraction in [0, 1), got {args.validate:g}")
     if args.order is not None and args.order < 1:

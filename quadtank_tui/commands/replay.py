@@ -5,8 +5,9 @@ A rig's run and its twin then compare row by row (`quadtank log compare`, or
 `quadtank identify --validate-on`).  Row k of the new log holds the sensors the
 simulator reads at sample k and the pump signals of row k of the source log, held
 for one sampling time (the loop's order: read, act, log).  The levels at the first
-row come from the first row's sensors (the tanks the log does not measure: the
-steady state of the first pump signals).  The simulator is the plant's own step
+row, measured and unmeasured tanks, are those that best explain the log's first 20
+readings with the `.par`'s constants held (core.identify.physical.estimate_initial,
+as `identify --validate-on` does): a rig's log rarely starts exactly at rest.  The simulator is the plant's own step
 (core.identify.physical.simulate), so a log the simulator wrote with the same
 `.par` comes back to the log's last digit.
 """
@@ -24,7 +25,7 @@ from quadtank_tui.commands import UsageError, warn
 def replay(args: argparse.Namespace) -> int:
     """Run the replay `args` asks for and print a one-line summary."""
     from quadtank_tui.commands.identify import read_sampled
-    from quadtank_tui.core.identify.physical import experiment_from_columns, initial_levels, simulate
+    from quadtank_tui.core.identify.physical import estimate_initial, experiment_from_columns, simulate
     from quadtank_tui.core.plants.common import FULL_SCALE_V
     from quadtank_tui.engine.headless import refuse_log_target
     from quadtank_tui.engine.runner import load_parameters, virtual_epoch
@@ -50,7 +51,7 @@ def replay(args: argparse.Namespace) -> int:
     log, tsamp = read_sampled(source)
     columns = log.columns()
     exp = experiment_from_columns(source, tsamp, columns, plant)
-    x = simulate(plant, initial_levels(plant, exp), exp.u, tsamp)
+    x = simulate(plant, estimate_initial(plant, exp, []), exp.u, tsamp)
     sensors = np.array([plant.output(row) for row in x]) / FULL_SCALE_V
     keep = [v for v in log.variables if _index(v, "y") < len(plant.outputs) or _index(v, "u") < len(plant.inputs)]
     dropped = [v for v in log.variables if v not in keep]
