@@ -76,7 +76,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="physical: the effects to fit besides Torricelli outlets: auto (default: the plain "
                    "model, extended when the logs ask), plain, or any of " + ", ".join(PHYSICS_CHOICES))
     p.add_argument("--budget", type=float, metavar="SECONDS",
-                   help="physical: stop the fit after this long with its best point (default 90)")
+                   help="physical: stop the fit after this much CPU time with its best point (default 90)")
     p.add_argument("--figure", metavar="FILE",
                    help="also draw the validation as a figure (.png, .svg or .pdf): per element the measured "
                    "and model output on the validation part, the residual autocorrelation and the coherence")

@@ -25,6 +25,7 @@ from quadtank_tui.core.identify.physical import (
     PhysicalFit,
     FULL_SCALE_V,
     ProgressFn,
+    cpu_clock,
     fit_physical,
     noise_floor,
     physics_names,
@@ -72,7 +73,7 @@ def fit_auto(plant: Plant, experiments: Sequence[Experiment], free: Sequence[str
     """The plain fit, or the extended one when the logs ask for it (the note says which)."""
     from time import monotonic
 
-    t0 = monotonic()
+    t0, c0 = monotonic(), cpu_clock()
     extra = dict(max_evaluations=max_evaluations) if max_evaluations else {}
     sat = tuple("saturation" for _ in saturated_outputs(experiments)[:1])
     plain = fit_physical(plant, experiments, free, offsets=offsets, progress=progress, physics=sat,
@@ -85,7 +86,7 @@ def fit_auto(plant: Plant, experiments: Sequence[Experiment], free: Sequence[str
     more = [p for p in EXTENDED if physics_names(plant, (p,), outputs)]
     if not more:
         return replace(plain, notes=plain.notes + (_note("plain", words, plain, floor),))
-    left = budget_s - (monotonic() - t0)
+    left = budget_s - (cpu_clock() - c0)
     ext = fit_physical(plant, experiments, free, offsets=offsets, progress=progress, physics=sat + tuple(more),
                        budget_s=max(left, 1.0), **extra)
     if bic(ext) < bic(plain) and ext.rms < (1 - GAIN) * plain.rms:

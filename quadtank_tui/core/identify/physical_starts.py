@@ -91,7 +91,7 @@ def _four_tanks(plant: Plant, experiments: Sequence, names: Sequence[str], par: 
     """The `.par`'s constants with the pumps scaled so that the first input's steady
     state has the measured tanks at the first readings (levels go with the square of
     the flow), and a tenth of each outlet's flow there laminar when that is free."""
-    from quadtank_tui.core.plant import PlantError
+    from quadtank_tui.core.plants.common import PlantError
 
     pumps = [n for n in ("k1", "k2", "beta1", "beta2", "beta3", "beta4") if n in names]
     e = experiments[0]
