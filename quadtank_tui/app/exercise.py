@@ -327,7 +327,7 @@ def run_attempt(ex: Exercise, par: str, *, record: Path | None = None, own_scrip
         try:
             run_experiment(run.engine, script, ex.experiment.duration)
             result: HeadlessResult = finish_headless(run)
-            automatic_since = in_log_time(run.engine.loop.automatic_since, run.engine.loop.log.started_at)
+            automatic_since = in_log_time(run.engine.automatic_since, run.engine.log_started_at)
         finally:
             run.engine.stop()
         ended = datetime.now(timezone.utc)

@@ -212,7 +212,7 @@ def _rerun(ex: Exercise, data: Mapping[str, bytes], result: Mapping[str, Any], s
         try:
             run_experiment(run.engine, script, ex.experiment.duration)
             res = finish_headless(run)
-            automatic_since = in_log_time(run.engine.loop.automatic_since, run.engine.loop.log.started_at)
+            automatic_since = in_log_time(run.engine.automatic_since, run.engine.log_started_at)
         finally:
             run.engine.stop()
         if res.log is None:

@@ -17,21 +17,25 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
-from typing import Callable, Literal, Mapping
+from typing import TYPE_CHECKING, Callable, Literal, Mapping
 
 import numpy as np
 
 from quadtank_tui.core.parameters import Parameters, REFERENCE_SECTIONS
 from quadtank_tui.engine.backend import ProcessBackend
 from quadtank_tui.engine.clock import Clock, ManualClock, RealTimeClock, VirtualClock
-from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, SetSpeed
+from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, SetParams, SetSpeed
 from quadtank_tui.engine.controllers import preload_designs
+from quadtank_tui.engine.design_ahead import needs_mpc_design
 from quadtank_tui.engine.driver import Driver, LoopTime
 from quadtank_tui.engine.history import DEFAULT_CAPACITY, check_capacity
 from quadtank_tui.engine.loop import ControlLoop
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log_writer import log_path
 from quadtank_tui.files.par import ParRead, ParStore, read_par
+
+if TYPE_CHECKING:
+    from quadtank_tui.engine.mpc_control import LoopMPC
 
 ClockKind = Literal["realtime", "virtual", "manual"]
 
@@ -85,6 +89,57 @@ class Engine:
         """Sampling slots the clock skipped before the last sample (the loop's own
         count, :attr:`ControlLoop.missed`)."""
         return self.loop.missed
+
+    @property
+    def params(self) -> Parameters:
+        """The parameters in force."""
+        return self.loop.params
+
+    @property
+    def par_store(self) -> ParStore:
+        """The folder of `.par` files a LoadPar names one of."""
+        return self.loop.store
+
+    @property
+    def history_capacity(self) -> int:
+        """Rows the trend history keeps."""
+        return self.loop.history.capacity
+
+    def history_since(self, index: int) -> tuple[np.ndarray, int, int]:
+        """(rows with absolute index >= `index` still kept, rows ever written, clear
+        generation): what a session sends its clients after each publication (the
+        driver's thread only)."""
+        return self.loop.history.since(index)
+
+    @property
+    def pumps_unconfirmed(self) -> str:
+        """Why the rig's pumps are NOT confirmed at 0 since its last zeroing, else ""."""
+        return self.loop.pumps_unconfirmed
+
+    @property
+    def interlock_acted(self) -> bool:
+        """The rig's interlock held a pump at 0 at some time of the run."""
+        return self.loop.interlock.acted
+
+    @property
+    def automatic_since(self) -> float | None:
+        """Loop time the last switch to Automatic took effect (None: not in Automatic)."""
+        return self.loop.automatic_since
+
+    @property
+    def log_started_at(self) -> float:
+        """Loop time of the last LogOn: the log's `t` column counts from it."""
+        return self.loop.log.started_at
+
+    def mpc_design_needed(self, command: SetParams) -> Parameters | None:
+        """The parameters `command` makes when they need an MPC the loop has not
+        designed yet (it is designed off the loop's thread, :meth:`offer_mpc`), else None."""
+        return needs_mpc_design(self.loop, command)
+
+    def offer_mpc(self, inputs: tuple[object, ...], mpc: LoopMPC) -> None:
+        """An MPC designed off the loop's thread for the design inputs `inputs`: the
+        next command that needs it takes it instead of designing it again."""
+        self.loop.controllers.offer(inputs, mpc)
 
     @property
     def wall_paced(self) -> bool:

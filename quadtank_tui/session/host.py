@@ -41,7 +41,7 @@ import numpy as np
 
 from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, LoadPar, SetParams, SetState
 from quadtank_tui.engine.driver import Driver, LoopTime
-from quadtank_tui.engine.design_ahead import MPCDesigning, needs_mpc_design
+from quadtank_tui.engine.design_ahead import MPCDesigning
 from quadtank_tui.engine.parload import ParReading
 from quadtank_tui.engine.runner import Engine
 from quadtank_tui.engine.snapshot import Snapshot
@@ -139,7 +139,7 @@ class SessionHost:
                  wall: Callable[[], float] = time.time) -> None:
         self.engine = engine
         if scripted is None:  # clients on a paced clock: no sample waits for the disk (a rig's engine does this itself)
-            engine.loop.use_file_thread()
+            engine.use_file_thread()
         self.info = info
         self.runtime = runtime
         self.access = access
@@ -227,10 +227,10 @@ class SessionHost:
     # --- publishing ------------------------------------------------------------------------
 
     def _update(self, snap: Snapshot) -> Update:
-        rows, total, gen = self.engine.loop.history.since(self._sent_total)
+        rows, total, gen = self.engine.history_since(self._sent_total)
         cleared = gen != self._sent_gen
         if cleared:
-            rows, total, gen = self.engine.loop.history.since(0)
+            rows, total, gen = self.engine.history_since(0)
         self._sent_total, self._sent_gen = total, gen
         same = snap.params is self._sent_params
         self._sent_params = snap.params
@@ -296,11 +296,11 @@ class SessionHost:
         self._publish(force=True)  # the others are up to date before this one joins
         conn.role = role
         conn.since = self._wall()
-        loop = self.engine.loop
-        rows, _, _ = loop.history.since(0)  # a copy: the parts are encoded later, from it
-        welcome = Welcome(self._info(), role, self.engine.snapshot(), loop.defaults,
-                          loop.history.capacity, str(loop.store.folder.resolve()),
-                          str(loop.logs_dir.resolve()), self._controller(),
+        engine = self.engine
+        rows, _, _ = engine.history_since(0)  # a copy: the parts are encoded later, from it
+        welcome = Welcome(self._info(), role, engine.snapshot(), engine.defaults(),
+                          engine.history_capacity, str(engine.par_store.folder.resolve()),
+                          str(engine.logs_dir.resolve()), self._controller(),
                           describe(self.policy, active=False), describe(self.policy, active=True),
                           parts=-(-len(rows) // PART_ROWS))
         self.server.send(conn, encode(welcome))
@@ -318,9 +318,9 @@ class SessionHost:
                 f"read-only: you observe session {self.info.id}; {who} controls it"))))
             return
         if isinstance(command, LoadPar):  # the file is read on a thread of its own: samples go on
-            self._waiting.append(_Pending(conn, cid, ParReading.start(self.engine.loop.store, command, self._wake)))
+            self._waiting.append(_Pending(conn, cid, ParReading.start(self.engine.par_store, command, self._wake)))
         elif not self._waiting and isinstance(command, SetParams) \
-                and (new := needs_mpc_design(self.engine.loop, command)) is not None:
+                and (new := self.engine.mpc_design_needed(command)) is not None:
             # designed on a thread of its own: samples go on (a first design imports scipy and OSQP)
             self._waiting.append(_Pending(conn, cid, MPCDesigning.start(command, new, self._wake)))
         else:
@@ -352,7 +352,7 @@ class SessionHost:
                         return
                     designed = what.future.result()
                     if designed is not None:  # else the loop designs it again and says why it refuses
-                        self.engine.loop.controllers.offer(*designed)
+                        self.engine.offer_mpc(*designed)
                     head.applied = self._begin(what.command)
                 else:
                     head.applied = self._begin(what)
@@ -467,7 +467,7 @@ class SessionHost:
             if action == "pause":
                 self.engine.submit(SetState("Pause"))  # a real process: pumps at 0
                 whose = "the default policy" if self.policy == UnattendedPolicy() else "the lab's policy"
-                pumps = self.engine.loop.pumps_unconfirmed or "pumps at 0"  # tried again each tick if not
+                pumps = self.engine.pumps_unconfirmed or "pumps at 0"  # tried again each tick if not
                 self.info = dataclasses.replace(self.info, note=f"paused unattended at {datetime.now():%H:%M:%S}, "
                                                 f"{pumps} ({whose})")
                 self._publish(force=True)
@@ -493,7 +493,7 @@ class SessionHost:
         try:
             self.engine.stop()  # pumps at 0, logging stopped (rows kept), backends closed
         finally:
-            if unsafe := self.engine.loop.pumps_unconfirmed:  # the rig's guard and watchdog were left to it
+            if unsafe := self.engine.pumps_unconfirmed:  # the rig's guard and watchdog were left to it
                 reason = self.ended = f"{reason}; {unsafe}"
             try:
                 self._publish(force=True)

@@ -301,7 +301,7 @@ def session_main(ready_fd: int, lifeline: int = -1) -> int:
         # a mode of 0660 with the share or admin group shut out a teacher outside
         # that group, and the group could not be set at all by an owner outside it.
         listener = listen(str(sock_path), anyone=not spec.private)
-        params = engine.loop.params
+        params = engine.params
         plant = params.process.kind if params.process is not None else "quadtank"
         info = SessionInfo(id=sid, owner=user_name(uid), uid=uid, pid=os.getpid(),
                            started=datetime.now().isoformat(timespec="seconds"), plant=plant,

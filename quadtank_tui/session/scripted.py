@@ -62,7 +62,7 @@ class ScriptedRun:
         for warning in result.warnings:
             print(f"quadtank: warning: {warning}")
         print(result.text, flush=True)
-        acted = "; the interlock held pumps at 0 (see its output)" if self.run.engine.loop.interlock.acted else ""
+        acted = "; the interlock held pumps at 0 (see its output)" if self.run.engine.interlock_acted else ""
         if result.log is None:
             return f"the run is over; no log was written (see its output){acted}"
         return f"the run is over; its log is {result.log}{acted}"
