@@ -26,6 +26,7 @@ from quadtank_tui.commands import identify as identify_command
 from quadtank_tui.commands import sessions as sessions_command
 from quadtank_tui.commands import lab as lab_command
 from quadtank_tui.commands import serve as serve_command
+from quadtank_tui.commands import book as book_command
 from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants.johansson import SETTINGS, steady_state_levels
 from quadtank_tui.commands import exercise as exercise_command
@@ -415,6 +416,7 @@ def build_parser() -> argparse.ArgumentParser:
     lab_command.add_parser(sub)
     serve_command.add_parser(sub)
     exercise_command.add_parser(sub, _cmd_exercise)
+    book_command.add_parsers(sub)
     grade_command.add_parser(sub)
     return parser
 

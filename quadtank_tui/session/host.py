@@ -39,7 +39,8 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from quadtank_tui.engine.commands import Command, CommandResult, InstallPar, LoadPar, SetParams, SetState
+from quadtank_tui.engine.commands import (Command, CommandResult, InstallPar, LoadPar, LogOff, LogSave,
+                                          SetOperation, SetParams, SetState)
 from quadtank_tui.engine.driver import Driver, LoopTime
 from quadtank_tui.engine.design_ahead import MPCDesigning
 from quadtank_tui.engine.parload import ParReading
@@ -49,6 +50,7 @@ from quadtank_tui.session.protocol import (
     Ended, Hello, Refused, Result, Role, Roster, SessionInfo, StopSession, Submit, Update, Welcome, encode,
     encode_history_part, encode_update,
 )
+from quadtank_tui.session.bookings import SlotWatch
 from quadtank_tui.session.lab import LabConfig
 from quadtank_tui.session.policy import UnattendedPolicy, describe, unattended_action
 from quadtank_tui.session.roles import group_id, groups_of, is_administrator, who_administers
@@ -136,8 +138,11 @@ class SessionHost:
     def __init__(self, engine: Engine, listener: socket.socket, info: SessionInfo, *, runtime: Path,
                  access: Access, peer_of: Callable[[socket.socket], Any] | None = None,
                  policy: UnattendedPolicy | None = None, scripted: ScriptedRun | None = None,
-                 wall: Callable[[], float] = time.time) -> None:
+                 wall: Callable[[], float] = time.time, slots: SlotWatch | None = None) -> None:
         self.engine = engine
+        #: the rig's bookings (a session driving a rig): Active refused in another's slot, the hand-over at its end
+        self.slots = slots
+        self._handover: tuple[str, list[Future[CommandResult]], float] | None = None
         if scripted is None:  # clients on a paced clock: no sample waits for the disk (a rig's engine does this itself)
             engine.use_file_thread()
         self.info = info
@@ -317,6 +322,10 @@ class SessionHost:
             self.server.send(conn, encode(Result(cid, CommandResult.refused(
                 f"read-only: you observe session {self.info.id}; {who} controls it"))))
             return
+        if isinstance(command, SetOperation) and command.operation == "Active" and self.slots is not None \
+                and (why := self._slot_refusal(conn)) is not None:
+            self.server.send(conn, encode(Result(cid, CommandResult.refused(why))))
+            return
         if isinstance(command, LoadPar):  # the file is read on a thread of its own: samples go on
             self._waiting.append(_Pending(conn, cid, ParReading.start(self.engine.par_store, command, self._wake)))
         elif not self._waiting and isinstance(command, SetParams) \
@@ -404,11 +413,57 @@ class SessionHost:
             self._roster_changed()
 
     def _controller(self) -> str:
+        notice = f"; {self.slots.notice}" if self.slots is not None and self.slots.notice else ""
         if self.scripted is not None:
-            return f"the script of quadtank run controls session {self.info.id}"
+            return f"the script of quadtank run controls session {self.info.id}{notice}"
         op = self._operator
-        return f"{op.name} controls session {self.info.id}" if op is not None else \
-            f"nobody controls session {self.info.id}"
+        return (f"{op.name} controls session {self.info.id}" if op is not None else
+                f"nobody controls session {self.info.id}") + notice
+
+    def _slot_refusal(self, conn: Connection) -> str | None:
+        assert self.slots is not None
+        try:
+            return self.slots.refusal()
+        except (OSError, ValueError) as exc:  # an unreadable bookings folder refuses nobody
+            print(f"{datetime.now():%H:%M:%S} bookings: {exc}", flush=True)
+            return None
+
+    def _watch_slot(self) -> None:
+        """The rig's bookings each second: a notice on the screens before this
+        session's time on the rig ends, then the hand-over: pumps at 0 (Pause), the
+        log saved with its rows, the session stopped (the rig's lock freed)."""
+        if self.slots is None:
+            return
+        if self._handover is not None:
+            reason, pending, since = self._handover
+            if all(f.done() for f in pending) or time.monotonic() - since > 10.0:
+                saved = [f.result().message for f in pending if f.done() and f.result().ok and f.result().message]
+                print(f"{datetime.now():%H:%M:%S} slot: log {'; '.join(saved) or 'none to save'}", flush=True)
+                self.request_stop(reason)
+            return
+        before = self.slots.notice
+        try:
+            notice, end = self.slots.step()
+        except (OSError, ValueError) as exc:
+            print(f"{datetime.now():%H:%M:%S} bookings: {exc}", flush=True)
+            return
+        if self.slots.fresh and notice:
+            print(f"{datetime.now():%H:%M:%S} slot: {notice}", flush=True)
+        if notice != before:
+            self._roster_changed()  # the screens' banner: the countdown
+        if end is None:
+            return
+        self.engine.submit(SetState("Pause"))  # a real process: pumps at 0
+        print(f"{datetime.now():%H:%M:%S} slot: {end}: pumps at 0", flush=True)
+        snap = self.engine.snapshot()
+        saving: list[Future[CommandResult]] = []
+        if snap.log.active:
+            saving.append(self.engine.submit(LogOff()))
+        if snap.log.active or snap.log.unsaved:
+            saving.append(self.engine.submit(LogSave()))
+        self.slots.notice = f"{end}: pumps at 0, the log saved, this session stops"
+        self._roster_changed()
+        self._handover = (f"{end}: pumps at 0, the log saved", saving, time.monotonic())
 
     def _roster_changed(self) -> None:
         clients = sum(1 for c in self.server.connections if c.role in ("operator", "observer"))
@@ -458,6 +513,7 @@ class SessionHost:
         if now - self._last_policy < 1.0:
             return
         self._last_policy = now
+        self._watch_slot()
         self._write_record()
         if self._operator is None and snap.state == "Run" and self.scripted is None:
             action = unattended_action(

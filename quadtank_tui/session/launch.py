@@ -264,6 +264,7 @@ def session_main(ready_fd: int, lifeline: int = -1) -> int:
     sid = claim_id(runtime, user_name(uid))
     out_path = output_of(runtime, sid)
     lock: RigLock | None = None
+    slots = None
     try:
         _redirect_stdio(out_path)
         daq = None
@@ -283,6 +284,11 @@ def session_main(ready_fd: int, lifeline: int = -1) -> int:
             if not spec.private:  # a private session's launcher keeps the lock (and watches it)
                 # under the rig's identity (a Modbus rig's addresses, a serial rig's device); adopts the launcher's
                 lock = RigLock.of(daq.config, lab, session=sid)
+                from quadtank_tui.session.bookings import SlotWatch
+
+                slots = SlotWatch(lab, lock.keys, uid)
+                if (booked := slots.refusal()) is not None:
+                    raise PermissionError(booked.replace("; Active needs", "; a session on the rig needs"))
         scripted = None
         if spec.run is not None:
             from quadtank_tui.engine.headless import prepare_headless
@@ -310,7 +316,7 @@ def session_main(ready_fd: int, lifeline: int = -1) -> int:
                            watchdog="" if daq is None else "device" if daq.config.watchdog else "none")
         access = Access(uid, is_admin=lambda peer: False) if spec.private else Access.for_lab(uid, lab)
         host = SessionHost(engine, listener, info, runtime=runtime, access=access,
-                           policy=lab.unattended, scripted=scripted)
+                           policy=lab.unattended, scripted=scripted, slots=slots)
         host.install_signal_handlers()
         if lifeline >= 0:
             threading.Thread(target=_hold_on, args=(lifeline, host.request_stop), name="quadtank-lifeline",

@@ -1,0 +1,125 @@
+"""Two real users and a virtual rig (issue 44): bob's booking refuses alice's
+booking over it, her cancelling it and her session on the rig in his slot; his
+own run on the rig is warned before the slot's end, then handed over: pumps at 0
+(read from the rig), his log saved with its rows, the session stopped, the rig
+free.  1 s slots, so the whole timeline takes about ten seconds."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import time
+from datetime import datetime, timedelta
+from pathlib import Path
+from typing import Iterator
+
+import pytest
+from servekit import ROOT, User, can_make_users, made_users, wait_for
+
+pytestmark = [pytest.mark.wallclock, pytest.mark.skipif(can_make_users() is not None or not Path(
+    "/usr/sbin/runuser").exists() and not Path("/sbin/runuser").exists(), reason=str(can_make_users() or "runuser"))]
+
+DAC = 1000  # the pump registers of params/virtual-rig.yaml's map
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, dict[str, User]]]:
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="qtr-book-"))
+    os.chmod(folder, 0o755)
+    (folder / "rt").mkdir()
+    os.chmod(folder / "rt", 0o1777)
+    (folder / "lab.yaml").write_text(f"runtime_dir: {folder / 'rt'}\nbookings:\n  slot_minutes: {1 / 60!r}\n"
+                                     "  warn_minutes: [0.05]\n  weekly_quota_minutes: 60\n")
+    homes = folder / "homes"
+    homes.mkdir()
+    with made_users(homes, "alice", "bob") as users:
+        yield folder, users
+    import shutil
+
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def quadtank(user: User, folder: Path, *args: str, timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
+    env = {"PATH": os.environ.get("PATH", ""), "PYTHONPATH": str(ROOT), "HOME": str(user.home),
+           "QUADTANK_LAB": str(folder / "lab.yaml"), "PYTHONDONTWRITEBYTECODE": "1"}
+    return subprocess.run(["runuser", "-u", user.name, "--", sys.executable, "-m", "quadtank_tui", *args],
+                          cwd=user.home, env=env, capture_output=True, text=True, timeout=timeout)
+
+
+def dacs(port: int) -> list[int]:
+    from pymodbus.client import ModbusTcpClient
+
+    client = ModbusTcpClient("127.0.0.1", port=port, timeout=2.0)
+    try:
+        rr = client.read_holding_registers(DAC, count=4, device_id=1)
+        assert not rr.isError(), rr
+        return list(rr.registers)
+    finally:
+        client.close()
+
+
+def test_bobs_booking_refuses_alice_and_his_slot_ends_in_a_hand_over(lab: tuple[Path, dict[str, User]]) -> None:
+    folder, users = lab
+    alice, bob = users["alice"], users["bob"]
+    rig = subprocess.Popen([sys.executable, "-m", "quadtank_tui", "rig", "--port", "0", "--map",
+                            str(ROOT / "params" / "virtual-rig.yaml")], stdout=subprocess.PIPE, text=True,
+                           env={**os.environ, "PYTHONPATH": str(ROOT)})
+    try:
+        assert rig.stdout is not None
+        line = rig.stdout.readline()
+        port = int(re.search(r"serving on [\d.]+:(\d+)", line).group(1))  # type: ignore[union-attr]
+        daq = folder / "rig.yaml"
+        daq.write_text((ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {port}"))
+        start = datetime.now().astimezone().replace(microsecond=0) + timedelta(seconds=2)
+        end = start + timedelta(seconds=14)  # time for four commands and two session starts on a loaded machine
+        hms = "%H:%M:%S"
+        made = quadtank(bob, folder, "book", str(daq), f"{start:{hms}}", f"{end:{hms}}")
+        assert made.returncode == 0, made.stderr
+        booking = made.stdout.split()[1].rstrip(":")
+        over = quadtank(alice, folder, "book", str(daq), f"{start + timedelta(seconds=2):{hms}}",
+                        f"{end + timedelta(seconds=5):{hms}}")
+        assert over.returncode == 2 and f"the rig is booked then: {bob.name} " in over.stderr, over.stderr
+        cancel = quadtank(alice, folder, "bookings", "--cancel", booking)
+        assert cancel.returncode == 2 and "cancelling it needs an administrator" in cancel.stderr, cancel.stderr
+        listed = quadtank(alice, folder, "bookings")
+        assert booking in listed.stdout and bob.name in listed.stdout
+        time.sleep(max((start - datetime.now().astimezone()).total_seconds(), 0) + 0.2)
+        # in bob's slot: alice's run on the rig is refused, with whose slot it is and until when
+        refused = quadtank(alice, folder, "run", "--daq", str(daq), "--realtime", "--duration", "30",
+                           "--log", "alice.log", "--detach")
+        assert refused.returncode == 2, (refused.stdout, refused.stderr)
+        assert f"the rig is booked by {bob.name} until {end:{hms}}" in refused.stderr, refused.stderr
+        # bob's own run: Active on the rig, then handed over at his slot's end
+        run = quadtank(bob, folder, "run", "--daq", str(daq), "--realtime", "--duration", "60",
+                       "--log", "bob.log", "--detach")
+        assert run.returncode == 0, run.stderr
+        assert wait_for(lambda: dacs(port) != [0, 0, 0, 0], 5), "bob's run never drove the pumps"
+        sid = f"{bob.name}-1"
+        out = folder / "rt" / f"{sid}.out"
+        text = wait_for(lambda: out.read_text() if "stopped:" in out.read_text() else "",
+                        (end - datetime.now().astimezone()).total_seconds() + 8)
+        assert text, (out.read_text(), quadtank(bob, folder, "sessions").stdout, sorted(p.name for p in (folder / "rt").iterdir()), datetime.now(), end)
+        stamps = {what: datetime.strptime(m.group(1), hms).time() for what, pattern in (
+            ("warned", r"(\d\d:\d\d:\d\d) slot: your slot ends at"),
+            ("pumps", r"(\d\d:\d\d:\d\d) slot: your slot on the rig ended at .*: pumps at 0"),
+            ("saved", r"(\d\d:\d\d:\d\d) slot: log saved")) if (m := re.search(pattern, text))}
+        assert set(stamps) == {"warned", "pumps", "saved"}, text
+        assert stamps["warned"] < stamps["pumps"] <= stamps["saved"]
+        assert end.time() <= stamps["pumps"] <= (end + timedelta(seconds=2)).time(), (stamps, end)
+        assert dacs(port) == [0, 0, 0, 0]  # the pumps at 0, read from the rig
+        log = bob.home / "bob.log"
+        rows = [r for r in log.read_text().splitlines() if r and not r.startswith("%")]
+        assert len(rows) >= 30, len(rows)  # 7 s of his slot at 0.1 s, less the start
+        assert log.stat().st_uid == bob.uid
+        ended = quadtank(bob, folder, "sessions")
+        assert f"your slot on the rig ended at {end:{hms}}: pumps at 0, the log saved" in ended.stdout, ended.stdout
+        # the rig is free: no lock record of bob's live
+        locks = list((folder / "rt" / "locks").glob("*.lock"))
+        assert all(p.stat().st_uid != bob.uid for p in locks), locks
+    finally:
+        rig.terminate()
+        rig.wait(timeout=10)

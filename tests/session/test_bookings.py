@@ -1,0 +1,123 @@
+"""Bookings (issue 44): the rules of the lab file, what a booking may be, which
+files count, and the timeline a session driving the rig follows (SlotWatch), on
+explicit times: no clock, no process."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import replace
+from datetime import datetime, timedelta
+from pathlib import Path
+
+import pytest
+
+from quadtank_tui.session import bookings as bk
+from quadtank_tui.session.lab import LabConfig, LabConfigError, parse_lab_config
+
+KEYS = ("127.0.0.1:5020/1",)
+T0 = datetime(2026, 12, 7, 14, 0).astimezone()  # a Monday
+
+
+def lab_with(tmp_path: Path, text: str = "") -> LabConfig:
+    lab = parse_lab_config(text, name="lab.yaml", source=tmp_path / "lab.yaml")
+    return replace(lab, runtime_dir=tmp_path / "rt")
+
+
+def at(minutes: float) -> datetime:
+    return T0 + timedelta(minutes=minutes)
+
+
+def test_the_rules_and_their_mistakes(tmp_path: Path) -> None:
+    r = bk.booking_rules(lab_with(tmp_path, "bookings:\n  slot_minutes: 15\n  warn_minutes: [1, 5]\n"))
+    assert (r.slot_minutes, r.horizon_days, r.weekly_quota_minutes, r.warn_minutes) == (15.0, 14.0, 120.0, (5.0, 1.0))
+    for text, message in (("bookings:\n  slot: 3\n", "lab.yaml:2: bookings.slot: unknown key"),
+                          ("bookings:\n  slot_minutes: 7\n", "lab.yaml:2: bookings.slot_minutes: must divide a day"),
+                          ("bookings:\n  warn_minutes: 5\n", "lab.yaml:2: bookings.warn_minutes: must be a list")):
+        with pytest.raises(LabConfigError) as exc:
+            bk.booking_rules(lab_with(tmp_path, text))
+        assert str(exc.value).startswith(str(tmp_path / message)), str(exc.value)
+
+
+def test_a_booking_is_on_the_slots_ahead_and_free(tmp_path: Path) -> None:
+    lab = lab_with(tmp_path)
+    made = bk.book(lab, KEYS, at(0), at(60), now=at(-10))
+    assert (made.user, made.start, made.end, made.rig) == ("root", at(0), at(60), KEYS[0])
+    assert made.words().endswith("14:00-15:00") and made.path.stat().st_mode & 0o777 == 0o644
+    refusals = {
+        "on the lab's slots": (at(10), at(40)),
+        "the rig is booked then: root": (at(30), at(90)),
+        "before it starts": (at(90), at(60)),
+        "that slot is over": (at(-120), at(-60)),
+    }
+    for words, (start, end) in refusals.items():
+        with pytest.raises(bk.BookingError, match=words):
+            bk.book(lab, KEYS, start, end, now=at(-10))
+    assert [b.id for b in bk.list_bookings(lab, KEYS, now=at(-10))] == [made.id]
+    assert bk.in_force(lab, KEYS, at(59)) == made and bk.in_force(lab, KEYS, at(60)) is None
+    assert bk.in_force(lab, ("10.0.0.9:502/1",), at(30)) is None  # another rig
+
+
+def test_a_students_horizon_and_weekly_quota(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    lab = lab_with(tmp_path, "bookings:\n  horizon_days: 2\n  weekly_quota_minutes: 90\n")
+    monkeypatch.setattr(bk, "_is_admin", lambda uid, lab: False)
+    with pytest.raises(bk.BookingError, match="at most 2 days ahead"):
+        bk.book(lab, KEYS, at(3 * 24 * 60), at(3 * 24 * 60 + 30), now=at(0))
+    bk.book(lab, KEYS, at(60), at(120), now=at(0))
+    with pytest.raises(bk.BookingError, match="that would be 120 min this week; the lab's quota is 90 min"):
+        bk.book(lab, KEYS, at(180), at(240), now=at(0))
+    bk.book(lab, KEYS, at(180), at(210), now=at(0))  # 90 min: the quota exactly
+    with pytest.raises(bk.BookingError, match="needs an administrator"):
+        bk.book(lab, KEYS, at(300), at(330), uid=4242, now=at(0))
+
+
+def test_only_bookings_the_kernel_says_are_theirs_count(tmp_path: Path) -> None:
+    lab = lab_with(tmp_path)
+    made = bk.book(lab, KEYS, at(0), at(30), now=at(-10))
+    forged = made.path.with_name(made.path.name.replace("T140000", "T150000"))
+    forged.write_text(json.dumps({"rig": KEYS[0], "uid": 0, "start": at(60).isoformat(), "end": at(90).isoformat()}))
+    os.chown(forged, 54321, 54321)  # written by a user who is nobody's administrator, naming root
+    big = forged.with_name(forged.name.replace("T150000", "T160000"))
+    big.write_text("x" * 5000)
+    assert [b.id for b in bk.list_bookings(lab, KEYS, now=at(-10))] == [made.id]
+    gone = bk.cancel(lab, made.id)
+    assert gone.id == made.id and not made.path.exists() and bk.list_bookings(lab, KEYS, now=at(-10)) == []
+    with pytest.raises(bk.BookingError, match="no booking"):
+        bk.cancel(lab, made.id)
+
+
+def _booking(lab: LabConfig, uid: int, start: float, end: float) -> None:
+    """A booking of `uid`'s written as an administrator does (root owns the file)."""
+    bk.book(lab, KEYS, at(start), at(end), uid=uid, now=at(-60))
+
+
+def test_the_timeline_of_a_session_on_the_rig(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    lab = lab_with(tmp_path)
+    monkeypatch.setattr("quadtank_tui.session.roles.user_name", lambda uid: {1001: "alice", 1002: "bob"}.get(uid, "x"))
+    _booking(lab, 1002, 0, 30)    # bob 14:00-14:30
+    _booking(lab, 1002, 30, 60)   # and 14:30-15:00: one slot to him
+    _booking(lab, 1001, 60, 90)   # alice 15:00-15:30
+    alice = bk.SlotWatch(lab, KEYS, 1001)
+    bob = bk.SlotWatch(lab, KEYS, 1002)
+    # alice, first come before bob's slot: warned 5 and 1 minutes before it, then handed over at its start
+    assert alice.step(at(-10)) == (None, None)
+    notice, end = alice.step(at(-5))
+    assert end is None and alice.fresh and notice is not None and notice.startswith(
+        "the rig is booked by bob from 14:00 (in 5 min 00 s): then the pumps go to 0, the log is saved")
+    alice.step(at(-4))
+    assert not alice.fresh
+    alice.step(at(-1))
+    assert alice.fresh
+    _, end = alice.step(at(0))
+    assert end == "the rig's slot of bob began at 14:00; this session handed the rig over"
+    assert alice.refusal(at(10)) == "the rig is booked by bob until 15:00; Active needs your own slot (quadtank bookings)"
+    # bob: his two slots are one; warned before 15:00, ended at 15:00
+    assert bob.refusal(at(10)) is None
+    assert bob.step(at(10)) == (None, None)
+    notice, end = bob.step(at(55))
+    assert end is None and notice is not None and notice.startswith("your slot ends at 15:00 (in 5 min 00 s)")
+    _, end = bob.step(at(60))
+    assert end == "your slot on the rig ended at 15:00"
+    # after the last slot: first come again
+    assert bk.SlotWatch(lab, KEYS, 1002).step(at(100)) == (None, None)
+    assert alice.refusal(at(100)) is None
