@@ -51,3 +51,26 @@ def log_state(log: LogStatus) -> str:
     if log.saved_path:
         return f"saved {log.saved_path}"
     return "off"
+
+
+#: What a refused command's notification is titled: what the user asked for, in
+#: the words of the screen (never the engine's class name: "SetState").
+_COMMAND_TITLES = {
+    "SetParams": "Settings", "SetDefaults": "Defaults", "NudgeMean": "Input mean", "AddWater": "Add water",
+    "SetFault": "Fault", "SetDisturbance": "Disturbance pump", "ResetControllers": "Controller reset",
+    "LogOn": "LogOn", "LogOff": "LogOff", "LogSave": "Save log", "LogDiscard": "Discard log",
+    "LoadPar": "Load parameters", "SavePar": "Save parameters", "SetSpeed": "Speed",
+    "StartCalibration": "Calibration", "CalibrationHeights": "Calibration", "CancelCalibration": "Calibration",
+    "InstallPar": "Parameters",
+}
+
+
+def command_title(command: object) -> str:
+    """The title of a notification about `command`: Run, Pause, Reset, Simul,
+    Active, Manual or Automatic for the mode changes, else its words."""
+    for field in ("state", "operation", "mode"):
+        value = getattr(command, field, None)
+        if isinstance(value, str):
+            return value
+    name = type(command).__name__
+    return _COMMAND_TITLES.get(name, name)

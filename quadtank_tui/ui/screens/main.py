@@ -20,7 +20,6 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
-from textual.widgets import Static
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS, SimulationSettings
 from quadtank_tui.core.plants.common import FULL_SCALE_V
@@ -38,6 +37,7 @@ from quadtank_tui.ui.widgets.controller_box import ControllerBox, element_used
 from quadtank_tui.ui.widgets.input_signals import ChannelPanel
 from quadtank_tui.ui.widgets.key_footer import KeyFooter
 from quadtank_tui.ui.widgets.process_image import ProcessImage
+from quadtank_tui.ui.widgets.session_bar import SessionBar
 from quadtank_tui.ui.widgets.status_line import StatusLine
 from quadtank_tui.ui.widgets.trend_clock import ClockMap
 from quadtank_tui.ui.plot_axes import scroll_step
@@ -102,7 +102,7 @@ class MainScreen(CommandSender):
         Binding("d", "design", "Design", show=False, tooltip="The Design screen: PI/PID from a model, evaluated, then Apply"),
         Binding("y", "identify", "Identify", show=False, tooltip="The Identify screen: models from a logged experiment"),
         Binding("F", "faults", "Faults", show=False, tooltip="Simul only: break the simulated process (leaks, clogs, sensors)"),
-        Binding("t", "controller_type", "Type", tooltip="Controller type: PID or General (decentralized or full), or state feedback"),
+        Binding("t", "controller_type", "Type", tooltip="Controller type: PID or General (decentralized or full), state feedback or MPC"),
         Binding("1", "element(0)", "Element 11", show=False, tooltip="Controller element 11 (error 1 to input 1)"),
         Binding("2", "element(1)", "Element 12", show=False, tooltip="Controller element 12 (full matrix only)"),
         Binding("3", "element(2)", "Element 21", show=False, tooltip="Controller element 21 (full matrix only)"),
@@ -187,7 +187,7 @@ class MainScreen(CommandSender):
             yield Trend("lower", id="lower")
         banner = self._session_banner()
         if banner is not None:  # a client of a lab session: whose it is, who drives it
-            yield Static(banner, id="session-bar", markup=False)
+            yield SessionBar(banner, id="session-bar")
         yield KeyFooter()
 
     def _session_banner(self) -> str | None:
@@ -265,7 +265,7 @@ class MainScreen(CommandSender):
         if banner is not None and banner != self._banner:
             self._banner = banner
             try:
-                self.query_one("#session-bar", Static).update(banner)
+                self.query_one("#session-bar", SessionBar).update(banner)
             except NoMatches:
                 pass
         if snap.state == "Run":

@@ -18,6 +18,7 @@ from textual.message import Message
 from quadtank_tui.engine.commands import Command, CommandResult
 from quadtank_tui.engine.handle import EngineHandle
 from quadtank_tui.engine.snapshot import Snapshot
+from quadtank_tui.ui.labels import command_title
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.screens.behind import QuietBehind
 from quadtank_tui.ui.widgets.sized import PacksForSize
@@ -101,7 +102,7 @@ class CommandSender(PacksForSize, QuietBehind):
             if on_refused is not None:
                 on_refused(result.message)
             else:
-                self.notify(result.message, title=type(command).__name__, severity="error", timeout=6,
+                self.notify(result.message, title=command_title(command), severity="error", timeout=6,
                             markup=False)
         for warning in result.warnings:
             self.notify(warning, severity="warning", markup=False)

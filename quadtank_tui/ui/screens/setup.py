@@ -94,7 +94,7 @@ class SamplingLine(Static):
         value = fmt(p.tsamp_ms)
         if p.is_modified(TSAMP, defaults):
             value = f"[i dim]{value}[/]"
-        self.update(f"[b]Sampling time[/] {value} ms   [dim]s[/]")
+        self.update(f"[b]Sampling time[/] {value} ms   [dim]· s to change[/]")
 
     def on_click(self, event: events.Click) -> None:
         event.stop()
@@ -116,7 +116,7 @@ class SetupScreen(CommandSender):
         Binding("f", "par_files", "Files", tooltip="Load or save a .par file"),
         Binding("c", "calibration", "Calibrate", show=False,
                 tooltip="Calibrate the level sensors and the outlets on the rig (Active; Desautel 2.3)"),
-        Binding("t", "controller_type", "Type", tooltip="Controller type: PID or General (decentralized or full), or state feedback"),
+        Binding("t", "controller_type", "Type", tooltip="Controller type: PID or General (decentralized or full), state feedback or MPC"),
         Binding("1", "element(0)", "Element 11", show=False, tooltip="Element 11 with the PID extras N, Tr, a, b"),
         Binding("2", "element(1)", "Element 12", show=False, tooltip="Element 12 with the PID extras"),
         Binding("3", "element(2)", "Element 21", show=False, tooltip="Element 21 with the PID extras"),
