@@ -524,7 +524,10 @@ def _holding_the_daq(handler: Handler, args: argparse.Namespace) -> int:
     program drives it).  A headless command whose rig is taken over is interrupted
     (TakenOver); the TUI watches its lock itself (args.daq_hold)."""
     take_over = getattr(args, "take_over", False) or args.take_over_global
-    with lab_command.hold_daq(_driven_daq(args), take_over=take_over) as hold:
+    driven = _driven_daq(args)
+    if driven is not None and not take_over:
+        book_command.refuse_in_anothers_slot(driven)  # the rig's bookings: UsageError in someone else's slot
+    with lab_command.hold_daq(driven, take_over=take_over) as hold:
         args.daq_hold = hold
         if hold is None or handler is _cmd_tui:
             return handler(args)

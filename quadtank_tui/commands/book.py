@@ -106,3 +106,21 @@ def cmd_bookings(args: argparse.Namespace) -> int:
         by = "" if b.by == b.user else f"  (booked by {b.by})"
         print(f"{b.id}  {b.rig}  {b.user}  {b.start:%Y-%m-%d %H:%M:%S} - {b.end:%H:%M:%S}{by}")
     return 0
+
+
+def refuse_in_anothers_slot(rig: str) -> None:
+    """UsageError if the rig (a DAQ configuration) is in someone else's booked slot
+    now: a program that would drive it is refused before it takes the lock (a bad
+    file or an unresolved host is left to the lock, which says so)."""
+    import os
+
+    from quadtank_tui.session.bookings import active_refusal
+    from quadtank_tui.session.lab import LabConfigError, load_lab_config
+
+    try:
+        keys = rig_keys_of(rig)
+        why = active_refusal(load_lab_config(), keys, os.getuid())
+    except (UsageError, LabConfigError, OSError, ValueError):
+        return
+    if why is not None:
+        raise UsageError(why.replace("; Active needs", "; driving it needs"))

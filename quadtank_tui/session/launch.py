@@ -284,11 +284,12 @@ def session_main(ready_fd: int, lifeline: int = -1) -> int:
             if not spec.private:  # a private session's launcher keeps the lock (and watches it)
                 # under the rig's identity (a Modbus rig's addresses, a serial rig's device); adopts the launcher's
                 lock = RigLock.of(daq.config, lab, session=sid)
-                from quadtank_tui.session.bookings import SlotWatch
+            from quadtank_tui.session.bookings import SlotWatch
+            from quadtank_tui.session.riglock import rig_keys
 
-                slots = SlotWatch(lab, lock.keys, uid)
-                if (booked := slots.refusal()) is not None:
-                    raise PermissionError(booked.replace("; Active needs", "; a session on the rig needs"))
+            slots = SlotWatch(lab, lock.keys if lock is not None else rig_keys(daq.config), uid)
+            if (booked := slots.refusal()) is not None:
+                raise PermissionError(booked.replace("; Active needs", "; a session on the rig needs"))
         scripted = None
         if spec.run is not None:
             from quadtank_tui.engine.headless import prepare_headless

@@ -162,3 +162,42 @@ def test_100_wrong_passwords_are_slowed_and_the_account_still_works(world: tuple
     status, cookie, headers = server.login(bob.name, bob.password)
     assert status == 303 and cookie
     assert sum(f"login-failed user={bob.name} " in line for line in server.audit_lines()) <= 5
+
+
+def test_alices_tab_cannot_attach_to_or_stop_bobs_session(world: tuple[Serve, dict[str, User]]) -> None:
+    import os
+    import subprocess
+    import sys
+
+    from servekit import ROOT
+
+    server, users = world
+    alice, bob = users["a"], users["b"]
+    env = {"PATH": os.environ.get("PATH", ""), "PYTHONPATH": str(ROOT), "HOME": str(bob.home),
+           "QUADTANK_RUNTIME": str(server.runtime)}
+    started = subprocess.run(["runuser", "-u", bob.name, "--", sys.executable, "-m", "quadtank_tui", "run",
+                              "--duration", "600", "--realtime", "--log", "bob.log", "--detach"],
+                             cwd=bob.home, env=env, capture_output=True, text=True, timeout=60)
+    assert started.returncode == 0, started.stderr
+    sid = f"{bob.name}-1"
+    status, cookie, _ = server.login(alice.name, alice.password)
+    assert status == 303 and cookie
+    _, _, page = server.request("GET", "/", cookie=cookie)
+    assert sid not in page  # her page offers her own sessions only
+
+    async def tab(path: str) -> str:
+        status, ws, session = await open_tab(server, cookie, path)
+        assert status == 101 and ws is not None and session is not None
+        text = await screen_text(ws, "\x00never", 30.0)  # until the tab closes
+        await session.close()
+        return text
+
+    attach = asyncio.run(tab(f"/ws/attach/{sid}"))
+    assert f"session {sid} belongs to {bob.name}" in attach and f"you are {alice.name}" in attach, attach
+    # (a take-over, /ws/take_over/ID, meets the same refusal: the session decides, tests/session)
+    assert server.request("GET", "/ws/stop/x", cookie=cookie, headers={"Origin": server.origin})[0] == 404
+    # a tab runs the TUI, never `stop`: stopping bob's session would need his TUI, which refused her
+    from quadtank_tui.session.runtime import list_sessions
+
+    [info] = [i for i in list_sessions(server.runtime, prune=False) if i.id == sid]
+    assert info.state == "Run" and info.owner == bob.name  # untouched
