@@ -138,6 +138,7 @@ class MainScreen(CommandSender):
                 tooltip="Simul: next speed of 1, 2, 5 ... 1000 x real time"),
         Binding("minus", "speed(-1)", "Slower", show=False, tooltip="Simul: previous speed step"),
         Binding("l", "logging", "Log", show=False, tooltip="Logging window: points, file, variables, LogOn, LogOff, Save"),
+        Binding("k", "bookings", "Bookings", show=False, tooltip="The rig's bookings: book or cancel a slot"),
         Binding("x", "exercise", "Exercise", show=False,
                 tooltip="Exercise window: its text, the requirements live, the time left"),
         Binding("question_mark", "app.help", "Help", tooltip="Every key of every screen and window"),
@@ -532,6 +533,13 @@ class MainScreen(CommandSender):
 
         self.app.push_screen(ExerciseWindow(self.current(), tracker, self.engine, opener="x",
                                             wall_clock=getattr(self.app, "exercise_clock", time.time)))
+
+    def action_bookings(self) -> None:
+        """The Bookings window of the session's rig (session/bookings.py)."""
+        from quadtank_tui.ui.windows.bookings import BookingsWindow
+
+        info = getattr(self.engine, "info", None)
+        self.app.push_screen(BookingsWindow(str(getattr(info, "daq", "") or ""), opener="k"))
 
     def action_logging(self) -> None:
         snap = self.current()
