@@ -27,6 +27,7 @@ from quadtank_tui.core.design.controller import PID, DesignError
 from quadtank_tui.core.design.lambda_tuning import first_order
 from quadtank_tui.core.design.mimo import Matrix, MimoCheck, design_2x2, lambda11, loop2_with_loop1_closed, slowest_pole
 from quadtank_tui.core.design.preview import Preview, horizon, preview, time_constant
+from quadtank_tui.core.design.robust import Robustness
 from quadtank_tui.core.design.table import MS_VALUES, Candidate, candidates, default_lambdas, suggested
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.plants.base import Plant
@@ -164,3 +165,26 @@ def preview_plan(params: Parameters, pair: Sequence[PID], model: Sequence[Sequen
     levels, inputs = start if start is not None else operating_start(params)
     return PreviewPlan(params.process_plant(), tuple(float(x) for x in levels), tuple(float(u) for u in inputs),
                        tuple(pair), h, model, tr_of(params, tr_keys[:len(pair)]), window)
+
+
+#: plants in the robustness spread
+SPREAD_N = 100
+
+
+def robustness_of(params: Parameters, plan: PreviewPlan, nominal: Preview, *, n: int = SPREAD_N,
+                  seed: int = 0) -> Robustness:
+    """The pair of `plan` over `n` plants drawn about the parameters' quadruple tank
+    (core.design.robust's stated spread), from the preview's start levels, for as
+    long as the nominal steps took to settle and as long again (at most their
+    run).  Raises ValueError for a plant the batch path does
+    not model (a PLANT section, an effect such as a dead zone, one pump)."""
+    from quadtank_tui.core.design.robust import Spread, draw_plants, robustness
+
+    if params.process is not None or any(v for _, v in params.simulation.effects) or len(plan.pair) != 2:
+        raise ValueError("the spread runs on the quadruple tank's batch path: not for this plant")
+    window = max(min(s.window, 2.0 * s.sim.settling) if s.sim.settling is not None else s.window
+                 for s in nominal.steps)
+    spread = Spread()
+    plants = draw_plants(params.quadtank_constants(), n, spread, seed)
+    return robustness(plants, (plan.levels[0], plan.levels[1]), plan.pair, plan.h, window, tr=plan.tr,
+                      source=f"the nominal plant and {n - 1} drawn: {spread.describe()}")

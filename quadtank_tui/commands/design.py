@@ -60,6 +60,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--window", type=float, metavar="SECONDS",
                    help="length of each preview step, s (default: each step runs until it settles, at most "
                    "10 times the slowest time constant)")
+    p.add_argument("--spread", type=int, default=100, metavar="N",
+                   help="with --par: also run the pair on N plants drawn about the file's (+-10 %% outlets and "
+                   "pumps, +-0.05 valve splits) and print the median and worst of each step (default 100; 0: off)")
     p.add_argument("--write-par", metavar="OUT.par",
                    help="with --par: save the parameters with the designed controllers (and TSamp "
                    "set to the sampling time they were designed for)")
@@ -267,23 +270,28 @@ def _run_2x2(args: argparse.Namespace) -> int:
         h = params.tsamp if params is not None else 0.0
     method = args.method or METHOD_DEFAULT
     chk = design_pair(G, h, method=method, lam=(args.lam, args.lam), ms=args.ms)
-    pv = None
+    pv = rb = None
+    if not (0 <= args.spread <= 2000):
+        raise ValueError(f"--spread must be 0..2000 plants, got {args.spread}")
     if not args.no_step and chk.stable and params is not None:
         if h <= 0.0:
             raise ValueError("the preview on the simulator needs a sampling time: --sampling > 0")
-        pv = _preview(params, chk.pid_pair(), G, h, args.window, _model_inputs(args.model_file))
+        plan = _plan(params, chk.pid_pair(), G, h, args.window, _model_inputs(args.model_file))
+        pv = plan.run()
+        rb = _spread(args.spread, params, plan, pv)
     written = None
     if args.write_par:
         assert params is not None
         written = _write(args.write_par, params, controller_values(chk.pid_pair()), h)
     figure = _figure(args.figure, [(f"loop {d.loop} on {d.how}", d.model, d.controller) for d in chk.loops],
                      f"{source}, method {method}")
-    return _report(args.json, _check_json(chk, pv, written), [f"{source}, method {method}", format_check(chk)],
-                   pv, written, figure)
+    report = _check_json(chk, pv, written)
+    report["robustness"] = None if rb is None else rb.to_dict()
+    return _report(args.json, report, [f"{source}, method {method}", format_check(chk)], pv, written, figure, rb)
 
 
 def _report(as_json: bool, report: dict[str, Any], lines: list[str], pv: Any, written: Path | None,
-            figure: Path | None) -> int:
+            figure: Path | None, rb: Any = None) -> int:
     """The design's JSON object, or its lines, the preview and what was written."""
     if as_json:
         if figure is not None:
@@ -295,6 +303,10 @@ def _report(as_json: bool, report: dict[str, Any], lines: list[str], pv: Any, wr
         from quadtank_tui.core.design.preview import format_preview
 
         print(format_preview(pv))
+    if rb is not None:
+        from quadtank_tui.core.design.robust import format_robustness
+
+        print("robustness " + format_robustness(rb))
     if written:
         print(f"wrote {written}")
     if figure is not None:
@@ -338,14 +350,27 @@ def _start(params: Any, inputs: list[float] | None) -> tuple[Any, Any] | None:
     return None
 
 
-def _preview(params: Any, pair: Any, G: Any, h: float, window: float | None,
-             inputs: list[float] | None = None, tr_keys: tuple[str, ...] | None = None) -> Any:
-    """The designed controllers on the nonlinear plant in use (app.design's preview,
-    the one the Design screen runs)."""
+def _plan(params: Any, pair: Any, G: Any, h: float, window: float | None,
+          inputs: list[float] | None = None, tr_keys: tuple[str, ...] | None = None) -> Any:
+    """The designed controllers' preview on the nonlinear plant in use (app.design's
+    plan, the one the Design screen runs)."""
     from quadtank_tui.app.design import TR_KEYS, preview_plan
 
     return preview_plan(params, pair, G, h, start=_start(params, inputs), window=window,
-                        tr_keys=tr_keys or TR_KEYS).run()
+                        tr_keys=tr_keys or TR_KEYS)
+
+
+def _spread(n: int, params: Any, plan: Any, pv: Any) -> Any:
+    """The pair over n drawn plants (app.design.robustness_of), None when off."""
+    if n == 0:
+        return None
+    from quadtank_tui.app.design import robustness_of
+
+    try:
+        return robustness_of(params, plan, pv, n=n)
+    except ValueError as exc:
+        warn([f"no spread: {exc}"])
+        return None
 
 
 def _run_one_pump(args: argparse.Namespace, params: Any) -> int:
@@ -382,8 +407,8 @@ def _run_one_pump(args: argparse.Namespace, params: Any) -> int:
     if not args.no_step and ev.stable:
         if h <= 0.0:
             raise ValueError("the preview on the simulator needs a sampling time: --sampling > 0")
-        pv = _preview(params, [ctrl], ((g,),), h, args.window, _model_inputs(args.model_file),
-                      (f"{ONE_PUMP_ELEMENT}.Tr",))
+        pv = _plan(params, [ctrl], ((g,),), h, args.window, _model_inputs(args.model_file),
+                   (f"{ONE_PUMP_ELEMENT}.Tr",)).run()
     written = _write(args.write_par, params, one_pump_values(ctrl), h) if args.write_par else None
     figure = _figure(args.figure, [(f"{y} <- u1", g, ctrl)], f"{source}, method {method}")
     report = {"stable": ev.stable, "sampling_time": h, "notes": [note],

@@ -26,8 +26,15 @@ async def _settle(pilot) -> None:
     await pilot.pause()
 
 
-async def test_p_plus_screen_proposes_the_clis_stable_pair_and_its_preview(make_engine, capsys) -> None:
-    assert main(["design", "--par", str(PPLUS), "--json"]) == 0
+async def test_p_plus_screen_proposes_the_clis_stable_pair_and_its_preview(make_engine, capsys, monkeypatch) -> None:
+    """(The robustness spread is tested in the core: tests/core/design/test_robust.py.)"""
+    import quadtank_tui.app.design as use_case
+
+    def no_spread(*args: object, **kwargs: object) -> None:
+        raise ValueError("not in this test")
+
+    monkeypatch.setattr(use_case, "robustness_of", no_spread)
+    assert main(["design", "--par", str(PPLUS), "--json", "--spread", "0"]) == 0
     cli = json.loads(capsys.readouterr().out)
     app = make_app(make_engine(read_par(PPLUS).params))
     async with app.run_test(size=(120, 40)) as pilot:

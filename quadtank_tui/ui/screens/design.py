@@ -574,7 +574,7 @@ class DesignScreen(CommandSender):
         except (PlantError, DesignError, ValueError) as exc:
             self.notify(f"no preview, nothing applied: {exc}", severity="error", markup=False)
             return
-        self.app.push_screen(DesignPreviewWindow(request), lambda ok: self._apply(pair, ok))
+        self.app.push_screen(DesignPreviewWindow(request, snap.params), lambda ok: self._apply(pair, ok))
 
     def _apply(self, pair: tuple[PID | None, PID | None], ok: bool | None) -> None:
         from quadtank_tui.core.design.apply import controller_values, describe_changes

@@ -23,6 +23,8 @@ from textual.geometry import Size
 from textual.widgets import Button, ProgressBar, Static
 
 from quadtank_tui.core.delaytf import DelayTF
+from quadtank_tui.core.design.robust import Robustness
+from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.design.controller import PID, DesignError
 from quadtank_tui.app.design import PreviewPlan, preview_plan
 from quadtank_tui.core.design.preview import Preview, PreviewStep, format_preview
@@ -63,10 +65,15 @@ SHORT = 32
 class DesignPreviewWindow(PacksForSize, Window[bool]):
     """Predicted and simulated steps of the chosen pair; Apply or Cancel."""
 
-    def __init__(self, request: PreviewPlan) -> None:
+    def __init__(self, request: PreviewPlan, params: Parameters | None = None) -> None:
+        """`params`: the setting whose plant the robustness spread is drawn about
+        (app.design.robustness_of; None: no spread)."""
         super().__init__("Preview on the simulated plant")
         self.request = request
+        self.params = params
         self.result: Preview | None = None
+        self.spread: Robustness | None = None
+        self.spread_note = ""
 
     def compose_body(self) -> ComposeResult:
         r = self.request
@@ -100,11 +107,24 @@ class DesignPreviewWindow(PacksForSize, Window[bool]):
     def _simulate(self) -> None:
         r = self.request
         try:
-            pv = r.run(progress=lambda f: self.app.call_from_thread(self._progress, f))
+            pv = r.run(progress=lambda f: self.app.call_from_thread(self._progress, 0.8 * f))
         except (DesignError, PlantError, ValueError) as exc:
             self.app.call_from_thread(self._failed, str(exc))
             return
+        if self.params is not None:
+            from quadtank_tui.app.design import robustness_of
+
+            try:
+                self.spread = robustness_of(self.params, r, pv)
+            except ValueError as exc:
+                self.spread_note = f"no robustness spread: {exc}"
         self.app.call_from_thread(self._show, pv)
+
+    @property
+    def warnings(self) -> list[str]:
+        """The nominal preview's warnings, then the spread's (Apply asks again on any)."""
+        out = list(self.result.warnings) if self.result is not None else []
+        return out + (self.spread.warnings if self.spread is not None else [])
 
     def _progress(self, fraction: float) -> None:
         self.query_one(ProgressBar).update(progress=round(100 * fraction, 1))
@@ -119,23 +139,30 @@ class DesignPreviewWindow(PacksForSize, Window[bool]):
         dark, no_color = self.app.current_theme.dark, self.app.no_color
         for s in pv.steps:
             draw_preview_step(self.query_one(f"#preview-loop{s.loop}", PlotView), s, dark, no_color)
-        self.query_one("#preview-figures", Static).update(format_preview(pv))
+        from quadtank_tui.core.design.robust import format_robustness
+
+        text = format_preview(pv)
+        if self.spread is not None:
+            text += "\nrobustness " + format_robustness(self.spread)
+        elif self.spread_note:
+            text += "\n" + self.spread_note
+        self.query_one("#preview-figures", Static).update(text)
         apply = self.query_one("#apply", Button)
         apply.disabled = False
-        if pv.warnings:
+        if self.warnings:
             apply.label = "Apply anyway..."
             apply.variant = "error"
-            self.show_message("; ".join(pv.warnings))
+            self.show_message("; ".join(self.warnings))
         apply.focus()
 
     def action_apply(self) -> None:
         pv = self.result
         if pv is None:
             return
-        if not pv.warnings:
+        if not self.warnings:
             self.dismiss(True)
             return
-        question = ("On the simulated plant:\n" + "\n".join(f"  {w}" for w in pv.warnings)
+        question = ("On the simulated plant:\n" + "\n".join(f"  {w}" for w in self.warnings)
                     + "\nApply these controllers to the process anyway?")
 
         def answered(answer: str | None) -> None:
