@@ -20,7 +20,7 @@ import numpy as np
 
 from quadtank_tui.core.batch import pi_batch
 from quadtank_tui.core.design.controller import PID
-from quadtank_tui.core.pid import PIDParams
+from quadtank_tui.core.controllers.pid import PIDParams
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.johansson import PlantParams
 
