@@ -11,6 +11,7 @@ serve:
   audit_log: /var/log/quadtank/serve-audit.log
   trusted_proxy: 127.0.0.1     # a reverse proxy whose X-Forwarded-For/-Proto are believed
   public_url: https://rig7.lab.example.org   # the address people type (the only Origin allowed)
+  heartbeat_seconds: 20        # websocket pings; a tab silent for 1.5 times this is closed (detached)
 ```
 
 Lab-file accounts count only from a lab file the administrators keep (root's,
@@ -29,7 +30,7 @@ from urllib.parse import urlsplit
 from quadtank_tui.session.lab import LabConfig, LabConfigError
 
 KEYS = ("pam", "pam_service", "accounts", "idle_minutes", "max_hours", "audit_log", "trusted_proxy",
-        "public_url")
+        "public_url", "heartbeat_seconds")
 DEFAULT_AUDIT = Path("/var/log/quadtank/serve-audit.log")
 
 
@@ -43,6 +44,7 @@ class ServeSettings:
     audit_log: Path = DEFAULT_AUDIT
     trusted_proxy: str | None = None
     public_url: str | None = None
+    heartbeat_seconds: float = 20.0
 
 
 def serve_settings(lab: LabConfig) -> ServeSettings:
@@ -81,8 +83,9 @@ def serve_settings(lab: LabConfig) -> ServeSettings:
     url = data.get("public_url")
     if url is not None:
         url = check_public_url(str(url), lambda why: fail("public_url", why))
+    heartbeat = _number(data, "heartbeat_seconds", 20.0, 1.0, 300.0, fail)
     return ServeSettings(pam, service, dict(accounts), idle, maximum, Path(audit) if audit else DEFAULT_AUDIT,
-                         proxy, url)
+                         proxy, url, heartbeat)
 
 
 def _number(data: Mapping[str, Any], key: str, default: float, low: float, high: float, fail: Any) -> float:

@@ -39,10 +39,6 @@ from quadtank_tui.serve.websessions import COOKIE, LoginStore, WebLogin
 #: Open tabs per login, and per user, at most.
 MAX_TABS_PER_LOGIN = 8
 MAX_TABS_PER_USER = 16
-#: Seconds between the server's websocket pings; a tab whose browser has not
-#: answered within half of it is closed (detached): a lost network ends a tab in
-#: under a minute.
-HEARTBEAT = 20.0
 #: Largest message a browser may send on the websocket (keys, a resize).
 MAX_WS_MESSAGE = 64 << 10
 #: How often a tab checks that its login is still live (logout, expiry end it).
@@ -342,7 +338,9 @@ class Server:
             mode, sid = "attach", None
         width = _bounded(request.query.get("width"), 80, 20, 500)
         height = _bounded(request.query.get("height"), 24, 8, 200)
-        ws = web.WebSocketResponse(heartbeat=HEARTBEAT, max_msg_size=MAX_WS_MESSAGE)
+        # pings every heartbeat_seconds (20); no pong within half of it closes the tab
+        # (detached): a browser whose network is lost is let go in under a minute
+        ws = web.WebSocketResponse(heartbeat=self.o.settings.heartbeat_seconds, max_msg_size=MAX_WS_MESSAGE)
         await ws.prepare(request)
         self._tab_ids += 1
         tab_id = self._tab_ids

@@ -49,7 +49,7 @@ def lab_user() -> Iterator[tuple[Path, User]]:
         user = users["lab"]
         lab = folder / "lab.yaml"
         lab.write_text(f"serve:\n  accounts:\n    {user.name}: '{hash_password('lab-only-password')}'\n"
-                       "  trusted_proxy: 127.0.0.1\n")
+                       "  trusted_proxy: 127.0.0.1\n  heartbeat_seconds: 2\n")
         os.chmod(lab, 0o644)
         yield lab, user
     shutil.rmtree(folder, ignore_errors=True)
@@ -108,3 +108,49 @@ def test_tls_gives_a_secure_cookie_and_a_wss_url(tmp_path: Path, lab_user: tuple
         with pytest.raises((http.client.RemoteDisconnected, ConnectionError, http.client.BadStatusLine)):
             plain.request("GET", "/login")  # no plain HTTP on a TLS port
             plain.getresponse().read()
+
+
+@pytest.mark.wallclock
+@pytestmark_users
+def test_a_tab_whose_network_is_lost_is_detached(lab_user: tuple[Path, User]) -> None:
+    """A browser that stops answering the websocket's pings (its network gone) is
+    let go within 1.5 heartbeats (2 s here, 20 by default): detached, the session
+    runs on."""
+    import asyncio
+    import time
+
+    import aiohttp
+
+    from quadtank_tui.session.runtime import list_sessions
+
+    lab, user = lab_user
+    with serving(lab=lab) as server:
+        status, headers, _ = server.request("POST", "/login", body=f"user={user.name}&password=lab-only-password")
+        cookie = headers["set-cookie"].split(";")[0]
+        assert status == 303
+
+        async def silent_tab() -> float:
+            async with aiohttp.ClientSession() as session:
+                ws = await session.ws_connect(f"ws://127.0.0.1:{server.port}/ws?width=100&height=30",
+                                              headers={"Origin": server.origin, "Cookie": cookie}, autoping=False)
+                seen = b""
+                while b"you operate" not in seen:  # answer the pings until the screen is up
+                    msg = await ws.receive(timeout=40)
+                    if msg.type == aiohttp.WSMsgType.PING:
+                        await ws.pong(msg.data)
+                    elif msg.type == aiohttp.WSMsgType.BINARY:
+                        seen += msg.data
+                    else:
+                        raise AssertionError(f"the tab closed before its screen: {msg}")
+                silent = time.monotonic()  # from now on nothing is read, no pong is sent
+                while time.monotonic() - silent < 20:
+                    await asyncio.sleep(0.2)
+                    if any(f" detach user={user.name}" in line for line in server.audit_lines()):
+                        break
+                return time.monotonic() - silent
+
+        waited = asyncio.run(silent_tab())
+        assert waited < 2 * 1.5 + 3.0 + 2.0, waited  # 1.5 heartbeats, the tab's quit grace, margin
+        assert any(f"detach user={user.name}" in line for line in server.audit_lines())
+        [info] = [i for i in list_sessions(server.runtime, prune=False) if i.uid == user.uid]
+        assert info.clients == 0 and not info.ended  # detached, never stopped
