@@ -394,12 +394,12 @@ def _runtime_of_its_own(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytes
 
 @pytest.fixture(autouse=True)
 def _a_terminal_for_main(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A test calling cli.main for the TUI has no terminal (pytest holds stdin and
+    """A test calling cli.main for the TUI (commands/tui.py) has no terminal (pytest holds stdin and
     stdout) yet tests what comes after the check; the check itself is tested on a
     real `quadtank` process (tests/cli/test_no_terminal.py)."""
-    import quadtank_tui.cli
+    import quadtank_tui.commands.tui
 
-    monkeypatch.setattr(quadtank_tui.cli, "terminal_missing", lambda: None)
+    monkeypatch.setattr(quadtank_tui.commands.tui, "terminal_missing", lambda: None)
 
 
 def copy_params(folder: Path) -> Path:

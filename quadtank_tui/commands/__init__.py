@@ -1,6 +1,6 @@
-"""One module per `quadtank` subcommand that grew beyond a handler in cli.py, and
-the two helpers every command shares (cli.py and the modules here):
-UsageError and warn.  Here rather than in cli.py, which imports these modules."""
+"""One module per `quadtank` subcommand (cli.py holds only the parser and the
+dispatch), and what every command shares: UsageError, warn and say.  Here rather
+than in cli.py, which imports these modules."""
 
 from __future__ import annotations
 
@@ -19,6 +19,15 @@ def warn(warnings: Iterable[str]) -> None:
     """Each warning of a file read (`.par`, `.log`) as one line on stderr."""
     for w in warnings:
         print(f"quadtank: warning: {w}", file=sys.stderr)
+
+
+def say(line: str) -> None:
+    """One line on stderr; after a hang-up the terminal is gone and writing to it
+    fails (EIO), which must not turn a clean stop into a traceback."""
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except OSError:
+        pass
 
 
 def params_of(par: str | None) -> tuple[Parameters, str]:

@@ -11,12 +11,11 @@ from __future__ import annotations
 import argparse
 import gc
 import os
-import sys
 import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from quadtank_tui.commands import UsageError, pause_gc, warn
+from quadtank_tui.commands import UsageError, pause_gc, say, warn
 
 if TYPE_CHECKING:
     from quadtank_tui.session.launch import SessionSpec
@@ -264,7 +263,7 @@ def attach_to_own_rig_session(args: argparse.Namespace) -> int | None:
     if own is None:
         return None
     info, device = own
-    _say(f"quadtank: the rig at {device} is driven by your session {info.id}: attaching to it"
+    say(f"quadtank: the rig at {device} is driven by your session {info.id}: attaching to it"
          + (" (--par applies to a new session only)" if args.tui_par else ""))
     try:
         client = _connect(info, "operator")
@@ -359,14 +358,14 @@ def run_tui_on(client: SessionClient, refresh: float) -> int:
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
     app = build_app(client, refresh_interval=refresh, resume_gc=not gc.isenabled(), read_on=client.read_on)
-    watch = TerminalWatch(app.exit_soon, client.close, farewell=lambda why: _say(after_the_screen(client, why)))
+    watch = TerminalWatch(app.exit_soon, client.close, farewell=lambda why: say(after_the_screen(client, why)))
     watch.start()
     try:
         app.run()
     finally:
         watch.close()
         client.close()  # detaches; stops the session if Exit chose that
-    _say(after_the_screen(client, watch.reason))
+    say(after_the_screen(client, watch.reason))
     return app.return_code or watch.status
 
 
@@ -385,10 +384,3 @@ def after_the_screen(client: SessionClient, hung_up: str | None) -> str:
         return f"quadtank: session {sid} ended: {client.ended}"
     return (f"quadtank: detached from session {sid}: quadtank attach {sid} comes back to it, "
             f"quadtank stop {sid} stops it. {client.policy}")
-
-
-def _say(line: str) -> None:
-    try:
-        print(line, file=sys.stderr, flush=True)
-    except OSError:
-        pass

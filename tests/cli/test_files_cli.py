@@ -100,8 +100,8 @@ def test_log_export_needs_a_format(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_log_export_choices_are_the_export_formats() -> None:
-    """cli.py writes the formats out so its parser does not load scipy.io."""
-    from quadtank_tui.cli import EXPORT_FORMATS
+    """commands/logs.py writes the formats out so the parser does not load scipy.io."""
+    from quadtank_tui.commands.logs import EXPORT_FORMATS
     from quadtank_tui.files.export import FORMATS
 
     assert EXPORT_FORMATS == FORMATS

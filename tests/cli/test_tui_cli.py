@@ -7,7 +7,8 @@ import pytest
 import time
 from pathlib import Path
 
-from quadtank_tui.cli import build_parser, build_tui, main
+from quadtank_tui.cli import build_parser, main
+from quadtank_tui.commands.tui import build_tui
 from quadtank_tui.engine.handle import lab_session_of
 from quadtank_tui.files.proc import pid_alive
 from quadtank_tui.session.runtime import list_sessions

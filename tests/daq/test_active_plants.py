@@ -172,7 +172,8 @@ def test_loading_another_plants_par_under_a_daq_is_refused() -> None:
 def test_the_tui_reads_its_daq_for_the_par_plant() -> None:
     """`quadtank --par coupled-cascade.par --daq virtual-rig-coupled.yaml`: the loop
     process gets the backend wired for the cascade and offers Active."""
-    from quadtank_tui.cli import build_parser, build_tui
+    from quadtank_tui.cli import build_parser
+    from quadtank_tui.commands.tui import build_tui
 
     args = ["--par", str(CASCADE_PAR), "--daq", str(COUPLED_MAP)]
     engine, _app = build_tui(build_parser().parse_args(args))

@@ -19,6 +19,7 @@ from typing import Callable
 import pytest
 
 from quadtank_tui import cli
+from quadtank_tui.commands import tui as tui_command
 from quadtank_tui.cli import main
 from quadtank_tui.files.log_reader import read_log
 from quadtank_tui.session import roles
@@ -95,7 +96,7 @@ def test_a_second_program_is_refused_naming_the_holder(argv: list[str], tmp_path
     since = datetime.now()
     opened: list[object] = []
     monkeypatch.setattr(modbus.ModbusBackend, "__init__", lambda self, *a, **k: opened.append(a))
-    monkeypatch.setattr(cli, "build_tui", lambda *a: opened.append(a))
+    monkeypatch.setattr(tui_command, "build_tui", lambda *a: opened.append(a))
     log = tmp_path / "x.log"
     args = [a.format(cfg=config_for(tmp_path, port), log=log) for a in argv]
     assert main(args) == 2
@@ -254,7 +255,7 @@ def test_the_tui_ends_when_its_rig_is_taken_over(tmp_path: Path, monkeypatch: py
         running.set()
         return engine, app
 
-    monkeypatch.setattr(cli, "build_tui", build_tui)
+    monkeypatch.setattr(tui_command, "build_tui", build_tui)
     taker: list[DaqLock] = []
 
     def take() -> None:

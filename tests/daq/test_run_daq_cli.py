@@ -9,7 +9,8 @@ from typing import Callable
 
 import pytest
 
-from quadtank_tui.cli import build_parser, build_tui, main
+from quadtank_tui.cli import build_parser, main
+from quadtank_tui.commands.tui import build_tui
 from quadtank_tui.engine.commands import SetOperation, SetParams, SetState
 from quadtank_tui.files.log_reader import read_log
 from daqkit import missed_before_the_last_row, rig_yaml
