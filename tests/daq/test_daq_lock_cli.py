@@ -18,7 +18,6 @@ from typing import Callable
 
 import pytest
 
-from quadtank_tui import cli
 from quadtank_tui.commands import tui as tui_command
 from quadtank_tui.cli import main
 from quadtank_tui.files.log_reader import read_log
