@@ -18,6 +18,7 @@ if TYPE_CHECKING:
     from quadtank_tui.core.identify.crossval import Figure
     from quadtank_tui.core.identify.experiment import Identification
     from quadtank_tui.core.plants.johansson import PlantParams
+    from quadtank_tui.files.figures.runs import Scale
     from quadtank_tui.files.log_reader import LogData
 
 METHODS = ("step", "oe", "n4sid", "arx", "physical")
@@ -80,6 +81,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--figure", metavar="FILE",
                    help="also draw the validation as a figure (.png, .svg or .pdf): per element the measured "
                    "and model output on the validation part, the residual autocorrelation and the coherence")
+    p.add_argument("--figure-units", choices=("cm", "V", "norm"), default="cm",
+                   help="the figure's levels in the plant's unit (cm, default: the sensors' gains of --par "
+                   "or of the quadruple tank compared with), in V, or normalized as logged")
     p.add_argument("--json", action="store_true", help="print a JSON object instead of a report")
     p.set_defaults(handler=run)
 
@@ -105,6 +109,22 @@ def _physical(par: str | None, op: dict[str, float]) -> tuple[PlantParams | None
     if read.params.process is not None:  # another plant: no four-tank linearization to compare with
         return None, f"{par} ({read.params.process_plant().title})", (3.0, 3.0)
     return read.params.quadtank_constants(), par, (3.0, 3.0)
+
+
+def _figure_units(units: str, par: str | None, params: PlantParams | None) -> dict[str, Scale]:
+    """The figure's scales (files.figures.runs.scales) on the plant of `par`, or the
+    quadruple tank compared with; normalized when there is neither."""
+    from quadtank_tui.commands.identify_physical import starting_plant
+    from quadtank_tui.core.plants import Plant, QuadTank
+    from quadtank_tui.files.figures.runs import scales
+
+    if par is not None:
+        plant: Plant = starting_plant(par).plant
+    elif params is not None:
+        plant = QuadTank(params)
+    else:
+        return {}  # as logged
+    return scales(units, plant)
 
 
 def _sensor_gains(par: str | None, params: PlantParams | None) -> tuple[dict[str, float], str]:
@@ -217,7 +237,8 @@ def run(args: argparse.Namespace) -> int:
         from quadtank_tui.files.figures.identification import identification_figure
         from quadtank_tui.files.figures.style import save
 
-        figure = save(identification_figure(ident), args.figure)
+        figure = save(identification_figure(ident, units=_figure_units(args.figure_units, args.par, params)),
+                      args.figure)
     if args.json:
         out = to_dict(ident, cmp, name)
         if saved is not None:

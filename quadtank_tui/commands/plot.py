@@ -37,7 +37,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--units", choices=UNITS, default="cm",
                    help="levels in cm and pumps in V (default), everything in V, or normalized as logged")
     p.add_argument("--align", choices=ALIGNS, default="logon",
-                   help="t = 0 at each log's first row (default) or at its last reference step")
+                   help="t = 0 at each log's first row (default) or at its first reference step")
     p.add_argument("--par", metavar="FILE",
                    help="the plant whose sensor gains turn levels into cm (default: the default parameters)")
     p.set_defaults(handler=run)
@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     runs = [align(Run(label, times(log, path), log.columns()), args.align, path)
             for label, (path, log) in zip(labels, logs)]
     xlabel = "time since the first logged row (LogOn), s" if args.align == "logon" \
-        else "time since the last reference step, s"
+        else "time since the first reference step, s"
     fig = runs_figure(runs, names, scales(args.units, _plant(args.par)), xlabel=xlabel,
                       title=", ".join(args.logs) if len(args.logs) == 1 else "")
     print(f"wrote {save(fig, args.out)}")

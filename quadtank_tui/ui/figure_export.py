@@ -81,11 +81,13 @@ def trends_builder(history: Mapping[str, np.ndarray], plots: Sequence[str], wind
     return build
 
 
-def identification_builder(ident: Identification) -> Callable[[], Figure]:
+def identification_builder(ident: Identification, params: Parameters) -> Callable[[], Figure]:
+    """The fit's validation figure, levels in the plant's unit (cm) as a report wants them."""
     def build() -> Figure:
         from quadtank_tui.files.figures.identification import identification_figure
+        from quadtank_tui.files.figures.runs import scales
 
-        return identification_figure(ident)
+        return identification_figure(ident, units=scales("cm", params.process_plant()))
     return build
 
 

@@ -77,3 +77,29 @@ def test_an_unreadable_memory_costs_only_the_memory(tmp_path: Path, monkeypatch:
     state_file().parent.mkdir(parents=True)
     state_file().write_text("{not json")
     assert recall("qtb-1 x") is None
+
+
+async def test_the_trends_settings_come_back_on_reattach_and_not_on_a_new_session(
+        engine: Recording, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 43: zoom (z), autoscale (Z), units (u) and the clock axis (c) as this
+    user left them on the session, not the defaults."""
+    from quadtank_tui.files.trend_memory import TrendSettings
+    from quadtank_tui.files.trend_memory import recall as recall_trends
+    from quadtank_tui.ui.widgets.trends import Trend
+
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    first = make_app(Attached(engine, info("2026-11-26T15:00:00")))
+    async with first.run_test(size=(120, 40)) as pilot:
+        await pilot.press("z", "Z", "u", "c")
+    assert recall_trends("qtb-1 2026-11-26T15:00:00") == TrendSettings(2, False, True, True)
+    again = make_app(Attached(engine, info("2026-11-26T15:00:00")))
+    async with again.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        view = again.main.query_one("#upper", Trend).view
+        assert (view.window, view.autoscale, view.clock is not None) == (600.0, False, True)
+        assert view.unit == "V"  # u1 u2 in the pumps' volts
+    other = make_app(Attached(engine, info("2026-11-26T16:00:00")))  # the id reused by a new session
+    async with other.run_test(size=(120, 40)) as pilot:
+        await pilot.pause()
+        view = other.main.query_one("#upper", Trend).view
+        assert (view.window, view.autoscale, view.unit, view.clock) == (300.0, True, "", None)

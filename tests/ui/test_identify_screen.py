@@ -94,6 +94,10 @@ async def test_fit_compares_keeps_and_returns(app) -> None:
         assert w.size == est.size == mod.size == 72 and w.max() == pytest.approx(2 * np.pi * 0.1)
         assert mod[0] == pytest.approx(2.596 / abs(1 + 62.36j * w[0]), rel=0.01)
         check_identify_plots(screen)
+        status = screen.query_one("#identify-status")  # one line at 120 columns (issue 43)
+        shown = [s.text.strip() for s in status.render_lines(status.content_region.reset_offset)]
+        assert shown[0].startswith("n4sid:") or ": fit on the validation half" in shown[0], shown
+        assert not any(shown[1:]), shown
         await pilot.press("v", "v")
         await pilot.pause()
         assert "spectral estimate" in str(screen.query_one("#lower").border_title)

@@ -11,12 +11,16 @@ experiment scripts therefore give the sensors noise).
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Mapping
+
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from quadtank_tui.core.identify.experiment import Element, Identification
 from quadtank_tui.core.identify.validation import WINDOW, autocorrelation, coherence
+from quadtank_tui.files.figures.runs import Scale
 from quadtank_tui.files.figures.style import (
     BAND_COLOUR, GUIDE_COLOUR, MODEL_COLOUR, SIGNAL_COLOURS, new_figure, styled,
 )
@@ -30,33 +34,37 @@ def element_name(e: Element) -> str:
 
 
 @styled
-def identification_figure(ident: Identification, title: str = "") -> Figure:
-    """One row per element: validation, residual autocorrelation, coherence."""
+def identification_figure(ident: Identification, title: str = "",
+                          units: Mapping[str, Scale] | None = None) -> Figure:
+    """One row per element: validation, residual autocorrelation, coherence.
+    `units`: per output, normalized -> the unit drawn (runs.scales: levels in cm);
+    without, as logged.  The title names the logs by their file names (a path
+    in a report's figure says where the student's home folder was)."""
     elements = [ident.elements[key] for key in sorted(ident.elements)]  # G11 G12 G21 G22
     fig = new_figure(11.0, 0.6 + 2.4 * len(elements))
     axes = fig.subplots(len(elements), 3, squeeze=False, width_ratios=(2.2, 1.0, 1.0))
     for row, e in zip(axes, elements):
-        _validation(row[0], e, ident.h)
+        _validation(row[0], e, ident.h, (units or {}).get(e.output, Scale(1.0, "normalized")))
         _residuals(row[1], e)
         _coherence(row[2], e, ident.h)
     axes[-1][0].set_xlabel("t (s)")
     axes[-1][1].set_xlabel("lag (samples)")
     axes[-1][2].set_xlabel("f (Hz)")
-    fig.suptitle(title or f"{ident.method}: {', '.join(ident.records)}", x=0.01, ha="left")
+    fig.suptitle(title or f"{ident.method}: {', '.join(Path(r).name for r in ident.records)}", x=0.01, ha="left")
     return fig
 
 
-def _validation(ax: Axes, e: Element, h: float) -> None:
+def _validation(ax: Axes, e: Element, h: float, scale: Scale) -> None:
     k = e.split
     t = np.arange(len(e.y)) * h
     part = "validation part" if k else "identification data (no validation part)"
-    ax.plot(t[k:], e.y[k:], color=SIGNAL_COLOURS.get(e.output, "#0072B2"), linewidth=1.8,
+    ax.plot(t[k:], e.y[k:] * scale.factor, color=SIGNAL_COLOURS.get(e.output, "#0072B2"), linewidth=1.8,
             label=f"{e.output} measured", gid=f"{element_name(e)}:measured")
-    ax.plot(t[k:], e.ym[k:], color=MODEL_COLOUR, linewidth=0.9, linestyle="--",
+    ax.plot(t[k:], e.ym[k:] * scale.factor, color=MODEL_COLOUR, linewidth=0.9, linestyle="--",
             label=f"{e.output} model", gid=f"{element_name(e)}:model")
     ax.set_title(f"{element_name(e)}: {e.input} → {e.output}, measured and model output\n{part}: fit {e.fit_percent:.1f} %",
                  loc="left")
-    ax.set_ylabel(f"{e.output} (normalized)")
+    ax.set_ylabel(f"{e.output} ({scale.unit})")
     ax.legend(loc="best", frameon=False)
 
 

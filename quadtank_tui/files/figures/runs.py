@@ -2,7 +2,7 @@
 
 Each loop gets a panel (y_i with its reference r_i), the upper tanks one, the pump
 inputs one.  Several runs are overlaid, each in its own colour, aligned at their
-first logged row (LogOn) or at their last reference step, so two controllers'
+first logged row (LogOn) or at their first reference step, so two controllers'
 answers to the same step lie on top of each other.  A panel that holds a loop's
 output and reference is annotated with each run's step figures - rise time
 (10-90 %), overshoot, settling time (2 % band) and IAE - computed by
@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from quadtank_tui.core.metrics import loop_metrics, rise_time
+from quadtank_tui.core.metrics import MIN_STEP, loop_metrics, rise_time
 from quadtank_tui.core.plants.base import Plant
 from quadtank_tui.files.figures import FigureError
 from quadtank_tui.files.figures.style import (
@@ -77,8 +77,9 @@ def scales(units: str, plant: Plant) -> dict[str, Scale]:
 
 
 def align(run: Run, how: str, where: str) -> Run:
-    """The run with t = 0 at its first row (`logon`) or at its last reference step
-    (`step`: of r1, else r2); `where` names it in an error."""
+    """The run with t = 0 at its first row (`logon`) or at its first reference step
+    (`step`: of r1, else r2: the step a run was logged for, before any later one);
+    `where` names it in an error."""
     if how == "logon":
         return Run(run.label, run.t - run.t[0], run.columns)
     if how != "step":
@@ -87,10 +88,9 @@ def align(run: Run, how: str, where: str) -> Run:
     if not refs:
         raise FigureError(f"{where}: --align step needs r1 or r2 logged (the steps are found there)")
     for r in refs:
-        y = run.columns.get("y" + r[1:], run.columns[r])
-        m = loop_metrics(run.t, y, run.columns[r])
-        if m.step_time is not None:
-            return Run(run.label, run.t - m.step_time, run.columns)
+        jumps = np.nonzero(np.abs(np.diff(run.columns[r])) > MIN_STEP)[0]
+        if jumps.size:
+            return Run(run.label, run.t - run.t[int(jumps[0]) + 1], run.columns)
     raise FigureError(f"{where}: no reference step in {' or '.join(refs)} (a change of more than 0.01) "
                       "to align at; --align logon aligns at the first row")
 

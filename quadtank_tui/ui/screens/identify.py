@@ -341,7 +341,7 @@ class IdentifyScreen(PacksForSize):
         self.query_one("#fit-progress", ProgressBar).display = False
         self.physical = view
         self.element_index = 0
-        self._status(fitui.summary(view) + "  e: next output  k: save as .par")
+        self._status(fitui.summary(view), keys="  e: next output  k: save as .par")
         self._show_choice()
         self._table()
         self._draw()
@@ -379,17 +379,23 @@ class IdentifyScreen(PacksForSize):
         self.element_index = 0
         ident = view.ident
         fits = "  ".join(f"{o} {f:.1f} %" for o, f in ident.fit_percent.items())
-        self._status(f"{ident.method}: fit on the validation half {fits}; phase {phase(ident)}."
-                     "  e: next element  v: residuals/coherence/gain  k: keep  d: design")
+        self._status(f"{ident.method}: fit on the validation half {fits}; phase {phase(ident)}.",
+                     keys="  e: next element  v: residuals/coherence/gain  k: keep  d: design")
         self._table()
         self._draw()
 
     # --- views --------------------------------------------------------------------
 
-    def _status(self, text: str, *, error: bool = False) -> None:
+    def _status(self, text: str, *, error: bool = False, keys: str = "") -> None:
         """The status line: `text` as it is (it quotes file names and what was
-        wrong in a file, never read as markup), red for an error."""
-        self.query_one("#identify-status", Static).update(Content.styled(text, "red") if error else Content(text))
+        wrong in a file, never read as markup), red for an error; then `keys`, the
+        keys that follow, if they fit the line (they are the footer's too: a result
+        wrapped onto a second line at 120 columns)."""
+        line = self.query_one("#identify-status", Static)
+        room = (line.content_size.width or self.app.size.width - 2)
+        if keys and len(text) + len(keys) <= room:
+            text += keys
+        line.update(Content.styled(text, "red") if error else Content(text))
 
     def _table(self) -> None:
         from quadtank_tui.core.identify.compare import physical_time_constants
@@ -590,7 +596,7 @@ class IdentifyScreen(PacksForSize):
             return
         ident = self.view.ident
         first = Path(ident.records[0])
-        export(self, first.parent, f"{first.stem}.{ident.method}", identification_builder(ident))
+        export(self, first.parent, f"{first.stem}.{ident.method}", identification_builder(ident, self._params()))
 
     # --- design -----------------------------------------------------------------------
 

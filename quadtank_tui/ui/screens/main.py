@@ -207,6 +207,7 @@ class MainScreen(CommandSender):
         self._interval = self.refresh_interval
         self._timer = self.set_interval(self._interval, self._tick)
         self.ghost.restore()  # the ghost this user showed on this session, on a re-attach
+        self._restore_trends()
         self.call_after_refresh(self.run_worker, partial(_warm_up, self.snap.params.simulation), thread=True,
                                 group="warm-up", exit_on_error=False)
 
@@ -468,19 +469,42 @@ class MainScreen(CommandSender):
 
     def action_time_window(self) -> None:
         self.window_index = (self.window_index + 1) % len(WINDOWS)
-        self.refresh_view()
+        self._trends_changed()
 
     def action_autoscale(self) -> None:
         self.autoscale = not self.autoscale
-        self.refresh_view()
+        self._trends_changed()
 
     def action_units(self) -> None:
         self.physical = not self.physical
-        self.refresh_view()
+        self._trends_changed()
 
     def action_clock_axis(self) -> None:
         self.clock_axis = not self.clock_axis
+        self._trends_changed()
+
+    def _trends_changed(self) -> None:
+        """Redraw, and remember the trends' settings for this session (a re-attach
+        shows them again: files/trend_memory.py)."""
         self.refresh_view()
+        session = self.ghost.session()
+        if session is not None:
+            from quadtank_tui.files.trend_memory import TrendSettings, remember
+
+            remember(session, TrendSettings(self.window_index, self.autoscale, self.physical, self.clock_axis))
+
+    def _restore_trends(self) -> None:
+        """The trends as this user last set them on this session (a re-attach)."""
+        session = self.ghost.session()
+        if session is None:
+            return
+        from quadtank_tui.files.trend_memory import recall
+
+        settings = recall(session)
+        if settings is not None and 0 <= settings.window_index < len(WINDOWS):
+            self.window_index, self.autoscale = settings.window_index, settings.autoscale
+            self.physical, self.clock_axis = settings.physical, settings.clock_axis
+            self.refresh_view()
 
     def _trend_scales(self, snap: Snapshot) -> tuple[tuple[str, Scale], ...]:
         """The plant's units per signal, worked out again only when the
