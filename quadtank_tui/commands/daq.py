@@ -93,7 +93,7 @@ def cmd_rig(args: argparse.Namespace) -> int:
     from quadtank_tui.files.par import read_par  # files layer, only when a .par is given
 
     if args.protocol == "ist":
-        from quadtank_tui.daq.ist.commands import cmd_rig_ist
+        from quadtank_tui.commands.daq_ist import cmd_rig_ist
 
         return cmd_rig_ist(args)
     if args.par is not None:
@@ -195,7 +195,7 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
 
     config = load_rig_config(args.config, _par_plant(args.par))
     if isinstance(config, IstConfig):
-        from quadtank_tui.daq.ist.commands import cmd_check_ist
+        from quadtank_tui.commands.daq_ist import cmd_check_ist
 
         return cmd_check_ist(config)
     backend = ModbusBackend(config)
@@ -282,7 +282,7 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
         print(pairs.format(), end="")
     result = fit_pairs(pairs, plant)
     if isinstance(rig, IstConfig):
-        from quadtank_tui.daq.ist.commands import format_ist_result
+        from quadtank_tui.commands.daq_ist import format_ist_result
 
         print(format_ist_result(result, plant))
         return 0

@@ -18,7 +18,7 @@ from quadtank_tui.core.plants.johansson import steady_state_levels
 from quadtank_tui.daq.ist import backend as ist_backend
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.backend import IstBackend
-from quadtank_tui.daq.ist.commands import IST_PLANT, IST_VOLTS
+from quadtank_tui.daq.ist.plant import IST_PLANT, IST_VOLTS
 from quadtank_tui.daq.ist.config import IstConfig
 from quadtank_tui.daq.ist.device import Firmware, PtyDevice, serve
 from quadtank_tui.engine.backend import BackendError

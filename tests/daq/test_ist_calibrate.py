@@ -12,7 +12,8 @@ from quadtank_tui.core.plants.johansson import steady_state_levels
 from quadtank_tui.daq.calibrate import Settle, fit_pairs, run_procedure
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.backend import IstBackend
-from quadtank_tui.daq.ist.commands import IST_PLANT, IST_VOLTS, format_ist_result
+from quadtank_tui.commands.daq_ist import format_ist_result
+from quadtank_tui.daq.ist.plant import IST_PLANT, IST_VOLTS
 from quadtank_tui.daq.ist.config import IstConfig
 from quadtank_tui.daq.ist.device import Firmware, PtyDevice, serve
 

@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from quadtank_tui.daq.ist import protocol as p
-from quadtank_tui.daq.ist.commands import IST_PLANT, IST_VOLTS
+from quadtank_tui.daq.ist.plant import IST_PLANT, IST_VOLTS
 from quadtank_tui.daq.ist.config import IstConfig
 from quadtank_tui.daq.ist.device import Firmware, PtyDevice
 from quadtank_tui.core.plants.johansson import steady_state_levels

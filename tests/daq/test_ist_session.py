@@ -24,7 +24,7 @@ import pytest
 
 from quadtank_tui.cli import main
 from quadtank_tui.commands import sessions as sessions_command
-from quadtank_tui.daq.ist.commands import IST_PLANT
+from quadtank_tui.daq.ist.plant import IST_PLANT
 from quadtank_tui.daq.ist.config import IstConfig
 from quadtank_tui.daq.ist.device import Firmware, ServedDevice
 from quadtank_tui.engine.runner import engine_spec

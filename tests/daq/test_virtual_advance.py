@@ -11,7 +11,7 @@ from quadtank_tui.core.plants.johansson import PlantParams, advance
 from quadtank_tui.core.plants import QuadTank
 from quadtank_tui.daq.config import load_daq_config
 from quadtank_tui.daq.ist import protocol as p
-from quadtank_tui.daq.ist.commands import IST_PLANT
+from quadtank_tui.daq.ist.plant import IST_PLANT
 from quadtank_tui.daq.ist.config import IstConfig
 from quadtank_tui.daq.ist.device import Firmware
 from quadtank_tui.daq.registers import encode

@@ -1,5 +1,6 @@
 """The IST rig's side of `quadtank rig --protocol ist`, `quadtank daq check` and
-`--daq`: daq/cli.py dispatches here on the configuration's `protocol: ist`."""
+`daq calibrate`: commands/daq.py dispatches here on the configuration's
+`protocol: ist`."""
 
 from __future__ import annotations
 
@@ -12,19 +13,12 @@ from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.johansson import PlantParams, steady_state_levels
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.config import IstConfig, load_ist_config
+from quadtank_tui.daq.ist.plant import IST_PLANT, IST_VOLTS
 from quadtank_tui.engine.backend import BackendError
 
 if TYPE_CHECKING:
     from quadtank_tui.core.plants import Plant
     from quadtank_tui.daq.calibrate import Result
-
-#: The rig's published plant (protocol.py): what the virtual device serves without --par.
-IST_PLANT = PlantParams(
-    A1=p.TANK_AREAS[0], A2=p.TANK_AREAS[1], A3=p.TANK_AREAS[2], A4=p.TANK_AREAS[3],
-    a1=p.OUTLET_AREAS[0], a2=p.OUTLET_AREAS[1], a3=p.OUTLET_AREAS[2], a4=p.OUTLET_AREAS[3],
-    k1=p.PUMP_K[0], k2=p.PUMP_K[1], gamma1=p.GAMMAS[0], gamma2=p.GAMMAS[1], kc=0.25, g=p.G, hmax=40.0)
-#: Its operating point (params/ist-lisbon.par): both pumps at 6 V.
-IST_VOLTS = (6.0, 6.0)
 
 
 def cmd_rig_ist(args: argparse.Namespace) -> int:
