@@ -93,7 +93,7 @@ RACER = textwrap.dedent("""
 def campaign_locks(c: Campaign, rounds: int, work: Path) -> None:
     for k in range(rounds):
         lab = LabConfig(runtime_dir=work / f"locks-{k}")
-        lab.locks_dir.mkdir(parents=True)
+        lab.locks_dir.mkdir(parents=True, exist_ok=True)
         c.case("forged record (another uid, pid 1)", lambda: _forged(lab))
         c.case("flock held by another program", lambda: _hostage(lab))
         c.case("six programs racing", lambda: _race(lab))
@@ -196,6 +196,8 @@ FORGE = textwrap.dedent("""
 
 
 def campaign_users(c: Campaign, rounds: int, work: Path) -> None:
+    from quadtank_tui.session.folders import init_lab_folder
+
     if os.getuid() != 0 or shutil.which("useradd") is None:
         print("users: skipped (needs root and useradd)")
         return
@@ -206,6 +208,7 @@ def campaign_users(c: Campaign, rounds: int, work: Path) -> None:
             names = (made[0], made[1])
             for k in range(rounds):
                 runtime = str(shared / f"rt-{k}")
+                init_lab_folder(Path(runtime))  # the lab's runtime folder, as `quadtank lab init` makes it
                 c.case("stud2 forces a take-over of stud1's lock", lambda: _forced(names, runtime))
                 c.case("stud2 forges 'teacher, pid 1' (0600)", lambda: _forged_by(names, runtime))
                 c.case("stud2 holds the locks folder's flock", lambda: _hostage_by(names, runtime))

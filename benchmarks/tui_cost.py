@@ -144,7 +144,7 @@ def cpu_seconds(pid: int) -> float:
 def session_records(runtime: Path) -> list[dict]:
     """The session records in a runtime folder (issue 16: the loop runs in a session)."""
     out = []
-    for path in sorted(runtime.glob("*.json")):
+    for path in sorted(runtime.glob("users/*/*.json")):  # each user's folder of sessions
         try:
             out.append(json.loads(path.read_text()))
         except (OSError, ValueError):

@@ -12,6 +12,7 @@ with one line naming the holder; an administrator may take the rig over
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from contextlib import contextmanager
@@ -23,6 +24,7 @@ from quadtank_tui.commands import UsageError
 # The session modules load yaml (the lab file): imported inside the functions, so
 # building the parser, which every `quadtank` command does, stays cheap.
 if TYPE_CHECKING:
+    from quadtank_tui.session.lab import LabConfig
     from quadtank_tui.session.lock import DaqLock
     from quadtank_tui.session.lockwatch import LockWatch
     from quadtank_tui.session.riglock import RigLock
@@ -134,7 +136,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "lab", help="the lab configuration in use: administrators, runtime folder, unattended policy",
         description="Print the lab configuration in use (the file, the administrators' group, "
         "whether you are one, the runtime folder, the unattended policy).  `quadtank lab policy` "
-        "sets the unattended policy in the lab file (administrators only).")
+        "sets the unattended policy in the lab file (administrators only); `quadtank lab init` makes the "
+        "lab's runtime folder (administrators, once).")
     p.add_argument("--lab", metavar="FILE", help="the lab file (default: $QUADTANK_LAB, else "
                    "/etc/quadtank/lab.yaml)")
     p.set_defaults(handler=cmd_lab)
@@ -148,6 +151,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pol.add_argument("--grace", metavar="MINUTES", type=float, help="minutes it keeps running after "
                      "the last client left (0..1440)")
     pol.set_defaults(handler=cmd_lab_policy)
+    ini = labsub.add_parser("init", help="make the lab's shared runtime folder (an administrator, once)",
+                            description="Make FOLDER (default: the lab file's runtime_dir, else "
+                            "$QUADTANK_RUNTIME, else /tmp/quadtank-sessions) the lab's runtime folder: root's, "
+                            "1755, with users/ (each user's folder of sessions) and locks/ (the DAQ locks), "
+                            "root's, 1777 sticky.  Run once at installation, by root or an administrator; "
+                            "again to repair it.")
+    ini.add_argument("folder", metavar="FOLDER", nargs="?", help="the folder to make the lab's runtime folder")
+    ini.set_defaults(handler=cmd_lab_init)
 
 
 def cmd_lab(args: argparse.Namespace) -> int:
@@ -162,7 +173,7 @@ def cmd_lab(args: argparse.Namespace) -> int:
     print(f"lab file        {file}")
     print(f"administrators  {roles.who_administers(lab)}")
     print(f"you             {me.user} (uid {me.uid}), administrator: {admin}")
-    print(f"runtime dir     {lab.runtime_dir}")
+    print(f"runtime dir     {_runtime_line(lab)}")
     print(f"sessions shared {'with group ' + lab.share_group if lab.share_group else 'with nobody (owner and administrators)'}")
     print(f"defaults        {lab.default_par}")
     p = lab.unattended
@@ -170,6 +181,49 @@ def cmd_lab(args: argparse.Namespace) -> int:
           f"grace_minutes: {p.grace_minutes:g}")
     print(f"                {describe(p, active=True)}")
     print(f"                {describe(p, active=False)}")
+    return 0
+
+
+def _runtime_line(lab: LabConfig) -> str:
+    """The runtime folder in force, and whether it is the lab's (shared) or the user's own."""
+    from quadtank_tui.session.folders import RuntimeFolderError
+    from quadtank_tui.session.lab import ensure_runtime_dir
+
+    if lab.runtime_source != "default" and not os.path.lexists(lab.runtime_dir):  # not made by looking at it
+        if lab.runtime_source == "lab file":
+            return f"{lab.runtime_dir} (not there yet: an administrator makes it with `quadtank lab init`)"
+        return f"{lab.runtime_dir} (not there yet: your first program makes it, yours alone)"
+    try:
+        root = ensure_runtime_dir(lab)
+    except RuntimeFolderError as exc:
+        return f"{lab.runtime_dir}: unusable: {exc}"
+    if root.lab:
+        return f"{root.path} (the lab's: sessions in {root.users}/UID, locks in {root.locks})"
+    if root.note:
+        return (f"{root.path}, yours alone: {root.note}; your sessions and rig locks are seen by nobody else "
+                "until an administrator runs `quadtank lab init`")
+    return f"{root.path}, yours alone (made by you: no other user's program trusts it)"
+
+
+def cmd_lab_init(args: argparse.Namespace) -> int:
+    from quadtank_tui.session import roles
+    from quadtank_tui.session.folders import RuntimeFolderError, init_lab_folder
+    from quadtank_tui.session.lab import load_lab_config
+
+    lab = load_lab_config(args.lab)
+    me = roles.current_user()
+    if me.uid != 0:
+        roles.require_administrator(me.uid, lab, "making the lab's runtime folder")
+    folder = Path(args.folder).absolute() if args.folder else lab.runtime_dir.absolute()
+    try:
+        for line in init_lab_folder(folder):
+            print(line)
+    except (RuntimeFolderError, OSError) as exc:
+        raise UsageError(f"{folder}: cannot make the lab's runtime folder: {exc.strerror or exc}"
+                         if not isinstance(exc, RuntimeFolderError) else str(exc)) from None
+    if folder != lab.runtime_dir.absolute():
+        print(f"the lab uses {lab.runtime_dir}: put `runtime_dir: {folder}` in the lab file "
+              f"({lab.source or '/etc/quadtank/lab.yaml'}) so that every program uses this one")
     return 0
 
 

@@ -347,7 +347,7 @@ def start_detached_run(args: argparse.Namespace, script: Script | None, clock: C
                          lock=_held_lock(args))
     print(f"session {info.id} runs the experiment ({args.duration:g} s) and will save {run.out}; "
           f"quadtank attach {info.id} watches it, quadtank stop {info.id} ends it early; "
-          f"its summary goes to {runtime / (info.id + '.out')}")
+          f"its summary goes to {Path(info.socket).with_suffix('.out')}")
     return 0
 
 

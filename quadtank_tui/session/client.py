@@ -51,6 +51,7 @@ from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.log_writer import log_path
 from quadtank_tui.files.proc import pid_alive
 from quadtank_tui.files.par import ParStore
+from quadtank_tui.session.unixpath import unix_address
 from quadtank_tui.session.protocol import (
     MAX_SESSION_LINE, Dropped, Ended, Hello, HistoryPart, LineReader, ProtocolError, Refused, Result, Role, Roster,
     SessionInfo, StopSession, Submit, Update, Welcome, decode, encode,
@@ -348,7 +349,8 @@ class SessionClient:
         probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         probe.settimeout(1.0)
         try:
-            probe.connect(self._path)
+            with unix_address(self._path) as address:
+                probe.connect(address)
         except OSError:
             return False
         finally:
@@ -548,7 +550,8 @@ def connect(sock: socket.socket, path: str | Path, timeout: float) -> None:
     end = time.monotonic() + timeout
     while True:
         try:
-            sock.connect(str(path))
+            with unix_address(path) as address:
+                sock.connect(address)
             return
         except BlockingIOError:
             if time.monotonic() > end:

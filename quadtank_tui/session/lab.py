@@ -22,13 +22,13 @@ from __future__ import annotations
 
 import os
 import re
-import stat
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Mapping
 
 
 from quadtank_tui.files.yamltext import key_lines, parse_yaml, read_text
+from quadtank_tui.session.folders import Root
 from quadtank_tui.session.policy import MAX_GRACE_MINUTES, UnattendedPolicy
 
 #: The lab file read when neither a path nor $QUADTANK_LAB is given.
@@ -74,11 +74,15 @@ class LabConfig:
     sections: Mapping[str, Mapping[str, Any]] = field(default_factory=dict, compare=False)
     #: dotted key -> line in the file, for those readers' messages
     lines: Mapping[str, int] = field(default_factory=dict, compare=False)
+    #: who named runtime_dir: "lab file", "env" ($QUADTANK_RUNTIME), "default" (nobody:
+    #: DEFAULT_RUNTIME_DIR), "named" (a program, a test): see session/folders.resolve
+    runtime_source: str = "named"
 
     @property
     def locks_dir(self) -> Path:
-        """Where the DAQ locks are (one record per device, each owned by its writer)."""
-        return self.runtime_dir / "locks"
+        """Where the DAQ locks are (one record per device, each owned by its writer):
+        locks/ of the runtime folder in force (session/folders.py)."""
+        return ensure_runtime_dir(self).locks
 
     @property
     def default_par(self) -> Path:
@@ -102,12 +106,16 @@ def default_runtime_dir() -> Path:
     return Path(env) if env else DEFAULT_RUNTIME_DIR
 
 
+def _default_source() -> str:
+    return "env" if os.environ.get("QUADTANK_RUNTIME") else "default"
+
+
 def load_lab_config(path: Path | str | None = None) -> LabConfig:
     """The lab configuration in force (see lab_file_path); LabConfigError for a
     bad file, or an explicitly named one that is missing."""
     file, explicit = lab_file_path(path)
     if not explicit and not file.exists():
-        return LabConfig(runtime_dir=default_runtime_dir())
+        return LabConfig(runtime_dir=default_runtime_dir(), runtime_source=_default_source())
     return parse_lab_config(read_text(file, _error), name=str(file), source=file)
 
 
@@ -153,6 +161,7 @@ def parse_lab_config(text: str, *, name: str = "<lab config>", source: Path | No
     return LabConfig(
         admin_group=_group(data, "admin_group", fail),
         runtime_dir=runtime if runtime is not None else default_runtime_dir(),
+        runtime_source="lab file" if runtime is not None else _default_source(),
         share_group=_group(data, "share_group", fail),
         unattended=UnattendedPolicy(keep, float(grace)),
         source=source,
@@ -215,46 +224,10 @@ def with_policy(text: str, policy: UnattendedPolicy) -> str:
 
 # --- the runtime folder -------------------------------------------------------------------
 
-def ensure_shared_dir(folder: Path, mode: int = 0o1777, *, trusted: Callable[[int], bool] | None = None) -> Path:
-    """Create `folder` like /tmp (mode 1777: every user may create entries, nobody
-    may remove another's), or check an existing one is a real folder, not a link
-    someone planted.  Whoever creates a folder owns it and could close it to the
-    others (issue 24: a student made locks/ 0755): root makes it root's; an owner
-    fixes the mode of its own; a folder of someone else with another mode is
-    accepted only from root or an administrator (`trusted(uid)`), else refused
-    naming its owner.  OSError naming the folder otherwise."""
-    try:
-        folder.mkdir(parents=True, exist_ok=False)
-    except FileExistsError:
-        pass
-    st = os.lstat(folder)
-    if not stat.S_ISDIR(st.st_mode):
-        raise NotADirectoryError(f"{folder}: the lab's runtime folder is not a folder (a link or a file)")
-    me = os.getuid()
-    if me == 0 and st.st_uid != 0:
-        os.chown(folder, 0, 0, follow_symlinks=False)  # a shared folder is nobody's but root's
-    if stat.S_IMODE(st.st_mode) == mode:
-        return folder
-    if st.st_uid == me or me == 0:
-        os.chmod(folder, mode)
-        return folder
-    if st.st_uid == 0 or (trusted is not None and trusted(st.st_uid)):
-        return folder  # the administrators made it so
-    from quadtank_tui.session.roles import user_name
-
-    raise PermissionError(f"{folder}: this shared folder belongs to {user_name(st.st_uid)} (not an "
-                          f"administrator) and has mode {stat.S_IMODE(st.st_mode):o}, not {mode:o}: they could "
-                          "shut the others out; an administrator may remove it, or make the lab's runtime_dir")
-
-
-def ensure_runtime_dir(lab: LabConfig) -> Path:
-    """The runtime folder and its locks/ folder, both 1777 (sticky: nobody removes
-    or replaces another's lock record, session/lock.py)."""
+def ensure_runtime_dir(lab: LabConfig) -> Root:
+    """The runtime folder in force for `lab`, checked (and made where it is ours
+    to make): session/folders.resolve, with the lab's administrators."""
+    from quadtank_tui.session.folders import resolve
     from quadtank_tui.session.roles import is_administrator
 
-    def trusted(uid: int) -> bool:
-        return is_administrator(uid, lab)
-
-    ensure_shared_dir(lab.runtime_dir, trusted=trusted)
-    ensure_shared_dir(lab.locks_dir, trusted=trusted)
-    return lab.runtime_dir
+    return resolve(lab.runtime_dir, source=lab.runtime_source, admin=lambda uid: is_administrator(uid, lab))

@@ -256,8 +256,10 @@ def session_main(ready_fd: int, lifeline: int = -1) -> int:
         return 0
     spec: SessionSpec = pickle.loads(data)
     ready = os.fdopen(ready_fd, "wb", buffering=0)
-    lab = replace(load_lab_config(), runtime_dir=Path(spec.runtime))
-    runtime = runtime_dir(lab.runtime_dir)
+    from quadtank_tui.session.folders import own_place
+
+    lab = replace(load_lab_config(), runtime_dir=Path(spec.runtime), runtime_source="named")
+    runtime = own_place(runtime_dir(lab.runtime_dir))  # this user's place: nobody else writes in it
     if spec.private:  # a folder of its own, unlisted, its owner's only; gone with the session
         runtime = Path(tempfile.mkdtemp(prefix="private-", dir=runtime))
     uid = os.getuid()

@@ -1,17 +1,23 @@
-"""Where sessions live on the machine: one socket and one small JSON record each.
+"""Where sessions live on the machine: one socket and one small JSON record each,
+in their owner's folder of the runtime folder (session/folders.py: `users/UID/`,
+made by that user, which nobody else may write in).
 
-The runtime folder (the lab configuration's, else $QUADTANK_RUNTIME, else
-/tmp/quadtank-sessions) is shared by every user, sticky like /tmp: anyone may put
-a session there, nobody may remove another's.  A session's socket is its owner's
-alone (mode 0600); its record, readable by all, is what `quadtank sessions` lists.
+Nothing there is trusted for what it says (issue 41): a record counts for a user
+only if it lies in their folder, its file is theirs, it names their uid, name and
+an id of theirs (SESSION_ID: never a path), and its pid is a live process of that
+uid (/proc).  Its socket is where the folder and the id say.  Files are read as
+files.shared.read_untrusted does (no link followed, no FIFO waited on, at most
+MAX_RECORD bytes).  A command that connects checks the socket's peer as well
+(session/client.check_peer).
 
 A session that ends says why in its record (`ended`, `ended_at`) and in its output
 file `<id>.out`; both are kept ENDED_KEPT (a week: the owner back on Monday still
 learns why Friday's session ended), at most ENDED_PER_OWNER per owner, and removed
 by the owner's next listing after that.  A record whose process is gone without
-saying so (SIGKILL, a crash, a power cut) is marked ended by the first listing that
-may write it.  Ids are never reused while a record, socket or output file of theirs
-is there: a new session's number is one more than any of its owner's.
+saying so (SIGKILL, a crash, a power cut) is marked ended by its owner's next
+listing; anyone else's lists it ended and writes nothing.  Ids are never reused
+while a record, socket or output file of theirs is there: a new session's number
+is one more than any of its owner's.
 """
 
 from __future__ import annotations
@@ -42,13 +48,15 @@ class NoSession(LookupError):
 
 
 def runtime_dir(configured: Path | None = None) -> Path:
-    """The runtime folder (`configured`, else the lab configuration's), created
-    sticky and world-writable (1777) if missing."""
-    from quadtank_tui.session.lab import ensure_shared_dir, load_lab_config
-    from quadtank_tui.session.roles import is_administrator
+    """The runtime folder in force (`configured`, else the lab configuration's),
+    checked and made where it is ours to make (session/folders.py): its users/
+    holds each user's place."""
+    from quadtank_tui.session.lab import ensure_runtime_dir, load_lab_config
 
     lab = load_lab_config()
-    return ensure_shared_dir(configured or lab.runtime_dir, trusted=lambda uid: is_administrator(uid, lab))
+    if configured is not None:
+        lab = dataclasses.replace(lab, runtime_dir=configured, runtime_source="named")
+    return ensure_runtime_dir(lab).path
 
 
 #: A session id: its owner's name (letters, digits, '_', '.', '-'; never "..") and
@@ -97,14 +105,14 @@ def claim_id(runtime: Path, user: str) -> str:
     files are still there (running or ended): an id a client, a record or an
     output file may still name is never given to another session.  Claimed by
     creating its record (O_EXCL: two sessions starting at once get different ids)."""
-    list_sessions(runtime)  # marks the dead ones ended, removes the old ones
+    _place_records(runtime, os.getuid(), prune=True)  # marks the dead ones ended, removes the old ones
     user = id_name(user)
     own = re.compile(re.escape(user) + r"-([0-9]{1,9})\.(?:json|sock|out)")
     n = 1 + max((int(m.group(1)) for p in runtime.iterdir() if (m := own.fullmatch(p.name))), default=0)
     while True:
         sid = f"{user}-{n}"
         try:
-            fd = os.open(record_path(runtime, sid), os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            fd = os.open(record_path(runtime, sid), os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
         except FileExistsError:
             n += 1
             continue
@@ -144,14 +152,14 @@ def read_record(runtime: Path, session_id: str) -> SessionInfo | None:
     return info
 
 
-def checked_record(runtime: Path, session_id: str) -> tuple[SessionInfo | None, str | None]:
+def checked_record(runtime: Path, session_id: str, uid: int | None = None) -> tuple[SessionInfo | None, str | None]:
     """(the record of `session_id` in `runtime`, None) if it is one and the OS
     agrees with what it says; else (None, why it is not, or None for a file that is
     merely no record yet: being claimed, gone meanwhile).
 
     Opened as read_untrusted does (a FIFO, a link to /dev/zero or a huge file there
     costs one open and one fstat).  It counts only if its file's owner is the uid
-    it names, its owner field is that uid's name and its id that name's; its socket
+    it names (and, given, `uid`: the place's), its owner field is that uid's name and its id that name's; its socket
     is where the folder and the id say, whatever the file says.  Whether its pid is
     a process of that uid is the listing's to ask (it may have ended since)."""
     if not valid_id(session_id):
@@ -172,7 +180,7 @@ def checked_record(runtime: Path, session_id: str) -> tuple[SessionInfo | None, 
     info = record_from(obj)
     if info is None:
         return None, f"{path}: not a session record (of {user_name(st.st_uid)})"
-    if info.uid != st.st_uid:
+    if info.uid != st.st_uid or (uid is not None and st.st_uid != uid):
         return None, f"{path}: written by {user_name(st.st_uid)}, says it is uid {info.uid}'s"
     name = user_name(info.uid)
     if info.owner != name or info.id != session_id or not session_id.startswith(id_name(name) + "-"):
@@ -237,21 +245,37 @@ def died(info: SessionInfo) -> str:
             "crashed, or the machine went down); pumps and log as it left them")
 
 
-def _records(runtime: Path, *, prune: bool, ignored: list[Ignored] | None = None) -> list[SessionInfo]:
-    """Every record the OS agrees with (checked_record), those whose process is gone
-    (or whose pid is now another user's process) ended; `prune`: our own such
-    records marked ended on disk, and our ended ones past ENDED_KEPT or past our
-    newest ENDED_PER_OWNER removed.  Nothing of another user's is ever written or
-    removed.  `ignored` gets the files that are no one's record, and the records
-    whose pid runs as someone else."""
+def _records(root: Path, *, prune: bool, ignored: list[Ignored] | None = None) -> list[SessionInfo]:
+    """Every user's records in the runtime folder `root` (each read from that user's
+    place only: session/folders.places); see _place_records."""
+    from quadtank_tui.session.folders import places
+
+    found: list[tuple[str, str]] | None = [] if ignored is not None else None
+    records: list[SessionInfo] = []
+    for place in places(root, found):
+        records += _place_records(place.path, place.uid, prune=prune, ignored=ignored)
+    if ignored is not None and found:
+        ignored[:0] = [Ignored(path, why) for path, why in found]
+    return records
+
+
+def _place_records(runtime: Path, uid: int, *, prune: bool, ignored: list[Ignored] | None = None
+                   ) -> list[SessionInfo]:
+    """The records in `uid`'s place `runtime` the OS agrees with (checked_record),
+    those whose process is gone (or whose pid is now another user's process)
+    ended; `prune` (our own place only): such records marked ended on disk, and
+    the ended ones past ENDED_KEPT or past the newest ENDED_PER_OWNER removed.
+    Nothing of another user's is ever written or removed.  `ignored` gets the
+    files that are no one's record, and the records whose pid runs as someone else."""
     me = os.getuid()
+    prune = prune and uid == me
     records = []
     bad: list[str] = []
     ids = _record_ids(runtime, bad)
     if ignored is not None:
         ignored.extend(Ignored(str(runtime / name), f"{runtime / name}: not a session id") for name in sorted(bad))
     for sid in ids:
-        info, why = checked_record(runtime, sid)
+        info, why = checked_record(runtime, sid, uid)
         if info is None:
             if why is not None and ignored is not None:
                 ignored.append(Ignored(str(record_path(runtime, sid)), why))
@@ -262,20 +286,20 @@ def _records(runtime: Path, *, prune: bool, ignored: list[Ignored] | None = None
                 if runs_as is not None and info.uid != me:  # a forgery, or a pid reused: not ours to say
                     if ignored is not None:
                         ignored.append(Ignored(str(record_path(runtime, sid)),
-                                               f"names pid {info.pid}, a process of {user_name(runs_as)}, "
-                                               f"not of {user_name(info.uid)}"))
+                                               f"{record_path(runtime, sid)}: names pid {info.pid}, a process of "
+                                               f"{user_name(runs_as)}, not of {user_name(info.uid)}"))
                     continue
-                info = end_record(runtime, info, died(info)) if prune and info.uid == me else \
+                info = end_record(runtime, info, died(info)) if prune else \
                     dataclasses.replace(info, ended=died(info), clients=0, operator="")
         records.append(info)
     if prune:
         kept: list[SessionInfo] = []
         oldest = (datetime.now() - ENDED_KEPT).isoformat(timespec="seconds")
-        ours = 0
+        ended = 0
         for info in sorted(records, key=lambda i: (i.ended_at or i.started, i.id), reverse=True):
-            if info.ended and info.uid == me:
-                ours += 1
-                if (info.ended_at or info.started) < oldest or ours > ENDED_PER_OWNER:
+            if info.ended:
+                ended += 1
+                if (info.ended_at or info.started) < oldest or ended > ENDED_PER_OWNER:
                     remove_files(runtime, info.id, output=True)
                     continue
             kept.append(info)
@@ -284,8 +308,9 @@ def _records(runtime: Path, *, prune: bool, ignored: list[Ignored] | None = None
 
 
 def ignored_records(runtime: Path) -> list[Ignored]:
-    """The files of the runtime folder that are no one's record, and the records
-    the OS disagrees with, each with why (for an administrator to look at)."""
+    """The entries of the runtime folder's users/ that are no one's place, the
+    files of the places that are no one's record, and the records the OS
+    disagrees with, each with why (for an administrator to look at)."""
     out: list[Ignored] = []
     _records(runtime, prune=False, ignored=out)
     return out

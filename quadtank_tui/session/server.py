@@ -61,6 +61,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator, Literal
 
+from quadtank_tui.session.unixpath import unix_address
 from quadtank_tui.session.protocol import (
     CLIENT_MESSAGES, MAX_CLIENT_LINE, MAX_HELLO_LINE, Dropped, LineReader, ProtocolError, Refused, decode, encode,
 )
@@ -593,7 +594,8 @@ def listen(path: str, *, anyone: bool = False) -> socket.socket:
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     old = os.umask(0o177)
     try:
-        sock.bind(path)
+        with unix_address(path) as address:  # a path longer than sun_path: through its folder
+            sock.bind(address)
     finally:
         os.umask(old)
     if anyone:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 import time
@@ -58,7 +60,7 @@ def test_no_session_is_a_private_session_on_a_virtual_clock(tmp_path: Path, monk
         assert not s.realtime and s.speed == 4.0 and not s.active_available
         assert app.main.refresh_interval == 0.2
         assert list_sessions(runtime) == [] and lab_session_of(engine) is None
-        (folder,) = runtime.iterdir()  # its own, the owner's only
+        (folder,) = (runtime / "users" / str(os.getuid())).iterdir()  # its own, the owner's only
         assert folder.name.startswith("private-") and folder.stat().st_mode & 0o777 == 0o700
         assert Path(engine.info.socket).parent == folder and Path(engine.info.socket).stat().st_mode & 0o777 == 0o600
         pid = engine.info.pid
@@ -69,4 +71,4 @@ def test_no_session_is_a_private_session_on_a_virtual_clock(tmp_path: Path, monk
     while pid_alive(pid) and time.monotonic() < deadline:
         time.sleep(0.02)
     assert not pid_alive(pid)
-    assert sorted(runtime.iterdir()) == []  # its socket, record and output went with it
+    assert sorted((runtime / "users" / str(os.getuid())).iterdir()) == []  # its socket, record and output went

@@ -3,6 +3,8 @@ to start) with fake peer credentials, or a real detached session process."""
 
 from __future__ import annotations
 
+import os
+
 import threading
 from pathlib import Path
 from typing import Any
@@ -106,3 +108,14 @@ class Rig(ProcessBackend):
     def safe_state(self) -> None:
         self.pumps = (0.0, 0.0)
         self.safe_states += 1
+
+
+def place(runtime: Path) -> Path:
+    """This user's folder of sessions in the runtime folder `runtime` (session/folders.py)."""
+    return runtime / "users" / str(os.getuid())
+
+
+def place_files(runtime: Path) -> list[str]:
+    """The names in this user's folder of sessions ([] while there is none)."""
+    folder = place(runtime)
+    return sorted(p.name for p in folder.iterdir()) if folder.exists() else []

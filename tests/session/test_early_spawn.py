@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
+from sessionkit import place, place_files
 
 from quadtank_tui.cli import main
 from quadtank_tui.commands import sessions as sessions_command
@@ -61,7 +62,7 @@ def test_a_refused_par_ends_the_spawned_process_without_a_session(
     assert len(spawned) == 1
     assert _gone_within(spawned[0].pid, 30.0), "the spawned process outlived the refusal"
     assert list_sessions(runtime) == []
-    assert sorted(p.name for p in runtime.iterdir()) == []
+    assert place_files(runtime) == []
 
 
 @pytest.mark.parametrize("when", ["before it is ready", "after it said ready"])
@@ -84,8 +85,8 @@ def test_an_interrupt_while_the_ui_loads_stops_the_session_just_handed_its_spec(
     (ended,) = ended_sessions(runtime)
     assert ended.ended == ("its launcher went away before it was ready" if when == "before it is ready"
                            else f"stopped by {ended.owner}")
-    assert sorted(p.name for p in runtime.iterdir()) == [f"{ended.id}.json", f"{ended.id}.out"]
-    assert f"session {ended.id} stopped: {ended.ended}" in (runtime / f"{ended.id}.out").read_text()
+    assert place_files(runtime) == [f"{ended.id}.json", f"{ended.id}.out"]
+    assert f"session {ended.id} stopped: {ended.ended}" in (place(runtime) / f"{ended.id}.out").read_text()
 
 
 def test_a_good_start_attaches_to_the_session_it_spawned(

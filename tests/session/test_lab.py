@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from quadtank_tui.session import lab as labmod
+from quadtank_tui.session.folders import RuntimeFolderError
 from quadtank_tui.session.lab import (
     LabConfig, LabConfigError, ensure_runtime_dir, load_lab_config, parse_lab_config,
 )
@@ -48,12 +49,12 @@ def test_a_full_file(tmp_path: Path) -> None:
     assert load_lab_config(path) == LabConfig(
         admin_group="teachers", runtime_dir=Path("/run/quadtank"), share_group="lab",
         unattended=UnattendedPolicy(keep_while_logging=False, grace_minutes=2.5), source=path,
-        params_dir=Path("/opt/quadtank/params"))
+        params_dir=Path("/opt/quadtank/params"), runtime_source="lab file")
 
 
 def test_no_file_gives_the_defaults() -> None:
     assert load_lab_config() == LabConfig(None, Path("/tmp/quadtank-sessions"), None, UnattendedPolicy(), None,
-                                          ROOT / "params")  # the installation's, not ./params
+                                          ROOT / "params", runtime_source="default")  # the installation's, not ./params
 
 
 def test_empty_file_and_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -113,19 +114,23 @@ def test_parse_without_a_file() -> None:
     assert parse_lab_config("admin_group: staff\n").admin_group == "staff"
 
 
-def test_runtime_dir_is_created_like_tmp(tmp_path: Path) -> None:
+def test_a_runtime_dir_named_and_missing_is_made_ours(tmp_path: Path) -> None:
+    """Named ($QUADTANK_RUNTIME, a program) and missing: made by its user; root's
+    (an administrator's) is a lab folder (1755, users/ and locks/ 1777 sticky),
+    anyone else's their own (0755 throughout), which no other user trusts."""
     lab = LabConfig(runtime_dir=tmp_path / "deep" / "rt")
-    assert ensure_runtime_dir(lab) == tmp_path / "deep" / "rt"
-    assert stat.S_IMODE(os.stat(lab.runtime_dir).st_mode) == 0o1777
-    # sticky too: nobody removes or replaces another's lock record
-    assert stat.S_IMODE(os.stat(lab.locks_dir).st_mode) == 0o1777
-    os.chmod(lab.locks_dir, 0o777)  # an older version's folder of ours
-    ensure_runtime_dir(lab)  # a second time: already there
-    assert stat.S_IMODE(os.stat(lab.locks_dir).st_mode) == 0o1777
+    root = ensure_runtime_dir(lab)
+    assert root.path == tmp_path / "deep" / "rt" and root.lab is (os.getuid() == 0)
+    modes = (0o1755, 0o1777) if os.getuid() == 0 else (0o755, 0o755)
+    assert stat.S_IMODE(os.stat(root.path).st_mode) == modes[0]
+    assert stat.S_IMODE(os.stat(root.users).st_mode) == stat.S_IMODE(os.stat(root.locks).st_mode) == modes[1]
+    os.chmod(root.path, 0o1777)  # an older version's folder of ours
+    assert ensure_runtime_dir(lab) == root  # a second time: made ours alone again
+    assert stat.S_IMODE(os.stat(root.path).st_mode) == modes[0]
 
 
 def test_a_planted_link_is_not_a_runtime_dir(tmp_path: Path) -> None:
     (tmp_path / "elsewhere").mkdir()
     (tmp_path / "rt").symlink_to(tmp_path / "elsewhere")
-    with pytest.raises(NotADirectoryError, match="not a folder"):
+    with pytest.raises(RuntimeFolderError, match="not a folder"):
         ensure_runtime_dir(LabConfig(runtime_dir=tmp_path / "rt"))

@@ -105,7 +105,7 @@ def test_a_sigkilled_holders_lock_is_taken_over(lab: LabConfig) -> None:
 
 def test_a_recycled_pid_is_not_the_holder(lab: LabConfig) -> None:
     """A record naming a live pid whose start time differs: the pid was reused."""
-    lab.locks_dir.mkdir(parents=True)
+    lab.locks_dir.mkdir(parents=True, exist_ok=True)
     record = {"user": "ghost", "uid": os.getuid(), "pid": os.getppid(), "start": 1, "since": "2026-01-01T10:00:00+00:00",
               "session": None, "token": "t"}
     lock_path(DEVICE, lab).write_text(json.dumps(record))
@@ -189,7 +189,7 @@ def test_processes_racing_for_it_one_wins(lab: LabConfig) -> None:
 
 def test_a_symlink_is_not_a_lock_file(lab: LabConfig, tmp_path: Path) -> None:
     """A planted link is no record: it is replaced (renamed over), never followed."""
-    lab.locks_dir.mkdir(parents=True)
+    lab.locks_dir.mkdir(parents=True, exist_ok=True)
     (tmp_path / "victim").write_text(json.dumps({"user": "x", "uid": os.getuid(), "pid": os.getppid(),
                                                  "since": "2026-01-01T10:00:00+00:00"}))
     lock_path(DEVICE, lab).symlink_to(tmp_path / "victim")
@@ -201,7 +201,7 @@ def test_a_symlink_is_not_a_lock_file(lab: LabConfig, tmp_path: Path) -> None:
 
 
 def test_broken_record_counts_as_free(lab: LabConfig) -> None:
-    lab.locks_dir.mkdir(parents=True)
+    lab.locks_dir.mkdir(parents=True, exist_ok=True)
     lock_path(DEVICE, lab).write_text("{not json")
     with DaqLock.acquire(DEVICE, lab) as lock:
         assert lock.held

@@ -230,7 +230,7 @@ def test_junk_of_another_user_hides_no_record(lab: LabConfig) -> None:
     as root's) are looked past: the holder is still found, and a second program refused."""
     child = subprocess.Popen(["sleep", "60"])
     try:
-        lab.locks_dir.mkdir(parents=True)
+        lab.locks_dir.mkdir(parents=True, exist_ok=True)
         for n in range(500):
             for uid in (STUDENT, 0):
                 junk = lab.locks_dir / f"{lock_path(DEVICE, lab, uid).stem}.{n}.lock"

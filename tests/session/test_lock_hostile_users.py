@@ -5,6 +5,7 @@ Users are made with useradd (root only, skipped otherwise) and removed after."""
 
 from __future__ import annotations
 
+import argparse
 import os
 import shutil
 import stat
@@ -41,8 +42,8 @@ def as_user(user: str, shared: Path, code: str, *args: str, **env: str) -> subpr
     return run_as(user, code, *args, cwd=shared, env={"QUADTANK_RUNTIME": str(shared / "rt"), **env})
 
 
-def holding(user: str, shared: Path) -> subprocess.Popen[str]:
-    p = as_user(user, shared, HOLD, DEVICE)
+def holding(user: str, shared: Path, **env: str) -> subprocess.Popen[str]:
+    p = as_user(user, shared, HOLD, DEVICE, **env)
     assert p.stdout is not None and p.stdout.readline() == "held\n", p.communicate()[1]
     return p
 
@@ -201,10 +202,7 @@ BLOCK = """
 
 def test_a_directory_at_the_locks_name_blocks_nobody(users: tuple[str, str], shared: Path) -> None:
     """Before: a directory at the lock's name blocked everyone, root included."""
-    stud1, stud2 = users
-    (shared / "rt" / "locks").mkdir(parents=True)
-    os.chmod(shared / "rt", 0o1777)
-    os.chmod(shared / "rt" / "locks", 0o1777)
+    stud1, stud2 = users  # (shared/rt: the lab's runtime folder, made by `quadtank lab init`)
     uid1 = str(subprocess.run(["id", "-u", stud1], capture_output=True, text=True).stdout.strip())
     out, err = finish(as_user(stud2, shared, BLOCK, DEVICE, "-", uid1, "0"))
     assert out == "blocked\n", err
@@ -225,20 +223,22 @@ SHUT = """
 
 def test_a_shared_folder_made_first_and_shut_is_named_and_fixed_by_root(users: tuple[str, str],
                                                                          shared: Path) -> None:
-    """Before: whoever made locks/ first could chmod it 755 and lock everyone out,
-    without a word of who."""
+    """Before: whoever made the runtime folder and locks/ first owned them (could
+    empty or shut them).  Now a folder of a student's is nobody's lab folder: the
+    others are refused naming its owner, and `quadtank lab init` makes it root's
+    (1755; users/ and locks/ 1777 sticky)."""
     stud1, stud2 = users
-    rt = shared / "rt"
+    rt = shared / "rt2"
     finish(as_user(stud2, shared, SHUT, str(rt)))
-    out, err = finish(as_user(stud1, shared, HOLD, DEVICE))
-    assert out == "" and (f"{rt}: this shared folder belongs to {stud2} (not an administrator) and has mode "
-                          "755, not 1777: they could shut the others out") in err
+    out, err = finish(as_user(stud1, shared, HOLD, DEVICE, QUADTANK_RUNTIME=str(rt)))
+    assert out == "" and (f"{rt}: the runtime folder is {stud2}'s with mode 755: not a lab folder (root's or an "
+                          "administrator's, writable by its owner only)") in err
     start = time.monotonic()
-    DaqLock.acquire(DEVICE, LabConfig(runtime_dir=rt)).release()  # root: makes them root's, 1777
-    for folder in (rt, rt / "locks"):
+    assert lab_command.cmd_lab_init(argparse.Namespace(lab=None, folder=str(rt))) == 0  # root
+    for folder, mode in ((rt, 0o1755), (rt / "users", 0o1777), (rt / "locks", 0o1777)):
         st = os.stat(folder)
-        assert (st.st_uid, stat.S_IMODE(st.st_mode)) == (0, 0o1777)
+        assert (st.st_uid, stat.S_IMODE(st.st_mode)) == (0, mode)
     assert time.monotonic() - start < 5
-    holder = holding(stud1, shared)
+    holder = holding(stud1, shared, QUADTANK_RUNTIME=str(rt))
     holder.kill()
     holder.wait()

@@ -24,6 +24,7 @@ from otherusers import made_users
 
 from quadtank_tui.cli import main
 from quadtank_tui.session.client import SessionError, check_peer
+from quadtank_tui.session.folders import init_lab_folder
 from quadtank_tui.session.info import SessionInfo
 from quadtank_tui.session.runtime import (
     ended_sessions, find_session, ignored_records, list_sessions, record_path, socket_path,
@@ -75,32 +76,39 @@ def procs() -> Iterator[Callable[..., subprocess.Popen[str]]]:
 
 @pytest.fixture
 def runtime(monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
-    """A flat shared folder (1777), as the issue's attacks found it (tmp_path is
-    root's, 0700: out of the other users' reach)."""
+    """The lab's runtime folder as `quadtank lab init` makes it (tmp_path is root's,
+    0700: out of the other users' reach)."""
     top = Path(tempfile.mkdtemp(prefix="qto-"))
     os.chmod(top, 0o755)
     folder = top / "rt"
-    folder.mkdir()
-    os.chmod(folder, 0o1777)
+    init_lab_folder(folder)
     monkeypatch.setenv("QUADTANK_RUNTIME", str(folder))
     yield folder
     shutil.rmtree(top, ignore_errors=True)
 
 
-def put(runtime: Path, user: pwd.struct_passwd, name: str, **fields: object) -> Path:
-    """A file `name` of `user`'s in the runtime folder holding a record."""
+def place(runtime: Path, user: pwd.struct_passwd, name: str | None = None) -> Path:
+    """`user`'s folder of sessions (made as that user's first program would: 0755)."""
+    path = runtime / "users" / (name or str(user.pw_uid))
+    path.mkdir(exist_ok=True)
+    os.chown(path, user.pw_uid, user.pw_gid)
+    os.chmod(path, 0o755)
+    return path
+
+
+def put(folder: Path, user: pwd.struct_passwd, name: str, **fields: object) -> Path:
+    """A file `name`.json of `user`'s in `folder` holding a record (its own by default)."""
     sid = str(fields.get("id", name))
     rec = {"id": sid, "owner": user.pw_name, "uid": user.pw_uid, "pid": 1 << 22, "started": "2026-12-01T10:00:00",
-           "plant": "quadtank", "operation": "Active", "state": "Run", "socket": str(socket_path(runtime, sid)),
-           **fields}
-    path = runtime / f"{name}.json"
+           "plant": "quadtank", "operation": "Active", "state": "Run", "socket": "/tmp/elsewhere.sock", **fields}
+    path = folder / f"{name}.json"
     path.write_text(json.dumps(rec))
     os.chown(path, user.pw_uid, user.pw_gid)
     return path
 
 
-def own(runtime: Path, user: pwd.struct_passwd, name: str, text: str = "bob's\n") -> Path:
-    path = runtime / name
+def own(folder: Path, user: pwd.struct_passwd, name: str, text: str = "bob's\n") -> Path:
+    path = folder / name
     path.write_text(text)
     os.chown(path, user.pw_uid, user.pw_gid)
     return path
@@ -110,25 +118,36 @@ def test_a_forged_record_hides_no_live_session_and_deletes_nothing(runtime: Path
     """Before: alice's copy of bob-1's record with a dead pid made the next listing
     delete bob-1.sock and mark bob-1 'gone without stopping in order' (and `stop
     bob-1` answer 'no session'); a record saying `"id": "bob-2", "ended": ...`
-    made root's listing delete the live bob-2's .sock, .json and .out."""
+    made root's listing delete the live bob-2's .sock, .json and .out.  Now alice
+    writes only in her own folder, and what she writes there counts as hers only:
+    a copy of bob's record, one naming bob's session, a folder named after bob's
+    uid, files in the runtime folder itself - all ignored, named to root."""
     alice, bob = users
     live = procs(bob, "sleep", "60")
-    for sid in ("1", "2"):
-        put(runtime, bob, f"{bob.pw_name}-{sid}", pid=live.pid)
-        own(runtime, bob, f"{bob.pw_name}-{sid}.sock")
-        own(runtime, bob, f"{bob.pw_name}-{sid}.out")
-    before = {p.name: p.read_text() for p in runtime.iterdir()}
-    put(runtime, alice, "alice-forged-a", id=f"{bob.pw_name}-1", owner=bob.pw_name, uid=bob.pw_uid)
-    put(runtime, alice, f"{alice.pw_name}-7", id=f"{bob.pw_name}-2", ended="stopped",
-        ended_at="2020-01-01T00:00:00")
-    put(runtime, alice, f"{bob.pw_name}-3", owner=bob.pw_name, uid=bob.pw_uid, ended="stopped",
-        ended_at="2020-01-01T00:00:00")  # a name of bob's, a file of alice's
-    assert [i.id for i in list_sessions(runtime)] == [f"{bob.pw_name}-1", f"{bob.pw_name}-2"]
+    place(runtime, alice, str(bob.pw_uid))  # alice took bob's folder name first
+    bobs = place(runtime, bob, f"{bob.pw_uid}.0123abcd")  # (session/folders.own_place's answer to that)
+    hers = place(runtime, alice)
+    for n in ("1", "2"):
+        put(bobs, bob, f"{bob.pw_name}-{n}", pid=live.pid)
+        own(bobs, bob, f"{bob.pw_name}-{n}.sock")
+        own(bobs, bob, f"{bob.pw_name}-{n}.out")
+    before = {p.name: p.read_text() for p in bobs.iterdir()}
+    put(hers, alice, "alice-forged-a", id=f"{bob.pw_name}-1", owner=bob.pw_name, uid=bob.pw_uid)
+    put(hers, alice, f"{bob.pw_name}-1", owner=bob.pw_name, uid=bob.pw_uid)  # bob's record, copied
+    put(hers, alice, f"{alice.pw_name}-7", id=f"{bob.pw_name}-2", ended="stopped", ended_at="2020-01-01T00:00:00")
+    put(runtime / "users" / str(bob.pw_uid), alice, f"{bob.pw_name}-3", owner=bob.pw_name, uid=bob.pw_uid,
+        ended="stopped", ended_at="2020-01-01T00:00:00")
+    put(runtime, alice, f"{bob.pw_name}-4", owner=bob.pw_name, uid=bob.pw_uid)  # the old flat folder: not read
+    assert [(i.id, i.socket) for i in list_sessions(runtime)] == [
+        (f"{bob.pw_name}-{n}", str(bobs / f"{bob.pw_name}-{n}.sock")) for n in ("1", "2")]
     assert ended_sessions(runtime) == []
-    assert {p.name: p.read_text() for p in runtime.iterdir() if p.name in before} == before
+    assert {p.name: p.read_text() for p in bobs.iterdir()} == before
     assert find_session(runtime, f"{bob.pw_name}-1", 0).pid == live.pid
     whys = [i.why for i in ignored_records(runtime)]
-    assert any(f"{bob.pw_name}-3.json: written by {alice.pw_name}, says it is uid {bob.pw_uid}'s" in w for w in whys)
+    assert any(f"users/{bob.pw_uid}: not a user's folder of sessions ({alice.pw_name}'s, mode 755, named after "
+               f"uid {bob.pw_uid})" in w for w in whys), whys
+    assert any(f"{hers}/{bob.pw_name}-1.json: written by {alice.pw_name}, says it is uid {bob.pw_uid}'s" in w
+               for w in whys), whys
     assert any(f"{alice.pw_name}-7.json: written by {alice.pw_name}, names '{alice.pw_name}' and session "
                f"'{bob.pw_name}-2'" in w for w in whys)
     assert any("alice-forged-a.json: not a session id" in w for w in whys)
@@ -141,35 +160,41 @@ def test_a_record_naming_another_users_process_is_ignored_and_nothing_is_written
     and left as it is on disk: only bob's own listing writes or removes it."""
     alice, bob = users
     alices = procs(alice, "sleep", "60")
-    put(runtime, bob, f"{bob.pw_name}-1", pid=alices.pid)
-    dead = put(runtime, bob, f"{bob.pw_name}-2")  # pid 1 << 22: no such process
-    old = put(runtime, bob, f"{bob.pw_name}-3", ended="stopped by bob", ended_at="2020-01-01T00:00:00")
+    bobs = place(runtime, bob)
+    put(bobs, bob, f"{bob.pw_name}-1", pid=alices.pid)
+    dead = put(bobs, bob, f"{bob.pw_name}-2")  # pid 1 << 22: no such process
+    old = put(bobs, bob, f"{bob.pw_name}-3", ended="stopped by bob", ended_at="2020-01-01T00:00:00")
     texts = {p: p.read_text() for p in (dead, old)}
     assert list_sessions(runtime) == []
     assert [(i.id, i.ended.split(" (")[0]) for i in ended_sessions(runtime)] == [
         (f"{bob.pw_name}-2", "the session process"), (f"{bob.pw_name}-3", "stopped by bob")]
     assert {p: p.read_text() for p in (dead, old)} == texts
     (ignored,) = ignored_records(runtime)
-    assert ignored.why == f"names pid {alices.pid}, a process of {alice.pw_name}, not of {bob.pw_name}"
+    assert ignored.why.endswith(f"names pid {alices.pid}, a process of {alice.pw_name}, not of {bob.pw_name}")
 
 
 def test_stop_is_not_fooled_by_a_socket_of_alices_answering_ended(runtime: Path, users, procs, capsys) -> None:
     """Before: a record naming alice's process and a socket of hers answering
     `Ended`: root's `quadtank stop bob-2` said 'session bob-2 stopped (stopped by
     root): pumps at 0' and exited 0 while bob's session ran on.  Now the socket's
-    peer must be the record's pid and uid: refused before a byte is sent."""
+    peer must be the record's pid and uid: refused before a byte is sent.  (alice
+    cannot put a socket in bob's folder; here one of hers is moved there, as a
+    socket bob's session left for another program would be.)"""
     alice, bob = users
-    bobs = procs(bob, "sleep", "60")
+    bobs_session = procs(bob, "sleep", "60")
+    bobs = place(runtime, bob)
     sid = f"{bob.pw_name}-2"
-    put(runtime, bob, sid, pid=bobs.pid)
-    fake = procs(alice, "/usr/bin/python3", "-c", textwrap.dedent(FAKE_ENDED), str(socket_path(runtime, sid)))
+    put(bobs, bob, sid, pid=bobs_session.pid)
+    hers = runtime.parent / "alice"
+    hers.mkdir()
+    os.chown(hers, alice.pw_uid, alice.pw_gid)
+    fake = procs(alice, "/usr/bin/python3", "-c", textwrap.dedent(FAKE_ENDED), str(hers / "s.sock"))
     assert fake.stdout is not None and fake.stdout.readline() == "listening\n"
+    os.rename(hers / "s.sock", socket_path(bobs, sid))
     assert main(["stop", sid]) == 2
     err = capsys.readouterr().err
     assert f"is not session {sid}'s: it is answered by pid {fake.pid} of {alice.pw_name}" in err
-    assert bobs.poll() is None and record_path(runtime, sid).exists()
-
-
+    assert bobs_session.poll() is None and record_path(bobs, sid).exists()
 @pytest.mark.wallclock
 def test_check_peer_wants_the_records_pid_and_uid(tmp_path: Path) -> None:
     path = str(tmp_path / "s.sock")

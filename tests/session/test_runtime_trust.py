@@ -65,12 +65,21 @@ def test_the_id_pattern(sid: str, ok: bool) -> None:
     assert valid_id(sid) is ok
 
 
+def made(root: Path) -> Path:
+    """The runtime folder `root` and this user's place in it (what a first program
+    makes, session/folders.py); the place."""
+    place = root / "users" / str(os.getuid())
+    place.mkdir(parents=True)
+    os.chmod(place, 0o755)
+    return place
+
+
 def test_a_record_whose_id_is_a_path_touches_nothing_outside(tmp_path: Path) -> None:
     """Before: root's listing deleted ../victim/b.{sock,json,out} (a record saying
     `"id": "../victim/b"` whose pid was gone) and wrote alice's JSON over a file of
     root's named by `"/../../.../victim/a"`."""
-    runtime, victim = tmp_path / "run", tmp_path / "victim"
-    runtime.mkdir()
+    root, victim = tmp_path / "run", tmp_path / "victim"
+    runtime = made(root)
     victim.mkdir()
     for name in ("b.sock", "b.json", "b.out", "a.json"):
         (victim / name).write_text("root's\n")
@@ -80,7 +89,7 @@ def test_a_record_whose_id_is_a_path_touches_nothing_outside(tmp_path: Path) -> 
                                                         ended_at="2020-01-01T00:00:00"))
     (runtime / "alice-forged-b.json").write_text(record(id="/.." * 12 + str(victim / "a"), pid=dead.pid))
     (runtime / f"{ME}-2.json").write_text(record(id="bob-2"))  # another id than its name says
-    assert list_sessions(runtime) == [] and ended_sessions(runtime) == []
+    assert list_sessions(root) == [] and ended_sessions(root) == []
     assert sorted(p.name for p in victim.iterdir()) == ["a.json", "b.json", "b.out", "b.sock"]
     assert all(p.read_text() == "root's\n" for p in victim.iterdir())
 
@@ -89,14 +98,14 @@ def test_a_fifo_a_dev_zero_link_and_a_huge_file_cost_one_fstat(tmp_path: Path) -
     """Before: a FIFO hung the listing (and so `stop`, and a detached session's
     start) for good; /dev/zero grew it to 2.99 GB and a MemoryError; a 1.5 GB
     sparse file cost 11 s and 3 GB."""
-    runtime = tmp_path / "run"
-    runtime.mkdir()
+    root = tmp_path / "run"
+    runtime = made(root)
     os.mkfifo(runtime / "fifo-1.json")
     (runtime / "zero-1.json").symlink_to("/dev/zero")
     with open(runtime / "huge-1.json", "wb") as f:
         f.truncate(1_500_000_000)
     (runtime / f"{ME}-1.json").write_text(record())
-    assert [i.id for i in bounded(lambda: list_sessions(runtime))] == [f"{ME}-1"]  # type: ignore[attr-defined]
+    assert [i.id for i in bounded(lambda: list_sessions(root))] == [f"{ME}-1"]  # type: ignore[attr-defined]
     assert bounded(lambda: claim_id(runtime, ME)) == f"{ME}-2"  # what a detached session does first
     for sid in ("fifo-1", "zero-1", "huge-1"):
         assert read_record(runtime, sid) is None
@@ -151,8 +160,8 @@ def test_what_a_record_says_is_shown_with_its_control_characters_escaped() -> No
 def test_quadtank_sessions_on_a_hostile_folder(tmp_path: Path) -> None:
     """The command as root would run it, in its own process under a 1 GB address
     space: every attack above at once, answered in one listing, exit 0."""
-    runtime = tmp_path / "run"
-    runtime.mkdir()
+    root = tmp_path / "run"
+    runtime = made(root)
     os.mkfifo(runtime / "fifo.json")
     (runtime / "zero.json").symlink_to("/dev/zero")
     (runtime / f"{ME}-1.json").write_text(record(plant=ESCAPES))
@@ -168,7 +177,7 @@ def test_quadtank_sessions_on_a_hostile_folder(tmp_path: Path) -> None:
 
     p = subprocess.run([sys.executable, "-m", "quadtank_tui", "sessions"], capture_output=True, text=True,
                        timeout=30, preexec_fn=limit, cwd=tmp_path,
-                       env={**os.environ, "QUADTANK_RUNTIME": str(runtime), "PYTHONPATH": str(ROOT)})
+                       env={**os.environ, "QUADTANK_RUNTIME": str(root), "PYTHONPATH": str(ROOT)})
     assert p.returncode == 0, p.stderr
     assert "\x1b" not in p.stdout and "\x07" not in p.stdout
     lines = p.stdout.splitlines()

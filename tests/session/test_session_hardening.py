@@ -169,8 +169,9 @@ def test_a_session_id_is_never_given_again_while_its_record_is_there(tmp_path) -
     from quadtank_tui.session.info import SessionInfo
     from quadtank_tui.session.runtime import claim_id, end_record, ended_sessions, user_name, write_record
 
-    runtime = tmp_path / "run"
-    runtime.mkdir()
+    root = tmp_path / "run"
+    runtime = root / "users" / str(os.getuid())  # this user's place in the runtime folder
+    runtime.mkdir(parents=True)
     gone = subprocess.Popen(["true"])
     gone.wait()
     me = user_name(os.getuid())  # records count only as their file's owner's
@@ -182,7 +183,7 @@ def test_a_session_id_is_never_given_again_while_its_record_is_there(tmp_path) -
     assert claim_id(runtime, me) == f"{me}-3"
     assert claim_id(runtime, me) == f"{me}-4"  # claimed: its record exists
     assert claim_id(runtime, "bob") == "bob-1"
-    ended = {i.id: i.ended for i in ended_sessions(runtime)}
+    ended = {i.id: i.ended for i in ended_sessions(root)}
     assert ended[f"{me}-1"] == "stopped by teacher"
     assert ended[f"{me}-2"].startswith(f"the session process (pid {gone.pid}) was gone without stopping in order")
 

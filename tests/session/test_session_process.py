@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import pytest
+from sessionkit import place, place_files
 
 from quadtank_tui.cli import main
 from quadtank_tui.engine import commands as c
@@ -75,7 +76,7 @@ def test_a_killed_session_is_reported_by_its_client(tmp_path: Path, poll: Callab
     assert list_sessions(runtime) == []  # the stale record is no running session ...
     (ended,) = ended_sessions(runtime)   # ... but an ended one that says so
     assert ended.id == info.id and f"the session process (pid {info.pid}) was gone without stopping" in ended.ended
-    assert sorted(p.name for p in runtime.iterdir() if not p.name.endswith(".out")) == [f"{info.id}.json"]
+    assert [n for n in place_files(runtime) if not n.endswith(".out")] == [f"{info.id}.json"]
 
 
 def test_quadtank_stop_leaves_no_process_nor_socket_and_says_why(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
@@ -99,8 +100,8 @@ def test_quadtank_stop_leaves_no_process_nor_socket_and_says_why(tmp_path: Path,
     assert f"session {info.id} stopped (stopped by " in out
     assert not pid_alive(info.pid)
     # No socket; the record and the output say why it ended, and `sessions` lists it.
-    assert sorted(p.name for p in runtime.iterdir()) == [f"{info.id}.json", f"{info.id}.out"]
-    assert f"session {info.id} stopped: stopped by {info.owner}" in (runtime / f"{info.id}.out").read_text()
+    assert place_files(runtime) == [f"{info.id}.json", f"{info.id}.out"]
+    assert f"session {info.id} stopped: stopped by {info.owner}" in (place(runtime) / f"{info.id}.out").read_text()
     assert main(["sessions"]) == 0
     listed = capsys.readouterr().out
     assert listed.startswith("no running sessions\n\nended (kept 7 days")
@@ -192,8 +193,8 @@ def test_run_detach_is_a_session_one_watches_until_the_run_is_over(tmp_path: Pat
     log = read_log(out)
     assert log.rows == 2000
     poll(lambda: not pid_alive(info.pid), 60.0)
-    assert sorted(p.name for p in runtime.iterdir()) == [f"{info.id}.json", f"{info.id}.out"]
-    assert f"log        {out} (2000 rows)" in (runtime / f"{info.id}.out").read_text()
+    assert place_files(runtime) == [f"{info.id}.json", f"{info.id}.out"]
+    assert f"log        {out} (2000 rows)" in (place(runtime) / f"{info.id}.out").read_text()
     (ended,) = ended_sessions(runtime)
     assert ended.ended == f"the run is over; its log is {out}"
 
@@ -218,8 +219,8 @@ def test_sigterm_stops_the_session_in_order(tmp_path: Path, poll: Callable[..., 
             os.kill(info.pid, signal.SIGKILL)
     assert not pid_alive(info.pid)
     (ended,) = ended_sessions(runtime)
-    assert ended.ended == "SIGTERM" and not socket_path(runtime, info.id).exists()
-    assert "stopped: SIGTERM" in (runtime / f"{info.id}.out").read_text()
+    assert ended.ended == "SIGTERM" and not socket_path(place(runtime), info.id).exists()
+    assert "stopped: SIGTERM" in (place(runtime) / f"{info.id}.out").read_text()
     assert list((tmp_path / "logs").glob("*.partial"))
 
 
@@ -292,4 +293,4 @@ def test_run_detach_refuses_a_script_the_run_would_refuse_before_detaching(
     err = capsys.readouterr().err.splitlines()
     assert err[-1] == undetached
     assert undetached.startswith(f"quadtank: error: {script}, event 2 (line 3): SAMPLING TIME.TSamp: stop logging")
-    assert not runtime.exists() or sorted(p.name for p in runtime.iterdir()) == []
+    assert place_files(runtime) == []

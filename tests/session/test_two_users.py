@@ -18,6 +18,8 @@ import pytest
 from otherusers import ROOT, made_users
 from otherusers import as_user as run_as
 
+from quadtank_tui.session.folders import init_lab_folder
+
 pytestmark = pytest.mark.skipif(os.getuid() != 0 or shutil.which("useradd") is None
                                 or shutil.which("runuser") is None, reason="needs root, useradd and runuser")
 
@@ -33,6 +35,7 @@ def shared() -> Iterator[Path]:
     """A folder every user may write (tmp_path is root's, 0700)."""
     folder = Path(tempfile.mkdtemp(prefix="qtr-"))
     os.chmod(folder, 0o1777)
+    init_lab_folder(folder / "rt")  # the lab's runtime folder, as `quadtank lab init` makes it
     yield folder
     shutil.rmtree(folder, ignore_errors=True)
 

@@ -204,7 +204,7 @@ def test_losing_the_terminal_ends_the_tui_and_its_loop(tmp_path: Path, how: str,
         tree = _tree(tui.proc.pid)
         assert len(tree) == (3 if shell else 2), tree  # (sh,) the TUI, its private session
         assert list_sessions(runtime) == []  # private: not listed
-        (folder,) = [p for p in runtime.iterdir() if p.name.startswith("private-")]
+        (folder,) = [p for p in (runtime / "users" / str(os.getuid())).iterdir() if p.name.startswith("private-")]
         if how.startswith("hang-up"):
             tui.hang_up()
         else:
