@@ -120,8 +120,9 @@ class Serve:
     def __init__(self, folder: Path, *extra: str, lab: Path | None = None) -> None:
         self.folder = folder
         self.runtime = folder / "rt"
-        self.runtime.mkdir(exist_ok=True)
-        os.chmod(self.runtime, 0o1777)
+        from quadtank_tui.session.folders import init_lab_folder
+
+        init_lab_folder(self.runtime)  # the lab's runtime folder, as `quadtank lab init` makes it (issue 41)
         audit_dir = folder / "audit"
         audit_dir.mkdir(exist_ok=True)
         os.chmod(audit_dir, 0o750)
