@@ -154,8 +154,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ini = labsub.add_parser("init", help="make the lab's shared runtime folder (an administrator, once)",
                             description="Make FOLDER (default: the lab file's runtime_dir, else "
                             "$QUADTANK_RUNTIME, else /tmp/quadtank-sessions) the lab's runtime folder: root's, "
-                            "1755, with users/ (each user's folder of sessions) and locks/ (the DAQ locks), "
-                            "root's, 1777 sticky.  Run once at installation, by root or an administrator; "
+                            "1755, with users/ (each user's folder of sessions), locks/ (the DAQ locks) and "
+                            "bookings/, root's, 1777 sticky.  Run once at installation, by root or an administrator; "
                             "again to repair it.")
     ini.add_argument("folder", metavar="FOLDER", nargs="?", help="the folder to make the lab's runtime folder")
     ini.set_defaults(handler=cmd_lab_init)

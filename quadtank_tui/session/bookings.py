@@ -38,7 +38,7 @@ from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any, Iterable
 
-from quadtank_tui.session.lab import LabConfig, LabConfigError, ensure_shared_dir
+from quadtank_tui.session.lab import LabConfig, LabConfigError, ensure_runtime_dir
 
 KEYS = ("slot_minutes", "horizon_days", "weekly_quota_minutes", "warn_minutes")
 #: Ended bookings are kept (listed) this long, then removed by their owner's next booking.
@@ -114,7 +114,9 @@ class Booking:
 
 
 def bookings_dir(lab: LabConfig) -> Path:
-    return lab.runtime_dir / "bookings"
+    """bookings/ of the runtime folder in force (session/folders.py: the lab's is
+    made by `quadtank lab init`, root's, 1777 sticky)."""
+    return ensure_runtime_dir(lab).bookings
 
 
 def _stem(key: str) -> str:
@@ -253,10 +255,7 @@ def book(lab: LabConfig, keys: tuple[str, ...], start: datetime, end: datetime, 
         raise BookingError(f"that slot is over (it ended at {end:%H:%M:%S})")
     if not admin and start > now + timedelta(days=rules.horizon_days):
         raise BookingError(f"a student books at most {rules.horizon_days:g} days ahead")
-    from quadtank_tui.session.lab import ensure_runtime_dir
-
-    ensure_runtime_dir(lab)
-    folder = ensure_shared_dir(bookings_dir(lab), trusted=lambda u: _is_admin(u, lab))
+    folder = bookings_dir(lab)
     fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)

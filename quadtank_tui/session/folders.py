@@ -9,6 +9,7 @@ what a file says, tells whose each thing is (issue 41).
                         anything in it.  Taken by someone else first (a folder
                         named after another's uid): the owner makes UID.<hex>
       locks/            root's, 1777 sticky: the DAQ locks (session/lock.py)
+      bookings/         root's, 1777 sticky: the rigs' bookings (session/bookings.py)
 
 `quadtank lab init [FOLDER]` (an administrator, once, at installation) makes it.
 A folder of a user's own (`$QUADTANK_RUNTIME` naming a folder that user made, as
@@ -65,6 +66,15 @@ class Root:
     @property
     def locks(self) -> Path:
         return self.path / "locks"
+
+    @property
+    def bookings(self) -> Path:
+        return self.path / "bookings"
+
+    @property
+    def shared(self) -> tuple[Path, Path, Path]:
+        """The folders every user writes an entry of their own in (sticky in a lab's)."""
+        return (self.users, self.locks, self.bookings)
 
 
 @dataclass(frozen=True)
@@ -178,7 +188,7 @@ def resolve(folder: Path, *, source: str = "named", admin: Callable[[int], bool]
             f"{folder}: the runtime folder is {_name(st.st_uid)}'s with mode {stat.S_IMODE(st.st_mode):o}: "
             "not a lab folder (root's or an administrator's, writable by its owner only), so nothing in it "
             "can be trusted; an administrator makes it with `quadtank lab init " + str(folder) + "`")
-    for sub in (root.users, root.locks):
+    for sub in root.shared:
         _sub_folder(sub, root, st.st_uid)
     return root
 
@@ -198,7 +208,7 @@ def _personal(why: str) -> Root:
     if stat.S_IMODE(st.st_mode) & 0o077:
         os.chmod(folder, 0o700)
     root = Root(folder, lab=False, note=why)
-    for sub in (root.users, root.locks):
+    for sub in root.shared:
         _sub_folder(sub, root, os.getuid())
     return root
 
@@ -294,8 +304,8 @@ def own_place(root: Path) -> Path:
 
 def init_lab_folder(folder: Path) -> list[str]:
     """Make `folder` the lab's runtime folder (an administrator, once): the folder
-    root's (when run by root; else its administrator's), 1755; users/ and locks/
-    in it the same owner's, 1777 sticky.  A link or a file at any of the three
+    root's (when run by root; else its administrator's), 1755; users/, locks/ and
+    bookings/ in it the same owner's, 1777 sticky.  A link or a file at any of the three
     names is removed first; a folder of someone else's is taken over (owner and
     mode), its entries kept (each counts only as its own owner's).  Returns what
     was done, a line each."""
@@ -309,7 +319,8 @@ def init_lab_folder(folder: Path) -> list[str]:
                                  "replace the lab folder; choose a folder under root's (e.g. /run/quadtank)")
     for path, mode, what in ((folder, 0o1755, "the lab's runtime folder"),
                              (folder / "users", 0o1777, "each user makes a folder of sessions of their own here"),
-                             (folder / "locks", 0o1777, "the DAQ locks")):
+                             (folder / "locks", 0o1777, "the DAQ locks"),
+                             (folder / "bookings", 0o1777, "the rigs' bookings")):
         st = _lstat(path)
         if st is not None and not stat.S_ISDIR(st.st_mode):
             os.unlink(path)

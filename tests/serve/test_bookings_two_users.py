@@ -30,8 +30,9 @@ def lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, dict[s
 
     folder = Path(tempfile.mkdtemp(prefix="qtr-book-"))
     os.chmod(folder, 0o755)
-    (folder / "rt").mkdir()
-    os.chmod(folder / "rt", 0o1777)
+    from quadtank_tui.session.folders import init_lab_folder
+
+    init_lab_folder(folder / "rt")  # as `quadtank lab init` makes it (issue 41)
     (folder / "lab.yaml").write_text(f"runtime_dir: {folder / 'rt'}\nbookings:\n  slot_minutes: {1 / 60!r}\n"
                                      "  warn_minutes: [0.05]\n  weekly_quota_minutes: 60\n")
     homes = folder / "homes"
@@ -99,7 +100,7 @@ def test_bobs_booking_refuses_alice_and_his_slot_ends_in_a_hand_over(lab: tuple[
         assert run.returncode == 0, run.stderr
         assert wait_for(lambda: dacs(port) != [0, 0, 0, 0], 5), "bob's run never drove the pumps"
         sid = f"{bob.name}-1"
-        out = folder / "rt" / f"{sid}.out"
+        out = folder / "rt" / "users" / str(bob.uid) / f"{sid}.out"  # bob's folder of sessions
         text = wait_for(lambda: out.read_text() if "stopped:" in out.read_text() else "",
                         (end - datetime.now().astimezone()).total_seconds() + 8)
         assert text, (out.read_text(), quadtank(bob, folder, "sessions").stdout, sorted(p.name for p in (folder / "rt").iterdir()), datetime.now(), end)
