@@ -14,6 +14,7 @@ record's, or the run does not come out as recorded.
 from __future__ import annotations
 
 import math
+import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -123,6 +124,11 @@ def grade_record(folder: Path, exercises: Mapping[str, Exercise], *, daq_digests
             notes.append(f"{name} edited: its sha256 is not the one result.json records")
     ex_id = str(result["exercise"].get("id", "?"))
     user = str(result["user"].get("name", "?"))
+    owner = _owner(folder / "result.json")
+    uid = result["user"].get("uid")
+    if owner is not None and owner != uid:
+        notes.append(f"result.json belongs to uid {owner}, not to the recorded user's uid {uid!r} "
+                     "(copied, or written by another user)")
     plant = result["plant"]
     kind = plant.get("kind")
     ex = exercises.get(ex_id)
@@ -148,7 +154,7 @@ def grade_record(folder: Path, exercises: Mapping[str, Exercise], *, daq_digests
                 if "student.par" in edited:
                     notes.append("student.par edited: the run of the recorded .par is not the recorded log")
                 elif "run.log" in edited:
-                    notes.append("run.log edited: it is not the log the recorded .par gives")
+                    pass  # named already: its digest
                 else:
                     notes.append("run.log does not match the run of the recorded .par and script "
                                  "(the record was rewritten, or by another program version)")
@@ -175,6 +181,14 @@ def grade_record(folder: Path, exercises: Mapping[str, Exercise], *, daq_digests
     curve = _curve(ex, cols) if ex is not None and cols is not None else None
     return Graded(folder, user, ex_id, str(result.get("started", "")), str(kind), graded, passed, reproduced,
                   notes, curve)
+
+
+def _owner(path: Path) -> int | None:
+    """The OS's word on whose file it is (its owner's uid), None if it cannot say."""
+    try:
+        return os.lstat(path).st_uid
+    except OSError:
+        return None
 
 
 def _seconds(result: Mapping[str, Any]) -> float | None:

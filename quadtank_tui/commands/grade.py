@@ -147,7 +147,7 @@ def write_figures(graded: Sequence[Graded], exercises: Mapping[str, Exercise], f
     folder.mkdir(parents=True, exist_ok=True)
     out = []
     for ex_id in sorted({g.exercise for g in graded}):
-        curves = [(f"{g.user} ({'passed' if g.passed else 'not passed'})", g.curve)
+        curves = [(f"{g.user} {g.folder.name} ({'passed' if g.passed else 'not passed'})", g.curve)
                   for g in graded if g.exercise == ex_id and g.curve is not None]
         ex = exercises.get(ex_id)
         ref = reference_curve(ex) if ex is not None else None

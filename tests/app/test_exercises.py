@@ -109,7 +109,7 @@ def test_a_class_graded_with_its_edited_records_named(tmp_path: Path, capsys: py
     result["passed"] = True
     (erin / "result.json").write_text(json.dumps(result))
     code = main(["grade", str(tmp_path / "class"), "--exercises", str(EXERCISES), "--json",
-                 "--csv", str(tmp_path / "class.csv")])
+                 "--csv", str(tmp_path / "class.csv"), "--figures", str(tmp_path / "figures")])
     graded = {g["user"]: g for g in json.loads(capsys.readouterr().out)}
     assert code == 0 and sorted(graded) == ["alice", "bob", "carol", "dave", "erin"]
     assert graded["alice"]["passed"] is True and graded["alice"]["reproduced"] is True
@@ -124,6 +124,7 @@ def test_a_class_graded_with_its_edited_records_named(tmp_path: Path, capsys: py
     erin_settling = {r["name"]: r for r in graded["erin"]["requirements"]}["settling_time 1"]
     assert erin_settling["figure"] == pytest.approx(393.0) and erin_settling["recorded_figure"] == 1.0
     assert erin_settling["reproduced"] is False
+    assert (tmp_path / "figures" / "pminus-pi.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     csv_rows = (tmp_path / "class.csv").read_text().splitlines()
     assert len(csv_rows) == 6 and csv_rows[0].startswith("user,exercise,record,started,plant,passed,reproduced")
 

@@ -16,6 +16,7 @@ from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
 from quadtank_tui.files.exercise import read_exercise
 from quadtank_tui.files.par import read_par
 from quadtank_tui.ui.app import QuadTankApp
+from quadtank_tui.ui.widgets.status_line import StatusLine
 from quadtank_tui.ui.windows.exercise import ExerciseWindow
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -53,7 +54,9 @@ async def settled(pilot: Pilot, shows: str = "") -> None:
     while time.monotonic() < deadline:
         await pilot.pause(0.06)
         screen = pilot.app.screen
-        if isinstance(screen, ExerciseWindow) and shows in str(screen.query_one("#exercise-status", Static).content):
+        status = screen.query("#exercise-status") if isinstance(screen, ExerciseWindow) else None
+        if status and shows in str(status.first(Static).content) and \
+                (shows or "watched" in str(status.first(Static).content)):
             break
     for _ in range(2):
         await pilot.pause(0.06)
@@ -85,12 +88,20 @@ def test_the_exercise_window_picture(snap_compare, make_engine: Callable[..., Re
 
     async def before(pilot: Pilot) -> None:
         await settled(pilot)
+        await pilot.press("x")  # closed while the run goes, so that Main behind it is drawn at its end
         engine.submit(SetState("Run"))
         engine.run_for(600.0)
         engine.submit(SetControlMode("Automatic"))
         engine.run_for(10.0)
         engine.submit(SetParams({"REFERENCE ONE.Mean": engine.snapshot().params.get("REFERENCE ONE.Mean") + 0.1}))
         engine.run_for(60.0)  # part of the way: overshoot known, settling pending
+        deadline = time.monotonic() + 30.0
+        status = pilot.app.main.query_one("#status", StatusLine)
+        while (status.snapshot is None or status.snapshot.t < 670.0) and time.monotonic() < deadline:
+            await pilot.pause(0.06)
+        for _ in range(3):
+            await pilot.pause(0.06)
+        await pilot.press("x")
         await settled(pilot, "70 of 600 s watched")
 
     assert snap_compare(app, terminal_size=(120, 40), run_before=before)

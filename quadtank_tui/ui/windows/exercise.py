@@ -16,6 +16,7 @@ from typing import Callable
 
 from textual.app import ComposeResult
 from textual.containers import VerticalScroll
+from textual.css.query import NoMatches
 from textual.widgets import Static
 
 from quadtank_tui.app.exercise import LiveExercise, LiveState
@@ -85,7 +86,10 @@ class ExerciseWindow(LiveWindow):
     def show(self, snapshot: Snapshot) -> None:
         self.tracker.note(snapshot.automatic_since)
         state = self.tracker.state(self.engine.history(), snapshot.params, self.wall_clock())
-        show_live(self.query_one("#exercise-requirements", Static), requirement_table(state))
         where = "rig" if snapshot.operation == "Active" else "simulator"
         status = f"{state.summary()}\n{clock(state.time_left)}   on the {where}"
-        show_live(self.query_one("#exercise-status", Static), status)
+        try:
+            show_live(self.query_one("#exercise-requirements", Static), requirement_table(state))
+            show_live(self.query_one("#exercise-status", Static), status)
+        except NoMatches:  # not composed yet, or being taken down: the next snapshot draws it
+            pass
