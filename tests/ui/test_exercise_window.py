@@ -96,7 +96,7 @@ def test_the_exercise_window_picture(snap_compare, make_engine: Callable[..., Re
         engine.submit(SetParams({"REFERENCE ONE.Mean": engine.snapshot().params.get("REFERENCE ONE.Mean") + 0.1}))
         engine.run_for(60.0)  # part of the way: overshoot known, settling pending
         deadline = time.monotonic() + 30.0
-        status = pilot.app.main.query_one("#status", StatusLine)
+        status = app.main.query_one("#status", StatusLine)
         while (status.snapshot is None or status.snapshot.t < 670.0) and time.monotonic() < deadline:
             await pilot.pause(0.06)
         for _ in range(3):
