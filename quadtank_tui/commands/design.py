@@ -355,6 +355,11 @@ def _plan(params: Any, pair: Any, G: Any, h: float, window: float | None,
     """The designed controllers' preview on the nonlinear plant in use (app.design's
     plan, the one the Design screen runs)."""
     from quadtank_tui.app.design import TR_KEYS, preview_plan
+    from quadtank_tui.core.design.preview import MAX_SAMPLES
+
+    if window is not None and not (0 < window <= MAX_SAMPLES * h):  # NaN, inf, 1e12: 72.8 TiB asked for
+        raise ValueError(f"--window must be a positive number of seconds up to {MAX_SAMPLES * h:g} "
+                         f"({MAX_SAMPLES} samples of {h:g} s), got {window:g}")
 
     return preview_plan(params, pair, G, h, start=_start(params, inputs), window=window,
                         tr_keys=tr_keys or TR_KEYS)

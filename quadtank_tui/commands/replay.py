@@ -21,9 +21,15 @@ import numpy as np
 
 from quadtank_tui.commands import UsageError, warn
 
+#: The largest log a replay reads, bytes (about 215,000 rows of 9 columns: 3 h of
+#: 50 ms samples, 60 h of 1 s): the simulator integrates every row, 0.1-1.4 ms
+#: each, so a 200 MB log (4.2 million rows) ran for hours.
+MAX_REPLAY_BYTES = 20_000_000
+
 
 def replay(args: argparse.Namespace) -> int:
     """Run the replay `args` asks for and print a one-line summary."""
+    _refuse_large(args.inputs_from)  # before the simulator's imports: a refusal comes at once
     from quadtank_tui.commands.identify import read_sampled
     from quadtank_tui.core.identify.physical import estimate_initial, experiment_from_columns, simulate
     from quadtank_tui.core.plants.common import FULL_SCALE_V
@@ -66,6 +72,24 @@ def replay(args: argparse.Namespace) -> int:
     print(f"replayed  {source} ({log.rows} rows, TSamp {tsamp:g} s) on the {plant.title}, open loop\n"
           f"log       {out} ({log.rows} rows)")
     return 0
+
+
+def _refuse_large(source: str) -> None:
+    """UsageError for a log larger than MAX_REPLAY_BYTES, from its size alone (what
+    is not a regular file is left to the reader, which refuses it)."""
+    import os
+    import stat
+
+    from quadtank_tui.files.log_reader import ROW_BYTES
+
+    try:
+        st = os.stat(source)
+    except OSError:
+        return
+    if stat.S_ISREG(st.st_mode) and st.st_size > MAX_REPLAY_BYTES:
+        raise UsageError(f"{source}: {st.st_size / 1e6:,.1f} MB, larger than a replay reads "
+                         f"({MAX_REPLAY_BYTES / 1e6:g} MB, about {MAX_REPLAY_BYTES // ROW_BYTES:,} rows of 9 "
+                         "columns): replay a part of it")
 
 
 def _index(name: str, prefix: str) -> int:

@@ -76,7 +76,7 @@ def _terminate(signum: int, frame: object) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from quadtank_tui.engine.headless import check_duration, run_headless
+    from quadtank_tui.engine.headless import check_duration, checked_out, run_headless
     from quadtank_tui.files.script import read_script
 
     if args.inputs_from:
@@ -96,6 +96,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise UsageError("--duration is needed (the length of the run, s)")
     try:
         check_duration(args.duration)
+        checked_out(Path(args.log), make_folder=False)  # before a session or a file is made
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     if args.speed is not None and not 1.0 <= args.speed <= 1000.0:

@@ -110,13 +110,28 @@ def parse_pairs(text: str, name: str = "<pairs>") -> Pairs:
     return pairs
 
 
+#: The largest pairs file read, bytes: a calibration has a few dozen settled states
+#: (a line each); `--pairs /dev/zero` grew to 11.9 GB before a MemoryError.
+MAX_PAIRS_BYTES = 1_000_000
+
+
 def read_pairs(path: Path | str) -> Pairs:
+    """The pairs of a regular file of at most MAX_PAIRS_BYTES (a device, a FIFO or a
+    directory is refused, never read)."""
+    from quadtank_tui.files.regular import read_regular
+
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        data = read_regular(path, MAX_PAIRS_BYTES)
     except FileNotFoundError:
         raise CalibrationError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read: {exc}") from None
+    except OSError as exc:
+        raise CalibrationError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if len(data) > MAX_PAIRS_BYTES:
+        raise CalibrationError(f"{path}: larger than {MAX_PAIRS_BYTES:,} bytes: not a file of settled pairs")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise CalibrationError(f"{path}: not UTF-8 text (byte {exc.start})") from None
     return parse_pairs(text, str(path))
 
 

@@ -144,9 +144,9 @@ def prepare_headless(
     return HeadlessRun(engine, script, duration, out, before)
 
 
-def refuse_log_target(out: Path, *, given: Path | None = None) -> None:
+def refuse_log_target(out: Path, *, given: Path | None = None, make_folder: bool = False) -> None:
     """ValueError if `out` (what `--log` named: `given`) is a folder, a device, a
-    FIFO or a socket, or its folder does not exist."""
+    FIFO or a socket, or its folder does not exist (`make_folder`: it is made)."""
     given = out if given is None else given
     if out.is_dir():
         raise ValueError(f"--log {given}: a folder; --log names the .log to write (e.g. {given / 'run.log'})")
@@ -154,24 +154,26 @@ def refuse_log_target(out: Path, *, given: Path | None = None) -> None:
         raise ValueError(f"--log {given}: not a regular file (a device, a FIFO or a socket); "
                          "--log names the .log to write")
     folder = out.parent
+    if make_folder and not folder.exists():
+        folder.mkdir(parents=True, exist_ok=True)
     if not folder.is_dir():
         what = "is not a folder" if folder.exists() else "does not exist"
         raise ValueError(f"--log {given}: the folder {folder} {what} (make it first, or name another)")
 
 
-def checked_out(out: Path) -> Path:
+def checked_out(out: Path, *, make_folder: bool = True) -> Path:
     """The run's `.log` path (`.log` added), its folder checked now, not at a LogOn
     far into the run; ValueError saying what is wrong.  A directory or a device is
-    refused, and so is a folder that does not exist: `--log /dev/null` wrote
-    /dev/null.log, `--log /tmp` /tmp.log, and `--log /nonexistent/x.log` created
-    /nonexistent."""
-    refuse_log_target(out)
+    refused: `--log /dev/null` wrote /dev/null.log, `--log /tmp` /tmp.log.  The
+    folder is made if missing, but for `--log` (`make_folder` False: `--log
+    /nonexistent/x.log` created /nonexistent)."""
+    refuse_log_target(out, make_folder=make_folder)
     stem = out.name.removesuffix(SUFFIX)
     try:
         check_file_name(stem, "--log")
     except ParameterError as exc:
         raise ValueError(str(exc)) from None
-    refuse_log_target(out.with_name(stem + SUFFIX), given=out)
+    refuse_log_target(out.with_name(stem + SUFFIX), given=out, make_folder=make_folder)
     out = out.with_name(stem + SUFFIX)
     check_log_folder(out.parent)
     if out.exists() and not out.is_file():

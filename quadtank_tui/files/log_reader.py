@@ -10,6 +10,7 @@ from __future__ import annotations
 import array
 import io
 import math
+import os
 import re
 from dataclasses import dataclass
 from datetime import datetime
@@ -67,17 +68,21 @@ class LogData:
 MAX_LINE = 4096
 #: The most rows read: 8 h of 10 ms samples is 2.9 million (72 bytes a row in memory).
 MAX_ROWS = 5_000_000
+#: Bytes of a row of nine columns in a log this program writes, about (for messages).
+ROW_BYTES = 93
 #: The most variables a header may declare (a log has at most nine).
 MAX_COLUMNS = 64
 #: Comment and blank lines allowed beside the rows (a `% late:` note per late row).
 MAX_OTHER_LINES = MAX_ROWS + 10_000
 
 
-def read_log(path: Path | str, *, max_rows: int = MAX_ROWS, max_line: int = MAX_LINE) -> LogData:
+def read_log(path: Path | str, *, max_rows: int = MAX_ROWS, max_line: int = MAX_LINE,
+             max_bytes: tuple[int, str] | None = None) -> LogData:
     """Read a `.log` (or a `.log.partial` left by a killed run) as a stream: one
     line at a time, at most `max_line` characters each and `max_rows` rows, the
     values straight into one float64 buffer, so memory stays near 8 bytes a value
-    whatever the file holds."""
+    whatever the file holds.  `max_bytes` (bytes, who reads): a file larger than
+    that is refused from its size, before a line is read."""
     path = Path(path)
     try:
         f = open_regular(path)
@@ -85,6 +90,12 @@ def read_log(path: Path | str, *, max_rows: int = MAX_ROWS, max_line: int = MAX_
         raise LogFileError(str(path), "no such file") from None
     except OSError as exc:
         raise LogFileError(str(path), f"cannot read: {exc.strerror or exc}") from None
+    if max_bytes is not None:
+        size = os.fstat(f.fileno()).st_size
+        if size > max_bytes[0]:
+            f.close()
+            raise LogFileError(str(path), f"{size / 1e6:,.1f} MB, larger than {max_bytes[1]} reads "
+                               f"({max_bytes[0] / 1e6:g} MB, about {max_bytes[0] // ROW_BYTES:,} rows of 9 columns)")
     with io.TextIOWrapper(f, encoding="latin-1", newline="\n") as text:
         try:
             return _parse_lines(text.readline, str(path), max_rows, max_line)

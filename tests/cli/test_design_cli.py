@@ -48,6 +48,11 @@ def test_pid_ms_table(capsys: pytest.CaptureFixture[str]) -> None:
     (["--model", P1, "--write-par", "x.par"], "--write-par needs --par"),
     (["--par", str(PARAMS / "minphase.par"), "--method", "pi-ms", "--sampling", "0", "--no-step"],
      "Ms alone does not bound"),
+    # issue 41: 72.8 TiB asked for, a traceback
+    (["--par", str(PARAMS / "minphase.par"), "--window", "1e12"],
+     "--window must be a positive number of seconds up to 3000 (30000 samples of 0.1 s), got 1e+12"),
+    (["--par", str(PARAMS / "minphase.par"), "--window", "inf"], "got inf"),
+    (["--par", str(PARAMS / "minphase.par"), "--window", "-5"], "got -5"),
 ])
 def test_bad_input_is_one_message(argv: list[str], words: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["design", *argv]) == 2
@@ -95,6 +100,11 @@ def _model_file(path: Path, gains: list) -> Path:
 
 
 def test_bad_model_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    deep = tmp_path / "deep.model.json"
+    deep.write_text("[" * 100_000)  # issue 41: a RecursionError traceback
+    assert main(["design", "--model-file", str(deep)]) == 2
+    assert capsys.readouterr().err == (f"quadtank: error: {deep}: nested deeper than any model file "
+                                       "(lists or objects inside each other): not a model file\n")
     missing = tmp_path / "none.model.json"
     not_json = tmp_path / "bad.model.json"
     not_json.write_text("{\n  oops\n")

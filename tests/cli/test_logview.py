@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import os
 import re
 from datetime import datetime
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from quadtank_tui.cli import main
+from quadtank_tui.commands.logview import envelope
 from quadtank_tui.engine.headless import run_headless
 from quadtank_tui.files.log_writer import format_header, format_row
 from quadtank_tui.files.script import parse_script
@@ -106,11 +109,21 @@ def test_plot_reads_back_a_known_level(tmp_path: Path, capsys: pytest.CaptureFix
     (["log", "plot", "LOG", "--vars", "y1", "y9"], "LOG: no column y9 (logged: t y1 u1)"),
     (["log", "plot", "BAD"], "BAD, line 3: 2 values where the header declares 1 (y1)"),
     (["log", "compare", "LOG", "MISSING"], "MISSING: no such file"),
+    # issue 41: 60 s and 11.5 GB to a MemoryError; 3.8 GB
+    (["log", "plot", "LOG", "--width", "100000000"], "--width must be 1..2000 characters, got 100000000"),
+    (["log", "plot", "LOG", "--height", "10000000"], "--height must be 1..1000 characters, got 10000000"),
+    # a 200 MB log (4.2 million rows): 166 s and 2.55 GB; refused from its size (a sparse file here)
+    (["log", "plot", "HUGE"], "HUGE: 200.0 MB, larger than log plot reads (64 MB, about 688,172 rows of 9 columns)"),
+    (["run", "--inputs-from", "HUGE", "--log", "OUT"],
+     "HUGE: 200.0 MB, larger than a replay reads (20 MB, about 215,053 rows of 9 columns): replay a part of it"),
 ])
 def test_bad_logs_are_one_line_naming_file_and_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                     argv: list[str], message: str) -> None:
-    paths = {"LOG": tmp_path / "ok.log", "BAD": tmp_path / "bad.log", "MISSING": tmp_path / "none.log"}
+    paths = {"LOG": tmp_path / "ok.log", "BAD": tmp_path / "bad.log", "MISSING": tmp_path / "none.log",
+             "HUGE": tmp_path / "huge.log", "OUT": tmp_path / "out.log"}
     paths["LOG"].write_text(format_header(("t", "y1", "u1"), 1.0, datetime(2026, 1, 5)) + format_row((0, 1, 2)))
+    paths["HUGE"].write_text(paths["LOG"].read_text())
+    os.truncate(paths["HUGE"], 200_000_000)  # sparse: no 200 MB written
     paths["BAD"].write_text("% Logged variables: y1   TSamp: 1s\n1\n2 3\n")
     argv = [str(paths.get(a, a)) for a in argv]
     assert main(argv) == 2
@@ -118,6 +131,28 @@ def test_bad_logs_are_one_line_naming_file_and_line(tmp_path: Path, capsys: pyte
     for key, path in paths.items():
         expected = expected.replace(key, str(path))
     assert capsys.readouterr().err.splitlines()[-1] == f"quadtank: error: {expected}"
+    assert not paths["OUT"].exists()
+
+
+def test_a_long_log_is_drawn_from_its_envelope_with_every_spike(tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """40,000 rows at 80 columns: the curve is drawn from each braille column's
+    lowest and highest rows (plotext drew every row: minutes and gigabytes for a
+    long log), and a spike of one row still reaches the top of the plot."""
+    n = 40_000
+    y = np.full(n, 0.25)
+    y[23_457] = 0.75  # one row
+    header = format_header(("t", "y1"), 0.05, datetime(2026, 1, 5))
+    path = tmp_path / "long.log"
+    path.write_text(header + "".join(f"{0.05 * k:.2f} {v:.4f}\n" for k, v in enumerate(y)))
+    keep = envelope(y, 160)
+    assert len(keep) <= 2 * 160 + 4 and 23_457 in keep and keep[0] == 0 and keep[-1] == n - 1
+    assert main(["log", "plot", str(path), "--width", "80", "--height", "20"]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if "│" in line or "┤" in line]
+    drawn = [line for line in rows if any(0x2800 < ord(ch) <= 0x28FF for ch in line)]
+    labelled = {line.split("┤")[0].strip(): line for line in rows if "┤" in line}
+    assert labelled["0.6"] in drawn and labelled["0.4"] in drawn  # the spike of one row, up to 0.75
+    assert len(drawn) >= 8 and "⠤⠤⠤⠤⠤⠤⠤⠤⠤⠤" in drawn[-1]  # and the level of 0.25 across
 
 
 def test_plot_without_colour_tells_curves_apart_by_marker(tmp_path: Path,

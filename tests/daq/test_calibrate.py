@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 import subprocess
 import sys
+import os
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -41,6 +42,24 @@ def test_pairs_from_a_file_give_desautels_table_1(tmp_path: Path, capsys: pytest
     assert out[0] == "tank 1  gain 5.4310 cm/V  offset +0.2390 cm  rms residual 0.101 cm"
     assert out[1] == "tank 2  gain 5.5557 cm/V  offset +1.5419 cm  rms residual 0.123 cm"
     assert out[3:] == ["  tank1: {gain: 5.4310, offset: 0.2390}", "  tank2: {gain: 5.5557, offset: 1.5419}"]
+
+
+@pytest.mark.parametrize("what", ["/dev/zero", "folder", "fifo", "large"])
+def test_pairs_that_are_no_small_regular_file_are_refused_unread(
+        what: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 41: `--pairs /dev/zero` grew to 11.9 GB and a MemoryError."""
+    path = {"/dev/zero": Path("/dev/zero"), "folder": tmp_path, "fifo": tmp_path / "fifo",
+            "large": tmp_path / "large.txt"}[what]
+    if what == "fifo":
+        os.mkfifo(path)  # opened without blocking, refused from fstat: nobody writes it
+    if what == "large":
+        path.write_text(TABLE_1)
+        os.truncate(path, 50_000_000)  # sparse
+    assert main(["daq", "calibrate", "--pairs", str(path)]) == 2
+    said = {"/dev/zero": "cannot read: a character device, not a file", "folder": "cannot read: a directory, not a file",
+            "fifo": "cannot read: a FIFO (named pipe), not a file",
+            "large": "larger than 1,000,000 bytes: not a file of settled pairs"}[what]
+    assert capsys.readouterr().err == f"quadtank: error: {path}: {said}\n"
 
 
 @pytest.mark.parametrize(("text", "message"), [

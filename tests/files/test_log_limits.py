@@ -71,7 +71,8 @@ def test_the_cli_says_it_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixtu
     monkeypatch.setattr(logmod, "MAX_LINE", 64)
     log = tmp_path / "wide.log"
     log.write_text("% TANK LOG-file\n% Logged variables: y1   TSamp: 1s\n\n" + "0.5 " * 100 + "\n")
-    monkeypatch.setattr(logmod.read_log, "__kwdefaults__", {"max_rows": logmod.MAX_ROWS, "max_line": 64})
+    monkeypatch.setattr(logmod.read_log, "__kwdefaults__", {"max_rows": logmod.MAX_ROWS, "max_line": 64,
+                                                                 "max_bytes": None})
     assert main(["log", "info", str(log)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"quadtank: error: {log}, line 4: a line longer than 64 characters: not a TANK log "
