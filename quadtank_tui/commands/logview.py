@@ -128,8 +128,8 @@ def render_plot(log: LogData, t: np.ndarray, names: Sequence[str], width: int, h
             keep = decimate(len(t), max(1, width // DOT_GAP))
             plt.scatter(t[keep].tolist(), log[name][keep].tolist(), marker=marker, color=c)
         else:
-            keep = envelope(log[name], 2 * width)
-            plt.plot(t[keep].tolist(), log[name][keep].tolist(), marker=marker, color=c)
+            rows = envelope(log[name], 2 * width)
+            plt.plot(t[rows].tolist(), log[name][rows].tolist(), marker=marker, color=c)
     values = [float(v) for n in names for v in (log[n].min(), log[n].max())]
     axis = y_axis(min(values), max(values), height - 1 - AXIS_ROWS)
     plt.ylim(axis.lo, axis.hi)
