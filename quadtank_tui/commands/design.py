@@ -138,7 +138,7 @@ def _run_siso(args: argparse.Namespace) -> int:
         ev, limits = se.evaluation, se.limits
     else:
         ev = evaluate(c, target)
-    figure = _figure(args.figure, [(method, target, c)], f"{how}; evaluated on {target}")
+    figure = _figure(args.figure, [(method, target, c, h, ev)], f"{how}; evaluated on {target}")
     if args.json:
         out = {"model": str(g), "method": method, "how": how, "Kc": c.Kc, "Ti": c.Ti, "Td": c.Td,
                "sampling_time": h, "evaluated_on": str(target),
@@ -165,8 +165,9 @@ def _run_siso(args: argparse.Namespace) -> int:
     return 0
 
 
-def _figure(path: str | None, loops: list[tuple[str, Any, Any]], title: str) -> Path | None:
-    """Draw the loops (name, model, PID) into `path`, if one was given."""
+def _figure(path: str | None, loops: list[tuple[Any, ...]], title: str) -> Path | None:
+    """Draw the loops (name, model, PID, sampling time, the evaluation printed) into
+    `path`, if one was given: the figure's numbers are the text's."""
     if path is None:
         return None
     from quadtank_tui.files.figures.design import DesignedLoop, design_figure
@@ -283,7 +284,8 @@ def _run_2x2(args: argparse.Namespace) -> int:
     if args.write_par:
         assert params is not None
         written = _write(args.write_par, params, controller_values(chk.pid_pair()), h)
-    figure = _figure(args.figure, [(f"loop {d.loop} on {d.how}", d.model, d.controller) for d in chk.loops],
+    figure = _figure(args.figure, [(f"loop {d.loop} on {d.how}", d.model, d.controller, h, d.evaluation)
+                                   for d in chk.loops],
                      f"{source}, method {method}")
     report = _check_json(chk, pv, written)
     report["robustness"] = None if rb is None else rb.to_dict()
@@ -415,7 +417,7 @@ def _run_one_pump(args: argparse.Namespace, params: Any) -> int:
         pv = _plan(params, [ctrl], ((g,),), h, args.window, _model_inputs(args.model_file),
                    (f"{ONE_PUMP_ELEMENT}.Tr",)).run()
     written = _write(args.write_par, params, one_pump_values(ctrl), h) if args.write_par else None
-    figure = _figure(args.figure, [(f"{y} <- u1", g, ctrl)], f"{source}, method {method}")
+    figure = _figure(args.figure, [(f"{y} <- u1", g, ctrl, h, ev)], f"{source}, method {method}")
     report = {"stable": ev.stable, "sampling_time": h, "notes": [note],
               "loops": [{"loop": 1, "output": y, "input": "u1", "element": ONE_PUMP_ELEMENT,
                          "designed_on": f"g{c + 1}1", "model": str(g), "Kc": ctrl.Kc, "Ti": ctrl.Ti,

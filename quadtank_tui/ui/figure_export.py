@@ -91,7 +91,9 @@ def identification_builder(ident: Identification, params: Parameters) -> Callabl
     return build
 
 
-def design_builder(loops: Sequence[tuple[str, DelayTF, PID]], title: str) -> Callable[[], Figure]:
+def design_builder(loops: Sequence[tuple[str, DelayTF, PID, float]], title: str) -> Callable[[], Figure]:
+    """Each loop (name, model, controller, the sampling time it runs at) with its
+    evaluation, the numbers the screen's table shows."""
     def build() -> Figure:
         from quadtank_tui.files.figures.design import DesignedLoop, design_figure
 

@@ -245,10 +245,26 @@ class SampledEvaluation:
     limits: LimitCheck | None
 
 
+def sampled_loop_response(c: PID, g: DelayTF, h: float, m: SampledModel | None = None
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """(w rad/s, L(e^(iwh))) of the loop sampled at h: the curve the sampled Ms and
+    margins are read from (and a figure draws)."""
+    w = sampled_grid(g, h)
+    return w, controller_freqresp(c, h, w) * (m or sample(g, h)).freqresp(w)
+
+
+def reference_step(c: PID, g: DelayTF, h: float, samples: int | None = None) -> Response:
+    """The sampled loop's unit reference step, as long as its evaluation simulates it."""
+    m = sample(g, h)
+    if samples is None:
+        ms, pm, am, lm, wc = _margins(m, c, g, h, True)
+        samples = _horizon(c, wc, h)
+    return linear_response(m, c, r=1.0, samples=samples)
+
+
 def _margins(m: SampledModel, c: PID, g: DelayTF, h: float, stable: bool) -> tuple[float, float, float, float, float]:
     """(Ms, phase margin deg, gain margin, delay margin s, crossover rad/s) of L(e^(iwh))."""
-    w = sampled_grid(g, h)
-    L = controller_freqresp(c, h, w) * m.freqresp(w)
+    w, L = sampled_loop_response(c, g, h, m)
     ms = float(np.max(np.abs(1.0 / (1.0 + L)))) if stable else math.inf
     mag = np.abs(L)
     ph = np.unwrap(np.angle(L))

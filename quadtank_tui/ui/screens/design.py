@@ -593,8 +593,12 @@ class DesignScreen(CommandSender):
 
         from quadtank_tui.ui.figure_export import design_builder, export
 
-        loops = [(f"loop {i}", s.model, s.chosen) for i, s in self.loops.items()
-                 if s.chosen is not None and s.model is not None]
+        h = self.engine.snapshot().params.tsamp
+        loops = []
+        for i, s in self.loops.items():
+            g = s.design_model or s.model
+            if s.chosen is not None and g is not None:
+                loops.append((f"loop {i} on {s.how or f'g{i}{i}'}", g, s.chosen, h))
         if not loops:
             self.notify("choose a controller first (Enter on a row, or 2)", severity="warning")
             return
