@@ -246,7 +246,8 @@ def cmd_daq_fit(args: argparse.Namespace) -> int:
 
 
 def cmd_daq_calibrate(args: argparse.Namespace) -> int:
-    from quadtank_tui.daq.calibrate import Settle, fit_pairs, format_result, read_pairs, run_procedure
+    from quadtank_tui.core.calibration_run import SettleRule
+    from quadtank_tui.daq.calibrate import fit_pairs, format_result, read_pairs, run_procedure
 
     plant = None
     if args.par is not None:
@@ -271,8 +272,8 @@ def cmd_daq_calibrate(args: argparse.Namespace) -> int:
         backend = _calibration_backend(rig, args.config, args.write)
         try:
             pairs = run_procedure(
-                backend, [(v, v) for v in args.volts], Settle(args.poll, args.window, args.tol, args.timeout),
-                _ask_heights, report=lambda text: print(text, file=sys.stderr, flush=True))
+                backend, args.volts, SettleRule(args.window, args.tol, args.timeout), _ask_heights,
+                poll=args.poll, report=lambda text: print(text, file=sys.stderr, flush=True))
         except BackendError as exc:
             print(f"quadtank: {exc}", file=sys.stderr)
             return 1

@@ -4,8 +4,9 @@ For each pump voltage the pumps are held until every sensor voltage stays within
 `tol` volts over the last `window` reads; then the operator reads the heights on
 the tanks' scales, and the next voltage follows.  Pure: it is fed the reads and
 says what the pumps get, so the control loop can run it one sample at a time on a
-real process (engine) and `quadtank daq calibrate` in a plain loop (daq), and a
-test can drive it with numbers.
+real process (engine/calibration_step.py) and `quadtank daq calibrate` in a plain
+loop paced by sleeps (daq/calibrate.run_procedure), and a test can drive it with
+numbers.
 
 Phases: settling -> heights -> settling (next voltage) ... -> done; or failed (the
 sensors did not settle in time) or cancelled.  Outside settling and heights the
@@ -113,11 +114,13 @@ class CalibrationRun:
     def reads(self) -> int:
         return len(self._window.reads)
 
-    def feed(self, volts: Sequence[float]) -> str:
-        """One read of the sensors (V) while settling; the phase after it."""
+    def feed(self, volts: Sequence[float], dt: float | None = None) -> str:
+        """One read of the sensors (V) while settling, `dt` s after the one before
+        (default: a sample, `h`; a procedure paced by sleeps passes what its clock
+        measured); the phase after it."""
         if self.phase != SETTLING:
             return self.phase
-        self.elapsed += self.h
+        self.elapsed += self.h if dt is None else dt
         mean = self._window.add(volts[: self.tanks])
         if mean is not None:
             self.settled, self.phase = mean, HEIGHTS

@@ -2,7 +2,9 @@
 
 For each pump voltage the pumps are held, the four raw sensor voltages are read
 until they have settled (every one within `tol` volts over the last `window` reads),
-then the operator reads the heights off the tanks' scales.  The pairs (settled volts,
+then the operator reads the heights off the tanks' scales: the one procedure of
+core.calibration_run, which the engine runs sample by sample in the TUI's
+Calibration window, here in a loop paced by sleeps.  The pairs (settled volts,
 height) give each sensor's gain and offset by least squares; with the plant's pumps
 and valves they give its outlet areas too (core.calibration).
 
@@ -36,7 +38,7 @@ from quadtank_tui.core.calibration import (
     fit_quadtank_outlets,
     fit_sensor,
 )
-from quadtank_tui.core.calibration_run import SettleRule, SettleWindow
+from quadtank_tui.core.calibration_run import FAILED, SETTLING, CalibrationRun, SettleRule
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.johansson import PlantParams, area_from_diameter, time_constant
@@ -135,62 +137,45 @@ def read_pairs(path: Path | str) -> Pairs:
     return parse_pairs(text, str(path))
 
 
-@dataclass(frozen=True)
-class Settle:
-    """When the sensors count as settled: `window` reads `poll` s apart all within
-    `tol` V; give up after `timeout` s at one voltage."""
-
-    poll: float = 2.0
-    window: int = 30
-    tol: float = 0.004
-    timeout: float = 3600.0
-
-
-def settle(sensors: RawSensors, u: tuple[float, float], rule: Settle, *,
-           sleep: Callable[[float], None] = time.sleep,
-           now: Callable[[], float] = time.monotonic) -> tuple[float, float, float, float]:
-    """Hold the pumps at `u` (normalized) until the sensors settle; the mean of the
-    last window.  CalibrationError after the timeout (the pumps stay where they are:
-    the caller stops them)."""
-    start = now()
-    window = SettleWindow(SettleRule(rule.window, rule.tol, rule.timeout))
-    while True:
-        sensors.write_pumps(u)  # every read: the rig's watchdog sees the link alive
-        mean = window.add(sensors.read_raw_volts())
-        if mean is not None:
-            return mean  # type: ignore[return-value]  # four sensors in, four means out
-        if now() - start > rule.timeout:
-            raise CalibrationError(f"the sensors did not settle within {rule.timeout:g} s at "
-                                   f"{u[0] * FULL_SCALE_V:g} V / {u[1] * FULL_SCALE_V:g} V")
-        sleep(rule.poll)
-
-
-def run_procedure(sensors: RawSensors, pump_volts: Sequence[tuple[float, float]], rule: Settle,
+def run_procedure(sensors: RawSensors, pump_volts: Sequence[float], rule: SettleRule,
                   heights: Callable[[tuple[float, float], tuple[float, ...]], Sequence[float]], *,
-                  sleep: Callable[[float], None] = time.sleep,
+                  poll: float = 2.0, sleep: Callable[[float], None] = time.sleep,
                   now: Callable[[], float] = time.monotonic,
                   report: Callable[[str], None] = lambda text: None) -> Pairs:
-    """The whole procedure; the pumps end at 0 whatever happens.
+    """The procedure (core.calibration_run.CalibrationRun) on a rig, a read every
+    `poll` s, each voltage of `pump_volts` on both pumps; the pumps end at 0 whatever
+    happens.  CalibrationError when the sensors do not settle within the rule's
+    timeout at a voltage, or the heights given are not four numbers >= 0.
 
     `heights(volts_pair, settled_sensor_volts)` asks the operator for the four levels
     read on the scales (cm)."""
-    pairs = Pairs()
+    run = CalibrationRun(pump_volts, rule, h=poll)
     try:
         # Armed as a run is (the device's watchdog and the guard process, for one
         # exchange every `poll` s): killed mid-procedure, the pumps stop.
-        sensors.arm(rule.poll)
-        for v in pump_volts:
+        sensors.arm(poll)
+        while run.active:
+            v = run.pumps()
             report(f"pumps at {v[0]:g} V / {v[1]:g} V: waiting for the levels to settle ...")
             u = (v[0] / FULL_SCALE_V, v[1] / FULL_SCALE_V)
-            settled = settle(sensors, u, rule, sleep=sleep, now=now)
+            last = now()
+            while True:
+                sensors.write_pumps(u)  # every read: the rig's watchdog sees the link alive
+                read = sensors.read_raw_volts()
+                t = now()
+                if run.feed(read, t - last) != SETTLING:
+                    break
+                last = t
+                sleep(poll)
+            if run.phase == FAILED:
+                raise CalibrationError(run.message)
+            settled = run.settled
             report("settled: sensors " + " ".join(f"{x:.4f}" for x in settled) + " V")
-            levels = [float(h) for h in hold_while(sensors, u, rule.poll, lambda: heights(v, settled))]
-            if len(levels) != 4:
-                raise CalibrationError(f"four heights are needed, got {len(levels)}")
-            pairs.add({"u1": v[0], "u2": v[1], **{f"volts{i + 1}": settled[i] for i in range(4)},
-                       **{f"level{i + 1}": levels[i] for i in range(4)}})
+            run.heights(hold_while(sensors, u, poll, lambda: heights(v, settled)))
     finally:
         sensors.safe_state()
+    pairs = Pairs()
+    pairs.columns = {k: list(col) for k, col in run.columns.items()}
     return pairs
 
 

@@ -19,7 +19,8 @@ import pytest
 from quadtank_tui.cli import main
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.core.plants.johansson import steady_state_levels
-from quadtank_tui.daq.calibrate import Pairs, Settle, fit_pairs, parse_pairs, run_procedure
+from quadtank_tui.core.calibration_run import SettleRule
+from quadtank_tui.daq.calibrate import Pairs, fit_pairs, parse_pairs, run_procedure
 from quadtank_tui.files.par import write_par
 from daqkit import VIRTUAL_RIG, rig_yaml
 
@@ -284,8 +285,8 @@ def test_the_procedure_is_armed_and_holds_the_pumps_while_the_operator_reads_the
         time.sleep(0.4)
         return [1.0, 2.0, 3.0, 4.0]
 
-    pairs = run_procedure(sensors, [(3.0, 3.0)], Settle(poll=0.05, window=2, tol=0.01, timeout=5.0), slow_operator,
-                          sleep=lambda s: None)
+    pairs = run_procedure(sensors, [3.0], SettleRule(window=2, tol=0.01, timeout=5.0), slow_operator,
+                          poll=0.05, sleep=lambda s: None)
     assert pairs.columns["level4"] == [4.0]
     kinds = [c[0] for c in sensors.calls]
     assert kinds[0] == "arm" and sensors.calls[0][1] == 0.05 and kinds[-1] == "safe"

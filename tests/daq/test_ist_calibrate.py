@@ -9,7 +9,8 @@ import threading
 import pytest
 
 from quadtank_tui.core.plants.johansson import steady_state_levels
-from quadtank_tui.daq.calibrate import Settle, fit_pairs, run_procedure
+from quadtank_tui.core.calibration_run import SettleRule
+from quadtank_tui.daq.calibrate import fit_pairs, run_procedure
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.backend import IstBackend
 from quadtank_tui.commands.daq_ist import format_ist_result
@@ -30,9 +31,8 @@ def test_the_procedure_fits_the_sensors_ratio_law_and_the_outlets() -> None:
     backend = IstBackend(IstConfig(port=device.path, open_wait=0.05))
     try:
         # the operator reads the scales: the device's true levels
-        pairs = run_procedure(backend, [(4.0, 4.0), (6.0, 6.0), (8.0, 8.0)],
-                              Settle(poll=0.02, window=10, tol=2e-4, timeout=20.0),
-                              lambda volts, settled: list(fw.h))
+        pairs = run_procedure(backend, [4.0, 6.0, 8.0], SettleRule(window=10, tol=2e-4, timeout=20.0),
+                              lambda volts, settled: list(fw.h), poll=0.02)
     finally:
         backend.close()
         stop.set()
