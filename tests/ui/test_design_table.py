@@ -237,3 +237,22 @@ async def test_esc_goes_to_main_as_the_footer_says(app) -> None:
         assert len(pilot.app.screen_stack) == 2  # the default screen and Main: no Design left behind
 
 
+
+
+async def test_a_highlight_on_no_row_is_ignored(app) -> None:
+    """Issue 41: Textual sends RowHighlighted(cursor_row=-1, row_key=None) when the
+    cursor is on no row (the table cleared under it): `row_key.value` crashed the
+    screen three times in 20,000 random keys.  Now it says nothing and the table
+    works on."""
+    async with app.run_test(size=(120, 40)) as pilot:
+        screen = await open_design(pilot)
+        table = screen.query_one(CandidatesTable)
+        rows = rows_of(screen)
+        table.post_message(CandidatesTable.RowHighlighted(table, -1, None))  # type: ignore[arg-type]  # what Textual sends
+        table.post_message(CandidatesTable.RowSelected(table, -1, None))  # type: ignore[arg-type]
+        await settle(pilot)
+        assert app.is_running and isinstance(app.screen, DesignScreen)
+        assert rows_of(screen) == rows and rows
+        await pilot.press("down")
+        await settle(pilot)
+        assert app.is_running and table.cursor_row == 1

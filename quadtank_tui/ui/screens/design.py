@@ -18,7 +18,7 @@ like any parameter change, and a notification of what changed.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 from textual import on, work
@@ -401,6 +401,7 @@ class DesignScreen(CommandSender):
         self._show_chosen()
 
     def _row(self, key: str | None) -> Candidate | None:
+        """The candidate of a row key (None: no row, e.g. a table emptied under the cursor)."""
         rows = self.loops[self.loop].rows
         if key is None or not key.isdigit() or int(key) >= len(rows):
             return None
@@ -408,7 +409,7 @@ class DesignScreen(CommandSender):
 
     @on(CandidatesTable.RowHighlighted, "#design-table")
     def row_highlighted(self, event: CandidatesTable.RowHighlighted) -> None:
-        row = self._row(event.row_key.value)
+        row = self._row(_key(event.row_key))
         state = self.loops[self.loop]
         model = state.design_model or state.model
         if row is not None and row.error:
@@ -426,7 +427,7 @@ class DesignScreen(CommandSender):
 
     @on(CandidatesTable.RowSelected, "#design-table")
     def row_selected(self, event: CandidatesTable.RowSelected) -> None:
-        row = self._row(event.row_key.value)
+        row = self._row(_key(event.row_key))
         if row is None or row.controller is None:
             self.notify("this candidate has no controller", severity="warning")
             return
@@ -612,3 +613,9 @@ class DesignScreen(CommandSender):
         line = Content.assemble(("Design  ", "bold"), (text, "red") if error else text)
         self.query_one("#design-status", Static).update(line)
 
+
+def _key(row_key: Any) -> str | None:
+    """A DataTable event's row key as text; Textual sends RowHighlighted(cursor_row=-1,
+    row_key=None) when the cursor is on no row (the table cleared or rebuilt under it):
+    that crashed the screen three times in 20,000 random keys."""
+    return None if row_key is None else row_key.value
