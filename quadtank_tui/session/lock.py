@@ -11,8 +11,8 @@ crash) leaves a record whose pid is gone: it counts for nothing.
 
 Why nobody can forge, remove or block a record (issue 24):
 
-- The locks folder is sticky (1777, like /tmp): everyone may create entries,
-  nobody but their owner (and root) may remove or rename them.  Each user writes a
+- The locks folder is sticky (1777, like /tmp) and root's: everyone may create
+  entries, nobody but their owner (and root) may remove or rename them.  Each user writes a
   record of their own (`~<uid>` in its name; a name someone else's entry occupies
   gets a random suffix), so a record is never replaced by another user.
 - A record counts (is genuine) only if its file's owner is the user it names and
@@ -26,10 +26,37 @@ Why nobody can forge, remove or block a record (issue 24):
   other program sees it lost (`lost`) and stops: two honest programs never drive
   at once, even if one went on without the flock.
 - Read-check-write in `acquire` happens under `flock` on the locks folder, so two
-  programs starting at once cannot both win.  The flock is waited for at most
-  LOCK_WAIT seconds and a program holding it longer is named (from /proc/locks);
-  an administrator then goes on without it (the ranking still decides), anyone
-  else is refused with that name.  A release or transfer waits at most QUICK_WAIT.
+  programs starting at once rarely both write.  The flock is waited for at most
+  LOCK_WAIT seconds; a program holding it longer (anyone may flock a folder they
+  can read: a student holding it blocked every other student) is named (from
+  /proc/locks, in `note`) and the program goes on without it: the ranking decides
+  all the same, since each program checks, after writing its record, that no
+  earlier live record wins over it (and removes its own if one does).  A release
+  or transfer waits at most QUICK_WAIT.
+
+Where the records live (issue 41): locks/ of the runtime folder in force
+(session/folders.py), which `quadtank lab init` makes root's, 1777 sticky, in a
+runtime folder of root's that nobody else may write (1755).  So no student can
+make locks/ first (and own it: the owner of a sticky folder may remove every
+entry in it), replace it with a link, or remove another's record (the sticky
+bit: only the record's owner, the folder's owner and root may); a record's
+content counts only as far as the kernel agrees (its file's owner, its pid's real
+uid).  That is why a plain folder suffices and no lock service is needed: every
+guarantee is the kernel's, and a rig stays lockable with no daemon running.
+Without a lab folder each user's locks are in their own folder (/tmp/quadtank-UID):
+they keep that user's own programs apart only (`quadtank lab` says so).
+
+The API (what bookings or a front end build on; everything else is private):
+`DaqLock.acquire(device, lab, session=, take_over=)` -> a held lock, or
+DaqLockHeld naming the holder, NotPermitted for a student's take-over, DaqLockError
+for an unusable folder; `lock.lost()` (None while held, else why: polled by
+session/lockwatch.py), `lock.note`, `lock.release()`, `lock.transfer(pid)`;
+`holder_of(device, lab)` -> who drives it now (DaqLockHeld) or None.  A rig's
+several keys (addresses) are held together by session/riglock.RigLock, which has
+the same interface; `RigLock.of(rig_config, lab)` is the one entry point programs
+use.  A policy that refuses a program before it drives (a booking held by someone
+else) belongs before `RigLock.of`, as session/bookings.py does: the lock itself
+stays first-come among the programs that policy lets through.
 
 What it cannot prevent: a student may name any live process of their own (a
 `sleep`) and so "reserve" a free rig; the message names them and an administrator
@@ -365,10 +392,10 @@ class DaqLock:
         ensure_runtime_dir(lab)
         me = current_user()
         folder = _open_folder(lab.locks_dir)
+        busy: str | None = None
         try:
-            if not _flock(folder, LOCK_WAIT) and not is_administrator(me.uid, lab):
-                raise DaqLockError(_busy(lab.locks_dir, folder, LOCK_WAIT)
-                                   + "; an administrator may go on without it")
+            if not _flock(folder, LOCK_WAIT):  # someone holds it: go on without it (the ranking decides)
+                busy = _busy(lab.locks_dir, folder, LOCK_WAIT) + "; this program went on without it"
             found = _records(device, lab)
             mine = next((f for f in found if f.record.pid == me.pid and f.record.uid == me.uid), None)
             others = [f for f in found if f is not mine]
@@ -390,6 +417,7 @@ class DaqLock:
                     with contextlib.suppress(OSError):
                         os.unlink(stale)
             lock = cls(device, path, rec, lab)
+            lock.note = busy
             won = _winner(_records(device, lab), lab)
             if won is not None and not lock._ours(won):  # one went on without the flock, and was first
                 lock._remove()
