@@ -106,7 +106,9 @@ def test_save_writes_a_par_of_the_same_kind_and_keeps_the_one_in_use(
         assert saved.values()[name] == pytest.approx(CASCADE.values()[name], rel=1e-4), name  # 6-decimal log
     old, new = before.decode().splitlines(), (tmp_path / "run.par").read_text().splitlines()
     changed = [ln for ln in new if ln not in old]
-    assert [ln.split()[0] for ln in changed if not ln.startswith("%")] == ["alpha1", "alpha2", "beta1"]
+    # the sensor offset, fitted by default, is the plant's own constant off2 (about 0 here)
+    assert [ln.split()[0] for ln in changed if not ln.startswith("%")] == ["alpha1", "alpha2", "beta1", "off2"]
+    assert abs(saved.values()["off2"]) < 1e-4
     assert any(ln.startswith("% alpha1 fitted: +- ") and ln.endswith("was 0.009") for ln in changed)
     assert [ln for ln in old if ln not in new] == ["alpha1 0.009", "alpha2 0.0105", "beta1 0.26"]
     data = json.loads((tmp_path / "run.physical.json").read_text())

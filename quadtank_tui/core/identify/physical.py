@@ -129,9 +129,10 @@ def simulate(plant: Plant, x0: Sequence[float] | np.ndarray, u: np.ndarray, h: f
 
 def sensor_gains(plant: Plant) -> np.ndarray:
     """Volts per level unit of each output (every plant's sensors are linear below
-    their range: read at a thousandth of each tank, where none saturates)."""
-    low = tuple(1e-3 * s.hi for s in plant.states)
-    return np.asarray(plant.output(low), dtype=float) / np.asarray(low)
+    their range: the change of the reading between a thousandth and two thousandths
+    of each tank, where none saturates, so that an offset does not count)."""
+    low = np.array([1e-3 * s.hi for s in plant.states])
+    return (np.asarray(plant.output(tuple(2 * low)), dtype=float) - np.asarray(plant.output(tuple(low)), dtype=float)) / low
 
 
 def predict(plant: Plant, exp: Experiment, x0: Sequence[float] | np.ndarray,
@@ -484,6 +485,7 @@ def fit_physical(plant: Plant, experiments: Sequence[Experiment], free: Sequence
         raise IdentificationError("nothing to fit: name the constants to free")
     _check_free(plant, names)
     notes: list[str] = []
+    plant = _fit_sensor_scale(plant, experiments, names, notes)
     missing = [n for n in physics if n in PHYSICS and not physics_names(plant, (n,), outputs)]
     if missing:
         notes.append(f"a {plant.kind} has no constants for {', '.join(missing)}: left out")
@@ -560,6 +562,39 @@ def noise_floor(experiments: Sequence[Experiment]) -> float:
     return float(math.sqrt(np.mean(np.concatenate(parts)))) if parts else 0.0
 
 
+#: A sensor whose highest reading lies above this multiple of its full tank's reading is
+#: rescaled so that it lies at :data:`RESCALED_TOP` (the gain is not fitted).
+SCALE_LIMIT = 1.02
+RESCALED_TOP = 0.7
+
+
+def _fit_sensor_scale(plant: Plant, experiments: Sequence[Experiment], names: Sequence[str],
+                      notes: list[str]) -> Plant:
+    """The plant with its sensor gains raised where the readings go higher than a full
+    tank would read: another rig's sensor scale (a gain and the flow constants trade
+    off exactly, so any gain that keeps the readings inside the tank will do; the
+    flows follow it)."""
+    gains = SENSOR_GAINS.get(plant.kind, ())
+    if not gains or any(g in names for g in gains):
+        return plant
+    outputs = experiments[0].outputs
+    top = {o: max(float(e.y[:, j].max()) for e in experiments) for j, o in enumerate(outputs)}
+    full = sensor_gains(plant) * np.array([s.hi for s in plant.states])
+    changes: dict[str, float] = {}
+    values = plant.values()
+    for o, t in top.items():
+        if t > SCALE_LIMIT * full[o]:
+            name = gains[o] if len(gains) > 1 else gains[0]
+            new = t / (RESCALED_TOP * plant.states[o].hi)
+            changes[name] = max(changes.get(name, 0.0), new)
+    if not changes:
+        return plant
+    for name, new in changes.items():
+        notes.append(f"{name} {values[name]:.6g} -> {new:.6g}: the readings go above what a full tank reads "
+                     "with the .par's sensor gain (another rig's scale; the flow constants follow it)")
+    return plant.with_values(**changes)
+
+
 def _rms(sse: float, prob: _Problem) -> float:
     return math.sqrt(sse / max(sum(y.size for y in prob.y), 1))
 
@@ -581,6 +616,8 @@ def _scales(prob: _Problem, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         v = abs(prob.base[n])
         if n.startswith("lam"):
             v = max(v, _typical_laminar(prob, n))
+        if n.startswith("area"):
+            v = max(v, 1.0)
         out[i] = v if v > 0 else (0.1 * (hi[i] - lo[i]) if math.isfinite(hi[i] - lo[i]) else 1.0)
     out[prob.nc:prob.nc + prob.no] = 0.1
     for j in range(len(prob.experiments)):
@@ -638,6 +675,8 @@ def _starts(prob: _Problem, rng: np.random.Generator, n_random: int, lo: np.ndar
     for i, n in enumerate(prob.names):
         if n.startswith("ysat") and par[i] == 0.0:
             par[i] = _start(prob.plant, n, prob.experiments)
+        if n.startswith("area") and par[i] == 0.0:  # off: the same cross-section as the tank below
+            par[i] = 1.0
     labels, consts = ["the .par's constants"], [par]
     for label, c in data_starts(prob.plant, prob.experiments, prob.names, par):
         labels.append(label)

@@ -76,7 +76,7 @@ def _cascade(plant: Plant, experiments: Sequence, names: Sequence[str], par: np.
         for t2, t1, label in ((taus[1], taus[0], "from the logs (tank 2 the faster)"),
                               (taus[0], taus[1], "from the logs (tank 2 the slower)")):
             q = 2.0 * h2 / t2
-            h1 = min(max(0.5 * q * t1 / v.get("area1", 1.0), 0.02 * plant.states[0].hi), 0.95 * plant.states[0].hi)
+            h1 = min(max(0.5 * q * t1 / (v.get("area1", 0.0) or 1.0), 0.02 * plant.states[0].hi), 0.95 * plant.states[0].hi)
             lam_share = 0.1 if any(n.startswith("lam") for n in names) else 0.0
             est = {"beta1": q / ubar,
                    "alpha1": (1 - lam_share) * q / math.sqrt(2 * g * h1),

@@ -77,6 +77,12 @@ class CoupledCascade(Plant):
         beta1 (u - vmin)
     ysat1, ysat2 : sensor ranges, V: a reading saturates there (0: the sensor
         covers the whole tank)
+    lam1, lam2 : a laminar term of each outlet, 1/s: q = alpha sqrt(2 g h) + lam h
+        (cm/s of level, as every flow here)
+    area1 : tank 1's cross-section relative to tank 2's (0: the same, as on
+        Desautel's rig): tank 1's level moves by its net flow / area1, and it spills
+        at hmax of its own height
+    off1, off2 : sensor offsets, V: a sensor reads kc h + off
     """
 
     alpha1: float = 0.0097909
@@ -91,15 +97,21 @@ class CoupledCascade(Plant):
     vmin: float = 0.0
     ysat1: float = 0.0
     ysat2: float = 0.0
+    lam1: float = 0.0
+    lam2: float = 0.0
+    area1: float = 0.0
+    off1: float = 0.0
+    off2: float = 0.0
 
     kind = "coupled-cascade"
     title = "coupled tanks, cascade (Quanser, Desautel)"
     units: ClassVar[dict[str, str]] = {
         "alpha1": "orifice coef.", "alpha2": "orifice coef.", "beta1": "cm/(V s)", "g": "cm/s²",
         "hmax": "cm", "kc1": "V/cm", "kc2": "V/cm", "vmax": "V", "spill1": "fraction", "vmin": "V",
-        "ysat1": "V", "ysat2": "V"}
+        "ysat1": "V", "ysat2": "V", "lam1": "1/s laminar", "lam2": "1/s laminar", "area1": "x tank 2's",
+        "off1": "V offset", "off2": "V offset"}
     outlet_names = ("alpha1", "alpha2")
-    effect_names = ("spill1", "vmin", "ysat1", "ysat2")
+    effect_names = ("spill1", "vmin", "ysat1", "ysat2", "lam1", "lam2", "area1", "off1", "off2")
     #: The loop controls the lower tank (Desautel: c = [0 1]).
     controlled: ClassVar[tuple[int, ...]] = (1,)
 
@@ -109,7 +121,13 @@ class CoupledCascade(Plant):
         fx.check_effects(self, ("spill1",), (), self.vmax, ("vmin", "ysat1", "ysat2"))
         if self.vmin >= self.vmax:
             raise PlantError(f"vmin must be below vmax = {self.vmax:g} V, got {self.vmin!r}")
+        fx.check_laminar(self, ("lam1", "lam2", "area1"))
+        fx.check_offsets(self, ("off1", "off2"), 10.0)
 
+    @property
+    def ratio1(self) -> float:
+        """Tank 1's cross-section over tank 2's (area1, 1 when off)."""
+        return self.area1 if self.area1 > 0.0 else 1.0
     @property
     def states(self) -> tuple[Signal, ...]:
         return (Signal("x1", "cm", 0.0, self.hmax, self.hmax), Signal("x2", "cm", 0.0, self.hmax, self.hmax))
@@ -130,38 +148,50 @@ class CoupledCascade(Plant):
             pipes=(PipeView(0, 1, "alpha1"), PipeView(1, None, "alpha2")),
         )
 
-    def _q(self, x: float, alpha: float) -> float:
-        return orifice_flow(max(x, 0.0), alpha, self.g, FILM_CM)
+    def _q(self, x: float, alpha: float, lam: float = 0.0) -> float:
+        q = orifice_flow(max(x, 0.0), alpha, self.g, FILM_CM)
+        return q + lam * max(x, 0.0) if lam != 0.0 else q
+
+    def _head(self, q: float, alpha: float, lam: float) -> float:
+        """The level at which an outlet passes q (cm/s of level)."""
+        if lam == 0.0:
+            return head_for_flow(q, alpha, self.g, FILM_CM)
+        return fx.head_for_laminar_flow(q, alpha, self.g, lam)
 
     def _pump(self, u: float) -> float:
         """Pump flow (cm/s of level in tank 1) at u V: beta1 u, less the threshold."""
         return self.beta1 * fx.pump_volts(min(max(u, 0.0), self.vmax), self.vmin)
 
     def rhs(self, x: Sequence[float], u: Sequence[float]) -> Vector:
-        q1, q2 = self._q(x[0], self.alpha1), self._q(x[1], self.alpha2)
+        q1, q2 = self._q(x[0], self.alpha1, self.lam1), self._q(x[1], self.alpha2, self.lam2)
         f1 = self._pump(u[0]) - q1
         f2 = q1 - q2
         if self.spill1 > 0.0 and x[0] >= self.hmax and f1 > 0.0:
-            f2 += self.spill1 * f1  # the tanks have one cross-section: level rate = flow
-        return (_spill(f1, x[0], self.hmax), _spill(f2, x[1], self.hmax))
+            f2 += self.spill1 * f1  # flows in cm/s of tank 2's level
+        f1 = _spill(f1, x[0], self.hmax)
+        return (f1 / self.area1 if self.area1 > 0.0 else f1, _spill(f2, x[1], self.hmax))
 
     def output(self, x: Sequence[float]) -> Vector:
-        return (fx.sensor(self.kc1 * x[0], self.ysat1), fx.sensor(self.kc2 * x[1], self.ysat2))
+        return (fx.reading(self.kc1 * x[0], self.off1, self.ysat1), fx.reading(self.kc2 * x[1], self.off2, self.ysat2))
 
     def jacobians(self, x0: Sequence[float], u0: Sequence[float]) -> tuple[Any, Any, Any]:
-        """Desautel (2.1.13): A = [[-l1, 0], [l1, -l2]], l_i = alpha_i sqrt(g / (2 x_i))."""
-        l1 = orifice_slope(x0[0], self.alpha1, self.g, FILM_CM)
-        l2 = orifice_slope(x0[1], self.alpha2, self.g, FILM_CM)
-        return [[-l1, 0.0], [l1, -l2]], [[self.beta1], [0.0]], [[self.kc1, 0.0], [0.0, self.kc2]]
+        """Desautel (2.1.13): A = [[-l1, 0], [l1, -l2]], l_i = alpha_i sqrt(g / (2 x_i))
+        (+ lam_i with a laminar term; tank 1's row over area1)."""
+        l1 = orifice_slope(x0[0], self.alpha1, self.g, FILM_CM) + self.lam1
+        l2 = orifice_slope(x0[1], self.alpha2, self.g, FILM_CM) + self.lam2
+        r = self.ratio1
+        if r == 1.0:
+            return [[-l1, 0.0], [l1, -l2]], [[self.beta1], [0.0]], [[self.kc1, 0.0], [0.0, self.kc2]]
+        return [[-l1 / r, 0.0], [l1, -l2]], [[self.beta1 / r], [0.0]], [[self.kc1, 0.0], [0.0, self.kc2]]
 
     def steady_state(self, u: Sequence[float]) -> Vector:
         (v,) = self.saturate(u)
         q = self._pump(v)
-        x1 = min(head_for_flow(q, self.alpha1, self.g, FILM_CM), self.hmax)
-        into2 = self._q(x1, self.alpha1)
+        x1 = min(self._head(q, self.alpha1, self.lam1), self.hmax)
+        into2 = self._q(x1, self.alpha1, self.lam1)
         if self.spill1 > 0.0 and x1 >= self.hmax:
             into2 += self.spill1 * max(q - into2, 0.0)
-        x2 = min(head_for_flow(into2, self.alpha2, self.g, FILM_CM), self.hmax)
+        x2 = min(self._head(into2, self.alpha2, self.lam2), self.hmax)
         return (x1, x2)
 
     def steady_inputs(self, levels: Sequence[float | None]) -> OperatingPoint:
@@ -172,13 +202,13 @@ class CoupledCascade(Plant):
         if levels[0] is not None:
             x1 = float(levels[0])
             _check_level("x1", x1, self.hmax)
-            q = self._q(x1, self.alpha1)
-            x2 = head_for_flow(q, self.alpha2, self.g, FILM_CM)
+            q = self._q(x1, self.alpha1, self.lam1)
+            x2 = self._head(q, self.alpha2, self.lam2)
         else:
             x2 = float(levels[1])  # type: ignore[arg-type]  # not None: exactly one level is given (checked above)
             _check_level("x2", x2, self.hmax)
-            q = self._q(x2, self.alpha2)
-            x1 = head_for_flow(q, self.alpha1, self.g, FILM_CM)
+            q = self._q(x2, self.alpha2, self.lam2)
+            x1 = self._head(q, self.alpha1, self.lam1)
         u = q / self.beta1 + (self.vmin if q > 0.0 else 0.0)
         if x1 > self.hmax or x2 > self.hmax:
             raise SteadyStateError(f"levels ({x1:.3g}, {x2:.3g}) cm: a tank would overflow ({self.hmax:g} cm)")

@@ -49,3 +49,33 @@ def sensor(y: float, ysat: float) -> float:
 def sensor_top(full: float, ysat: float) -> float:
     """The highest reading: the range when it is below the full tank's reading."""
     return min(full, ysat) if ysat > 0.0 else full
+
+
+def check_laminar(obj: object, names: Sequence[str]) -> None:
+    """Laminar outflow coefficients: finite and >= 0 (0: a pure Torricelli outlet)."""
+    for name in names:
+        value = getattr(obj, name)
+        if not isinstance(value, (int, float)) or not 0.0 <= value < math.inf:
+            raise PlantError(f"{name} must be a finite number >= 0, got {value!r}")
+
+
+def check_offsets(obj: object, names: Sequence[str], full_scale: float) -> None:
+    """Sensor offsets, V: finite and within the input's full scale either way."""
+    for name in names:
+        value = getattr(obj, name)
+        if not isinstance(value, (int, float)) or not -full_scale <= value <= full_scale:
+            raise PlantError(f"{name} must be a number in [-{full_scale:g}, {full_scale:g}] V, got {value!r}")
+
+
+def head_for_laminar_flow(q: float, coef: float, g: float, lam: float) -> float:
+    """The head at which q = coef sqrt(2 g h) + lam h (lam > 0): lam s^2 + c s - q = 0
+    in s = sqrt(h), c = coef sqrt(2 g)."""
+    c = coef * math.sqrt(2.0 * g)
+    q = max(q, 0.0)
+    s = (math.sqrt(c * c + 4.0 * lam * q) - c) / (2.0 * lam)
+    return s * s
+
+
+def reading(kc_h: float, offset: float, ysat: float) -> float:
+    """A sensor's reading: gain times level plus its offset, clipped at its range."""
+    return sensor(kc_h + offset, ysat) if offset != 0.0 else sensor(kc_h, ysat)

@@ -41,10 +41,17 @@ _LEVELS = ("h1", "h2", "h3", "h4")
 #: The real-rig effects of a four-tank plant (off at 0; core.plants.effects):
 #: spill3/spill4 the fraction of upper tank 3's/4's overflow that falls into the
 #: lower tank 1/2 below it (a lower tank's overflow leaves the process), vmin1/vmin2
-#: the pump thresholds, V, ysat1..ysat4 the sensor ranges, V.
-FOUR_TANK_EFFECTS = ("spill3", "spill4", "vmin1", "vmin2", "ysat1", "ysat2", "ysat3", "ysat4")
+#: the pump thresholds, V, ysat1..ysat4 the sensor ranges, V, lam1..lam4 a laminar
+#: term of each outlet (q = a sqrt(2 g h) + lam h; cm^2/s, in the QTP's level units
+#: cm/s per cm), off1..off4 each sensor's offset, V (it reads kc h + off).
+FOUR_TANK_EFFECTS = ("spill3", "spill4", "vmin1", "vmin2", "ysat1", "ysat2", "ysat3", "ysat4",
+                     "lam1", "lam2", "lam3", "lam4", "off1", "off2", "off3", "off4")
 FOUR_TANK_EFFECT_UNITS = {"spill3": "fraction", "spill4": "fraction", "vmin1": "V", "vmin2": "V",
-                          **{f"ysat{i}": "V" for i in range(1, 5)}}
+                          **{f"ysat{i}": "V" for i in range(1, 5)},
+                          **{f"lam{i}": "cm²/s laminar" for i in range(1, 5)},
+                          **{f"off{i}": "V offset" for i in range(1, 5)}}
+_LAM = ("lam1", "lam2", "lam3", "lam4")
+_OFF = ("off1", "off2", "off3", "off4")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -59,6 +66,14 @@ class _FourTankEffects:
     ysat2: float = 0.0
     ysat3: float = 0.0
     ysat4: float = 0.0
+    lam1: float = 0.0
+    lam2: float = 0.0
+    lam3: float = 0.0
+    lam4: float = 0.0
+    off1: float = 0.0
+    off2: float = 0.0
+    off3: float = 0.0
+    off4: float = 0.0
 
 
 class _FourTanks(_FourTankEffects, Plant):
@@ -79,6 +94,24 @@ class _FourTanks(_FourTankEffects, Plant):
     def _check_effects(self) -> None:
         fx.check_effects(self, ("spill3", "spill4"), ("vmin1", "vmin2"), self.pump_max,
                          ("ysat1", "ysat2", "ysat3", "ysat4"))
+        fx.check_laminar(self, _LAM)
+        fx.check_offsets(self, _OFF, FULL_SCALE_V)
+
+    def _lam(self) -> tuple[float, float, float, float]:
+        return (self.lam1, self.lam2, self.lam3, self.lam4)
+
+    def _outflow(self, h: float, i: int, p: PlantParams) -> float:
+        """Outlet i's flow, cm^3/s: Torricelli's, plus the laminar term when it is on."""
+        lam = self._lam()[i]
+        q = qt.outflow(h, p.outlet(i), p.g)
+        return q + lam * max(h, 0.0) if lam != 0.0 else q
+
+    def _head(self, q: float, i: int, p: PlantParams) -> float:
+        """The level at which outlet i passes q cm^3/s."""
+        lam = self._lam()[i]
+        if lam == 0.0:
+            return qt.level_for_outflow(q, p.outlet(i), p.g)
+        return fx.head_for_laminar_flow(q, p.outlet(i), p.g, lam)
 
     @property
     def effects_on(self) -> bool:
@@ -91,7 +124,7 @@ class _FourTanks(_FourTankEffects, Plant):
         p = self.plant_params()
         v1 = fx.pump_volts(max(float(u[0]), 0.0), self.vmin1)
         v2 = fx.pump_volts(max(float(u[1]), 0.0), self.vmin2)
-        q = [qt.outflow(x[i], p.outlet(i), p.g) for i in range(4)]
+        q = [self._outflow(x[i], i, p) for i in range(4)]
         f3 = -q[2] + (1.0 - p.gamma2) * p.k2 * v2  # cm^3/s
         f4 = -q[3] + (1.0 - p.gamma1) * p.k1 * v1
         f1 = -q[0] + q[2] + p.gamma1 * p.k1 * v1
@@ -147,12 +180,27 @@ class _FourTanks(_FourTankEffects, Plant):
         kc = self.plant_params().kc
         if self.effects_on:
             ranges = (self.ysat1, self.ysat2, self.ysat3, self.ysat4)
-            return tuple(fx.sensor(kc * h, r) for h, r in zip(x, ranges))
+            offsets = (self.off1, self.off2, self.off3, self.off4)
+            return tuple(fx.reading(kc * h, o, r) for h, o, r in zip(x, offsets, ranges))
         return tuple(kc * h for h in x)
 
     def jacobians(self, x0: Sequence[float], u0: Sequence[float]) -> tuple[Any, Any, Any]:
         """core.analysis.linearize's matrices (bit for bit); a level inside the last
-        film of water (johansson.H_FILM), where that refuses, follows the blend."""
+        film of water (johansson.H_FILM), where that refuses, follows the blend; a
+        laminar term adds its slope lam_i / A_i to each outlet's."""
+        A, B, C = self._torricelli_jacobians(x0, u0)
+        lam = self._lam()
+        if not any(lam):
+            return A, B, C
+        p = self.plant_params()
+        A = [[float(v) for v in row] for row in A]
+        for i in range(4):
+            A[i][i] -= lam[i] / p.area(i)
+        A[0][2] += lam[2] / p.A1
+        A[1][3] += lam[3] / p.A2
+        return A, B, C
+
+    def _torricelli_jacobians(self, x0: Sequence[float], u0: Sequence[float]) -> tuple[Any, Any, Any]:
         from quadtank_tui.core.analysis import linearize as linearize_levels  # loads python-control
 
         p = self.plant_params()
@@ -176,18 +224,19 @@ class _FourTanks(_FourTankEffects, Plant):
         p = self.plant_params()
         v = self.saturate(u)
         v1, v2 = fx.pump_volts(v[0], self.vmin1), fx.pump_volts(v[1], self.vmin2)
-        h = list(qt.steady_state_levels((v1, v2), p))
+        h = [0.0, 0.0, 0.0, 0.0]
+        ins = {2: (1 - p.gamma2) * p.k2 * v2, 3: (1 - p.gamma1) * p.k1 * v1}
+        for i in (2, 3):
+            h[i] = min(self._head(ins[i], i, p), p.hmax)
         # an upper tank at its brim passes its outflow and spills the rest, of which
         # spill3 (spill4) reaches the tank below
         extra = [0.0, 0.0]
-        for upper, lower, inflow, share in ((2, 0, (1 - p.gamma2) * p.k2 * v2, self.spill3),
-                                            (3, 1, (1 - p.gamma1) * p.k1 * v1, self.spill4)):
+        for upper, lower, share in ((2, 0, self.spill3), (3, 1, self.spill4)):
             if h[upper] >= p.hmax:
-                extra[lower] = share * max(inflow - qt.outflow(p.hmax, p.outlet(upper), p.g), 0.0)
-        for i, inflow in ((0, p.gamma1 * p.k1 * v1 + qt.outflow(h[2], p.a3, p.g)),
-                          (1, p.gamma2 * p.k2 * v2 + qt.outflow(h[3], p.a4, p.g))):
-            if extra[i] > 0.0:
-                h[i] = min(qt.level_for_outflow(inflow + extra[i], p.outlet(i), p.g), p.hmax)
+                extra[lower] = share * max(ins[upper] - self._outflow(p.hmax, upper, p), 0.0)
+        for i, inflow in ((0, p.gamma1 * p.k1 * v1 + self._outflow(h[2], 2, p)),
+                          (1, p.gamma2 * p.k2 * v2 + self._outflow(h[3], 3, p))):
+            h[i] = min(self._head(inflow + extra[i] if extra[i] > 0.0 else inflow, i, p), p.hmax)
         return (h[0], h[1], h[2], h[3])
 
     def steady_inputs(self, levels: Sequence[float | None]) -> OperatingPoint:
@@ -195,7 +244,10 @@ class _FourTanks(_FourTankEffects, Plant):
         if len(levels) not in (2, 4) or levels[0] is None or levels[1] is None or any(
                 v is not None for v in levels[2:]):
             raise SteadyStateError("give the lower levels (h1, h2); the upper levels follow from them")
-        op = qt.steady_state_inputs(float(levels[0]), float(levels[1]), self.plant_params())
+        if any(self._lam()):
+            op = self._laminar_steady_inputs(float(levels[0]), float(levels[1]))
+        else:
+            op = qt.steady_state_inputs(float(levels[0]), float(levels[1]), self.plant_params())
         v = tuple(op.u)
         if self.effects_on:  # a pump below its threshold moves nothing: what it needs comes on top
             v = tuple(x + t if x > 0.0 else x for x, t in zip(v, (self.vmin1, self.vmin2)))
@@ -203,6 +255,30 @@ class _FourTanks(_FourTankEffects, Plant):
             raise SteadyStateError(f"levels ({levels[0]:g}, {levels[1]:g}) cm need pump voltages "
                                    f"({v[0]:.3g}, {v[1]:.3g}) V, above the pumps' {self.pump_max:g} V")
         return OperatingPoint(tuple(op.x), v)
+
+
+    def _laminar_steady_inputs(self, h1: float, h2: float) -> OperatingPoint:
+        """johansson.steady_state_inputs with the laminar outflow: M v = (q1(h1), q2(h2))."""
+        p = self.plant_params()
+        if h1 < 0 or h2 < 0:
+            raise SteadyStateError(f"levels must be >= 0 cm, got ({h1}, {h2})")
+        m11, m12 = p.gamma1 * p.k1, (1 - p.gamma2) * p.k2
+        m21, m22 = (1 - p.gamma1) * p.k1, p.gamma2 * p.k2
+        det = m11 * m22 - m12 * m21
+        if abs(det) <= 1e-12 * max(abs(m11 * m22), abs(m12 * m21), 1e-300):
+            raise SteadyStateError("gamma1 + gamma2 = 1: the lower-tank flows are tied together, so the "
+                                   "levels cannot be set independently (no unique steady-state input)")
+        q1, q2 = self._outflow(h1, 0, p), self._outflow(h2, 1, p)
+        v1, v2 = (m22 * q1 - m12 * q2) / det, (-m21 * q1 + m11 * q2) / det
+        if v1 < -1e-12 or v2 < -1e-12:
+            raise SteadyStateError(f"levels ({h1:g}, {h2:g}) cm need pump voltages ({v1:.3g}, {v2:.3g}) V; "
+                                   "a pump cannot run backwards")
+        v1, v2 = max(v1, 0.0), max(v2, 0.0)
+        h3 = self._head((1 - p.gamma2) * p.k2 * v2, 2, p)
+        h4 = self._head((1 - p.gamma1) * p.k1 * v1, 3, p)
+        if h3 >= p.hmax or h4 >= p.hmax:
+            raise SteadyStateError(f"levels ({h1:g}, {h2:g}) cm would overflow an upper tank")
+        return OperatingPoint((h1, h2, h3, h4), (v1, v2))
 
 
 @dataclass(frozen=True)

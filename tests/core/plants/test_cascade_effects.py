@@ -16,7 +16,8 @@ PLAIN = CoupledCascade()
 
 def test_off_by_default_the_model_is_desautels() -> None:
     rig = CoupledCascade(spill1=0.0, vmin=0.0, ysat1=0.0, ysat2=0.0)
-    assert rig == PLAIN and PLAIN.effect_names == ("spill1", "vmin", "ysat1", "ysat2")
+    assert rig == PLAIN and PLAIN.effect_names == (
+        "spill1", "vmin", "ysat1", "ysat2", "lam1", "lam2", "area1", "off1", "off2")
     # a full upper tank: what would raise it leaves the process
     assert PLAIN.rhs((30.0, 10.0), (20.0,)) == (0.0, PLAIN._q(30.0, PLAIN.alpha1) - PLAIN._q(10.0, PLAIN.alpha2))
 

@@ -20,7 +20,8 @@ from quadtank_tui.files.par import ParFileError, format_par, parse_par
 from quadtank_tui.files.physical_par import with_fit
 
 STAMP = datetime(2026, 1, 1)
-EFFECTS = ("spill3", "spill4", "vmin1", "vmin2", "ysat1", "ysat2", "ysat3", "ysat4")
+EFFECTS = ("spill3", "spill4", "vmin1", "vmin2", "ysat1", "ysat2", "ysat3", "ysat4",
+           "lam1", "lam2", "lam3", "lam4", "off1", "off2", "off3", "off4")
 
 
 def test_off_by_default_every_method_is_core_plants() -> None:
