@@ -131,6 +131,8 @@ def _driven_daq(args: argparse.Namespace) -> str | None:
         return None if args.own_rig_session else args.daq_global
     if args.command == "run":
         return args.daq or args.daq_global
+    if args.command == "exercise":  # the TUI in a private session: this process drives the rig
+        return args.daq_global
     if args.command == "daq" and args.daq_command == "calibrate" and args.pairs is None:
         return args.config
     return None

@@ -345,7 +345,8 @@ def run_attempt(ex: Exercise, par: str, *, record: Path | None = None, own_scrip
                 controllers=controllers(ex, params), verdicts=verdicts, exercise_id=ex.id,
                 exercise_digest=ex.digest, plant=plant_identity(params, daq, daq_config),
                 started=started, ended=ended, user=user, automatic_since=automatic_since,
-                summary=result.text, seed=seed))
+                summary=result.text, seed=seed,
+                experiment="script" if ex.experiment.script is not None else "own run"))
         return Attempt(ex, verdicts, result.text, result.status, saved, result.log if record else None)
 
 
@@ -467,3 +468,37 @@ class LiveExercise:
             except (ValueError, ArithmeticError) as exc:
                 self._design[key] = (None, str(exc))
         return self._design[key]
+
+    def record(self, history: Mapping[str, np.ndarray], params: Parameters, folder: Path, *,
+               now: datetime, rig: bool, backend: str) -> Path:
+        """Write the record of the attempt by hand (the history since the switch to
+        Automatic as run.log, the parameters in force), its figures judged on that
+        log as `quadtank grade` will: an "interactive" record, which the grader
+        reads (digests, figures from the log) but cannot run again."""
+        from quadtank_tui.files.log_writer import format_header, format_row
+
+        since = self.automatic_since
+        if since is None:
+            raise ExerciseRefused("no attempt to record: the loops are not in Automatic")
+        t = np.asarray(history["t"])
+        keep = t >= since - 1e-9
+        names = LOGGED.split()
+        cols = {HISTORY_NAMES.get(k, k): np.asarray(v)[keep] for k, v in history.items()}
+        cols["t"] = cols["t"] - since
+        folder.mkdir(parents=True, exist_ok=False)
+        log = folder / "run.log"
+        text = format_header(names, params.tsamp, now.replace(tzinfo=None))
+        text += "".join(format_row([float(cols[n][i]) for n in names]) for i in range(int(keep.sum())))
+        log.write_text(text, encoding="ascii")
+        logged = log_columns(read_log(log))
+        started = datetime.fromtimestamp(self.started, timezone.utc)
+        verdicts = evaluate(self.exercise, params, logged, params.tsamp, seconds=now.timestamp() - self.started)
+        if self.exercise.experiment.own_run is not None:
+            verdicts = (*verdicts, own_run_verdict(self.exercise, logged, 0.0))
+        plant: dict[str, Any] = {"kind": "rig", "backend": backend, "device_identity": None} if rig else \
+            {"kind": "simulator", "model": params.process_plant().title}
+        return write_record(RecordFiles(
+            folder=folder, exercise=self.exercise.path, params=params, script=None, log=log,
+            controllers=controllers(self.exercise, params), verdicts=verdicts, exercise_id=self.exercise.id,
+            exercise_digest=self.exercise.digest, plant=plant, started=started, ended=now,
+            automatic_since=0.0, summary="an attempt by hand in the TUI", experiment="interactive"))

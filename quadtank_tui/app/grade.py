@@ -143,7 +143,10 @@ def grade_record(folder: Path, exercises: Mapping[str, Exercise], *, daq_digests
     verdicts: tuple[Verdict, ...] | None = None
     log_reproduced: Reproduced = "read"
     cols = None
-    if ex is not None and kind == "simulator" and "student.par" in data:
+    interactive = result.get("experiment") == "interactive"
+    if interactive:
+        notes.append("an attempt by hand in the TUI: its figures are read from its log, not run again")
+    if ex is not None and kind == "simulator" and "student.par" in data and not interactive:
         try:
             verdicts, cols, same = _rerun(ex, data, result, seconds, notes, params_dir)
         except (ValueError, OSError) as exc:

@@ -53,7 +53,7 @@ class RecordFiles:
     folder: Path
     exercise: Path
     params: Parameters
-    script: Script
+    script: Script | None  # None: an attempt in the TUI, by hand (no script to run again)
     log: Path
     controllers: Mapping[str, Any]
     verdicts: Sequence[Verdict]
@@ -66,6 +66,9 @@ class RecordFiles:
     automatic_since: float | None = None
     summary: str = ""
     seed: int | None = None
+    #: "script" (the exercise's experiment), "own run" (the student's script) or
+    #: "interactive" (by hand in the TUI: the grader can only read it)
+    experiment: str = "script"
 
 
 def digest(data: bytes) -> str:
@@ -93,7 +96,10 @@ def write_record(r: RecordFiles) -> Path:
         (folder / "run.log").write_bytes(r.log.read_bytes())
     (folder / "exercise.yaml").write_bytes(r.exercise.read_bytes())
     atomic_write_text(folder / "student.par", format_par(r.params, PAR_STAMP))
-    (folder / "script.yaml").write_bytes(Path(r.script.file).read_bytes())
+    if r.script is not None:
+        (folder / "script.yaml").write_bytes(Path(r.script.file).read_bytes())
+    else:
+        atomic_write_text(folder / "script.yaml", "# an attempt by hand in the TUI (quadtank exercise): no script\n")
     atomic_write_text(folder / "controllers.json", json.dumps(r.controllers, indent=2, default=_plain) + "\n")
     who = os_user()
     if r.user is not None:
@@ -108,6 +114,7 @@ def write_record(r: RecordFiles) -> Path:
         "ended": r.ended.isoformat(timespec="seconds"),
         "seed": r.seed,
         "automatic_since": r.automatic_since,
+        "experiment": r.experiment,
         "requirements": [v.to_dict() for v in r.verdicts],
         "passed": all(v.met for v in r.verdicts),
         "summary": r.summary,

@@ -135,6 +135,7 @@ KEY_SECTIONS = {
     "PlantSetupWindow": "Tank setup and plant window (Setup)",
     "FaultWindow": "Faults",
     "GhostWindow": "Ghost run",
+    "ExerciseWindow": "Exercise",
 }
 
 #: How docs/keys.md writes the keys Textual names by a word.

@@ -12,6 +12,7 @@ from textual.widgets import Static
 from uikit import Recording, make_app
 
 from quadtank_tui.app.exercise import LiveExercise
+from quadtank_tui.app.grade import grade_record, load_exercises
 from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
 from quadtank_tui.files.exercise import read_exercise
 from quadtank_tui.files.par import read_par
@@ -62,7 +63,9 @@ async def settled(pilot: Pilot, shows: str = "") -> None:
         await pilot.pause(0.06)
 
 
-async def test_the_window_waits_follows_and_summarizes(make_engine: Callable[..., Recording]) -> None:
+async def test_the_window_waits_follows_summarizes_and_records(make_engine: Callable[..., Recording],
+                                                                tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
     app, engine = exercise_app(make_engine)
     async with app.run_test(size=(120, 40)) as pilot:
         await settled(pilot)
@@ -81,6 +84,16 @@ async def test_the_window_waits_follows_and_summarizes(make_engine: Callable[...
         assert "5.126 %" in table and "53 s" in table and table.count("[green]met[/]") == 8
         status = str(app.screen.query_one("#exercise-status", Static).content)
         assert "attempt finished: 8 of 8 requirements met: PASSED" in status
+        await pilot.press("ctrl+s")
+        await pilot.pause()
+        message = str(app.screen.query_one("#message", Static).content)
+        assert message.startswith("Recorded in records/pminus-pi-"), message
+    (record,) = (tmp_path / "records").iterdir()
+    graded = grade_record(record, load_exercises([EXERCISE]))
+    figures = {r.name: r.figure for r in graded.requirements}
+    assert graded.passed and graded.reproduced == "read"
+    assert figures["settling_time 1"] == 53.0 and abs((figures["overshoot 1"] or 0) - 5.126) < 0.01
+    assert graded.notes == ["an attempt by hand in the TUI: its figures are read from its log, not run again"]
 
 
 def test_the_exercise_window_picture(snap_compare, make_engine: Callable[..., Recording]) -> None:

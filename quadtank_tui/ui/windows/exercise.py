@@ -12,9 +12,12 @@ the right edge so that the process image and the trends stay in view.
 from __future__ import annotations
 
 import time
+from datetime import datetime, timezone
+from pathlib import Path
 from typing import Callable
 
 from textual.app import ComposeResult
+from textual.binding import Binding
 from textual.containers import VerticalScroll
 from textual.css.query import NoMatches
 from textual.widgets import Static
@@ -66,6 +69,11 @@ class ExerciseWindow(LiveWindow):
     #: the Main screen hands it each snapshot (screens/main.py _feed_live)
     follows_loop = True
 
+    BINDINGS = [Binding("ctrl+s", "record", "Record")]
+
+    #: where the records of attempts by hand go (a folder of the working directory)
+    RECORDS = Path("records")
+
     def __init__(self, snapshot: Snapshot, tracker: LiveExercise, engine: EngineHandle, *,
                  opener: str | None = None, wall_clock: Callable[[], float] = time.time) -> None:
         super().__init__(f"Exercise: {tracker.exercise.title}", snapshot, opener=opener)
@@ -74,6 +82,7 @@ class ExerciseWindow(LiveWindow):
         self.wall_clock = wall_clock
 
     def compose_buttons(self) -> ComposeResult:
+        yield KeyButton("Record", id="record")
         yield KeyButton("Close", id="cancel")
 
     def compose_body(self) -> ComposeResult:
@@ -82,6 +91,26 @@ class ExerciseWindow(LiveWindow):
             yield Static(escape(reflowed(ex.text)), id="exercise-text")
             yield Static("", id="exercise-requirements")
         yield Static("", id="exercise-status")
+
+    def action_record(self) -> None:
+        """Write the finished attempt's record (records/EXERCISE-USER-TIME/) for quadtank grade."""
+        from quadtank_tui.app.exercise import ExerciseRefused
+        from quadtank_tui.files.record import os_user
+
+        snap = self.snapshot
+        state = self.tracker.state(self.engine.history(), snap.params, self.wall_clock()) if snap else None
+        if snap is None or state is None or not state.finished:
+            self.show_message("The attempt is not finished yet: it is recorded once it has run its time in Automatic")
+            return
+        now = datetime.fromtimestamp(self.wall_clock(), timezone.utc)
+        folder = self.RECORDS / f"{self.tracker.exercise.id}-{os_user()['name']}-{now:%Y%m%d-%H%M%S}"
+        try:
+            written = self.tracker.record(self.engine.history(), snap.params, folder, now=now,
+                                          rig=snap.operation == "Active", backend=snap.backend)
+        except (ExerciseRefused, OSError, ValueError) as exc:
+            self.show_message(f"Not recorded: {exc}")
+            return
+        self.show_message(f"Recorded in {written}/ (quadtank grade {written})")
 
     def show(self, snapshot: Snapshot) -> None:
         self.tracker.note(snapshot.automatic_since)
