@@ -82,8 +82,8 @@ def prepare(args: argparse.Namespace) -> tuple[Any, tuple[str, int, Any]]:
     import ssl
 
     from quadtank_tui.serve.audit import AuditLog
-    from quadtank_tui.serve.config import check_proxy, check_public_url, serve_settings
-    from quadtank_tui.serve.server import Server, ServeOptions
+    from quadtank_tui.serve.web_config import check_proxy, check_public_url, serve_settings
+    from quadtank_tui.serve.web import Server, ServeOptions
     from quadtank_tui.session.lab import LabConfigError, load_lab_config
     from quadtank_tui.session.roles import untrusted_lab_file
 

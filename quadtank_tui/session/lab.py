@@ -43,7 +43,7 @@ DEFAULT_RUNTIME_DIR = Path("/tmp/quadtank-sessions")
 DEFAULT_PARAMS_DIR = Path(__file__).resolve().parents[2] / "params"
 
 KEYS = ("admin_group", "share_group", "runtime_dir", "defaults", "unattended", "serve", "bookings")
-#: Sections whose keys their own readers check (serve/config.py, session/bookings.py):
+#: Sections whose keys their own readers check (serve/web_config.py, session/bookings.py):
 #: here only that each is a mapping; LabConfig.sections holds them with their lines.
 SECTIONS = ("serve", "bookings")
 POLICY_KEYS = ("keep_while_logging", "grace_minutes")

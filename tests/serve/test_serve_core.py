@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from quadtank_tui.serve.auth import FREE_FAILURES, MAX_WAIT, WINDOW, Account, Throttle
-from quadtank_tui.serve.config import serve_settings
-from quadtank_tui.serve.server import InFlight
+from quadtank_tui.serve.web_config import serve_settings
+from quadtank_tui.serve.web import InFlight
 from quadtank_tui.serve.websessions import LoginStore
 from quadtank_tui.session.lab import LabConfigError, parse_lab_config
 

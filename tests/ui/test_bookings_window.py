@@ -12,7 +12,7 @@ from uikit import Recording, make_app
 
 from quadtank_tui.session.bookings import list_bookings
 from quadtank_tui.session.lab import load_lab_config
-from quadtank_tui.ui.windows.bookings import BookingsWindow
+from quadtank_tui.ui.windows.booking_slots import BookingsWindow
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -560,7 +560,7 @@ class MainScreen(CommandSender):
 
     def action_bookings(self) -> None:
         """The Bookings window of the session's rig (session/bookings.py)."""
-        from quadtank_tui.ui.windows.bookings import BookingsWindow
+        from quadtank_tui.ui.windows.booking_slots import BookingsWindow
 
         info = getattr(self.engine, "info", None)
         self.app.push_screen(BookingsWindow(str(getattr(info, "daq", "") or ""), opener="k"))

@@ -31,7 +31,7 @@ from aiohttp import WSMsgType, web
 
 from quadtank_tui.serve.audit import AuditLog
 from quadtank_tui.serve.auth import FAIL_DELAY, Account, Authenticator, Throttle
-from quadtank_tui.serve.config import ServeSettings
+from quadtank_tui.serve.web_config import ServeSettings
 from quadtank_tui.serve.pages import app_page, login_page
 from quadtank_tui.serve.tab import Tab, TabUser
 from quadtank_tui.serve.websessions import COOKIE, LoginStore, WebLogin
