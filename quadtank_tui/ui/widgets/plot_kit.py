@@ -34,6 +34,9 @@ LINE_SOLID, LINE_DOTTED = "━", "┈"
 #: Rows of a plot that are not canvas: the x axis and its tick labels (the x
 #: label takes one more).
 FRAME_ROWS = 2
+#: Below this many rows of curves a plot gives its x label's row to them (the
+#: unit goes after the last tick: "1000 s").
+ROOMY_ROWS = 6
 
 
 @dataclass(frozen=True)
@@ -131,6 +134,10 @@ def axes(fig: Figure, xlim: tuple[float, float], ylim: tuple[float, float], widt
     y_lo, y_hi = ylim
     if not y_hi > y_lo:
         y_lo, y_hi = y_lo - 0.5, y_hi + 0.5
+    unit = None
+    if xlabel is not None and height - FRAME_ROWS - 1 < ROOMY_ROWS and "(" in xlabel:
+        # a short plot: the x label's row goes to the curves, its unit after the last tick
+        unit, xlabel = xlabel[xlabel.index("(") + 1:].rstrip(")"), None
     rows = height - FRAME_ROWS - (xlabel is not None)
     ya = y_axis(y_lo, y_hi, rows, min_span=(y_hi - y_lo) * 1e-3)
     x_lo, x_hi = xlim
@@ -138,6 +145,8 @@ def axes(fig: Figure, xlim: tuple[float, float], ylim: tuple[float, float], widt
     xv, xl = round_ticks(x_lo, x_hi, most, whole=whole_x)
     if len(xv) < 3:  # 0..300 in three: 0 200 (steps of 100 make four); take the four
         xv, xl = round_ticks(x_lo, x_hi, most + 1, whole=whole_x)
+    if unit is not None and xl:
+        xl = xl[:-1] + [f"{xl[-1]} {unit}"]
     fig.xlim, fig.ylim = (x_lo, x_hi), (ya.lo, ya.hi)
     fig.xticks = list(zip(xv, xl))
     fig.yticks = list(zip(ya.ticks, ya.labels))
