@@ -9,7 +9,7 @@
    at 120 s and a leak in tank 1 at 200 s: p50 / p99 / max of the wall clock and of
    the thread's CPU time (the machine is shared: the load average is printed).
    Target: p99 under 5 ms (a tenth of the shortest sampling time, 50 ms).
-2. The closed loop (core.mpc.simulate.standard_scenario: an announced step on each
+2. The closed loop (core.controllers.mpc.simulate.standard_scenario: an announced step on each
    loop, then a leak of 0.15 a1 in tank 1) under MPC (N = 60 steps of 2 s with
    preview: 120 s ahead, the estimator and the solve every sample) and under the
    file's PI matrix, at P- and P+, at the lab's 0.1 s: IAE per loop over each step's
@@ -31,10 +31,10 @@ from pathlib import Path
 import numpy as np
 
 from quadtank_tui.core.controllers.matrix import ELEMENTS, ControllerMatrix
-from quadtank_tui.core.mpc.controller import MPC, design_mpc
-from quadtank_tui.core.mpc.model import plant_in_use
-from quadtank_tui.core.mpc.settings import MPCSettings
-from quadtank_tui.core.mpc.simulate import Run, Scenario, figures, run_mpc, run_pi, standard_scenario
+from quadtank_tui.core.controllers.mpc.controller import MPC, design_mpc
+from quadtank_tui.core.controllers.mpc.model import plant_in_use
+from quadtank_tui.core.controllers.mpc.settings import MPCSettings
+from quadtank_tui.core.controllers.mpc.simulate import Run, Scenario, figures, run_mpc, run_pi, standard_scenario
 from quadtank_tui.files.par import read_par
 
 PARAMS = Path(__file__).resolve().parents[1] / "params"

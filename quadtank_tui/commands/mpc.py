@@ -3,7 +3,7 @@ with the file's PI controllers on the nonlinear simulator.
 
 The design: operating point, weights, horizons, constraints, the unconstrained gain
 (the LQR the MPC equals without active limits) and its closed-loop poles.  Then the
-nonlinear plant (core.mpc.simulate) runs a step on each loop (announced: the MPC
+nonlinear plant (core.controllers.mpc.simulate) runs a step on each loop (announced: the MPC
 previews it) and a leak in tank 1 under the MPC and under the PI matrix: IAE per
 loop, overshoot, time at a pump limit, level-limit violations, failed solves and
 solve time p50 / p99.  Bad input is one line and exit status 2 (cli.main).
@@ -46,8 +46,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from quadtank_tui.core.mpc.controller import design_mpc
-    from quadtank_tui.core.mpc.model import plant_in_use
+    from quadtank_tui.core.controllers.mpc.controller import design_mpc
+    from quadtank_tui.core.controllers.mpc.model import plant_in_use
     from quadtank_tui.core.parameters import TSAMP, TSAMP_MAX_MS, TSAMP_MIN_MS
     from quadtank_tui.core.validation import ParameterError
 
@@ -184,8 +184,8 @@ def compare(params: Any, plant: Any, d: Any, phase: float) -> dict[str, Any]:
     """MPC and (when the file has one for this plant) the PI matrix on the standard
     scenario; the figures of each as JSON values."""
     from quadtank_tui.core.controllers.matrix import ELEMENTS, ControllerMatrix, Family
-    from quadtank_tui.core.mpc.controller import MPC
-    from quadtank_tui.core.mpc.simulate import figures, run_mpc, run_pi, standard_scenario
+    from quadtank_tui.core.controllers.mpc.controller import MPC
+    from quadtank_tui.core.controllers.mpc.simulate import figures, run_mpc, run_pi, standard_scenario
 
     mdl = d.model
     scn = standard_scenario(plant, mdl.x_e, phase=phase, lead=d.settings.horizon * d.prediction.T + 10.0)

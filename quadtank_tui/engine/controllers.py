@@ -1,6 +1,6 @@
 """The loop's controllers, C: the PID/General matrix on y1, y2 and, while it is the
 type in force, the state feedback on every level of the plant (core.controllers.statefb) or the
-MPC (core.mpc, through engine/mpc_control.py).
+MPC (core.controllers.mpc, through engine/mpc_control.py).
 
 Split from engine/loop.py (issue 25) along the seam the loop has: the sample uses
 the controllers (`matrix`, `statefb`: loop.py's `_sample` calls them directly, the

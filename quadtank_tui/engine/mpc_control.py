@@ -1,4 +1,4 @@
-"""The controller type "MPC" in the loop: core.mpc's controller in the loop's
+"""The controller type "MPC" in the loop: core.controllers.mpc's controller in the loop's
 normalized units, with the same four calls as the state feedback (compute, update,
 track, reset) so engine/loop.py's `_sample` runs either the same way.
 
@@ -6,7 +6,7 @@ The loop reads y_i = (sensor i volts) / 10 and writes pump i as u_i times its fu
 scale; the MPC works in the plant's units (levels, volts).  The references are
 r1, r2 for the tracked tanks (tank i follows r_i, as with the state feedback); with
 preview on, the loop hands over the generators' next N samples (a wave is known in
-advance) before computing.  A failed solve never raises (core.mpc holds the last
+advance) before computing.  A failed solve never raises (core.controllers.mpc holds the last
 input, within limits, and counts it); `info` carries the counts and solve times to
 the snapshot.
 """
@@ -19,10 +19,10 @@ from typing import Sequence
 
 import numpy as np
 
-from quadtank_tui.core.mpc.controller import MPC, MPCStats, design_mpc, percentiles
-from quadtank_tui.core.mpc.info import MPCInfo
-from quadtank_tui.core.mpc.model import plant_in_use
-from quadtank_tui.core.mpc.simulate import sensor_gains
+from quadtank_tui.core.controllers.mpc.controller import MPC, MPCStats, design_mpc, percentiles
+from quadtank_tui.core.controllers.mpc.info import MPCInfo
+from quadtank_tui.core.controllers.mpc.model import plant_in_use
+from quadtank_tui.core.controllers.mpc.simulate import sensor_gains
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.controllers.signals import Generator
@@ -138,7 +138,7 @@ class LoopMPC:
         """Manual, or the switch to MPC: the estimate starts at the measured levels and
         the next move from the pumps in force (bumpless); `automatic`: a switch in
         Automatic, where the next move is the pumps in force even while the levels are
-        still on their way to the references (core.mpc.MPC.track)."""
+        still on their way to the references (core.controllers.mpc.MPC.track)."""
         self.mpc.track(self._levels(y), self._volts(u_applied), moving=automatic)
 
     def reset(self) -> None:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from quadtank_tui.core.mpc.settings import MPCSettings
+from quadtank_tui.core.controllers.mpc.settings import MPCSettings
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.files.par import ParFileError, format_par, parse_par, read_par
 

@@ -45,7 +45,7 @@ class Family(str, Enum):
     """Controller family, spelled as the `.par` file's CONTROL `Type`.
 
     State feedback and MPC are controller types but not matrices of SISO elements:
-    the loop runs them from core.controllers.statefb and core.mpc, and the matrix keeps its own
+    the loop runs them from core.controllers.statefb and core.controllers.mpc, and the matrix keeps its own
     family meanwhile."""
 
     PID = "PID"
@@ -84,7 +84,7 @@ def saturate(u: Sequence[float]) -> Pair:
 def _matrix_family(family: Family | str) -> Family:
     family = Family(family)
     if family.whole:
-        raise ParameterError("Type", f"{family.value} is not a matrix family (core.controllers.statefb, core.mpc run it)")
+        raise ParameterError("Type", f"{family.value} is not a matrix family (core.controllers.statefb, core.controllers.mpc run it)")
     return family
 
 

@@ -13,7 +13,7 @@ from enum import Enum
 from typing import Any, Iterator
 
 from quadtank_tui.core.controllers.matrix import Family, Structure
-from quadtank_tui.core.mpc.settings import DISTURBANCE_MODELS
+from quadtank_tui.core.controllers.mpc.settings import DISTURBANCE_MODELS
 from quadtank_tui.core.parameters.checks import whole
 from quadtank_tui.core.parameters.constants import (
     CONTROLLER_SECTIONS,

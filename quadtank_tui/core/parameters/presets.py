@@ -7,7 +7,7 @@ import dataclasses
 from typing import Sequence
 
 from quadtank_tui.core.controllers.general import GeneralParams
-from quadtank_tui.core.mpc.settings import MPCSettings
+from quadtank_tui.core.controllers.mpc.settings import MPCSettings
 from quadtank_tui.core.parameters.constants import ControlMode
 from quadtank_tui.core.parameters.settings import (
     ControllerElement,

@@ -30,7 +30,7 @@ from quadtank_tui.core.plants.johansson import (
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.core.plants.spec import PlantSpec, check_quadtank_effects
 from quadtank_tui.core.controllers.signals import WaveParams
-from quadtank_tui.core.mpc.settings import MPCSettings
+from quadtank_tui.core.controllers.mpc.settings import MPCSettings
 from quadtank_tui.core.controllers.statefb.settings import StateFeedbackParams
 from quadtank_tui.core.validation import ParameterError, check_range
 

@@ -19,7 +19,7 @@ from textual.content import Content
 from textual.reactive import reactive
 from textual.widgets import Static
 
-from quadtank_tui.core.mpc.info import MPCInfo
+from quadtank_tui.core.controllers.mpc.info import MPCInfo
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Parameters
 from quadtank_tui.ui.messages import ActionRequested
 from quadtank_tui.ui.values import fmt

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from quadtank_tui.core.mpc.settings import SECTION, MPCSettings
+from quadtank_tui.core.controllers.mpc.settings import SECTION, MPCSettings
 from quadtank_tui.core.plants.base import Plant
 from quadtank_tui.core.plants.linear import zoh
 from quadtank_tui.core.controllers.statefb.design import OperatingModel

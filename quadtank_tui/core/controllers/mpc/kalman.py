@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
-from quadtank_tui.core.mpc.model import MPCModel
+from quadtank_tui.core.controllers.mpc.model import MPCModel
 
 MEAS_NOISE = 1e-3
 STATE_NOISE = 5e-4

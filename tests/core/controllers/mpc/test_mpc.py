@@ -11,14 +11,14 @@ import pytest
 from scipy.linalg import solve_discrete_are
 
 from quadtank_tui.core.controllers.matrix import ELEMENTS, ControllerMatrix
-from quadtank_tui.core.mpc.controller import MPC, MPCStats, design_mpc, percentiles
-from quadtank_tui.core.mpc.model import plant_in_use
-from quadtank_tui.core.mpc.settings import MPCSettings
-from quadtank_tui.core.mpc.simulate import Scenario, figures, run_mpc, run_pi, standard_scenario
+from quadtank_tui.core.controllers.mpc.controller import MPC, MPCStats, design_mpc, percentiles
+from quadtank_tui.core.controllers.mpc.model import plant_in_use
+from quadtank_tui.core.controllers.mpc.settings import MPCSettings
+from quadtank_tui.core.controllers.mpc.simulate import Scenario, figures, run_mpc, run_pi, standard_scenario
 from quadtank_tui.core.validation import ParameterError
 from quadtank_tui.files.par import read_par
 
-PARAMS = Path(__file__).resolve().parents[3] / "params"
+PARAMS = Path(__file__).resolve().parents[4] / "params"
 FILES = ("minphase", "nonminphase", "desautel-qtp", "coupled-cascade", "coupled-tito")
 
 
@@ -34,7 +34,7 @@ def _mpc(name: str, tsamp_s: float = 2.0, **settings) -> tuple:
 
 def _lqr(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, S: np.ndarray) -> np.ndarray:
     """The discrete LQR on [x; u_prev] with stage cost x'Qx + u'Ru + du'S du, from
-    scipy's Riccati solver (written out here, independent of core.mpc.qp)."""
+    scipy's Riccati solver (written out here, independent of core.controllers.mpc.qp)."""
     n, m = B.shape
     Aa = np.block([[A, np.zeros((n, m))], [np.zeros((m, n + m))]])
     Ba = np.vstack([B, np.eye(m)])

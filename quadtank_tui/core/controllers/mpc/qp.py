@@ -30,8 +30,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import solve_discrete_are
 
-from quadtank_tui.core.mpc.model import MPCModel
-from quadtank_tui.core.mpc.settings import MPCSettings
+from quadtank_tui.core.controllers.mpc.model import MPCModel
+from quadtank_tui.core.controllers.mpc.settings import MPCSettings
 
 #: OSQP settings.  ADMM alone is a poor judge of u_0 here: at a short sampling time
 #: one sample's input moves the cost very little, so a dual tolerance that ADMM

@@ -26,10 +26,10 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from quadtank_tui.core.mpc.kalman import KalmanFilter
-from quadtank_tui.core.mpc.model import MPCModel, build_model
-from quadtank_tui.core.mpc.qp import SparseQP, Weights, weights
-from quadtank_tui.core.mpc.settings import MPCSettings
+from quadtank_tui.core.controllers.mpc.kalman import KalmanFilter
+from quadtank_tui.core.controllers.mpc.model import MPCModel, build_model
+from quadtank_tui.core.controllers.mpc.qp import SparseQP, Weights, weights
+from quadtank_tui.core.controllers.mpc.settings import MPCSettings
 from quadtank_tui.core.plants.base import Plant
 
 

@@ -14,15 +14,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from quadtank_tui.core.mpc.controller import MPC, design_mpc
-from quadtank_tui.core.mpc.model import plant_in_use
-from quadtank_tui.core.mpc.settings import MPCSettings
-from quadtank_tui.core.mpc.simulate import run_mpc, standard_scenario
+from quadtank_tui.core.controllers.mpc.controller import MPC, design_mpc
+from quadtank_tui.core.controllers.mpc.model import plant_in_use
+from quadtank_tui.core.controllers.mpc.settings import MPCSettings
+from quadtank_tui.core.controllers.mpc.simulate import run_mpc, standard_scenario
 from quadtank_tui.core.controllers.signals import Generator, Wave, WaveParams
 from quadtank_tui.engine.mpc_control import future_references
 from quadtank_tui.files.par import read_par
 
-PARAMS = Path(__file__).resolve().parents[3] / "params"
+PARAMS = Path(__file__).resolve().parents[4] / "params"
 
 
 def _design(name: str, tsamp_s: float, **settings):
