@@ -63,11 +63,13 @@ def browser(profile: Path) -> Any:
     return webdriver.Chrome(service=Service(executable_path=str(DRIVER)), options=options)
 
 
-def log_in(driver: Any, server: Serve, user: User) -> None:
+def log_in(driver: Any, server: Serve, user: User, shot: Path | None = None) -> None:
     from selenium.webdriver.common.by import By
 
     driver.get(f"{server.origin}/")  # no cookie: to the login form
     assert driver.current_url == f"{server.origin}/login"
+    if shot is not None:
+        driver.save_screenshot(str(shot))
     driver.find_element(By.NAME, "user").send_keys(user.name)
     driver.find_element(By.NAME, "password").send_keys(user.password)
     driver.find_element(By.CSS_SELECTOR, "button[type=submit]").click()
@@ -95,7 +97,7 @@ def test_a_browser_logs_in_sees_main_types_closes_and_comes_back(world: tuple[Se
     driver = browser(profiles)
     mark("browser")
     try:
-        log_in(driver, server, student)
+        log_in(driver, server, student, shots / "serve-0-login.png")
         assert wait_for(lambda: driver.current_url == f"{server.origin}/", 10), \
             (driver.current_url, driver.page_source[:3000], server.audit_lines())
         mark("logged in")
