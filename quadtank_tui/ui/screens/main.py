@@ -343,8 +343,8 @@ class MainScreen(CommandSender):
     def _trends_due(self, snap: Snapshot, view: tuple[object, ...], timer: bool) -> bool:
         """Whether to redraw the trends now.
 
-        Drawing a trend costs plotext tens of milliseconds, so on the timer they are
-        drawn only when the curves moved by at least one braille dot of the time
+        Drawing a trend costs milliseconds (every sample in view joined: about 3 ms
+        for 4 signals over 5 min, 13 ms over 30 min), so on the timer they are drawn only when the curves moved by at least one braille dot of the time
         axis, and at most every TREND_MIN_INTERVAL of wall time; otherwise the
         redraws would take the CPU the control loop needs (seen in a terminal as
         overruns at speed x8).  A changed view, a stop, or an explicit refresh draws
