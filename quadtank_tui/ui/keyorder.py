@@ -64,6 +64,9 @@ class OrderedKeys(App[None]):
         if event is not self._key_released and busy:
             self._key_backlog.append(event)  # the key before it is still on its way
             return
+        if not self.screen_stack:  # the app is closing, its screens gone: a key typed behind its quit goes nowhere
+            self._key_backlog.clear()
+            return
         self._key_released = None
         self._key_in_flight, self._key_done, self._key_bubbled = event, False, False
         screen = self.screen
