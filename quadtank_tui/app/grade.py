@@ -285,8 +285,9 @@ def _compare(verdicts: tuple[Verdict, ...] | None, recorded: Mapping[str, Mappin
         out.append(GradedRequirement(v.name, v.figure, v.requirement.limit, v.met, rep,
                                      rec_fig if isinstance(rec_fig, (int, float)) else None, rec_met, v.detail))
     extra = [n for n in recorded if n not in {v.name for v in verdicts}]
-    if mismatched and log_reproduced is not False:
-        notes.append(f"result.json edited: {', '.join(mismatched)} not as the log gives "
+    if mismatched:
+        source = "the log gives" if log_reproduced is not False else "the run of the recorded .par gives"
+        notes.append(f"result.json edited: {', '.join(mismatched)} not as {source} "
                      f"({'; '.join(_mismatch(v, recorded) for v in verdicts if v.name in mismatched)})")
     if extra:
         notes.append(f"result.json has requirements the exercise does not: {', '.join(extra)}")

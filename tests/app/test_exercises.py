@@ -4,6 +4,7 @@ grader flags an edited log, .par and result."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 import shutil
@@ -11,9 +12,11 @@ from pathlib import Path
 
 import pytest
 
-from quadtank_tui.app.exercise import run_attempt
+from quadtank_tui.app.exercise import evaluate, log_columns, run_attempt
 from quadtank_tui.cli import main
 from quadtank_tui.files.exercise import read_exercise
+from quadtank_tui.files.log_reader import read_log
+from quadtank_tui.files.par import read_par
 
 ROOT = Path(__file__).resolve().parents[2]
 EXERCISES = ROOT / "params" / "exercises"
@@ -81,6 +84,14 @@ def test_a_key_the_student_may_not_change_is_refused(tmp_path: Path, capsys: pyt
     assert not (tmp_path / "r").exists()
 
 
+def perfect(log: Path) -> None:
+    """Edit a log as a student would: y1 := r1 from 10 s on (a perfect step response)."""
+    rows = log.read_text().split("\n")
+    edited = [" ".join([c[0], c[7], *c[2:]]) if len(c := r.split()) == 9 and not r.startswith("%")
+              and float(c[0]) >= 10 else r for r in rows]
+    log.write_text("\n".join(edited))
+
+
 def _record(tmp_path: Path, folder: str, par: Path, user: str) -> Path:
     ex = read_exercise(EXERCISES / "pminus-pi.yaml")
     run_attempt(ex, str(par), record=tmp_path / "class" / folder, user=user)
@@ -95,11 +106,19 @@ def test_a_class_graded_with_its_edited_records_named(tmp_path: Path, capsys: py
     carol = _record(tmp_path, "carol-1", slow, "carol")
     dave = _record(tmp_path, "dave-1", slow, "dave")
     erin = _record(tmp_path, "erin-1", slow, "erin")
+    frank = _record(tmp_path, "frank-1", slow, "frank")
     # carol makes her slow response look like the thesis's: y1 := r1 from the step on
-    rows = carol.joinpath("run.log").read_text().split("\n")
-    edited = [" ".join([c[0], c[7], *c[2:]]) if len(c := r.split()) == 9 and not r.startswith("%")
-              and float(c[0]) >= 10 else r for r in rows]
-    carol.joinpath("run.log").write_text("\n".join(edited))
+    perfect(carol / "run.log")
+    # frank too, and rewrites result.json to match: figures from the edited log, its sha256
+    perfect(frank / "run.log")
+    result = json.loads((frank / "result.json").read_text())
+    ex = read_exercise(EXERCISES / "pminus-pi.yaml")
+    params = read_par(frank / "student.par").params
+    verdicts = evaluate(ex, params, log_columns(read_log(frank / "run.log")), params.tsamp, seconds=1.0)
+    result["requirements"], result["passed"] = [v.to_dict() for v in verdicts], all(v.met for v in verdicts)
+    result["sha256"]["run.log"] = hashlib.sha256((frank / "run.log").read_bytes()).hexdigest()
+    assert result["passed"]
+    (frank / "result.json").write_text(json.dumps(result))
     # dave puts the thesis's controllers into his record's .par
     shutil.copy(good, dave / "student.par")
     # erin marks every requirement met in result.json
@@ -111,13 +130,14 @@ def test_a_class_graded_with_its_edited_records_named(tmp_path: Path, capsys: py
     code = main(["grade", str(tmp_path / "class"), "--exercises", str(EXERCISES), "--json",
                  "--csv", str(tmp_path / "class.csv"), "--figures", str(tmp_path / "figures")])
     graded = {g["user"]: g for g in json.loads(capsys.readouterr().out)}
-    assert code == 0 and sorted(graded) == ["alice", "bob", "carol", "dave", "erin"]
+    assert code == 0 and sorted(graded) == ["alice", "bob", "carol", "dave", "erin", "frank"]
     assert graded["alice"]["passed"] is True and graded["alice"]["reproduced"] is True
     assert graded["bob"]["passed"] is False and graded["bob"]["reproduced"] is True
     bob = {r["name"]: r for r in graded["bob"]["requirements"]}
     assert bob["settling_time 1"]["figure"] == pytest.approx(103.0) and bob["settling_time 1"]["met"] is False
     assert bob["settling_time 1"]["limit"] == 90.0 and bob["settling_time 1"]["reproduced"] is True
-    for who, named in (("carol", "run.log edited"), ("dave", "student.par edited"), ("erin", "result.json edited")):
+    for who, named in (("carol", "run.log edited"), ("dave", "student.par edited"), ("erin", "result.json edited"),
+                       ("frank", "run.log does not match the run of the recorded .par")):
         g = graded[who]
         assert g["passed"] is False and g["reproduced"] is False, who
         assert any(n.startswith(named) for n in g["notes"]), (who, g["notes"])
@@ -126,7 +146,7 @@ def test_a_class_graded_with_its_edited_records_named(tmp_path: Path, capsys: py
     assert erin_settling["reproduced"] is False
     assert (tmp_path / "figures" / "pminus-pi.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     csv_rows = (tmp_path / "class.csv").read_text().splitlines()
-    assert len(csv_rows) == 6 and csv_rows[0].startswith("user,exercise,record,started,plant,passed,reproduced")
+    assert len(csv_rows) == 7 and csv_rows[0].startswith("user,exercise,record,started,plant,passed,reproduced")
 
 
 def test_the_students_own_run_needs_its_event_in_automatic(tmp_path: Path) -> None:
