@@ -74,6 +74,19 @@ def test_k_20_at_p_minus_fails_with_its_figures(tmp_path: Path) -> None:
     assert v["overshoot 1"].met and v["max_level 1"].met
 
 
+@pytest.mark.parametrize("name, par, missed", [
+    # the P- design at P+: det G(0) < 0, loop 2 runs away, tank 2 fills, u2 sits at 0
+    ("pplus-lesson", "pplus.par", {"steady_state_error 2": 0.3417, "max_level 2": 1.0, "pump_limit_time": 2848.0}),
+    # the thesis's pair is robust (Ms 1.07) but slow for the Ms exercise
+    ("pminus-ms", "reference/pminus-pi.par", {"settling_time 1": 53.0}),
+])
+def test_a_wrong_answer_misses_what_it_should(name: str, par: str, missed: dict[str, float]) -> None:
+    ex = read_exercise(EXERCISES / f"{name}.yaml")
+    attempt = run_attempt(ex, str(EXERCISES / par))
+    figures = {v.name: v.figure for v in attempt.verdicts if not v.met}
+    assert figures == pytest.approx(missed, rel=2e-3)
+
+
 def test_a_key_the_student_may_not_change_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     par = _par(tmp_path, "pminus-pi", SIMULATION__Valve1="0.900000")
     code = main(["run", "--exercise", str(EXERCISES / "pminus-pi.yaml"), "--par", str(par),
