@@ -19,6 +19,7 @@ body { background: #0c181f; color: #e0e0e0; font-family: menlo, "DejaVu Sans Mon
 """
 
 APP_STYLE = """
+@font-face { font-family: "Roboto Mono"; src: url("/static/fonts/RobotoMono-VariableFont_wght.ttf"); }
 .dialog-container { position: absolute; width: 100vw; height: 100vh; display: flex; align-items: center;
   justify-content: center; z-index: 10; top: 0; left: 0; }
 .intro { width: 640px; padding: 2em; z-index: 20; text-align: center; background-color: #12232d; }
@@ -57,7 +58,15 @@ def app_page(*, user: str, websocket_url: str, what: str, sessions: list[tuple[s
 <html lang="en"><head><meta charset="utf-8"><title>quadtank: {escape(user)}</title>
 <link rel="stylesheet" href="/static/css/xterm.css">
 <script src="/static/js/textual.js"></script>
-<style>{STYLE}{APP_STYLE}</style></head>
+<style>{STYLE}{APP_STYLE}</style>
+<script>
+// xterm measures its cells when it opens, maybe before the terminal's font has loaded: once
+// it has, a resize makes textual.js fit the terminal again (and tell the TUI its size)
+window.addEventListener("load", () => {{
+  document.fonts.load("16px 'Roboto Mono'").finally(() => setTimeout(() => window.dispatchEvent(new Event("resize")), 50));
+  setTimeout(() => window.dispatchEvent(new Event("resize")), 1500);
+}});
+</script></head>
 <body>
 <div class="bar"><span>quadtank &middot; {escape(user)}</span><span>{escape(what)}</span>{mine}
 <a href="/">attach</a>
