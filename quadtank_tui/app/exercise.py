@@ -76,6 +76,13 @@ def _same(a: Any, b: Any) -> bool:
     return bool(a == b)
 
 
+def _shown(value: Any) -> str:
+    value = getattr(value, "value", value)
+    if isinstance(value, tuple):
+        return " ".join(map(str, value))
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
 def forbidden_changes(ex: Exercise, base: Parameters, mine: Parameters) -> list[str]:
     """The keys in which `mine` differs from the exercise's parameters without the
     exercise allowing it, as "KEY: exercise X, yours Y" (empty: all allowed)."""
@@ -88,7 +95,7 @@ def forbidden_changes(ex: Exercise, base: Parameters, mine: Parameters) -> list[
             continue
         a, b = base.get(key), mine.get(key)
         if not _same(a, b):
-            out.append(f"{key}: the exercise's {getattr(a, 'value', a)}, yours {getattr(b, 'value', b)}")
+            out.append(f"{key}: the exercise's {_shown(a)}, yours {_shown(b)}")
     typ = mine.get("CONTROL.Type")
     typ = getattr(typ, "value", typ)
     if ex.types and typ not in ex.types:

@@ -186,3 +186,15 @@ def test_the_students_own_run_needs_its_event_in_automatic(tmp_path: Path) -> No
         "the run has no step of +0.1 on r1 (REFERENCE ONE.Mean)"
     code = main(["grade", str(tmp_path / "rTrue"), "--exercises", str(tmp_path / "own.yaml"), "--json"])
     assert code == 0
+
+
+def test_the_exercise_command_refuses_bad_input_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = _par(tmp_path, "pminus-pi", CONTROLLER_ONE__Td="5.000000")
+    for argv, message in (
+        (["exercise", str(tmp_path / "none.yaml")], "none.yaml: no such file"),
+        (["exercise", str(EXERCISES / "pminus-pi.yaml"), "--par", str(bad)],
+         "not yours to change in pminus-pi: CONTROLLER ONE.Td: the exercise's 0, yours 5"),
+    ):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and message in err, err
