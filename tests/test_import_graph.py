@@ -20,7 +20,7 @@ PACKAGE = ROOT / "quadtank_tui"
 KNOWN: set[frozenset[str]] = {
     frozenset({"quadtank_tui.commands.identify", "quadtank_tui.commands.identify_physical"}),
     frozenset({"quadtank_tui.core.design.evaluate", "quadtank_tui.core.design.sampled_eval"}),
-    frozenset({"quadtank_tui.session.lab", "quadtank_tui.session.roles"}),
+    frozenset({"quadtank_tui.session.folders", "quadtank_tui.session.lab", "quadtank_tui.session.roles"}),
 }
 
 
