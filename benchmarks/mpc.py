@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from quadtank_tui.core.controllers.matrix import ELEMENTS, ControllerMatrix
-from quadtank_tui.core.controllers.mpc.controller import MPC, design_mpc
+from quadtank_tui.core.controllers.mpc.predictive import MPC, design_mpc
 from quadtank_tui.core.controllers.mpc.model import plant_in_use
 from quadtank_tui.core.controllers.mpc.settings import MPCSettings
 from quadtank_tui.core.controllers.mpc.simulate import Run, Scenario, figures, run_mpc, run_pi, standard_scenario

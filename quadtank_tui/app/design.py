@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import Callable, Sequence
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
 from quadtank_tui.core.design.lambda_tuning import first_order
 from quadtank_tui.core.design.mimo import Matrix, MimoCheck, design_2x2, lambda11, loop2_with_loop1_closed, slowest_pole
 from quadtank_tui.core.design.preview import Preview, horizon, preview, time_constant
@@ -63,8 +63,8 @@ class LoopTable:
     h: float
 
 
-def loop_table(loop: int, model: DelayTF, h: float, *, G: Matrix | None = None, other: PID | None = None,
-               first: PID | None = None, lambdas: Sequence[float] | None = None,
+def loop_table(loop: int, model: DelayTF, h: float, *, G: Matrix | None = None, other: PIDTuning | None = None,
+               first: PIDTuning | None = None, lambdas: Sequence[float] | None = None,
                ms_values: Sequence[float] = MS_VALUES, u0: float | None = 0.5) -> LoopTable:
     """Loop `loop`'s candidates on `model` (its own element, as typed), sampled at h.
 
@@ -96,7 +96,7 @@ def loop_table(loop: int, model: DelayTF, h: float, *, G: Matrix | None = None, 
     return LoopTable(loop, on, how, rows, best, default, T, L, lams, h)
 
 
-def _with_pair(row: Candidate, loop: int, G: Matrix, other: PID, h: float) -> Candidate:
+def _with_pair(row: Candidate, loop: int, G: Matrix, other: PIDTuning, h: float) -> Candidate:
     """The row with the 2x2 loop checked: it and the other loop's controller."""
     if row.controller is None or row.evaluation is None or not row.evaluation.stable:
         return row
@@ -142,7 +142,7 @@ class PreviewPlan:
     plant: Plant
     levels: tuple[float, ...]
     inputs: tuple[float, ...]
-    pair: tuple[PID, ...]
+    pair: tuple[PIDTuning, ...]
     h: float
     model: Sequence[Sequence[DelayTF]] | None
     tr: tuple[float, ...]
@@ -155,7 +155,7 @@ class PreviewPlan:
                        span=span, progress=progress)
 
 
-def preview_plan(params: Parameters, pair: Sequence[PID], model: Sequence[Sequence[DelayTF]] | None, h: float,
+def preview_plan(params: Parameters, pair: Sequence[PIDTuning], model: Sequence[Sequence[DelayTF]] | None, h: float,
                  *, start: tuple[Sequence[float], Sequence[float]] | None = None, window: float | None = None,
                  tr_keys: Sequence[str] = TR_KEYS) -> PreviewPlan:
     """The preview of `pair` on the plant in use, from `start` (levels, pump volts;

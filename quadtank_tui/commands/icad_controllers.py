@@ -48,7 +48,7 @@ def controller_from_par(element: object, family: str, scale: float) -> Rational:
     volt: PID K (b-free form) K (1 + 1/(Ti s) + Td s / (1 + Td s / N)) (the design's
     PID.feedback_tf), or the General controller's polynomials; times `scale` = pump
     full scale / 10 V."""
-    from quadtank_tui.core.design.controller import PID
+    from quadtank_tui.core.design.pid_tuning import PIDTuning
     from quadtank_tui.core.parameters import ControllerElement
 
     assert isinstance(element, ControllerElement)
@@ -58,7 +58,7 @@ def controller_from_par(element: object, family: str, scale: float) -> Rational:
         den = np.array((1.0, *g.r[: g.degree]), dtype=float)
         return _monic(num * scale, den)
     p = element.pid
-    num, den = PID(p.K, p.Ti if p.integral else math.inf, p.Td if p.derivative else 0.0, p.N).feedback_tf()
+    num, den = PIDTuning(p.K, p.Ti if p.integral else math.inf, p.Td if p.derivative else 0.0, p.N).feedback_tf()
     return _monic(num * scale, den)
 
 

@@ -46,10 +46,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from quadtank_tui.core.controllers.mpc.controller import design_mpc
+    from quadtank_tui.core.controllers.mpc.predictive import design_mpc
     from quadtank_tui.core.controllers.mpc.model import plant_in_use
     from quadtank_tui.core.parameters import TSAMP, TSAMP_MAX_MS, TSAMP_MIN_MS
-    from quadtank_tui.core.validation import ParameterError
+    from quadtank_tui.core.ranges import ParameterError
 
     params, source = params_of(args.par)
     if args.sampling is not None:
@@ -184,7 +184,7 @@ def compare(params: Any, plant: Any, d: Any, phase: float) -> dict[str, Any]:
     """MPC and (when the file has one for this plant) the PI matrix on the standard
     scenario; the figures of each as JSON values."""
     from quadtank_tui.core.controllers.matrix import ELEMENTS, ControllerMatrix, Family
-    from quadtank_tui.core.controllers.mpc.controller import MPC
+    from quadtank_tui.core.controllers.mpc.predictive import MPC
     from quadtank_tui.core.controllers.mpc.simulate import figures, run_mpc, run_pi, standard_scenario
 
     mdl = d.model

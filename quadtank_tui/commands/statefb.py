@@ -39,7 +39,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from quadtank_tui.core.parameters import STATEFB_SECTION, TSAMP, TSAMP_MAX_MS, TSAMP_MIN_MS
     from quadtank_tui.core.controllers.statefb.in_use import design_in_use
-    from quadtank_tui.core.validation import ParameterError
+    from quadtank_tui.core.ranges import ParameterError
 
     params, source = params_of(args.par)
     changes: dict[str, Any] = {}

@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
 from quadtank_tui.core.parameters import SimulationSettings
-from quadtank_tui.core.validation import ParameterError, check_number
+from quadtank_tui.core.ranges import ParameterError, check_number
 
 TANKS = (1, 2, 3, 4)
 #: The lower tanks carry the valves: tank i's valve is gamma_i (i = 1, 2).

@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 from quadtank_tui.core.calibration import SensorCalibration
 from quadtank_tui.daq.interlock import QUADTANK_FEEDERS
 from quadtank_tui.daq.registers import MAX_ADDRESS, SETTING_TYPES, TABLES, TYPES, WORD_ORDERS, Register
-from quadtank_tui.daq.validation import PLAUSIBLE_MARGIN, DaqConfigError, Validator, config_error, show
+from quadtank_tui.daq.config_checks import PLAUSIBLE_MARGIN, DaqConfigError, Validator, config_error, show
 from quadtank_tui.daq.watchdog import OutputAction, Watchdog
 from quadtank_tui.files.yamltext import key_lines, parse_yaml, read_text
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping, NoReturn
 
-from quadtank_tui.core.validation import is_finite_number
+from quadtank_tui.core.ranges import is_finite_number
 
 #: Default plausible range: this fraction of the tank height below 0 cm and above
 #: the top (-2..22 cm for 20 cm tanks), room for a sensor's offset and noise.

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Callable, Iterable
 
 from quadtank_tui.daq.config import PRESETS, DaqConfig, load_daq_config, parse_daq_config
 from quadtank_tui.daq.ist.config import IstConfig, parse_ist_config, says_ist
-from quadtank_tui.daq.validation import config_error
+from quadtank_tui.daq.config_checks import config_error
 from quadtank_tui.files.yamltext import read_text
 
 if TYPE_CHECKING:

@@ -25,7 +25,7 @@ from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.backend import Levels4, Pair
 
 if TYPE_CHECKING:  # the design needs scipy: imported when state feedback is chosen
-    from quadtank_tui.core.controllers.statefb.design import Design
+    from quadtank_tui.core.controllers.statefb.placement import Design
     from quadtank_tui.core.controllers.statefb.plants import PlantStateFeedback
     from quadtank_tui.core.controllers.statefb.quadtank import QuadTankStateFeedback
     from quadtank_tui.engine.mpc_control import LoopMPC
@@ -198,7 +198,7 @@ class Controllers:
         if new.control.family is not Family.STATE_FEEDBACK:
             self.statefb = None
             return
-        from quadtank_tui.core.controllers.statefb.design import Design
+        from quadtank_tui.core.controllers.statefb.placement import Design
         from quadtank_tui.core.controllers.statefb.plants import PlantStateFeedback
         from quadtank_tui.core.controllers.statefb.quadtank import QuadTankStateFeedback
 

@@ -17,7 +17,7 @@ from typing import Sequence
 import numpy as np
 
 from quadtank_tui.core.design.apply import controller_values, one_pump_values
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.engine.commands import SetControlMode, SetParams, SetState
@@ -41,7 +41,7 @@ class StepCheck:
     y: np.ndarray  # the stepped loop's level from the step on, normalized
 
 
-def run_step(pair: Sequence[PID], *, par: str | Path | None = None, loop: int = 1,
+def run_step(pair: Sequence[PIDTuning], *, par: str | Path | None = None, loop: int = 1,
              duration: float = 600.0, params_dir: Path = Path("params"),
              logs_dir: Path = Path("logs"), tsamp_ms: float | None = None,
              inputs: Sequence[float] | None = None, settle: float = SETTLE_BEFORE) -> StepCheck:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from quadtank_tui.core.parameters import ControlMode
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.backend import ProcessBackend
 from quadtank_tui.engine.commands import CommandResult, LogOn, SetOperation, SetParams, SetState
 from quadtank_tui.engine.experiment import format_summary, run_experiment, summarize

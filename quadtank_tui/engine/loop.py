@@ -54,7 +54,7 @@ from quadtank_tui.core.parameters import TSAMP, ControlMode, Parameters
 from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
 from quadtank_tui.core.controllers.signals import Generator
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend, arm, plant_refused, unconfirmed_stop
 from quadtank_tui.engine.calibration_step import RigCalibration
 from quadtank_tui.engine.commands import (

@@ -19,7 +19,7 @@ from typing import Sequence
 
 import numpy as np
 
-from quadtank_tui.core.controllers.mpc.controller import MPC, MPCStats, design_mpc, percentiles
+from quadtank_tui.core.controllers.mpc.predictive import MPC, MPCStats, design_mpc, percentiles
 from quadtank_tui.core.controllers.mpc.info import MPCInfo
 from quadtank_tui.core.controllers.mpc.model import plant_in_use
 from quadtank_tui.core.controllers.mpc.simulate import sensor_gains

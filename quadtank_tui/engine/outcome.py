@@ -7,7 +7,7 @@ from concurrent.futures import Future
 from typing import Callable, TypeVar
 
 from quadtank_tui.core.plants.common import PlantError
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import CommandResult
 from quadtank_tui.engine.logsession import LogRefused
 from quadtank_tui.files.log_writer import LogFileError

@@ -35,7 +35,7 @@ from typing import Any
 from quadtank_tui.core.exercise.requirements import KINDS, WRITTEN, Requirement
 from quadtank_tui.core.parameters import spec
 from quadtank_tui.core.parameters.keys import SECTIONS
-from quadtank_tui.core.validation import is_finite_number
+from quadtank_tui.core.ranges import is_finite_number
 from quadtank_tui.files.regular import read_regular
 from quadtank_tui.files.yamltext import MAX_BYTES, key_lines, parse_yaml
 

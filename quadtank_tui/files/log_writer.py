@@ -41,7 +41,7 @@ try:  # POSIX; elsewhere the unique partial names alone keep runs apart
 except ImportError:  # pragma: no cover
     fcntl = None  # type: ignore[assignment]  # no module off POSIX: users test for None
 
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.files.atomic import atomic_write_bytes, fsync_dir
 from quadtank_tui.files.names import LOG_VARIABLES, check_variables
 from quadtank_tui.files.stamp import format_stamp

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from quadtank_tui.core.delaytf import DelayTF, ModelError
-from quadtank_tui.core.validation import is_finite_number
+from quadtank_tui.core.ranges import is_finite_number
 from quadtank_tui.files.atomic import atomic_write_text
 from quadtank_tui.files.regular import read_regular
 

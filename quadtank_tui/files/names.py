@@ -16,7 +16,7 @@ from __future__ import annotations
 import re
 from typing import Any, Mapping, Sequence
 
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 #: Columns a `.log` may hold, in the order the Logging window lists them.
 LOG_VARIABLES = ("t", "y1", "y2", "y3", "y4", "u1", "u2", "r1", "r2")

@@ -39,7 +39,7 @@ from quadtank_tui.core.parameters import (
 )
 from quadtank_tui.core.plants.spec import SECTION as PLANT_SECTION
 from quadtank_tui.core.plants.spec import KIND_KEY, PlantSpec, quadtank_effects, spec_from_entries
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.files.atomic import atomic_write_text
 from quadtank_tui.files.names import check_file_name, check_names
 from quadtank_tui.files.regular import read_regular

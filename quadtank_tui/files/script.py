@@ -39,7 +39,7 @@ from typing import Any, Mapping
 
 
 from quadtank_tui.core.parameters import Kind, spec
-from quadtank_tui.core.validation import ParameterError, is_finite_number
+from quadtank_tui.core.ranges import ParameterError, is_finite_number
 from quadtank_tui.files.names import check_names
 from quadtank_tui.files.yamltext import parse_yaml, read_text
 

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from textual.screen import Screen
 
     from quadtank_tui.core.delaytf import DelayTF
-    from quadtank_tui.core.design.controller import PID
+    from quadtank_tui.core.design.pid_tuning import PIDTuning
     from quadtank_tui.core.identify.experiment import Identification
     from quadtank_tui.core.parameters import Parameters
 
@@ -91,7 +91,7 @@ def identification_builder(ident: Identification, params: Parameters) -> Callabl
     return build
 
 
-def design_builder(loops: Sequence[tuple[str, DelayTF, PID, float]], title: str) -> Callable[[], Figure]:
+def design_builder(loops: Sequence[tuple[str, DelayTF, PIDTuning, float]], title: str) -> Callable[[], Figure]:
     """Each loop (name, model, controller, the sampling time it runs at) with its
     evaluation, the numbers the screen's table shows."""
     def build() -> Figure:

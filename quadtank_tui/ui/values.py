@@ -10,7 +10,7 @@ import math
 from enum import Enum
 from typing import Any
 
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 
 def fmt(value: Any) -> str:

@@ -179,7 +179,7 @@ def _design(capsys: pytest.CaptureFixture[str], *args: str) -> dict:
 def test_identify_design_write_par_and_the_plant_does_what_the_preview_said(
         models: dict[str, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path, s: str, method: str) -> None:
     from quadtank_tui.engine.design_step import run_step
-    from quadtank_tui.core.design.controller import PID
+    from quadtank_tui.core.design.pid_tuning import PIDTuning
     from quadtank_tui.files.par import read_par
 
     out_par = tmp_path / "designed.par"
@@ -189,7 +189,7 @@ def test_identify_design_write_par_and_the_plant_does_what_the_preview_said(
     assert d["sampling_time"] == 1.0 == model_h  # the scripts sample at 1 s: so does the design
     assert read_par(out_par).params.tsamp == 1.0  # and the written file
     assert d["stable"] and d["preview"]["warnings"] == []
-    pair = [PID(loop["Kc"], loop["Ti"], loop["Td"]) for loop in d["loops"]]
+    pair = [PIDTuning(loop["Kc"], loop["Ti"], loop["Td"]) for loop in d["loops"]]
     for step in d["preview"]["steps"]:
         said = step["simulated"]
         did = run_step(pair, par=out_par, loop=step["loop"], duration=step["window"],
@@ -260,7 +260,7 @@ def coupled_models(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 def test_the_coupled_rigs_identify_design_write_par_and_do_what_the_preview_said(
         coupled_models: dict[str, Path], capsys: pytest.CaptureFixture[str], tmp_path: Path,
         rig: str, method: str, extra: list[str]) -> None:
-    from quadtank_tui.core.design.controller import PID
+    from quadtank_tui.core.design.pid_tuning import PIDTuning
     from quadtank_tui.engine.design_step import run_step
     from quadtank_tui.files.par import read_par
 
@@ -273,7 +273,7 @@ def test_the_coupled_rigs_identify_design_write_par_and_do_what_the_preview_said
     written = read_par(out_par).params
     assert written.tsamp == 1.0
     assert d["stable"] and d["preview"]["warnings"] == []
-    pair = [PID(loop["Kc"], loop["Ti"], loop["Td"]) for loop in d["loops"]]
+    pair = [PIDTuning(loop["Kc"], loop["Ti"], loop["Td"]) for loop in d["loops"]]
     if rig == "cascade":  # one pump: one loop, y2 <- u1, element 12 of the matrix
         assert len(d["loops"]) == 1 and d["loops"][0]["output"] == "y2"
         assert "one pump: one loop is designed" in d["notes"][0]

@@ -11,7 +11,7 @@ import pytest
 
 from quadtank_tui.cli import main
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.core.controllers.statefb.design import augment, bessel_poles, robustness
+from quadtank_tui.core.controllers.statefb.placement import augment, bessel_poles, robustness
 from quadtank_tui.files.par import write_par
 
 

@@ -21,7 +21,7 @@ from quadtank_tui.core.parameters import (
 )
 from quadtank_tui.core.plants.johansson import P_MINUS, P_PLUS
 from quadtank_tui.core.controllers.signals import Wave
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 
 def test_preset_is_the_thesis_setting() -> None:

@@ -17,7 +17,7 @@ from quadtank_tui.core.setup_relations import (
     tank_keys,
     tank_setup,
 )
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 #: Thesis Figure 39, the Tank 1 window of the Setup screen.
 FIG39 = {"SIMULATION.OpPoint1": 0.62, "SIMULATION.Diameter1": 5.93, "SIMULATION.TimeConst1": 62.16}

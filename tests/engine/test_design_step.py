@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.design.mimo import design_2x2, model_in_use
 from quadtank_tui.core.design.apply import controller_values
 from quadtank_tui.engine.design_step import run_step
@@ -23,7 +23,7 @@ def _design(par: Path, tmp_path: Path):
 
 def test_the_thesis_pair_gives_the_published_step(tmp_path: Path) -> None:
     """Same experiment as the sample session: 5.1 % and 53 s (the physical model at 1 s)."""
-    r = run_step([PID(3.0, 30.0), PID(2.7, 40.0)], par=PARAMS / "minphase.par", duration=300,
+    r = run_step([PIDTuning(3.0, 30.0), PIDTuning(2.7, 40.0)], par=PARAMS / "minphase.par", duration=300,
                  params_dir=tmp_path / "params", logs_dir=tmp_path / "logs", tsamp_ms=1000.0)
     assert r.step.step == pytest.approx(0.1)
     assert r.step.overshoot == pytest.approx(5.1, abs=0.05) and r.step.settling_time == 53.0
@@ -52,7 +52,7 @@ def test_p_plus_designed_loops_with_k2_negative_settle(tmp_path: Path) -> None:
 
 
 def test_controller_values_are_par_keys() -> None:
-    v = controller_values([PID(1.5, 110.0), PID(-0.12, 220.0, 5.0)])
+    v = controller_values([PIDTuning(1.5, 110.0), PIDTuning(-0.12, 220.0, 5.0)])
     assert v["CONTROLLER ONE.K"] == 1.5 and v["CONTROLLER FOUR.K"] == -0.12
     assert v["CONTROLLER ONE.D"] == 0 and v["CONTROLLER FOUR.D"] == 1
     assert v["CONTROLLER FOUR.Td"] == 5.0 and v["CONTROL.Structure"] == "Decentralized"

@@ -18,8 +18,8 @@ import pytest
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.plants import CoupledCascade, CoupledTITO
 from quadtank_tui.core.plants.spec import PlantSpec
-from quadtank_tui.core.controllers.statefb.controller import u_ssmax
-from quadtank_tui.core.controllers.statefb.design import loop_margins
+from quadtank_tui.core.controllers.statefb.tracking import u_ssmax
+from quadtank_tui.core.controllers.statefb.placement import loop_margins
 from quadtank_tui.core.controllers.statefb.plants import PlantStateFeedback
 from quadtank_tui.engine.commands import Command, SetControlMode, SetParams, SetState
 from quadtank_tui.engine.loop import ControlLoop

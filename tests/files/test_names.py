@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from quadtank_tui.core.parameters import PRESET
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.engine.runner import Engine, build_engine
 from quadtank_tui.files.names import LOG_VARIABLES, PLOT_TYPES, check_names

@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from quadtank_tui.core.parameters import KEYS, PRESET, Kind, KeySpec, Parameters
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.files import atomic
 from quadtank_tui.files.names import LOG_VARIABLES, PLOT_TYPES
 from quadtank_tui.files.par import ParFileError, format_number, format_par, parse_par, read_par, write_par

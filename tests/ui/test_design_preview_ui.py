@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from textual.widgets import Button, Static
 
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.ui.windows.base import ChoiceWindow
 from quadtank_tui.app.design import PreviewPlan
@@ -25,7 +25,7 @@ def _request() -> PreviewPlan:
     plant = PRESET.process_plant()
     levels = PRESET.process_levels()
     op = plant.steady_inputs([levels[0], levels[1], None, None])
-    return PreviewPlan(plant, tuple(op.x), tuple(op.u), (PID(165.2, 0.2753), PID(1.758, 90.34)), 1.0,
+    return PreviewPlan(plant, tuple(op.x), tuple(op.u), (PIDTuning(165.2, 0.2753), PIDTuning(1.758, 90.34)), 1.0,
                        None, (1.0, 1.0), window=120.0)
 
 

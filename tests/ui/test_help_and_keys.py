@@ -20,7 +20,7 @@ from quadtank_tui.ui.screens.too_small import TooSmallScreen
 from quadtank_tui.ui.widgets import analysis_panel
 from quadtank_tui.ui.widgets.process_image import ProcessImage, draw
 from quadtank_tui.ui.widgets.status_line import StatusLine
-from quadtank_tui.ui.windows.controller import PIDWindow
+from quadtank_tui.ui.windows.controller_windows import PIDWindow
 from quadtank_tui.ui.windows.logging import LoggingWindow
 
 

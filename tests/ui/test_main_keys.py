@@ -16,7 +16,7 @@ from quadtank_tui.ui.widgets.controller_box import ElementCell
 from quadtank_tui.ui.widgets.process_image import ProcessImage
 from quadtank_tui.ui.widgets.trends import Trend
 from quadtank_tui.ui.windows.base import ChoiceWindow, ConfirmWindow
-from quadtank_tui.ui.windows.controller import PIDWindow
+from quadtank_tui.ui.windows.controller_windows import PIDWindow
 from quadtank_tui.ui.windows.process import TankWindow
 from quadtank_tui.ui.windows.signals import InputSignalWindow, PlotTypeWindow
 

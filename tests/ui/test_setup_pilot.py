@@ -363,7 +363,7 @@ async def test_the_controller_table_follows_the_family(app) -> None:
 
 async def test_setup_opens_main_s_windows_and_s_goes_back(app) -> None:
     from quadtank_tui.ui.screens.main import MainScreen
-    from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow
+    from quadtank_tui.ui.windows.controller_windows import ControllerTypeWindow, GeneralWindow
 
     async with app.run_test(size=(120, 40)) as pilot:
         await open_setup(pilot)

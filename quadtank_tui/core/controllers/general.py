@@ -11,7 +11,7 @@ from typing import Sequence
 
 import numpy as np
 
-from quadtank_tui.core.validation import ParameterError, check_number, check_sampling_time
+from quadtank_tui.core.ranges import ParameterError, check_number, check_sampling_time
 
 MAX_DEGREE = 4
 

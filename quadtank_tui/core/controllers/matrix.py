@@ -28,7 +28,7 @@ from typing import Mapping, Sequence
 
 from quadtank_tui.core.controllers.general import General, GeneralParams, realization
 from quadtank_tui.core.controllers.pid import PID, PIDParams
-from quadtank_tui.core.validation import ParameterError, check_sampling_time
+from quadtank_tui.core.ranges import ParameterError, check_sampling_time
 
 Element = tuple[int, int]
 Pair = tuple[float, float]

@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-from quadtank_tui.core.validation import ParameterError, check_range, check_sampling_time
+from quadtank_tui.core.ranges import ParameterError, check_range, check_sampling_time
 
 
 @dataclass(frozen=True)

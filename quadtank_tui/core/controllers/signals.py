@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass, replace
 from enum import Enum
 
-from quadtank_tui.core.validation import ParameterError, check_number, check_range, check_sampling_time
+from quadtank_tui.core.ranges import ParameterError, check_number, check_range, check_sampling_time
 
 
 class Wave(str, Enum):

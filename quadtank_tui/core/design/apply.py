@@ -7,13 +7,13 @@ from __future__ import annotations
 
 from typing import Any, Mapping, Sequence
 
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.parameters import Parameters
 
 ELEMENT = {1: "CONTROLLER ONE", 2: "CONTROLLER FOUR"}  # C11, C22 of the matrix
 
 
-def controller_values(pair: Sequence[PID | None]) -> dict[str, Any]:
+def controller_values(pair: Sequence[PIDTuning | None]) -> dict[str, Any]:
     """The `.par` keys (and values) for the loops given (None: leave that loop)."""
     values: dict[str, Any] = {"CONTROL.Type": "PID", "CONTROL.Structure": "Decentralized"}
     for loop, c in zip((1, 2), pair):
@@ -33,7 +33,7 @@ def controller_values(pair: Sequence[PID | None]) -> dict[str, Any]:
 ONE_PUMP_ELEMENT = "CONTROLLER TWO"
 
 
-def one_pump_values(c: PID) -> dict[str, Any]:
+def one_pump_values(c: PIDTuning) -> dict[str, Any]:
     """The `.par` keys (and values) for a one-pump plant's loop on its controlled
     level; the elements on the missing pump 2 are zeroed."""
     values: dict[str, Any] = {"CONTROL.Type": "PID", "CONTROL.Structure": "FullMatrix"}
@@ -58,7 +58,7 @@ def describe_changes(before: Parameters, values: Mapping[str, Any]) -> list[str]
     return out
 
 
-def in_force(params: Parameters, loop: int) -> PID:
+def in_force(params: Parameters, loop: int) -> PIDTuning:
     """The PID element of `loop` (1: CONTROLLER ONE, 2: CONTROLLER FOUR) as the
     parameters hold it: what Apply leaves on a loop with nothing chosen."""
     sec = ELEMENT[loop]
@@ -68,4 +68,4 @@ def in_force(params: Parameters, loop: int) -> PID:
         return float(getattr(v, "value", v))
 
     ti = num("Ti") if num("I") else float("inf")
-    return PID(num("K"), ti, num("Td") if num("D") else 0.0, num("N"), num("b"))
+    return PIDTuning(num("K"), ti, num("Td") if num("D") else 0.0, num("N"), num("b"))

@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
 from quadtank_tui.core.design.frequency import Margins, frequency_grid, margins
 from quadtank_tui.core.design.simulate import STEPS_PER_RAD, Response, step_response
 from quadtank_tui.core.metrics import loop_metrics
@@ -72,7 +72,7 @@ def time_step(g: DelayTF, m: Margins) -> float:
     return h
 
 
-def settled_response(g: DelayTF, c: PID, m: Margins, *, r: float = 0.0, d: float = 0.0) -> Response:
+def settled_response(g: DelayTF, c: PIDTuning, m: Margins, *, r: float = 0.0, d: float = 0.0) -> Response:
     """Simulate long enough for the error to die out (doubling the horizon)."""
     h = time_step(g, m)
     horizon = 30.0 / m.crossover + 5.0 * (c.Ti if math.isfinite(c.Ti) else 0.0)
@@ -89,7 +89,7 @@ def settled_response(g: DelayTF, c: PID, m: Margins, *, r: float = 0.0, d: float
     return resp
 
 
-def evaluate(c: PID, g: DelayTF, w: np.ndarray | None = None, *, setpoint: bool = True,
+def evaluate(c: PIDTuning, g: DelayTF, w: np.ndarray | None = None, *, setpoint: bool = True,
              h: float = 0.0) -> Evaluation:
     """All figures of controller `c` on process model `g` (setpoint=False: skip the
     setpoint step, which Andersson's table does not show; its figures are then nan).

@@ -24,7 +24,7 @@ from scipy.optimize import least_squares
 from scipy.signal import step
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
 
 
 @dataclass(frozen=True)
@@ -118,7 +118,7 @@ def default_lambda(fo: FirstOrder) -> float:
     return LAMBDA_FRACTION * max(fo.L, fo.T)
 
 
-def lambda_pi(fo: FirstOrder, lam: float, h: float = 0.0) -> PID:
+def lambda_pi(fo: FirstOrder, lam: float, h: float = 0.0) -> PIDTuning:
     """The lambda-tuned PI for the closed-loop time constant (or load time) `lam` s.
 
     h > 0 (a loop sampled at h s): the zero-order hold delays the input by h/2 on
@@ -129,5 +129,5 @@ def lambda_pi(fo: FirstOrder, lam: float, h: float = 0.0) -> PID:
     L = fo.L + 0.5 * h
     if fo.integrating:
         ti = 2.0 * lam + L
-        return PID(ti / (fo.K * (lam + L) ** 2), ti)
-    return PID(fo.T / (fo.K * (lam + L)), fo.T)
+        return PIDTuning(ti / (fo.K * (lam + L) ** 2), ti)
+    return PIDTuning(fo.T / (fo.K * (lam + L)), fo.T)

@@ -35,7 +35,7 @@ from scipy.signal import BadCoefficients, ss2tf, tf2ss
 
 from quadtank_tui.core.analysis import analyze
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
 from quadtank_tui.core.design.evaluate import Evaluation, evaluate
 from quadtank_tui.core.design.lambda_tuning import default_lambda, first_order, lambda_pi
 from quadtank_tui.core.design.optimize import pi_ms, pid_ms
@@ -116,7 +116,7 @@ def _mul(a: DelayTF, b: DelayTF) -> DelayTF:
                    a.delay + b.delay)
 
 
-def loop2_with_loop1_closed(G: Matrix, c1: PID) -> DelayTF:
+def loop2_with_loop1_closed(G: Matrix, c1: PIDTuning) -> DelayTF:
     """g22 - g12 g21 c1/(1 + c1 g11) as one rational model; an element's dead time
     (an identified model has small ones) enters as its 2nd-order Pade approximation,
     a negligible one not at all (a higher order would only add ill-conditioned roots)."""
@@ -171,7 +171,7 @@ def _ss(num: npt.ArrayLike, den: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray,
     return (A.reshape(n, n), B.reshape(n, 1), C.reshape(1, n), D.reshape(1, 1))
 
 
-def closed_loop_poles(G: Matrix, c1: PID, c2: PID) -> np.ndarray:
+def closed_loop_poles(G: Matrix, c1: PIDTuning, c2: PIDTuning) -> np.ndarray:
     """Poles of the decentralized 2x2 loop u_i = c_i (r_i - y_i), G strictly proper
     (a dead time is replaced by its 6th-order Pade approximation, a negligible one
     left out: NEGLIGIBLE_DELAY)."""
@@ -239,7 +239,7 @@ def _pade(delay: float, order: int) -> tuple[np.ndarray, np.ndarray]:
     return num, c[::-1]
 
 
-def sampled_poles(G: Matrix, c1: PID, c2: PID, h: float) -> np.ndarray:
+def sampled_poles(G: Matrix, c1: PIDTuning, c2: PIDTuning, h: float) -> np.ndarray:
     """z-plane poles of the 2x2 loop sampled at h: every element behind the ZOH with
     its dead time exact (whole samples and the fraction), both PIDs as core.controllers.pid runs them."""
     from quadtank_tui.core.design.sampled import closed_loop_matrix, sample
@@ -248,7 +248,7 @@ def sampled_poles(G: Matrix, c1: PID, c2: PID, h: float) -> np.ndarray:
     return np.linalg.eigvals(closed_loop_matrix(models, [c1, c2], h))
 
 
-def slowest_pole(G: Matrix, c1: PID, c2: PID, h: float = 0.0) -> float:
+def slowest_pole(G: Matrix, c1: PIDTuning, c2: PIDTuning, h: float = 0.0) -> float:
     """The real part of the slowest closed-loop pole, 1/s (>= 0: unstable); for h > 0
     ln max|z| / h of the sampled loop's poles."""
     if h > 0.0:
@@ -263,7 +263,7 @@ class LoopDesign:
     loop: int
     model: DelayTF
     how: str
-    controller: PID
+    controller: PIDTuning
     evaluation: Evaluation
 
 
@@ -279,12 +279,12 @@ class MimoCheck:
     #: 0: the continuous-time loop; else the sampling time the loop was designed and checked at, s
     sampling_time: float = 0.0
 
-    def pid_pair(self) -> tuple[PID, PID]:
+    def pid_pair(self) -> tuple[PIDTuning, PIDTuning]:
         return self.loops[0].controller, self.loops[1].controller
 
 
 def design_loop(g: DelayTF, method: str, *, lam: float | None = None, ms: float = 1.4,
-                h: float = 0.0) -> PID:
+                h: float = 0.0) -> PIDTuning:
     """One loop: lambda (default: lambda_tuning.default_lambda), pi-ms or pid-ms;
     h > 0: for the loop sampled at h s."""
     if method == "lambda":

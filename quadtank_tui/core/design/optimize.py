@@ -33,7 +33,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.controller import DERIVATIVE_FILTER_N, PID, DesignError
+from quadtank_tui.core.design.pid_tuning import DERIVATIVE_FILTER_N, PIDTuning, DesignError
 from quadtank_tui.core.design.frequency import frequency_grid
 from quadtank_tui.core.design.sampled import derivative_shape, integral_shape, sample, sampled_grid
 
@@ -130,7 +130,7 @@ def _loop_shapes(g: DelayTF, h: float, w: np.ndarray | None, sign: float
     return w, Gw, Gw / (1j * w)
 
 
-def pi_ms(g: DelayTF, ms: float, w: np.ndarray | None = None, h: float = 0.0) -> PID:
+def pi_ms(g: DelayTF, ms: float, w: np.ndarray | None = None, h: float = 0.0) -> PIDTuning:
     """PI_opt: the PI with the largest ki = Kc/Ti whose loop keeps max|S| <= Ms
     (h > 0: the sampled loop's max|S|, see _loop_shapes)."""
     check_ms(ms)
@@ -139,7 +139,7 @@ def pi_ms(g: DelayTF, ms: float, w: np.ndarray | None = None, h: float = 0.0) ->
     kc, ki = _best_kc(Gw, Q, np.ones_like(Gw), 1.0 / ms)
     if ki <= 0.0:
         raise DesignError(f"no PI meets Ms = {ms:g} on this model")
-    return PID(sign * kc, kc / ki)
+    return PIDTuning(sign * kc, kc / ki)
 
 
 def _binding_frequency(Gw: np.ndarray, Q: np.ndarray, w: np.ndarray, kc: float, r: float) -> float:
@@ -154,7 +154,7 @@ def _binding_frequency(Gw: np.ndarray, Q: np.ndarray, w: np.ndarray, kc: float, 
 
 
 def pid_ms(g: DelayTF, ms: float, w: np.ndarray | None = None,
-           n: float = DERIVATIVE_FILTER_N, td_over_ti_max: float = TD_OVER_TI_MAX, h: float = 0.0) -> PID:
+           n: float = DERIVATIVE_FILTER_N, td_over_ti_max: float = TD_OVER_TI_MAX, h: float = 0.0) -> PIDTuning:
     """This program's Ms-constrained PID: max ki over (Kc, Td), Td <= Ti/4 (see module).
 
     The search over Td runs on a band of 600 frequencies around the PI design's
@@ -195,8 +195,8 @@ def pid_ms(g: DelayTF, ms: float, w: np.ndarray | None = None,
             td = float(res.x)
         kc, ki = design(td, Gw, Q, w)
         if ki > pi_ki:
-            return PID(sign * kc, kc / ki, td, n)
-    return PID(sign * pi_kc, pi_kc / pi_ki)  # a derivative does not help on this model
+            return PIDTuning(sign * kc, kc / ki, td, n)
+    return PIDTuning(sign * pi_kc, pi_kc / pi_ki)  # a derivative does not help on this model
 
 
 def _boundary_kc(Gw: np.ndarray, Q: np.ndarray, D: np.ndarray, r: float,

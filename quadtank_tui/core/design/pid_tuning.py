@@ -28,7 +28,7 @@ class DesignError(ValueError):
 
 
 @dataclass(frozen=True)
-class PID:
+class PIDTuning:
     """Kc, Ti (s), Td (s, 0 for PI); `N` divides Td in the derivative filter."""
 
     Kc: float
@@ -41,11 +41,11 @@ class PID:
         for name in ("Kc", "Ti", "Td", "N", "b"):  # plain floats (numpy scalars print badly)
             object.__setattr__(self, name, float(getattr(self, name)))
 
-    def rounded(self, digits: int = 4) -> PID:
+    def rounded(self, digits: int = 4) -> PIDTuning:
         """Kc, Ti, Td to `digits` significant figures: what is applied and saved."""
         def r(x: float) -> float:
             return float(f"{x:.{digits}g}") if math.isfinite(x) else x
-        return PID(r(self.Kc), r(self.Ti), r(self.Td), self.N, self.b)
+        return PIDTuning(r(self.Kc), r(self.Ti), r(self.Td), self.N, self.b)
 
     @property
     def ki(self) -> float:

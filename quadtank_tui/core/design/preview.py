@@ -26,7 +26,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.design.sampled import closed_loop, sample
 from quadtank_tui.core.design.sampled_eval import (
     CHATTER_SHARE, SATURATION_SHARE, TR_DEFAULT, propagate_from, reversals, running_pid,
@@ -129,7 +129,7 @@ def _figures(t: np.ndarray, y: np.ndarray, r: np.ndarray, other: np.ndarray | No
                    reversals(u[:, pump], STEP))
 
 
-def _predicted(G: Sequence[Sequence[DelayTF]], pair: Sequence[PID], h: float, loop: int, r0: Sequence[float],
+def _predicted(G: Sequence[Sequence[DelayTF]], pair: Sequence[PIDTuning], h: float, loop: int, r0: Sequence[float],
                u0: Sequence[float], samples: int, tr: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The linear sampled loop (deviations about the start), pumps limited: y of
     each loop and the pumps, for a STEP on `loop`."""
@@ -192,7 +192,7 @@ def format_preview(pv: Preview) -> str:
 
 
 def time_constant(plant: Plant, levels: Sequence[float], inputs: Sequence[float],
-                  model: Sequence[Sequence[DelayTF]] | None, pair: Sequence[PID], h: float) -> float:
+                  model: Sequence[Sequence[DelayTF]] | None, pair: Sequence[PIDTuning], h: float) -> float:
     """The slowest time constant the steps must wait for, s: the larger of the plant's
     slowest open-loop one at the start (its linearization) and the designed loop's
     slowest closed-loop one (the sampled linear loop on `model` with `pair`), when
@@ -251,7 +251,7 @@ def _settled(t: np.ndarray, y: np.ndarray, r: float, y_before: float, hold: floa
     return lm.settling_time is not None and t[-1] - t[0] - lm.settling_time >= hold
 
 
-def preview(plant: Plant, levels: Sequence[float], inputs: Sequence[float], pair: Sequence[PID], h: float, *,
+def preview(plant: Plant, levels: Sequence[float], inputs: Sequence[float], pair: Sequence[PIDTuning], h: float, *,
             window: float | None = None, model: Sequence[Sequence[DelayTF]] | None = None,
             tr: Sequence[float] = (TR_DEFAULT, TR_DEFAULT), span: Horizon | None = None,
             progress: Callable[[float], None] | None = None) -> Preview:

@@ -19,7 +19,7 @@ from typing import Sequence
 import numpy as np
 
 from quadtank_tui.core.batch import pi_batch
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.controllers.pid import PIDParams
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.johansson import PlantParams
@@ -149,7 +149,7 @@ def format_robustness(rb: Robustness) -> str:
     return "\n".join(lines)
 
 
-def _pid_params(c: PID, tr: float) -> PIDParams:
+def _pid_params(c: PIDTuning, tr: float) -> PIDParams:
     integral = math.isfinite(c.Ti) and c.Ti < 1e6
     return PIDParams(K=c.Kc, Ti=c.Ti if integral else 1e6, Td=c.Td, Tr=tr, N=c.N, b=c.b,
                      integral=integral, derivative=c.Td > 0.0)
@@ -183,7 +183,7 @@ def _verdicts(t: np.ndarray, e: np.ndarray, other: np.ndarray, u: np.ndarray
     return settling, unstable, cycle
 
 
-def robustness(plants: Sequence[PlantParams], levels: tuple[float, float], pair: Sequence[PID], h: float,
+def robustness(plants: Sequence[PlantParams], levels: tuple[float, float], pair: Sequence[PIDTuning], h: float,
                window: float, *, tr: Sequence[float] = (1.0, 1.0), source: str = "") -> Robustness:
     """Each plant from its steady state at `levels` (tanks 1 and 2, cm): a STEP on
     loop 1, and (another run of the same plant, from rest) a STEP on loop 2, all in

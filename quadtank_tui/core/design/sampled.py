@@ -26,7 +26,7 @@ import numpy as np
 from scipy.signal import tf2ss
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
 from quadtank_tui.core.plants.linear import zoh
 
 GRID_POINTS = 3000
@@ -124,7 +124,7 @@ def _sample(num: tuple[float, ...], den: tuple[float, ...], delay: float, h: flo
     return SampledModel(h, Aa, Ba, Ca, dd, Phi, gamma0, gamma1, C[0], dp, d, tau)
 
 
-def derivative_gain(c: PID, h: float) -> tuple[float, float]:
+def derivative_gain(c: PIDTuning, h: float) -> tuple[float, float]:
     """(ad, Td N/(Td + N h)): core.controllers.pid's backward-difference filter at h."""
     if c.Td <= 0.0:
         return 0.0, 0.0
@@ -147,13 +147,13 @@ def integral_shape(h: float, w: np.ndarray) -> np.ndarray:
     return h / (np.exp(1j * np.asarray(w) * h) - 1.0)
 
 
-def controller_freqresp(c: PID, h: float, w: np.ndarray) -> np.ndarray:
+def controller_freqresp(c: PIDTuning, h: float, w: np.ndarray) -> np.ndarray:
     """C(e^(iwh)) from -y to u, as core.controllers.pid implements the PID."""
     integral = c.Kc / c.Ti * integral_shape(h, w) if math.isfinite(c.Ti) else 0.0
     return c.Kc * derivative_shape(c.Td, c.N, h, w) + integral
 
 
-def controller_ss(c: PID, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+def controller_ss(c: PIDTuning, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """(Ac, Bc, Cc, Dc): xc(k+1) = Ac xc + Bc y, u = Cc xc + Dc y (r = 0), states
     [I, D, y(k-1)] as core.controllers.pid keeps them (D and y(k-1) only with a derivative)."""
     ki = c.Kc * h / c.Ti if math.isfinite(c.Ti) else 0.0
@@ -165,13 +165,13 @@ def controller_ss(c: PID, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return Ac, np.array([-ki, -bd, 1.0]), np.array([1.0, ad, bd]), -(c.Kc + bd)
 
 
-def closed_loop_matrix(models: list[list[SampledModel]], ctrls: list[PID], h: float) -> np.ndarray:
+def closed_loop_matrix(models: list[list[SampledModel]], ctrls: list[PIDTuning], h: float) -> np.ndarray:
     """The state matrix of the decentralized loop u_i = C_i(-y_i) around a matrix of
     sampled elements (y_i = sum_j G_ij u_j); 1x1 for a single loop."""
     return closed_loop(models, ctrls, h)[0]
 
 
-def closed_loop(models: list[list[SampledModel]], ctrls: list[PID], h: float
+def closed_loop(models: list[list[SampledModel]], ctrls: list[PIDTuning], h: float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(A, Bu, Bc, Y, U): z(k+1) = A z + Bu w_u + Bc w_c, y = Y z, u = U z + w_u for
     the states z = [elements, controllers] with w_u the controllers' direct
@@ -217,7 +217,7 @@ def closed_loop(models: list[list[SampledModel]], ctrls: list[PID], h: float
             np.hstack([Y_x, Y_c]), np.hstack([Ku_x, Ku_c]))
 
 
-def closed_loop_poles(g: DelayTF | SampledModel, c: PID, h: float) -> np.ndarray:
+def closed_loop_poles(g: DelayTF | SampledModel, c: PIDTuning, h: float) -> np.ndarray:
     """z-plane poles of one sampled loop (stable: all |z| < 1)."""
     m = g if isinstance(g, SampledModel) else sample(g, h)
     return np.linalg.eigvals(closed_loop_matrix([[m]], [c], h))

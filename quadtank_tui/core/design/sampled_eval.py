@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
 from quadtank_tui.core.design.evaluate import Evaluation, load_size
 from quadtank_tui.core.design.simulate import Response
 from quadtank_tui.core.design.sampled import (
@@ -41,7 +41,7 @@ TR_DEFAULT = 1.0
 MAX_SAMPLES = 40_000
 
 
-def running_pid(c: PID, h: float, tr: float = TR_DEFAULT) -> RunningPID:
+def running_pid(c: PIDTuning, h: float, tr: float = TR_DEFAULT) -> RunningPID:
     """The PID element core.controllers.pid runs, with this design's settings."""
     if abs(c.Kc) > 1e3:
         raise DesignError(f"Kc = {c.Kc:.4g}: beyond the PID element's range (|K| <= 1000)")
@@ -51,7 +51,7 @@ def running_pid(c: PID, h: float, tr: float = TR_DEFAULT) -> RunningPID:
     return RunningPID(params, h)
 
 
-def simulate(m: SampledModel, c: PID, *, r: float = 0.0, d: float = 0.0, samples: int,
+def simulate(m: SampledModel, c: PIDTuning, *, r: float = 0.0, d: float = 0.0, samples: int,
              limits: tuple[float, float] = (-math.inf, math.inf), tr: float = TR_DEFAULT) -> Response:
     """From rest (deviations), a reference step r and a load step d at the process
     input at sample 0; the controller output clipped to `limits` (deviation).
@@ -119,7 +119,7 @@ def simulate(m: SampledModel, c: PID, *, r: float = 0.0, d: float = 0.0, samples
     return Response(np.arange(samples) * h, y, u, r, d)
 
 
-def linear_response(m: SampledModel, c: PID, *, r: float = 0.0, d: float = 0.0, samples: int) -> Response:
+def linear_response(m: SampledModel, c: PIDTuning, *, r: float = 0.0, d: float = 0.0, samples: int) -> Response:
     """`simulate` without limits: the closed-loop state recursion in blocks."""
     return simulate(m, c, r=r, d=d, samples=samples)
 
@@ -245,7 +245,7 @@ class SampledEvaluation:
     limits: LimitCheck | None
 
 
-def sampled_loop_response(c: PID, g: DelayTF, h: float, m: SampledModel | None = None
+def sampled_loop_response(c: PIDTuning, g: DelayTF, h: float, m: SampledModel | None = None
                           ) -> tuple[np.ndarray, np.ndarray]:
     """(w rad/s, L(e^(iwh))) of the loop sampled at h: the curve the sampled Ms and
     margins are read from (and a figure draws)."""
@@ -253,7 +253,7 @@ def sampled_loop_response(c: PID, g: DelayTF, h: float, m: SampledModel | None =
     return w, controller_freqresp(c, h, w) * (m or sample(g, h)).freqresp(w)
 
 
-def reference_step(c: PID, g: DelayTF, h: float, samples: int | None = None) -> Response:
+def reference_step(c: PIDTuning, g: DelayTF, h: float, samples: int | None = None) -> Response:
     """The sampled loop's unit reference step, as long as its evaluation simulates it."""
     m = sample(g, h)
     if samples is None:
@@ -262,7 +262,7 @@ def reference_step(c: PID, g: DelayTF, h: float, samples: int | None = None) -> 
     return linear_response(m, c, r=1.0, samples=samples)
 
 
-def _margins(m: SampledModel, c: PID, g: DelayTF, h: float, stable: bool) -> tuple[float, float, float, float, float]:
+def _margins(m: SampledModel, c: PIDTuning, g: DelayTF, h: float, stable: bool) -> tuple[float, float, float, float, float]:
     """(Ms, phase margin deg, gain margin, delay margin s, crossover rad/s) of L(e^(iwh))."""
     w, L = sampled_loop_response(c, g, h, m)
     ms = float(np.max(np.abs(1.0 / (1.0 + L)))) if stable else math.inf
@@ -291,13 +291,13 @@ def _margins(m: SampledModel, c: PID, g: DelayTF, h: float, stable: bool) -> tup
     return ms, pm, am, lm, wc
 
 
-def _horizon(c: PID, wc: float, h: float) -> int:
+def _horizon(c: PIDTuning, wc: float, h: float) -> int:
     t = 40.0 / wc if math.isfinite(wc) and wc > 0 else 600.0
     t = max(t, 3.0 * (c.Ti if math.isfinite(c.Ti) else 0.0), 40.0 * h)
     return min(MAX_SAMPLES, int(math.ceil(t / h)) + 1)
 
 
-def evaluate_sampled(c: PID, g: DelayTF, h: float, *, u0: float | None = 0.5, setpoint: bool = True,
+def evaluate_sampled(c: PIDTuning, g: DelayTF, h: float, *, u0: float | None = 0.5, setpoint: bool = True,
                      tr: float = TR_DEFAULT, model: SampledModel | None = None) -> SampledEvaluation:
     """All figures of `c` on `g` sampled at h (see the module); u0 = None skips the
     limit check (no operating point)."""

@@ -21,7 +21,7 @@ import numpy as np
 from scipy.signal import tf2ss
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.plants.linear import zoh
 
 #: steps per 1/wc (closed-loop time scale) at least; see module docstring.
@@ -44,7 +44,7 @@ class Response:
         return self.r - self.y
 
 
-def _augmented(g: DelayTF, c: PID) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float,
+def _augmented(g: DelayTF, c: PIDTuning) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float,
                                              np.ndarray, np.ndarray, float, np.ndarray]:
     """Continuous z' = A z + Bv v + Bw [r, d]; y = Cy z + Dy v; u = F z + Fv v + Fw [r, d].
 
@@ -90,7 +90,7 @@ def _augmented(g: DelayTF, c: PID) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     return A, Bv, Bw, Cy, dy, Dyw, F, Fv, Fw
 
 
-def step_response(g: DelayTF, c: PID, *, r: float = 0.0, d: float = 0.0,
+def step_response(g: DelayTF, c: PIDTuning, *, r: float = 0.0, d: float = 0.0,
                   horizon: float, h: float) -> Response:
     """Response from rest to a setpoint step r and a load step d at t = 0."""
     A, Bv, Bw, Cy, dy, Dyw, F, Fv, Fw = _augmented(g, c)

@@ -14,7 +14,7 @@ from functools import partial
 from typing import Callable, Sequence
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
 from quadtank_tui.core.design.evaluate import Evaluation, evaluate
 from quadtank_tui.core.design.lambda_tuning import FirstOrder, default_lambda, first_order, lambda_pi
 from quadtank_tui.core.design.optimize import pi_ms, pid_ms
@@ -28,7 +28,7 @@ MS_VALUES = (1.6, 1.4, 1.2)
 class Candidate:
     method: str  # "lambda", "pi-ms", "pid-ms"
     parameter: float  # lambda (s) or Ms
-    controller: PID | None
+    controller: PIDTuning | None
     evaluation: Evaluation | None
     error: str | None = None
     #: the sampled loop's steps with the pumps limited (h > 0 only)
@@ -80,7 +80,7 @@ def candidates(g: DelayTF, *, evaluate_on: DelayTF | None = None,
     rows: list[Candidate] = []
     sampled = sample(target, h) if h > 0.0 else None
 
-    def add(method: str, par: float, make: Callable[[], PID]) -> None:
+    def add(method: str, par: float, make: Callable[[], PIDTuning]) -> None:
         try:
             c = make()
             if sampled is None:

@@ -7,7 +7,7 @@ from enum import Enum
 from typing import Any
 
 from quadtank_tui.core.controllers.signals import Wave, WaveParams
-from quadtank_tui.core.validation import ParameterError, check_number, check_range
+from quadtank_tui.core.ranges import ParameterError, check_number, check_range
 
 
 def enum_value(key: str, enum: type[Enum], value: Any) -> Any:

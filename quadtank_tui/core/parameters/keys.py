@@ -24,7 +24,7 @@ from quadtank_tui.core.parameters.constants import (
     ControlMode,
 )
 from quadtank_tui.core.controllers.signals import Wave
-from quadtank_tui.core.validation import ParameterError, check_number
+from quadtank_tui.core.ranges import ParameterError, check_number
 
 
 class Kind(str, Enum):

@@ -32,7 +32,7 @@ from quadtank_tui.core.plants.spec import PlantSpec, check_quadtank_effects
 from quadtank_tui.core.controllers.signals import WaveParams
 from quadtank_tui.core.controllers.mpc.settings import MPCSettings
 from quadtank_tui.core.controllers.statefb.settings import StateFeedbackParams
-from quadtank_tui.core.validation import ParameterError, check_range
+from quadtank_tui.core.ranges import ParameterError, check_range
 
 #: Each key's place in the model (KEYS is in file order, the model's order).
 _POSITION = {k.name: i for i, k in enumerate(KEYS)}

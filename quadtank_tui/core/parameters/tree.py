@@ -14,7 +14,7 @@ import dataclasses
 from typing import Any, Mapping, Sequence, TypeVar
 
 from quadtank_tui.core.parameters.keys import SECTION_OF_PATH
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 T = TypeVar("T")
 

@@ -26,7 +26,7 @@ from typing import Callable, Mapping, Sequence
 
 from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants import KINDS, Plant, QuadTank, make_plant
-from quadtank_tui.core.validation import ParameterError, check_number
+from quadtank_tui.core.ranges import ParameterError, check_number
 
 SECTION = "PLANT"
 KIND_KEY = "Kind"

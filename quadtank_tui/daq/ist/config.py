@@ -15,7 +15,7 @@
 Missing calibration keys take the rig's published constants (daq/ist/protocol.py).
 The link is fixed by the firmware (9600 baud, 8N1); the rig is a quadruple tank
 (four levels, two pumps).  Errors name the file, the line and the dotted key, as
-for a Modbus configuration (the checks of daq/validation.py).
+for a Modbus configuration (the checks of daq/config_checks.py).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from typing import Any, Mapping
 
 from quadtank_tui.daq.config import QUADTANK_CHANNELS, PlantChannels
 from quadtank_tui.daq.ist import protocol as p
-from quadtank_tui.daq.validation import PLAUSIBLE_MARGIN, Validator, config_error
+from quadtank_tui.daq.config_checks import PLAUSIBLE_MARGIN, Validator, config_error
 from quadtank_tui.files.yamltext import key_lines, parse_yaml, read_text
 
 PROTOCOL = "ist"

@@ -19,7 +19,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.design.evaluate import Evaluation, evaluate, settled_response
 from quadtank_tui.core.design.frequency import frequency_grid, margins
 from quadtank_tui.core.design.simulate import Response
@@ -34,7 +34,7 @@ class DesignedLoop:
 
     title: str
     model: DelayTF
-    controller: PID
+    controller: PIDTuning
     h: float = 0.0
     evaluation: Evaluation | None = None
 

@@ -30,7 +30,7 @@ from textual.geometry import Size
 from textual.widgets import Input, Label, Static
 
 from quadtank_tui.core.delaytf import DelayTF, ModelError
-from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
 from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.engine.handle import EngineHandle
@@ -67,7 +67,7 @@ class LoopState:
     design_model: DelayTF | None = None
     how: str = ""
     rows: list[Candidate] = field(default_factory=list)
-    chosen: PID | None = None
+    chosen: PIDTuning | None = None
     chosen_label: str = ""
     #: The lambdas typed ("": the method's defaults for the model) and the Ms values.
     lambdas: str = ""
@@ -121,7 +121,7 @@ class DesignScreen(CommandSender):
         self.source = "the physical linearization"  # what G is, for messages
         self.frequency_view = False  # b: |S| |T| and the load step instead of Nyquist and the steps
         self._plots: DesignPlots | None = None
-        self._plot_args: tuple[DelayTF, PID, float | None] | None = None  # the candidate on show
+        self._plot_args: tuple[DelayTF, PIDTuning, float | None] | None = None  # the candidate on show
         self._told_best = False  # a new table's status named its suggested row
 
     def compose(self) -> ComposeResult:
@@ -196,7 +196,7 @@ class DesignScreen(CommandSender):
 
     def action_physical(self) -> None:
         """Both loops' models from the physical linearization of the current setting."""
-        from quadtank_tui.core.design.controller import DesignError
+        from quadtank_tui.core.design.pid_tuning import DesignError
         from quadtank_tui.core.design.mimo import model_in_use
         from quadtank_tui.core.plants.common import PlantError
 
@@ -321,12 +321,12 @@ class DesignScreen(CommandSender):
 
     @work(thread=True, exclusive=True, group="table")
     def _compute_table(self, loop: int, model: DelayTF | None, request: int, lambdas: str, ms: str,
-                       G: Matrix | None, other: PID | None, first: PID | None) -> None:
+                       G: Matrix | None, other: PIDTuning | None, first: PIDTuning | None) -> None:
         """app.design.loop_table (the rows on what the loop sees, each checked in the
         2x2 loop with the other loop's choice), after the typed entries are parsed
         against the design model's T and L."""
         from quadtank_tui.app.design import loop1_must_close, loop_table
-        from quadtank_tui.core.design.controller import DesignError
+        from quadtank_tui.core.design.pid_tuning import DesignError
         from quadtank_tui.core.design.lambda_tuning import first_order
         from quadtank_tui.core.design.mimo import loop2_with_loop1_closed
 
@@ -453,7 +453,7 @@ class DesignScreen(CommandSender):
     # --- plots ---------------------------------------------------------------------
 
     @work(thread=True, exclusive=True, group="plots")
-    def _compute_plots(self, model: DelayTF, c: PID, ms: float | None) -> None:
+    def _compute_plots(self, model: DelayTF, c: PIDTuning, ms: float | None) -> None:
         """The highlighted candidate's Nyquist curve, |S| and |T|, load step, and
         the reference step of each loop with its controller: the highlighted one
         for this loop, the chosen one for the other (so `_show_chosen` runs it
@@ -517,7 +517,7 @@ class DesignScreen(CommandSender):
         moment it was asked for: self.G may change (a model typed) while the worker
         runs.  `default`: the screen's start (then each loop's table follows)."""
         from quadtank_tui.app.design import design_pair
-        from quadtank_tui.core.design.controller import DesignError
+        from quadtank_tui.core.design.pid_tuning import DesignError
         from quadtank_tui.core.design.mimo import format_check
 
         try:
@@ -577,7 +577,7 @@ class DesignScreen(CommandSender):
             return
         self.app.push_screen(DesignPreviewWindow(request, snap.params), lambda ok: self._apply(pair, ok))
 
-    def _apply(self, pair: tuple[PID | None, PID | None], ok: bool | None) -> None:
+    def _apply(self, pair: tuple[PIDTuning | None, PIDTuning | None], ok: bool | None) -> None:
         from quadtank_tui.core.design.apply import controller_values, describe_changes
 
         if not ok:

@@ -22,7 +22,7 @@ from rich.text import Text
 
 from quadtank_tui.ui.ghost.window import GhostWindow
 from quadtank_tui.ui.windows.base import ConfirmWindow, Window
-from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
+from quadtank_tui.ui.windows.controller_windows import ControllerTypeWindow, GeneralWindow, PIDWindow
 from quadtank_tui.ui.windows.logging import LoggingWindow
 from quadtank_tui.ui.windows.par_files import ParFileWindow
 from quadtank_tui.ui.windows.pid_extras import PIDExtrasWindow

@@ -44,7 +44,7 @@ from quadtank_tui.ui.plot_axes import scroll_step
 from quadtank_tui.ui.widgets.trends import WINDOWS, Scale, Trend, TrendView, physical_scales
 from quadtank_tui.ui.ghost import GhostControl
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, ConfirmWindow, LiveWindow, free_log_name
-from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow, PIDWindow
+from quadtank_tui.ui.windows.controller_windows import ControllerTypeWindow, GeneralWindow, PIDWindow
 from quadtank_tui.ui.windows.faults import FaultWindow
 from quadtank_tui.ui.windows.mpc import MPCWindow
 from quadtank_tui.ui.windows.statefb import StateFeedbackWindow

@@ -40,7 +40,7 @@ from quadtank_tui.ui.widgets.setup_tables import ControllerTable, ParamTable, Pr
 from quadtank_tui.ui.windows.base import Commands, ConfirmWindow
 from quadtank_tui.ui.labels import type_modified
 from quadtank_tui.ui.windows.calibration import CalibrationWindow
-from quadtank_tui.ui.windows.controller import ControllerTypeWindow, GeneralWindow
+from quadtank_tui.ui.windows.controller_windows import ControllerTypeWindow, GeneralWindow
 from quadtank_tui.ui.windows.mpc import MPCWindow
 from quadtank_tui.ui.windows.statefb import StateFeedbackWindow
 from quadtank_tui.ui.windows.par_files import ParFileWindow

@@ -27,7 +27,7 @@ from textual.widgets import Button, Checkbox, Input, Label, Static
 from textual.widgets.button import ButtonVariant
 
 from quadtank_tui.core.parameters import Parameters
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import Command, ResetControllers, SetParams
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.values import fmt, parse_number

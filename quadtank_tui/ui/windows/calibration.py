@@ -25,7 +25,7 @@ from textual.widgets import Button, Input, Label, Static
 
 from quadtank_tui.core.calibration_run import DONE, HEIGHTS, SETTLING, CalibrationStatus
 from quadtank_tui.files.names import check_file_name
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import CalibrationHeights, CancelCalibration, Command, StartCalibration
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.par import RESERVED

@@ -11,7 +11,7 @@ from textual.widgets.option_list import Option
 
 from quadtank_tui.core.controllers.general import MAX_DEGREE
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Parameters
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import ResetControllers, SetParams
 from quadtank_tui.ui.labels import ELEMENT_NAMES, TYPES, type_index
 from quadtank_tui.ui.widgets.key_button import KeyButton

@@ -25,7 +25,7 @@ from textual.widgets import Button, ProgressBar, Static
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.robust import Robustness
 from quadtank_tui.core.parameters import Parameters
-from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
 from quadtank_tui.app.design import PreviewPlan, preview_plan
 from quadtank_tui.core.design.preview import Preview, PreviewStep, format_preview
 from quadtank_tui.core.plants.common import PlantError
@@ -39,7 +39,7 @@ from quadtank_tui.ui.widgets.sized import PacksForSize
 from quadtank_tui.ui.windows.base import Choice, ChoiceWindow, Window
 
 
-def preview_request(snap: Snapshot, pair: tuple[PID | None, PID | None],
+def preview_request(snap: Snapshot, pair: tuple[PIDTuning | None, PIDTuning | None],
                     G: Sequence[Sequence[DelayTF]] | None) -> PreviewPlan:
     """The preview of `pair` (None: the loop's controller in force) on the plant in use
     (app.design.preview_plan, the one `quadtank design` runs): from the levels and

@@ -22,7 +22,7 @@ from textual.widgets import Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
 from quadtank_tui.core.faults import KINDS
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import SetDisturbance, SetFault
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.values import parse_number

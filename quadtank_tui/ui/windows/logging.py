@@ -19,7 +19,7 @@ from textual.containers import Horizontal
 from textual.widgets import Button, Checkbox, Input, Label, ProgressBar, Static
 
 from quadtank_tui.core.parameters import POINTS_MAX, Parameters
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import Command, LogDiscard, LogOff, LogOn, LogSave, SetParams
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.files.names import LOG_VARIABLES, check_file_name

@@ -19,7 +19,7 @@ from textual.app import ComposeResult
 from textual.widgets import Label
 
 from quadtank_tui.core.parameters import MPC_SECTION
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.ui.windows.base import Field, WholeControllerWindow
 
 S = MPC_SECTION

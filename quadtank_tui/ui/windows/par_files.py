@@ -23,7 +23,7 @@ from textual.widgets import Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
 from quadtank_tui.files.names import check_file_name
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import LoadPar, SavePar
 from quadtank_tui.files.par import RESERVED, SUFFIX
 from quadtank_tui.ui.widgets.key_button import KeyButton

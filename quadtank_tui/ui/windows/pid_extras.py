@@ -13,7 +13,7 @@ from textual.widgets import Label
 
 from quadtank_tui.core.parameters import CONTROLLER_SECTIONS, Parameters
 from quadtank_tui.ui.windows.base import Field
-from quadtank_tui.ui.windows.controller import PIDWindow
+from quadtank_tui.ui.windows.controller_windows import PIDWindow
 
 
 def extra_fields(section: str) -> tuple[Field, ...]:

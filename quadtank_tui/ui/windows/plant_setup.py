@@ -23,7 +23,7 @@ from textual.widgets import Input, Static
 
 from quadtank_tui.core.parameters import PLANT_SETTINGS, Parameters
 from quadtank_tui.core.plants.spec import PREFIX, PlantSpec, level_key
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel

@@ -15,7 +15,7 @@ from textual.widgets import Input, Label, Static
 
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.plants.common import FULL_SCALE_V
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import AddWater
 from quadtank_tui.engine.snapshot import Snapshot
 from quadtank_tui.ui.values import fixed, fmt, parse_number

@@ -9,7 +9,7 @@ from textual.widgets import Input, Label, OptionList
 from textual.widgets.option_list import Option
 
 from quadtank_tui.core.parameters import REFERENCE_SECTIONS, Parameters
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.files.names import PLOT_TYPES
 from quadtank_tui.ui.labels import channel_label

@@ -20,7 +20,7 @@ from textual.widgets import Input, Label, Static
 
 from quadtank_tui.core.parameters import Parameters, SimulationSettings
 from quadtank_tui.core.setup_relations import diff, edit_by_key, outlet, tank_keys, tank_setup
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import SetParams
 from quadtank_tui.ui.values import fmt, parse_number
 from quadtank_tui.ui.widgets.analysis_panel import AnalysisPanel

@@ -8,7 +8,7 @@ import scipy.signal
 from hypothesis import given, settings, strategies as st
 
 from quadtank_tui.core.controllers.general import General, GeneralParams, tustin
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 # A PID with derivative filter written as a General element, degree 2:
 # C(s) = K (1 + 1/(Ti s) + Td s/(1 + s Td/N)) with K=2, Ti=20, Td=5, N=10.

@@ -8,7 +8,7 @@ import pytest
 from quadtank_tui.core.controllers.general import GeneralParams
 from quadtank_tui.core.controllers.matrix import ControllerMatrix, Family, Structure, saturate
 from quadtank_tui.core.controllers.pid import PIDParams
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 P = PIDParams(K=0.0, integral=False)  # a silent element
 

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from quadtank_tui.core.controllers.pid import PID, PIDParams
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 P_ONLY = PIDParams(K=2.0, integral=False)
 

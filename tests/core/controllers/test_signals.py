@@ -11,7 +11,7 @@ from hypothesis import given, settings, strategies as st
 from quadtank_tui.core.controllers.signals import (
     LFSR, Generator, Wave, WaveParams, check_period,
 )
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 
 def samples(g: Generator, n: int) -> list[float]:

@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from quadtank_tui.core.controllers.statefb.controller import AntiWindup, LevelLimit, StateFeedback, u_ssmax
-from quadtank_tui.core.controllers.statefb.design import (
-    DesignError,
+from quadtank_tui.core.controllers.statefb.tracking import AntiWindup, LevelLimit, StateFeedback, u_ssmax
+from quadtank_tui.core.controllers.statefb.placement import (
+    PlacementError,
     OperatingModel,
     bessel_poles,
     design,
@@ -153,15 +153,15 @@ def test_delta_from_his_published_qtp_gains_is_0845() -> None:
 
 
 def test_design_refuses_what_it_cannot_place() -> None:
-    with pytest.raises(DesignError, match="settling time"):
+    with pytest.raises(PlacementError, match="settling time"):
         design(ctp_model(), T)
-    with pytest.raises(DesignError, match="conjugate"):
+    with pytest.raises(PlacementError, match="conjugate"):
         design(ctp_model(), T, poles=[-0.1, -0.2 + 0.1j, -0.3 - 0.1j])
-    with pytest.raises(DesignError, match="negative real part"):
+    with pytest.raises(PlacementError, match="negative real part"):
         design(ctp_model(), T, poles=[0.1], settling_time=20.0)
     uncontrollable = OperatingModel(A=np.array([[-1, 0], [0, -1]]), B=np.array([[1], [0]]), C=np.array([[1, 0]]),
                                     x_e=np.array([1, 1]), u_e=np.array([1]))
-    with pytest.raises(DesignError):
+    with pytest.raises(PlacementError):
         design(uncontrollable, T, settling_time=20.0)
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import pytest
 
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.design.evaluate import Evaluation, evaluate
 from quadtank_tui.core.design.expr import parse_model
 from quadtank_tui.core.design.frequency import margins
@@ -92,7 +92,7 @@ TABLES = [
 ]
 
 
-def design_row(proc: int, method: str, par: float, printed: PID) -> PID:
+def design_row(proc: int, method: str, par: float, printed: PIDTuning) -> PIDTuning:
     """The controller of a row as this program designs it (PID_opt: his printed one)."""
     p = PROCESSES[proc]
     if method == "lambda":
@@ -109,7 +109,7 @@ def _row_id(row: tuple) -> str:
 @pytest.mark.parametrize("row", TABLES, ids=_row_id)
 def test_row_reproduces(row: tuple) -> None:
     proc, line, method, par, kc, ti, td, iae, emax, uo, pm, lm, am, ms = row
-    printed = PID(kc, ti, td)
+    printed = PIDTuning(kc, ti, td)
     c = design_row(proc, method, par, printed)
     assert c.Kc == pytest.approx(kc, rel=0.01), f"Kc, line {line}"
     assert c.Ti == pytest.approx(ti, rel=0.01), f"Ti, line {line}"
@@ -130,7 +130,7 @@ def comparison(proc: int) -> str:
     out = [f"Process {proc} ({PROCESSES[proc].name}); each row: printed, then reproduced", head]
     for row in (r for r in TABLES if r[0] == proc):
         _, line, method, par, kc, ti, td, iae, emax, uo, pm, lm, am, ms = row
-        c = design_row(proc, method, par, PID(kc, ti, td))
+        c = design_row(proc, method, par, PIDTuning(kc, ti, td))
         ev: Evaluation = evaluate(c, parse_model(PROCESSES[proc].simulation), setpoint=False)
         label = f"{method} {par:g}"
         out.append(f"{label + ' (' + str(line) + ')':<16}{kc:>9.4g}{ti:>8.4g}{td:>6.3g}{iae:>8.4g}"
@@ -155,7 +155,7 @@ def test_published_pid_opt_meets_its_ms_with_an_ideal_derivative(row: tuple) -> 
     printed rounding); the N = 10 filter of his evaluation adds up to 0.08."""
     proc, line, _, ms, kc, ti, td = row[:7]
     g = parse_model(PROCESSES[proc].pid)
-    ideal = margins(PID(kc, ti, td, N=1e6).loop(g)).Ms
-    filtered = margins(PID(kc, ti, td).loop(g)).Ms
+    ideal = margins(PIDTuning(kc, ti, td, N=1e6).loop(g)).Ms
+    filtered = margins(PIDTuning(kc, ti, td).loop(g)).Ms
     assert ideal == pytest.approx(ms, abs=0.015), f"line {line}"
     assert filtered >= ideal - 1e-3

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
 from quadtank_tui.core.design.evaluate import evaluate
 from quadtank_tui.core.design.expr import parse_model
 from quadtank_tui.core.design.frequency import is_stable, margins
@@ -80,17 +80,17 @@ def test_pid_rule_meets_ms_and_beats_pi(text: str, ms: float) -> None:
 
 def test_unstable_loop_is_reported() -> None:
     g = parse_model(P1)
-    c = PID(2.0, 1.0)  # far too much gain for a 2.4 s delay
+    c = PIDTuning(2.0, 1.0)  # far too much gain for a 2.4 s delay
     assert not is_stable(c.loop(g))
     ev = evaluate(c, g)
     assert not ev.stable and math.isinf(ev.Ms)
-    assert is_stable(PID(0.1682, 2.13).loop(g))
+    assert is_stable(PIDTuning(0.1682, 2.13).loop(g))
     # wrong sign on a negative-gain process: positive feedback
-    assert not is_stable(PID(33.63, 14).loop(parse_model(P4)))
+    assert not is_stable(PIDTuning(33.63, 14).loop(parse_model(P4)))
 
 
-@pytest.mark.parametrize("text, c", [(P1, PID(0.349, 2.62, 1.23)), (P4, PID(-21.7, 13.5))])
-def test_simulation_is_converged_and_integrates_the_load_away(text: str, c: PID) -> None:
+@pytest.mark.parametrize("text, c", [(P1, PIDTuning(0.349, 2.62, 1.23)), (P4, PIDTuning(-21.7, 13.5))])
+def test_simulation_is_converged_and_integrates_the_load_away(text: str, c: PIDTuning) -> None:
     """IE = d / ki exactly for a PI/PID after a load step d; halving h moves IAE < 0.05 %."""
     g = parse_model(text)
     d = 10.0
@@ -106,7 +106,7 @@ def test_simulation_is_converged_and_integrates_the_load_away(text: str, c: PID)
 def test_delay_is_exact_in_the_simulation() -> None:
     """Open-loop view: with Kc tiny, y stays exactly 0 until the delay has passed."""
     g = parse_model("exp(-3*s)/(s+1)")
-    resp = step_response(g, PID(1e-9, 1e9), d=1.0, horizon=10.0, h=0.01)
+    resp = step_response(g, PIDTuning(1e-9, 1e9), d=1.0, horizon=10.0, h=0.01)
     assert np.all(resp.y[resp.t < 3.0 - 1e-9] == 0.0)
     k = np.searchsorted(resp.t, 5.0)
     assert resp.y[k] == pytest.approx(1.0 - math.exp(-2.0), rel=1e-6)
@@ -115,8 +115,8 @@ def test_delay_is_exact_in_the_simulation() -> None:
 def test_controller_frequency_response_is_one_value_per_frequency() -> None:
     """A P controller (Ti = inf) answered Kc alone, not an array: mypy found it."""
     w = np.array([0.01, 0.1, 1.0])
-    p = PID(2.0, math.inf).freqresp(w)
+    p = PIDTuning(2.0, math.inf).freqresp(w)
     assert p.shape == w.shape
     np.testing.assert_array_equal(p, [2.0, 2.0, 2.0])
-    pi = PID(2.0, 10.0).freqresp(w)
+    pi = PIDTuning(2.0, 10.0).freqresp(w)
     np.testing.assert_allclose(pi, 2.0 * (1.0 + 1.0 / (10.0 * 1j * w)), rtol=1e-15)

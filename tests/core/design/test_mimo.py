@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from quadtank_tui.core.design.controller import PID, DesignError
+from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
 from quadtank_tui.core.design.mimo import (
     closed_loop_poles, design_2x2, design_loop, format_check, lambda11,
     loop2_with_loop1_closed, physical_model,
@@ -31,9 +31,9 @@ def test_rga_at_zero_matches_the_analysis(g_minus, g_plus) -> None:
 
 def test_closed_loop_poles_judge_the_thesis_controllers(g_minus, g_plus) -> None:
     """The thesis's pairs are stable; at P+ two positive PIs are not (det G(0) < 0)."""
-    assert closed_loop_poles(g_minus, PID(3.0, 30.0), PID(2.7, 40.0)).real.max() < 0
-    assert closed_loop_poles(g_plus, PID(1.5, 110.0), PID(-0.12, 220.0)).real.max() < 0
-    assert closed_loop_poles(g_plus, PID(1.5, 110.0), PID(0.12, 220.0)).real.max() > 0
+    assert closed_loop_poles(g_minus, PIDTuning(3.0, 30.0), PIDTuning(2.7, 40.0)).real.max() < 0
+    assert closed_loop_poles(g_plus, PIDTuning(1.5, 110.0), PIDTuning(-0.12, 220.0)).real.max() < 0
+    assert closed_loop_poles(g_plus, PIDTuning(1.5, 110.0), PIDTuning(0.12, 220.0)).real.max() > 0
 
 
 def test_p_minus_design_is_stable_with_positive_gains(g_minus) -> None:
@@ -59,7 +59,7 @@ def test_p_plus_reports_and_designs_k2_negative(g_plus) -> None:
     rhp = [z for z in g2.zeros() if z.real > 0]
     assert len(rhp) == 1 and 0 < rhp[0].real < 0.013
     # its zeros are those of g22 + c1 det G: with a tight loop 1, P+'s zero +0.013
-    tight = loop2_with_loop1_closed(g_plus, PID(1e4, 63.2))
+    tight = loop2_with_loop1_closed(g_plus, PIDTuning(1e4, 63.2))
     assert [round(z.real, 4) for z in tight.zeros() if z.real > 0] == [0.0128]
     text = format_check(chk)
     assert "closed loop stable" in text and "K2 = -" in text
@@ -68,7 +68,7 @@ def test_p_plus_reports_and_designs_k2_negative(g_plus) -> None:
 def test_sequential_model_is_g22_when_loops_do_not_interact(g_minus) -> None:
     zero = type(g_minus[0][1])((0.0,), (1.0,))
     G = ((g_minus[0][0], zero), (zero, g_minus[1][1]))
-    eff = loop2_with_loop1_closed(G, PID(1.0, 60.0))
+    eff = loop2_with_loop1_closed(G, PIDTuning(1.0, 60.0))
     w = np.logspace(-3, 0, 20)
     np.testing.assert_allclose(eff.freqresp(w), g_minus[1][1].freqresp(w), rtol=1e-9)
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from quadtank_tui.app.design import design_pair, preview_plan, robustness_of
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.design.mimo import model_in_use
 from quadtank_tui.core.design.robust import Spread, draw_plants, format_robustness, robustness, steady_state
 from quadtank_tui.core.plants.johansson import steady_state_levels
@@ -57,6 +57,6 @@ def test_a_pair_unstable_on_the_nominal_plant_is_said_over_the_spread() -> None:
     params = read_par(PARAMS / "nonminphase.par").params
     plants = draw_plants(params.quadtank_constants(), 40)
     lv = params.operating_levels()
-    rb = robustness(plants, (lv[0], lv[1]), (PID(3.0, 63.0), PID(1.5, 90.0)), 2.0, 1500.0)
+    rb = robustness(plants, (lv[0], lv[1]), (PIDTuning(3.0, 63.0), PIDTuning(1.5, 90.0)), 2.0, 1500.0)
     assert rb.steps[1].unstable.sum() > 20
     assert any("go unstable" in w for w in rb.warnings)

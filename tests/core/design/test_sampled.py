@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from quadtank_tui.core.design.controller import PID
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.design.evaluate import evaluate
 from quadtank_tui.core.design.expr import parse_model
 from quadtank_tui.core.design.mimo import design_2x2, model_in_use, slowest_pole
@@ -46,7 +46,7 @@ def test_ms_designs_meet_their_ms_on_the_sampled_loop(h: float) -> None:
 
 
 def test_a_fast_sampled_loop_gives_the_continuous_figures() -> None:
-    g, c = parse_model("exp(-0.2*s)/(s+1)^2"), PID(1.2, 1.5)
+    g, c = parse_model("exp(-0.2*s)/(s+1)^2"), PIDTuning(1.2, 1.5)
     cont, samp = evaluate(c, g), evaluate(c, g, h=0.01)
     for name in ("Ms", "crossover", "IAE", "Emax"):
         assert getattr(samp, name) == pytest.approx(getattr(cont, name), rel=5e-3), name
@@ -68,7 +68,7 @@ def test_the_sampled_model_has_the_dead_time_of_whole_samples_and_a_fraction() -
     np.testing.assert_allclose(y, np.where(t >= 2.35, 1.0 - np.exp(-(t - 2.35)), 0.0), atol=1e-12)
 
 
-def _core_pid_loop(m, c: PID, *, r: float = 0.0, d: float = 0.0, samples: int,
+def _core_pid_loop(m, c: PIDTuning, *, r: float = 0.0, d: float = 0.0, samples: int,
                    limits: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     pid = running_pid(c, m.h)
     x, y, u = np.zeros(m.A.shape[0]), [], []
@@ -83,8 +83,8 @@ def _core_pid_loop(m, c: PID, *, r: float = 0.0, d: float = 0.0, samples: int,
     return np.array(y), np.array(u)
 
 
-@pytest.mark.parametrize("c", [PID(14.9, 3.75), PID(28.23, 1.676, 0.04114)])
-def test_the_simulation_is_core_pid_sample_by_sample(c: PID) -> None:
+@pytest.mark.parametrize("c", [PIDTuning(14.9, 3.75), PIDTuning(28.23, 1.676, 0.04114)])
+def test_the_simulation_is_core_pid_sample_by_sample(c: PIDTuning) -> None:
     """Limits, anti-windup and the derivative filter included: the same numbers as
     stepping core.controllers.pid.PID itself."""
     m = sample(IDENTIFIED, 0.5)
@@ -108,7 +108,7 @@ def test_the_table_marks_saturating_rows_and_never_suggests_them() -> None:
 def test_a_chattering_candidate_is_marked() -> None:
     """Kc = 40 puts a closed-loop pole near z = -0.67 (a - Kc b, a = e^(-1/62.14), b = K (1 - a)):
     stable, but the pump reverses every sample."""
-    ev = evaluate_sampled(PID(40.0, 50.0), IDENTIFIED, 1.0, u0=0.5)
+    ev = evaluate_sampled(PIDTuning(40.0, 50.0), IDENTIFIED, 1.0, u0=0.5)
     assert ev.evaluation.stable and ev.limits is not None and ev.limits.chatters
     assert ev.limits.problem is not None and "chatters" in ev.limits.problem
 
@@ -117,7 +117,7 @@ def test_the_2x2_check_is_the_sampled_loops() -> None:
     """The pair of the issue (designed in continuous time, Ts = 1 s in force): x said
     stable; sampled at 1 s it is not.  The sampled design of P- is."""
     G = model_in_use(PRESET)
-    pair = (PID(129.8, 0.349), PID(146.4, 0.412))
+    pair = (PIDTuning(129.8, 0.349), PIDTuning(146.4, 0.412))
     assert slowest_pole(G, *pair) < 0.0  # the continuous-time check
     assert slowest_pole(G, *pair, h=1.0) > 0.0
     chk = design_2x2(G, "pi-ms", h=1.0)

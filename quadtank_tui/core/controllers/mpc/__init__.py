@@ -5,6 +5,6 @@ offset-free MPC with a Kalman filter, solved each sample by OSQP.
 - model.py: the linearized, ZOH-discretized model with its disturbance model
 - kalman.py: the steady-state Kalman filter on the augmented state
 - qp.py: the sparse QP, its OSQP solver and the unconstrained (LQR) gain
-- controller.py: the design and the controller stepped once per sample
+- predictive.py: the design and the controller stepped once per sample
 - simulate.py: the nonlinear closed loop under MPC or the PI matrix, and its figures
 """

@@ -29,10 +29,10 @@ import numpy as np
 from quadtank_tui.core.controllers.mpc.settings import SECTION, MPCSettings
 from quadtank_tui.core.plants.base import Plant
 from quadtank_tui.core.plants.linear import zoh
-from quadtank_tui.core.controllers.statefb.design import OperatingModel
+from quadtank_tui.core.controllers.statefb.placement import OperatingModel
 from quadtank_tui.core.controllers.statefb.plants import _CM_PER_UNIT as CM_PER_UNIT  # LevelMargin is in cm
 from quadtank_tui.core.controllers.statefb.plants import operating_model
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 if TYPE_CHECKING:
     from quadtank_tui.core.parameters import Parameters

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from quadtank_tui.core.validation import ParameterError, check_range
+from quadtank_tui.core.ranges import ParameterError, check_range
 
 SECTION = "MPC"
 DISTURBANCE_MODELS = ("input", "output")

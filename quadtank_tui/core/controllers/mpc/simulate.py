@@ -19,7 +19,7 @@ import numpy as np
 from quadtank_tui.core import faults as fx
 from quadtank_tui.core.controllers.matrix import ControllerMatrix
 from quadtank_tui.core.metrics import loop_metrics
-from quadtank_tui.core.controllers.mpc.controller import MPC, percentiles
+from quadtank_tui.core.controllers.mpc.predictive import MPC, percentiles
 from quadtank_tui.core.plants.base import Plant
 
 FULL_SCALE_V = 10.0

@@ -11,7 +11,7 @@ here, so the command prints the design the loop runs.
 from __future__ import annotations
 
 from quadtank_tui.core.parameters import Parameters
-from quadtank_tui.core.controllers.statefb.design import Design
+from quadtank_tui.core.controllers.statefb.placement import Design
 
 
 def design_in_use(p: Parameters) -> Design:

@@ -52,25 +52,25 @@ from quadtank_tui.core.controllers.statefb.bessel import BESSEL_POLES  # noqa: E
 PLACEMENT_METHOD = "YT"
 
 
-class DesignError(ValueError):
+class PlacementError(ValueError):
     """The model or the poles asked for do not give a state-feedback design."""
 
 
 def _matrix(name: str, value: object, rows: int | None = None, cols: int | None = None) -> np.ndarray:
     a = np.atleast_2d(np.array(value, dtype=float))  # a copy: it is made read-only
     if a.ndim != 2 or not np.all(np.isfinite(a)):
-        raise DesignError(f"{name} must be a finite matrix")
+        raise PlacementError(f"{name} must be a finite matrix")
     if rows is not None and a.shape[0] != rows:
-        raise DesignError(f"{name} must have {rows} rows, got {a.shape[0]}")
+        raise PlacementError(f"{name} must have {rows} rows, got {a.shape[0]}")
     if cols is not None and a.shape[1] != cols:
-        raise DesignError(f"{name} must have {cols} columns, got {a.shape[1]}")
+        raise PlacementError(f"{name} must have {cols} columns, got {a.shape[1]}")
     return a
 
 
 def _vector(name: str, value: object, size: int) -> np.ndarray:
     v = np.array(value, dtype=float).reshape(-1)
     if v.size != size or not np.all(np.isfinite(v)):
-        raise DesignError(f"{name} must be {size} finite numbers")
+        raise PlacementError(f"{name} must be {size} finite numbers")
     return v
 
 
@@ -95,16 +95,16 @@ class OperatingModel:
         A = _matrix("A", self.A)
         n = A.shape[0]
         if A.shape != (n, n):
-            raise DesignError(f"A must be square, got {A.shape[0]}x{A.shape[1]}")
+            raise PlacementError(f"A must be square, got {A.shape[0]}x{A.shape[1]}")
         B = _matrix("B", self.B, n)
         C = _matrix("C", self.C, None, n)
         m, p = B.shape[1], C.shape[0]
         if p > m:
-            raise DesignError(f"{p} tracked outputs need at least {p} inputs, the model has {m}")
+            raise PlacementError(f"{p} tracked outputs need at least {p} inputs, the model has {m}")
         u_min = np.zeros(m) if self.u_min is None else _vector("u_min", self.u_min, m)
         u_max = np.full(m, np.inf) if self.u_max is None else np.array(self.u_max, dtype=float).reshape(-1)
         if u_max.size != m or np.any(np.isnan(u_max)) or np.any(u_max <= u_min):
-            raise DesignError("u_max must be above u_min for every input")
+            raise PlacementError("u_max must be above u_min for every input")
         for name, value in (("A", A), ("B", B), ("C", C), ("x_e", _vector("x_e", self.x_e, n)),
                             ("u_e", _vector("u_e", self.u_e, m)), ("u_min", u_min), ("u_max", u_max)):
             value.setflags(write=False)
@@ -135,9 +135,9 @@ def augment(Phi: np.ndarray, Gamma: np.ndarray, C: np.ndarray) -> tuple[np.ndarr
 def bessel_poles(order: int, settling_time: float) -> np.ndarray:
     """Table 8's poles of `order` for a settling time in s (rad/s)."""
     if order not in BESSEL_POLES:
-        raise DesignError(f"Table 8 has Bessel poles of order 1..6, {order} are needed")
+        raise PlacementError(f"Table 8 has Bessel poles of order 1..6, {order} are needed")
     if not settling_time > 0 or not math.isfinite(settling_time):
-        raise DesignError(f"the settling time must be > 0 s, got {settling_time!r}")
+        raise PlacementError(f"the settling time must be > 0 s, got {settling_time!r}")
     return np.array(BESSEL_POLES[order]) / settling_time
 
 
@@ -205,34 +205,34 @@ def design(
     `poles` are s-plane poles (rad/s) the user fixes; with `use_zeros` the plant's
     slow zeros come first (:func:`slow_zeros`, Desautel 4.1.2); the rest, up to n + p,
     are Bessel poles scaled to `settling_time`.  Giving all n + p poles needs no
-    settling time.  DesignError says what is wrong (order, conjugates, controllability).
+    settling time.  PlacementError says what is wrong (order, conjugates, controllability).
     """
     if not T > 0 or not math.isfinite(T):
-        raise DesignError(f"the sampling time must be > 0 s, got {T!r}")
+        raise PlacementError(f"the sampling time must be > 0 s, got {T!r}")
     order = model.n + model.p
     chosen = [complex(s) for s in poles]
     if use_zeros:
         if settling_time is None:
-            raise DesignError("choosing the slow zeros needs a settling time")
+            raise PlacementError("choosing the slow zeros needs a settling time")
         chosen = list(slow_zeros(model, settling_time)) + chosen
     fixed = np.array(chosen, dtype=complex)
     if fixed.size > order:
-        raise DesignError(f"{fixed.size} poles given, the design model has order {order}")
+        raise PlacementError(f"{fixed.size} poles given, the design model has order {order}")
     if np.any(fixed.real >= 0):
-        raise DesignError("every pole given must have a negative real part")
+        raise PlacementError("every pole given must have a negative real part")
     if fixed.size < order:
         if settling_time is None:
-            raise DesignError(f"{order - fixed.size} poles are not given: a settling time is needed")
+            raise PlacementError(f"{order - fixed.size} poles are not given: a settling time is needed")
         fixed = np.concatenate([fixed, bessel_poles(order - fixed.size, settling_time)])
     if not _conjugate_closed(fixed):
-        raise DesignError("complex poles must come in conjugate pairs")
+        raise PlacementError("complex poles must come in conjugate pairs")
     Phi, Gamma = zoh(model.A, model.B, T)
     Phi_d, Gamma_d = augment(Phi, Gamma, model.C)
     poles_z = np.exp(fixed * T)
     L = _place(Phi_d, Gamma_d, poles_z)
     placed = _match(np.linalg.eigvals(Phi_d - Gamma_d @ L), poles_z)
     if np.max(np.abs(placed - poles_z)) > 1e-6:
-        raise DesignError("the poles could not be placed (is the model controllable?)")
+        raise PlacementError("the poles could not be placed (is the model controllable?)")
     return Design(model, float(T), Phi, Gamma, Phi_d, Gamma_d, fixed, poles_z, L,
                   robustness(Phi, Gamma, model.C, L[:, : model.n], L[:, model.n:]))
 
@@ -272,7 +272,7 @@ def _place(Phi_d: np.ndarray, Gamma_d: np.ndarray, poles_z: np.ndarray) -> np.nd
             warnings.simplefilter("ignore", UserWarning)
             result = signal.place_poles(Phi_d, Gamma_d, poles_z, method=PLACEMENT_METHOD)
     except (ValueError, np.linalg.LinAlgError) as exc:
-        raise DesignError(f"pole placement failed: {exc}") from None
+        raise PlacementError(f"pole placement failed: {exc}") from None
     return np.real_if_close(result.gain_matrix).real
 
 
@@ -337,7 +337,7 @@ class Margins:
 def loop_margins(d: Design) -> Margins:
     """Margins of L(z) = L_d (zI - Phi_d)^-1 Gamma_d (single-input designs)."""
     if d.model.m != 1:
-        raise DesignError("loop margins are computed for single-input designs")
+        raise PlacementError("loop margins are computed for single-input designs")
     grid = _freq_grid()
 
     def loop(theta: float) -> complex:
@@ -348,7 +348,7 @@ def loop_margins(d: Design) -> Margins:
     phase = np.unwrap(np.angle(values))
     crossings = np.nonzero((mag[:-1] - 1.0) * (mag[1:] - 1.0) <= 0)[0]
     if crossings.size == 0:
-        raise DesignError("the loop gain never crosses 1")
+        raise PlacementError("the loop gain never crosses 1")
     i = int(crossings[0])
     wc = optimize.brentq(lambda t: abs(loop(t)) - 1.0, grid[i], grid[i + 1], xtol=1e-12)
     ph = phase[i] + math.remainder(np.angle(loop(wc)) - phase[i], 2 * math.pi)

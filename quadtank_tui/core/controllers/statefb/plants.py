@@ -29,11 +29,11 @@ import numpy as np
 
 from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
 from quadtank_tui.core.plants.base import Plant
-from quadtank_tui.core.controllers.statefb.controller import LevelLimit, StateFeedback
-from quadtank_tui.core.controllers.statefb.design import Design, OperatingModel
+from quadtank_tui.core.controllers.statefb.tracking import LevelLimit, StateFeedback
+from quadtank_tui.core.controllers.statefb.placement import Design, OperatingModel
 from quadtank_tui.core.controllers.statefb.quadtank import NormalizedStateFeedback, _aw, design_with, info_of
 from quadtank_tui.core.controllers.statefb.settings import StateFeedbackParams
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 Pair = tuple[float, float]
 

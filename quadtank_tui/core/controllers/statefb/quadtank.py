@@ -20,10 +20,10 @@ import numpy as np
 from quadtank_tui.core.analysis import linearize
 from quadtank_tui.core.plants.common import FULL_SCALE_V, PlantError
 from quadtank_tui.core.plants.johansson import PlantParams, steady_state_inputs
-from quadtank_tui.core.controllers.statefb.controller import AntiWindup, LevelLimit, StateFeedback, u_ssmax
-from quadtank_tui.core.controllers.statefb.design import Design, DesignError, OperatingModel, design
+from quadtank_tui.core.controllers.statefb.tracking import AntiWindup, LevelLimit, StateFeedback, u_ssmax
+from quadtank_tui.core.controllers.statefb.placement import Design, PlacementError, OperatingModel, design
 from quadtank_tui.core.controllers.statefb.settings import StateFeedbackParams
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 
 Pair = tuple[float, float]
 SECTION = "STATE FEEDBACK"
@@ -68,7 +68,7 @@ def design_with(model: OperatingModel, s: StateFeedbackParams, h: float) -> Desi
     """The design of `model` with these settings; ParameterError names the key."""
     try:
         return design(model, h, settling_time=s.settling_time, poles=s.pole_values(), use_zeros=s.use_zeros)
-    except DesignError as exc:
+    except PlacementError as exc:
         key = "Poles" if s.pole_values() or "poles" in str(exc) else "Ts"
         raise ParameterError(f"{SECTION}.{key}", str(exc)) from None
 

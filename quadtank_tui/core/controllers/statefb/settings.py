@@ -5,7 +5,7 @@ Poles        s-plane poles (rad/s) to use before the Bessel ones: "zeros" (the
              plant's slow zeros, Desautel 4.1.2; the default), "none", or numbers,
              e.g. "-0.0575 -0.0225" (his QTP) or "-0.2+0.1j -0.2-0.1j"
 L3           anti-windup gain as a multiple of L2^-1 (1: the integral part of u is
-             pulled exactly back to the limit; controller.py)
+             pulled exactly back to the limit; tracking.py)
 Smart        1: the smart integrator; 0: the plain one (for comparison, 3.3)
 LevelMargin  cm below the top of an upper tank where the level limit acts (3.2.2)
 Level1/2     the lower-tank levels, cm, the design linearizes at (the upper levels
@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass
 
 from quadtank_tui.core.controllers.statefb.bessel import BESSEL_POLES
-from quadtank_tui.core.validation import ParameterError, check_range
+from quadtank_tui.core.ranges import ParameterError, check_range
 
 #: Largest design-model order Table 8 covers (4 states + 2 integrators on the QTP).
 MAX_ORDER = max(BESSEL_POLES)

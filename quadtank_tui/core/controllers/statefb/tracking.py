@@ -38,7 +38,7 @@ from typing import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from quadtank_tui.core.controllers.statefb.design import Design, DesignError
+from quadtank_tui.core.controllers.statefb.placement import Design, PlacementError
 
 
 class AntiWindup(str, Enum):
@@ -54,7 +54,7 @@ def u_ssmax(alpha: float, beta: float, level: float, g: float = 981.0) -> float:
     U_ssmax = alpha sqrt(2 g x_max) / beta; alpha is the outlet's coefficient (an outlet
     area, cm^2, per unit tank area), beta the pump's (cm/s per V)."""
     if level < 0:
-        raise DesignError(f"a level limit must be >= 0 cm, got {level:g}")
+        raise PlacementError(f"a level limit must be >= 0 cm, got {level:g}")
     return alpha * math.sqrt(2.0 * g * level) / beta
 
 
@@ -103,7 +103,7 @@ class StateFeedback:
         self.level_limits = tuple(level_limits)
         for lim in self.level_limits:
             if not (0 <= lim.state < d.model.n and 0 <= lim.pump < d.model.m):
-                raise DesignError(f"level limit on state {lim.state}, pump {lim.pump}: no such state or pump")
+                raise PlacementError(f"level limit on state {lim.state}, pump {lim.pump}: no such state or pump")
         self.x_a = np.zeros(d.model.p)
         self._last_x = np.array(d.model.x_e, dtype=float)
 
@@ -156,7 +156,7 @@ class StateFeedback:
     def redesign(self, new: Design) -> None:
         """New gains or model between samples; u at the last state does not jump."""
         if (new.model.n, new.model.m, new.model.p) != (self._d.model.n, self._d.model.m, self._d.model.p):
-            raise DesignError("a redesign must keep the numbers of states, inputs and outputs")
+            raise PlacementError("a redesign must keep the numbers of states, inputs and outputs")
         d = self._d
         u_now = d.model.u_e + d.L2 @ self.x_a - d.L1 @ (self._last_x - d.model.x_e)
         self._d = new
@@ -179,7 +179,7 @@ class StateFeedback:
 
 def _check_l3(l3: float) -> float:
     if not (isinstance(l3, (int, float)) and math.isfinite(l3) and l3 >= 0):
-        raise DesignError(f"L3 must be a number >= 0, got {l3!r}")
+        raise PlacementError(f"L3 must be a number >= 0, got {l3!r}")
     return float(l3)
 
 

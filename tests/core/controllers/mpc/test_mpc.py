@@ -11,11 +11,11 @@ import pytest
 from scipy.linalg import solve_discrete_are
 
 from quadtank_tui.core.controllers.matrix import ELEMENTS, ControllerMatrix
-from quadtank_tui.core.controllers.mpc.controller import MPC, MPCStats, design_mpc, percentiles
+from quadtank_tui.core.controllers.mpc.predictive import MPC, MPCStats, design_mpc, percentiles
 from quadtank_tui.core.controllers.mpc.model import plant_in_use
 from quadtank_tui.core.controllers.mpc.settings import MPCSettings
 from quadtank_tui.core.controllers.mpc.simulate import Scenario, figures, run_mpc, run_pi, standard_scenario
-from quadtank_tui.core.validation import ParameterError
+from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.files.par import read_par
 
 PARAMS = Path(__file__).resolve().parents[4] / "params"

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from quadtank_tui.core.controllers.mpc.controller import MPC, design_mpc
+from quadtank_tui.core.controllers.mpc.predictive import MPC, design_mpc
 from quadtank_tui.core.controllers.mpc.model import plant_in_use
 from quadtank_tui.core.controllers.mpc.settings import MPCSettings
 from quadtank_tui.core.controllers.mpc.simulate import run_mpc, standard_scenario
