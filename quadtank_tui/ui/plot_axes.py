@@ -92,12 +92,17 @@ def _label_every(step: float, rows: int) -> int:
     with room between labels (every row of a small plot, else about one in three)."""
     most = max(8, rows // 3 + 1)
     mantissa = step / 10.0 ** math.floor(math.log10(step) + 1e-9)
+    round_ks = []
     for k in (1, 2, 4, 5, 10, 20, 40, 50, 100):
         m = mantissa * k
         m /= 10.0 ** math.floor(math.log10(m) + 1e-9)
-        if any(abs(m - nice) < 1e-6 for nice in (1, 2, 2.5, 5)) and math.ceil(rows / k) <= most:
-            return k
-    return 100
+        if any(abs(m - nice) < 1e-6 for nice in (1, 2, 2.5, 5)):
+            round_ks.append(k)
+    fits = [k for k in round_ks if math.ceil(rows / k) <= most]
+    k = fits[0] if fits else 100
+    if rows // k < 3:  # two labels on 9 rows of 0.02 (every 5th): every row rather than so few
+        k = max((j for j in round_ks if rows // j >= 3), default=k)
+    return k
 
 
 # --- the time axis ---------------------------------------------------------------------
