@@ -88,6 +88,10 @@ async def test_the_window_waits_follows_summarizes_and_records(make_engine: Call
         await pilot.pause()
         message = str(app.screen.query_one("#message", Static).content)
         assert message.startswith("Recorded in records/pminus-pi-"), message
+        await pilot.press("p", "m")  # Main's Pause and Manual act with the window open
+        await settled(pilot)
+        assert engine.snapshot().state == "Pause" and engine.snapshot().control == "Manual"
+        assert isinstance(app.screen, ExerciseWindow)
     (record,) = (tmp_path / "records").iterdir()
     graded = grade_record(record, load_exercises([EXERCISE]))
     figures = {r.name: r.figure for r in graded.requirements}

@@ -16,6 +16,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
 
+from textual import events
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
@@ -73,6 +74,22 @@ class ExerciseWindow(LiveWindow):
 
     #: where the records of attempts by hand go (a folder of the working directory)
     RECORDS = Path("records")
+
+    #: Main's keys that act with the window open, so that the student runs the attempt
+    #: while reading it: the states, the modes, the input signals, the speed.
+    THROUGH = ("r", "p", "R", "m", "a", "i", "I", "o", "O", "plus", "minus", "right_square_bracket",
+               "left_square_bracket", "right_curly_bracket", "left_curly_bracket")
+
+    async def on_key(self, event: events.Key) -> None:
+        if event.key not in self.THROUGH:
+            return
+        main = getattr(self.app, "main", None)
+        binding = next((b for b in getattr(type(main), "BINDINGS", ()) if getattr(b, "key", None) == event.key), None)
+        if main is None or binding is None:
+            return
+        event.stop()
+        event.prevent_default()
+        await main.run_action(binding.action)
 
     def __init__(self, snapshot: Snapshot, tracker: LiveExercise, engine: EngineHandle, *,
                  opener: str | None = None, wall_clock: Callable[[], float] = time.time) -> None:
