@@ -75,14 +75,16 @@ import re
 import secrets
 import stat
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 from quadtank_tui.files.proc import pid_alive, process_owner, process_start
+from quadtank_tui.files.shared import shown
 from quadtank_tui.session.lab import LabConfig, ensure_runtime_dir
 from quadtank_tui.session.roles import NotPermitted, current_user, is_administrator, user_name
+from quadtank_tui.session.runtime import valid_id
 
 #: A lock record is a few hundred bytes.
 MAX_RECORD = 4096
@@ -201,7 +203,12 @@ def _read(path: Path, uid: int) -> tuple[_Record, int] | None:
         if not stat.S_ISREG(st.st_mode) or st.st_uid != uid:
             return None
         rec = _Record.from_json(os.read(fd, MAX_RECORD).decode("utf-8", "replace"))
-        return None if rec is None or rec.uid != uid else (rec, st.st_ctime_ns)
+        if rec is None or rec.uid != uid:
+            return None
+        # What is shown of it (in a refusal on another user's terminal) carries no
+        # control character: the name escaped, the session only if it is a session id.
+        session = rec.session if isinstance(rec.session, str) and valid_id(rec.session) else None
+        return replace(rec, user=shown(rec.user), session=session), st.st_ctime_ns
     except OSError:
         return None
     finally:

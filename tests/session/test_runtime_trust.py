@@ -185,3 +185,20 @@ def test_quadtank_sessions_on_a_hostile_folder(tmp_path: Path) -> None:
     assert "  alice\\x1b]0;PWNED\\x07" in lines[1]
     assert "names 'alice\\x1b]0;PWNED\\x07" in p.stdout  # root is an administrator: told what was ignored
     assert (tmp_path / "victim" / "b.json").read_text() == "root's\n"
+
+
+def test_a_lock_records_name_and_session_are_shown_escaped(tmp_path: Path) -> None:
+    """A genuine lock record (ours, our live pid) whose user field is escapes and
+    whose session is a path: a refusal names it escaped, and no session."""
+    from quadtank_tui.files.proc import process_start
+    from quadtank_tui.session.lab import LabConfig
+    from quadtank_tui.session.lock import holder_of, lock_path
+
+    lab = LabConfig(runtime_dir=tmp_path / "rt")
+    device = "192.0.2.9:502/1"
+    lock_path(device, lab).write_text(json.dumps({
+        "user": ESCAPES, "uid": os.getuid(), "pid": os.getpid(), "start": process_start(os.getpid()),
+        "since": "2026-12-01T10:00:00+00:00", "session": "../../victim", "token": "t"}))
+    held = holder_of(device, lab)
+    assert held is not None and held.session is None and "\x1b" not in str(held)
+    assert f"driven by alice\\x1b]0;PWNED\\x07\\x1b[2J\\x9b31m\\u202e (pid {os.getpid()}) since" in str(held)
