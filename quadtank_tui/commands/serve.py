@@ -9,7 +9,6 @@ CAP_SETGID), lab-file accounts from a lab file the administrators do not keep.
 from __future__ import annotations
 
 import argparse
-import asyncio
 import ipaddress
 import os
 import signal
@@ -147,6 +146,8 @@ def prepare(args: argparse.Namespace) -> tuple[Any, tuple[str, int, Any]]:
 
 def run(server: Any, host: str, port: int, tls: Any) -> int:
     """Serve until SIGINT or SIGTERM; open tabs are detached (never stopped) on the way out."""
+    import asyncio  # here, not at the top: building the parser loads no event loop
+
     from aiohttp import web
 
     async def main() -> None:
