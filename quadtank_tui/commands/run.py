@@ -9,7 +9,7 @@ import signal
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from quadtank_tui.commands import UsageError, warn
+from quadtank_tui.commands import UsageError, say, warn
 from quadtank_tui.commands import exercise as exercise_command
 from quadtank_tui.commands import lab as lab_command
 from quadtank_tui.commands import sessions as sessions_command
@@ -112,7 +112,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     previous = {sig: signal.signal(sig, _terminate) for sig in (RIG_STOP_SIGNALS if daq else STOP_SIGNALS)}
     try:
         result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
-                              seed=args.seed, clock=clock, speed=args.speed, daq=daq)
+                              seed=args.seed, clock=clock, speed=args.speed, daq=daq, say=say)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

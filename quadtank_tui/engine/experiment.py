@@ -12,6 +12,7 @@ from __future__ import annotations
 import collections
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 from quadtank_tui.core.metrics import LoopMetrics, loop_metrics
 from quadtank_tui.engine.commands import (
@@ -77,15 +78,22 @@ def event_commands(event: Event, engine: Engine) -> list[Command]:
     raise ValueError(f"unknown action {a!r}")
 
 
-def run_experiment(engine: Engine, script: Script | None, duration: float) -> int:
-    """Run `duration` s of loop time applying the script's events; returns samples."""
+def run_experiment(engine: Engine, script: Script | None, duration: float,
+                   watch: Callable[[LoopTime], None] | None = None) -> int:
+    """Run `duration` s of loop time applying the script's events; returns samples.
+    `watch(elapsed)` runs ahead of every sample too (what it raises ends the run)."""
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
     events = collections.deque(script.events if script else ())
     name = script.file if script else ""
-    if not events:  # nothing to apply: no call ahead of every sample
-        return engine.run_for(duration)
-    return engine.run_for(duration, before=lambda elapsed: apply_due(engine, events, elapsed, name))
+    if not events:  # nothing to apply: no call ahead of every sample but the watch
+        return engine.run_for(duration, before=watch)
+
+    def before(elapsed: LoopTime) -> None:
+        if watch is not None:
+            watch(elapsed)
+        apply_due(engine, events, elapsed, name)
+    return engine.run_for(duration, before=before)
 
 
 def apply_due(engine: Engine, events: collections.deque[Event], elapsed: LoopTime, name: str) -> None:

@@ -11,6 +11,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 from quadtank_tui.core.parameters import ControlMode
 from quadtank_tui.core.ranges import ParameterError
@@ -19,6 +20,7 @@ from quadtank_tui.engine.commands import CommandResult, LogOn, SetOperation, Set
 from quadtank_tui.engine.experiment import format_summary, run_experiment, summarize
 from quadtank_tui.engine.history import DEFAULT_CAPACITY
 from quadtank_tui.engine.logsession import LogExists, LogRefused, LogSession
+from quadtank_tui.engine.driver import LoopTime
 from quadtank_tui.engine.runner import ClockKind, Engine, build_engine, load_parameters, virtual_epoch
 from quadtank_tui.files.log_writer import SUFFIX, check_log_folder, file_identity
 from quadtank_tui.files.names import check_file_name
@@ -71,6 +73,7 @@ def run_headless(
     speed: float | None = None,
     params_dir: Path = Path("params"),
     daq: ProcessBackend | None = None,
+    say: Callable[[str], None] | None = None,
 ) -> HeadlessResult:
     """Run and save `out`.  Without a script the run logs from the start, for the
     whole duration, in Run.  A `.par` in Automatic starts in Automatic with its
@@ -78,15 +81,43 @@ def run_headless(
     process (the clock must then be paced: real time, or the rig's speed factor);
     a link fault pauses it and the status is 1; a run whose interlock held a pump
     at 0 ends with INTERLOCK_ACTED (3) and the summary says which tank, which
-    pumps, how many samples and when."""
+    pumps, how many samples and when.  A log that fails (a full disk) ends the run
+    at once: `say` (stderr) tells it then, and again on the way out if the run ends
+    by an exception (Ctrl-C, SIGTERM); the summary's LOG FAULT line says it at the end."""
     run = prepare_headless(par=par, script=script, duration=duration, out=out, seed=seed, clock=clock,
                            speed=speed, params_dir=params_dir, daq=daq)
+    log = run.engine.loop.log
+
+    def watch(elapsed: LoopTime) -> None:
+        error = log.failed
+        if error is not None:
+            if say is not None:
+                say(f"quadtank: LOG FAULT at t = {elapsed.seconds:g} s: {error}; the run stops here")
+            raise LogFault(error, elapsed.seconds)
+
     try:
-        run_experiment(run.engine, script, duration)
+        try:
+            run_experiment(run.engine, script, duration, watch=watch)
+        except LogFault as fault:  # said; the summary says it again, over the time it ran
+            run = dataclasses.replace(run, duration=fault.at)
         result = finish_headless(run)
+    except BaseException:  # Ctrl-C, SIGTERM, SIGHUP, a fault: the log's fault is said on this way out too
+        run.engine.stop()
+        error = log.error
+        if error is not None and say is not None:
+            say(f"quadtank: LOG FAULT  {error}")
+        raise
     finally:
         run.engine.stop()
     return _after_stop(result, run.engine)
+
+
+class LogFault(Exception):
+    """The run's log failed (a full disk) `at` s of loop time: the run stops there, its rows kept."""
+
+    def __init__(self, error: str, at: float) -> None:
+        super().__init__(error)
+        self.at = at
 
 
 @dataclass(frozen=True)

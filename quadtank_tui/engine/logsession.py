@@ -85,6 +85,13 @@ class LogSession:
         self._settle()
         return self._error
 
+    @property
+    def failed(self) -> str | None:
+        """Why the log stopped early, as far as the loop has taken it in (a failed
+        write is taken in at the next sample): no wait for the file thread, so it
+        may be asked every sample."""
+        return self._error
+
     def _settle(self) -> None:
         """Wait for the file operations, and take in a failed write's outcome."""
         self.files.drain()

@@ -37,7 +37,7 @@ def test_two_runs_logging_as_data_in_one_folder_keep_their_own_rows(
     real = headless.run_experiment
     inner: list[int] = []
 
-    def b_runs_meanwhile(engine, scr, duration):
+    def b_runs_meanwhile(engine, scr, duration, watch=None):
         if inner:  # B itself
             return real(engine, scr, duration)
         real(engine, scr, duration / 2)  # A is logging
@@ -68,7 +68,7 @@ def test_a_run_saving_the_same_log_meanwhile_is_not_overwritten(
     real = headless.run_experiment
     inner: list[int] = []
 
-    def b_runs_meanwhile(engine, scr, duration):
+    def b_runs_meanwhile(engine, scr, duration, watch=None):
         if not inner:
             inner.append(-1)
             inner[0] = main(["run", "--duration", "20", "--log", str(out)])
@@ -264,3 +264,55 @@ def test_a_log_path_to_a_device_a_folder_or_no_folder_is_refused(
     assert any(line.startswith(f"quadtank: error: {said}") for line in err), err
     assert sorted(os.listdir(tmp_path)) == before and not Path("/dev/null.log").exists()
     assert not (tmp_path / "logs.log").exists() and not (tmp_path / "none").exists()
+
+
+def _disk_with_room(monkeypatch: pytest.MonkeyPatch, rows: int) -> None:
+    """The log's file on a disk that takes its header and `rows` rows of y1 y2 u1 u2."""
+    real_open = open
+    header = 86
+    row = len("0.622070  0.623535  0.300000  0.300000\n")
+    monkeypatch.setattr(log_module, "open", lambda f, mode, buffering=-1: _FullDisk(
+        real_open(f, mode, buffering=buffering), room=header + rows * row + 17), raising=False)
+
+
+def test_a_full_disk_at_x1000_is_said_when_it_happens_and_ends_the_run(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 41: a Simul run at x1000 whose disk filled went on to its end (here
+    3000 s of loop time, 3 s of wall) and only then said LOG FAULT.  Now the line
+    comes on stderr at the sample the fault was taken in, and the run ends there,
+    its rows kept and the summary over the time it ran."""
+    _disk_with_room(monkeypatch, 50)
+    out = tmp_path / "full.log"
+    assert main(["run", "--speed", "1000", "--duration", "3000", "--log", str(out)]) == 1
+    captured = capsys.readouterr()
+    said = [line for line in captured.err.splitlines() if "LOG FAULT" in line]
+    assert len(said) == 1 and said[0].startswith("quadtank: LOG FAULT at t = "), captured.err
+    assert said[0].endswith("cannot write (No space left on device): logging stopped; the 50 whole rows "
+                            "written are kept; the run stops here")
+    at = float(said[0].split("t = ")[1].split(" s:")[0])
+    assert 5.0 <= at < 100.0  # the 50 rows are 5 s; the fault is taken in within a few file batches
+    summary = captured.out.splitlines()
+    assert summary[0].startswith(f"ran {at:g} s: ")
+    assert "LOG FAULT  cannot write (No space left on device): logging stopped; the 50 whole rows written are " \
+        "kept" in summary
+    assert read_log(out).rows == 50
+
+
+def test_a_full_disk_is_said_on_the_way_out_by_a_signal(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """Stopped by SIGTERM (Terminated) or Ctrl-C after the disk filled, the run said
+    no LOG FAULT at all: the summary that says it is not printed on that way out."""
+    from quadtank_tui.commands.run import Terminated
+
+    _disk_with_room(monkeypatch, 20)
+
+    def until_the_signal(engine, script, duration, watch=None):
+        engine.run_for(10.0)  # 100 rows: the disk fills at row 20
+        raise Terminated(15)  # what the SIGTERM handler raises, before the next sample's watch
+
+    monkeypatch.setattr(headless, "run_experiment", until_the_signal)
+    out = tmp_path / "full.log"
+    assert main(["run", "--duration", "60", "--log", str(out)]) == 143
+    err = capsys.readouterr().err.splitlines()
+    assert err[-2:] == ["quadtank: LOG FAULT  cannot write (No space left on device): logging stopped; the 20 whole "
+                        "rows written are kept", "quadtank: stopped by SIGTERM"], err
