@@ -179,6 +179,7 @@ def test_run_detach_is_a_session_one_watches_until_the_run_is_over(tmp_path: Pat
     monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "logs" / "detached.log"
+    out.parent.mkdir()  # --log's folder must exist (issue 41)
     assert main(["run", "--duration", "200", "--log", str(out), "--speed", "100", "--seed", "3", "--detach"]) == 0
     said = capsys.readouterr().out
     (info,) = list_sessions(runtime)
@@ -259,6 +260,7 @@ def test_the_launchers_rig_lock_passes_to_the_session(tmp_path: Path, monkeypatc
     monkeypatch.setenv("QUADTANK_RUNTIME", str(runtime))
     monkeypatch.chdir(tmp_path)
     config = str(ROOT / "params" / "virtual-rig.yaml")
+    (tmp_path / "logs").mkdir(exist_ok=True)  # --log's folder must exist (issue 41)
     run = ["run", "--duration", "600", "--log", str(tmp_path / "logs" / "rig.log"), "--daq", config, "--detach"]
     assert main(run) == 0
     (info,) = list_sessions(runtime)
@@ -286,6 +288,7 @@ def test_run_detach_refuses_a_script_the_run_would_refuse_before_detaching(
     monkeypatch.chdir(tmp_path)
     script = tmp_path / "tsamp.yaml"
     script.write_text('- at: 1\n  log: "on"\n- at: 2\n  set: {"SAMPLING TIME.TSamp": 200}\n')
+    (tmp_path / "logs").mkdir(exist_ok=True)  # --log's folder must exist (issue 41)
     run = ["run", "--script", str(script), "--duration", "60", "--log", str(tmp_path / "logs" / "t.log")]
     assert main(run) == 2
     undetached = capsys.readouterr().err.splitlines()[-1]
