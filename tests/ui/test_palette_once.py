@@ -68,3 +68,23 @@ async def test_the_gathering_worker_of_a_palette_without_its_list_does_nothing(e
         await worker.wait()
         await pilot.pause()
         assert app.is_running and worker.error is None
+
+
+async def test_a_palette_that_loses_its_list_while_it_gathers_ends_quietly(engine, monkeypatch) -> None:
+    """Found by issue 41's key fuzz (benchmarks/key_fuzz.py, seed 3, its last key):
+    the app closed while the palette gathered, and Textual's worker, going on,
+    queried the list that was gone: `WorkerFailed: NoMatches: CommandList`."""
+    from textual.command import CommandList, CommandPalette
+
+    async def gathers_while_it_closes(palette, search_value):
+        await palette.query_one(CommandList).remove()  # the list goes under the gathering worker
+        palette.query_one(CommandList)  # what Textual's _refresh_command_list then does
+
+    monkeypatch.setattr(CommandPalette._gather_commands, "__wrapped__", gathers_while_it_closes)
+    app = make_app(engine)
+    async with app.run_test(size=(120, 40)) as pilot:
+        palette = await _open_palette(pilot)
+        worker = palette._gather_commands("x")
+        await worker.wait()
+        await pilot.pause()
+        assert app.is_running and worker.error is None
