@@ -40,6 +40,7 @@ class ScriptedRun:
         script = run.script
         self._events = collections.deque(script.events if script else ())
         self._name = script.file if script else ""
+        self._told = False  # the log's fault said in the output
 
     @property
     def pending(self) -> bool:
@@ -54,6 +55,9 @@ class ScriptedRun:
         """The script's events due at `elapsed` (ValueError: a refused one, the
         script's error naming its file and line)."""
         apply_due(self.run.engine, self._events, elapsed, self._name)
+        if not self._told and self.run.engine.loop.log.failed is not None:  # said in the output when it happens
+            self._told = True
+            print(f"LOG FAULT at t = {elapsed.seconds:g} s: {self.run.engine.loop.log.failed}", flush=True)
 
     def finish(self) -> str:
         """Save the log and print the summary (to the session's output); the
