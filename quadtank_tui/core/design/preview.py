@@ -3,8 +3,8 @@ it is applied: a reference step on each loop in turn, predicted (the linear samp
 design) and simulated (the plant's nonlinear equations) side by side.
 
 Pure numbers (no engine, no files), so the CLI, the TUI's worker and the tests
-call the same function and it runs in a fraction of a second: the loop is what
-the engine runs in Automatic with a decentralized PID (elements 11 and 22,
+call the same function; the nonlinear loop runs on the one closed-loop simulator
+(core.controllers.closed_loop) and is what the engine runs in Automatic with a decentralized PID (elements 11 and 22,
 core.controllers.pid at the sampling time, normalized signals, pumps clipped to 0..1 as
 core.controllers.matrix.saturate does, the anti-windup time Tr of the parameters), started
 bumpless from the given levels and inputs (references at the measured levels,
@@ -25,6 +25,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from quadtank_tui.core.controllers.closed_loop import simulate
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.design.sampled import closed_loop, sample
@@ -272,8 +273,7 @@ def preview(plant: Plant, levels: Sequence[float], inputs: Sequence[float], pair
     chunk = max(1, int(span.hold / h / 4)) if not span.fixed else cap
     steps = []
     for loop in range(1, p + 1):
-        x = tuple(float(v) for v in levels)
-        y0 = [plant.output(x)[c] / FULL_SCALE_V for c in ctrl]
+        y0 = [plant.output(tuple(float(v) for v in levels))[c] / FULL_SCALE_V for c in ctrl]
         u0 = [min(1.0, max(0.0, inputs[i] / scale[i])) for i in range(p)]
         pids = [running_pid(c, h, tr[i]) for i, c in enumerate(pair)]
         for i in range(p):  # bumpless: the integrator holds the input at the start
@@ -283,11 +283,10 @@ def preview(plant: Plant, levels: Sequence[float], inputs: Sequence[float], pair
         ys = np.zeros((cap, p))
         us = np.zeros((cap, p))
         t_all = np.arange(cap) * h
-        brim = 0.0
         volts = [0.0] * len(plant.inputs)
-        n = cap
-        for k in range(cap):
-            out = plant.output(x)
+
+        def control(k: int, t: float, x: np.ndarray) -> list[float]:
+            out = plant.output(tuple(x))
             yk = [out[c] / FULL_SCALE_V for c in ctrl]
             for i in range(p):
                 v = pids[i].compute(r[i], yk[i])
@@ -296,15 +295,17 @@ def preview(plant: Plant, levels: Sequence[float], inputs: Sequence[float], pair
                 us[k, i] = ui
                 volts[i] = ui * scale[i]
             ys[k] = yk
-            if any(xi >= b - 1e-6 for xi, b in zip(x, brims)):
-                brim += h
-            x = plant.advance(x, volts, h)
             if progress is not None and k % 200 == 0:
                 progress(((loop - 1) + k / cap) / p)
-            if (not span.fixed and (k + 1) % chunk == 0
-                    and _settled(t_all[:k + 1], ys[:k + 1, loop - 1], r[loop - 1], y0[loop - 1], span.hold)):
-                n = k + 1
-                break
+            return list(volts)
+
+        def settled(k: int) -> bool:
+            return (not span.fixed and (k + 1) % chunk == 0
+                    and _settled(t_all[:k + 1], ys[:k + 1, loop - 1], r[loop - 1], y0[loop - 1], span.hold))
+
+        run = simulate(plant, levels, h, cap, control, stop=settled)
+        n = len(run.t)
+        brim = h * float(np.sum(np.any(run.x >= np.asarray(brims)[None, :] - 1e-6, axis=1)))
         t, ys, us = t_all[:n], ys[:n], us[:n]
         window_run = float(t[-1])
         i = loop - 1

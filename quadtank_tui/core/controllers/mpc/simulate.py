@@ -93,21 +93,18 @@ class Run:
 def closed_loop(plant: Plant, x0: Sequence[float], scn: Scenario, T: float,
                 control: Callable[[float, np.ndarray], np.ndarray]) -> tuple[np.ndarray, ...]:
     """Sample, control, hold the pumps over T, with the scenario's leak; `control`
-    takes (t, levels) and returns the pump volts."""
+    takes (t, levels) and returns the pump volts (core.controllers.closed_loop, the
+    simulator the design preview runs on too)."""
+    from quadtank_tui.core.controllers.closed_loop import simulate
+
+    leak = fx.Faults().on(fx.Fault("leak", scn.leak[1], scn.leak[2])) if scn.leak is not None else None
+
+    def faults(t: float) -> fx.Faults:
+        return leak if leak is not None and scn.leak is not None and t >= scn.leak[0] - 1e-9 else fx.Faults()
+
     K = int(round(scn.duration / T))
-    x = np.array(x0, dtype=float)
-    xs, us, rs = [], [], []
-    for k in range(K):
-        t = k * T
-        u = np.asarray(control(t, x), dtype=float)
-        xs.append(x.copy())
-        us.append(u.copy())  # as commanded: the plant saturates what is outside its range
-        rs.append(scn.reference(t))
-        faults = fx.Faults()
-        if scn.leak is not None and t >= scn.leak[0] - 1e-9:
-            faults = faults.on(fx.Fault("leak", scn.leak[1], scn.leak[2]))
-        x = np.array(fx.advance(plant, faults, x.tolist(), u.tolist(), T))
-    return np.arange(K) * T, np.array(xs), np.array(us), np.array(rs)
+    run = simulate(plant, x0, T, K, lambda k, t, x: control(t, x), faults=faults)
+    return run.t, run.x, run.u, np.array([scn.reference(t) for t in run.t])
 
 
 def run_mpc(plant: Plant, mpc: MPC, x0: Sequence[float], scn: Scenario) -> Run:
