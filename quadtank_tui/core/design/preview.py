@@ -131,7 +131,7 @@ def _figures(t: np.ndarray, y: np.ndarray, r: np.ndarray, other: np.ndarray | No
 
 
 def _predicted(G: Sequence[Sequence[DelayTF]], pair: Sequence[PIDTuning], h: float, loop: int, r0: Sequence[float],
-               u0: Sequence[float], samples: int, tr: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               u0: Sequence[float], samples: int, tr: Sequence[float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The linear sampled loop (deviations about the start), pumps limited: y of
     each loop and the pumps, for a STEP on `loop`."""
     p = len(pair)
@@ -148,7 +148,7 @@ def _predicted(G: Sequence[Sequence[DelayTF]], pair: Sequence[PIDTuning], h: flo
             steps[loop - 1] = STEP
             return y_lin + np.asarray(r0)[None, :], u_lin + np.asarray(u0)[None, :], steps  # never limited: exact
     xs = [[np.zeros(m.A.shape[0]) for m in row] for row in models]
-    pids = [running_pid(c, h, tr) for c in pair]
+    pids = [running_pid(c, h, tr[i]) for i, c in enumerate(pair)]
     y = np.zeros((samples, p))
     u = np.zeros((samples, p))
     r = [0.0] * p
@@ -314,7 +314,7 @@ def preview(plant: Plant, levels: Sequence[float], inputs: Sequence[float], pair
         sim = _figures(t, ys[:, i], rr, other, us, i, h)
         pred_y, pred = None, None
         if model is not None:
-            py, pu, _ = _predicted(model, pair, h, loop, y0, u0, n, tr[0])
+            py, pu, _ = _predicted(model, pair, h, loop, y0, u0, n, tr)
             pred_y = py[:, i]
             pred = _figures(t, py[:, i], rr, py[:, 1 - i] if p == 2 else None, pu, i, h)
         steps.append(PreviewStep(loop, t, ys[:, i], pred_y, us, sim, pred, brim, window_run))
