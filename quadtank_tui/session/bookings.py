@@ -6,6 +6,8 @@ bookings:
   horizon_days: 14             # how far ahead a student may book
   weekly_quota_minutes: 120    # per student per ISO week (administrators: none)
   warn_minutes: [5, 1]         # the holder's screen is warned this long before the end
+  drain_below: 0.2             # optional: at the end, pumps off until every level is under this
+  drain_max_minutes: 5         #   (normalized 0..1), at most this long; then the session stops
 ```
 
 A booking is a file `runtime_dir/bookings/<rig>~<start>~<uid>~<random>.json` (the folder
@@ -40,7 +42,7 @@ from typing import Any, Iterable
 
 from quadtank_tui.session.lab import LabConfig, LabConfigError, ensure_runtime_dir
 
-KEYS = ("slot_minutes", "horizon_days", "weekly_quota_minutes", "warn_minutes")
+KEYS = ("slot_minutes", "horizon_days", "weekly_quota_minutes", "warn_minutes", "drain_below", "drain_max_minutes")
 #: Ended bookings are kept (listed) this long, then removed by their owner's next booking.
 KEPT = timedelta(days=7)
 #: Largest booking file read: anything bigger is not one of ours.
@@ -57,6 +59,9 @@ class BookingRules:
     horizon_days: float = 14.0
     weekly_quota_minutes: float = 120.0
     warn_minutes: tuple[float, ...] = (5.0, 1.0)
+    #: the drain at a hand-over: every level under this (normalized), None: no drain
+    drain_below: float | None = None
+    drain_max_minutes: float = 5.0
 
     @property
     def slot(self) -> timedelta:
@@ -89,9 +94,11 @@ def booking_rules(lab: LabConfig) -> BookingRules:
     if not isinstance(warn, list) or not all(isinstance(w, (int, float)) and not isinstance(w, bool)
                                              and 0 < w <= 120 for w in warn):
         raise fail("warn_minutes", "must be a list of minutes 0..120 before a slot's end, e.g. [5, 1]")
+    drain = number("drain_below", 0.5, 0.0, 1.0) if "drain_below" in data else None
     return BookingRules(slot, number("horizon_days", 14.0, 0.0, 366.0),
                         number("weekly_quota_minutes", 120.0, 0.0, 7 * 24 * 60.0),
-                        tuple(sorted((float(w) for w in warn), reverse=True)))
+                        tuple(sorted((float(w) for w in warn), reverse=True)), drain,
+                        number("drain_max_minutes", 5.0, 0.0, 120.0))
 
 
 @dataclass(frozen=True)

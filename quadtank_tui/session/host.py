@@ -40,7 +40,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from quadtank_tui.engine.commands import (Command, CommandResult, InstallPar, LoadPar, LogOff, LogSave,
-                                          SetOperation, SetParams, SetState)
+                                          SetControlMode, SetOperation, SetParams, SetState)
 from quadtank_tui.engine.driver import Driver, LoopTime
 from quadtank_tui.engine.design_ahead import MPCDesigning
 from quadtank_tui.engine.parload import ParReading
@@ -143,6 +143,8 @@ class SessionHost:
         #: the rig's bookings (a session driving a rig): Active refused in another's slot, the hand-over at its end
         self.slots = slots
         self._handover: tuple[str, list[Future[CommandResult]], float] | None = None
+        self._drain_until: float | None = None  # a hand-over's drain: its deadline (monotonic)
+        self._handed_over = False
         if scripted is None:  # clients on a paced clock: no sample waits for the disk (a rig's engine does this itself)
             engine.use_file_thread()
         self.info = info
@@ -187,8 +189,11 @@ class SessionHost:
         return self._stop_reason or "stopped"
 
     def _before(self, elapsed: LoopTime) -> None:
-        """A detached run: the script's due events ahead of the sample."""
+        """A detached run: the script's due events ahead of the sample (none once a
+        slot's hand-over began: its pumps stay at 0)."""
         assert self.scripted is not None
+        if self._handover is not None:
+            return
         try:
             self.scripted.before(elapsed)
         except ValueError as exc:  # a refused command of the script (ScriptError names file and line)
@@ -436,10 +441,28 @@ class SessionHost:
             return
         if self._handover is not None:
             reason, pending, since = self._handover
-            if all(f.done() for f in pending) or time.monotonic() - since > 10.0:
+            if self._handed_over:
+                return  # stopping
+            if pending and (all(f.done() for f in pending) or time.monotonic() - since > 10.0):
                 saved = [f.result().message for f in pending if f.done() and f.result().ok and f.result().message]
                 print(f"{datetime.now():%H:%M:%S} slot: log {'; '.join(saved) or 'none to save'}", flush=True)
-                self.request_stop(reason)
+                pending.clear()
+            if pending:
+                return
+            if self._drain_until is not None:
+                below = self.slots.rules.drain_below
+                levels = self.engine.snapshot().y
+                if below is not None and max(levels) >= below and time.monotonic() < self._drain_until:
+                    return
+                self.engine.submit(SetState("Pause"))
+                done = "drained: every tank under" if below is not None and max(levels) < below else \
+                    "drain time up, a tank still at or over"
+                print(f"{datetime.now():%H:%M:%S} slot: {done} {below:g} ({', '.join(f'{y:.3f}' for y in levels)})",
+                      flush=True)
+                reason = f"{reason}; {done} {below:g}"
+                self._drain_until = None
+            self._handed_over = True
+            self.request_stop(reason)
             return
         before = self.slots.notice
         try:
@@ -461,7 +484,17 @@ class SessionHost:
             saving.append(self.engine.submit(LogOff()))
         if snap.log.active or snap.log.unsaved:
             saving.append(self.engine.submit(LogSave()))
-        self.slots.notice = f"{end}: pumps at 0, the log saved, this session stops"
+        rules = self.slots.rules
+        if rules.drain_below is not None:  # pumps off and sampled, until the tanks are low (the log is saved first)
+            self.engine.submit(SetControlMode("Manual"))
+            self.engine.submit(SetParams({"REFERENCE ONE.Mean": 0.0, "REFERENCE ONE.On": 0,
+                                          "REFERENCE TWO.Mean": 0.0, "REFERENCE TWO.On": 0}))
+            self.engine.submit(SetState("Run"))
+            self._drain_until = time.monotonic() + rules.drain_max_minutes * 60.0
+            print(f"{datetime.now():%H:%M:%S} slot: draining, pumps at 0, until every tank is under "
+                  f"{rules.drain_below:g} (at most {rules.drain_max_minutes:g} min)", flush=True)
+        self.slots.notice = f"{end}: pumps at 0, the log saved" + (", draining" if self._drain_until else "") + \
+            ", this session stops"
         self._roster_changed()
         self._handover = (f"{end}: pumps at 0, the log saved", saving, time.monotonic())
 
@@ -515,7 +548,7 @@ class SessionHost:
         self._last_policy = now
         self._watch_slot()
         self._write_record()
-        if self._operator is None and snap.state == "Run" and self.scripted is None:
+        if self._operator is None and snap.state == "Run" and self.scripted is None and self._handover is None:
             action = unattended_action(
                 self.policy, active=snap.operation == "Active", logging=snap.log.active,
                 seconds_unattended=now - self._operator_left,

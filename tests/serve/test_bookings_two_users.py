@@ -3,7 +3,8 @@ booking over it, her cancelling it and her session on the rig in his slot; his
 own run on the rig is warned before the slot's end, then handed over: pumps at 0
 (read from the rig), his log saved with its rows, the session stopped, the rig
 free.  1 s slots; his slot is made short (an administrator books it again) once
-his run drives the rig, so a loaded machine's slow starts cannot outlast it."""
+his run drives the rig, so a loaded machine's slow starts cannot outlast it; the
+lab drains the tanks under 0.5 after the hand-over (a few seconds from 0.51)."""
 
 from __future__ import annotations
 
@@ -35,7 +36,8 @@ def lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, dict[s
 
     init_lab_folder(folder / "rt")  # as `quadtank lab init` makes it (issue 41)
     (folder / "lab.yaml").write_text(f"runtime_dir: {folder / 'rt'}\nbookings:\n  slot_minutes: {1 / 60!r}\n"
-                                     "  warn_minutes: [0.05]\n  weekly_quota_minutes: 60\n")
+                                     "  warn_minutes: [0.05]\n  weekly_quota_minutes: 60\n"
+                                     "  drain_below: 0.5\n  drain_max_minutes: 0.5\n")
     homes = folder / "homes"
     homes.mkdir()
     with made_users(homes, "alice", "bob") as users:
@@ -117,14 +119,19 @@ def test_bobs_booking_refuses_alice_and_his_slot_ends_in_a_hand_over(lab: tuple[
         sid = f"{bob.name}-1"
         out = folder / "rt" / "users" / str(bob.uid) / f"{sid}.out"  # bob's folder of sessions
         text = wait_for(lambda: out.read_text() if "stopped:" in out.read_text() else "",
-                        (end - datetime.now().astimezone()).total_seconds() + 8)
+                        (end - datetime.now().astimezone()).total_seconds() + 8 + 30)  # the drain: 30 s at most
         assert text, (out.read_text(), quadtank(bob, folder, "sessions").stdout, sorted(p.name for p in (folder / "rt").iterdir()), datetime.now(), end)
         stamps = {what: datetime.strptime(m.group(1), hms).time() for what, pattern in (
             ("warned", r"(\d\d:\d\d:\d\d) slot: your slot ends at"),
             ("pumps", r"(\d\d:\d\d:\d\d) slot: your slot on the rig ended at .*: pumps at 0"),
-            ("saved", r"(\d\d:\d\d:\d\d) slot: log saved")) if (m := re.search(pattern, text))}
-        assert set(stamps) == {"warned", "pumps", "saved"}, text
-        assert stamps["warned"] < stamps["pumps"] <= stamps["saved"]
+            ("saved", r"(\d\d:\d\d:\d\d) slot: log saved"),
+            ("drained", r"(\d\d:\d\d:\d\d) slot: drained: every tank under 0.5 \(")) if (m := re.search(pattern, text))}
+        assert set(stamps) == {"warned", "pumps", "saved", "drained"}, text
+        assert stamps["warned"] < stamps["pumps"] <= stamps["saved"] <= stamps["drained"]
+        drained = re.search(r"drained: every tank under 0.5 \(([^)]*)\)", text)
+        assert drained is not None
+        levels = [float(v) for v in drained.group(1).split(", ")]
+        assert len(levels) == 4 and max(levels) < 0.5, levels
         assert end.time() <= stamps["pumps"] <= (end + timedelta(seconds=3)).time(), (stamps, end)
         assert dacs(port) == [0, 0, 0, 0]  # the pumps at 0, read from the rig
         log = bob.home / "bob.log"

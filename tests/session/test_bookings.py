@@ -31,9 +31,13 @@ def at(minutes: float) -> datetime:
 def test_the_rules_and_their_mistakes(tmp_path: Path) -> None:
     r = bk.booking_rules(lab_with(tmp_path, "bookings:\n  slot_minutes: 15\n  warn_minutes: [1, 5]\n"))
     assert (r.slot_minutes, r.horizon_days, r.weekly_quota_minutes, r.warn_minutes) == (15.0, 14.0, 120.0, (5.0, 1.0))
+    assert (r.drain_below, r.drain_max_minutes) == (None, 5.0)  # no drain unless the lab asks
+    r = bk.booking_rules(lab_with(tmp_path, "bookings:\n  drain_below: 0.2\n  drain_max_minutes: 3\n"))
+    assert (r.drain_below, r.drain_max_minutes) == (0.2, 3.0)
     for text, message in (("bookings:\n  slot: 3\n", "lab.yaml:2: bookings.slot: unknown key"),
                           ("bookings:\n  slot_minutes: 7\n", "lab.yaml:2: bookings.slot_minutes: must divide a day"),
-                          ("bookings:\n  warn_minutes: 5\n", "lab.yaml:2: bookings.warn_minutes: must be a list")):
+                          ("bookings:\n  warn_minutes: 5\n", "lab.yaml:2: bookings.warn_minutes: must be a list"),
+                          ("bookings:\n  drain_below: 20\n", "lab.yaml:2: bookings.drain_below: must be a number 0..1")):
         with pytest.raises(LabConfigError) as exc:
             bk.booking_rules(lab_with(tmp_path, text))
         assert str(exc.value).startswith(str(tmp_path / message)), str(exc.value)
