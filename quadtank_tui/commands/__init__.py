@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Iterable
 
 if TYPE_CHECKING:
     from quadtank_tui.core.parameters import Parameters
+    from quadtank_tui.files.log_reader import LogData
 
 
 class UsageError(Exception):
@@ -42,6 +43,17 @@ def params_of(par: str | None) -> tuple[Parameters, str]:
     read = read_par(par)
     warn(read.warnings)
     return read.params, par
+
+
+def read_sampled(path: str) -> tuple[LogData, float]:
+    """A log and its sampling time (UsageError without one); its warnings on stderr."""
+    from quadtank_tui.files.log_reader import read_log
+
+    log = read_log(path)
+    warn(log.warnings)
+    if log.tsamp is None:
+        raise UsageError(f"{path}: no TSamp in the header: the sampling time is needed")
+    return log, log.tsamp
 
 
 def pause_gc() -> None:

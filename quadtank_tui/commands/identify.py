@@ -12,14 +12,13 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from quadtank_tui.commands import UsageError, warn
+from quadtank_tui.commands import UsageError, read_sampled, warn
 
 if TYPE_CHECKING:
     from quadtank_tui.core.identify.crossval import Figure
     from quadtank_tui.core.identify.experiment import Identification
     from quadtank_tui.core.plants.johansson import PlantParams
     from quadtank_tui.files.figures.runs import Scale
-    from quadtank_tui.files.log_reader import LogData
 
 METHODS = ("step", "oe", "n4sid", "arx", "physical")
 
@@ -142,17 +141,6 @@ def _sensor_gains(par: str | None, params: PlantParams | None) -> tuple[dict[str
         raise ValueError("no plant to take the sensors' gains from: give --par")
     gains = sensor_gains(plant)
     return {f"y{i + 1}": float(g) for i, g in enumerate(gains)}, plant.states[0].unit
-
-
-def read_sampled(path: str) -> tuple[LogData, float]:
-    """A log and its sampling time (UsageError without one); its warnings on stderr."""
-    from quadtank_tui.files.log_reader import read_log
-
-    log = read_log(path)
-    warn(log.warnings)
-    if log.tsamp is None:
-        raise UsageError(f"{path}: no TSamp in the header: the sampling time is needed")
-    return log, log.tsamp
 
 
 def cross_validate(ident: Identification, paths: list[str], gains: dict[str, float], unit: str) -> list[Figure]:

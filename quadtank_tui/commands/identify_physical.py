@@ -59,7 +59,7 @@ def starting_plant(par: str | None) -> Start:
 def experiments(paths: list[str], plant: Plant, outputs: list[str] | None,
                 inputs: list[str] | None) -> list[Experiment]:
     """Each log as an experiment of `plant` (every pump of it must be logged)."""
-    from quadtank_tui.commands.identify import read_sampled
+    from quadtank_tui.commands import read_sampled
     from quadtank_tui.core.identify.physical import experiment_from_columns
 
     pumps = [f"u{i + 1}" for i in range(len(plant.inputs))]

@@ -30,7 +30,7 @@ MAX_REPLAY_BYTES = 20_000_000
 def replay(args: argparse.Namespace) -> int:
     """Run the replay `args` asks for and print a one-line summary."""
     _refuse_large(args.inputs_from)  # before the simulator's imports: a refusal comes at once
-    from quadtank_tui.commands.identify import read_sampled
+    from quadtank_tui.commands import read_sampled
     from quadtank_tui.core.identify.physical import estimate_initial, experiment_from_columns, simulate
     from quadtank_tui.core.plants.common import FULL_SCALE_V
     from quadtank_tui.engine.headless import refuse_log_target

@@ -5,60 +5,24 @@ controller is evaluated on the model given (his *simulation* model, whatever
 model it was designed on); the load disturbance is a step at the process input
 of size 10/K (self-regulating) or 10 (integrating), and IAE, Emax and the control
 overshoot max|u|/|u_final| - 1 are measured after it; the PID derivative is
-filtered, Td s/(1 + s Td/10), on the measurement (controller.PID).
+filtered, Td s/(1 + s Td/10), on the measurement (pid_tuning.PIDTuning).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from quadtank_tui.core.delaytf import DelayTF
-from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
+from quadtank_tui.core.design.evaluation import Evaluation, load_size
+from quadtank_tui.core.design.pid_tuning import PIDTuning
 from quadtank_tui.core.design.frequency import Margins, frequency_grid, margins
 from quadtank_tui.core.design.simulate import STEPS_PER_RAD, Response, step_response
 from quadtank_tui.core.metrics import loop_metrics
 
-LOAD_SIZE = 10.0
 #: the load response is simulated until its last tenth stays below this share of Emax.
 SETTLED = 1e-4
-
-
-@dataclass(frozen=True)
-class Evaluation:
-    """Frequency figures (Ms, margins: deg, ratio, s, rad/s) and time figures of the
-    load step (IAE, Emax, u_overshoot) and of a unit setpoint step."""
-
-    Ms: float
-    phase_margin_deg: float
-    gain_margin: float
-    delay_margin: float
-    crossover: float
-    IAE: float
-    Emax: float
-    u_overshoot: float
-    load: float
-    setpoint_overshoot_pct: float
-    setpoint_settling: float | None
-    stable: bool
-    #: 0: the continuous-time loop (Andersson's figures); else the loop sampled at this h, s
-    sampling_time: float = 0.0
-
-    def to_dict(self) -> dict[str, float | bool | None]:
-        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                for k, v in asdict(self).items()}
-
-
-def load_size(g: DelayTF) -> float:
-    """Andersson's load step: 10/K for a self-regulating process, 10 if integrating."""
-    if g.integrators:
-        return LOAD_SIZE
-    k = g.static_gain
-    if k == 0.0:
-        raise DesignError("the model has zero static gain: no load-step size 10/K")
-    return LOAD_SIZE / abs(k)
 
 
 def time_step(g: DelayTF, m: Margins) -> float:

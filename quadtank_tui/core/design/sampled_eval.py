@@ -19,7 +19,7 @@ import numpy as np
 
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
-from quadtank_tui.core.design.evaluate import Evaluation, load_size
+from quadtank_tui.core.design.evaluation import Evaluation, load_size
 from quadtank_tui.core.design.simulate import Response
 from quadtank_tui.core.design.sampled import (
     SampledModel, closed_loop_matrix, closed_loop_poles, controller_freqresp, controller_ss, derivative_gain, sample,

@@ -15,7 +15,8 @@ from typing import Callable, Sequence
 
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.pid_tuning import PIDTuning, DesignError
-from quadtank_tui.core.design.evaluate import Evaluation, evaluate
+from quadtank_tui.core.design.evaluate import evaluate
+from quadtank_tui.core.design.evaluation import Evaluation
 from quadtank_tui.core.design.lambda_tuning import FirstOrder, default_lambda, first_order, lambda_pi
 from quadtank_tui.core.design.optimize import pi_ms, pid_ms
 from quadtank_tui.core.design.sampled import sample

@@ -20,7 +20,8 @@ from matplotlib.figure import Figure
 
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.design.pid_tuning import PIDTuning
-from quadtank_tui.core.design.evaluate import Evaluation, evaluate, settled_response
+from quadtank_tui.core.design.evaluate import evaluate, settled_response
+from quadtank_tui.core.design.evaluation import Evaluation
 from quadtank_tui.core.design.frequency import frequency_grid, margins
 from quadtank_tui.core.design.simulate import Response
 from quadtank_tui.files.figures.style import GUIDE_COLOUR, PALETTE, new_figure, styled

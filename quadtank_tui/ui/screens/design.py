@@ -458,7 +458,8 @@ class DesignScreen(CommandSender):
         the reference step of each loop with its controller: the highlighted one
         for this loop, the chosen one for the other (so `_show_chosen` runs it
         again: a choice changes the other loop's step)."""
-        from quadtank_tui.core.design.evaluate import load_size, settled_response
+        from quadtank_tui.core.design.evaluate import settled_response
+        from quadtank_tui.core.design.evaluation import load_size
         from quadtank_tui.core.design.frequency import frequency_grid, margins
 
         loop_tf = c.loop(model)

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import pytest
 
 from quadtank_tui.core.design.pid_tuning import PIDTuning
-from quadtank_tui.core.design.evaluate import Evaluation, evaluate
+from quadtank_tui.core.design.evaluate import evaluate
+from quadtank_tui.core.design.evaluation import Evaluation
 from quadtank_tui.core.design.expr import parse_model
 from quadtank_tui.core.design.frequency import margins
 from quadtank_tui.core.design.lambda_tuning import first_order, lambda_pi
