@@ -281,9 +281,11 @@ ProgressFn = Callable[[int, float], bool]
 
 #: |correlation| from which two estimates are said to trade off.
 TRADE_OFF = 0.95
-#: Random starts of the coarse global stage, and how many of the best are refined.
-RANDOM_STARTS = 24
-REFINED = 3
+#: Random starts of the coarse global stage (all simulated in one batch), how far
+#: they spread (a factor either way, log-uniform), how many of the best are refined.
+RANDOM_STARTS = 64
+SPREAD = 4.0
+REFINED = 6
 #: Solver evaluations of each refinement of a start (the best is then polished).
 REFINE_EVALUATIONS = 12
 #: Budget of a fit, s of this process's CPU time (on a shared machine the fit does
@@ -461,7 +463,8 @@ class _Problem:
 def fit_physical(plant: Plant, experiments: Sequence[Experiment], free: Sequence[str] | None = None, *,
                  offsets: bool = False, progress: ProgressFn | None = None,
                  max_evaluations: int = MAX_EVALUATIONS, physics: Sequence[str] = (),
-                 random_starts: int = RANDOM_STARTS, budget_s: float = BUDGET_S, seed: int = 0) -> PhysicalFit:
+                 random_starts: int = RANDOM_STARTS, budget_s: float = BUDGET_S, seed: int = 0,
+                 starts: Sequence[tuple[str, Mapping[str, float]]] = ()) -> PhysicalFit:
     """Fit `free` constants of `plant` (default :data:`DEFAULT_FREE`, plus those the
     effects `physics` free) to the logs.
 
@@ -471,7 +474,8 @@ def fit_physical(plant: Plant, experiments: Sequence[Experiment], free: Sequence
     :data:`REFINED` refined, the best of those polished.  `progress(evaluations,
     rms)` is called after each simulation of all logs; it returns False to cancel.
     A fit stopped (cancelled, at its budget or at `max_evaluations`) returns its
-    best point with converged False and says why.
+    best point with converged False and says why.  `starts` adds starts of one's
+    own: (label, {constant: value}), the others at the `.par`'s.
     """
     t0, c0 = time.monotonic(), cpu_clock()
     if not experiments:
@@ -495,7 +499,7 @@ def fit_physical(plant: Plant, experiments: Sequence[Experiment], free: Sequence
     scale = _scales(prob, lo, hi)
     rng = np.random.default_rng(seed)
     floor = max(noise_floor(experiments), 1e-6)
-    labels, thetas = _starts(prob, rng, random_starts if prob.fast else 0, lo, hi)
+    labels, thetas = _starts(prob, rng, random_starts if prob.fast else 0, lo, hi, starts)
     results: list[StartResult] = []
     stopped = ""
     try:
@@ -504,6 +508,12 @@ def fit_physical(plant: Plant, experiments: Sequence[Experiment], free: Sequence
         stopped = str(why)
         rms0 = np.full(len(thetas), math.nan)
     order = [int(i) for i in np.argsort(np.where(np.isfinite(rms0), rms0, np.inf))]
+    if starts:  # the best of one's own starts is refined whatever its rank
+        own = range(len(labels) - random_starts - len(starts), len(labels) - random_starts) if prob.fast else ()
+        best_own = min(own, key=lambda i: rms0[i] if np.isfinite(rms0[i]) else np.inf, default=None)
+        if best_own is not None and best_own not in order[:REFINED - 1]:
+            order.remove(best_own)
+            order.insert(REFINED - 1, best_own)
     refined: list[tuple[float, np.ndarray, int, int]] = []
     if not stopped:
         for i in order[:REFINED]:
@@ -635,11 +645,15 @@ def _typical_laminar(prob: _Problem, name: str) -> float:
     return 0.1 * coef * math.sqrt(2.0 * prob.plant.gravity * half) / half
 
 
-def _full_theta(prob: _Problem, consts: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """A start's whole parameter vector: offsets 0, the measured tanks' levels from
-    the first readings, the others at the steady state of the first input."""
+def _full_theta(prob: _Problem, consts: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                offsets: Sequence[float] | None = None) -> np.ndarray:
+    """A start's whole parameter vector: offsets 0 (or those given), the measured
+    tanks' levels from the first readings, the others at the steady state of the
+    first input."""
     theta = np.zeros(prob.p)
     theta[:prob.nc] = consts
+    if offsets is not None and prob.no:
+        theta[prob.nc:prob.nc + prob.no] = offsets
     one = theta[None, :]
     for j, e in enumerate(prob.experiments):
         at = prob.nc + prob.no + j * prob.ns
@@ -662,10 +676,11 @@ def _full_theta(prob: _Problem, consts: np.ndarray, lo: np.ndarray, hi: np.ndarr
     return np.clip(theta, inside, top)
 
 
-def _starts(prob: _Problem, rng: np.random.Generator, n_random: int, lo: np.ndarray, hi: np.ndarray
-            ) -> tuple[list[str], np.ndarray]:
+def _starts(prob: _Problem, rng: np.random.Generator, n_random: int, lo: np.ndarray, hi: np.ndarray,
+            own: Sequence[tuple[str, Mapping[str, float]]] = ()) -> tuple[list[str], np.ndarray]:
     """The starts: the plant's constants, those estimated from the logs, and random
-    ones spread around the latter (log-uniform within x/ 2.5, fractions uniform)."""
+    ones spread around the latter in turn (log-uniform within a factor
+    :data:`SPREAD`, fractions uniform, a cross-section ratio within 0.1..10)."""
     from quadtank_tui.core.identify.physical_starts import data_starts
 
     nc = prob.nc
@@ -681,8 +696,14 @@ def _starts(prob: _Problem, rng: np.random.Generator, n_random: int, lo: np.ndar
     for label, c in data_starts(prob.plant, prob.experiments, prob.names, par):
         labels.append(label)
         consts.append(c)
-    centre = consts[-1]
+    offsets = {len(consts) + k: [float(given.get(f"off{o + 1}", 0.0)) for o in prob.outputs]
+               for k, (_, given) in enumerate(own)}
+    for label, given in own:
+        labels.append(label)
+        consts.append(np.array([float(given.get(n, v)) for n, v in zip(prob.names, par)]))
+    centres = consts[1:] or consts
     for k in range(n_random):
+        centre = centres[k % len(centres)]
         c = centre.copy()
         for i, n in enumerate(prob.names):
             if n.startswith(("gamma", "spill")):
@@ -691,12 +712,57 @@ def _starts(prob: _Problem, rng: np.random.Generator, n_random: int, lo: np.ndar
                 c[i] = rng.uniform(0.0, 0.2) * min(s.hi for s in prob.plant.inputs)
             elif n.startswith("ysat"):
                 c[i] = centre[i]
+            elif n.startswith("area"):
+                c[i] = math.exp(rng.uniform(math.log(0.1), math.log(10.0)))
+            elif n.startswith("lam"):
+                c[i] = centre[i] * math.exp(rng.uniform(-2.0, 2.0))
             elif c[i] > 0:
-                c[i] = c[i] * math.exp(rng.uniform(-math.log(2.5), math.log(2.5)))
+                c[i] = c[i] * math.exp(rng.uniform(-math.log(SPREAD), math.log(SPREAD)))
         labels.append(f"random {k + 1}")
         consts.append(c)
-    thetas = np.array([_full_theta(prob, np.clip(c, lo[:nc], hi[:nc]), lo, hi) for c in consts])
+    thetas = np.array([_full_theta(prob, np.clip(c, lo[:nc], hi[:nc]), lo, hi, offsets.get(k))
+                       for k, c in enumerate(consts)])
+    if prob.fast:
+        thetas = _unmeasured_levels(prob, thetas, lo, hi)
     return labels, thetas
+
+
+#: Levels tried for the tanks a log does not measure, at each start: the steady
+#: state of the first input scaled by these factors, and these shares of the brim.
+LEVEL_FACTORS = (1.0, 0.25, 0.5, 2.0, 4.0)
+LEVEL_SHARES = (0.05, 0.15, 0.3, 0.5, 0.7, 0.9, 1.0)
+
+
+def _unmeasured_levels(prob: _Problem, thetas: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Each start's initial levels of the unmeasured tanks: of those tried, the one
+    that best explains the first quarter of each log (a log need not start at rest,
+    and a wrong unmeasured level leads the fit astray)."""
+    out = thetas.copy()
+    for j, e in enumerate(prob.experiments):
+        hidden = [i for i in range(prob.ns) if i not in e.outputs]
+        if not hidden:
+            continue
+        at = prob.nc + prob.no + j * prob.ns
+        tops = np.array([prob.plant.states[i].hi for i in hidden])
+        cands = []
+        for f in LEVEL_FACTORS:
+            c = thetas.copy()
+            c[:, [at + i for i in hidden]] = np.minimum(thetas[:, [at + i for i in hidden]] * f, tops)
+            cands.append(c)
+        for share in LEVEL_SHARES:
+            c = thetas.copy()
+            c[:, [at + i for i in hidden]] = share * tops
+            cands.append(c)
+        stack = np.clip(np.concatenate(cands), lo, hi)
+        rows = max(10, e.rows // 4)
+        part = Experiment(e.name, e.h, e.u[:rows], e.y[:rows], e.outputs)
+        sub = _Problem(prob.plant, [part], prob.names, prob.no, None, math.inf)
+        cols = list(range(prob.nc + prob.no)) + [at + i for i in range(prob.ns)]
+        r = sub.batch_residuals(stack[:, cols], 0)
+        sse = np.einsum("ij,ij->i", r, r).reshape(len(cands), len(thetas))
+        best = np.nanargmin(np.where(np.isfinite(sse), sse, np.inf), axis=0)
+        out[:, at:at + prob.ns] = stack.reshape(len(cands), len(thetas), -1)[best, np.arange(len(thetas)), at:at + prob.ns]
+    return out
 
 
 def _coarse(prob: _Problem, thetas: np.ndarray) -> np.ndarray:

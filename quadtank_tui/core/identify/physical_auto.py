@@ -24,6 +24,7 @@ from quadtank_tui.core.identify.physical import (
     Experiment,
     PhysicalFit,
     FULL_SCALE_V,
+    MAX_EVALUATIONS,
     ProgressFn,
     cpu_clock,
     fit_physical,
@@ -74,10 +75,10 @@ def fit_auto(plant: Plant, experiments: Sequence[Experiment], free: Sequence[str
     from time import monotonic
 
     t0, c0 = monotonic(), cpu_clock()
-    extra = dict(max_evaluations=max_evaluations) if max_evaluations else {}
+    limit = max_evaluations or MAX_EVALUATIONS
     sat = tuple("saturation" for _ in saturated_outputs(experiments)[:1])
     plain = fit_physical(plant, experiments, free, offsets=offsets, progress=progress, physics=sat,
-                         budget_s=budget_s / 2.0, **extra)
+                         budget_s=budget_s / 2.0, max_evaluations=limit)
     floor = noise_floor(experiments)
     words = ["sensor range"] if sat else []
     if plain.rms <= NOISE_MARGIN * floor or plain.message.startswith("cancelled"):
@@ -88,12 +89,46 @@ def fit_auto(plant: Plant, experiments: Sequence[Experiment], free: Sequence[str
         return replace(plain, notes=plain.notes + (_note("plain", words, plain, floor),))
     left = budget_s - (cpu_clock() - c0)
     ext = fit_physical(plant, experiments, free, offsets=offsets, progress=progress, physics=sat + tuple(more),
-                       budget_s=max(left, 1.0), **extra)
+                       budget_s=max(left, 1.0), starts=tuple(overflow_starts(plain)), max_evaluations=limit)
     if bic(ext) < bic(plain) and ext.rms < (1 - GAIN) * plain.rms:
         note = _note("extended", words + list(more), ext, floor) + f" (plain model: RMS {plain.rms:.4g} V)"
         return replace(ext, notes=ext.notes + (note,), seconds=monotonic() - t0)
     note = _note("plain", words, plain, floor) + f"; with {', '.join(more)}: RMS {ext.rms:.4g} V, not kept"
     return replace(plain, notes=plain.notes + (note,), seconds=monotonic() - t0)
+
+
+#: Where the plain fit's upper level would have to spill (its percentiles), and the
+#: shares of the spill that reach the lower tank, of the overflow starts.
+BRIM_PERCENTILES = (60.0, 80.0, 95.0)
+SPILL_SHARES = (0.3, 0.7)
+
+
+def overflow_starts(plain: PhysicalFit) -> list[tuple[str, dict[str, float]]]:
+    """Starts of the cascade with overflow from the plain fit: its constants, with
+    the upper tank's cross-section (area1) put where its brim falls at a high
+    percentile of the levels the plain model gives the upper tank (where a real rig's
+    tank would have spilled instead), and its outlet restated for that area.  A fit
+    with overflow from the `.par`'s or from random constants rarely finds that
+    basin: with the upper tank far from its brim the overflow does nothing and the
+    fit slides into a slow upper tank instead."""
+    from quadtank_tui.core.identify.physical import simulate
+
+    p = plain.plant
+    if p.kind != "coupled-cascade":
+        return []
+    v = p.values()
+    x1 = np.concatenate([simulate(p, x0, e.u, e.h)[:, 0] for e, x0 in zip(plain.experiments, plain.initial)])
+    top = p.states[0].hi
+    out = []
+    for q in BRIM_PERCENTILES:
+        area = max(float(np.percentile(x1, q)) / top, 0.02)
+        for share in SPILL_SHARES:
+            start = {e.name: e.value for e in plain.constants}
+            start.update(area1=area, spill1=share, alpha1=v["alpha1"] * math.sqrt(area),
+                         lam1=v.get("lam1", 0.0) * area)
+            start.update({f"off{e.name[1]}": e.value for e in plain.offsets})
+            out.append((f"the plain fit spilling at its {q:g}th percentile ({share:g} falling below)", start))
+    return out
 
 
 def _note(which: str, words: Sequence[str], fit: PhysicalFit, floor: float) -> str:
