@@ -92,6 +92,12 @@ async def test_the_window_waits_follows_summarizes_and_records(make_engine: Call
         await settled(pilot)
         assert engine.snapshot().state == "Pause" and engine.snapshot().control == "Manual"
         assert isinstance(app.screen, ExerciseWindow)
+        await pilot.press("l")  # a window Main opens comes on top, and Esc there comes back
+        await pilot.pause()
+        assert type(app.screen).__name__ == "LoggingWindow"
+        await pilot.press("escape")
+        await pilot.pause()
+        assert isinstance(app.screen, ExerciseWindow)
     (record,) = (tmp_path / "records").iterdir()
     graded = grade_record(record, load_exercises([EXERCISE]))
     figures = {r.name: r.figure for r in graded.requirements}

@@ -75,13 +75,12 @@ class ExerciseWindow(LiveWindow):
     #: where the records of attempts by hand go (a folder of the working directory)
     RECORDS = Path("records")
 
-    #: Main's keys that act with the window open, so that the student runs the attempt
-    #: while reading it: the states, the modes, the input signals, the speed.
-    THROUGH = ("r", "p", "R", "m", "a", "i", "I", "o", "O", "plus", "minus", "right_square_bracket",
-               "left_square_bracket", "right_curly_bracket", "left_curly_bracket")
+    #: The window's own keys; every other key the Main screen binds acts with the window
+    #: open (the student runs the attempt while reading it; a window it opens comes on top).
+    OWN = ("escape", "x", "ctrl+s")
 
     async def on_key(self, event: events.Key) -> None:
-        if event.key not in self.THROUGH:
+        if event.key in self.OWN:
             return
         main = getattr(self.app, "main", None)
         binding = next((b for b in getattr(type(main), "BINDINGS", ()) if getattr(b, "key", None) == event.key), None)
