@@ -1,7 +1,7 @@
 """`quadtank log plot` and `quadtank log compare`: old runs in a terminal.
 
-plot draws chosen columns of a `.log` against time with plotext, the y axis laid
-out as the live trends lay it out (round values, each label on the row whose
+plot draws chosen columns of a `.log` against time with the interface's plot kit
+(ui/widgets/plot_raster.py), the y axis laid out as the live trends lay it out (round values, each label on the row whose
 value it names: ui/widgets/trends.py `y_axis`) and the time axis in round
 seconds.  compare prints both loops' step figures of two logs side by side: the
 last reference step, rise time, overshoot, settling time, IAE and final error
@@ -97,16 +97,21 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
 def render_plot(log: LogData, t: np.ndarray, names: Sequence[str], width: int, height: int, *,
                 colour: bool, title: str) -> str:
-    """A title line naming each curve in its colour, then the plot, `height` rows.
+    """A title line naming each curve in its colour, then the plot, `height` rows,
+    drawn by the interface's plot kit (ui/widgets/plot_raster.py: samples joined
+    into lines, no curve lost where curves share a cell).
 
     Without colour (a pipe, NO_COLOR) several curves draw with a character each
     (* + o x, references ·), named in the title; one curve keeps braille.  The
-    references (r1, r2) are drawn first and dotted, the levels over them."""
-    import plotext as plt
+    references (r1, r2) are drawn first and dashed, the levels over them."""
+    import io
+
+    from rich.console import Console
 
     from quadtank_tui.ui.colours import BLUE, CYAN, GREEN, GREY, MAGENTA, ORANGE, RED, SIGNALS
-    from quadtank_tui.ui.plot_axes import AXIS_ROWS, decimate, y_axis
-    from quadtank_tui.ui.widgets.trend_style import DOT_GAP, DOTTED_MARKER, MARKERS
+    from quadtank_tui.ui.plot_axes import AXIS_ROWS, y_axis
+    from quadtank_tui.ui.widgets.plot_raster import BRAILLE, Figure, Pen
+    from quadtank_tui.ui.widgets.trend_style import DOTTED_MARKER, MARKERS
 
     # The trends' own colours (as on a dark terminal), so a curve has the same
     # colour here as on Main; other columns take the palette's hues in turn.
@@ -117,31 +122,27 @@ def render_plot(log: LogData, t: np.ndarray, names: Sequence[str], width: int, h
     solid = [n for n, ref in zip(names, reference) if not ref]
     markers = {n: (DOTTED_MARKER if ref else MARKERS[solid.index(n) % len(MARKERS)]) for n, ref in zip(names, reference)}
     marked = not colour and len(names) > 1
-    plt.clear_figure()
-    plt.limitsize(False, False)  # the size asked, not capped at the terminal's
-    plt.plotsize(width, height - 1)
-    order = sorted(range(len(names)), key=lambda i: not reference[i])
-    for i in order:
-        name, c = names[i], palette[i]
-        marker = markers[name] if marked else "braille"
-        if reference[i]:
-            keep = decimate(len(t), max(1, width // DOT_GAP))
-            plt.scatter(t[keep].tolist(), log[name][keep].tolist(), marker=marker, color=c)
-        else:
-            rows = envelope(log[name], 2 * width)
-            plt.plot(t[rows].tolist(), log[name][rows].tolist(), marker=marker, color=c)
+    fig = Figure()
+    for i in sorted(range(len(names)), key=lambda i: not reference[i]):
+        name = names[i]
+        rows = envelope(log[name], 2 * width)  # the same line at the dots across, far fewer points
+        fig.line(t[rows], log[name][rows], Pen(palette[i] if colour else None,
+                                               markers[name] if marked else BRAILLE, dashed=reference[i]))
     values = [float(v) for n in names for v in (log[n].min(), log[n].max())]
     axis = y_axis(min(values), max(values), height - 1 - AXIS_ROWS)
-    plt.ylim(axis.lo, axis.hi)
-    plt.yticks(list(axis.ticks), list(axis.labels))
+    fig.ylim = (axis.lo, axis.hi)
+    fig.yticks = list(zip(axis.ticks, axis.labels))
     t0, t1 = float(t[0]), float(t[-1])
-    plt.xlim(t0, t1)
-    ticks = time_ticks(t0, t1, width)
-    plt.xticks(ticks, [f"{v:g}" for v in ticks])
-    if not colour:
-        plt.theme("clear")
-    drawing = plt.build() if colour else plt.uncolorize(plt.build())
-    plt.clear_figure()
+    fig.xlim = (t0, t1)
+    fig.xticks = [(v, f"{v:g}") for v in time_ticks(t0, t1, width)]
+    text = fig.render(width, height - 1)
+    if colour:
+        out = io.StringIO()
+        Console(file=out, force_terminal=True, color_system="truecolor", width=width, legacy_windows=False,
+                soft_wrap=True).print(text, end="")
+        drawing = out.getvalue()
+    else:
+        drawing = text.plain
     lines = [line.rstrip() for line in drawing.splitlines()]
     while lines and not lines[-1]:
         lines.pop()
@@ -175,9 +176,8 @@ def envelope(y: np.ndarray, bins: int) -> np.ndarray:
 def _in_colour(text: str, rgb: tuple[int, int, int], colour: bool) -> str:
     if not colour:
         return text
-    import plotext as plt
-
-    return str(plt.colorize(text, rgb))
+    r, g, b = rgb
+    return f"\x1b[38;2;{r};{g};{b}m{text}\x1b[0m"
 
 
 def time_ticks(t0: float, t1: float, width: int) -> list[float]:

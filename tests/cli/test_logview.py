@@ -152,7 +152,7 @@ def test_a_long_log_is_drawn_from_its_envelope_with_every_spike(tmp_path: Path,
     drawn = [line for line in rows if any(0x2800 < ord(ch) <= 0x28FF for ch in line)]
     labelled = {line.split("┤")[0].strip(): line for line in rows if "┤" in line}
     assert labelled["0.6"] in drawn and labelled["0.4"] in drawn  # the spike of one row, up to 0.75
-    assert len(drawn) >= 8 and "⠤⠤⠤⠤⠤⠤⠤⠤⠤⠤" in drawn[-1]  # and the level of 0.25 across
+    assert len(drawn) >= 8 and re.search(r"([\u2801-\u28ff])\1{9}", drawn[-1])  # and the level of 0.25 across
 
 
 def test_plot_without_colour_tells_curves_apart_by_marker(tmp_path: Path,
@@ -176,3 +176,24 @@ def test_plot_without_colour_tells_curves_apart_by_marker(tmp_path: Path,
         assert plotted is not None
         if marker == "·":  # dotted: a dot every DOT_GAP columns, not a line
             assert 20 <= plotted.group(2).count("·") <= 45
+
+
+def test_a_level_on_its_reference_shows_both(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 43: y1 settled on r1 (the same values) draws both, in a pipe as two
+    markers on the one row and in colour as both colours: the cells they share
+    take them in turn (plotext kept only the one drawn last)."""
+    from quadtank_tui.commands.logview import render_plot
+    from quadtank_tui.files.log_reader import read_log
+    from quadtank_tui.ui.colours import SIGNALS
+
+    log = tmp_path / "on.log"
+    log.write_text(format_header(("t", "y1", "r1"), 0.5, datetime(2026, 1, 5))
+                   + "".join(format_row((0.5 * k, 0.5, 0.5)) for k in range(240)))
+    assert main(["log", "plot", str(log), "--vars", "y1", "r1", "--width", "80", "--height", "20"]) == 0
+    (row,) = [line for line in capsys.readouterr().out.splitlines()[1:] if "*" in line]
+    assert row.count("*") >= 30 and row.count("·") >= 8
+    data = read_log(str(log))
+    coloured = render_plot(data, np.arange(data.rows) * 0.5, ["y1", "r1"], 80, 20, colour=True, title="on")
+    for name in ("y1", "ref1"):
+        r, g, b = SIGNALS[name].dark
+        assert coloured.count(f"38;2;{r};{g};{b}m") >= 3, name  # the title's and the plot's cells

@@ -45,6 +45,8 @@ XDOTS, YDOTS = 2, 4
 CELL_ASPECT = 2.0
 #: Braille bit of the dot at (column 0..1, row 0..3 from the top) of a cell.
 _BITS = np.array([[0x01, 0x08], [0x02, 0x10], [0x04, 0x20], [0x40, 0x80]], dtype=np.uint8)
+#: A pen's marker that draws braille dots without colour (`quadtank log plot` in a pipe).
+BRAILLE = "braille"
 #: Least canvas a plot draws: fewer rows or columns say "too small" instead.
 MIN_ROWS, MIN_COLUMNS = 3, 10
 
@@ -63,7 +65,7 @@ class Pen:
 
     @property
     def braille(self) -> bool:
-        return self.color is not None and not self.cells
+        return (self.color is not None or self.marker == BRAILLE) and not self.cells
 
     @property
     def rich(self) -> RichStyle:
