@@ -198,3 +198,33 @@ def test_the_exercise_command_refuses_bad_input_in_one_line(tmp_path: Path, caps
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and message in err, err
+
+
+def test_run_exercise_prints_the_verdicts_and_writes_the_record(tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    import os
+    import pwd
+
+    from quadtank_tui import __version__
+
+    code = main(["run", "--exercise", str(EXERCISES / "pminus-pi.yaml"), "--par",
+                 str(EXERCISES / "reference" / "pminus-pi.par"), "--record", str(tmp_path / "r")])
+    out = capsys.readouterr().out
+    assert code == 0 and "PASSED: 8 of 8 requirements met" in out
+    assert "  settling_time 1               53 s  <= 90 s      met" in out
+    assert sorted(p.name for p in (tmp_path / "r").iterdir()) == [
+        "controllers.json", "exercise.yaml", "result.json", "run.log", "script.yaml", "student.par"]
+    result = json.loads((tmp_path / "r" / "result.json").read_text())
+    assert result["user"]["uid"] == os.getuid() and result["user"]["name"] == pwd.getpwuid(os.getuid()).pw_name
+    assert result["program"] == {"name": "quadtank-tui", "version": __version__}
+    assert result["exercise"]["sha256"] == hashlib.sha256((EXERCISES / "pminus-pi.yaml").read_bytes()).hexdigest()
+    assert result["plant"] == {"kind": "simulator", "model": "quadruple tank (Johansson)"}
+    assert result["passed"] is True and result["started"] <= result["ended"]
+    for name, digest in result["sha256"].items():
+        assert hashlib.sha256((tmp_path / "r" / name).read_bytes()).hexdigest() == digest
+    loops = json.loads((tmp_path / "r" / "controllers.json").read_text())["loops"]
+    assert [(lp["K"], lp["Ti"]) for lp in loops] == [(3.0, 30.0), (2.7, 40.0)]
+    assert 1.0 < loops[0]["Ms"] < 1.1  # the thesis's pair is robust (Ms 1.07 at h = 1 s)
+    assert main(["run", "--exercise", str(EXERCISES / "pminus-pi.yaml"), "--par",
+                 str(EXERCISES / "reference" / "pminus-pi.par"), "--record", str(tmp_path / "r")]) == 2
+    assert "holds an attempt already" in capsys.readouterr().err
