@@ -31,6 +31,7 @@ no one else may write in it.
 from __future__ import annotations
 
 import os
+import pwd
 import re
 import secrets
 import stat
@@ -85,17 +86,18 @@ class Place:
     uid: int
 
 
-def _is_admin(uid: int) -> bool:
-    from quadtank_tui.session.lab import load_lab_config
-    from quadtank_tui.session.roles import is_administrator
-
-    return uid == 0 or is_administrator(uid, load_lab_config())
+def _root_only(uid: int) -> bool:
+    """Who administers when the caller does not say (session/lab.ensure_runtime_dir
+    passes the lab's rule): root."""
+    return uid == 0
 
 
 def _name(uid: int) -> str:
-    from quadtank_tui.session.roles import user_name
-
-    return user_name(uid)
+    """The login name of `uid` (the number itself when it has none)."""
+    try:
+        return pwd.getpwuid(uid).pw_name
+    except KeyError:
+        return str(uid)
 
 
 def personal_dir(uid: int | None = None) -> Path:
@@ -115,7 +117,7 @@ def _shut(st: os.stat_result) -> bool:
     return stat.S_IMODE(st.st_mode) & 0o022 == 0
 
 
-def lab_folder(st: os.stat_result, admin: Callable[[int], bool] = _is_admin) -> bool:
+def lab_folder(st: os.stat_result, admin: Callable[[int], bool] = _root_only) -> bool:
     """Whether a folder's lstat says it is the lab's: a real folder of root's or an
     administrator's that no one else may write in."""
     return stat.S_ISDIR(st.st_mode) and _shut(st) and (st.st_uid == 0 or admin(st.st_uid))
@@ -149,7 +151,7 @@ def _unsafe_folder(up: Path, owner: int) -> str | None:
     return None
 
 
-def resolve(folder: Path, *, source: str = "named", admin: Callable[[int], bool] = _is_admin) -> Root:
+def resolve(folder: Path, *, source: str = "named", admin: Callable[[int], bool] = _root_only) -> Root:
     """The runtime folder in force for `folder`, as configured from `source`
     ("lab file", "env", "named" or "default"), checked and, where it is ours to
     make, made.  RuntimeFolderError naming what is wrong and who may fix it."""
