@@ -1,7 +1,7 @@
 """The steady-state calibration on the rig (Desautel 2.3) as the loop runs it: one
 step per sample instead of the control law, while the loop is paused.
 
-Split from engine/loop.py (issue 25).  The procedure's logic is core's
+The procedure's logic is core's
 (core.calibration_run.CalibrationRun: settling, the operator's heights, the
 fit); here it meets the rig: the pumps held at the step's voltages every sample
 (so the rig's watchdog sees the link alive), the raw sensor volts read, and the

@@ -40,8 +40,8 @@ SPEED_MIN, SPEED_MAX = 1.0, 1000.0
 #: numbers a student can reason with, where doubling from 1 ends at 512).
 SPEED_STEPS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0)
 #: Wall seconds a paced virtual clock may fall behind its schedule and still make
-#: the slots up in a burst (at x1000 and 50 ms: 400 samples, made up in about
-#: 0.1 s at 40 us a sample); beyond that the slots are skipped.
+#: the slots up in a burst (at x1000 and 50 ms: 400 samples, made up within a
+#: fraction of a second); beyond that the slots are skipped.
 CATCH_UP = 0.02
 
 
@@ -130,7 +130,7 @@ class Clock(ABC):
 
     def tick_values(self) -> tuple[float, float, int]:
         """:meth:`tick` as a plain (scheduled, actual, missed): the driver's every
-        sample (a named tuple costs 0.2 us to make, a hundredth of a sample)."""
+        sample (no named tuple to make on the hot path)."""
         actual = self.now()
         scheduled = self.deadline()
         if scheduled is None:

@@ -2,7 +2,7 @@
 type in force, the state feedback on every level of the plant (core.controllers.statefb) or the
 MPC (core.controllers.mpc, through engine/mpc_control.py).
 
-Split from engine/loop.py (issue 25) along the seam the loop has: the sample uses
+Kept apart from engine/loop.py along the seam the loop has: the sample uses
 the controllers (`matrix`, `statefb`: loop.py's `_sample` calls them directly, the
 hot path), this module makes and changes them.  A change of parameters is two
 steps so the loop changes all or nothing: :meth:`Controllers.check` and

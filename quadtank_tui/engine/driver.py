@@ -10,8 +10,8 @@ from now is waited for on the event loop (`loop.call_at`), so the clients'
 messages are served meanwhile; the last FINE_WAIT is a plain sleep (epoll rounds
 its timeout up to whole milliseconds), so the jitter is the sleep's, not the
 event loop's.  On Linux the driving thread's timer slack is set to 1 us first: a
-sleep overshoots by the slack, 50 us by default, a whole x1000 sampling period
-(measured: time.sleep(20 us) takes 80 us by default, 28 us at 1 us slack).  The
+sleep overshoots by the slack, whose default (50 us) is a whole sampling period at
+x1000 and 50 ms.  The
 thread sleeps rather than spins, so it does not take a core from the clients;
 only a wait shorter than SPIN_BELOW, which a sleep would overshoot, is spun, and
 a real-time clock's last SPIN_LAST (a sleeping core wakes late: the machine's
@@ -25,8 +25,8 @@ driver's alone.  A virtual clock at x1000 and 50 ms has a sample due every 50 us
 every wait is a fine one (most are spun), the event loop gets a turn every
 YIELD_AFTER, and the lag such a turn leaves is made up by samples back to back
 (engine/clock.py, CATCH_UP).  A drive paced on the wall writes its log on the
-file thread (a virtual clock's too: at x1000 the row's write(2) inline was 8 of
-the 50 us), and the rows held for it (engine/filework.py) are handed on before
+file thread (a virtual clock's too: at x1000 a row's write(2) inline is a large
+part of a sample's time), and the rows held for it (engine/filework.py) are handed on before
 every wait of FLUSH_BEFORE or more and at the end.  An injected time source (a ManualClock: tests, rehearsals) is waited
 on with the engine's own `sleep`, which only moves that time on; such a drive
 holds its log rows in the same batches, written inline (FileWorker.hold).
@@ -86,16 +86,14 @@ class Drivable(Protocol):
 #: timer (whose epoll timeout rounds up to whole milliseconds), s.
 FINE_WAIT = 0.002
 #: A wait shorter than this is spun, not slept, s: even at 1 us of timer slack a
-#: sleep of 2-10 us takes 18-20 us of wall time and 12 us of CPU (measured on the
-#: 2-core CI machine), more than the wait; at x1000 and 50 ms, when a sample costs
-#: 40 us, every wait is about 10 us, and sleeping them held x800.
+#: sleep of a few microseconds costs more wall time and CPU than the wait itself,
+#: and at x1000 and 50 ms every wait is that short: sleeping them would not hold x1000.
 SPIN_BELOW = 20e-6
 #: The last part of a real-time clock's fine wait that is spun, not slept, s.  A
 #: sleeping thread is woken late by the time its core takes to come out of idle
-#: (here a KVM guest's halted vCPU): a SCHED_FIFO thread's 10 ms sleeps ended
-#: 0.066 ms late at p50, 0.17 ms at p99 (the 2-core machine, load 2.3); spinning
-#: the last 0.1 ms took p99 to 0.007 ms.  It costs SPIN_LAST of CPU a sample
-#: (3 % of a core at 10 ms, 0.6 % at 50 ms); a virtual clock, whose jitter the
+#: (a virtual machine's halted vCPU, most of all): spinning the last part of the
+#: wait takes that lateness out of the jitter's tail.  It costs SPIN_LAST of CPU a
+#: sample (a few per cent of a core at 10 ms); a virtual clock, whose jitter the
 #: simulated plant never sees, sleeps to its deadline.
 SPIN_LAST = 0.0003
 #: The real-time priority (SCHED_FIFO, 1..99) a real-time clock's driving thread
@@ -104,16 +102,14 @@ RT_PRIORITY = 1
 #: The interpreter's switch interval while a real-time clock drives, s (Python's
 #: default is 5 ms).  The driving thread, woken at its deadline, must also get the
 #: GIL from the process's other threads (the file thread, a client's reader, a
-#: design): they hand it over after at most this long.  Measured on the idle 2-core
-#: machine, session_timing's window p99 (20 s each, the same hour): 50 ms 0.58 ->
-#: 0.16 ms and 0.87 -> 0.12 ms with a client drawing; 10 ms 0.78 -> 0.20 ms and
-#: 0.80 -> 0.60 ms.
+#: design): they hand it over after at most this long (benchmarks/session_timing.py
+#: shows what it does to the jitter's p99).
 SWITCH_INTERVAL = 0.0005
 #: A fine wait at least this long hands the held log rows to the file thread
 #: first, s; a shorter one keeps them for the next batch (engine/filework.py,
 #: BATCH_WINDOW), so a row waits at most about two batch windows.  Handing them on
-#: before every wait, as before, woke the file thread every sample at x1000 and 50
-#: ms (the wait is 10-20 us there) and defeated the batches.
+#: before every wait would wake the file thread every sample at x1000 and 50 ms
+#: (whose waits are a few microseconds) and defeat the batches.
 FLUSH_BEFORE = 0.001
 #: The driving thread's timer slack, ns (Linux prctl PR_SET_TIMERSLACK).
 TIMER_SLACK_NS = 1000
@@ -178,10 +174,9 @@ def realtime_priority() -> Callable[[], None]:
     thread keeps its policy); returns what gives the thread its old policy back.
 
     A sleeping thread of an ordinary process that wakes at its deadline waits for
-    a core while both are busy (a client drawing, other users' programs): on the
-    2-core CI machine under load, sessions at 50 ms woke 0.7-9 ms late at p99
-    (measured inside the session: the sleep ended late, at a scheduler tick); at
-    SCHED_FIFO 1 the same sleep ended 0.2 ms late at p99.  Threads started from
+    a core while both are busy (a client drawing, other users' programs), until a
+    scheduler tick gives it one: milliseconds late on a loaded machine; at
+    SCHED_FIFO 1 it runs before every ordinary process.  Threads started from
     this one (a LoadPar's read, an MPC's design) do not inherit it
     (SCHED_RESET_ON_FORK); the kernel's real-time throttling keeps 5 % of a core
     for the others whatever happens."""

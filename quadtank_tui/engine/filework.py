@@ -13,8 +13,8 @@ caller's thread (tests, headless runs on a virtual clock): the same results, the
 same order, deterministic.  While a driver drives inline (no thread, an injected
 time source: `quadtank run` as fast as possible) it holds the log rows as the
 thread's batches are held (:meth:`FileWorker.hold`): one write(2) of the rows of
-a BATCH_WINDOW, not one a row (at 40 us a sample, 2-3 us of each went to its own
-write), and the same promise as the thread's: a killed process loses at most the
+a BATCH_WINDOW, not one a row (a write of its own is a sizeable share of a
+sample's time at x1000), and the same promise as the thread's: a killed process loses at most the
 rows of the last millisecond.
 
 Log rows go in batches (:meth:`FileWorker.submit_batched`): a row that comes within
@@ -23,8 +23,8 @@ one, or when the driver is about to wait a millisecond or more
 (:meth:`FileWorker.flush`; engine/driver.py, FLUSH_BEFORE).  A row per
 sample at 50 ms is handed on at once, as before; at x1000 (20,000 rows a second)
 one job of about 20 rows a millisecond, written in one write(2), not 20 Futures,
-queue puts, wake-ups of the thread and writes, which cost the session process
-20-25 us of CPU a sample (measured).
+queue puts, wake-ups of the thread and writes, which would cost the session
+process about half its CPU a sample.
 """
 
 from __future__ import annotations

@@ -34,8 +34,8 @@ class JitterHistogram:
     """Counts of |jitter| per bin, and the bins holding the tracked percentiles.
 
     A caller that asks for a percentile after every sample tracks it: its pointer
-    to its bin moves by a step or two at each add (about 1 µs a sample in pure
-    Python, against 6 µs for a cumulative sum).  The loop asks only when a snapshot
+    to its bin moves by a step or two at each add (a few times cheaper in pure
+    Python than a cumulative sum).  The loop asks only when a snapshot
     is built, so it tracks none and its add is a count."""
 
     def __init__(self, tracked: tuple[float, ...] = (50.0, 99.0)) -> None:

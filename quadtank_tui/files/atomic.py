@@ -3,7 +3,7 @@ never half of either.
 
 The new file gets the mode a plain `open()` would give it (0666 less the umask),
 or the mode of the file it replaces: mkstemp's private 0600 would hide a saved
-`.par` from the other lab users (issue 17.10).
+`.par` from the other lab users.
 
 The data goes to a temporary file in the target's own folder (a rename is only
 atomic within one file system), is fsynced, then `os.replace`d over the target; the

@@ -1,5 +1,5 @@
 """Which ghost run a client showed on which session, so it comes back when the
-client re-attaches (issue 28).
+client re-attaches.
 
 The ghost belongs to what one client shows, not to the session: an operator and
 an observer of the same session each have their own, and the session process

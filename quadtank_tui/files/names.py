@@ -2,7 +2,7 @@
 columns a `.log` may have, the plot types of the two trends.
 
 They are about files and screens, not about the process, so they live here rather
-than in the core (issue 18): the core's model keeps them as plain text, and every
+than in the core: the core's model keeps them as plain text, and every
 way in (a `.par` file, a script, the engine's SetParams, the windows) checks them
 with :func:`check_names`, which refuses with the full "SECTION.Key" so a file
 reader can name the line.  The UI imports the lists from here (files is below it).

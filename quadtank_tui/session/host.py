@@ -72,8 +72,8 @@ RECORD_INTERVAL = 1.0
 #: out of the admin group) can attach or stop sessions at most this long after.
 ACCESS_KEPT = 10.0
 #: Rows of the ring buffer per line on attach: they follow the Welcome in order, one
-#: line (HistoryPart) encoded per event-loop turn, 1000 rows in about 0.12 ms; the
-#: whole 36000 encoded at once took 100-200 ms of the sampling's time.
+#: line (HistoryPart) encoded per event-loop turn, a fraction of a millisecond; the
+#: whole 36000 encoded at once would hold the sampling for a tenth of a second or more.
 PART_ROWS = 1000
 
 

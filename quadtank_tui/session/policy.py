@@ -4,7 +4,7 @@ session process acts on, and the sentence shown when one detaches.
 A Simul session always keeps running (nothing physical can go wrong).  An Active
 one drives real pumps with nobody watching the screen: without a policy from an
 administrator it pauses with the pumps at 0 as soon as the last client leaves
-(issue 16: "Active without policy: pumps at 0").  A lab that wants an hour's
+("Active without policy: pumps at 0").  A lab that wants an hour's
 identification experiment to survive a dropped link sets keep_while_logging and a
 grace period in its lab file (`quadtank lab policy`).
 """

@@ -1,4 +1,4 @@
-"""The simulation speed the `+` and `-` keys step from (issue 28).
+"""The simulation speed the `+` and `-` keys step from.
 
 Each press asks for the step after the current speed.  Over SSH ten presses
 arrive together, and the engine applies a SetSpeed only between samples (a

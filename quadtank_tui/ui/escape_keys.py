@@ -1,4 +1,4 @@
-"""Esc followed at once by a key is Esc, then that key (issue 17, "Esc then r").
+"""Esc followed at once by a key is Esc, then that key.
 
 A terminal sends Alt+key as ESC and the key, and Textual's parser reads any ESC
 that the next byte follows within its escape delay (0.1 s) as Alt: over SSH a

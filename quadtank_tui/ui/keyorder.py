@@ -1,4 +1,4 @@
-"""Keys handled one after the other, as a person typed them (issue 17.2).
+"""Keys handled one after the other, as a person typed them.
 
 Textual forwards a key to the widget that has the focus *when the app reads it*,
 and the key's non-priority bindings (Tab moving the focus, a digit opening a

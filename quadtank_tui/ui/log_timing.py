@@ -1,4 +1,4 @@
-"""How long a log takes and when it ends (the Logging window; issue 17).
+"""How long a log takes and when it ends (the Logging window).
 
 A student choosing Points wants to know the experiment's length before LogOn,
 and while logging, when to come back: the points take Points x Ts of process

@@ -103,7 +103,7 @@ Realization = tuple[np.ndarray, np.ndarray, np.ndarray, float]
 def realization(num: tuple[float, ...], den: tuple[float, ...], h: float) -> Realization:
     """realize(*tustin(num, den, h)), once per element and sampling time: every
     engine and every installation builds four elements, mostly the default gain, and
-    the discretization is numpy work of some 30 us.  The arrays are read-only, since
+    the discretization is numpy work worth doing once.  The arrays are read-only, since
     the elements holding them share them.  The check that an element can be
     discretized at all (ParameterError, never cached) is this call too, so the
     element built after it finds its realization made."""

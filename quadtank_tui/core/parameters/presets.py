@@ -75,7 +75,7 @@ NAMED_SETTINGS: dict[str, Parameters] = {
 }
 
 
-# --- the other rigs (core.plants; issue 14) -----------------------------------------------
+# --- the other rigs (core.plants) -----------------------------------------------
 
 def from_plant(plant: Plant, levels: Sequence[float], means: Sequence[float], *,
                mode: ControlMode = ControlMode.MANUAL,

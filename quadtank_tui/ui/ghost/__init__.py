@@ -1,4 +1,4 @@
-"""Old runs as ghost traces (issue 17): a saved `.log` drawn dimmed in the trends
+"""Old runs as ghost traces: a saved `.log` drawn dimmed in the trends
 behind the live signals, so a student compares today's controller with
 yesterday's.
 

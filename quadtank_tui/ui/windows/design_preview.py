@@ -1,4 +1,4 @@
-"""The chosen pair of controllers tried on the simulated plant before Apply (issue 23).
+"""The chosen pair of controllers tried on the simulated plant before Apply.
 
 The Design screen's Apply opens this window; it runs core.design.preview in a
 worker (a step of 0.1 on each loop in turn, on the nonlinear model of the plant in

@@ -1,4 +1,4 @@
-"""The MPC window: the MPC section's settings (issue 26) - horizons and the
+"""The MPC window: the MPC section's settings - horizons and the
 prediction step, weights, limits, preview, the disturbance model, the measured
 levels and the price of a level-limit violation.
 

@@ -1,5 +1,5 @@
 """The Setup screen's plant window: the constants and operating levels of a plant
-other than the quadruple tank (a `.par` file's PLANT section; issue 14).
+other than the quadruple tank (a `.par` file's PLANT section).
 
 One field per value, in the file's order: the operating levels the pumps hold
 (Level1.. in the plant's unit), then every physical constant with its unit.  The

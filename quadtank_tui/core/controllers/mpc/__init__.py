@@ -1,4 +1,4 @@
-"""Model predictive control on the plant in use (issue 26): a linear, constrained,
+"""Model predictive control on the plant in use: a linear, constrained,
 offset-free MPC with a Kalman filter, solved each sample by OSQP.
 
 - settings.py: what the user chooses (horizons, weights, limits, preview, ...)
