@@ -45,13 +45,32 @@ class Figure:
 STILL = 2e-6
 
 
+#: An output moves when its range exceeds this many times its noise's s.d.
+NOISE_RANGES = 8.0
+
+
+def moves(y: np.ndarray) -> bool:
+    """Whether a logged output moves: its range is above two of the log's last digits
+    and above :data:`NOISE_RANGES` s.d. of its own noise (estimated robustly from its
+    second differences), so a still tank's noisy sensor is not given a fit %."""
+    y = np.asarray(y, float)
+    span = float(np.ptp(y)) if y.size else 0.0
+    if span <= STILL:
+        return False
+    if y.size < 8:
+        return True
+    d2 = np.diff(y, n=2)
+    sd = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / np.sqrt(6.0)
+    return span > NOISE_RANGES * sd
+
+
 def figure(log: str, output: str, y: np.ndarray, ym: np.ndarray, volts_per_log_unit: float,
            volts_per_level: float, unit: str) -> Figure:
     """The figures of one output, y and ym in the log's units."""
     e = np.asarray(y, float) - np.asarray(ym, float)
     rms = float(np.sqrt(np.mean(e * e)))
     v = rms * volts_per_log_unit
-    fit = fit_percent(y, ym) if np.ptp(y) > STILL else float("nan")
+    fit = fit_percent(y, ym) if moves(y) else float("nan")
     return Figure(log, output, fit, rms, v, v / volts_per_level if volts_per_level else float("nan"), unit)
 
 

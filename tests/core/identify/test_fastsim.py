@@ -37,3 +37,15 @@ def test_batch_simulation_is_the_plants_own_within_its_tolerance(kind: str) -> N
     assert np.abs(xb - x[:, None, :]).max() < 1e-5 * scale
     assert np.abs(yb - y[:, None, :]).max() < 1e-5 * scale
     assert fastsim.steady(b, u[0])[0] == pytest.approx(x0, rel=1e-9)
+
+
+def test_a_still_output_with_a_noisy_sensor_gets_no_fit_percent() -> None:
+    from quadtank_tui.core.identify.crossval import figure
+
+    rng = np.random.default_rng(5)
+    still = 0.3 + 0.0005 * rng.standard_normal(600)           # a tank that does not move, 5 mV of noise
+    moving = 0.3 + 0.05 * np.sin(np.arange(600) / 40) + 0.0005 * rng.standard_normal(600)
+    f = figure("a.log", "y3", still, np.full(600, 0.3), 10.0, 0.5, "cm")
+    assert f.fit_percent != f.fit_percent and f.unit == "cm"  # NaN: n/a, not a negative fit
+    g = figure("a.log", "y1", moving, moving - 0.001, 10.0, 0.5, "cm")
+    assert 95.0 < g.fit_percent < 100.0
