@@ -140,8 +140,26 @@ def prepare(args: argparse.Namespace) -> tuple[Any, tuple[str, int, Any]]:
 
     settings = replace(settings, trusted_proxy=proxy, public_url=url)
     options = ServeOptions(host=str(addr), port=args.port, tls=tls, settings=settings, passed_env=passed,
-                           runtime=lab.runtime_dir, audit=audit, proxy_only=proxy_only)
+                           runtime=lab_runtime(lab).path, audit=audit, proxy_only=proxy_only)
     return Server(options), (str(addr), args.port, tls)
+
+
+def lab_runtime(lab: Any) -> Any:
+    """The lab's shared runtime folder, checked: every tab's user finds their
+    sessions, locks and bookings there only if an administrator made it
+    (`quadtank lab init`); without it each user would work alone in a folder of
+    their own, and the server would list nobody's sessions."""
+    from quadtank_tui.session.folders import RuntimeFolderError
+    from quadtank_tui.session.lab import ensure_runtime_dir
+
+    try:
+        root = ensure_runtime_dir(lab)
+    except RuntimeFolderError as exc:
+        raise UsageError(str(exc)) from None
+    if not root.lab:
+        raise UsageError(f"{lab.runtime_dir}: not the lab's runtime folder ({root.note}); an administrator "
+                         "makes it once with `quadtank lab init` before serving (docs/serve.md)")
+    return root
 
 
 def run(server: Any, host: str, port: int, tls: Any) -> int:

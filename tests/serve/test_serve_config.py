@@ -32,6 +32,24 @@ def test_refused_before_anything_listens(argv: list[str], words: str, capsys: py
     assert err.startswith("quadtank: error: ") and words in err and err.count("\n") == 1, err
 
 
+def test_refused_without_the_labs_runtime_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """Every tab's user must meet the others' sessions, locks and bookings in one
+    folder an administrator made: a link in its place is refused, not served."""
+    import quadtank_tui.commands.serve as serve_command
+
+    monkeypatch.setattr(serve_command, "has_switch_rights", lambda: True)
+    monkeypatch.setattr(serve_command, "run", lambda *a: 0)  # were it accepted, nothing listens
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "rt").symlink_to(tmp_path / "elsewhere")
+    monkeypatch.setenv("QUADTANK_RUNTIME", str(tmp_path / "rt"))
+    monkeypatch.delenv("QUADTANK_LAB", raising=False)
+    assert main(["serve", "--audit", str(tmp_path / "audit.log")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"quadtank: error: {tmp_path / 'rt'}: the runtime folder is not a folder") and \
+        err.count("\n") == 1, err
+
+
 pytestmark_users = pytest.mark.skipif(can_make_users() is not None, reason=str(can_make_users()))
 
 
