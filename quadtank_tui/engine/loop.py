@@ -154,6 +154,9 @@ class ControlLoop:
         self.files = FileWorker()
         self.log = LogSession(self.logs_dir, now, self.files)
         # Timing, filled in by the runner (the loop itself has no clock).
+        #: Told each new sampling time as the parameters take it: the parameters own
+        #: the sampling time (h), and the engine's clock follows them through this.
+        self.on_sampling_time: Callable[[float], None] | None = None
         self.realtime = False
         self.speed = math.inf
         self._timing = LoopTiming()
@@ -400,6 +403,11 @@ class ControlLoop:
         self.record_timing(jitter, missed, wall)
         self.sample()
 
+    def follow_sampling_time(self, listener: Callable[[float], None]) -> None:
+        """`listener(h)` is told each new sampling time as the parameters take it
+        (the engine's clock: the parameters own the sampling time, the clock follows)."""
+        self.on_sampling_time = listener
+
     def set_clock_info(self, realtime: bool, speed: float) -> None:
         self.realtime, self.speed = realtime, speed
         self._snapshot = None
@@ -522,8 +530,11 @@ class ControlLoop:
         if plant is not None:
             self.sim.set_plant(plant, new.process_levels())
         self.params = new
-        if h != old.tsamp and self.backend is not self.sim:
-            arm(self.backend, h)  # the rig's watchdog timeout follows the sampling time
+        if h != old.tsamp:
+            if self.on_sampling_time is not None:
+                self.on_sampling_time(h)  # the clock's schedule
+            if self.backend is not self.sim:
+                arm(self.backend, h)  # the rig's watchdog timeout follows the sampling time
 
     def _switch_mode(self, mode: ControlMode, *, adjust_means: bool = True) -> None:
         """Manual <-> Automatic, bumpless (M3): Manual -> Automatic sets the reference

@@ -59,6 +59,7 @@ class Engine:
         self._lock = threading.Lock()  # one sample or one command at a time
         self._stopped = False
         loop.set_clock_info(clock.realtime, clock.speed)
+        loop.follow_sampling_time(clock.set_period)  # the parameters own the sampling time; the clock follows
         if clock.realtime:  # a rig's time, stepped by hand or not: no sample waits for the disk
             loop.use_file_thread()
 
@@ -166,10 +167,7 @@ class Engine:
             done: Future[CommandResult] = Future()
             done.set_result(self._set_speed(command.factor))
             return done
-        fut = self.loop.begin(command)
-        if self.loop.h != self.clock.period:
-            self.clock.set_period(self.loop.h)
-        return fut
+        return self.loop.begin(command)
 
     def _set_speed(self, factor: float) -> CommandResult:
         if not isinstance(self.clock, VirtualClock):
