@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadtank_tui.core.metrics import MIN_STEP
+from quadtank_tui.core.metrics import MIN_STEP, loop_metrics
 
 #: A pump this close to 0 or full scale is at its limit (the loop clips to [0, 1]).
 LIMIT_TOL = 1e-9
@@ -29,19 +29,16 @@ def last_step_index(r: np.ndarray, min_step: float = MIN_STEP) -> int | None:
 
 
 def iae_after(t: np.ndarray, y: np.ndarray, r: np.ndarray, k: int) -> float:
-    """Integral of |r - y| dt from sample k (the step) to the end, normalized x s;
-    each sample holds for its interval (the last one for the one before it)."""
-    t, e = np.asarray(t, float)[k:], np.abs(np.asarray(r, float) - np.asarray(y, float))[k:]
-    if t.size == 0:
-        return 0.0
-    dt = np.diff(t, append=t[-1] + (t[-1] - t[-2] if t.size > 1 else 0.0))
-    return float(np.sum(e * dt))
+    """Integral of |r - y| dt from sample k (the step) to the end, normalized x s:
+    core.metrics' IAE (each sample holds for its interval) over the samples from the step."""
+    return loop_metrics(np.asarray(t, float)[k:], np.asarray(y, float)[k:], np.asarray(r, float)[k:]).iae
 
 
-def coupling_peak(y_other: np.ndarray, r_other: np.ndarray, k: int) -> float:
-    """Largest |r - y| of the other loop from sample k (the step) on, normalized."""
-    e = np.abs(np.asarray(r_other, float)[k:] - np.asarray(y_other, float)[k:])
-    return float(e.max()) if e.size else 0.0
+def coupling_peak(y_other: np.ndarray, k: int) -> float:
+    """Largest |y - y at the step| of the other loop from sample k (the step) on,
+    normalized: the design preview's "peak in y2" (core/design/preview.py)."""
+    y = np.asarray(y_other, float)[k:]
+    return float(np.max(np.abs(y - y[0]))) if y.size else 0.0
 
 
 def time_at_pump_limit(u1: np.ndarray, u2: np.ndarray, h: float) -> float:

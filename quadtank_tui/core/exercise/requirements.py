@@ -55,7 +55,8 @@ KINDS: dict[str, Kind] = {
     "rise_time": Kind("max", "s", "step", "10 % to 90 % of the step"),
     "iae": Kind("max", "", "step", "integral of |r - y| dt from the step to the end (normalized x s)", grows=True),
     "steady_state_error": Kind("max", "", "step", "|r - y| at the end of the run (normalized; no step needed)"),
-    "coupling": Kind("max", "", "step", "peak |r - y| of the other loop after this loop's step (normalized)",
+    "coupling": Kind("max", "", "step", "peak |y - y at the step| of the other loop after this loop's step "
+                     "(normalized; the design preview's peak in y2)",
                      grows=True),
     "max_level": Kind("max", "", "log", "highest level of the tank over the log (normalized, 1 = 10 V)",
                       grows=True),
@@ -180,7 +181,7 @@ def signal_figure(req: Requirement, cols: Mapping[str, np.ndarray], h: float) ->
         return None, f"no step of r{i} in the log"
     if req.kind == "coupling":
         j = 3 - int(i or 1)
-        return coupling_peak(_column(cols, f"y{j}", req), _column(cols, f"r{j}", req), k), \
+        return coupling_peak(_column(cols, f"y{j}", req), k), \
             f"loop {j} after the step of r{i} at {t[k]:g} s"
     m = loop_metrics(t, y, r, band=req.band)
     if req.kind == "overshoot":
