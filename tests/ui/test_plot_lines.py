@@ -191,3 +191,34 @@ def test_drawing_a_long_trace_is_quick(n: int) -> None:
     start = time.process_time()
     fig.render(118, 18)
     assert time.process_time() - start < 0.25
+
+
+async def test_a_plot_is_laid_out_again_for_its_new_size() -> None:
+    """A figure's ticks are for the size it was drawn at: a resize calls the
+    plot's relayout, which draws it for the size it has now."""
+    from textual.app import App, ComposeResult
+
+    from quadtank_tui.ui.widgets.plot_view import PlotView
+
+    sizes: list[int] = []
+
+    class One(App[None]):
+        def compose(self) -> ComposeResult:
+            yield PlotView()
+
+    app = One()
+    async with app.run_test(size=(60, 20)) as pilot:
+        plot = app.query_one(PlotView)
+
+        def draw() -> None:
+            sizes.append(plot.content_size.height)
+            kit.axes(plot.figure, (0.0, 100.0), (-0.1, 1.0), plot.content_size.width, plot.content_size.height)
+
+        plot.relayout = draw
+        await pilot.resize_terminal(60, 12)
+        await pilot.pause()
+        await pilot.pause()
+        assert sizes and sizes[-1] == 12
+        text = plot.render().plain
+        labels = [line.split("┤")[0].strip() for line in text.splitlines() if "┤" in line]
+        assert len(labels) >= 3, text

@@ -53,6 +53,9 @@ if TYPE_CHECKING:  # the design core loads when the screen first computes (start
 HELP = "Tab: models, λ, Ms; Enter designs · Enter on a row: choose it for the loop"
 #: Below this width the table takes the screen's width and `v` swaps it with the plots.
 NARROW = 110
+#: Fewer rows: the Nyquist plot, too small to draw at its aspect, is a few rows of
+#: its figures (design.tcss's -short), and the step plot gets the rows.
+SHORT = 29
 MS_DEFAULT = "1.6 1.4 1.2"
 
 
@@ -154,6 +157,8 @@ class DesignScreen(CommandSender):
     def on_mount(self) -> None:
         self.query_one("#nyquist", PlotView).border_title = "Nyquist L(iω)"
         self.query_one("#response", PlotView).border_title = "Reference steps"
+        for plot in self.query(PlotView):  # a new size: the ticks laid out again
+            plot.relayout = self._redraw_plots
         self._show_tuning()
         if self.identified is not None:
             self.action_identified()
@@ -182,6 +187,9 @@ class DesignScreen(CommandSender):
 
     def pack(self, size: Size) -> None:
         super().pack(size)
+        # Below SHORT rows the Nyquist plot cannot be drawn at its aspect: it says its
+        # figures in a few rows and the step plot takes the rest (issue 43).
+        self.set_class(size.height < SHORT, "-short")
         narrow = size.width < NARROW
         if narrow != self.has_class("-narrow"):
             self.set_class(narrow, "-narrow")
@@ -487,12 +495,17 @@ class DesignScreen(CommandSender):
         if self._plots is not None:
             self._draw_plots(self._plots)
 
+    def _redraw_plots(self) -> None:
+        if self._plots is not None and self.is_attached:
+            self._draw_plots(self._plots)
+
     def _draw_plots(self, plots: DesignPlots) -> None:
         self._plots = plots
         top, low = self.query_one("#nyquist", PlotView), self.query_one("#response", PlotView)
         dark, no_color = self.app.current_theme.dark, self.app.no_color
         for p in (top, low):
             p.figure.reset()
+        top.set_class(not self.frequency_view, "-nyquist")  # short terminal: its figures in a few rows
         if self.frequency_view:
             draw_sensitivity(top, plots, dark, no_color)
             draw_load_step(low, plots.load, dark, no_color)

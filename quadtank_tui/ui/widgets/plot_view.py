@@ -1,10 +1,16 @@
 """The widget every plot of the interface is drawn in (issue 43): a `Figure`
 (plot_raster.py) rendered at the widget's content size, the trends on Main, the
-plots of Identify and Design and the Apply preview alike."""
+plots of Identify and Design and the Apply preview alike.
+
+A figure's ticks are laid out for the size it was drawn at; a plot whose size
+changes afterwards (a resize, the Design screen's `v` showing its plots, a short
+terminal giving the Nyquist plot's rows to the step plot) has its `relayout`
+called to draw it again for the new size: drawn with the old ticks, an 80x24
+step plot read "1" and "0" on 8 rows, laid out for 5."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 from rich.text import Text
 from textual.widget import Widget
@@ -25,6 +31,12 @@ class PlotView(Widget):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.figure = Figure()
+        #: What draws the figure again for a new size (None: it is drawn at render time).
+        self.relayout: Callable[[], None] | None = None
+
+    def on_resize(self) -> None:
+        if self.relayout is not None:
+            self.call_after_refresh(self.relayout)
 
     @property
     def canvas(self) -> tuple[int, int]:

@@ -12,6 +12,7 @@ Cancel hands back None: nothing is applied.
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Sequence
 
 import numpy as np
@@ -133,12 +134,19 @@ class DesignPreviewWindow(PacksForSize, Window[bool]):
         self.query_one(ProgressBar).display = False
         self.show_message(f"no preview: {why}")
 
+    def _redraw_step(self, plot: PlotView, step: PreviewStep) -> None:
+        """One step's plot again, for the size it has now (PlotView.relayout)."""
+        if self.is_attached:
+            draw_preview_step(plot, step, self.app.current_theme.dark, self.app.no_color)
+
     def _show(self, pv: Preview) -> None:
         self.result = pv
         self.query_one(ProgressBar).display = False
         dark, no_color = self.app.current_theme.dark, self.app.no_color
         for s in pv.steps:
-            draw_preview_step(self.query_one(f"#preview-loop{s.loop}", PlotView), s, dark, no_color)
+            plot = self.query_one(f"#preview-loop{s.loop}", PlotView)
+            draw_preview_step(plot, s, dark, no_color)
+            plot.relayout = partial(self._redraw_step, plot, s)
         from quadtank_tui.core.design.robust import format_robustness
 
         text = format_preview(pv)
