@@ -227,7 +227,7 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
 
 
 def cmd_daq_fit(args: argparse.Namespace) -> int:
-    from quadtank_tui.core.calibration import fit_sensor
+    from quadtank_tui.core.calibration.fits import fit_sensor
 
     volts, levels = [], []
     for pair in args.pairs:
@@ -246,7 +246,7 @@ def cmd_daq_fit(args: argparse.Namespace) -> int:
 
 
 def cmd_daq_calibrate(args: argparse.Namespace) -> int:
-    from quadtank_tui.core.calibration_run import SettleRule
+    from quadtank_tui.core.calibration.procedure import SettleRule
     from quadtank_tui.daq.calibrate import fit_pairs, format_result, read_pairs, run_procedure
 
     plant = None

@@ -3,7 +3,7 @@
 For each pump voltage the pumps are held, the four raw sensor voltages are read
 until they have settled (every one within `tol` volts over the last `window` reads),
 then the operator reads the heights off the tanks' scales: the one procedure of
-core.calibration_run, which the engine runs sample by sample in the TUI's
+core.calibration.procedure, which the engine runs sample by sample in the TUI's
 Calibration window, here in a loop paced by sleeps.  The pairs (settled volts,
 height) give each sensor's gain and offset by least squares; with the plant's pumps
 and valves they give its outlet areas too (core.calibration).
@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Protocol, Sequence, TypeVar
 
-from quadtank_tui.core.calibration import (
+from quadtank_tui.core.calibration.fits import (
     CalibrationError,
     OutletFit,
     SensorCalibration,
@@ -38,7 +38,7 @@ from quadtank_tui.core.calibration import (
     fit_quadtank_outlets,
     fit_sensor,
 )
-from quadtank_tui.core.calibration_run import FAILED, SETTLING, CalibrationRun, SettleRule
+from quadtank_tui.core.calibration.procedure import FAILED, SETTLING, CalibrationRun, SettleRule
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.johansson import PlantParams, area_from_diameter, time_constant
@@ -142,7 +142,7 @@ def run_procedure(sensors: RawSensors, pump_volts: Sequence[float], rule: Settle
                   poll: float = 2.0, sleep: Callable[[float], None] = time.sleep,
                   now: Callable[[], float] = time.monotonic,
                   report: Callable[[str], None] = lambda text: None) -> Pairs:
-    """The procedure (core.calibration_run.CalibrationRun) on a rig, a read every
+    """The procedure (core.calibration.procedure.CalibrationRun) on a rig, a read every
     `poll` s, each voltage of `pump_volts` on both pumps; the pumps end at 0 whatever
     happens.  CalibrationError when the sensors do not settle within the rule's
     timeout at a voltage, or the heights given are not four numbers >= 0.

@@ -9,7 +9,7 @@ One YAML file (examples: `params/daq-labjack.yaml`, `params/virtual-rig.yaml`) s
   pump (the original's Table 1, Nunes 1998 appendix A.2: in 0..3 = tanks 1..4,
   out 0/1 = pumps 1/2);
 - the calibration: level (cm) = gain * volts + offset per tank (Desautel 2.3; fit
-  with `quadtank_tui.core.calibration.fit_sensor`) and the sensor gain kc (V/cm) the
+  with `quadtank_tui.core.calibration.fits.fit_sensor`) and the sensor gain kc (V/cm) the
   normalized units assume; per pump, pump volts = gain * output volts + offset
   (an amplifier between a 0-5 V DAC and a 0-10 V pump is gain 2);
 - output limits (volts the output may be written, the device's safe range);
@@ -46,7 +46,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
 
-from quadtank_tui.core.calibration import SensorCalibration
+from quadtank_tui.core.calibration.fits import SensorCalibration
 from quadtank_tui.daq.interlock import QUADTANK_FEEDERS
 from quadtank_tui.daq.registers import MAX_ADDRESS, SETTING_TYPES, TABLES, TYPES, WORD_ORDERS, Register
 from quadtank_tui.daq.config_checks import PLAUSIBLE_MARGIN, DaqConfigError, Validator, config_error, show

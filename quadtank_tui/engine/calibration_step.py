@@ -2,7 +2,7 @@
 step per sample instead of the control law, while the loop is paused.
 
 The procedure's logic is core's
-(core.calibration_run.CalibrationRun: settling, the operator's heights, the
+(core.calibration.procedure.CalibrationRun: settling, the operator's heights, the
 fit); here it meets the rig: the pumps held at the step's voltages every sample
 (so the rig's watchdog sees the link alive), the raw sensor volts read, and the
 pumps set to 0 whenever the procedure stops holding them.
@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from quadtank_tui.core.calibration import CalibrationError
-from quadtank_tui.core.calibration_run import CalibrationRun, CalibrationStatus, SettleRule
+from quadtank_tui.core.calibration.fits import CalibrationError
+from quadtank_tui.core.calibration.procedure import CalibrationRun, CalibrationStatus, SettleRule
 from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants import Plant
 from quadtank_tui.engine.backend import Levels4, Pair, ProcessBackend

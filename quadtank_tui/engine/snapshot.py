@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from quadtank_tui.core.calibration_run import CalibrationStatus
+from quadtank_tui.core.calibration.procedure import CalibrationStatus
 from quadtank_tui.core.controllers.mpc.info import MPCInfo
 from quadtank_tui.core.parameters import Parameters
 from quadtank_tui.engine.backend import Levels4, Pair

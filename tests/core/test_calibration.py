@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from quadtank_tui.core.calibration import CalibrationError, SensorCalibration, fit_sensor
+from quadtank_tui.core.calibration.fits import CalibrationError, SensorCalibration, fit_sensor
 
 
 @pytest.mark.parametrize(
@@ -48,7 +48,7 @@ def test_a_zero_gain_is_refused() -> None:
 # --- outlet coefficients from the same settled levels (Desautel 2.3.1) ----------------------
 
 def test_desautel_table_1_alphas() -> None:
-    from quadtank_tui.core.calibration import fit_cascade_outlets
+    from quadtank_tui.core.calibration.fits import fit_cascade_outlets
 
     fit = fit_cascade_outlets((4, 5, 6, 7), (3.5, 7.5, 12.25, 17.75), (3.25, 7.25, 12.0, 17.75), beta=0.24813)
     alpha1, alpha2 = fit.coefficients
@@ -57,7 +57,7 @@ def test_desautel_table_1_alphas() -> None:
 
 
 def test_quadtank_outlets_are_recovered_from_simulated_steady_states() -> None:
-    from quadtank_tui.core.calibration import fit_quadtank_outlets
+    from quadtank_tui.core.calibration.fits import fit_quadtank_outlets
     from quadtank_tui.core.plants.johansson import P_MINUS, steady_state_levels
 
     p = P_MINUS.params
@@ -69,7 +69,7 @@ def test_quadtank_outlets_are_recovered_from_simulated_steady_states() -> None:
 
 
 def test_outlets_need_levels_above_zero() -> None:
-    from quadtank_tui.core.calibration import fit_cascade_outlets
+    from quadtank_tui.core.calibration.fits import fit_cascade_outlets
 
     with pytest.raises(CalibrationError, match="cannot determine"):
         fit_cascade_outlets((4, 5), (0.0, 0.0), (0.0, 0.0), beta=0.25)

@@ -19,7 +19,7 @@ import pytest
 from quadtank_tui.cli import main
 from quadtank_tui.core.parameters import PRESET
 from quadtank_tui.core.plants.johansson import steady_state_levels
-from quadtank_tui.core.calibration_run import SettleRule
+from quadtank_tui.core.calibration.procedure import SettleRule
 from quadtank_tui.daq.calibrate import Pairs, fit_pairs, parse_pairs, run_procedure
 from quadtank_tui.files.par import write_par
 from daqkit import VIRTUAL_RIG, rig_yaml
@@ -237,7 +237,7 @@ def test_writing_what_the_files_hold_writes_nothing(
 
 
 def test_a_daq_file_without_a_calibration_section_gets_one() -> None:
-    from quadtank_tui.core.calibration import SensorCalibration
+    from quadtank_tui.core.calibration.fits import SensorCalibration
     from quadtank_tui.daq.calibrate import with_calibration
     from quadtank_tui.daq.config import parse_daq_config
 

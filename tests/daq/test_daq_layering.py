@@ -25,7 +25,7 @@ def imported_by(*modules: str) -> list[str]:
 
 def test_config_and_calibration_do_not_load_the_link() -> None:
     mods = imported_by("quadtank_tui.daq.config", "quadtank_tui.daq.interlock",
-                       "quadtank_tui.daq.registers", "quadtank_tui.core.calibration")
+                       "quadtank_tui.daq.registers", "quadtank_tui.core.calibration.fits")
     bad = [m for m in mods if m.split(".")[0] in ("pymodbus", "asyncio", "textual", "rich")]
     assert bad == []
 

@@ -9,7 +9,7 @@ import threading
 import pytest
 
 from quadtank_tui.core.plants.johansson import steady_state_levels
-from quadtank_tui.core.calibration_run import SettleRule
+from quadtank_tui.core.calibration.procedure import SettleRule
 from quadtank_tui.daq.calibrate import fit_pairs, run_procedure
 from quadtank_tui.daq.ist import protocol as p
 from quadtank_tui.daq.ist.backend import IstBackend

@@ -23,7 +23,7 @@ from textual.containers import Horizontal
 from textual.reactive import reactive
 from textual.widgets import Button, Input, Label, Static
 
-from quadtank_tui.core.calibration_run import DONE, HEIGHTS, SETTLING, CalibrationStatus
+from quadtank_tui.core.calibration.procedure import DONE, HEIGHTS, SETTLING, CalibrationStatus
 from quadtank_tui.files.names import check_file_name
 from quadtank_tui.core.ranges import ParameterError
 from quadtank_tui.engine.commands import CalibrationHeights, CancelCalibration, Command, StartCalibration
@@ -159,7 +159,7 @@ class CalibrationWindow(LiveWindow):
     @work(thread=True, exclusive=True, group="fit")
     def fit(self, s: CalibrationStatus) -> None:
         """Least squares on the pairs (sensors, and the plant's outlets), off the UI."""
-        from quadtank_tui.core.calibration import CalibrationError
+        from quadtank_tui.core.calibration.fits import CalibrationError
         from quadtank_tui.daq.calibrate import Pairs, fit_pairs, format_result
 
         assert self.snapshot is not None

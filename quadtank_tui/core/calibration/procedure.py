@@ -29,7 +29,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
-from quadtank_tui.core.calibration import CalibrationError
+from quadtank_tui.core.calibration.fits import CalibrationError
 
 SETTLING, HEIGHTS, DONE, FAILED, CANCELLED = "settling", "heights", "done", "failed", "cancelled"
 
