@@ -137,6 +137,10 @@ def grade_record(folder: Path, exercises: Mapping[str, Exercise], *, daq_digests
     elif "exercise.yaml" in data and digest(data["exercise.yaml"]) != ex.digest:
         notes.append(f"exercise.yaml is not the teacher's {ex.path.name} (edited, or another version): "
                      "graded against the teacher's")
+    wrong_plant = ex is not None and ((ex.runs_on == "rig" and kind != "rig") or
+                                      (ex.runs_on == "simulator" and kind != "simulator"))
+    if wrong_plant and ex is not None:
+        notes.append(f"{ex.id} runs on the {ex.runs_on}; this attempt ran on the {kind}")
     recorded = {str(r.get("name")): r for r in result["requirements"] if isinstance(r, dict)}
     seconds = _seconds(result)
     log_bytes = data.get("run.log")
@@ -180,7 +184,8 @@ def grade_record(folder: Path, exercises: Mapping[str, Exercise], *, daq_digests
         notes.append(f"result.json names no plant the grader knows ({kind!r})")
     reproduced: Reproduced = False if bad or log_reproduced is False else (True if simulated_ok else "read")
     allowed = not any(n.startswith("student.par changes") for n in notes)
-    passed = bool(graded) and all(r.met for r in graded) and reproduced is not False and allowed
+    passed = bool(graded) and all(r.met for r in graded) and reproduced is not False and allowed \
+        and not wrong_plant
     curve = _curve(ex, cols) if ex is not None and cols is not None else None
     return Graded(folder, user, ex_id, str(result.get("started", "")), str(kind), graded, passed, reproduced,
                   notes, curve)

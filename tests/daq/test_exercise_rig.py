@@ -93,6 +93,14 @@ def test_a_rig_attempt_is_recorded_with_the_rig_and_graded_as_read(device: Calla
     other = grade_record(tmp_path / "rec", exercises, daq_digests=["0" * 64])
     assert any("not the one given (--daq)" in n for n in other.notes)
 
+    # the same record graded against a simulator-only version of the exercise
+    (tmp_path / "sim").mkdir()
+    (tmp_path / "sim" / "rig-step.yaml").write_text(SCRIPT)
+    (tmp_path / "sim" / "rig-step-ex.yaml").write_text(
+        EXERCISE.format(par=EXERCISES / "reference" / "pminus-pi.par").replace("runs_on: rig", "runs_on: simulator"))
+    elsewhere = grade_record(tmp_path / "rec", load_exercises([tmp_path / "sim" / "rig-step-ex.yaml"]))
+    assert not elsewhere.passed and "rig-step-ex runs on the simulator; this attempt ran on the rig" in elsewhere.notes
+
     log = tmp_path / "rec" / "run.log"
     log.write_text(log.read_text().replace("0.6", "0.5", 3))
     edited = grade_record(tmp_path / "rec", exercises, daq_digests=[digest])
