@@ -2,7 +2,8 @@
 the models of one experiment on the data of a second).
 
 The model's elements G_oi(s) e^(-L s) are discretized with a zero-order hold at
-the validation log's sampling time (the dead time rounded to whole samples) and
+the validation log's sampling time (the dead time exact, as identify/sampling and
+design/sampled do) and
 driven by that log's inputs in deviations from its first row; the initial state
 is rest at the first row (the model's state is zero there and its outputs are the
 logged first readings), which is how every experiment script here starts a log.
@@ -15,7 +16,6 @@ from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
-from scipy import signal
 
 from quadtank_tui.core.delaytf import DelayTF
 from quadtank_tui.core.identify import IdentificationError
@@ -75,17 +75,13 @@ def figure(log: str, output: str, y: np.ndarray, ym: np.ndarray, volts_per_log_u
 
 
 def simulate_element(g: DelayTF, du: np.ndarray, h: float) -> np.ndarray:
-    """The response of g to the deviation input du sampled every h s (ZOH), from rest."""
-    du = np.asarray(du, float)
-    if len(g.den) == 1:  # a pure gain
-        y = g.num[0] / g.den[0] * du
-    else:
-        A, B, C, D = signal.tf2ss(g.num, g.den)
-        Ad, Bd, Cd, Dd, _ = signal.cont2discrete((A, B, C, D), h, method="zoh")
-        y = signal.dlsim((Ad, Bd, Cd, Dd, h), du)[1]
-        y = np.ravel(y)
-    d = int(round(g.delay / h))
-    return np.concatenate([np.zeros(min(d, y.size)), y[:y.size - d]]) if d else y
+    """The response of g to the deviation input du sampled every h s (ZOH), from rest:
+    the one convention of identify/sampling and design/sampled (the dead time exact,
+    fractional; row k never sees u_k, a direct term acts one row later)."""
+    from quadtank_tui.core.identify.sampling import simulate
+
+    return np.asarray(simulate(np.asarray(g.num, float), np.asarray(g.den, float), h,
+                               np.asarray(du, float), g.delay), dtype=float)
 
 
 def simulate_linear(elements: Mapping[tuple[str, str], DelayTF], outputs: Sequence[str], inputs: Sequence[str],

@@ -72,3 +72,26 @@ def test_spectral_estimate_matches_the_true_frequency_response() -> None:
     w, g = spectral_estimate(u, y, 1.0)
     _, true = signal.freqz(b, a, worN=w)
     assert np.abs(g[1:] - true[1:]).max() / np.abs(true).max() < 0.03  # leakage near 0 Hz
+
+
+def test_crossval_samples_a_dead_time_exactly_as_identify_and_design_do() -> None:
+    """K e^(-1.5 h s) / (T s + 1) after a unit step at row 0: the sampled response is
+    K (1 - e^(-(k h - L) / T)) from k h > L, the dead time not rounded to 2 samples
+    (crossval did that; identify/sampling and design/sampled did not)."""
+    import math
+
+    from quadtank_tui.core.delaytf import DelayTF
+    from quadtank_tui.core.design.sampled import sample
+    from quadtank_tui.core.identify.crossval import simulate_element
+
+    K, T, h = 2.0, 30.0, 4.0
+    L = 1.5 * h
+    y = simulate_element(DelayTF((K,), (T, 1.0), L), np.ones(12), h)
+    want = [K * (1 - math.exp(-(k * h - L) / T)) if k * h > L else 0.0 for k in range(12)]
+    assert y == pytest.approx(want, abs=1e-12)
+    m = sample(DelayTF((K,), (T, 1.0), L), h)  # x(k+1) = A x + B u, y = C x + Dd u
+    x, ys = np.zeros(m.A.shape[0]), []
+    for _ in range(12):
+        ys.append(float(m.C @ x + m.Dd))
+        x = m.A @ x + m.B.ravel()
+    assert ys == pytest.approx(want, abs=1e-12)
