@@ -31,7 +31,7 @@ from quadtank_tui.core.exercise.figures import last_step_index
 from quadtank_tui.engine.experiment import run_experiment
 from quadtank_tui.engine.headless import finish_headless, prepare_headless
 from quadtank_tui.engine.runner import load_parameters
-from quadtank_tui.files.exercise import Exercise, ExerciseError, read_exercise
+from quadtank_tui.files.exercise import NOT_A_MAPPING, Exercise, ExerciseError, read_exercise
 from quadtank_tui.files.log_reader import parse_log
 from quadtank_tui.files.par import ParStore, parse_par
 from quadtank_tui.files.record import FILES, RecordError, digest, read_file, read_result
@@ -96,10 +96,10 @@ def load_exercises(paths: Iterable[Path]) -> dict[str, Exercise]:
         for f in files:
             try:
                 ex = read_exercise(f)
-            except ExerciseError:
-                if path.is_dir():
-                    continue  # a script next to the exercises
-                raise
+            except ExerciseError as exc:
+                if path.is_dir() and exc.reason.startswith(NOT_A_MAPPING):
+                    continue  # a script (a list of events) next to the exercises
+                raise  # a teacher's mistake is said, not skipped
             out[ex.id] = ex
     return out
 

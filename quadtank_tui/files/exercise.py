@@ -45,6 +45,8 @@ TOP_KEYS = ("title", "text", "par", "runs_on", "may_change", "experiment", "time
             "requirements", "reference", "teacher")
 IDENTIFY_METHODS = ("oe", "step", "arx", "n4sid")
 ELEMENTS = ("11", "12", "21", "22")
+#: The start of the reason a YAML file that is not a mapping (a script) is refused with.
+NOT_A_MAPPING = "an exercise is a mapping"
 #: A run's length: a long lab session at most (8 h).
 MAX_DURATION = 8 * 3600.0
 
@@ -147,7 +149,7 @@ def parse_exercise(text: str, path: Path, digest: str = "") -> Exercise:
         return ExerciseError(name, reason, line if line is not None else 1)
 
     if not isinstance(data, dict):
-        raise fail("an exercise is a mapping: title, text, par, experiment, requirements, ...")
+        raise fail(f"{NOT_A_MAPPING}: title, text, par, experiment, requirements, ...")
     unknown = [k for k in data if k not in TOP_KEYS]
     if unknown:
         raise fail(f"unknown key {unknown[0]!r} (one of {', '.join(TOP_KEYS)})", str(unknown[0]))

@@ -66,3 +66,19 @@ def test_unknown_keys_and_missing_files(tmp_path: Path, capsys: pytest.CaptureFi
         assert main(["run", "--exercise", str(tmp_path / "e.yaml"), "--par", "minphase"]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and f"e.yaml, line {line}: " in err and message in err, err
+
+
+def test_grade_says_a_broken_exercise_in_the_folder_and_skips_its_scripts(tmp_path: Path,
+                                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    from quadtank_tui.app.grade import load_exercises
+
+    (tmp_path / "s.yaml").write_text("- {at: 0, state: Run}\n")  # a script: skipped
+    (tmp_path / "e.yaml").write_text(GOOD.format(par=ROOT / "params" / "minphase.par"))
+    assert sorted(load_exercises([tmp_path])) == ["e"]
+    (tmp_path / "f.yaml").write_text(GOOD.format(par=ROOT / "params" / "minphase.par").replace("max: 10", "max: x"))
+    (tmp_path / "rec").mkdir()
+    (tmp_path / "rec" / "result.json").write_text("{}")
+    assert main(["grade", str(tmp_path / "rec"), "--exercises", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "f.yaml, line 9: overshoot needs a number max" in err, err
+
