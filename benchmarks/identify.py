@@ -149,7 +149,8 @@ def foreign() -> None:
           f"RMS est {fit.rms:.3f} V, val {val.rms_v:.3f} V (target < 0.30, goal 0.18)")
     for note in fit.notes:
         print(f"    {note}")
-    folder = ROOT.parent / "shared" / "data" / "foreign-rig"
+    folder = next((p / "shared" / "data" / "foreign-rig" for p in (ROOT.parent, ROOT.parent.parent)
+                   if (p / "shared" / "data" / "foreign-rig").is_dir()), ROOT.parent / "shared" / "data" / "foreign-rig")
     if not folder.is_dir():
         print(f"  physical: foreign rig: {folder} not found, skipped")
         return

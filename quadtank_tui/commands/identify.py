@@ -208,6 +208,9 @@ def run(args: argparse.Namespace) -> int:
                    n=args.n, order=args.order, zeros=args.zeros, delay=not args.no_delay,
                    fraction=1.0 - args.validate, start=parse_start(args.start))
     ident = identify(records, opts)
+    from quadtank_tui.core.identify.feedback import closed_loop
+
+    feedback = closed_loop([(r.name, r.columns) for r in records])
     params, name, v_default = _physical(args.par, ident.operating_point)
     cmp = None
     if params is None:
@@ -229,6 +232,7 @@ def run(args: argparse.Namespace) -> int:
                       args.figure)
     if args.json:
         out = to_dict(ident, cmp, name)
+        out["closed_loop"] = feedback
         if saved is not None:
             out["model_file"] = str(saved)
         out["validation"] = [v.to_dict() for v in validation]
@@ -237,6 +241,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(out, indent=2))
     else:
         print(format_report(ident, cmp, name))
+        if feedback:
+            print(feedback)
         if validation:
             print("Validation on other logs (the model from rest at each log's first row):")
             from quadtank_tui.commands.identify_physical import figure_line

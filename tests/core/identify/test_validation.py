@@ -95,3 +95,14 @@ def test_crossval_samples_a_dead_time_exactly_as_identify_and_design_do() -> Non
         ys.append(float(m.C @ x + m.Dd))
         x = m.A @ x + m.B.ravel()
     assert ys == pytest.approx(want, abs=1e-12)
+
+
+def test_a_log_whose_references_move_is_said_to_be_closed_loop() -> None:
+    from quadtank_tui.core.identify.feedback import closed_loop
+
+    u = np.linspace(0.3, 0.4, 50)
+    assert closed_loop([("open.log", {"u1": u, "y1": u, "r1": np.full(50, 0.5)})]) is None
+    line = closed_loop([("open.log", {"u1": u}), ("pi.log", {"u1": u, "r1": np.repeat([0.5, 0.55], 25),
+                                                            "r2": np.full(50, 0.4)})])
+    assert line is not None and line.startswith("closed loop: the references move (r1 in pi.log)")
+    assert "\n" not in line
