@@ -163,7 +163,7 @@ class _Record:
                        None if d.get("start") is None else int(d["start"]),
                        datetime.fromisoformat(d["since"]), d.get("session"), str(d.get("token", "")),
                        bool(d.get("take_over", False)))
-        except (ValueError, KeyError, TypeError, RecursionError):
+        except (ValueError, KeyError, TypeError, RecursionError, OverflowError):  # Infinity as a uid
             return None
 
     def held(self, device: str) -> DaqLockHeld:

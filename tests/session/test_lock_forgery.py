@@ -249,3 +249,22 @@ def test_junk_of_another_user_hides_no_record(lab: LabConfig) -> None:
     finally:
         child.kill()
         child.wait()
+
+
+@root_only
+@pytest.mark.parametrize("field", ['"uid": Infinity', '"pid": 2147483648', '"pid": 1e400', '"start": -Infinity'])
+def test_a_students_own_record_of_huge_numbers_blocks_nobody(lab: LabConfig, field: str) -> None:
+    """A record in the student's own file (its name and owner theirs) with a number
+    no C long holds: before, every acquire and holder_of of the rig ended in an
+    OverflowError (from int(inf), or os.kill of pid 2**31)."""
+    lab.locks_dir.mkdir(parents=True, exist_ok=True)
+    path = lock_path(DEVICE, lab, STUDENT)
+    fields = {"user": "stud", "uid": str(STUDENT), "pid": "1", "start": "null"}
+    key = field.split(":")[0].strip('"')
+    fields[key] = field.split(":", 1)[1].strip()
+    path.write_text("{" + ", ".join(f'"{k}": {v}' if k != "user" else f'"{k}": "{v}"' for k, v in fields.items())
+                    + ', "since": "2026-11-26T10:00:00+00:00", "token": "x"}')
+    os.chown(path, STUDENT, STUDENT)
+    assert holder_of(DEVICE, lab) is None
+    with DaqLock.acquire(DEVICE, lab) as lock:
+        assert lock.held

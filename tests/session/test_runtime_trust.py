@@ -202,3 +202,19 @@ def test_a_lock_records_name_and_session_are_shown_escaped(tmp_path: Path) -> No
     held = holder_of(device, lab)
     assert held is not None and held.session is None and "\x1b" not in str(held)
     assert f"driven by alice\\x1b]0;PWNED\\x07\\x1b[2J\\x9b31m\\u202e (pid {os.getpid()}) since" in str(held)
+
+
+@pytest.mark.parametrize("pid", [2**31, 2**63, 10**20])
+def test_a_record_naming_a_pid_no_kernel_gives_is_of_a_process_gone(tmp_path: Path, pid: int) -> None:
+    """A record of the user's own (so it passes every owner check) naming a pid
+    beyond pid_max: before, every listing of the folder (root's `quadtank sessions`,
+    a serve page) ended in os.kill's OverflowError."""
+    from quadtank_tui.files.proc import pid_alive, process_owner, process_start, process_state
+    from quadtank_tui.session.folders import own_place, resolve
+
+    assert (process_state(pid), process_owner(pid), process_start(pid), pid_alive(pid)) == ("", None, None, False)
+    root = resolve(tmp_path / "rt")
+    place = own_place(root.path)
+    (place / f"{ME}-1.json").write_text(record(pid=pid, state="Run"))
+    assert list_sessions(root.path, prune=False) == []
+    assert [i.pid for i in ended_sessions(root.path)] == [pid]
