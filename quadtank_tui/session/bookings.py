@@ -36,7 +36,7 @@ import os
 import secrets
 import stat
 from dataclasses import dataclass
-from datetime import datetime, timedelta
+from datetime import date, datetime, timedelta
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -136,8 +136,9 @@ def _is_admin(uid: int, lab: LabConfig) -> bool:
     return uid == 0 or is_administrator(uid, lab)
 
 
-def _read(path: Path, lab: LabConfig) -> tuple[Booking, float] | None:
-    """The booking in `path` if it is genuine (see the module docstring), and its ctime."""
+def _read(path: Path, lab: LabConfig) -> tuple[Booking, float, bool] | None:
+    """The booking in `path` if it is genuine (see the module docstring), its ctime,
+    and whether an administrator (or root) wrote it."""
     from quadtank_tui.session.roles import user_name
 
     try:
@@ -152,15 +153,17 @@ def _read(path: Path, lab: LabConfig) -> tuple[Booking, float] | None:
         rig, uid, start, end = data["rig"], data["uid"], data["start"], data["end"]
         if not (isinstance(rig, str) and isinstance(uid, int) and isinstance(start, str) and isinstance(end, str)):
             return None
+        if not (rig.isprintable() and path.name.isprintable()):
+            return None  # what is shown of it (its id, its rig) on others' terminals carries no control character
         if st.st_uid != uid and not _is_admin(st.st_uid, lab):
             return None  # written by someone who may not book for that user
         b = Booking(rig, uid, user_name(uid), datetime.fromisoformat(start), datetime.fromisoformat(end),
                     user_name(st.st_uid), path)
         if b.start.tzinfo is None or b.end <= b.start or not path.stem.startswith(_name(rig, b.start, uid) + "~"):
             return None
-        return b, st.st_ctime
-    except (OSError, ValueError, KeyError, TypeError, UnicodeDecodeError):
-        return None
+        return b, st.st_ctime, _is_admin(st.st_uid, lab)
+    except (OSError, ValueError, KeyError, TypeError, RecursionError, OverflowError):
+        return None  # (a UnicodeDecodeError is a ValueError; RecursionError: '[' nested 4096 deep)
     finally:
         os.close(fd)
 
@@ -184,9 +187,10 @@ def list_bookings(lab: LabConfig, keys: Iterable[str] | None = None, *,
     that end after now - KEPT, in order of start; of overlapping ones on a rig,
     the first created only."""
     folder = bookings_dir(lab)
+    rules = booking_rules(lab)
     wanted = None if keys is None else {_stem(k) for k in keys}
     now = now or datetime.now().astimezone()
-    found: list[tuple[Booking, float]] = []
+    found: list[tuple[Booking, float, bool]] = []
     try:
         names = os.listdir(folder)
     except OSError:
@@ -202,10 +206,33 @@ def list_bookings(lab: LabConfig, keys: Iterable[str] | None = None, *,
         found.append(got)
     found.sort(key=lambda f: f[1])  # first created first
     kept: list[Booking] = []
-    for b, _ in found:
+    used: dict[tuple[str, int, date], timedelta] = {}
+    for b, ctime, by_admin in found:
+        if not by_admin and not _within_rules(b, ctime, rules, used):
+            continue
         if not any(o.rig == b.rig and o.start < b.end and b.start < o.end for o in kept):
             kept.append(b)
     return sorted(kept, key=lambda b: (b.start, b.rig))
+
+
+def _within_rules(b: Booking, ctime: float, rules: BookingRules,
+                  used: dict[tuple[str, int, date], timedelta]) -> bool:
+    """Whether a student's own booking file is one `book` could have made: on the
+    lab's slots, at most horizon_days ahead of when it was written (its ctime, the
+    kernel's), within the weekly quota (`used`: each rig key's, user's and week's
+    time so far, the files written first counted first).  A file written by hand
+    past the rules (the rig booked for years) counts for nothing."""
+    start, end = b.start.astimezone(), b.end.astimezone()
+    if not (_aligned(start, rules) and _aligned(end, rules)):
+        return False
+    if start > datetime.fromtimestamp(ctime).astimezone() + timedelta(days=rules.horizon_days):
+        return False
+    week = (b.rig, b.uid, start.date() - timedelta(days=start.weekday()))
+    total = used.get(week, timedelta()) + (end - start)
+    if total > timedelta(minutes=rules.weekly_quota_minutes):
+        return False
+    used[week] = total
+    return True
 
 
 def in_force(lab: LabConfig, keys: Iterable[str], when: datetime | None = None) -> Booking | None:

@@ -65,6 +65,13 @@ def test_a_booking_is_on_the_slots_ahead_and_free(tmp_path: Path) -> None:
 def test_a_students_horizon_and_weekly_quota(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     lab = lab_with(tmp_path, "bookings:\n  horizon_days: 2\n  weekly_quota_minutes: 90\n")
     monkeypatch.setattr(bk, "_is_admin", lambda uid, lab: False)
+    # this week's Monday: a student's file counts only within the horizon of when the kernel says it was written
+    today = datetime.now().astimezone()
+    monday = (today - timedelta(days=today.weekday())).replace(hour=14, minute=0, second=0, microsecond=0)
+
+    def at(minutes: float) -> datetime:
+        return monday + timedelta(minutes=minutes)
+
     with pytest.raises(bk.BookingError, match="at most 2 days ahead"):
         bk.book(lab, KEYS, at(3 * 24 * 60), at(3 * 24 * 60 + 30), now=at(0))
     bk.book(lab, KEYS, at(60), at(120), now=at(0))
@@ -125,3 +132,40 @@ def test_the_timeline_of_a_session_on_the_rig(tmp_path: Path, monkeypatch: pytes
     # after the last slot: first come again
     assert bk.SlotWatch(lab, KEYS, 1002).step(at(100)) == (None, None)
     assert alice.refusal(at(100)) is None
+
+
+def test_a_students_own_files_count_only_as_book_would_have_made_them(tmp_path: Path) -> None:
+    """A student writes booking files by hand, all theirs (owner = the uid named):
+    only the one `book` could have made counts; nothing else breaks or blocks the list."""
+    lab = lab_with(tmp_path)
+    folder = bk.bookings_dir(lab)
+    now = datetime.now().astimezone().replace(second=0, microsecond=0)
+    slot = now.replace(minute=0) + timedelta(hours=1)  # on the 30 min slots, within the horizon
+    student = 54321
+
+    def plant(name_start: datetime, body: object, tail: str = "x") -> Path:
+        path = folder / f"{bk._stem(KEYS[0])}~{name_start.strftime('%Y%m%dT%H%M%S')}~{student}~{tail}.json"
+        path.write_text(body if isinstance(body, str) else json.dumps(body))
+        os.chown(path, student, student)
+        return path
+
+    def body(start: datetime, end: datetime, rig: str = KEYS[0], uid: object = student) -> dict[str, object]:
+        return {"rig": rig, "uid": uid, "start": start.isoformat(), "end": end.isoformat()}
+
+    ever = datetime(2000, 1, 1).astimezone()
+    plant(ever, body(ever, datetime(9999, 1, 1).astimezone()))                                # the rig for ever
+    plant(slot, body(slot, slot + timedelta(minutes=17)), "odd")                              # off the slots
+    far = slot + timedelta(days=60)
+    plant(far, body(far, far + timedelta(minutes=30)))                                        # past the horizon
+    plant(slot, body(slot, slot + timedelta(minutes=30), rig=KEYS[0] + "\x1b]0;PWNED\x07"), "esc")  # raw escape
+    plant(slot, body(slot, slot + timedelta(minutes=30)), "\x1b[2J")                          # an id that clears
+    plant(slot, "[" * 4000, "deep")                                                           # RecursionError
+    plant(slot, '{"rig": "%s", "uid": Infinity, "start": "%s", "end": "%s"}'
+          % (KEYS[0], slot.isoformat(), (slot + timedelta(minutes=30)).isoformat()), "inf")
+    good = plant(slot + timedelta(hours=1), body(slot + timedelta(hours=1), slot + timedelta(hours=2)), "good")
+    over = slot + timedelta(hours=2)  # two more hours that week: past the 120 min quota
+    plant(over, body(over, over + timedelta(hours=2)), "quota")
+    found = bk.list_bookings(lab, KEYS, now=now)
+    assert [b.id for b in found] == [good.stem]
+    assert bk.active_refusal(lab, KEYS, 1000, now + timedelta(minutes=1)) is None
+    assert bk.in_force(lab, KEYS, slot + timedelta(minutes=61)) == found[0]
