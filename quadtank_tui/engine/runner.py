@@ -128,6 +128,11 @@ class Engine:
         return self.loop.automatic_since
 
     @property
+    def log_failed(self) -> str | None:
+        """Why the log stopped taking rows (a full disk, a lost folder), else None."""
+        return self.loop.log.failed
+
+    @property
     def log_started_at(self) -> float:
         """Loop time of the last LogOn: the log's `t` column counts from it."""
         return self.loop.log.started_at

@@ -55,9 +55,9 @@ class ScriptedRun:
         """The script's events due at `elapsed` (ValueError: a refused one, the
         script's error naming its file and line)."""
         apply_due(self.run.engine, self._events, elapsed, self._name)
-        if not self._told and self.run.engine.loop.log.failed is not None:  # said in the output when it happens
+        if not self._told and self.run.engine.log_failed is not None:  # said in the output when it happens
             self._told = True
-            print(f"LOG FAULT at t = {elapsed.seconds:g} s: {self.run.engine.loop.log.failed}", flush=True)
+            print(f"LOG FAULT at t = {elapsed.seconds:g} s: {self.run.engine.log_failed}", flush=True)
 
     def finish(self) -> str:
         """Save the log and print the summary (to the session's output); the

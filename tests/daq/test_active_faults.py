@@ -252,7 +252,7 @@ def test_exit_with_unconfirmed_zero_leaves_the_guard_to_stop_the_pumps(
     snap = engine.snapshot()
     assert snap.fault is not None and "pumps NOT confirmed at 0 (left to the guard process to stop them): " \
         "write of DAC0 (holding registers 1000-1001)" in snap.fault
-    assert engine.loop.pumps_unconfirmed.startswith("pumps NOT confirmed at 0")
+    assert engine.pumps_unconfirmed.startswith("pumps NOT confirmed at 0")
     assert bank.refused == 4                          # each pump's write of 0, tried twice
     assert _wait_for(lambda: bank.refused >= 8, 10.0) is not None  # the guard tried too (it may take a while to start)
     assert bank.dacs() == pytest.approx((3.0, 3.0))   # nobody could stop them yet

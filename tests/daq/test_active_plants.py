@@ -159,14 +159,14 @@ def test_loading_another_plants_par_under_a_daq_is_refused() -> None:
 
     engine = build_engine(ROOT / "params" / "default.par", daq=ModbusBackend(load_daq_config("labjack")),
                           clock="manual", params_dir=ROOT / "params")
-    before = engine.loop.params
+    before = engine.params
     result = engine.submit(LoadPar("coupled-cascade")).result()
     assert not result.ok
     assert result.message == (
         "PLANT.Kind: preset labjack: wired for the quadtank plant, but the "
         "plant in use is coupled-cascade: a coupled-cascade plant has 2 level channels (tank1, tank2) and 1 pump "
         "channel (pump1); read the configuration for it")
-    assert engine.loop.params == before
+    assert engine.params == before
 
 
 def test_the_tui_reads_its_daq_for_the_par_plant() -> None:

@@ -52,11 +52,11 @@ def test_a_plant_value_set_while_running_changes_the_process_and_the_saved_par(t
     plant = engine.loop.sim.plant
     assert plant == CoupledCascade(alpha1=0.0105, vmax=24.0)
     assert engine.loop.sim.levels_cm == before  # the water stays where it is
-    assert engine.loop.params.process_levels()[1] == pytest.approx(15.0 * (0.0105 / 0.0098811) ** 2, rel=1e-12)
+    assert engine.params.process_levels()[1] == pytest.approx(15.0 * (0.0105 / 0.0098811) ** 2, rel=1e-12)
     assert engine.submit(SavePar("edited")).result().ok
     text = (tmp_path / "params" / "edited.par").read_text()
     assert text.endswith("\n" + EDITED_PLANT)
-    assert text == format_par(engine.loop.params, _created(text))
+    assert text == format_par(engine.params, _created(text))
 
 
 def _created(text: str):
@@ -75,10 +75,10 @@ def _created(text: str):
 ])
 def test_a_refused_plant_value_changes_nothing_and_says_why(tmp_path: Path, values: dict, message: str) -> None:
     engine = cascade_engine(tmp_path)
-    before = engine.loop.params
+    before = engine.params
     result = engine.submit(SetParams(values)).result()
     assert (result.ok, result.message) == (False, message)
-    assert engine.loop.params == before and engine.loop.sim.plant == CoupledCascade()
+    assert engine.params == before and engine.loop.sim.plant == CoupledCascade()
 
 
 def test_the_quadruple_tank_has_no_plant_section_values(tmp_path: Path) -> None:
@@ -93,6 +93,6 @@ def test_the_two_input_rig_redesigned_between_samples(tmp_path: Path) -> None:
     engine = build_engine(PARAMS / "coupled-tito.par", clock="manual", params_dir=PARAMS)
     assert engine.submit(SetParams({"PLANT.a1": 3.956e-5 * 1.1})).result().ok
     assert engine.loop.sim.plant.values()["a1"] == pytest.approx(4.3516e-5)
-    process = engine.loop.params.process
+    process = engine.params.process
     preset = PLANT_SETTINGS["coupled-tito"].process
     assert process is not None and preset is not None and process.levels == preset.levels

@@ -29,7 +29,7 @@ def test_the_session_samples_while_a_par_file_hangs(thread_session, monkeypatch:
         assert client.submit(c.SavePar("mine", overwrite=True)).result(10).ok
         assert client.submit(c.SetParams({K: 1.0})).result(10).ok
         gate, reading = threading.Event(), threading.Event()
-        store = s.engine.loop.store
+        store = s.engine.par_store
         real = store.load
 
         def load(name: str, *args: Any, **kw: Any) -> Any:

@@ -37,7 +37,7 @@ from quadtank_tui.session.server import MAX_LINE_BURST, MAX_LINE_RATE
 # run at load 5.
 def _stall(s: ThreadSession) -> str | None:
     """Why the sampling did not hold (a slot skipped, a sample late by h/2), or None."""
-    stats, h = s.engine.snapshot().stats, s.engine.loop.h
+    stats, h = s.engine.snapshot().stats, s.engine.sampling_time
     s.stop()
     if stats.skipped == 0 and stats.jitter_max < h / 2:
         return None

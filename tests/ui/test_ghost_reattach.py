@@ -46,7 +46,7 @@ def info(started: str) -> SessionInfo:
 async def test_the_ghost_comes_back_on_reattach_and_not_on_a_new_session(
         engine: Recording, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
-    write_log(Path(engine.loop.logs_dir) / "yesterday.log", 100, 0.5, 0.6)
+    write_log(Path(engine.logs_dir) / "yesterday.log", 100, 0.5, 0.6)
     first = make_app(Attached(engine, info("2026-11-26T15:00:00")))
     async with first.run_test(size=(120, 40)) as pilot:
         await pilot.press("b")

@@ -16,7 +16,7 @@ from quadtank_tui.ui.screens.identify import IdentifyScreen
 
 async def test_identify_lists_the_engines_logs_from_any_folder(engine: Recording, tmp_path: Path,
                                                               monkeypatch: pytest.MonkeyPatch) -> None:
-    write_log(Path(engine.loop.logs_dir) / "step.log", 20, 0.3, 0.3)
+    write_log(Path(engine.logs_dir) / "step.log", 20, 0.3, 0.3)
     elsewhere = tmp_path / "elsewhere"
     (elsewhere / "logs").mkdir(parents=True)
     write_log(elsewhere / "logs" / "other.log", 20, 0.3, 0.3)

@@ -185,7 +185,7 @@ async def test_plot_type_window_sets_the_trend(engine: Recording) -> None:
 
 
 async def test_logging_window_logon_and_save_asks_before_overwriting(engine: Recording) -> None:
-    (engine.loop.logs_dir / "data.log").write_text("% an earlier log\n")
+    (engine.logs_dir / "data.log").write_text("% an earlier log\n")
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("r", "l")
@@ -278,7 +278,7 @@ async def test_mouse_on_modes_trend_and_input_panel(engine: Recording) -> None:
 
 
 async def test_logging_window_warns_when_the_file_exists(engine: Recording) -> None:
-    (engine.loop.logs_dir / "data.log").write_text("% an earlier log\n")
+    (engine.logs_dir / "data.log").write_text("% an earlier log\n")
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
         await pilot.press("l")

@@ -39,7 +39,7 @@ def hostile_row(path: Path) -> None:
 
 
 async def test_a_ghost_log_with_markup_in_a_row_is_named_not_a_crash(engine: Recording) -> None:
-    hostile_row(Path(engine.loop.logs_dir) / "odd.log")
+    hostile_row(Path(engine.logs_dir) / "odd.log")
     app = make_app(engine)
     async with app.run_test(size=(120, 40), notifications=True) as pilot:
         await pilot.press("b", "enter")
@@ -49,7 +49,7 @@ async def test_a_ghost_log_with_markup_in_a_row_is_named_not_a_crash(engine: Rec
 
 
 async def test_identify_lists_log_names_and_file_errors_as_they_are(engine: Recording) -> None:
-    logs = Path(engine.loop.logs_dir)
+    logs = Path(engine.logs_dir)
     hostile_row(logs / "a[b]x.log")
     app = make_app(engine)
     async with app.run_test(size=(120, 40), notifications=True) as pilot:

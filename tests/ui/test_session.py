@@ -41,7 +41,7 @@ async def settle(pilot: Pilot, engine: Recording, seconds: float) -> None:
 
 async def test_sample_session_a4_by_keys(make_engine: Any) -> None:
     engine = make_engine(SESSION)
-    logs = engine.loop.logs_dir
+    logs = engine.logs_dir
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:
         # 1. Manual control mode (Simul: no rig here).
@@ -127,7 +127,7 @@ async def test_bumpless_switch_on_screen_and_in_the_log(make_engine: Any) -> Non
         await settle(pilot, engine, 79.0)
         await pilot.press("l", "ctrl+s", "escape")
         await pilot.pause()
-    log = read_log(engine.loop.logs_dir / "data.log")
+    log = read_log(engine.logs_dir / "data.log")
     assert log.rows == 100
     u1, u2 = log["u1"], log["u2"]
     # In the log: no jump at the switch (row 20) or after; u stays at its value.

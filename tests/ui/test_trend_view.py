@@ -317,7 +317,7 @@ async def wait_for_ghost(pilot: Any, app: Any) -> None:
 
 
 async def test_a_ghost_run_is_drawn_dimmed_at_its_values_and_cleared(engine: Recording) -> None:
-    logs = Path(engine.loop.logs_dir)
+    logs = Path(engine.logs_dir)
     write_log(logs / "older.log", 50, 0.1, 0.1)
     write_log(logs / "yesterday.log", 400, 0.5, 0.6)  # the newest: the default
     engine.submit(c.LogOn())  # at t = 0: the ghost's first row goes there
@@ -345,7 +345,7 @@ async def test_a_ghost_run_is_drawn_dimmed_at_its_values_and_cleared(engine: Rec
 
 
 async def test_a_ghost_aligned_at_a_chosen_time_and_at_logon(engine: Recording) -> None:
-    logs = Path(engine.loop.logs_dir)
+    logs = Path(engine.logs_dir)
     write_log(logs / "run.log", 50, 0.45, 0.6)  # 50 s
     engine.submit(c.SetState("Run"))
     engine.run_for(40.0)
@@ -370,7 +370,7 @@ async def test_a_ghost_aligned_at_a_chosen_time_and_at_logon(engine: Recording) 
 
 
 async def test_a_bad_ghost_log_is_named_and_nothing_breaks(engine: Recording) -> None:
-    logs = Path(engine.loop.logs_dir)
+    logs = Path(engine.logs_dir)
     (logs / "bad.log").write_text("% TANK LOG-file\n% Logged variables: u1 u2   TSamp: 1s\n\n0.1  0.2\n0.3\n")
     app = make_app(engine)
     async with app.run_test(size=(120, 40)) as pilot:

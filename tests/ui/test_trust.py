@@ -26,7 +26,7 @@ from quadtank_tui.ui.windows.process import TankWindow
 
 
 def _logs(engine: Recording) -> Path:
-    return Path(engine.loop.logs_dir)
+    return Path(engine.logs_dir)
 
 
 def _log_rows(engine: Recording, seconds: float) -> None:
