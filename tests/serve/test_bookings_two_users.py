@@ -4,7 +4,7 @@ own run on the rig is warned before the slot's end, then handed over: pumps at 0
 (read from the rig), his log saved with its rows, the session stopped, the rig
 free.  1 s slots; his slot is made short (an administrator books it again) once
 his run drives the rig, so a loaded machine's slow starts cannot outlast it; the
-lab drains the tanks under 0.5 after the hand-over (a few seconds from 0.51)."""
+lab drains the tanks under 0.55 after the hand-over (a few seconds)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,6 @@ import os
 import re
 import subprocess
 import sys
-import time
 from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Iterator
@@ -24,6 +23,7 @@ pytestmark = [pytest.mark.wallclock, pytest.mark.skipif(can_make_users() is not 
     "/usr/sbin/runuser").exists() and not Path("/sbin/runuser").exists(), reason=str(can_make_users() or "runuser"))]
 
 DAC = 1000  # the pump registers of params/virtual-rig.yaml's map
+DRAIN = 0.55  # the lab's drain_below: the tanks sink from about 0.62 to it in a few seconds
 
 
 @pytest.fixture(scope="module")
@@ -36,8 +36,8 @@ def lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, dict[s
 
     init_lab_folder(folder / "rt")  # as `quadtank lab init` makes it (issue 41)
     (folder / "lab.yaml").write_text(f"runtime_dir: {folder / 'rt'}\nbookings:\n  slot_minutes: {1 / 60!r}\n"
-                                     "  warn_minutes: [0.05]\n  weekly_quota_minutes: 60\n"
-                                     "  drain_below: 0.5\n  drain_max_minutes: 0.5\n")
+                                     "  warn_minutes: [0.04]\n  weekly_quota_minutes: 60\n"
+                                     f"  drain_below: {DRAIN}\n  drain_max_minutes: 0.5\n")
     homes = folder / "homes"
     homes.mkdir()
     with made_users(homes, "alice", "bob") as users:
@@ -83,36 +83,41 @@ def test_bobs_booking_refuses_alice_and_his_slot_ends_in_a_hand_over(lab: tuple[
         port = int(re.search(r"serving on [\d.]+:(\d+)", line).group(1))  # type: ignore[union-attr]
         daq = folder / "rig.yaml"
         daq.write_text((ROOT / "params" / "virtual-rig.yaml").read_text().replace("port: 5020", f"port: {port}"))
-        start = datetime.now().astimezone().replace(microsecond=0) + timedelta(seconds=2)
+        start = datetime.now().astimezone().replace(microsecond=0)  # bob's slot holds now already
         long_end = start + timedelta(seconds=120)  # shortened below, once bob's run drives the rig
         hms = "%H:%M:%S"
         made = quadtank(bob, folder, "book", str(daq), f"{start:{hms}}", f"{long_end:{hms}}")
         assert made.returncode == 0, made.stderr
         booking = made.stdout.split()[1].rstrip(":")
-        over = quadtank(alice, folder, "book", str(daq), f"{start + timedelta(seconds=2):{hms}}",
-                        f"{long_end + timedelta(seconds=5):{hms}}")
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(5) as pool:  # alice's four tries only read bob's booking: beside his run's start
+            tries = [pool.submit(quadtank, user, folder, *args) for user, args in (
+                (alice, ("book", str(daq), f"{start + timedelta(seconds=2):{hms}}",
+                         f"{long_end + timedelta(seconds=5):{hms}}")),
+                (alice, ("bookings", "--cancel", booking)),
+                (alice, ("bookings",)),
+                # in bob's slot: alice's run on the rig is refused, with whose slot it is and until when
+                (alice, ("run", "--daq", str(daq), "--realtime", "--duration", "30", "--log", "alice.log",
+                         "--detach")),
+                # bob's own run: Active on the rig, then handed over at his slot's end
+                (bob, ("run", "--daq", str(daq), "--realtime", "--duration", "60", "--log", "bob.log", "--detach")))]
+            over, cancel, listed, refused, run = (t.result() for t in tries)
         assert over.returncode == 2 and f"the rig is booked then: {bob.name} " in over.stderr, over.stderr
-        cancel = quadtank(alice, folder, "bookings", "--cancel", booking)
         assert cancel.returncode == 2 and "cancelling it needs an administrator" in cancel.stderr, cancel.stderr
-        listed = quadtank(alice, folder, "bookings")
         assert booking in listed.stdout and bob.name in listed.stdout
-        time.sleep(max((start - datetime.now().astimezone()).total_seconds(), 0) + 0.2)
-        # in bob's slot: alice's run on the rig is refused, with whose slot it is and until when
-        refused = quadtank(alice, folder, "run", "--daq", str(daq), "--realtime", "--duration", "30",
-                           "--log", "alice.log", "--detach")
         assert refused.returncode == 2, (refused.stdout, refused.stderr)
         assert f"the rig is booked by {bob.name} until {said(long_end)}" in refused.stderr, refused.stderr
-        # bob's own run: Active on the rig, then handed over at his slot's end
-        run = quadtank(bob, folder, "run", "--daq", str(daq), "--realtime", "--duration", "60",
-                       "--log", "bob.log", "--detach")
         assert run.returncode == 0, run.stderr
         assert wait_for(lambda: dacs(port) != [0, 0, 0, 0], 5), "bob's run never drove the pumps"
         # an administrator (root) shortens his slot to end in 4 s: cancelled, booked again for him
         env = {**os.environ, "PYTHONPATH": str(ROOT), "QUADTANK_LAB": str(folder / "lab.yaml")}
         q = [sys.executable, "-m", "quadtank_tui"]
-        gone = subprocess.run([*q, "bookings", "--cancel", booking], env=env, capture_output=True, text=True)
-        assert gone.returncode == 0, gone.stderr
-        end = datetime.now().astimezone().replace(microsecond=0) + timedelta(seconds=4)
+        from quadtank_tui.session.bookings import cancel as cancel_booking
+        from quadtank_tui.session.lab import load_lab_config
+
+        assert cancel_booking(load_lab_config(folder / "lab.yaml"), booking).id == booking  # as root: in this process
+        end = datetime.now().astimezone().replace(microsecond=0) + timedelta(seconds=3)
         again = subprocess.run([*q, "book", "--for", bob.name, str(daq), f"{start:{hms}}", f"{end:{hms}}"], env=env,
                                capture_output=True, text=True)
         assert again.returncode == 0 and f"{bob.name} " in again.stdout, again.stderr
@@ -125,21 +130,23 @@ def test_bobs_booking_refuses_alice_and_his_slot_ends_in_a_hand_over(lab: tuple[
             ("warned", r"(\d\d:\d\d:\d\d) slot: your slot ends at"),
             ("pumps", r"(\d\d:\d\d:\d\d) slot: your slot on the rig ended at .*: pumps at 0"),
             ("saved", r"(\d\d:\d\d:\d\d) slot: log saved"),
-            ("drained", r"(\d\d:\d\d:\d\d) slot: drained: every tank under 0.5 \(")) if (m := re.search(pattern, text))}
+            ("drained", rf"(\d\d:\d\d:\d\d) slot: drained: every tank under {DRAIN:g} \(")) if (m := re.search(pattern, text))}
         assert set(stamps) == {"warned", "pumps", "saved", "drained"}, text
         assert stamps["warned"] < stamps["pumps"] <= stamps["saved"] <= stamps["drained"]
-        drained = re.search(r"drained: every tank under 0.5 \(([^)]*)\)", text)
+        drained = re.search(rf"drained: every tank under {DRAIN:g} \(([^)]*)\)", text)
         assert drained is not None
         levels = [float(v) for v in drained.group(1).split(", ")]
-        assert len(levels) == 4 and max(levels) < 0.5, levels
+        assert len(levels) == 4 and max(levels) < DRAIN, levels
         assert end.time() <= stamps["pumps"] <= (end + timedelta(seconds=3)).time(), (stamps, end)
         assert dacs(port) == [0, 0, 0, 0]  # the pumps at 0, read from the rig
         log = bob.home / "bob.log"
         rows = [r for r in log.read_text().splitlines() if r and not r.startswith("%")]
-        assert len(rows) >= 30, len(rows)  # the 4 s and more of his run at 0.1 s
+        assert len(rows) >= 25, len(rows)  # the 3 s and more of his run at 0.1 s
         assert log.stat().st_uid == bob.uid
-        ended = quadtank(bob, folder, "sessions")
-        assert f"your slot on the rig ended at {said(end)}: pumps at 0, the log saved" in ended.stdout, ended.stdout
+        from quadtank_tui.session.runtime import ended_sessions
+
+        [ended] = [i.ended for i in ended_sessions(folder / "rt") if i.uid == bob.uid]  # as `sessions` lists it
+        assert ended.startswith(f"your slot on the rig ended at {said(end)}: pumps at 0, the log saved"), ended
         # the rig is free: no lock record of bob's live
         locks = list((folder / "rt" / "locks").glob("*.lock"))
         assert all(p.stat().st_uid != bob.uid for p in locks), locks

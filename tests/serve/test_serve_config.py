@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Iterator
 
 import pytest
-from servekit import User, can_make_users, made_users, serving
+from servekit import Serve, User, can_make_users, made_users, serving
 
 from quadtank_tui.cli import main
 
@@ -67,28 +67,35 @@ def lab_user() -> Iterator[tuple[Path, User]]:
         user = users["lab"]
         lab = folder / "lab.yaml"
         lab.write_text(f"serve:\n  accounts:\n    {user.name}: '{hash_password('lab-only-password')}'\n"
-                       "  trusted_proxy: 127.0.0.1\n  heartbeat_seconds: 2\n")
+                       "  trusted_proxy: 127.0.0.1\n  heartbeat_seconds: 1\n")
         os.chmod(lab, 0o644)
         yield lab, user
     shutil.rmtree(folder, ignore_errors=True)
 
 
-@pytest.mark.wallclock
-@pytestmark_users
-def test_a_lab_file_account_and_a_trusted_proxys_headers(lab_user: tuple[Path, User]) -> None:
+@pytest.fixture(scope="module")
+def lab_server(lab_user: tuple[Path, User]) -> Iterator[tuple[Serve, User]]:
+    """One plain-HTTP server of the lab file for the tests that only log in and open a tab."""
     lab, user = lab_user
     with serving(lab=lab) as server:
-        assert server.login(user.name, user.password)[0] == 401  # a lab account: its PAM password is not asked
-        status, headers, _ = server.request(
-            "POST", "/login", body=f"user={user.name}&password=lab-only-password",
-            headers={"X-Forwarded-For": "198.51.100.9, 203.0.113.7", "X-Forwarded-Proto": "https"})
-        assert status == 303 and "quadtank_session=" in headers["set-cookie"]
-        assert "Secure" in headers["set-cookie"]  # https at the proxy
-        lines = server.audit_lines()
-        # the address the proxy added (the last), never one the browser wrote before it
-        assert any(f"login user={user.name} address=203.0.113.7 via=lab" in line for line in lines), lines
-        mode = server.audit.stat().st_mode & 0o777
-        assert mode == 0o600  # no admin_group: root's only
+        yield server, user
+
+
+@pytest.mark.wallclock
+@pytestmark_users
+def test_a_lab_file_account_and_a_trusted_proxys_headers(lab_server: tuple[Serve, User]) -> None:
+    server, user = lab_server
+    assert server.login(user.name, user.password)[0] == 401  # a lab account: its PAM password is not asked
+    status, headers, _ = server.request(
+        "POST", "/login", body=f"user={user.name}&password=lab-only-password",
+        headers={"X-Forwarded-For": "198.51.100.9, 203.0.113.7", "X-Forwarded-Proto": "https"})
+    assert status == 303 and "quadtank_session=" in headers["set-cookie"]
+    assert "Secure" in headers["set-cookie"]  # https at the proxy
+    lines = server.audit_lines()
+    # the address the proxy added (the last), never one the browser wrote before it
+    assert any(f"login user={user.name} address=203.0.113.7 via=lab" in line for line in lines), lines
+    mode = server.audit.stat().st_mode & 0o777
+    assert mode == 0o600  # no admin_group: root's only
 
 
 @pytest.mark.wallclock
@@ -97,7 +104,7 @@ def test_a_lab_file_account_and_a_trusted_proxys_headers(lab_user: tuple[Path, U
 def test_tls_gives_a_secure_cookie_and_a_wss_url(tmp_path: Path, lab_user: tuple[Path, User]) -> None:
     lab, user = lab_user
     cert, key = tmp_path / "c.pem", tmp_path / "k.pem"
-    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", str(key), "-out",
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes", "-keyout", str(key), "-out",
                     str(cert), "-days", "1", "-subj", "/CN=127.0.0.1"], check=True, capture_output=True)
     with serving("--tls-cert", str(cert), "--tls-key", str(key), lab=lab) as server:
         context = ssl.create_default_context(cafile=str(cert))
@@ -130,9 +137,9 @@ def test_tls_gives_a_secure_cookie_and_a_wss_url(tmp_path: Path, lab_user: tuple
 
 @pytest.mark.wallclock
 @pytestmark_users
-def test_a_tab_whose_network_is_lost_is_detached(lab_user: tuple[Path, User]) -> None:
+def test_a_tab_whose_network_is_lost_is_detached(lab_server: tuple[Serve, User]) -> None:
     """A browser that stops answering the websocket's pings (its network gone) is
-    let go within 1.5 heartbeats (2 s here, 20 by default): detached, the session
+    let go within 1.5 heartbeats (1 s here, 20 by default): detached, the session
     runs on."""
     import asyncio
     import time
@@ -141,34 +148,33 @@ def test_a_tab_whose_network_is_lost_is_detached(lab_user: tuple[Path, User]) ->
 
     from quadtank_tui.session.runtime import list_sessions
 
-    lab, user = lab_user
-    with serving(lab=lab) as server:
-        status, headers, _ = server.request("POST", "/login", body=f"user={user.name}&password=lab-only-password")
-        cookie = headers["set-cookie"].split(";")[0]
-        assert status == 303
+    server, user = lab_server
+    status, headers, _ = server.request("POST", "/login", body=f"user={user.name}&password=lab-only-password")
+    cookie = headers["set-cookie"].split(";")[0]
+    assert status == 303
 
-        async def silent_tab() -> float:
-            async with aiohttp.ClientSession() as session:
-                ws = await session.ws_connect(f"ws://127.0.0.1:{server.port}/ws?width=100&height=30",
-                                              headers={"Origin": server.origin, "Cookie": cookie}, autoping=False)
-                seen = b""
-                while b"you operate" not in seen:  # answer the pings until the screen is up
-                    msg = await ws.receive(timeout=40)
-                    if msg.type == aiohttp.WSMsgType.PING:
-                        await ws.pong(msg.data)
-                    elif msg.type == aiohttp.WSMsgType.BINARY:
-                        seen += msg.data
-                    else:
-                        raise AssertionError(f"the tab closed before its screen: {msg}")
-                silent = time.monotonic()  # from now on nothing is read, no pong is sent
-                while time.monotonic() - silent < 20:
-                    await asyncio.sleep(0.2)
-                    if any(f" detach user={user.name}" in line for line in server.audit_lines()):
-                        break
-                return time.monotonic() - silent
+    async def silent_tab() -> float:
+        async with aiohttp.ClientSession() as session:
+            ws = await session.ws_connect(f"ws://127.0.0.1:{server.port}/ws?width=100&height=30",
+                                          headers={"Origin": server.origin, "Cookie": cookie}, autoping=False)
+            seen = b""
+            while b"you operate" not in seen:  # answer the pings until the screen is up
+                msg = await ws.receive(timeout=40)
+                if msg.type == aiohttp.WSMsgType.PING:
+                    await ws.pong(msg.data)
+                elif msg.type == aiohttp.WSMsgType.BINARY:
+                    seen += msg.data
+                else:
+                    raise AssertionError(f"the tab closed before its screen: {msg}")
+            silent = time.monotonic()  # from now on nothing is read, no pong is sent
+            while time.monotonic() - silent < 20:
+                await asyncio.sleep(0.2)
+                if any(f" detach user={user.name}" in line for line in server.audit_lines()):
+                    break
+            return time.monotonic() - silent
 
-        waited = asyncio.run(silent_tab())
-        assert waited < 2 * 1.5 + 3.0 + 2.0, waited  # 1.5 heartbeats, the tab's quit grace, margin
-        assert any(f"detach user={user.name}" in line for line in server.audit_lines())
-        [info] = [i for i in list_sessions(server.runtime, prune=False) if i.uid == user.uid]
-        assert info.clients == 0 and not info.ended  # detached, never stopped
+    waited = asyncio.run(silent_tab())
+    assert waited < 1 * 1.5 + 3.0 + 2.0, waited  # 1.5 heartbeats, the tab's quit grace, margin
+    assert any(f"detach user={user.name}" in line for line in server.audit_lines())
+    [info] = [i for i in list_sessions(server.runtime, prune=False) if i.uid == user.uid]
+    assert info.clients == 0 and not info.ended  # detached, never stopped

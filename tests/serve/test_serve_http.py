@@ -5,13 +5,16 @@ passwords (issue 44).  A real server process, real users (PAM, useradd/chpasswd)
 from __future__ import annotations
 
 import asyncio
+import os
+import subprocess
+import sys
 import time
 from typing import Iterator
 from urllib.parse import urlencode
 
 import aiohttp
 import pytest
-from servekit import Serve, User, can_make_users, made_users, serving
+from servekit import ROOT, Serve, User, can_make_users, made_users, serving
 
 pytestmark = [pytest.mark.wallclock, pytest.mark.skipif(can_make_users() is not None,
                                                         reason=str(can_make_users()))]
@@ -24,6 +27,20 @@ def world(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Serve, dic
         homes.mkdir()
         with made_users(homes, "a", "b") as users:
             yield server, users
+
+
+@pytest.fixture(scope="module")
+def bobs_run(world: tuple[Serve, dict[str, User]]) -> subprocess.Popen[str]:
+    """bob's detached run (a session of his), started when the module's first test
+    asks for it and left to start while the tests that need no session run: the
+    last test, which reads it, waits for it (a `quadtank` as another user takes 2-5 s)."""
+    server, users = world
+    bob = users["b"]
+    env = {"PATH": os.environ.get("PATH", ""), "PYTHONPATH": str(ROOT), "HOME": str(bob.home),
+           "QUADTANK_RUNTIME": str(server.runtime)}
+    return subprocess.Popen(["runuser", "-u", bob.name, "--", sys.executable, "-m", "quadtank_tui", "run",
+                             "--duration", "600", "--realtime", "--log", "bob.log", "--detach"],
+                            cwd=bob.home, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 async def open_tab(server: Serve, cookie: str | None, path: str = "/ws", origin: str | None = "own"):
@@ -61,7 +78,8 @@ async def screen_text(ws: aiohttp.ClientWebSocketResponse, want: str, timeout: f
     return got.decode("utf-8", "replace")
 
 
-def test_without_a_login_every_door_is_shut(world: tuple[Serve, dict[str, User]]) -> None:
+def test_without_a_login_every_door_is_shut(world: tuple[Serve, dict[str, User]],
+                                            bobs_run: subprocess.Popen[str]) -> None:
     server, _ = world
     status, headers, _ = server.request("GET", "/")
     assert (status, headers["location"]) == (303, "/login")
@@ -164,21 +182,12 @@ def test_100_wrong_passwords_are_slowed_and_the_account_still_works(world: tuple
     assert sum(f"login-failed user={bob.name} " in line for line in server.audit_lines()) <= 5
 
 
-def test_alices_tab_cannot_attach_to_or_stop_bobs_session(world: tuple[Serve, dict[str, User]]) -> None:
-    import os
-    import subprocess
-    import sys
-
-    from servekit import ROOT
-
+def test_alices_tab_cannot_attach_to_or_stop_bobs_session(world: tuple[Serve, dict[str, User]],
+                                                          bobs_run: subprocess.Popen[str]) -> None:
     server, users = world
     alice, bob = users["a"], users["b"]
-    env = {"PATH": os.environ.get("PATH", ""), "PYTHONPATH": str(ROOT), "HOME": str(bob.home),
-           "QUADTANK_RUNTIME": str(server.runtime)}
-    started = subprocess.run(["runuser", "-u", bob.name, "--", sys.executable, "-m", "quadtank_tui", "run",
-                              "--duration", "600", "--realtime", "--log", "bob.log", "--detach"],
-                             cwd=bob.home, env=env, capture_output=True, text=True, timeout=60)
-    assert started.returncode == 0, started.stderr
+    _, err = bobs_run.communicate(timeout=60)
+    assert bobs_run.returncode == 0, err
     sid = f"{bob.name}-1"
     status, cookie, _ = server.login(alice.name, alice.password)
     assert status == 303 and cookie
