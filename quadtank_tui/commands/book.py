@@ -7,7 +7,7 @@ import argparse
 import json
 import pwd
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 from quadtank_tui.commands import UsageError
 
@@ -124,3 +124,43 @@ def refuse_in_anothers_slot(rig: str) -> None:
         return
     if why is not None:
         raise UsageError(why.replace("; Active needs", "; driving it needs"))
+
+
+def slot_end_watch(rig: str, *, every: float = 1.0) -> Callable[[], str | None] | None:
+    """For a foreground run driving `rig`: a callable asked ahead of every sample
+    that reads the bookings once a second (`every`, wall time), says each of the
+    lab's warnings on stderr, and returns why the run must end now (its user's slot
+    is over, or someone else's began), else None.  None if the rig or the lab file
+    cannot be read (the lock and the start's refusal say so, not this)."""
+    import os
+    import time
+    from datetime import datetime
+
+    from quadtank_tui.commands import say
+    from quadtank_tui.session.bookings import SlotWatch
+    from quadtank_tui.session.lab import LabConfigError, load_lab_config
+
+    try:
+        watch = SlotWatch(load_lab_config(), rig_keys_of(rig), os.getuid())
+    except (UsageError, LabConfigError, OSError, ValueError):
+        return None
+    due = 0.0
+
+    def until() -> str | None:
+        nonlocal due
+        now = time.monotonic()
+        if now < due:
+            return None
+        due = now + every
+        try:
+            notice, end = watch.step()
+        except (OSError, ValueError) as exc:  # an unreadable bookings folder stops nobody
+            say(f"quadtank: bookings: {exc}")
+            return None
+        if watch.fresh and notice:
+            say(f"quadtank: {datetime.now():%H:%M:%S} slot: {notice.replace('this session stops', 'this run stops')}")
+        if end is not None:
+            say(f"quadtank: {datetime.now():%H:%M:%S} slot: {end}: pumps at 0, the log is saved, this run stops")
+        return end
+
+    return until

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from quadtank_tui.commands import UsageError, say, warn
+from quadtank_tui.commands import book as book_command
 from quadtank_tui.commands import exercise as exercise_command
 from quadtank_tui.commands import lab as lab_command
 from quadtank_tui.commands import sessions as sessions_command
@@ -109,10 +110,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
                            plant=_plant_in_use(args.par) if daq_config else None)
     if args.detach:
         return sessions_command.start_detached_run(args, script, clock)
+    # on a rig: the run ends at its user's booked slot's end (or at someone else's slot's start)
+    until = book_command.slot_end_watch(daq_config) if daq is not None and daq_config else None
     previous = {sig: signal.signal(sig, _terminate) for sig in (RIG_STOP_SIGNALS if daq else STOP_SIGNALS)}
     try:
         result = run_headless(par=args.par, script=script, duration=args.duration, out=Path(args.log),
-                              seed=args.seed, clock=clock, speed=args.speed, daq=daq, say=say)
+                              seed=args.seed, clock=clock, speed=args.speed, daq=daq, say=say, until=until)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

@@ -31,6 +31,10 @@ from quadtank_tui.files.script import Script
 #: 0 (an overfull tank): not 0, so a lab's script notices; 1 stays a fault (the
 #: link, the log), 2 bad input.
 INTERLOCK_ACTED = 3
+#: The exit status of a run on a rig cut short at the end of its user's booked slot
+#: (or at the start of someone else's): pumps at 0, the log saved with the rows it
+#: has.  Not 0: the run is shorter than its --duration.
+SLOT_ENDED = 4
 
 #: The ring buffers of a long headless run hold the whole run for the summary, up to
 #: this many samples (9 signals x 8 bytes x 2e6 = 144 MB at most).
@@ -74,6 +78,7 @@ def run_headless(
     params_dir: Path = Path("params"),
     daq: ProcessBackend | None = None,
     say: Callable[[str], None] | None = None,
+    until: Callable[[], str | None] | None = None,
 ) -> HeadlessResult:
     """Run and save `out`.  Without a script the run logs from the start, for the
     whole duration, in Run.  A `.par` in Automatic starts in Automatic with its
@@ -83,7 +88,10 @@ def run_headless(
     at 0 ends with INTERLOCK_ACTED (3) and the summary says which tank, which
     pumps, how many samples and when.  A log that fails (a full disk) ends the run
     at once: `say` (stderr) tells it then, and again on the way out if the run ends
-    by an exception (Ctrl-C, SIGTERM); the summary's LOG FAULT line says it at the end."""
+    by an exception (Ctrl-C, SIGTERM); the summary's LOG FAULT line says it at the end.
+    `until()`, asked ahead of every sample, is a reason the run must end now (a
+    rig's booked slot is over) or None: the run is paused there (pumps at 0), its
+    log saved with its rows, the summary's last line says why, status SLOT_ENDED."""
     run = prepare_headless(par=par, script=script, duration=duration, out=out, seed=seed, clock=clock,
                            speed=speed, params_dir=params_dir, daq=daq)
     log = run.engine.loop.log
@@ -94,12 +102,20 @@ def run_headless(
             if say is not None:
                 say(f"quadtank: LOG FAULT at t = {elapsed.seconds:g} s: {error}; the run stops here")
             raise LogFault(error, elapsed.seconds)
+        why = until() if until is not None else None
+        if why is not None:
+            raise CutShort(why, elapsed.seconds)
 
+    cut: CutShort | None = None
     try:
         try:
             run_experiment(run.engine, script, duration, watch=watch)
         except LogFault as fault:  # said; the summary says it again, over the time it ran
             run = dataclasses.replace(run, duration=fault.at)
+        except CutShort as stop:
+            cut = stop
+            run.engine.submit(SetState("Pause")).result()  # pumps at 0 before anything else
+            run = dataclasses.replace(run, duration=stop.at)
         result = finish_headless(run)
     except BaseException:  # Ctrl-C, SIGTERM, SIGHUP, a fault: the log's fault is said on this way out too
         run.engine.stop()
@@ -109,7 +125,22 @@ def run_headless(
         raise
     finally:
         run.engine.stop()
-    return _after_stop(result, run.engine)
+    result = _after_stop(result, run.engine)
+    if cut is not None:
+        saved = f"the log saved as {result.log}" if result.log is not None else "no log saved"
+        result = dataclasses.replace(
+            result, status=result.status if result.status == 1 else SLOT_ENDED,
+            text=f"{result.text}\nSTOPPED    at t = {cut.at:.1f} s of {duration:g}: {cut.reason}; "
+                 f"pumps at 0, {saved}")
+    return result
+
+
+class CutShort(Exception):
+    """The run must end `at` s of loop time for `reason` (its slot on the rig is over)."""
+
+    def __init__(self, reason: str, at: float) -> None:
+        super().__init__(reason)
+        self.reason, self.at = reason, at
 
 
 class LogFault(Exception):
