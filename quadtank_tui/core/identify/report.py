@@ -40,8 +40,22 @@ def element_text(e: Element) -> str:
         poles = "".join(f"(1+{T:.3g}s)" for T in p["T"])
         delay = f" e^-{p['L']:.3g}s" if p["L"] > 1e-6 else ""
         return f"{p['K']:.4g}{zeros}/{poles}{delay}"
-    tcs = time_constants(e.tf)
-    return f"K={e.tf.static_gain:.4g}, T=" + ", ".join(f"{t:.3g}" for t in tcs) + f" s ({len(e.tf.den) - 1} poles)"
+    return f"K={e.tf.static_gain:.4g}, poles: " + pole_text(np.roots(np.asarray(e.tf.den, dtype=float)))
+
+
+def pole_text(poles: np.ndarray) -> str:
+    """Every pole as it is: a real stable one as its time constant, a complex pair
+    named as one (with its natural frequency and damping), never folded into a list
+    of time constants."""
+    parts = []
+    for p in sorted(poles, key=lambda z: (abs(z.imag) > 1e-12, -z.real)):
+        if abs(p.imag) <= 1e-12 * max(abs(p), 1.0):
+            parts.append(f"T={-1 / p.real:.3g} s" if p.real < 0 else f"{p.real:+.4g} /s (unstable)"
+                         if p.real > 0 else "integrator")
+        elif p.imag > 0:
+            wn = abs(p)
+            parts.append(f"complex pair {p.real:+.4g}±{p.imag:.4g}j /s (wn {wn:.3g} rad/s, zeta {-p.real / wn:.2f})")
+    return ", ".join(parts) if parts else "none (a static gain)"
 
 
 def format_report(ident: Identification, cmp: Comparison | None, physical_name: str) -> str:

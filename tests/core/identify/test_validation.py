@@ -106,3 +106,11 @@ def test_a_log_whose_references_move_is_said_to_be_closed_loop() -> None:
                                                             "r2": np.full(50, 0.4)})])
     assert line is not None and line.startswith("closed loop: the references move (r1 in pi.log)")
     assert "\n" not in line
+
+
+def test_poles_are_reported_as_they_are_complex_pairs_named() -> None:
+    from quadtank_tui.core.identify.report import pole_text
+
+    text = pole_text(np.array([-0.0107, -0.0297, -0.0557 + 0.0599j, -0.0557 - 0.0599j]))
+    assert text.startswith("T=93.5 s, T=33.7 s, complex pair -0.0557±0.0599j /s (wn 0.0818 rad/s, zeta 0.68)")
+    assert "poles)" not in text and text.count("complex pair") == 1
