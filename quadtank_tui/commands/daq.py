@@ -201,11 +201,20 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
     backend = ModbusBackend(config)
     try:
         volts = backend.read_raw_volts()
+        differ = backend.identity_mismatches()
     except BackendError as exc:
         print(f"quadtank: {exc}", file=sys.stderr)
         return 1
     finally:
         backend.close()
+    if differ and differ[0]:
+        print(f"quadtank: {args.config}: not the rig at {config.host}:{config.port}: {', '.join(differ[0])}; "
+              "its pumps would get other volts than this file assumes "
+              "(params/virtual-rig.yaml is the virtual rig's file)", file=sys.stderr)
+        return 2
+    if differ and differ[1]:
+        warn([f"{args.config}: the rig's sensors differ from this file's calibration: {', '.join(differ[1])} "
+              "(quadtank daq calibrate fits them)"])
     print(f"{backend.description}  (device id {config.device_id}, timeout {config.timeout:g} s; "
           f"{config.plant.kind}: {len(config.tanks)} level, {len(config.pump_channels)} pump channels)")
     faults = 0
@@ -223,6 +232,9 @@ def cmd_daq_check(args: argparse.Namespace) -> int:
     for alarm in backend.alarms:
         print(alarm)
     print(config.watchdog_line())
+    print("rig identity: none served (a real device): the file's calibration is not checked against it"
+          if differ is None else "rig identity: the virtual rig's pump amplifiers and sensors are this file's"
+          if not differ[1] else "rig identity: the virtual rig's pump amplifiers are this file's, its sensors not")
     return 1 if faults else 0
 
 

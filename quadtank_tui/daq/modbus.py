@@ -54,6 +54,7 @@ from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
 from quadtank_tui.core.plants.common import FULL_SCALE_V
+from quadtank_tui.daq.identity import IDENTITY_ADDRESS, WORDS, RigIdentity, decode_identity, mismatches
 from quadtank_tui.daq.config import DaqConfig, DaqConfigError, Output
 from quadtank_tui.daq.guard import Guard, GuardSpec
 from quadtank_tui.daq.interlock import Interlock
@@ -371,6 +372,43 @@ class ModbusBackend(ProcessBackend):
         """The sensor voltages before calibration, one per level channel (for
         calibrating, B9)."""
         return tuple(self._read_volts())
+
+    def rig_identity(self) -> RigIdentity | None:
+        """The device's identity block (daq/identity.py), None when it serves none
+        (a real device answers an illegal address; BackendError: no link at all)."""
+        try:
+            words = self._request("the rig identity", lambda: self._read("holding", IDENTITY_ADDRESS, WORDS))
+        except BackendError as exc:
+            if "the device answered" in str(exc):
+                return None
+            raise
+        return decode_identity(words)
+
+    def identity_mismatches(self) -> tuple[list[str], list[str]] | None:
+        """Where this DAQ file's pump calibration, and where its sensor calibration,
+        is not the rig's (None: the device says nothing of itself)."""
+        rig = self.rig_identity()
+        if rig is None:
+            return None
+        c = self.config
+        pumps = mismatches(rig, [p.gain for p in c.pumps], [p.offset for p in c.pumps], [], [])
+        sensors = mismatches(rig, [], [], [t.gain for t in c.sensors], [t.offset for t in c.sensors])
+        return pumps, sensors
+
+    def identity_refused(self) -> str | None:
+        """One line when the rig's pump amplifiers are not this file's (Active control
+        must not start: the pumps would get other volts than the program means);
+        None when they agree, the rig says nothing of itself, or it cannot be read
+        now (the link's fault shows at the first sample).  Sensors that differ are
+        what a calibration finds and fixes: not refused."""
+        try:
+            differ = self.identity_mismatches()
+        except BackendError:
+            return None
+        if not differ or not differ[0]:
+            return None
+        return (f"{self.config.source}: not the rig at {self._where()}: {', '.join(differ[0])} "
+                "(its pumps would get other volts than this file assumes)")
 
     def _output_volts(self, pump: int, u: float) -> float:
         cal = self.config.pumps[pump]

@@ -15,7 +15,9 @@ LabJack preset by default), read for the plant it serves: a two-tank plant serve
 two level inputs and one pump output per pump (the registers of the channels it
 does not have do not exist), so `quadtank --daq params/virtual-rig.yaml` reaches it
 exactly as it would reach the hardware.  Time is injected (`clock`), so the
-model-side behaviour is testable without sleeping.
+model-side behaviour is testable without sleeping.  It says what it is: a block of
+registers with its pump amplifiers and sensors (daq/identity.py) that `daq check`
+and the start of Active control compare with the program's DAQ file.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from quadtank_tui.core.plants.common import FULL_SCALE_V
 from quadtank_tui.core.plants.johansson import PlantParams
 from quadtank_tui.core.plants import Plant, QuadTank
 from quadtank_tui.daq.config import DaqConfig
+from quadtank_tui.daq.identity import RigIdentity
 from quadtank_tui.daq.registers import decode, encode
 from quadtank_tui.daq.rig_watchdog import RigWatchdog
 from quadtank_tui.daq.server import IllegalAddress, ModbusTcpServer
@@ -98,6 +101,7 @@ class VirtualRig:
         self._tanks = [config.tank_register(i) for i in range(1, len(config.tanks) + 1)]
         self._outputs = [config.pump_output(i).register for i in range(1, len(config.pump_channels) + 1)]
         self._out_words: dict[int, int] = {}
+        self._identity_words = self.identity().words()
         self._stop_pumps()  # pumps and their registers at 0
         self._now = clock()
         self.t = 0.0                      # process time, s
@@ -166,10 +170,22 @@ class VirtualRig:
             out.append(min(AIN_RANGE[1], max(AIN_RANGE[0], v)))
         return tuple(out)
 
+    def identity(self) -> RigIdentity:
+        """What this rig is (daq/identity.py): the pump calibration it applies to the
+        DAC volts (its map's), its sensors' level per volt (1 / kc of each tank) and
+        offset, the pumps' range."""
+        n = len(self.process.states)
+        kc = [self.process.output([1.0 if j == i else 0.0 for j in range(n)])[i] for i in range(n)]
+        tanks = range(len(self._tanks))
+        return RigIdentity(tuple(p.gain for p in self.config.pumps), tuple(p.offset for p in self.config.pumps),
+                           tuple(1.0 / kc[i] for i in tanks), tuple(-self.sensors.offset / kc[i] for i in tanks),
+                           tuple(PUMP_RANGE[1] for _ in self.config.pumps))
+
     def read(self, address: int, count: int) -> list[int]:
         self.tick()
         self._heard()
         words = dict(self._out_words)
+        words.update(self._identity_words)
         if self.watchdog is not None:
             words.update(self.watchdog.words())
         asked = range(address, address + count)

@@ -116,6 +116,14 @@ def arm(backend: ProcessBackend, tsamp: float) -> None:
         hook(tsamp)
 
 
+def identity_refused(daq: ProcessBackend) -> str | None:
+    """Why Active control must not start on `daq`: the rig says it is another than
+    its DAQ file (daq/identity.py), one line; None when it agrees, says nothing of
+    itself, or the backend cannot be asked (a test's stand-in)."""
+    ask = getattr(daq, "identity_refused", None)
+    return ask() if ask is not None else None
+
+
 def plant_refused(daq: ProcessBackend | None, plant: Plant) -> str | None:
     """Why the DAQ cannot be `plant` (wired for another rig), or None; a backend
     without the question (a test's stand-in) takes any plant."""

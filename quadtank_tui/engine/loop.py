@@ -55,7 +55,9 @@ from quadtank_tui.core.plants.common import PlantError
 from quadtank_tui.core.plants.spec import PREFIX as PLANT_PREFIX
 from quadtank_tui.core.controllers.signals import Generator
 from quadtank_tui.core.ranges import ParameterError
-from quadtank_tui.engine.backend import BackendError, Pair, ProcessBackend, arm, plant_refused, unconfirmed_stop
+from quadtank_tui.engine.backend import (
+    BackendError, Pair, ProcessBackend, arm, identity_refused, plant_refused, unconfirmed_stop,
+)
 from quadtank_tui.engine.calibration_step import RigCalibration
 from quadtank_tui.engine.commands import (
     AddWater, CalibrationHeights, CancelCalibration, Command, CommandResult, InstallPar, LoadPar, LogDiscard, LogOff,
@@ -602,6 +604,10 @@ class ControlLoop:
             if self.daq is None:
                 return CommandResult.refused("Active needs a DAQ backend; none is configured")
             target = self.daq
+            if target is not self.backend:
+                why = identity_refused(target)  # a rig that is not this DAQ file's: never drive it
+                if why:
+                    return CommandResult.refused(why)
         else:
             return CommandResult.refused(f"operation must be Simul or Active, got {cmd.operation!r}")
         if target is not self.backend:

@@ -95,10 +95,11 @@ def test_daq_check_reads_the_plants_channels(rig: Callable, tmp_path: Path,
     assert main(["daq", "check", str(coupled_map(tmp_path, r.port)), "--par", str(TITO_PAR)]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].endswith("coupled-tito: 2 level, 2 pump channels)")
-    assert [ln.split()[:6] for ln in lines[1:-1]] == [
+    assert [ln.split()[:6] for ln in lines[1:-2]] == [
         ["tank", "1", "AIN0", f"{33.33 * 0.115:.4f}", "V", "0.1150"],
         ["tank", "2", "AIN1", f"{33.33 * 0.071:.4f}", "V", "0.0710"]]
-    assert lines[-1].startswith("watchdog: enable at holding register 61600")
+    assert lines[-2].startswith("watchdog: enable at holding register 61600")
+    assert lines[-1] == "rig identity: the virtual rig's pump amplifiers and sensors are this file's"
 
 
 def test_an_engine_on_a_daq_of_another_plant_is_refused() -> None:

@@ -40,7 +40,8 @@ def test_check_reads_and_writes_nothing(rig: Callable, tmp_path: Path, capsys: p
     assert [ln.split()[:3] for ln in lines[1:5]] == [["tank", str(i), f"AIN{i - 1}"] for i in range(1, 5)]
     assert lines[5:] == ["watchdog: enable at holding register 61600, timeout (auto) at 61604, "
                          "sets DAC0/DAC1 to stop their pumps; strict: only this program's feed with its key "
-                         "clears it"]  # the LabJack's, which check leaves alone
+                         "clears it",  # the LabJack's, which check leaves alone
+                         "rig identity: the virtual rig's pump amplifiers and sensors are this file's"]
     assert r.dacs() == pytest.approx((2.5, 3.5))  # the pumps were left alone
     driver.safe_state()
     driver.close()
@@ -56,3 +57,27 @@ def test_check_without_a_device_says_why(tmp_path: Path, capsys: pytest.CaptureF
         config.write_text(f"host: 127.0.0.1\nport: {port}\n")
         assert main(["daq", "check", str(config)]) == 1
     assert "cannot connect" in capsys.readouterr().err
+
+
+def test_check_refuses_a_file_whose_amplifier_the_virtual_rig_does_not_have(
+        rig: Callable, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The README's old tour: params/daq-labjack.yaml (pump amplifier gain 2) against
+    `quadtank rig` (the LabJack preset: gain 1): the program would write 1.5 V for 3
+    V and the rig apply 1.5 V. One line, exit 2; Active control is refused alike."""
+    r = rig()
+    text = (ROOT / "params" / "daq-labjack.yaml").read_text()
+    assert "host: 192.168.1.207" in text and "port: 502 " in text
+    config = tmp_path / "labjack.yaml"
+    config.write_text(text.replace("host: 192.168.1.207", "host: 127.0.0.1").replace("port: 502 ", f"port: {r.port} "))
+    assert main(["daq", "check", str(config)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"quadtank: {config}: not the rig at 127.0.0.1:{r.port}: ")
+    assert "pump1 gain 2 (the rig's 1), pump2 gain 2 (the rig's 1)" in err[0]
+    from quadtank_tui.daq.open import load_rig_config
+
+    backend = ModbusBackend(load_rig_config(config))  # type: ignore[arg-type]
+    try:
+        why = backend.identity_refused()
+    finally:
+        backend.close()
+    assert why is not None and "pump1 gain 2 (the rig's 1)" in why
