@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import asyncio
 import ipaddress
-import re
 import socket
 import ssl
 from dataclasses import dataclass, field
@@ -35,6 +34,7 @@ from quadtank_tui.serve.web_config import ServeSettings
 from quadtank_tui.serve.pages import app_page, login_page
 from quadtank_tui.serve.tab import Tab, TabUser
 from quadtank_tui.serve.websessions import COOKIE, LoginStore, WebLogin
+from quadtank_tui.session.runtime import valid_id
 
 #: Open tabs per login, and per user, at most.
 MAX_TABS_PER_LOGIN = 8
@@ -43,7 +43,6 @@ MAX_TABS_PER_USER = 16
 MAX_WS_MESSAGE = 64 << 10
 #: How often a tab checks that its login is still live (logout, expiry end it).
 LOGIN_CHECK = 5.0
-SESSION_ID = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
 MODES = ("attach", "observe", "take_over")
 WEB_DRIVER_FPS = 30
 
@@ -282,8 +281,9 @@ class Server:
         for mode in MODES:
             sid = query.get(mode)
             if sid is not None:
-                if not SESSION_ID.match(sid):
-                    raise web.HTTPBadRequest(text="a session id is letters, digits, '.', '_' and '-'\n")
+                if not valid_id(sid):  # never an option of `attach` (--take-over), a path or a line's end
+                    raise web.HTTPBadRequest(text="a session id is a user's name, '-' and a number "
+                                             "(letters, digits, '.', '_' and '-')\n")
                 return mode, sid
         return "attach", None
 

@@ -92,3 +92,16 @@ def test_the_lab_files_serve_section() -> None:
         with pytest.raises(LabConfigError) as exc:
             serve_settings(parse_lab_config(text, name="lab.yaml", source=Path("lab.yaml")))
         assert str(exc.value).startswith(message), (text, str(exc.value))
+
+
+@pytest.mark.parametrize("sid", ["--take-over", "-h", "bob-1\n", "..", "bob-1/../x", "bob"])
+def test_a_tab_runs_no_session_id_that_is_an_option_a_path_or_a_line(sid: str) -> None:
+    """`?attach=--take-over` became `quadtank attach --take-over` in the tab; `bob-1\\n`
+    passed the old `^...$` pattern: each is refused (400) before a tab starts."""
+    from aiohttp import web
+
+    from quadtank_tui.serve.web import Server
+
+    with pytest.raises(web.HTTPBadRequest):
+        Server._mode(None, {"attach": sid})  # type: ignore[arg-type]
+    assert Server._mode(None, {"observe": "qtr1a-12"}) == ("observe", "qtr1a-12")  # type: ignore[arg-type]
