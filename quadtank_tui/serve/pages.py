@@ -30,7 +30,10 @@ body.-first-byte .textual-terminal { opacity: 1; }
 body.-closed .closed-dialog { display: flex; }
 #start { display: none; }
 #start.-delay { display: flex; }
-#terminal { position: absolute; top: 24px; bottom: 12px; left: 0; right: 0; overflow: hidden; }
+/* textual.js's own stylesheet makes .textual-terminal 100vw x 100vh, which beats top/bottom:
+   the terminal then ran 24px under the window's edge and its last row (the footer) was cut */
+#terminal { position: absolute; top: 24px; bottom: 12px; left: 0; right: 0; overflow: hidden;
+  width: auto; height: auto; }
 """
 
 

@@ -107,6 +107,10 @@ def test_a_browser_logs_in_sees_main_types_closes_and_comes_back(world: tuple[Se
         assert (session.owner, session.state, session.clients) == (student.name, "Pause", 1)
         time.sleep(0.5)  # the first frames
         driver.save_screenshot(str(shots / "serve-1-main.png"))
+        # every row of the terminal, its footer the last, inside the window
+        bottom, height = driver.execute_script(
+            "return [document.querySelector('.xterm-screen').getBoundingClientRect().bottom, window.innerHeight]")
+        assert 0 < bottom <= height, (bottom, height)
         # keys go to xterm's input (a click on the screen would be a click in the TUI)
         driver.find_element(By.CSS_SELECTOR, ".xterm-helper-textarea").send_keys("r")
         running = wait_for(lambda: [i for i in sessions_of(server, student) if i.state == "Run"], 10)
