@@ -33,6 +33,7 @@ import contextlib
 import fcntl
 import json
 import os
+import re
 import secrets
 import stat
 from dataclasses import dataclass
@@ -47,6 +48,12 @@ KEYS = ("slot_minutes", "horizon_days", "weekly_quota_minutes", "warn_minutes", 
 KEPT = timedelta(days=7)
 #: Largest booking file read: anything bigger is not one of ours.
 MAX_FILE = 4096
+#: A booking file's name as `book` makes it: <rig>~<start>~<uid>~<8 hex digits>.json.
+FILE_NAME = re.compile(r"([^~]{1,255})~([0-9]{8}T[0-9]{6})~([0-9]{1,10})~[0-9a-f]{8}\.json")
+#: Files of one student (not an administrator) read by a listing: bookings/ filled
+#: with junk of theirs costs a bounded time (counted per owner after lstat, so one
+#: student's junk never hides another's booking).
+MAX_PER_OWNER = 200
 
 
 class BookingError(ValueError):
@@ -191,19 +198,41 @@ def list_bookings(lab: LabConfig, keys: Iterable[str] | None = None, *,
     wanted = None if keys is None else {_stem(k) for k in keys}
     now = now or datetime.now().astimezone()
     found: list[tuple[Booking, float, bool]] = []
+    # a student's file matters only if it starts in this window (its rules: at most
+    # horizon_days ahead, at most the weekly quota long; a day's slack for time zones)
+    local = now.astimezone().replace(tzinfo=None)
+    first = local - KEPT - timedelta(minutes=rules.weekly_quota_minutes, days=1)
+    last = local + timedelta(days=rules.horizon_days + 1)
+    admins: dict[int, bool] = {}
+    per_owner: dict[int, int] = {}
     try:
-        names = os.listdir(folder)
+        entries = os.scandir(folder)
     except OSError:
         return []
-    for entry in names:
-        if not entry.endswith(".json"):
-            continue
-        if wanted is not None and entry.split("~", 1)[0] not in wanted:
-            continue
-        got = _read(folder / entry, lab)
-        if got is None or got[0].end < now - KEPT or _cancelled(folder / entry, lab):
-            continue
-        found.append(got)
+    with entries:
+        for entry in entries:
+            m = FILE_NAME.fullmatch(entry.name)
+            if m is None or (wanted is not None and m.group(1) not in wanted):
+                continue
+            try:
+                st = entry.stat(follow_symlinks=False)
+                named = datetime.strptime(m.group(2), "%Y%m%dT%H%M%S")
+            except (OSError, ValueError):
+                continue
+            if not stat.S_ISREG(st.st_mode):
+                continue
+            if st.st_uid not in admins:
+                admins[st.st_uid] = _is_admin(st.st_uid, lab)
+            if not admins[st.st_uid]:  # nobody's junk costs more than MAX_PER_OWNER reads, nor hides another's
+                if not first <= named <= last:
+                    continue
+                per_owner[st.st_uid] = per_owner.get(st.st_uid, 0) + 1
+                if per_owner[st.st_uid] > MAX_PER_OWNER:
+                    continue
+            got = _read(Path(entry.path), lab)
+            if got is None or got[0].end < now - KEPT or _cancelled(Path(entry.path), lab):
+                continue
+            found.append(got)
     found.sort(key=lambda f: f[1])  # first created first
     kept: list[Booking] = []
     used: dict[tuple[str, int, date], timedelta] = {}

@@ -143,7 +143,7 @@ def test_a_students_own_files_count_only_as_book_would_have_made_them(tmp_path: 
     slot = now.replace(minute=0) + timedelta(hours=1)  # on the 30 min slots, within the horizon
     student = 54321
 
-    def plant(name_start: datetime, body: object, tail: str = "x") -> Path:
+    def plant(name_start: datetime, body: object, tail: str = "0000000a") -> Path:
         path = folder / f"{bk._stem(KEYS[0])}~{name_start.strftime('%Y%m%dT%H%M%S')}~{student}~{tail}.json"
         path.write_text(body if isinstance(body, str) else json.dumps(body))
         os.chown(path, student, student)
@@ -154,18 +154,52 @@ def test_a_students_own_files_count_only_as_book_would_have_made_them(tmp_path: 
 
     ever = datetime(2000, 1, 1).astimezone()
     plant(ever, body(ever, datetime(9999, 1, 1).astimezone()))                                # the rig for ever
-    plant(slot, body(slot, slot + timedelta(minutes=17)), "odd")                              # off the slots
+    plant(slot, body(slot, slot + timedelta(minutes=17)), "0000000b")                              # off the slots
     far = slot + timedelta(days=60)
     plant(far, body(far, far + timedelta(minutes=30)))                                        # past the horizon
-    plant(slot, body(slot, slot + timedelta(minutes=30), rig=KEYS[0] + "\x1b]0;PWNED\x07"), "esc")  # raw escape
+    plant(slot, body(slot, slot + timedelta(minutes=30), rig=KEYS[0] + "\x1b]0;PWNED\x07"), "0000000c")  # raw escape
     plant(slot, body(slot, slot + timedelta(minutes=30)), "\x1b[2J")                          # an id that clears
-    plant(slot, "[" * 4000, "deep")                                                           # RecursionError
+    plant(slot, "[" * 4000, "0000000d")                                                           # RecursionError
     plant(slot, '{"rig": "%s", "uid": Infinity, "start": "%s", "end": "%s"}'
-          % (KEYS[0], slot.isoformat(), (slot + timedelta(minutes=30)).isoformat()), "inf")
-    good = plant(slot + timedelta(hours=1), body(slot + timedelta(hours=1), slot + timedelta(hours=2)), "good")
+          % (KEYS[0], slot.isoformat(), (slot + timedelta(minutes=30)).isoformat()), "0000000e")
+    good = plant(slot + timedelta(hours=1), body(slot + timedelta(hours=1), slot + timedelta(hours=2)), "0000000f")
     over = slot + timedelta(hours=2)  # two more hours that week: past the 120 min quota
-    plant(over, body(over, over + timedelta(hours=2)), "quota")
+    plant(over, body(over, over + timedelta(hours=2)), "00000010")
     found = bk.list_bookings(lab, KEYS, now=now)
     assert [b.id for b in found] == [good.stem]
     assert bk.active_refusal(lab, KEYS, 1000, now + timedelta(minutes=1)) is None
     assert bk.in_force(lab, KEYS, slot + timedelta(minutes=61)) == found[0]
+
+
+def test_a_folder_flooded_by_one_student_costs_a_bounded_time_and_hides_nobodys(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """50,000 files of one student's made every listing (each second of a session on
+    the rig) read every one: 4.4 s a listing.  Now at most MAX_PER_OWNER of one
+    student's files are read, and another student's booking is still found."""
+    lab = lab_with(tmp_path)
+    folder = bk.bookings_dir(lab)
+    now = datetime.now().astimezone().replace(second=0, microsecond=0)
+    slot = now.replace(minute=0) + timedelta(hours=1)
+    flooder, other = 54321, 54322
+    name = f"{bk._stem(KEYS[0])}~{slot.strftime('%Y%m%dT%H%M%S')}"
+    for i in range(bk.MAX_PER_OWNER * 3):
+        junk = folder / f"{name}~{flooder}~{i:08x}.json"
+        junk.write_text("{}")
+        os.chown(junk, flooder, flooder)
+    old = folder / f"{bk._stem(KEYS[0])}~20200101T100000~{flooder}~000000aa.json"  # long past: not even read
+    old.write_text("{}")
+    os.chown(old, flooder, flooder)
+    good = folder / f"{name}~{other}~0000abcd.json"
+    good.write_text(json.dumps({"rig": KEYS[0], "uid": other, "start": slot.isoformat(),
+                                "end": (slot + timedelta(minutes=30)).isoformat()}))
+    os.chown(good, other, other)
+    reads: list[Path] = []
+    real_read = bk._read
+
+    def counted(path: Path, lab: LabConfig) -> tuple[bk.Booking, float, bool] | None:
+        reads.append(path)
+        return real_read(path, lab)
+
+    monkeypatch.setattr(bk, "_read", counted)
+    assert [b.id for b in bk.list_bookings(lab, KEYS, now=now)] == [good.stem]
+    assert len(reads) == bk.MAX_PER_OWNER + 1 and old not in reads
