@@ -272,6 +272,8 @@ class SessionHost:
         if conn.role is not None:
             return
         if not self.access.may_connect(peer.uid):
+            wanted = "stop" if hello.role == "control" else "take-over" if hello.take_over else hello.role
+            self._audit("refused", peer, f"wanted={wanted}")
             self._refuse(conn, f"session {self.info.id} belongs to {self.info.owner}; you are {peer.user} "
                          f"(an administrator, {self.access.admin_words}, may attach to it)")
             return
@@ -294,10 +296,12 @@ class SessionHost:
                                  f"{_hhmm(current.since)}; {hint}")
                     return
                 if not own and not self.access.is_admin(peer.uid):
+                    self._audit("refused", peer, f"wanted=take-over operator={current.peer.user}")
                     self._refuse(conn, f"taking over session {self.info.id} needs an administrator "
                                  f"({self.access.admin_words}); you are {peer.user}")
                     return
                 current.role = "observer"  # it stays, read-only, and is told so below
+                self._audit("take-over", peer, f"from={current.peer.user}")
             elif peer.uid != self.info.uid and not self.access.is_admin(peer.uid):
                 self._refuse(conn, f"session {self.info.id} belongs to {self.info.owner}: you may observe it "
                              "(quadtank attach --observe), not operate it")
@@ -306,6 +310,7 @@ class SessionHost:
         self._publish(force=True)  # the others are up to date before this one joins
         conn.role = role
         conn.since = self._wall()
+        self._audit("attach", peer, f"role={role}")
         engine = self.engine
         rows, _, _ = engine.history_since(0)  # a copy: the parts are encoded later, from it
         welcome = Welcome(self._info(), role, engine.snapshot(), engine.defaults(),
@@ -404,16 +409,31 @@ class SessionHost:
 
     def _stop_asked(self, conn: Connection) -> None:
         if not self.access.may_stop(conn.peer.uid):
+            self._audit("refused", conn.peer, "wanted=stop")
             self._refuse(conn, f"stopping session {self.info.id} needs its owner ({self.info.owner}) or an "
                          f"administrator ({self.access.admin_words}); you are {conn.peer.user}")
             return
+        self._audit("stop", conn.peer)
         self.request_stop(f"stopped by {conn.peer.user}")
+
+    def _audit(self, event: str, peer: Peer, more: str = "") -> None:
+        """One line for the administrators: who (the kernel's word, SO_PEERCRED) did
+        `event` to this session, in the session's .out and in the system log
+        (authpriv: readable by the administrators, the journal stamps the writer's
+        uid).  Never fails the session: a machine without a system log keeps the
+        .out line."""
+        line = f"audit: {event} session={self.info.id} owner={self.info.owner} user={peer.user} uid={peer.uid}" + \
+            (f" {more}" if more else "")
+        print(f"{datetime.now():%H:%M:%S} {line}", flush=True)
+        system_log(line)
 
     def _on_gone(self, conn: Connection) -> None:
         if conn is self._operator:
             self._operator = None
             self._operator_left = time.monotonic()
             self._log_ended = None
+        if conn.role is not None and conn.role != "control":
+            self._audit("detach", conn.peer, f"role={conn.role}")
         if conn.role is not None:
             self._roster_changed()
 
@@ -633,3 +653,15 @@ def _parts(rows: np.ndarray) -> Iterator[bytes]:
 
 def _hhmm(wall: float) -> str:
     return datetime.fromtimestamp(wall).strftime("%H:%M")
+
+
+def system_log(line: str) -> None:
+    """`line` to syslog(3), facility authpriv, as `quadtank[PID]`; nothing if the
+    machine has none (libc drops it) or the call fails."""
+    try:
+        import syslog
+
+        syslog.openlog("quadtank", syslog.LOG_PID, syslog.LOG_AUTHPRIV)
+        syslog.syslog(syslog.LOG_INFO, line)
+    except (ImportError, OSError, ValueError):
+        pass
