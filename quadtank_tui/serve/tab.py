@@ -57,6 +57,12 @@ def encode_packet(kind: bytes, payload: bytes) -> bytes:
     return kind + len(payload).to_bytes(4, "big") + payload
 
 
+#: The tab's interpreter starts as root with the user's HOME: isolated (-I: no
+#: user site-packages, so no ~/.local/.../usercustomize.py or .pth of the user's
+#: runs as root; no PYTHON* variables; not the current folder on sys.path).
+PYTHON_FLAGS = ("-I",)
+
+
 def tab_environment(user: TabUser, width: int, height: int, passed: dict[str, str]) -> dict[str, str]:
     """The tab's whole environment: the user's own names, the web driver's settings
     and what the lab passes on (`passed`: QUADTANK_LAB, QUADTANK_RUNTIME of the
@@ -93,7 +99,7 @@ class Tab:
         u = self.user
         groups = ",".join(str(g) for g in u.groups)
         self.process = await asyncio.create_subprocess_exec(
-            self._python, "-m", "quadtank_tui.serve.drop", str(u.uid), str(u.gid), groups, u.home, "--",
+            self._python, *PYTHON_FLAGS, "-m", "quadtank_tui.serve.drop", str(u.uid), str(u.gid), groups, u.home, "--",
             *self.args, stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE,
             stderr=asyncio.subprocess.PIPE, env=self._env, cwd="/", start_new_session=True,
             close_fds=True)

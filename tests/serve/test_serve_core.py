@@ -105,3 +105,40 @@ def test_a_tab_runs_no_session_id_that_is_an_option_a_path_or_a_line(sid: str) -
     with pytest.raises(web.HTTPBadRequest):
         Server._mode(None, {"attach": sid})  # type: ignore[arg-type]
     assert Server._mode(None, {"observe": "qtr1a-12"}) == ("observe", "qtr1a-12")  # type: ignore[arg-type]
+
+
+def test_a_tabs_interpreter_runs_nothing_of_the_users_home_as_root(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The tab's Python starts as root with HOME the user's: with a system Python
+    (user site-packages on) a student's ~/.local/lib/pythonX.Y/site-packages/
+    usercustomize.py ran as root at each of their logins (uid=0 written, by hand
+    with /usr/bin/python3).  The tab's flags keep it out; a start uses them."""
+    import asyncio
+    import subprocess
+    import sys
+
+    from quadtank_tui.serve.tab import PYTHON_FLAGS, Tab, TabUser
+
+    site = tmp_path / ".local" / "lib" / f"python{sys.version_info[0]}.{sys.version_info[1]}" / "site-packages"
+    site.mkdir(parents=True)
+    (site / "usercustomize.py").write_text(f"open({str(tmp_path / 'ran')!r}, 'w').close()\n")
+    env = {"HOME": str(tmp_path), "PATH": "/usr/bin:/bin"}
+    probe = "import site; print(site.ENABLE_USER_SITE)"
+    python = "/usr/bin/python3" if Path("/usr/bin/python3").exists() else sys.executable
+    plain = subprocess.run([python, "-c", probe], env=env, capture_output=True, text=True)
+    if plain.stdout.strip() == "True":  # a Python whose user site is on: the attack works without the flags
+        assert (tmp_path / "ran").exists()
+        (tmp_path / "ran").unlink()
+    flagged = subprocess.run([python, *PYTHON_FLAGS, "-c", probe], env=env, capture_output=True, text=True)
+    assert flagged.stdout.strip() == "False" and not (tmp_path / "ran").exists()
+    seen: list[tuple[str, ...]] = []
+
+    async def fake_exec(*argv: str, **kw: object) -> object:
+        seen.append(argv)
+        raise OSError("not started")
+
+    monkeypatch.setattr(asyncio, "create_subprocess_exec", fake_exec)
+    tab = Tab(TabUser("u", 1000, 1000, (), str(tmp_path)), [], width=80, height=24,
+              to_browser=lambda b: asyncio.sleep(0), passed_env={}, python=python)
+    with pytest.raises(OSError):
+        asyncio.run(tab.start())
+    assert seen[0][:3] == (python, *PYTHON_FLAGS, "-m")
