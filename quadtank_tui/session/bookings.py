@@ -216,7 +216,8 @@ def list_bookings(lab: LabConfig, keys: Iterable[str] | None = None, *,
                 continue
             try:
                 st = entry.stat(follow_symlinks=False)
-                named = datetime.strptime(m.group(2), "%Y%m%dT%H%M%S")
+                t = m.group(2)  # not strptime: its module is imported lazily, after a tab's drop
+                named = datetime(int(t[:4]), int(t[4:6]), int(t[6:8]), int(t[9:11]), int(t[11:13]), int(t[13:]))
             except (OSError, ValueError):
                 continue
             if not stat.S_ISREG(st.st_mode):
@@ -374,12 +375,31 @@ def cancel(lab: LabConfig, booking_id: str) -> Booking:
         try:
             os.unlink(b.path)
         except PermissionError:  # an administrator, not its writer: a cancelling file of theirs
-            fd = os.open(b.path.with_suffix(".cancel"), os.O_WRONLY | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC,
-                         0o644)
-            os.close(fd)
+            _cancel_file(b.path.with_suffix(".cancel"), lab)
         except FileNotFoundError:
             pass
     return target
+
+
+def _cancel_file(path: Path, lab: LabConfig) -> None:
+    """A new cancelling file of ours at `path`.  Made with O_EXCL: whatever the
+    booking's writer put at that name first (a FIFO an open would wait on for
+    ever, a file of theirs) is never opened; BookingError names it."""
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC,
+                     0o644)
+    except FileExistsError:
+        if _cancelled(path.with_suffix(".json"), lab):
+            return  # cancelled already
+        from quadtank_tui.session.roles import user_name
+
+        try:
+            owner = user_name(os.lstat(path).st_uid)
+        except OSError:
+            owner = "someone"
+        raise BookingError(f"{path.name}: {owner}'s file is there, not a cancelling one; root cancels this "
+                           "booking (sudo quadtank bookings --cancel ID removes it)") from None
+    os.close(fd)
 
 
 def parse_when(text: str, *, today: datetime | None = None) -> datetime:

@@ -203,3 +203,37 @@ def test_a_folder_flooded_by_one_student_costs_a_bounded_time_and_hides_nobodys(
     monkeypatch.setattr(bk, "_read", counted)
     assert [b.id for b in bk.list_bookings(lab, KEYS, now=now)] == [good.stem]
     assert len(reads) == bk.MAX_PER_OWNER + 1 and old not in reads
+
+
+def test_a_fifo_at_the_cancelling_name_neither_hangs_nor_fakes_an_administrators_cancel(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The student whose booking it is makes a FIFO at `<booking>.cancel`: a
+    non-root administrator's cancel (unlink refused by the sticky folder) opened it
+    for writing and waited for ever.  Now: one clear refusal, at once."""
+    import threading
+
+    lab = lab_with(tmp_path)
+    made = bk.book(lab, KEYS, at(0), at(30), now=at(-10))
+    os.mkfifo(made.path.with_suffix(".cancel"))
+
+    def sticky(path: object) -> None:
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(bk.os, "unlink", sticky)
+    failed: list[BaseException] = []
+
+    def call() -> None:
+        try:
+            bk.cancel(lab, made.id)
+        except BaseException as exc:  # noqa: BLE001 - looked at in the test's thread
+            failed.append(exc)
+
+    t = threading.Thread(target=call, daemon=True)
+    t.start()
+    t.join(3.0)
+    if t.is_alive():  # let the thread go: open the FIFO's other end
+        os.close(os.open(made.path.with_suffix(".cancel"), os.O_RDONLY | os.O_NONBLOCK))
+        pytest.fail("the cancel waited on the FIFO")
+    assert len(failed) == 1 and isinstance(failed[0], bk.BookingError)
+    assert "root's file is there, not a cancelling one" in str(failed[0])
+    assert [b.id for b in bk.list_bookings(lab, KEYS, now=at(-10))] == [made.id]
