@@ -224,7 +224,7 @@ def rhs(h: Sequence[float], v: Sequence[float], p: PlantParams) -> Levels:
 
 
 #: Local error tolerances of :func:`advance`, cm.  Chosen so 600 s runs agree with a
-#: 1e-12 reference to far better than 1e-6 cm (see tests/core/test_plant_accuracy.py).
+#: 1e-12 reference to far better than 1e-6 cm (see tests/core/plants/test_johansson_accuracy.py).
 RTOL = 1e-10
 ATOL = 1e-10
 

@@ -1,5 +1,5 @@
 """Each plant's ZOH step against a tight solve_ivp reference (issue 14), as
-tests/core/test_plant_accuracy.py holds the quadruple tank: 1e-6 cm over 600 s on
+tests/core/plants/test_johansson_accuracy.py holds the quadruple tank: 1e-6 cm over 600 s on
 a 20 cm tank, i.e. 5e-8 of the tank height, here for every plant and its unit."""
 
 from __future__ import annotations
