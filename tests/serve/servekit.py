@@ -93,21 +93,23 @@ def made_users(base: Path, *suffixes: str) -> Iterator[dict[str, User]]:
     finally:
         for name, folder in acl:
             subprocess.run(["setfacl", "-x", f"u:{name}", str(folder)], capture_output=True)
+        if made:
+            end_processes_of(*made)  # all at once: each user's wait for their processes to go overlaps
         for name in made:
-            end_processes_of(name)
             for _ in range(20):  # a process reaped a moment late still counts for userdel
                 if subprocess.run(["userdel", name], capture_output=True).returncode in (0, 6):
                     break
                 time.sleep(0.1)
 
 
-def end_processes_of(user: str) -> None:
-    """The processes the test made run as `user` (its sessions and their guards), each by its pid."""
+def end_processes_of(*users: str) -> None:
+    """The processes the test made run as `users` (their sessions and guards), each by its pid."""
     import signal
 
     deadline = time.monotonic() + 5.0
     while time.monotonic() < deadline:  # until none is left: userdel refuses a user with a live process
-        listed = subprocess.run(["ps", "-o", "pid=", "-u", user], capture_output=True, text=True).stdout.split()
+        listed = subprocess.run(["ps", "-o", "pid=", "-u", ",".join(users)], capture_output=True,
+                                text=True).stdout.split()
         if not listed:
             return
         for pid in listed:
