@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from quadtank_tui.session.client import SessionClient
     from quadtank_tui.session.info import SessionInfo
     from quadtank_tui.session.protocol import Role
+    from quadtank_tui.ui.windows.attached import AttachedNotice
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -209,19 +210,47 @@ def cmd_tui_session(args: argparse.Namespace) -> int:
         if "name one" in str(exc):
             raise UsageError(f"{exc} with quadtank attach SESSION") from None
         info = None
-    if info is not None:
-        if args.tui_par or args.daq_global:
-            warn([f"attached to your running session {info.id}: --par / --daq apply to a new session "
-                  f"only (quadtank stop {info.id} first)"])
-    else:
+    notice = None
+    if info is None:
         info = _start_while_loading_the_ui(args, runtime)
-    from quadtank_tui.session.client import SessionError
+    elif args.tui_par or args.daq_global:
+        notice = attached_notice(info, args)
+    from quadtank_tui.session.client import SessionError, stop_session_at
 
     try:
         client = _connect(info, "operator")
     except SessionError as exc:
         raise UsageError(str(exc)) from None
+    if notice is None:
+        return run_tui_on(client, args.refresh)
+    status, new = _run_tui(client, args.refresh, notice)
+    if not new:
+        return status
+    # the attached window's `n`: that session stops, one with these options starts
+    try:
+        reason = stop_session_at(info.socket, expect=info)
+    except SessionError as exc:
+        raise UsageError(f"session {info.id} did not stop ({exc}): no new session started") from None
+    say(f"quadtank: session {info.id} stopped ({reason}); starting a new one")
+    info = _start_while_loading_the_ui(args, runtime)
+    try:
+        client = _connect(info, "operator")
+    except SessionError as exc:
+        raise UsageError(str(exc)) from None
     return run_tui_on(client, args.refresh)
+
+
+def attached_notice(info: SessionInfo, args: argparse.Namespace) -> AttachedNotice:
+    """What the TUI says first when it attached to `info` although `--par` / `--daq`
+    asked for something that only a new session takes."""
+    from quadtank_tui.files.shared import shown
+    from quadtank_tui.ui.windows.attached import AttachedNotice
+
+    plant = (f"the rig of {shown(info.daq)} ({info.operation})" if info.daq
+             else f"the simulator ({info.operation})")
+    ignored = tuple(f"{name} {value}" for name, value in (("--daq", args.daq_global), ("--par", args.tui_par))
+                    if value)
+    return AttachedNotice(info.id, plant, ignored)
 
 
 def own_session_on_rig(config: str | None) -> tuple[SessionInfo, str] | None:
@@ -354,10 +383,17 @@ def start_detached_run(args: argparse.Namespace, script: Script | None, clock: C
 def run_tui_on(client: SessionClient, refresh: float) -> int:
     """The TUI on `client` until Exit or the terminal goes; then detach (or stop the
     session, if Exit chose that)."""
+    return _run_tui(client, refresh)[0]
+
+
+def _run_tui(client: SessionClient, refresh: float, attached: AttachedNotice | None = None) -> tuple[int, bool]:
+    """run_tui_on, with `attached`: the window shown first (options the session did
+    not take); also whether its user asked for a new session instead."""
     from quadtank_tui.ui.app import build_app
     from quadtank_tui.ui.terminal_watch import TerminalWatch
 
-    app = build_app(client, refresh_interval=refresh, resume_gc=not gc.isenabled(), read_on=client.read_on)
+    app = build_app(client, refresh_interval=refresh, resume_gc=not gc.isenabled(), read_on=client.read_on,
+                    attached=attached)
     watch = TerminalWatch(app.exit_soon, client.close, farewell=lambda why: say(after_the_screen(client, why)))
     watch.start()
     try:
@@ -365,8 +401,10 @@ def run_tui_on(client: SessionClient, refresh: float) -> int:
     finally:
         watch.close()
         client.close()  # detaches; stops the session if Exit chose that
+    if app.new_session_asked and watch.reason is None:
+        return 0, True
     say(after_the_screen(client, watch.reason))
-    return app.return_code or watch.status
+    return app.return_code or watch.status, False
 
 
 def after_the_screen(client: SessionClient, hung_up: str | None) -> str:

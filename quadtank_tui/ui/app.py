@@ -60,6 +60,10 @@ class QuadTankApp(OrderedKeys):
         self._read_on = read_on
         #: the exercise the TUI follows (app/exercise.py's LiveExercise), None without one
         self.exercise: Any = None
+        #: shown first when `quadtank --daq/--par` attached to a running session (ui/windows/attached.py)
+        self.attached: Any = None
+        #: the user chose, in that window, to stop the session and start a new one
+        self.new_session_asked = False
 
     def on_mount(self) -> None:
         with self._exit_lock:
@@ -73,9 +77,21 @@ class QuadTankApp(OrderedKeys):
         self.push_screen(self.main)
         if self.exercise is not None:  # quadtank exercise FILE: its window first
             self.call_after_refresh(self.main.action_exercise)
+        if self.attached is not None:  # --daq / --par not applied: said at once
+            self.call_after_refresh(self._show_attached)
         self._check_size()
         if self._resume_gc:
             self.call_after_refresh(resume_gc)
+
+    def _show_attached(self) -> None:
+        from quadtank_tui.ui.windows.attached import AttachedWindow
+
+        def chosen(new: bool | None) -> None:
+            if new:
+                self.new_session_asked = True
+                self.exit(None, 0)
+
+        self.push_screen(AttachedWindow(self.attached), chosen)
 
     def on_resize(self) -> None:
         self.call_later(self._check_size)
@@ -166,13 +182,15 @@ def resume_gc() -> None:
 def build_app(engine: EngineHandle, *, refresh_interval: float = 0.05,
               wall_clock: Callable[[], float] = time.monotonic, resume_gc: bool = False,
               read_on: Callable[[asyncio.AbstractEventLoop], None] | None = None,
-              exercise: Any = None) -> QuadTankApp:
+              exercise: Any = None, attached: Any = None) -> QuadTankApp:
     """The app on `engine`; `refresh_interval` is the UI timer in seconds (raise it
     on a slow link); `wall_clock` is injected so tests are deterministic;
     `resume_gc`: the caller paused the garbage collector for the start
     (commands.pause_gc); `read_on`: given the app's event loop once it runs (a
-    session client then reads its socket there: session/client.py read_on)."""
+    session client then reads its socket there: session/client.py read_on);
+    `attached`: the AttachedNotice of options a running session did not take."""
     app = QuadTankApp(engine, refresh_interval=refresh_interval, wall_clock=wall_clock, resume_gc=resume_gc,
                       read_on=read_on)
     app.exercise = exercise  # an app/exercise.LiveExercise: `x` on Main opens its window
+    app.attached = attached  # a ui.windows.attached.AttachedNotice: opened first
     return app

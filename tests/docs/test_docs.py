@@ -136,6 +136,7 @@ KEY_SECTIONS = {
     "FaultWindow": "Faults",
     "GhostWindow": "Ghost run",
     "ExerciseWindow": "Exercise",
+    "AttachedWindow": "Attached to a running session",
 }
 
 #: How docs/keys.md writes the keys Textual names by a word.
