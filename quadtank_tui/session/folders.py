@@ -42,8 +42,12 @@ from typing import Callable
 
 #: A user's place in users/: their uid, or (that name taken by someone else) the uid and a suffix.
 PLACE_NAME = re.compile(r"([0-9]{1,10})(?:\.[0-9a-f]{8})?")
-#: Entries of users/ looked at by a listing (a folder of junk costs a bounded time).
+#: Entries of users/ named as ignored by a listing (for `quadtank sessions`).
 MAX_PLACES = 5000
+#: Entries of one owner's in users/ looked at (a user has one place, two where
+#: someone took their name first): junk costs its owner's entries only, counted
+#: after lstat, so nobody's junk hides another's place.
+MAX_PER_OWNER = 16
 
 
 class RuntimeFolderError(OSError):
@@ -251,25 +255,28 @@ def place_ok(st: os.stat_result, uid: int) -> bool:
 
 
 def places(root: Path, ignored: list[tuple[str, str]] | None = None) -> list[Place]:
-    """Every user's place in `root`/users, by uid then name (at most MAX_PLACES
-    entries looked at); `ignored` gets (path, why) of the entries that are not."""
+    """Every user's place in `root`/users, by uid then name (at most MAX_PER_OWNER
+    entries of each owner's looked at); `ignored` gets (path, why) of (at most
+    MAX_PLACES of) the entries that are not."""
     out: list[Place] = []
+    per_owner: dict[int, int] = {}
     try:
         entries = os.scandir(root / "users")
     except OSError:
         return out
     with entries:
-        for n, entry in enumerate(entries):
-            if n >= MAX_PLACES:
-                break
+        for entry in entries:
             m = PLACE_NAME.fullmatch(entry.name)
             try:
                 st = entry.stat(follow_symlinks=False)
             except OSError:
                 continue
+            per_owner[st.st_uid] = per_owner.get(st.st_uid, 0) + 1
+            if per_owner[st.st_uid] > MAX_PER_OWNER:
+                continue
             if m is not None and place_ok(st, int(m.group(1))):
                 out.append(Place(Path(entry.path), int(m.group(1))))
-            elif ignored is not None:
+            elif ignored is not None and len(ignored) < MAX_PLACES:
                 ignored.append((entry.path, f"{entry.path}: not a user's folder of sessions ("
                                 + ("not named after a uid" if m is None else
                                    f"{_name(st.st_uid)}'s, mode {stat.S_IMODE(st.st_mode):o}, named after "

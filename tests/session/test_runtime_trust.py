@@ -218,3 +218,24 @@ def test_a_record_naming_a_pid_no_kernel_gives_is_of_a_process_gone(tmp_path: Pa
     (place / f"{ME}-1.json").write_text(record(pid=pid, state="Run"))
     assert list_sessions(root.path, prune=False) == []
     assert [i.pid for i in ended_sessions(root.path)] == [pid]
+
+
+def test_junk_in_users_hides_no_one_elses_place(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A student filled users/ with 20,000 folders: a listing looked at the first
+    5,000 entries only (hash order), so another user's place was skipped - their
+    sessions unlisted, and their next session went to a new place beside it.  Now
+    each owner's entries count against that owner only."""
+    from quadtank_tui.session import folders
+
+    monkeypatch.setattr(folders, "MAX_PLACES", 5)  # the junk below stands for 20,000 of them
+    root = folders.resolve(tmp_path / "rt")
+    junk_owner, other = 54321, 54322
+    for i in range(400):
+        (root.users / f"j{i:05d}").write_text("")
+        os.chown(root.users / f"j{i:05d}", junk_owner, junk_owner)
+    place = root.users / str(other)
+    place.mkdir(mode=0o755)
+    os.chown(place, other, other)
+    ignored: list[tuple[str, str]] = []
+    assert [(p.path, p.uid) for p in folders.places(root.path, ignored)] == [(place, other)]
+    assert len(ignored) == 5  # at most MAX_PLACES named
