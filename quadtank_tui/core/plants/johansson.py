@@ -218,6 +218,16 @@ def rhs(h: Sequence[float], v: Sequence[float], p: PlantParams) -> Levels:
     Physical limits: a pump does not run backwards (v < 0 acts as 0), an empty tank
     has no outflow (see :data:`H_FILM` for the last 0.05 mm), and a full tank spills
     what would raise it above hmax (the spilled water leaves the process).
+
+    Parameters
+    ----------
+    h : levels of tanks 1..4, cm
+    v : pump voltages, V
+    p : the rig's constants
+
+    Returns
+    -------
+    dh/dt of tanks 1..4, cm/s.
     """
     h1, h2, h3, h4 = h
     return _flows(p, (v[0], v[1]))(h1, h2, h3, h4)
@@ -303,6 +313,18 @@ def advance(
 
     The four-level form of the one integrator (stepping.dopri_advance4).
 
+    Parameters
+    ----------
+    h : levels of tanks 1..4 at the start, cm (projected onto [0, hmax] first)
+    v : pump voltages held over the step, V
+    dt : the step, s (a finite number >= 0; PlantError otherwise)
+    p : the rig's constants
+    rtol, atol : the local error tolerance, relative and in cm
+
+    Returns
+    -------
+    The levels of tanks 1..4 after dt, cm, each in [0, hmax].
+
     >>> advance((10.0, 10.0, 0.0, 0.0), (0.0, 0.0), 0.0, PlantParams())
     (10.0, 10.0, 0.0, 0.0)
     """
@@ -337,6 +359,15 @@ def steady_state_levels(v: Sequence[float], p: PlantParams) -> Levels:
 
     A tank whose steady level would exceed hmax overflows: it stays at hmax and only
     its outlet flow reaches the tank below.
+
+    Parameters
+    ----------
+    v : pump voltages, V (a negative one acts as 0)
+    p : the rig's constants
+
+    Returns
+    -------
+    The steady levels of tanks 1..4, cm.
     """
     v1, v2 = max(float(v[0]), 0.0), max(float(v[1]), 0.0)
     h3 = min(level_for_outflow((1 - p.gamma2) * p.k2 * v2, p.a3, p.g), p.hmax)
@@ -355,6 +386,17 @@ def steady_state_inputs(h1: float, h2: float, p: PlantParams) -> OperatingPoint:
     M = [[gamma1 k1, (1 - gamma2) k2], [(1 - gamma1) k1, gamma2 k2]] (Nunes, 2.2).
     M is singular when gamma1 + gamma2 = 1 (the flows through tanks 1 and 2 are then
     tied); a level pair that needs a negative voltage is not reachable either.
+
+    Parameters
+    ----------
+    h1, h2 : the lower tanks' levels, cm (>= 0)
+    p : the rig's constants
+
+    Returns
+    -------
+    OperatingPoint: x the levels of tanks 1..4, cm; u the pump voltages, V.
+    SteadyStateError when no pump setting holds them (gamma1 + gamma2 = 1, a pump
+    that would run backwards, an upper tank that would overflow).
     """
     if h1 < 0 or h2 < 0:
         raise SteadyStateError(f"levels must be >= 0 cm, got ({h1}, {h2})")
