@@ -305,10 +305,31 @@ def plant_identity(params: Parameters, daq: ProcessBackend | None, daq_config: s
         value = getattr(config, key, None)
         if isinstance(value, (str, int, float)) and not isinstance(value, bool):
             out[key] = value
-    identity = getattr(daq, "identity", None)
-    identity = identity() if callable(identity) else identity
-    out["device_identity"] = identity if isinstance(identity, (str, dict)) else None
+    out["device_identity"], out["identity_mismatches"] = device_identity(daq)
     return out
+
+
+def device_identity(daq: ProcessBackend) -> tuple[dict[str, Any] | None, list[str]]:
+    """What the rig says of itself (its identity block, daq/identity.py: pump
+    amplifiers, sensor scales, pump range) and where the DAQ file in force
+    disagrees with it; (None, []) from a device that serves none (a real LabJack)
+    or a link that cannot read it now."""
+    from dataclasses import asdict
+
+    from quadtank_tui.daq.modbus import BackendError
+
+    read = getattr(daq, "rig_identity", None)
+    differ = getattr(daq, "identity_mismatches", None)
+    if not callable(read):
+        return None, []
+    try:
+        identity = read()
+        pumps, sensors = differ() if callable(differ) and identity is not None else ([], [])
+    except BackendError:
+        return None, []
+    if identity is None:
+        return None, []
+    return {k: list(v) for k, v in asdict(identity).items()}, [*pumps, *sensors]
 
 
 def run_attempt(ex: Exercise, par: str, *, record: Path | None = None, own_script: Script | None = None,

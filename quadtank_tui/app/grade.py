@@ -254,6 +254,8 @@ def _check_rig(plant: Mapping[str, Any], daq_digests: Sequence[str], notes: list
         notes.append("the rig's DAQ file is not the one given (--daq): another rig, or its file was changed")
     if plant.get("device_identity") is None:
         notes.append("the rig gave no identity of its own (only its DAQ file and address are recorded)")
+    elif plant.get("identity_mismatches"):
+        notes.append("the rig's own identity disagreed with its DAQ file: " + ", ".join(map(str, plant["identity_mismatches"])))
 
 
 def _close(a: float | None, b: Any) -> bool:

@@ -80,7 +80,9 @@ def test_a_rig_attempt_is_recorded_with_the_rig_and_graded_as_read(device: Calla
     assert plant["daq_file"] == str(VIRTUAL_RIG.resolve())
     assert plant["daq_sha256"] == hashlib.sha256(VIRTUAL_RIG.read_bytes()).hexdigest()
     assert plant["host"] == "127.0.0.1" and plant["port"] == rig.port and plant["device_id"] == 1
-    assert plant["device_identity"] is None  # the virtual rig reports none of its own yet
+    served = plant["device_identity"]  # the virtual rig's identity block, as it served it
+    assert served["pump_gains"] == [1.0, 1.0] and len(served["tank_gains"]) == 4
+    assert plant["identity_mismatches"] == []
     overshoot = {r["name"]: r for r in result["requirements"]}["overshoot 1"]
     assert overshoot["met"] is True and overshoot["figure"] is not None
 
@@ -89,7 +91,7 @@ def test_a_rig_attempt_is_recorded_with_the_rig_and_graded_as_read(device: Calla
     graded = grade_record(tmp_path / "rec", exercises, daq_digests=[digest])
     assert graded.reproduced == "read" and graded.passed
     assert all(r.reproduced == "read" for r in graded.requirements)
-    assert graded.notes == ["the rig gave no identity of its own (only its DAQ file and address are recorded)"]
+    assert graded.notes == []  # its DAQ file is the one given and the rig said what it is
     other = grade_record(tmp_path / "rec", exercises, daq_digests=["0" * 64])
     assert any("not the one given (--daq)" in n for n in other.notes)
 
