@@ -125,7 +125,7 @@ def overflow_starts(plain: PhysicalFit) -> list[tuple[str, dict[str, float]]]:
         for share in SPILL_SHARES:
             start = {e.name: e.value for e in plain.constants}
             start.update(area1=area, spill1=share, alpha1=v["alpha1"] * math.sqrt(area),
-                         lam1=v.get("lam1", 0.0) * area)
+                         lam1=v.get("lam1", 0.0) * area, lam2=v.get("lam2", 0.0))
             start.update({f"off{e.name[1]}": e.value for e in plain.offsets})
             out.append((f"the plain fit spilling at its {q:g}th percentile ({share:g} falling below)", start))
     return out
