@@ -240,7 +240,8 @@ def list_bookings(lab: LabConfig, keys: Iterable[str] | None = None, *,
     for b, ctime, by_admin in found:
         if not by_admin and not _within_rules(b, ctime, rules, used):
             continue
-        if not any(o.rig == b.rig and o.start < b.end and b.start < o.end for o in kept):
+        # one rig per file-name stem: a rig field spelt otherwise under the same stem is no other rig
+        if not any(_stem(o.rig) == _stem(b.rig) and o.start < b.end and b.start < o.end for o in kept):
             kept.append(b)
     return sorted(kept, key=lambda b: (b.start, b.rig))
 
@@ -257,7 +258,7 @@ def _within_rules(b: Booking, ctime: float, rules: BookingRules,
         return False
     if start > datetime.fromtimestamp(ctime).astimezone() + timedelta(days=rules.horizon_days):
         return False
-    week = (b.rig, b.uid, start.date() - timedelta(days=start.weekday()))
+    week = (_stem(b.rig), b.uid, start.date() - timedelta(days=start.weekday()))
     total = used.get(week, timedelta()) + (end - start)
     if total > timedelta(minutes=rules.weekly_quota_minutes):
         return False

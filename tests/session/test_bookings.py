@@ -237,3 +237,22 @@ def test_a_fifo_at_the_cancelling_name_neither_hangs_nor_fakes_an_administrators
     assert len(failed) == 1 and isinstance(failed[0], bk.BookingError)
     assert "root's file is there, not a cancelling one" in str(failed[0])
     assert [b.id for b in bk.list_bookings(lab, KEYS, now=at(-10))] == [made.id]
+
+
+def test_a_rig_spelt_otherwise_under_the_same_file_name_books_nothing_over_anothers_slot(tmp_path: Path) -> None:
+    """A student's file whose rig field differs from the key only where the file
+    name has '_' ('127.0.0.1[5020]1': the same stem) was a rig of its own to the
+    overlap check: both counted, and the student's, starting earlier, refused the
+    slot's owner Active in their own slot."""
+    lab = lab_with(tmp_path)
+    now = datetime.now().astimezone().replace(second=0, microsecond=0)
+    slot = now.replace(minute=0) + timedelta(hours=2)
+    owner, student = 54322, 54321
+    mine = bk.book(lab, KEYS, slot, slot + timedelta(minutes=30), uid=owner, now=now)  # root books it for them
+    early = slot - timedelta(minutes=30)
+    forged = bk.bookings_dir(lab) / f"{bk._stem(KEYS[0])}~{early.strftime('%Y%m%dT%H%M%S')}~{student}~0000beef.json"
+    forged.write_text(json.dumps({"rig": KEYS[0].replace(":", "[").replace("/", "]"), "uid": student,
+                                  "start": early.isoformat(), "end": (slot + timedelta(minutes=30)).isoformat()}))
+    os.chown(forged, student, student)
+    assert [b.id for b in bk.list_bookings(lab, KEYS, now=now)] == [mine.id]
+    assert bk.active_refusal(lab, KEYS, owner, slot + timedelta(minutes=10)) is None
