@@ -198,9 +198,9 @@ def breakdown(stick: Yardstick, chunks: int = 20, per: int = 500) -> None:
             for _ in range(chunks):
                 cpu, ref = stick.measure(lambda: engine.run_for(per * TSAMP))
                 whole.append((cpu / per * 1e6, ref))
-            engine.loop.files.hold(True)  # the rows in batches, as in a drive
+            engine.hold_files(True)  # the rows in batches, as in a drive
             costs = {label: best_us(fn) for label, fn in parts(engine).items()}
-            engine.loop.files.hold(False)
+            engine.hold_files(False)
         finally:
             engine.stop()
     best = min(c for c, _ in whole)
