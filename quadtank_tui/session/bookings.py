@@ -36,6 +36,7 @@ import os
 import re
 import secrets
 import stat
+import time
 from dataclasses import dataclass
 from datetime import date, datetime, timedelta
 from pathlib import Path
@@ -46,6 +47,9 @@ from quadtank_tui.session.lab import LabConfig, LabConfigError, ensure_runtime_d
 KEYS = ("slot_minutes", "horizon_days", "weekly_quota_minutes", "warn_minutes", "drain_below", "drain_max_minutes")
 #: Ended bookings are kept (listed) this long, then removed by their owner's next booking.
 KEPT = timedelta(days=7)
+#: Seconds `book` waits for the bookings folder's flock (an honest holder's is
+#: milliseconds) before it goes on without it.
+FLOCK_WAIT = 3.0
 #: Largest booking file read: anything bigger is not one of ours.
 MAX_FILE = 4096
 #: A booking file's name as `book` makes it: <rig>~<start>~<uid>~<8 hex digits>.json.
@@ -323,7 +327,7 @@ def book(lab: LabConfig, keys: tuple[str, ...], start: datetime, end: datetime, 
     folder = bookings_dir(lab)
     fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
+        _flock(fd, FLOCK_WAIT)  # had or not: of two overlapping bookings the first written counts
         existing = list_bookings(lab, keys, now=now)
         for o in existing:
             if o.start < end and start < o.end:
@@ -357,6 +361,20 @@ def book(lab: LabConfig, keys: tuple[str, ...], start: datetime, end: datetime, 
     got = _read(made[0], lab)
     assert got is not None
     return got[0]
+
+
+def _flock(fd: int, wait: float) -> bool:
+    """An exclusive flock on the folder `fd` within `wait` seconds (whether it was
+    had): anyone who may read bookings/ may flock it, and hold it for ever."""
+    deadline = time.monotonic() + wait
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except BlockingIOError:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
 
 
 def cancel(lab: LabConfig, booking_id: str) -> Booking:

@@ -256,3 +256,33 @@ def test_a_rig_spelt_otherwise_under_the_same_file_name_books_nothing_over_anoth
     os.chown(forged, student, student)
     assert [b.id for b in bk.list_bookings(lab, KEYS, now=now)] == [mine.id]
     assert bk.active_refusal(lab, KEYS, owner, slot + timedelta(minutes=10)) is None
+
+
+@pytest.mark.wallclock
+def test_a_flock_held_on_bookings_for_ever_delays_a_booking_a_bounded_time(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Anyone who may read bookings/ may flock it: a student's flock held for ever
+    made every `quadtank book` wait for ever.  Now it waits FLOCK_WAIT, then books."""
+    import fcntl
+    import subprocess
+    import sys
+    import time
+
+    lab = lab_with(tmp_path)
+    folder = bk.bookings_dir(lab)
+    monkeypatch.setattr(bk, "FLOCK_WAIT", 0.3)
+    holder = subprocess.Popen([sys.executable, "-c", "import fcntl, os, sys, time; fd = os.open(sys.argv[1], os.O_RDONLY); "
+                               "fcntl.flock(fd, fcntl.LOCK_EX); print(flush=True); time.sleep(30)", str(folder)],
+                              stdout=subprocess.PIPE)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline() == b"\n"
+        fd = os.open(folder, os.O_RDONLY)
+        with pytest.raises(BlockingIOError):
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # it is held
+        os.close(fd)
+        t0 = time.monotonic()
+        made = bk.book(lab, KEYS, at(0), at(30), now=at(-10))
+        assert time.monotonic() - t0 < 2.0 and [b.id for b in bk.list_bookings(lab, KEYS, now=at(-10))] == [made.id]
+    finally:
+        holder.kill()
+        holder.wait()
