@@ -321,11 +321,15 @@ def init_lab_folder(folder: Path) -> list[str]:
     me = os.getuid()
     done: list[str] = []
     parent = folder.absolute().parent
-    parent.mkdir(parents=True, exist_ok=True)
-    up = _unsafe_folder(parent, me) or unsafe_ancestor(parent)
+    # every folder on the way judged for the caller, before anything is made (not
+    # for the owner of the last one: a student's link there to a folder of root's
+    # made the student's folders above it look like its owner's)
+    on_the_way = [f for f in (parent, *parent.parents) if os.path.lexists(f)]
+    up = next((why for why in (_unsafe_folder(f, me) for f in on_the_way) if why is not None), None)
     if up is not None:
         raise RuntimeFolderError(f"{folder}: a lab folder cannot be made there: {up}, so its owner could "
                                  "replace the lab folder; choose a folder under root's (e.g. /run/quadtank)")
+    parent.mkdir(parents=True, exist_ok=True)
     for path, mode, what in ((folder, 0o1755, "the lab's runtime folder"),
                              (folder / "users", 0o1777, "each user makes a folder of sessions of their own here"),
                              (folder / "locks", 0o1777, "the DAQ locks"),

@@ -239,3 +239,27 @@ def test_junk_in_users_hides_no_one_elses_place(tmp_path: Path, monkeypatch: pyt
     ignored: list[tuple[str, str]] = []
     assert [(p.path, p.uid) for p in folders.places(root.path, ignored)] == [(place, other)]
     assert len(ignored) == 5  # at most MAX_PLACES named
+
+
+def test_lab_init_through_a_students_link_makes_nothing(tmp_path: Path) -> None:
+    """`lab init STUDENTS_FOLDER/link/rt` with the link (the student's) to a folder
+    of root's: the check judged the folders above for the link's owner, so the
+    student's folder passed and root made rt (1755, its users/ 1777) wherever the
+    link pointed (/etc/rt by hand)."""
+    from quadtank_tui.session.folders import RuntimeFolderError, init_lab_folder
+
+    if os.getuid() != 0:
+        pytest.skip("needs root (chown)")
+    student = 54321
+    theirs = tmp_path / "home"
+    theirs.mkdir(mode=0o755)
+    os.chown(theirs, student, student)
+    target = tmp_path / "roots"
+    target.mkdir(mode=0o755)
+    (theirs / "link").symlink_to(target)
+    os.lchown(theirs / "link", student, student)
+    with pytest.raises(RuntimeFolderError, match="home is 54321's"):
+        init_lab_folder(theirs / "link" / "rt")
+    with pytest.raises(RuntimeFolderError, match="home is 54321's"):
+        init_lab_folder(theirs / "link" / "deeper" / "rt")
+    assert list(target.iterdir()) == []
