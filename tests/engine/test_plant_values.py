@@ -70,7 +70,7 @@ def _created(text: str):
     ({"PLANT.alpha1": -0.01}, "PLANT.alpha1: alpha1 must be a finite number > 0, got -0.01"),
     ({"PLANT.alpha1": 0.011, "PLANT.hmax": 10.0}, "PLANT.Level1: operating level x1 must be in (0, 10] cm, got 15"),
     ({"PLANT.A1": 1.0}, "PLANT.A1: a coupled-cascade plant has no value 'A1' (it has alpha1, alpha2, beta1, "
-                        "g, hmax, kc1, kc2, vmax, spill1, vmin, ysat1, ysat2, Level1, Level2)"),
+                        "g, hmax, kc1, kc2, vmax, spill1, vmin, ysat1, ysat2, lam1, lam2, area1, off1, off2, Level1, Level2)"),
     ({"PLANT.kc1": "x"}, "PLANT.kc1: must be a number, got 'x'"),
 ])
 def test_a_refused_plant_value_changes_nothing_and_says_why(tmp_path: Path, values: dict, message: str) -> None:

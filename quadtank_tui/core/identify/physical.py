@@ -908,22 +908,56 @@ def _covariance(Js: np.ndarray, r: np.ndarray, scale: np.ndarray) -> tuple[np.nd
 INITIAL_ROWS = 20
 
 
+#: V: a log's resolution (six decimals of the normalized reading, 10 V full scale)
+LOG_RESOLUTION_V = 1e-5
+
+
 def estimate_initial(plant: Plant, exp: Experiment, offsets: Sequence[float], rows: int = INITIAL_ROWS
                      ) -> tuple[float, ...]:
     """The levels at a log's first row that best explain its first `rows` readings
-    with the constants held (least squares over the levels alone, from the measured
-    tanks and the steady state of the first input for the others)."""
+    with the constants held (least squares over the levels, from the measured
+    tanks and the steady state of the first input for the others).
+
+    A measured tank's first reading is where it was up to its sensor's noise, so
+    it moves at most three times that noise (from its first readings' third
+    differences) from it, and not at all in a log as clean as its printed digits;
+    an unmeasured tank, and one whose first reading does not invert to its level
+    (a saturated sensor, an offset inside the plant), is free.  Without that bound the least squares moved the
+    start to make up for a plant that does not fit the log (another .par's)."""
     n = min(max(rows, 2), exp.rows)
     part = Experiment(exp.name, exp.h, exp.u[:n], exp.y[:n], exp.outputs)
     x0 = np.array(initial_levels(plant, part, offsets, rows=1))
     lo = np.array([s.lo for s in plant.states])
     hi = np.array([s.hi for s in plant.states])
+    x0 = np.clip(x0, lo, hi)
+    gains = sensor_gains(plant)
+    # third differences: the levels' own curvature cancels, white noise stays (its variance times 20)
+    noise = (np.std(np.diff(part.y, n=3, axis=0), axis=0) / np.sqrt(20.0) if n >= 5
+             else np.zeros(len(exp.outputs)))
+    first = predict(plant, Experiment(exp.name, exp.h, exp.u[:1], exp.y[:1], exp.outputs), x0, offsets)[0]
+    free = np.ones(len(x0), dtype=bool)
+    for j, o in enumerate(exp.outputs):
+        band = 3.0 * float(noise[j])
+        if abs(first[j] - part.y[0, j]) > max(band, LOG_RESOLUTION_V) or gains[o] == 0:
+            continue  # the reading does not invert to its level (a saturated sensor, the plant's own offset): free
+        if noise[j] <= LOG_RESOLUTION_V / 2:  # no noise but the printed digits' rounding
+            free[o] = False
+        else:
+            lo[o] = max(lo[o], x0[o] - band / abs(gains[o]))
+            hi[o] = min(hi[o], x0[o] + band / abs(gains[o]))
+    if not free.any() or np.any(hi[free] <= lo[free]):
+        return tuple(float(v) for v in x0)
 
-    def residual(x: np.ndarray) -> np.ndarray:
+    def residual(z: np.ndarray) -> np.ndarray:
+        x = x0.copy()
+        x[free] = z
         return (predict(plant, part, x, offsets) - part.y).ravel()
 
-    sol = least_squares(residual, np.clip(x0, lo, hi), bounds=(lo, hi), x_scale=hi - lo, max_nfev=50)
-    return tuple(float(v) for v in sol.x)
+    sol = least_squares(residual, np.clip(x0[free], lo[free], hi[free]), bounds=(lo[free], hi[free]),
+                        x_scale=hi[free] - lo[free], max_nfev=50)
+    out = x0.copy()
+    out[free] = sol.x
+    return tuple(float(v) for v in out)
 
 
 def validate_physical(plant: Plant, exp: Experiment, offsets: Sequence[float],
