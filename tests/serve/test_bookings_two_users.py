@@ -136,7 +136,7 @@ def test_bobs_booking_refuses_alice_and_his_slot_ends_in_a_hand_over(lab: tuple[
         drained = re.search(rf"drained: every tank under {DRAIN:g} \(([^)]*)\)", text)
         assert drained is not None
         levels = [float(v) for v in drained.group(1).split(", ")]
-        assert len(levels) == 4 and max(levels) < DRAIN, levels
+        assert len(levels) == 4 and max(levels) <= DRAIN, levels  # printed to 3 decimals: 0.5496 reads 0.55
         assert end.time() <= stamps["pumps"] <= (end + timedelta(seconds=3)).time(), (stamps, end)
         assert dacs(port) == [0, 0, 0, 0]  # the pumps at 0, read from the rig
         log = bob.home / "bob.log"
