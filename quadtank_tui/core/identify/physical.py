@@ -498,7 +498,7 @@ def fit_physical(plant: Plant, experiments: Sequence[Experiment], free: Sequence
     lo, hi = _bounds(prob)
     scale = _scales(prob, lo, hi)
     rng = np.random.default_rng(seed)
-    floor = max(noise_floor(experiments), 1e-6)
+    floor = max(noise_floor(experiments), LOG_RESOLUTION_V / math.sqrt(12.0))  # a log's digits are noise too
     labels, thetas = _starts(prob, rng, random_starts if prob.fast else 0, lo, hi, starts)
     results: list[StartResult] = []
     stopped = ""
