@@ -65,9 +65,6 @@ def run_step(pair: Sequence[PIDTuning], *, par: str | Path | None = None, loop: 
                                   logs_dir=logs_dir,
                                   history_capacity=max(DEFAULT_CAPACITY, rows))
     try:
-        # The experiment starts at the file's operating point, as it always has (the
-        # engine's own start is the rest of the file's means, which this run replaces).
-        engine.loop.place_at_steady_state(params.process_levels())
         setup = {"SAMPLING TIME.TSamp": tsamp,
                  **(one_pump_values(pair[0]) if one_pump else controller_values(pair))}
         for i, sec in ((0, "REFERENCE ONE"), (1, "REFERENCE TWO")):

@@ -191,10 +191,6 @@ def prepare_headless(
         must(engine.submit(SetParams({"LOGGING.LogFile": stem})).result())
         if daq is not None:
             must(engine.submit(SetOperation("Active")).result())
-        # A scripted run starts where its experiment always has, at the file's
-        # operating point (logged runs, their replays and the published runs stay
-        # as they were); the screen's engine starts at the rest of the file's inputs.
-        engine.loop.place_at_steady_state(params.process_levels())
         if params.control.mode is ControlMode.AUTOMATIC:
             engine.loop.set_initial_mode(ControlMode.AUTOMATIC)
         if script is None or not any(e.action == "log" for e in script.events):

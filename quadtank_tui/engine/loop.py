@@ -112,14 +112,12 @@ class ControlLoop:
         history_capacity: int = DEFAULT_CAPACITY,
         now: Callable[[], datetime] = datetime.now,
     ) -> None:
-        rest = params.rest_levels()  # the file's own mode says whether its means are inputs
         params = params.with_value(MODE_KEY, ControlMode.MANUAL.value)
         self.params = params
         self.defaults = defaults if defaults is not None else params
         self.store = store if store is not None else ParStore(Path("params"))
         self.logs_dir = Path(logs_dir)
         self.sim = SimBackend.for_plant(params.process_plant(), params.process_levels())
-        self.sim.set_levels(rest)  # at rest in Manual; Reset still goes to the file's point
         refused = plant_refused(daq, params.process_plant())
         if refused is not None:
             raise ValueError(refused)

@@ -56,7 +56,7 @@ def test_loading_in_automatic_keeps_the_references(make_engine: MakeEngine, para
     r0 = automatic_at_rest(e)
     u0 = e.snapshot().u
     message = ok(e, LoadPar("nonminphase"))
-    assert r0 == pytest.approx((0.613, 0.639), abs=0.005)
+    assert r0 == pytest.approx((0.62, 0.635), abs=0.005)
     p = e.snapshot().params
     assert (p.get(MEANS[0]), p.get(MEANS[1])) == pytest.approx(r0)
     # the rest of the file is in force: its controllers and its valves (P+)

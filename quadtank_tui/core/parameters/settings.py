@@ -291,26 +291,3 @@ class Parameters:
     def process_levels(self) -> tuple[float, ...]:
         """Operating levels of the plant in use, in its own length unit."""
         return tuple(self.operating_levels()) if self.process is None else self.process.levels
-
-    def rest_levels(self) -> tuple[float, ...]:
-        """Where the plant in use settles with the Manual inputs (the two signals'
-        means, each times its input's full scale: 0.3 is 3 V on the quadruple tank)
-        held: where the simulator starts, so that Manual with nothing touched stays
-        put.  The file's operating point (process_levels) stays what the outlets and
-        every linear model are computed from; a .par's OpPoints are rounded and need
-        not be the steady state of its means (default.par: 0.62 / 0.635 / 0.09 / 0.07
-        against 0.613 / 0.639 / 0.082 / 0.0705 at 3.0 V).  A file saved in
-        Automatic holds references in its means, not inputs: it rests at its
-        operating point (coupled-tito.par: 0.383 as a pump input would fill its
-        tanks to 0.99 / 0.78)."""
-        if self.control.mode is ControlMode.AUTOMATIC:
-            return self.process_levels()
-        plant = self.process_plant()
-        u = [spec.full_scale * ref.mean for spec, ref in zip(plant.inputs, self.references)]
-        h = plant.clip(plant.steady_state(u))
-        if self.process is not None:
-            return h
-        # On the six decimals a log writes (y = kc h / 10 V): a logged run's first row
-        # is then its start exactly, and a replay of it (run --inputs-from) starts there.
-        kc = self.simulation.sensor
-        return tuple(round(kc * x / FULL_SCALE_V, 6) * FULL_SCALE_V / kc for x in h)
