@@ -106,3 +106,29 @@ def test_the_package_imports_form_no_circle() -> None:
     gone = sorted(" <-> ".join(sorted(c)) for c in KNOWN - found)
     assert not new, f"import circles: {new}"
     assert not gone, f"no longer circles, take them out of KNOWN: {gone}"
+
+
+def ui_part_graph() -> dict[str, set[str]]:
+    """The UI's parts (a subpackage of ui/ such as widgets or windows, or a module
+    directly in it such as app or labels) -> the other parts they import."""
+    prefix = "quadtank_tui.ui."
+    graph: dict[str, set[str]] = {}
+    for name, imported in import_graph().items():
+        if not name.startswith(prefix):
+            continue
+        src = name[len(prefix):].split(".")[0]
+        graph.setdefault(src, set())
+        for module in imported:
+            if module.startswith(prefix) and (dst := module[len(prefix):].split(".")[0]) != src:
+                graph.setdefault(src, set()).add(dst)
+    return graph
+
+
+def test_the_ui_parts_import_one_another_in_one_direction() -> None:
+    """Screens use windows and widgets, windows use widgets, nothing below imports
+    what is built on it: a circle between two parts (widgets <-> windows once, for a
+    few shared labels) loads every module of both whenever one loads, and hides
+    which is the lower layer; shared labels live in ui/labels.py."""
+    graph = ui_part_graph()
+    assert {"windows", "widgets"} <= graph["screens"] and "widgets" in graph["windows"]  # the known edges
+    assert circles(graph) == [], {k: sorted(v) for k, v in sorted(graph.items())}
