@@ -30,19 +30,18 @@ pumps at 0, the log saved, the session stopped).
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import json
 import os
 import re
 import secrets
 import stat
-import time
 from dataclasses import dataclass
 from datetime import date, datetime, timedelta
 from pathlib import Path
 from typing import Any, Iterable
 
 from quadtank_tui.session.lab import LabConfig, LabConfigError, ensure_runtime_dir
+from quadtank_tui.session.lock import flock_within
 
 KEYS = ("slot_minutes", "horizon_days", "weekly_quota_minutes", "warn_minutes", "drain_below", "drain_max_minutes")
 #: Ended bookings are kept (listed) this long, then removed by their owner's next booking.
@@ -327,7 +326,7 @@ def book(lab: LabConfig, keys: tuple[str, ...], start: datetime, end: datetime, 
     folder = bookings_dir(lab)
     fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
     try:
-        _flock(fd, FLOCK_WAIT)  # had or not: of two overlapping bookings the first written counts
+        flock_within(fd, FLOCK_WAIT)  # had or not: of two overlapping bookings the first written counts
         existing = list_bookings(lab, keys, now=now)
         for o in existing:
             if o.start < end and start < o.end:
@@ -361,20 +360,6 @@ def book(lab: LabConfig, keys: tuple[str, ...], start: datetime, end: datetime, 
     got = _read(made[0], lab)
     assert got is not None
     return got[0]
-
-
-def _flock(fd: int, wait: float) -> bool:
-    """An exclusive flock on the folder `fd` within `wait` seconds (whether it was
-    had): anyone who may read bookings/ may flock it, and hold it for ever."""
-    deadline = time.monotonic() + wait
-    while True:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            return True
-        except BlockingIOError:
-            if time.monotonic() >= deadline:
-                return False
-            time.sleep(0.02)
 
 
 def cancel(lab: LabConfig, booking_id: str) -> Booking:

@@ -328,8 +328,9 @@ def _open_folder(folder: Path) -> int:
         raise DaqLockError(f"{folder}: the lock folder cannot be opened ({exc.strerror})") from None
 
 
-def _flock(fd: int, wait: float) -> bool:
-    """An exclusive flock on `fd` within `wait` seconds (whether it was had)."""
+def flock_within(fd: int, wait: float) -> bool:
+    """An exclusive flock on `fd` within `wait` seconds (whether it was had): a
+    shared folder's flock anyone who may read it may take, and hold for ever."""
     deadline = time.monotonic() + wait
     while True:
         try:
@@ -401,7 +402,7 @@ class DaqLock:
         folder = _open_folder(lab.locks_dir)
         busy: str | None = None
         try:
-            if not _flock(folder, LOCK_WAIT):  # someone holds it: go on without it (the ranking decides)
+            if not flock_within(folder, LOCK_WAIT):  # someone holds it: go on without it (the ranking decides)
                 busy = _busy(lab.locks_dir, folder, LOCK_WAIT) + "; this program went on without it"
             found = _records(device, lab)
             mine = next((f for f in found if f.record.pid == me.pid and f.record.uid == me.uid), None)
@@ -453,7 +454,7 @@ class DaqLock:
         except DaqLockError:
             return  # the folder went wrong: the record names a process that is ending
         try:
-            _flock(folder, QUICK_WAIT)  # had or not: a stopping program does not wait longer
+            flock_within(folder, QUICK_WAIT)  # had or not: a stopping program does not wait longer
             self._remove()
         finally:
             os.close(folder)
@@ -465,7 +466,7 @@ class DaqLock:
         new = _Record(rec.user, rec.uid, pid, process_start(pid), rec.since, rec.session, rec.token, rec.take_over)
         folder = _open_folder(self.path.parent)
         try:
-            _flock(folder, QUICK_WAIT)
+            flock_within(folder, QUICK_WAIT)
             got = _read(self.path, os.getuid())
             if got is None or got[0].token != rec.token:
                 raise DaqLockError(f"{self.path}: the lock of {self.device} is no longer ours (taken over)")
