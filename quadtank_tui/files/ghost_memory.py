@@ -39,7 +39,9 @@ def state_file() -> Path:
     return Path(base) / "quadtank" / "ghosts.json"
 
 
-def _read(path: Path) -> dict[str, dict[str, object]]:
+def read_entries(path: Path) -> dict[str, object]:
+    """A client memory's entries by session (empty when unreadable: only the
+    memory is lost).  The ghosts' file and the trends' (trend_memory.py) share it."""
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
@@ -47,30 +49,36 @@ def _read(path: Path) -> dict[str, dict[str, object]]:
     return data if isinstance(data, dict) else {}
 
 
-def recall(session: str, path: Path | None = None) -> RememberedGhost | None:
-    """The ghost remembered for `session` (its id and start), if any."""
-    entry = _read(path or state_file()).get(session)
-    if not isinstance(entry, dict):
-        return None
-    try:
-        at = entry.get("at")
-        return RememberedGhost(str(entry["path"]), None if at is None else float(at),  # type: ignore[arg-type]
-                               float(entry.get("loaded_at", 0.0)))  # type: ignore[arg-type]
-    except (KeyError, TypeError, ValueError):
-        return None
-
-
-def remember(session: str, ghost: RememberedGhost | None, path: Path | None = None) -> None:
-    """Remember `ghost` for `session` (None: forget it)."""
-    path = path or state_file()
-    data = _read(path)
+def write_entry(path: Path, session: str, entry: object | None) -> None:
+    """Set `session`'s entry (None: forget it), newest last, the oldest past KEEP
+    dropped; a file that cannot be written costs only the memory."""
+    data = read_entries(path)
     data.pop(session, None)
-    if ghost is not None:
-        data[session] = {"path": ghost.path, "at": ghost.at, "loaded_at": ghost.loaded_at}
+    if entry is not None:
+        data[session] = entry
     while len(data) > KEEP:
         data.pop(next(iter(data)))
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(path, json.dumps(data, indent=1) + "\n", encoding="utf-8")
     except OSError:
-        pass  # only the memory is lost
+        pass
+
+
+def recall(session: str, path: Path | None = None) -> RememberedGhost | None:
+    """The ghost remembered for `session` (its id and start), if any."""
+    entry = read_entries(path or state_file()).get(session)
+    if not isinstance(entry, dict):
+        return None
+    try:
+        at = entry.get("at")
+        return RememberedGhost(str(entry["path"]), None if at is None else float(at),
+                               float(entry.get("loaded_at", 0.0)))
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def remember(session: str, ghost: RememberedGhost | None, path: Path | None = None) -> None:
+    """Remember `ghost` for `session` (None: forget it)."""
+    entry = None if ghost is None else {"path": ghost.path, "at": ghost.at, "loaded_at": ghost.loaded_at}
+    write_entry(path or state_file(), session, entry)

@@ -10,12 +10,10 @@ cannot be read or written costs only the memory, never the TUI.
 
 from __future__ import annotations
 
-import json
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
-from quadtank_tui.files.atomic import atomic_write_text
-from quadtank_tui.files.ghost_memory import KEEP
+from quadtank_tui.files.ghost_memory import read_entries, write_entry
 from quadtank_tui.files.ghost_memory import state_file as ghost_file
 
 
@@ -34,17 +32,9 @@ def state_file() -> Path:
     return ghost_file().with_name("trends.json")
 
 
-def _read(path: Path) -> dict[str, object]:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return {}
-    return data if isinstance(data, dict) else {}
-
-
 def recall(session: str, path: Path | None = None) -> TrendSettings | None:
     """The settings remembered for `session` (its id and start), if any and sound."""
-    entry = _read(path or state_file()).get(session)
+    entry = read_entries(path or state_file()).get(session)
     if not isinstance(entry, dict):
         return None
     kinds = {f.name: type(getattr(TrendSettings(), f.name)) for f in fields(TrendSettings)}
@@ -55,15 +45,4 @@ def recall(session: str, path: Path | None = None) -> TrendSettings | None:
 
 def remember(session: str, settings: TrendSettings, path: Path | None = None) -> None:
     """Remember `settings` for `session` (the defaults: forget it)."""
-    path = path or state_file()
-    data = _read(path)
-    data.pop(session, None)
-    if settings != TrendSettings():
-        data[session] = asdict(settings)
-    while len(data) > KEEP:
-        data.pop(next(iter(data)))
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(path, json.dumps(data, indent=1) + "\n", encoding="utf-8")
-    except OSError:
-        pass  # only the memory is lost
+    write_entry(path or state_file(), session, None if settings == TrendSettings() else asdict(settings))
